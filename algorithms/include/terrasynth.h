@@ -1,0 +1,300 @@
+/*
+ * terrasynth.h - public interface of libterrasynth, the TerraSynth core.
+ *
+ * Copyright (C) 2026 The TerraSynth developers
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ *
+ * The core is a plain C11 library: no file I/O, no printing, no globals.
+ * Rasters are float views in which NaN means nodata.  Every fallible call
+ * takes a ts_ctx (errors, progress/cancel, seed, threads) as its first
+ * argument and returns a ts_status; the detailed message is
+ * ts_ctx_message(ctx), prefixed with the stage name.
+ *
+ * Ownership is stated on every pointer: "borrowed" means the callee neither
+ * keeps nor frees it; "caller frees with X" means the caller owns the result.
+ */
+#ifndef TERRASYNTH_H
+#define TERRASYNTH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#if defined(TS_BUILDING_LIBRARY) && defined(__GNUC__)
+#define TS_API __attribute__((visibility("default")))
+#else
+#define TS_API
+#endif
+
+#define TS_VERSION_MAJOR 0
+#define TS_VERSION_MINOR 1
+#define TS_VERSION_PATCH 0
+
+/** Version string "MAJOR.MINOR.PATCH" (static storage). */
+TS_API const char *ts_version(void);
+
+/* ------------------------------------------------------------------ */
+/* Status and context                                                 */
+/* ------------------------------------------------------------------ */
+
+typedef enum ts_status {
+    TS_OK = 0,
+    TS_ERR_NOMEM,     /* allocation failed */
+    TS_ERR_ARG,       /* invalid argument or parameter */
+    TS_ERR_SIZE,      /* raster too small / too large / empty */
+    TS_ERR_CANCELLED, /* the progress callback asked to stop */
+    TS_ERR_NUMERIC,   /* a solver failed, or the data are unusable (e.g. all nodata) */
+    TS_ERR_INTERNAL   /* a bug: please report */
+} ts_status;
+
+/** Fixed English text for a status code (static storage). */
+TS_API const char *ts_status_str(ts_status status);
+
+/**
+ * Progress callback, the shape of GDALProgressFunc.  `done` runs from 0 to
+ * 1 over the whole call; `msg` may be NULL.  Return 0 to cancel: the running
+ * call then returns TS_ERR_CANCELLED as soon as it can.
+ */
+typedef int (*ts_progress_fn)(double done, const char *msg, void *user);
+
+/** Opaque per-thread context.  Never share one between threads. */
+typedef struct ts_ctx ts_ctx;
+
+/** New context (caller frees with ts_ctx_free); NULL if out of memory.
+ *  Defaults: seed 0, threads 0 (= all online processors), no progress. */
+TS_API ts_ctx *ts_ctx_new(void);
+TS_API void ts_ctx_free(ts_ctx *ctx);
+
+/** Progress callback and its user pointer (borrowed; may be NULL). */
+TS_API void ts_ctx_set_progress(ts_ctx *ctx, ts_progress_fn fn, void *user);
+TS_API void ts_ctx_set_seed(ts_ctx *ctx, uint64_t seed);
+TS_API uint64_t ts_ctx_seed(const ts_ctx *ctx);
+/** Worker threads; 0 = all online processors.  Results never depend on it. */
+TS_API void ts_ctx_set_threads(ts_ctx *ctx, int threads);
+TS_API int ts_ctx_threads(const ts_ctx *ctx);
+/** Status and message of the last failed call (message: borrowed, valid
+ *  until the next call on ctx; "" when the last call succeeded). */
+TS_API ts_status ts_ctx_status(const ts_ctx *ctx);
+TS_API const char *ts_ctx_message(const ts_ctx *ctx);
+
+/* ------------------------------------------------------------------ */
+/* Rasters                                                            */
+/* ------------------------------------------------------------------ */
+
+/**
+ * A float raster view.  `stride` is in elements (>= width).  NaN = nodata.
+ * A view never owns `data` unless it came from ts_raster_alloc.
+ */
+typedef struct ts_raster {
+    int width, height;
+    ptrdiff_t stride;
+    float *data;
+} ts_raster;
+
+#define TS_PIX(r, x, y) ((r)->data[(ptrdiff_t)(y) * (r)->stride + (x)])
+
+/** Wrap caller memory (borrowed: the view does not own data). */
+TS_API ts_raster ts_raster_wrap(float *data, int width, int height, ptrdiff_t stride);
+/** Allocate a width x height raster filled with NaN; caller frees with
+ *  ts_raster_free.  Returns TS_ERR_SIZE for non-positive or huge sizes. */
+TS_API ts_status ts_raster_alloc(ts_ctx *ctx, int width, int height, ts_raster *out);
+/** Free a raster from ts_raster_alloc and zero the view (NULL-safe). */
+TS_API void ts_raster_free(ts_raster *r);
+
+/** Statistics over the valid (non-NaN) cells.  Returns TS_ERR_NUMERIC when
+ *  every cell is nodata. */
+typedef struct ts_raster_stats {
+    size_t n_valid, n_nodata;
+    double min, max, mean, stddev;
+} ts_raster_stats;
+TS_API ts_status ts_raster_stats_compute(ts_ctx *ctx, const ts_raster *r, ts_raster_stats *out);
+
+/**
+ * Ground metrics of a grid: the width (dx) and height (dy) of a cell of
+ * row y, in metres.  Per row, because geographic grids narrow towards the
+ * poles.  Both arrays have `height` entries (borrowed).  Passing NULL
+ * metrics to a stage means "cell units": every cell is 1 x 1.
+ */
+typedef struct ts_grid_metrics {
+    const double *dx;
+    const double *dy;
+} ts_grid_metrics;
+
+/* ------------------------------------------------------------------ */
+/* Parameters: declared once, used by every front end                 */
+/* ------------------------------------------------------------------ */
+
+typedef enum ts_param_type {
+    TS_PARAM_INT,    /* int */
+    TS_PARAM_DOUBLE, /* double */
+    TS_PARAM_ENUM,   /* int; value is the index into `choices` */
+    TS_PARAM_LENGTH  /* ts_length: a number with unit cells or metres */
+} ts_param_type;
+
+typedef enum ts_length_unit { TS_UNIT_CELLS = 0, TS_UNIT_METRES = 1 } ts_length_unit;
+
+/** A length that the user may give in cells ("12") or metres ("600m"). */
+typedef struct ts_length {
+    double value;
+    ts_length_unit unit;
+} ts_length;
+
+/** One parameter of a stage.  All strings are static. */
+typedef struct ts_param_desc {
+    const char *name;    /* snake_case; CLI flag is --name-with-dashes */
+    ts_param_type type;
+    double def;          /* default (enum: index; length: value in def_unit) */
+    double min, max;     /* inclusive range */
+    ts_length_unit def_unit; /* TS_PARAM_LENGTH only */
+    const char *units;   /* "cells", "m", "elevation units", "" */
+    const char *choices; /* TS_PARAM_ENUM: "a|b|c"; NULL otherwise */
+    const char *help;    /* one sentence */
+    size_t offset;       /* offset of the field in the stage's params struct */
+} ts_param_desc;
+
+/** Descriptor table of a stage ("ppa", ...); NULL and *n = 0 if unknown.
+ *  The table is static. */
+TS_API const ts_param_desc *ts_params_describe(const char *stage, size_t *n);
+/** Names of all stages with descriptor tables, NULL-terminated (static). */
+TS_API const char *const *ts_params_stages(void);
+/** Parse `value` and store it into the params struct of `stage`
+ *  (borrowed).  Range-checked: TS_ERR_ARG with a message naming the
+ *  parameter for unknown names, bad syntax or out-of-range values. */
+TS_API ts_status ts_params_set(ts_ctx *ctx, const char *stage, void *params,
+                               const char *name, const char *value);
+/** Format the current value of a parameter into buf (for recipes, help). */
+TS_API ts_status ts_params_get(ts_ctx *ctx, const char *stage, const void *params,
+                               const char *name, char *buf, size_t buflen);
+/** Check every parameter of `params` against its range. */
+TS_API ts_status ts_params_validate(ts_ctx *ctx, const char *stage, const void *params);
+
+/* ------------------------------------------------------------------ */
+/* PPA: ridge and valley axes (Chang, Song & Hsu 1998; Zhou et al.    */
+/* 2007 section 3)                                                    */
+/* ------------------------------------------------------------------ */
+
+/** Feature kinds; also the bits of ts_features.mask. */
+enum { TS_RIDGE = 1, TS_VALLEY = 2 };
+/** Values of ts_ppa_params.features. */
+enum { TS_PPA_RIDGES = 0, TS_PPA_VALLEYS = 1, TS_PPA_BOTH = 2 };
+
+typedef struct ts_ppa_params {
+    int features;            /* TS_PPA_RIDGES, TS_PPA_VALLEYS or TS_PPA_BOTH */
+    int profile_length;      /* cells, odd, >= 3: the profile spans +-(n-1)/2 cells */
+    double threshold;        /* elevation units: the dip on each side must exceed */
+    double threshold_fraction; /* ... and this fraction of the elevation range */
+    ts_length min_branch_length; /* branches shorter than this are removed */
+} ts_ppa_params;
+
+/** Defaults that work on mountains, canyons, hills and volcanoes. */
+TS_API ts_ppa_params ts_ppa_params_default(void);
+
+/** A node of the feature graph: an endpoint (degree 1) or a branch
+ *  point (degree >= 3).  x, y are the cell's column and row. */
+typedef struct ts_feature_node {
+    int x, y;
+    float z;
+    int degree;
+    int kind; /* TS_RIDGE or TS_VALLEY */
+} ts_feature_node;
+
+typedef struct ts_feature_vertex {
+    int x, y;
+    float z;
+} ts_feature_vertex;
+
+/** A path: the chain of cells between two nodes (both included). */
+typedef struct ts_feature_path {
+    int kind;            /* TS_RIDGE or TS_VALLEY */
+    size_t node_a, node_b; /* indices into nodes */
+    size_t first, count; /* vertices verts[first .. first+count-1] */
+    double length;       /* metres with metrics, else cells */
+    float zmin, zmax, zmean;
+} ts_feature_path;
+
+/**
+ * The PPA result: a forest.  Library-allocated; caller frees with
+ * ts_features_free.  mask has width*height bytes (row-major, stride width):
+ * bit TS_RIDGE and/or bit TS_VALLEY set on feature cells, 0 elsewhere.
+ */
+typedef struct ts_features {
+    int width, height;
+    unsigned char *mask;
+    size_t n_nodes, n_paths, n_verts;
+    ts_feature_node *nodes;
+    ts_feature_path *paths;
+    ts_feature_vertex *verts;
+    double threshold_used;   /* effective profile threshold, elevation units */
+} ts_features;
+
+TS_API void ts_features_free(ts_features *f);
+
+/**
+ * Extract ridge and/or valley axes from `dem` (borrowed; NaN = nodata).
+ * `metrics` may be NULL (cell units).  On success *out is a new feature
+ * graph (caller frees with ts_features_free).  Returns TS_ERR_ARG for bad
+ * parameters, TS_ERR_SIZE when the DEM is smaller than 2 x 2,
+ * TS_ERR_NUMERIC when every cell is nodata, TS_ERR_CANCELLED, TS_ERR_NOMEM.
+ */
+TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem,
+                                const ts_grid_metrics *metrics,
+                                const ts_ppa_params *params, ts_features **out);
+
+/* The PPA stages, exposed for tests and for callers that want the
+ * intermediate results.  Masks are width*height bytes, stride width. */
+
+/** Profile recognition: set bit `kinds` (TS_RIDGE|TS_VALLEY) on targets.
+ *  `targets` is caller-allocated and fully overwritten. */
+TS_API ts_status ts_ppa_profile_recognition(ts_ctx *ctx, const ts_raster *dem,
+                                            int profile_length, double threshold,
+                                            int kinds, unsigned char *targets);
+
+/** A segment between two 8-adjacent target cells a < b (row-major index). */
+typedef struct ts_ppa_segment {
+    uint32_t a, b;
+    float weight; /* importance: z(a) + z(b) (negated heights for valleys) */
+} ts_ppa_segment;
+
+/** Target connection for one kind: all 8-adjacent target pairs, dropping
+ *  the lower of two crossing diagonals.  *segs is library-allocated
+ *  (caller frees with free()).  Segments are returned in a fixed order. */
+TS_API ts_status ts_ppa_target_connection(ts_ctx *ctx, const ts_raster *dem,
+                                          const unsigned char *targets, int kind,
+                                          ts_ppa_segment **segs, size_t *n_segs);
+
+/** Polygon breaking as a maximum spanning forest (Kruskal + union-find).
+ *  Segments are ordered by weight, ties broken by lower index first kept.
+ *  keep[i] is set to 1 for kept segments, 0 otherwise (caller-allocated,
+ *  n_segs entries).  n_cells bounds the vertex ids. */
+TS_API ts_status ts_ppa_polygon_breaking(ts_ctx *ctx, const ts_ppa_segment *segs,
+                                         size_t n_segs, size_t n_cells,
+                                         unsigned char *keep);
+
+/* ------------------------------------------------------------------ */
+/* Rendering                                                          */
+/* ------------------------------------------------------------------ */
+
+/**
+ * Hillshade of `dem` into `out` (caller-allocated, same size), values 0..1,
+ * NaN where the DEM is nodata.  Azimuth and altitude in degrees (315, 45
+ * is the cartographic default); z_factor exaggerates relief.
+ */
+TS_API ts_status ts_hillshade(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
+                              double azimuth_deg, double altitude_deg, double z_factor,
+                              ts_raster *out);
+
+/**
+ * RGB preview (caller-allocated, 3*width*height bytes): hillshade tinted by
+ * elevation, ridges of `features` in red and valleys in blue (features may
+ * be NULL), nodata in white.
+ */
+TS_API ts_status ts_render_preview(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
+                                   const ts_features *features, unsigned char *rgb);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* TERRASYNTH_H */

@@ -1,0 +1,176 @@
+/*
+ * context.c - the ts_ctx: errors, progress and cancel, seed, threads.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "internal.h"
+
+TS_API const char *ts_version(void)
+{
+    return "0.1.0";
+}
+
+TS_API const char *ts_status_str(ts_status status)
+{
+    switch (status) {
+    case TS_OK: return "success";
+    case TS_ERR_NOMEM: return "out of memory";
+    case TS_ERR_ARG: return "invalid argument";
+    case TS_ERR_SIZE: return "invalid size";
+    case TS_ERR_CANCELLED: return "cancelled";
+    case TS_ERR_NUMERIC: return "numerical failure";
+    case TS_ERR_INTERNAL: return "internal error";
+    }
+    return "unknown status";
+}
+
+TS_API ts_ctx *ts_ctx_new(void)
+{
+    ts_ctx *ctx = calloc(1, sizeof *ctx);
+    if (!ctx)
+        return NULL;
+    ctx->prog_lo = 0.0;
+    ctx->prog_hi = 1.0;
+    return ctx;
+}
+
+TS_API void ts_ctx_free(ts_ctx *ctx)
+{
+    free(ctx);
+}
+
+TS_API void ts_ctx_set_progress(ts_ctx *ctx, ts_progress_fn fn, void *user)
+{
+    ctx->progress = fn;
+    ctx->progress_user = user;
+}
+
+TS_API void ts_ctx_set_seed(ts_ctx *ctx, uint64_t seed) { ctx->seed = seed; }
+TS_API uint64_t ts_ctx_seed(const ts_ctx *ctx) { return ctx->seed; }
+TS_API void ts_ctx_set_threads(ts_ctx *ctx, int threads) { ctx->threads = threads < 0 ? 0 : threads; }
+TS_API int ts_ctx_threads(const ts_ctx *ctx) { return ctx->threads; }
+TS_API ts_status ts_ctx_status(const ts_ctx *ctx) { return ctx->status; }
+TS_API const char *ts_ctx_message(const ts_ctx *ctx) { return ctx->message; }
+
+void ts_clear(ts_ctx *ctx)
+{
+    ctx->status = TS_OK;
+    ctx->message[0] = '\0';
+}
+
+ts_status ts_fail(ts_ctx *ctx, ts_status status, const char *stage, const char *fmt, ...)
+{
+    va_list ap;
+    int n;
+    ctx->status = status;
+    n = snprintf(ctx->message, sizeof ctx->message, "%s: ", stage);
+    if (n < 0 || (size_t)n >= sizeof ctx->message)
+        return status;
+    va_start(ap, fmt);
+    vsnprintf(ctx->message + n, sizeof ctx->message - (size_t)n, fmt, ap);
+    va_end(ap);
+    return status;
+}
+
+ts_status ts_progress(ts_ctx *ctx, double frac, const char *msg)
+{
+    double done;
+    if (!ctx->progress)
+        return TS_OK;
+    if (frac < 0.0) frac = 0.0;
+    if (frac > 1.0) frac = 1.0;
+    done = ctx->prog_lo + frac * (ctx->prog_hi - ctx->prog_lo);
+    if (!ctx->progress(done, msg, ctx->progress_user))
+        return ts_fail(ctx, TS_ERR_CANCELLED, "terrasynth", "cancelled by the caller");
+    return TS_OK;
+}
+
+ts_progress_saved ts_progress_push(ts_ctx *ctx, double lo, double hi)
+{
+    ts_progress_saved s = {ctx->prog_lo, ctx->prog_hi};
+    double span = ctx->prog_hi - ctx->prog_lo;
+    ctx->prog_lo = s.lo + lo * span;
+    ctx->prog_hi = s.lo + hi * span;
+    return s;
+}
+
+void ts_progress_pop(ts_ctx *ctx, ts_progress_saved saved)
+{
+    ctx->prog_lo = saved.lo;
+    ctx->prog_hi = saved.hi;
+}
+
+int ts_thread_count(const ts_ctx *ctx, size_t work_items)
+{
+    long n = ctx->threads;
+    if (n <= 0) {
+        n = sysconf(_SC_NPROCESSORS_ONLN);
+        if (n < 1) n = 1;
+    }
+    if (n > 64) n = 64;
+    if ((size_t)n > work_items) n = (long)(work_items ? work_items : 1);
+    return (int)n;
+}
+
+typedef struct par_job {
+    ts_range_fn fn;
+    void *arg;
+    size_t begin, end;
+} par_job;
+
+static void *par_run(void *p)
+{
+    par_job *j = p;
+    j->fn(j->arg, j->begin, j->end);
+    return NULL;
+}
+
+void ts_parallel_for(const ts_ctx *ctx, size_t n, ts_range_fn fn, void *arg)
+{
+    int t, nt = ts_thread_count(ctx, n);
+    par_job jobs[64];
+    pthread_t tid[64];
+    int started[64] = {0};
+    if (n == 0)
+        return;
+    if (nt <= 1) {
+        fn(arg, 0, n);
+        return;
+    }
+    for (t = 0; t < nt; t++) {
+        jobs[t].fn = fn;
+        jobs[t].arg = arg;
+        jobs[t].begin = n * (size_t)t / (size_t)nt;
+        jobs[t].end = n * (size_t)(t + 1) / (size_t)nt;
+    }
+    /* thread 0's share runs on the calling thread */
+    for (t = 1; t < nt; t++)
+        started[t] = pthread_create(&tid[t], NULL, par_run, &jobs[t]) == 0;
+    par_run(&jobs[0]);
+    for (t = 1; t < nt; t++) {
+        if (started[t])
+            pthread_join(tid[t], NULL);
+        else
+            par_run(&jobs[t]); /* could not start: do it here */
+    }
+}
+
+void *ts_malloc_array(size_t n, size_t size)
+{
+    if (size && n > SIZE_MAX / size)
+        return NULL;
+    return malloc((n && size) ? n * size : 1);
+}
+
+void *ts_calloc_array(size_t n, size_t size)
+{
+    if (size && n > SIZE_MAX / size)
+        return NULL;
+    return calloc(n ? n : 1, size ? size : 1);
+}

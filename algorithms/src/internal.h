@@ -1,0 +1,77 @@
+/*
+ * internal.h - private helpers of libterrasynth: the context layout, error
+ * and progress helpers, a tiny parallel-for.  Not installed.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#ifndef TS_INTERNAL_H
+#define TS_INTERNAL_H
+
+#include <math.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "terrasynth.h"
+
+struct ts_ctx {
+    ts_status status;
+    char message[1024];
+    ts_progress_fn progress;
+    void *progress_user;
+    double prog_lo, prog_hi; /* current sub-range of the overall progress */
+    uint64_t seed;
+    int threads;
+};
+
+/* Record a failure: "<stage>: <formatted text>"; returns status. */
+ts_status ts_fail(ts_ctx *ctx, ts_status status, const char *stage, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+/* Clear the status at the start of a public call. */
+void ts_clear(ts_ctx *ctx);
+
+/* Report progress `frac` (0..1) of the current sub-range; returns
+ * TS_ERR_CANCELLED (message set) if the callback asked to stop. */
+ts_status ts_progress(ts_ctx *ctx, double frac, const char *msg);
+
+/* Narrow the progress range to [lo, hi] of the current range; restore
+ * with ts_progress_pop(ctx, saved). */
+typedef struct ts_progress_saved {
+    double lo, hi;
+} ts_progress_saved;
+ts_progress_saved ts_progress_push(ts_ctx *ctx, double lo, double hi);
+void ts_progress_pop(ts_ctx *ctx, ts_progress_saved saved);
+
+/* Number of worker threads to use for `work_items` independent items. */
+int ts_thread_count(const ts_ctx *ctx, size_t work_items);
+
+/* Run fn(arg, begin, end) over [0, n) split into contiguous chunks, one
+ * per thread (the caller's thread takes the first).  Results must not
+ * depend on the split.  A thread that cannot be started has its chunk run
+ * on the calling thread, so this cannot fail. */
+typedef void (*ts_range_fn)(void *arg, size_t begin, size_t end);
+void ts_parallel_for(const ts_ctx *ctx, size_t n, ts_range_fn fn, void *arg);
+
+/* Overflow-checked allocation helpers (NULL on overflow or failure). */
+void *ts_malloc_array(size_t n, size_t size);
+void *ts_calloc_array(size_t n, size_t size);
+
+#define TS_PI 3.14159265358979323846
+#define TS_MIN(a, b) ((a) < (b) ? (a) : (b))
+#define TS_MAX(a, b) ((a) > (b) ? (a) : (b))
+
+/* Ground size of a cell step (dx, dy in cells) starting on row y. */
+static inline double ts_step_length(const ts_grid_metrics *m, int y, int ddx, int ddy)
+{
+    double wx, wy;
+    if (!m)
+        return (ddx && ddy) ? 1.4142135623730951 : 1.0;
+    wx = m->dx[y] * ddx;
+    wy = m->dy[y] * ddy;
+    return sqrt(wx * wx + wy * wy);
+}
+
+#endif

@@ -1,0 +1,251 @@
+/*
+ * params.c - parameter descriptor tables, one per stage, and the generic
+ * parse/format/validate code that every front end (CLI, GDAL driver
+ * recipes and open options, QGIS provider) goes through.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <ctype.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "internal.h"
+
+static const ts_param_desc ppa_desc[] = {
+    {"features", TS_PARAM_ENUM, TS_PPA_RIDGES, 0, 2, TS_UNIT_CELLS, "", "ridges|valleys|both",
+     "Which axes to extract.", offsetof(ts_ppa_params, features)},
+    {"profile_length", TS_PARAM_INT, 11, 3, 1001, TS_UNIT_CELLS, "cells", NULL,
+     "Length of the four profiles through each cell (odd); a target must dip on both sides "
+     "within half of it.",
+     offsetof(ts_ppa_params, profile_length)},
+    {"threshold", TS_PARAM_DOUBLE, 0.0, 0.0, 1e6, TS_UNIT_CELLS, "elevation units", NULL,
+     "Minimum dip on both sides of a profile, in elevation units (metres after unit conversion).",
+     offsetof(ts_ppa_params, threshold)},
+    {"threshold_fraction", TS_PARAM_DOUBLE, 0.0025, 0.0, 1.0, TS_UNIT_CELLS, "fraction", NULL,
+     "Minimum dip as a fraction of the DEM's elevation range; the larger of the two thresholds "
+     "applies.",
+     offsetof(ts_ppa_params, threshold_fraction)},
+    {"min_branch_length", TS_PARAM_LENGTH, 40, 0, 1e7, TS_UNIT_CELLS, "cells or m", NULL,
+     "Branches shorter than this are removed (branch reduction); a plain number is cells, "
+     "a number with suffix m is metres.",
+     offsetof(ts_ppa_params, min_branch_length)},
+};
+
+static const char *const stage_names[] = {"ppa", NULL};
+
+TS_API const char *const *ts_params_stages(void)
+{
+    return stage_names;
+}
+
+TS_API const ts_param_desc *ts_params_describe(const char *stage, size_t *n)
+{
+    if (stage && strcmp(stage, "ppa") == 0) {
+        *n = sizeof ppa_desc / sizeof ppa_desc[0];
+        return ppa_desc;
+    }
+    *n = 0;
+    return NULL;
+}
+
+static const ts_param_desc *find_desc(ts_ctx *ctx, const char *stage, const char *name)
+{
+    size_t i, n;
+    const ts_param_desc *d = ts_params_describe(stage, &n);
+    if (!d) {
+        ts_fail(ctx, TS_ERR_ARG, "params", "unknown stage '%s'", stage ? stage : "(null)");
+        return NULL;
+    }
+    for (i = 0; i < n; i++) {
+        /* accept snake_case and dashed-case */
+        const char *a = d[i].name, *b = name;
+        while (*a && *b && (*a == *b || (*a == '_' && *b == '-')))
+            a++, b++;
+        if (!*a && !*b)
+            return &d[i];
+    }
+    ts_fail(ctx, TS_ERR_ARG, stage, "unknown parameter '%s'", name);
+    return NULL;
+}
+
+/* Index of `word` in "a|b|c", or -1. */
+static int enum_index(const char *choices, const char *word)
+{
+    int idx = 0;
+    size_t wl = strlen(word);
+    const char *p = choices;
+    while (*p) {
+        const char *bar = strchr(p, '|');
+        size_t len = bar ? (size_t)(bar - p) : strlen(p);
+        if (len == wl && strncmp(p, word, len) == 0)
+            return idx;
+        idx++;
+        if (!bar)
+            break;
+        p = bar + 1;
+    }
+    return -1;
+}
+
+static int enum_word(const char *choices, int index, char *buf, size_t buflen)
+{
+    int idx = 0;
+    const char *p = choices;
+    while (*p) {
+        const char *bar = strchr(p, '|');
+        size_t len = bar ? (size_t)(bar - p) : strlen(p);
+        if (idx == index) {
+            snprintf(buf, buflen, "%.*s", (int)len, p);
+            return 0;
+        }
+        idx++;
+        if (!bar)
+            break;
+        p = bar + 1;
+    }
+    return -1;
+}
+
+static ts_status check_range(ts_ctx *ctx, const char *stage, const ts_param_desc *d, double v)
+{
+    if (!(v >= d->min && v <= d->max))
+        return ts_fail(ctx, TS_ERR_ARG, stage, "%s = %g is out of range [%g, %g]", d->name, v,
+                       d->min, d->max);
+    if (d->type == TS_PARAM_INT && strcmp(d->name, "profile_length") == 0 && ((long)v % 2) == 0)
+        return ts_fail(ctx, TS_ERR_ARG, stage, "%s = %g must be odd", d->name, v);
+    return TS_OK;
+}
+
+TS_API ts_status ts_params_set(ts_ctx *ctx, const char *stage, void *params, const char *name,
+                               const char *value)
+{
+    const ts_param_desc *d;
+    char *end;
+    double v;
+    ts_clear(ctx);
+    if (!(d = find_desc(ctx, stage, name)))
+        return ctx->status;
+    if (!value || !*value)
+        return ts_fail(ctx, TS_ERR_ARG, stage, "%s needs a value", d->name);
+    if (d->type == TS_PARAM_ENUM) {
+        int idx = enum_index(d->choices, value);
+        if (idx < 0)
+            return ts_fail(ctx, TS_ERR_ARG, stage, "%s = '%s' is not one of %s", d->name, value,
+                           d->choices);
+        *(int *)((char *)params + d->offset) = idx;
+        return TS_OK;
+    }
+    errno = 0;
+    v = strtod(value, &end);
+    if (end == value || errno == ERANGE || !isfinite(v))
+        return ts_fail(ctx, TS_ERR_ARG, stage, "%s = '%s' is not a number", d->name, value);
+    while (isspace((unsigned char)*end))
+        end++;
+    if (d->type == TS_PARAM_LENGTH) {
+        ts_length *L = (ts_length *)((char *)params + d->offset);
+        ts_length_unit unit;
+        if (!*end || !strcmp(end, "cells") || !strcmp(end, "cell") || !strcmp(end, "px"))
+            unit = TS_UNIT_CELLS;
+        else if (!strcmp(end, "m") || !strcmp(end, "metres") || !strcmp(end, "meters"))
+            unit = TS_UNIT_METRES;
+        else
+            return ts_fail(ctx, TS_ERR_ARG, stage,
+                           "%s = '%s': unit must be cells (no suffix) or m", d->name, value);
+        if (check_range(ctx, stage, d, v) != TS_OK)
+            return ctx->status;
+        L->value = v;
+        L->unit = unit;
+        return TS_OK;
+    }
+    if (*end)
+        return ts_fail(ctx, TS_ERR_ARG, stage, "%s = '%s' is not a number", d->name, value);
+    if (d->type == TS_PARAM_INT && v != floor(v))
+        return ts_fail(ctx, TS_ERR_ARG, stage, "%s = '%s' must be a whole number", d->name, value);
+    if (check_range(ctx, stage, d, v) != TS_OK)
+        return ctx->status;
+    if (d->type == TS_PARAM_INT)
+        *(int *)((char *)params + d->offset) = (int)v;
+    else
+        *(double *)((char *)params + d->offset) = v;
+    return TS_OK;
+}
+
+TS_API ts_status ts_params_get(ts_ctx *ctx, const char *stage, const void *params,
+                               const char *name, char *buf, size_t buflen)
+{
+    const ts_param_desc *d;
+    const char *p = (const char *)params;
+    ts_clear(ctx);
+    if (!(d = find_desc(ctx, stage, name)))
+        return ctx->status;
+    switch (d->type) {
+    case TS_PARAM_ENUM:
+        if (enum_word(d->choices, *(const int *)(p + d->offset), buf, buflen) != 0)
+            return ts_fail(ctx, TS_ERR_ARG, stage, "%s has an invalid value", d->name);
+        break;
+    case TS_PARAM_INT:
+        snprintf(buf, buflen, "%d", *(const int *)(p + d->offset));
+        break;
+    case TS_PARAM_DOUBLE:
+        snprintf(buf, buflen, "%.17g", *(const double *)(p + d->offset));
+        break;
+    case TS_PARAM_LENGTH: {
+        const ts_length *L = (const ts_length *)(p + d->offset);
+        snprintf(buf, buflen, "%.17g%s", L->value, L->unit == TS_UNIT_METRES ? "m" : "");
+        break;
+    }
+    }
+    return TS_OK;
+}
+
+TS_API ts_status ts_params_validate(ts_ctx *ctx, const char *stage, const void *params)
+{
+    size_t i, n;
+    const char *p = (const char *)params;
+    const ts_param_desc *d = ts_params_describe(stage, &n);
+    ts_clear(ctx);
+    if (!d)
+        return ts_fail(ctx, TS_ERR_ARG, "params", "unknown stage '%s'", stage ? stage : "(null)");
+    for (i = 0; i < n; i++) {
+        double v = 0;
+        switch (d[i].type) {
+        case TS_PARAM_ENUM:
+        case TS_PARAM_INT: v = *(const int *)(p + d[i].offset); break;
+        case TS_PARAM_DOUBLE: v = *(const double *)(p + d[i].offset); break;
+        case TS_PARAM_LENGTH: {
+            const ts_length *L = (const ts_length *)(p + d[i].offset);
+            if (L->unit != TS_UNIT_CELLS && L->unit != TS_UNIT_METRES)
+                return ts_fail(ctx, TS_ERR_ARG, stage, "%s has an invalid unit", d[i].name);
+            v = L->value;
+            break;
+        }
+        }
+        if (check_range(ctx, stage, &d[i], v) != TS_OK)
+            return ctx->status;
+    }
+    return TS_OK;
+}
+
+TS_API ts_ppa_params ts_ppa_params_default(void)
+{
+    ts_ppa_params p;
+    size_t i, n;
+    const ts_param_desc *d = ts_params_describe("ppa", &n);
+    /* defaults come from the descriptor table: one place to change them */
+    memset(&p, 0, sizeof p);
+    for (i = 0; i < n; i++) {
+        char *f = (char *)&p + d[i].offset;
+        switch (d[i].type) {
+        case TS_PARAM_ENUM:
+        case TS_PARAM_INT: *(int *)f = (int)d[i].def; break;
+        case TS_PARAM_DOUBLE: *(double *)f = d[i].def; break;
+        case TS_PARAM_LENGTH:
+            ((ts_length *)f)->value = d[i].def;
+            ((ts_length *)f)->unit = d[i].def_unit;
+            break;
+        }
+    }
+    return p;
+}

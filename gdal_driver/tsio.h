@@ -1,0 +1,121 @@
+/*
+ * tsio.h - TerraSynth's GDAL I/O layer: rasters in and out, georeferencing,
+ * ground metrics, vector and preview output.  Everything that talks to GDAL,
+ * OGR or PROJ lives behind this header; the core (terrasynth.h) never does.
+ *
+ * Copyright (C) 2026 The TerraSynth developers
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ *
+ * Errors: every function that can fail returns 0 on success and -1 on
+ * failure, filling a tsio_err with ONE line of the form
+ *   "<file>: <problem>"
+ * (no trailing newline).  No function prints, exits or leaves a partial
+ * output file behind: outputs are written to a temporary name in the same
+ * directory and renamed into place on success.
+ */
+#ifndef TSIO_H
+#define TSIO_H
+
+#include <stddef.h>
+
+#include "terrasynth.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct tsio_err {
+    char msg[1024];
+} tsio_err;
+
+/** Georeferencing of a grid. */
+typedef struct tsio_georef {
+    int width, height;
+    double gt[6];     /* GDAL geotransform; north-up (gt[2] == gt[4] == 0) */
+    int has_gt;       /* 0: the file had none; gt is then 0,1,0,0,0,1 */
+    char *wkt;        /* CRS as WKT2; NULL when the file has no CRS (owned) */
+    int is_geographic;
+} tsio_georef;
+
+/** A raster read into float metres with NaN for nodata. */
+typedef struct tsio_raster {
+    tsio_georef geo;
+    ts_raster r;      /* owned: free with tsio_raster_free */
+    double nodata;    /* the file's nodata value, if has_nodata */
+    int has_nodata;
+    double vertical_scale; /* factor applied to reach metres (1, 0.3048, 1200/3937) */
+    /* Ground metrics: per-row cell width/height in metres (owned arrays of
+     * geo.height entries), or NULL when the raster has no CRS. */
+    double *dx_m, *dy_m;
+} tsio_raster;
+
+/**
+ * Read band `band` (1-based) of any GDAL raster.
+ * - nodata values, NaN/Inf and masked cells (GDAL mask band) become NaN;
+ * - band scale/offset are applied;
+ * - vertical units are converted to metres when the band unit type or the
+ *   CRS's vertical axis says feet (international or US survey);
+ * - a rotated geotransform is an error ("rotated geotransforms are not
+ *   supported");
+ * - an all-nodata raster is an error ("every cell is nodata");
+ * - ground metrics: projected CRSs through their linear unit; geographic
+ *   CRSs by geodesic distances (PROJ geodesic.h) on the CRS's ellipsoid at
+ *   each row's latitude; no CRS: dx_m = dy_m = NULL.
+ */
+int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err);
+void tsio_raster_free(tsio_raster *r);
+
+/** Ground metrics view of a read raster; NULL when it has no CRS. */
+const ts_grid_metrics *tsio_metrics(const tsio_raster *r, ts_grid_metrics *storage);
+
+/** Deep copy of a georef (out owns its wkt). */
+int tsio_georef_copy(const tsio_georef *src, tsio_georef *out);
+void tsio_georef_free(tsio_georef *g);
+
+/** Output options shared by all raster writers. */
+typedef struct tsio_write_opts {
+    const char *format;        /* GDAL driver short name; NULL = from the
+                                  extension, GTiff when unknown */
+    const char *const *create_options; /* NULL-terminated "KEY=VALUE" list or NULL */
+    int check_only; /* 1: check format, creation options, data type and the
+                       output directory, then return without writing */
+} tsio_write_opts;
+
+/**
+ * Write a Float32 raster (NaN written as nodata `nodata_value`) with the
+ * georef's CRS and geotransform.  Drivers without Create() are served
+ * through a MEM dataset and CreateCopy().
+ */
+int tsio_write_float(const char *path, const tsio_write_opts *opts, const tsio_georef *geo,
+                     const ts_raster *data, double nodata_value, tsio_err *err);
+
+/** Write a Byte raster (w*h bytes, stride w) with nodata value `nodata`
+ *  (pass -1 for none), CRS and geotransform. */
+int tsio_write_byte(const char *path, const tsio_write_opts *opts, const tsio_georef *geo,
+                    const unsigned char *data, int nodata, tsio_err *err);
+
+/** Write an RGB PNG (3*w*h bytes, pixel-interleaved, row-major). */
+int tsio_write_png_rgb(const char *path, int width, int height, const unsigned char *rgb,
+                       tsio_err *err);
+
+/**
+ * Write the PPA feature graph as vectors: OGR driver from the extension
+ * (.gpkg -> GPKG, .shp -> ESRI Shapefile, .geojson -> GeoJSON, ...).
+ * Layer "paths" (LineString, one per path; fields kind ("ridge"/"valley"),
+ * length_m (NULL without CRS), length_cells, mean_elev, min_elev, max_elev,
+ * start_kind, end_kind ("endpoint"/"branch")) and layer "nodes" (Point;
+ * kind, degree, elev, feature ("ridge"/"valley")), coordinates at cell centres
+ * in the georef's CRS.  Formats with one layer per file (Shapefile, GeoJSON)
+ * get the nodes in a sibling file "<stem>_nodes.<ext>".
+ */
+int tsio_write_features(const char *path, const tsio_georef *geo, const ts_features *f,
+                        const ts_grid_metrics *metrics, tsio_err *err);
+
+/** Check that a vector output can be written (format from the extension,
+ *  driver present, directory exists) without writing anything. */
+int tsio_check_vector_output(const char *path, tsio_err *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* TSIO_H */

@@ -1,0 +1,606 @@
+/*
+ * test_ppa.c - PPA on synthetic DEMs with known truth, and polygon breaking
+ * (Kruskal) against naive repeated polygon breaking.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include "harness.h"
+#include "terrasynth.h"
+
+typedef double (*surface_fn)(double x, double y);
+
+static ts_raster make_dem(ts_ctx *ctx, int w, int h, surface_fn f)
+{
+    ts_raster r;
+    int x, y;
+    if (ts_raster_alloc(ctx, w, h, &r) != TS_OK)
+        abort();
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++)
+            TS_PIX(&r, x, y) = (float)f(x, y);
+    return r;
+}
+
+static ts_features *run_ppa(ts_ctx *ctx, const ts_raster *dem, int features)
+{
+    ts_ppa_params p = ts_ppa_params_default();
+    ts_features *f = NULL;
+    p.features = features;
+    if (ts_ppa_extract(ctx, dem, NULL, &p, &f) != TS_OK) {
+        fprintf(stderr, "ppa failed: %s\n", ts_ctx_message(ctx));
+        return NULL;
+    }
+    return f;
+}
+
+static size_t count_nodes(const ts_features *f, int kind, int min_degree, int max_degree)
+{
+    size_t i, n = 0;
+    for (i = 0; i < f->n_nodes; i++)
+        if (f->nodes[i].kind == kind && f->nodes[i].degree >= min_degree &&
+            f->nodes[i].degree <= max_degree)
+            n++;
+    return n;
+}
+
+static size_t count_mask(const ts_features *f, int bit)
+{
+    size_t i, n = 0;
+    for (i = 0; i < (size_t)f->width * (size_t)f->height; i++)
+        n += (f->mask[i] & bit) != 0;
+    return n;
+}
+
+/* Forest check from the paths alone: with the path steps as edges over the
+ * distinct cells, edges = vertices - components and no step closes a cycle. */
+static int find_root(int *parent, int v)
+{
+    while (parent[v] != v)
+        v = parent[v] = parent[parent[v]];
+    return v;
+}
+
+static void check_forest_kind(const ts_features *f, int kind)
+{
+    size_t n = (size_t)f->width * (size_t)f->height, i, k, verts = 0, edges = 0, comps = 0;
+    int *parent = malloc(n * sizeof *parent);
+    unsigned char *seen = calloc(n, 1);
+    int cycle = 0;
+    for (i = 0; i < n; i++)
+        parent[i] = (int)i;
+    for (i = 0; i < f->n_paths; i++) {
+        const ts_feature_path *p = &f->paths[i];
+        if (p->kind != kind)
+            continue;
+        CHECK(p->count >= 2);
+        for (k = 0; k < p->count; k++) {
+            const ts_feature_vertex *v = &f->verts[p->first + k];
+            int id = v->y * f->width + v->x;
+            if (!seen[id]) {
+                seen[id] = 1;
+                verts++;
+            }
+            if (k > 0) {
+                const ts_feature_vertex *u = &f->verts[p->first + k - 1];
+                int a = find_root(parent, u->y * f->width + u->x), b = find_root(parent, id);
+                CHECK(abs(u->x - v->x) <= 1 && abs(u->y - v->y) <= 1);
+                edges++;
+                if (a == b)
+                    cycle = 1;
+                else
+                    parent[a] = b;
+            }
+        }
+        /* path ends are the nodes it names */
+        CHECK(f->verts[p->first].x == f->nodes[p->node_a].x &&
+              f->verts[p->first].y == f->nodes[p->node_a].y);
+        CHECK(f->verts[p->first + p->count - 1].x == f->nodes[p->node_b].x &&
+              f->verts[p->first + p->count - 1].y == f->nodes[p->node_b].y);
+    }
+    for (i = 0; i < n; i++)
+        if (seen[i] && find_root(parent, (int)i) == (int)i)
+            comps++;
+    CHECK(!cycle);
+    CHECK_MSG(edges == verts - comps, "edges %zu, vertices %zu, components %zu", edges, verts,
+              comps);
+    /* every masked cell lies on a path of its kind */
+    for (i = 0; i < n; i++)
+        if ((f->mask[i] & kind) && !seen[i]) {
+            CHECK_MSG(0, "mask cell %zu is on no path", i);
+            break;
+        }
+    free(parent);
+    free(seen);
+}
+
+/* Each kind is a forest on its own (a saddle cell may be on both). */
+static void check_forest(const ts_features *f)
+{
+    check_forest_kind(f, TS_RIDGE);
+    check_forest_kind(f, TS_VALLEY);
+}
+
+/* Profiles are cut short at the raster edge, so the last two cells of an
+ * axis may hook; truth is checked away from the edge. */
+static int near_edge(const ts_features *f, const ts_feature_vertex *v)
+{
+    return v->x < 2 || v->y < 2 || v->x >= f->width - 2 || v->y >= f->height - 2;
+}
+
+/* ---- straight Gaussian ridge: one path within one cell of the crest ---- */
+static double ridge_straight(double x, double y)
+{
+    return 500.0 * exp(-(y - 30.3) * (y - 30.3) / (2 * 6.0 * 6.0)) + 0.05 * x;
+}
+
+static void test_straight_ridge(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster dem = make_dem(ctx, 120, 61, ridge_straight);
+    ts_features *f = run_ppa(ctx, &dem, TS_PPA_BOTH);
+    size_t i, k, longest = 0;
+    CHECK(f != NULL);
+    if (f) {
+        check_forest(f);
+        CHECK_MSG(count_nodes(f, TS_RIDGE, 3, 8) == 0, "branch points: %zu",
+                  count_nodes(f, TS_RIDGE, 3, 8));
+        for (i = 0; i < f->n_paths; i++) {
+            const ts_feature_path *p = &f->paths[i];
+            CHECK(p->kind == TS_RIDGE);
+            if (p->count > longest)
+                longest = p->count;
+            for (k = 0; k < p->count; k++)
+                if (!near_edge(f, &f->verts[p->first + k]))
+                    CHECK_MSG(fabs(f->verts[p->first + k].y - 30.3) <= 1.0, "vertex row %d",
+                              f->verts[p->first + k].y);
+        }
+        CHECK_MSG(f->n_paths == 1, "%zu paths", f->n_paths);
+        CHECK_MSG(longest >= 110, "longest path has %zu cells", longest);
+        CHECK(count_mask(f, TS_VALLEY) == 0);
+    }
+    ts_features_free(f);
+    ts_raster_free(&dem);
+    ts_ctx_free(ctx);
+}
+
+/* ---- Y-shaped ridge: exactly one branch point near the junction ---- */
+static double ridge_y(double x, double y)
+{
+    /* three ridge arms from (60, 60) at 90, 210 and 330 degrees */
+    static const double ang[3] = {90.0, 210.0, 330.0};
+    double best = 0.0;
+    int a;
+    for (a = 0; a < 3; a++) {
+        double t = ang[a] * 3.14159265358979 / 180.0, ux = cos(t), uy = -sin(t);
+        double px = x - 60.0, py = y - 60.0, along = px * ux + py * uy;
+        double across = fabs(px * uy - py * ux), v;
+        if (along < 0)
+            across = sqrt(px * px + py * py);
+        v = 400.0 * exp(-across * across / (2 * 5.0 * 5.0)) - 0.8 * (along > 0 ? along : 0);
+        if (v > best || a == 0)
+            best = v;
+    }
+    return best + 0.01 * x + 0.003 * y;
+}
+
+static void test_y_ridge(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster dem = make_dem(ctx, 121, 121, ridge_y);
+    ts_features *f = run_ppa(ctx, &dem, TS_PPA_RIDGES);
+    CHECK(f != NULL);
+    if (f) {
+        size_t i, nb = 0;
+        check_forest(f);
+        for (i = 0; i < f->n_nodes; i++)
+            if (f->nodes[i].degree >= 3) {
+                nb++;
+                CHECK(f->nodes[i].degree == 3);
+                CHECK_MSG(hypot(f->nodes[i].x - 60.0, f->nodes[i].y - 60.0) <= 3.0,
+                          "branch point at %d,%d", f->nodes[i].x, f->nodes[i].y);
+            }
+        CHECK_MSG(nb == 1, "%zu branch points", nb);
+        CHECK_MSG(count_nodes(f, TS_RIDGE, 1, 1) == 3, "%zu endpoints",
+                  count_nodes(f, TS_RIDGE, 1, 1));
+        CHECK(f->n_paths == 3);
+    }
+    ts_features_free(f);
+    ts_raster_free(&dem);
+    ts_ctx_free(ctx);
+}
+
+/* ---- V-valley ---- */
+static double valley_v(double x, double y)
+{
+    return 3.0 * fabs(y - 25.4) + 0.02 * x + 100.0;
+}
+
+static void test_v_valley(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster dem = make_dem(ctx, 100, 50, valley_v);
+    ts_features *f = run_ppa(ctx, &dem, TS_PPA_BOTH);
+    CHECK(f != NULL);
+    if (f) {
+        size_t i, k;
+        check_forest(f);
+        CHECK_MSG(f->n_paths == 1, "%zu paths", f->n_paths);
+        CHECK(count_mask(f, TS_RIDGE) == 0);
+        CHECK(count_mask(f, TS_VALLEY) >= 90);
+        for (i = 0; i < f->n_paths; i++) {
+            CHECK(f->paths[i].kind == TS_VALLEY);
+            for (k = 0; k < f->paths[i].count; k++)
+                if (!near_edge(f, &f->verts[f->paths[i].first + k]))
+                    CHECK(abs(f->verts[f->paths[i].first + k].y - 25) <= 1);
+        }
+    }
+    ts_features_free(f);
+    ts_raster_free(&dem);
+    ts_ctx_free(ctx);
+}
+
+/* ---- cone and pit: no valleys on a cone, no ridges in a pit ---- */
+static double cone(double x, double y)
+{
+    return 1000.0 - 2.0 * hypot(x - 40.2, y - 39.7);
+}
+static double pit(double x, double y)
+{
+    return 2.0 * hypot(x - 40.2, y - 39.7);
+}
+
+static void test_cone_and_pit(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster c = make_dem(ctx, 81, 81, cone), p = make_dem(ctx, 81, 81, pit);
+    ts_features *fc = run_ppa(ctx, &c, TS_PPA_BOTH), *fp = run_ppa(ctx, &p, TS_PPA_BOTH);
+    CHECK(fc && fp);
+    if (fc && fp) {
+        check_forest(fc);
+        check_forest(fp);
+        CHECK(count_mask(fc, TS_VALLEY) == 0);
+        CHECK(count_mask(fp, TS_RIDGE) == 0);
+        /* the apex is a ridge cell of the cone and a valley cell of the pit */
+        CHECK(fc->mask[40 * 81 + 40] & TS_RIDGE);
+        CHECK(fp->mask[40 * 81 + 40] & TS_VALLEY);
+    }
+    ts_features_free(fc);
+    ts_features_free(fp);
+    ts_raster_free(&c);
+    ts_raster_free(&p);
+    ts_ctx_free(ctx);
+}
+
+/* ---- planes: no features at all ---- */
+static double flat(double x, double y) { (void)x; (void)y; return 250.0; }
+static double tilted(double x, double y) { return 3.0 * x - 1.5 * y + 10.0; }
+
+static void test_planes(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster a = make_dem(ctx, 64, 48, flat), b = make_dem(ctx, 64, 48, tilted);
+    ts_features *fa = run_ppa(ctx, &a, TS_PPA_BOTH), *fb = run_ppa(ctx, &b, TS_PPA_BOTH);
+    CHECK(fa && fb);
+    if (fa && fb) {
+        CHECK(fa->n_paths == 0 && fa->n_nodes == 0 && count_mask(fa, 3) == 0);
+        CHECK(fb->n_paths == 0 && fb->n_nodes == 0 && count_mask(fb, 3) == 0);
+    }
+    ts_features_free(fa);
+    ts_features_free(fb);
+    ts_raster_free(&a);
+    ts_raster_free(&b);
+    ts_ctx_free(ctx);
+}
+
+/* ---- nodata: never a target, never bridged ---- */
+static void test_nodata_hole(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster dem = make_dem(ctx, 120, 61, ridge_straight);
+    ts_features *f;
+    int x, y;
+    /* a hole straddling the crest, and a nodata border column */
+    for (y = 20; y < 40; y++)
+        for (x = 55; x < 62; x++)
+            TS_PIX(&dem, x, y) = NAN;
+    for (y = 0; y < 61; y++)
+        TS_PIX(&dem, 0, y) = NAN;
+    f = run_ppa(ctx, &dem, TS_PPA_BOTH);
+    CHECK(f != NULL);
+    if (f) {
+        size_t i, k;
+        check_forest(f);
+        for (y = 0; y < 61; y++)
+            for (x = 0; x < 120; x++)
+                if (isnan(TS_PIX(&dem, x, y)))
+                    CHECK(f->mask[y * 120 + x] == 0);
+        /* no path steps across the hole */
+        for (i = 0; i < f->n_paths; i++)
+            for (k = 1; k < f->paths[i].count; k++) {
+                const ts_feature_vertex *u = &f->verts[f->paths[i].first + k - 1],
+                                        *v = &f->verts[f->paths[i].first + k];
+                CHECK(!((u->x < 55 && v->x >= 62) || (v->x < 55 && u->x >= 62)));
+            }
+        CHECK_MSG(f->n_paths == 2, "%zu ridge paths (expected one on each side)", f->n_paths);
+    }
+    ts_features_free(f);
+    ts_raster_free(&dem);
+    ts_ctx_free(ctx);
+}
+
+/* ---- noise: still a forest, and thread count does not matter ---- */
+static void test_noise_forest_and_threads(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster dem;
+    ts_features *f1 = NULL, *f2 = NULL;
+    ts_ppa_params p = ts_ppa_params_default();
+    uint64_t s = 7;
+    int x, y;
+    ts_raster_alloc(ctx, 150, 110, &dem);
+    for (y = 0; y < 110; y++)
+        for (x = 0; x < 150; x++)
+            TS_PIX(&dem, x, y) = (float)(100.0 * th_uniform(&s) + 20.0 * sin(x / 9.0) * cos(y / 7.0));
+    p.features = TS_PPA_BOTH;
+    p.min_branch_length.value = 3;
+    ts_ctx_set_threads(ctx, 1);
+    CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f1) == TS_OK);
+    ts_ctx_set_threads(ctx, 3);
+    CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f2) == TS_OK);
+    if (f1 && f2) {
+        check_forest(f1);
+        CHECK(f1->n_paths > 10);
+        CHECK(memcmp(f1->mask, f2->mask, 150 * 110) == 0);
+        CHECK(f1->n_paths == f2->n_paths && f1->n_verts == f2->n_verts);
+    }
+    ts_features_free(f1);
+    ts_features_free(f2);
+    ts_raster_free(&dem);
+    ts_ctx_free(ctx);
+}
+
+/* ---- polygon breaking: Kruskal equals naive repeated polygon breaking ---- */
+
+/* Find a cycle among the live segments with DFS; return the index of its
+ * least important segment (lowest weight; on ties the later index), or -1. */
+typedef struct naive_graph {
+    size_t n_cells, n_segs;
+    const ts_ppa_segment *segs;
+    unsigned char *alive;
+} naive_graph;
+
+static int naive_dfs(const naive_graph *g, size_t v, long via, int *state, long *parent_seg,
+                     size_t *parent_v, long *cycle_start, long *cycle_seg)
+{
+    size_t i;
+    state[v] = 1;
+    for (i = 0; i < g->n_segs; i++) {
+        size_t u;
+        if (!g->alive[i] || (long)i == via)
+            continue;
+        if (g->segs[i].a == v)
+            u = g->segs[i].b;
+        else if (g->segs[i].b == v)
+            u = g->segs[i].a;
+        else
+            continue;
+        if (state[u] == 1) {
+            *cycle_start = (long)u;
+            *cycle_seg = (long)i;
+            parent_v[u] = parent_v[u]; /* cycle closes at u */
+            (void)parent_seg;
+            parent_v[v] = parent_v[v];
+            /* record the closing vertex v for the walk back */
+            parent_seg[g->n_cells] = (long)v;
+            return 1;
+        }
+        if (state[u] == 0) {
+            parent_seg[u] = (long)i;
+            parent_v[u] = v;
+            if (naive_dfs(g, u, (long)i, state, parent_seg, parent_v, cycle_start, cycle_seg))
+                return 1;
+        }
+    }
+    state[v] = 2;
+    return 0;
+}
+
+static int less_important(const ts_ppa_segment *s, size_t i, size_t j)
+{
+    /* is i less important than j? */
+    if (s[i].weight != s[j].weight)
+        return s[i].weight < s[j].weight;
+    return i > j;
+}
+
+static long naive_find_cycle_min(const naive_graph *g)
+{
+    size_t v;
+    int *state = calloc(g->n_cells, sizeof *state);
+    long *parent_seg = malloc((g->n_cells + 1) * sizeof *parent_seg);
+    size_t *parent_v = malloc(g->n_cells * sizeof *parent_v);
+    long result = -1;
+    for (v = 0; v < g->n_cells && result < 0; v++) {
+        long cs = -1, cseg = -1;
+        if (state[v])
+            continue;
+        if (naive_dfs(g, v, -1, state, parent_seg, parent_v, &cs, &cseg)) {
+            /* walk from the closing vertex back to the cycle start */
+            size_t w = (size_t)parent_seg[g->n_cells];
+            long best = cseg;
+            while ((long)w != cs) {
+                long sgi = parent_seg[w];
+                if (less_important(g->segs, (size_t)sgi, (size_t)best))
+                    best = sgi;
+                w = parent_v[w];
+            }
+            result = best;
+        }
+    }
+    free(state);
+    free(parent_seg);
+    free(parent_v);
+    return result;
+}
+
+static void test_kruskal_equals_naive(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int trial;
+    for (trial = 0; trial < 40; trial++) {
+        uint64_t s = 1000 + (uint64_t)trial;
+        int w = 6 + trial % 7, h = 5 + trial % 5, x, y;
+        ts_raster dem;
+        unsigned char *targets = malloc((size_t)w * h), *keep;
+        ts_ppa_segment *segs = NULL;
+        size_t n = 0, i;
+        naive_graph g;
+        long m;
+        ts_raster_alloc(ctx, w, h, &dem);
+        for (y = 0; y < h; y++)
+            for (x = 0; x < w; x++) {
+                /* quantised heights make ties, which the order must break the same way */
+                TS_PIX(&dem, x, y) = (float)(int)(th_uniform(&s) * (trial % 2 ? 5 : 1000));
+                targets[y * w + x] = th_uniform(&s) < 0.75 ? TS_RIDGE : 0;
+            }
+        if (trial % 3 == 0)
+            TS_PIX(&dem, w / 2, h / 2) = NAN, targets[(h / 2) * w + w / 2] = 0;
+        CHECK(ts_ppa_target_connection(ctx, &dem, targets, TS_RIDGE, &segs, &n) == TS_OK);
+        keep = malloc(n ? n : 1);
+        CHECK(ts_ppa_polygon_breaking(ctx, segs, n, (size_t)w * h, keep) == TS_OK);
+        g.n_cells = (size_t)w * h;
+        g.n_segs = n;
+        g.segs = segs;
+        g.alive = malloc(n ? n : 1);
+        memset(g.alive, 1, n);
+        while ((m = naive_find_cycle_min(&g)) >= 0)
+            g.alive[m] = 0;
+        for (i = 0; i < n; i++)
+            CHECK_MSG(g.alive[i] == keep[i], "trial %d segment %zu: naive %d kruskal %d", trial,
+                      i, g.alive[i], keep[i]);
+        free(g.alive);
+        free(keep);
+        free(segs);
+        free(targets);
+        ts_raster_free(&dem);
+    }
+    ts_ctx_free(ctx);
+}
+
+/* ---- crossing diagonals: the lower one is dropped ---- */
+static void test_crossing_diagonals(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    float v[4] = {10, 1, 2, 9}; /* (0,0)=10 (1,0)=1 (0,1)=2 (1,1)=9 */
+    ts_raster dem = ts_raster_wrap(v, 2, 2, 2);
+    unsigned char t[4] = {TS_RIDGE, TS_RIDGE, TS_RIDGE, TS_RIDGE};
+    ts_ppa_segment *segs = NULL;
+    size_t n = 0, i;
+    int has_se = 0, has_sw = 0;
+    CHECK(ts_ppa_target_connection(ctx, &dem, t, TS_RIDGE, &segs, &n) == TS_OK);
+    CHECK(n == 5); /* 4 sides + 1 diagonal */
+    for (i = 0; i < n; i++) {
+        if (segs[i].a == 0 && segs[i].b == 3) has_se = 1;
+        if (segs[i].a == 1 && segs[i].b == 2) has_sw = 1;
+    }
+    CHECK(has_se && !has_sw);
+    free(segs);
+    ts_ctx_free(ctx);
+}
+
+/* ---- errors, cancel, parameters ---- */
+static int cancel_at_half(double done, const char *msg, void *user)
+{
+    (void)msg;
+    (*(int *)user)++;
+    return done < 0.5;
+}
+
+static void test_errors_and_cancel(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster dem = make_dem(ctx, 120, 61, ridge_straight), allnan;
+    ts_ppa_params p = ts_ppa_params_default();
+    ts_features *f = NULL;
+    int calls = 0;
+    float one = 1.0f;
+    ts_raster tiny = ts_raster_wrap(&one, 1, 1, 1);
+    /* metres without metrics */
+    CHECK(ts_params_set(ctx, "ppa", &p, "min_branch_length", "600m") == TS_OK);
+    CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f) == TS_ERR_ARG && f == NULL);
+    CHECK(strstr(ts_ctx_message(ctx), "metres") != NULL);
+    p = ts_ppa_params_default();
+    /* parameter parsing and ranges */
+    CHECK(ts_params_set(ctx, "ppa", &p, "profile_length", "8") == TS_ERR_ARG);
+    CHECK(strstr(ts_ctx_message(ctx), "odd") != NULL);
+    CHECK(ts_params_set(ctx, "ppa", &p, "profile-length", "13") == TS_OK && p.profile_length == 13);
+    CHECK(ts_params_set(ctx, "ppa", &p, "threshold", "-1") == TS_ERR_ARG);
+    CHECK(ts_params_set(ctx, "ppa", &p, "threshold", "abc") == TS_ERR_ARG);
+    CHECK(ts_params_set(ctx, "ppa", &p, "threshold", "nan") == TS_ERR_ARG);
+    CHECK(ts_params_set(ctx, "ppa", &p, "features", "valleys") == TS_OK && p.features == TS_PPA_VALLEYS);
+    CHECK(ts_params_set(ctx, "ppa", &p, "features", "lakes") == TS_ERR_ARG);
+    CHECK(ts_params_set(ctx, "ppa", &p, "bogus", "1") == TS_ERR_ARG);
+    CHECK(ts_params_set(ctx, "ppa", &p, "min_branch_length", "12 furlongs") == TS_ERR_ARG);
+    p.profile_length = 4;
+    CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f) == TS_ERR_ARG);
+    p = ts_ppa_params_default();
+    /* too small, all nodata */
+    CHECK(ts_ppa_extract(ctx, &tiny, NULL, &p, &f) == TS_ERR_SIZE);
+    ts_raster_alloc(ctx, 10, 10, &allnan);
+    CHECK(ts_ppa_extract(ctx, &allnan, NULL, &p, &f) == TS_ERR_NUMERIC);
+    CHECK(strstr(ts_ctx_message(ctx), "nodata") != NULL);
+    /* cancel */
+    ts_ctx_set_progress(ctx, cancel_at_half, &calls);
+    p.features = TS_PPA_BOTH;
+    CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f) == TS_ERR_CANCELLED && f == NULL);
+    CHECK(calls > 0);
+    ts_raster_free(&allnan);
+    ts_raster_free(&dem);
+    ts_ctx_free(ctx);
+}
+
+/* ---- ground metrics: branch length in metres ---- */
+static void test_metric_branch_length(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster dem = make_dem(ctx, 120, 61, ridge_straight);
+    double dx[61], dy[61];
+    ts_grid_metrics m = {dx, dy};
+    ts_ppa_params p = ts_ppa_params_default();
+    ts_features *f = NULL;
+    int y;
+    for (y = 0; y < 61; y++)
+        dx[y] = 30.0, dy[y] = 30.0;
+    /* 119 steps of 30 m: the ridge (3570 m) survives 3000 m, not 4000 m */
+    CHECK(ts_params_set(ctx, "ppa", &p, "min_branch_length", "3000m") == TS_OK);
+    CHECK(ts_ppa_extract(ctx, &dem, &m, &p, &f) == TS_OK);
+    CHECK(f && f->n_paths == 1);
+    if (f && f->n_paths == 1)
+        CHECK_NEAR(f->paths[0].length, 30.0 * (f->paths[0].count - 1), 30.0 * 3);
+    ts_features_free(f);
+    f = NULL;
+    CHECK(ts_params_set(ctx, "ppa", &p, "min_branch_length", "4000m") == TS_OK);
+    CHECK(ts_ppa_extract(ctx, &dem, &m, &p, &f) == TS_OK);
+    CHECK(f && f->n_paths == 0);
+    ts_features_free(f);
+    ts_raster_free(&dem);
+    ts_ctx_free(ctx);
+}
+
+int main(int argc, char **argv)
+{
+    static const th_case cases[] = {
+        {"straight_ridge", test_straight_ridge},
+        {"y_ridge", test_y_ridge},
+        {"v_valley", test_v_valley},
+        {"cone_and_pit", test_cone_and_pit},
+        {"planes", test_planes},
+        {"nodata_hole", test_nodata_hole},
+        {"noise_forest_and_threads", test_noise_forest_and_threads},
+        {"kruskal_equals_naive", test_kruskal_equals_naive},
+        {"crossing_diagonals", test_crossing_diagonals},
+        {"errors_and_cancel", test_errors_and_cancel},
+        {"metric_branch_length", test_metric_branch_length},
+    };
+    return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
+}
