@@ -88,7 +88,11 @@ TS_API ts_status ts_ppa_target_connection(ts_ctx *ctx, const ts_raster *dem,
                         out[i].weight = sign * (TS_PIX(dem, x, y) + TS_PIX(dem, nx, ny));
                         i++;
                     }
+    if (ts_progress(ctx, 1.0, "target connection") != TS_OK) {
+        free(out);
+        return ctx->status;
+    }
     *segs = out;
     *n_segs = n;
-    return ts_progress(ctx, 1.0, "target connection");
+    return TS_OK;
 }

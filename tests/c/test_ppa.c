@@ -509,11 +509,13 @@ static void test_crossing_diagonals(void)
 }
 
 /* ---- errors, cancel, parameters ---- */
+static double cancel_point = 0.5;
+
 static int cancel_at_half(double done, const char *msg, void *user)
 {
     (void)msg;
     (*(int *)user)++;
-    return done < 0.5;
+    return done < cancel_point;
 }
 
 static void test_errors_and_cancel(void)
@@ -554,6 +556,16 @@ static void test_errors_and_cancel(void)
     p.features = TS_PPA_BOTH;
     CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f) == TS_ERR_CANCELLED && f == NULL);
     CHECK(calls > 0);
+    /* cancelling at any stage frees everything (the sanitizer build checks leaks) */
+    {
+        static const double points[] = {0.01, 0.2, 0.31, 0.45, 0.66, 0.8, 0.97, 1.0};
+        size_t i;
+        for (i = 0; i < sizeof points / sizeof points[0]; i++) {
+            cancel_point = points[i];
+            CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f) == TS_ERR_CANCELLED && f == NULL);
+            CHECK(strstr(ts_ctx_message(ctx), "cancel") != NULL);
+        }
+    }
     ts_raster_free(&allnan);
     ts_raster_free(&dem);
     ts_ctx_free(ctx);
