@@ -164,6 +164,10 @@ static int fill_cell_size(tsio_raster *in, double cell_size)
     return 0;
 }
 
+static ts_status write_preview(ts_ctx *ctx, const char *path, const ts_raster *dem,
+                               const tsio_georef *geo, const ts_grid_metrics *metrics,
+                               const ts_features *f);
+
 /* ------------------------------------------------------------------ */
 /* terrasynth ppa                                                     */
 /* ------------------------------------------------------------------ */
@@ -211,7 +215,7 @@ static int cmd_ppa(int argc, char **argv)
     tsio_raster in;
     tsio_err err;
     ts_features *f = NULL;
-    unsigned char *bytes = NULL, *rgb = NULL;
+    unsigned char *bytes = NULL;
     ts_grid_metrics mstore;
     const ts_grid_metrics *metrics;
     tsio_write_opts wo;
@@ -364,40 +368,8 @@ static int cmd_ppa(int argc, char **argv)
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
-    if (preview) {
-        /* a CRS-less raster is shaded with its geotransform's pixel size,
-         * which is the best guess at its ground units */
-        ts_grid_metrics pm;
-        const ts_grid_metrics *shade_m = metrics;
-        double *rowdx = NULL, *rowdy = NULL;
-        int y;
-        if (!shade_m && in.geo.has_gt) {
-            rowdx = malloc((size_t)in.geo.height * sizeof *rowdx);
-            rowdy = malloc((size_t)in.geo.height * sizeof *rowdy);
-            if (rowdx && rowdy) {
-                for (y = 0; y < in.geo.height; y++) {
-                    rowdx[y] = fabs(in.geo.gt[1]);
-                    rowdy[y] = fabs(in.geo.gt[5]);
-                }
-                pm.dx = rowdx;
-                pm.dy = rowdy;
-                shade_m = &pm;
-            }
-        }
-        rgb = malloc(3 * n);
-        st = rgb ? ts_render_preview(ctx, &in.r, shade_m, f, rgb) : TS_ERR_NOMEM;
-        free(rowdx);
-        free(rowdy);
-        if (st != TS_OK) {
-            fprintf(stderr, "terrasynth: %s: %s\n", preview,
-                    rgb ? ts_ctx_message(ctx) : "out of memory");
-            goto done;
-        }
-        if (tsio_write_png_rgb(preview, in.geo.width, in.geo.height, rgb, &err) != 0) {
-            fprintf(stderr, "terrasynth: %s\n", err.msg);
-            goto done;
-        }
-    }
+    if (preview && write_preview(ctx, preview, &in.r, &in.geo, metrics, f) != TS_OK)
+        goto done;
     if (co.progress != PROGRESS_QUIET) {
         size_t nb = 0, ne = 0, np[3] = {0, 0, 0};
         for (k = 0; k < f->n_nodes; k++) {
@@ -413,9 +385,441 @@ static int cmd_ppa(int argc, char **argv)
     rc = 0;
 done:
     free(bytes);
-    free(rgb);
     ts_features_free(f);
     tsio_raster_free(&in);
+    CSLDestroy(co.create_options);
+    ts_ctx_free(ctx);
+    return rc;
+}
+
+
+/* ------------------------------------------------------------------ */
+/* terrasynth synth                                                   */
+/* ------------------------------------------------------------------ */
+
+#define MAX_EXEMPLARS 64
+
+static void synth_help(FILE *out)
+{
+    fprintf(out,
+            "Usage: terrasynth synth --exemplar EX.tif [--exemplar EX2.tif ...]\n"
+            "                        (--like GRID.tif | --size WxH [--origin X,Y]\n"
+            "                         [--resolution R] [--crs CRS]) [options] OUTPUT\n"
+            "\n"
+            "Grow a new terrain of any size from real DEMs by non-feature patch synthesis\n"
+            "(Zhou et al. 2007 section 4.2 and 5): patches matched by FFT masked SSD, cut in\n"
+            "with graph-cut seams and smoothed with Poisson seam removal. OUTPUT is a Float32\n"
+            "DEM on the target grid with its CRS, geotransform and nodata (-9999).\n"
+            "\n"
+            "Target grid:\n"
+            "  --like GRID                      size, geotransform and CRS of a raster\n"
+            "  --size WxH                       size in cells; the grid defaults to the first\n"
+            "                                   exemplar's CRS, resolution and origin\n"
+            "  --origin X,Y                     top-left corner in CRS units\n"
+            "  --resolution R                   cell size in CRS units\n"
+            "  --crs CRS                        EPSG:code, WKT or PROJ string (needs --origin\n"
+            "                                   and --resolution)\n"
+            "Exemplars are resampled to the target's ground resolution when it differs.\n"
+            "\n"
+            "Synthesis parameters:\n");
+    cli_params_help(out, "synth", NULL);
+    fprintf(out,
+            "  --seed S                         random seed (default 0); same inputs and seed\n"
+            "                                   give the same bytes\n"
+            "\n"
+            "Outputs:\n"
+            "  --preview FILE.png               hillshade of the result\n"
+            "  --debug-dir DIR                  seams.tif, source_exemplar.tif, source_x.tif,\n"
+            "                                   source_y.tif, order.tif (georeferenced)\n"
+            "\n"
+            "Common options:\n%s"
+            "\n"
+            "Example:\n"
+            "  terrasynth synth --exemplar dem.tif --size 1024x1024 --seed 7 new.tif "
+            "--preview new.png\n",
+            common_help);
+}
+
+/* Preview metrics: the grid's, or for a CRS-less grid its pixel size. */
+static ts_status write_preview(ts_ctx *ctx, const char *path, const ts_raster *dem,
+                               const tsio_georef *geo, const ts_grid_metrics *metrics,
+                               const ts_features *f)
+{
+    size_t n = (size_t)dem->width * (size_t)dem->height;
+    unsigned char *rgb = malloc(3 * n);
+    double *rowdx = NULL, *rowdy = NULL;
+    ts_grid_metrics pm;
+    tsio_err err;
+    ts_status st;
+    int y;
+    if (!metrics && geo->has_gt) {
+        rowdx = malloc((size_t)dem->height * sizeof *rowdx);
+        rowdy = malloc((size_t)dem->height * sizeof *rowdy);
+        if (rowdx && rowdy) {
+            for (y = 0; y < dem->height; y++) {
+                rowdx[y] = fabs(geo->gt[1]);
+                rowdy[y] = fabs(geo->gt[5]);
+            }
+            pm.dx = rowdx;
+            pm.dy = rowdy;
+            metrics = &pm;
+        }
+    }
+    st = rgb ? ts_render_preview(ctx, dem, metrics, f, rgb) : TS_ERR_NOMEM;
+    free(rowdx);
+    free(rowdy);
+    if (st != TS_OK) {
+        fprintf(stderr, "terrasynth: %s: %s\n", path, rgb ? ts_ctx_message(ctx) : "out of memory");
+        free(rgb);
+        return st;
+    }
+    if (tsio_write_png_rgb(path, dem->width, dem->height, rgb, &err) != 0) {
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+        free(rgb);
+        return TS_ERR_ARG;
+    }
+    free(rgb);
+    return TS_OK;
+}
+
+static int parse_pair(const char *s, char sep, double *a, double *b)
+{
+    char *end;
+    *a = strtod(s, &end);
+    if (end == s || *end != sep)
+        return -1;
+    s = end + 1;
+    *b = strtod(s, &end);
+    return (end == s || *end || !isfinite(*a) || !isfinite(*b)) ? -1 : 0;
+}
+
+/* Write one int map as Float32 with nodata -1. */
+static int write_int_map(const char *dir, const char *name, const tsio_georef *geo,
+                         const int32_t *v, float *tmp)
+{
+    char *path = CPLStrdup(CPLFormFilename(dir, name, "tif"));
+    size_t i, n = (size_t)geo->width * (size_t)geo->height;
+    ts_raster r = ts_raster_wrap(tmp, geo->width, geo->height, geo->width);
+    tsio_err err;
+    int rc;
+    for (i = 0; i < n; i++)
+        tmp[i] = v[i] < 0 ? NAN : (float)v[i];
+    rc = tsio_write_float(path, NULL, geo, &r, -1.0, &err);
+    if (rc != 0)
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+    CPLFree(path);
+    return rc;
+}
+
+static int cmd_synth(int argc, char **argv)
+{
+    ts_synth_params p = ts_synth_params_default();
+    common_opts co = {NULL, NULL, PROGRESS_BAR, 0, 0.0, 1};
+    const char *ex_paths[MAX_EXEMPLARS], *like = NULL, *output = NULL, *preview = NULL;
+    const char *debug_dir = NULL, *crs = NULL;
+    int n_ex = 0, i, rc = EXIT_RUN, width = 0, height = 0, has_origin = 0, has_res = 0;
+    int progress_state = -1;
+    double ox = 0, oy = 0, res = 0, *tdx = NULL, *tdy = NULL;
+    uint64_t seed = 0;
+    tsio_raster ex[MAX_EXEMPLARS];
+    ts_raster exr[MAX_EXEMPLARS], out = {0, 0, 0, NULL};
+    tsio_georef geo;
+    tsio_err err;
+    tsio_write_opts wo;
+    ts_grid_metrics tm;
+    ts_synth_maps maps;
+    int32_t *m_ex = NULL, *m_x = NULL, *m_y = NULL, *m_order = NULL;
+    unsigned char *m_seams = NULL;
+    float *tmp = NULL;
+    ts_ctx *ctx = ts_ctx_new();
+    ts_status st;
+
+    memset(ex, 0, sizeof ex);
+    memset(&geo, 0, sizeof geo);
+    memset(&maps, 0, sizeof maps);
+    if (!ctx) {
+        fprintf(stderr, "terrasynth: out of memory\n");
+        return EXIT_RUN;
+    }
+    for (i = 2; i < argc; i++) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        int r;
+        char *end;
+        if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
+            synth_help(stdout);
+            rc = 0;
+            goto done;
+        }
+        if (!strcmp(a, "--exemplar") || !strcmp(a, "--like") || !strcmp(a, "--size") ||
+            !strcmp(a, "--origin") || !strcmp(a, "--resolution") || !strcmp(a, "--crs") ||
+            !strcmp(a, "--seed") || !strcmp(a, "--preview") || !strcmp(a, "--debug-dir")) {
+            if (!v) {
+                usage_error("synth", "%s needs a value", a);
+                rc = EXIT_USAGE;
+                goto done;
+            }
+            i++;
+            if (!strcmp(a, "--exemplar")) {
+                if (n_ex == MAX_EXEMPLARS) {
+                    usage_error("synth", "at most %s exemplars", "64");
+                    rc = EXIT_USAGE;
+                    goto done;
+                }
+                ex_paths[n_ex++] = v;
+            } else if (!strcmp(a, "--like")) {
+                like = v;
+            } else if (!strcmp(a, "--size")) {
+                double w, h;
+                if (parse_pair(v, 'x', &w, &h) || w < 1 || h < 1 || w > 65536 || h > 65536 ||
+                    w != floor(w) || h != floor(h)) {
+                    usage_error("synth", "--size takes WxH in cells (1..65536), not '%s'", v);
+                    rc = EXIT_USAGE;
+                    goto done;
+                }
+                width = (int)w;
+                height = (int)h;
+            } else if (!strcmp(a, "--origin")) {
+                if (parse_pair(v, ',', &ox, &oy)) {
+                    usage_error("synth", "--origin takes X,Y, not '%s'", v);
+                    rc = EXIT_USAGE;
+                    goto done;
+                }
+                has_origin = 1;
+            } else if (!strcmp(a, "--resolution")) {
+                res = strtod(v, &end);
+                if (*end || !(res > 0) || !isfinite(res)) {
+                    usage_error("synth", "--resolution must be a positive number, not '%s'", v);
+                    rc = EXIT_USAGE;
+                    goto done;
+                }
+                has_res = 1;
+            } else if (!strcmp(a, "--crs")) {
+                crs = v;
+            } else if (!strcmp(a, "--seed")) {
+                unsigned long long s = strtoull(v, &end, 10);
+                if (*end || v[0] == '-') {
+                    usage_error("synth", "--seed must be a non-negative integer, not '%s'", v);
+                    rc = EXIT_USAGE;
+                    goto done;
+                }
+                seed = (uint64_t)s;
+            } else if (!strcmp(a, "--preview")) {
+                preview = v;
+            } else {
+                debug_dir = v;
+            }
+            continue;
+        }
+        if ((r = parse_common("synth", &co, argc, argv, &i)) != 0) {
+            if (r < 0) {
+                rc = EXIT_USAGE;
+                goto done;
+            }
+            continue;
+        }
+        if ((r = cli_params_parse(ctx, "synth", &p, argc, argv, &i)) != 0) {
+            if (r < 0) {
+                fprintf(stderr, "terrasynth synth: %s\n", ts_ctx_message(ctx));
+                rc = EXIT_USAGE;
+                goto done;
+            }
+            continue;
+        }
+        if (a[0] == '-' && a[1] != '\0') {
+            usage_error("synth", "unknown option '%s'", a);
+            rc = EXIT_USAGE;
+            goto done;
+        }
+        if (output) {
+            usage_error("synth", "unexpected argument '%s'", a);
+            rc = EXIT_USAGE;
+            goto done;
+        }
+        output = a;
+    }
+    if (!output || n_ex == 0) {
+        usage_error("synth", "%s", "needs --exemplar and OUTPUT");
+        rc = EXIT_USAGE;
+        goto done;
+    }
+    if (!like == !width) {
+        usage_error("synth", "%s", "give the target grid with --like or with --size");
+        rc = EXIT_USAGE;
+        goto done;
+    }
+    if (crs && !(has_origin && has_res)) {
+        usage_error("synth", "%s", "--crs needs --origin and --resolution");
+        rc = EXIT_USAGE;
+        goto done;
+    }
+    if (ts_params_validate(ctx, "synth", &p) != TS_OK) {
+        fprintf(stderr, "terrasynth synth: %s\n", ts_ctx_message(ctx));
+        rc = EXIT_USAGE;
+        goto done;
+    }
+    if (p.overlap >= p.patch_size) {
+        usage_error("synth", "%s", "--overlap must be smaller than --patch-size");
+        rc = EXIT_USAGE;
+        goto done;
+    }
+
+    /* the target grid */
+    if (like) {
+        if (tsio_read_georef(like, &geo, &err) != 0) {
+            fprintf(stderr, "terrasynth: %s\n", err.msg);
+            goto done;
+        }
+    } else if (crs) {
+        if (tsio_georef_make(width, height, ox, oy, res, res, crs, &geo, &err) != 0) {
+            fprintf(stderr, "terrasynth: %s\n", err.msg);
+            goto done;
+        }
+    } else {
+        tsio_georef g0;
+        if (tsio_read_georef(ex_paths[0], &g0, &err) != 0) {
+            fprintf(stderr, "terrasynth: %s\n", err.msg);
+            goto done;
+        }
+        rc = tsio_georef_make(width, height, has_origin ? ox : g0.gt[0],
+                              has_origin ? oy : g0.gt[3], has_res ? res : fabs(g0.gt[1]),
+                              has_res ? res : fabs(g0.gt[5]), g0.wkt, &geo, &err);
+        tsio_georef_free(&g0);
+        if (rc != 0) {
+            fprintf(stderr, "terrasynth: %s\n", err.msg);
+            rc = EXIT_RUN;
+            goto done;
+        }
+        rc = EXIT_RUN;
+    }
+    if (tsio_georef_metrics(&geo, &tdx, &tdy, &err) != 0) {
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+        goto done;
+    }
+    if (!tdx && co.progress != PROGRESS_QUIET)
+        fprintf(stderr, "terrasynth: warning: the target grid has no CRS: exemplars are used "
+                        "cell for cell\n");
+
+    /* outputs are checked before the work */
+    memset(&wo, 0, sizeof wo);
+    wo.format = co.format;
+    wo.create_options = (const char *const *)co.create_options;
+    wo.check_only = 1;
+    {
+        float probe = 0;
+        ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
+        unsigned char bp = 0;
+        tsio_write_opts png = {"PNG", NULL, 1};
+        tsio_georef g1 = geo;
+        g1.width = g1.height = 1;
+        if (tsio_write_float(output, &wo, &g1, &pr, -9999.0, &err) != 0 ||
+            (preview && tsio_write_byte(preview, &png, &g1, &bp, -1, &err) != 0)) {
+            fprintf(stderr, "terrasynth: %s\n", err.msg);
+            goto done;
+        }
+    }
+    if (debug_dir) {
+        VSIStatBufL sb;
+        if (VSIStatL(debug_dir, &sb) != 0 && VSIMkdir(debug_dir, 0755) != 0) {
+            fprintf(stderr, "terrasynth: %s: cannot create the directory\n", debug_dir);
+            goto done;
+        }
+    }
+    wo.check_only = 0;
+
+    /* exemplars at the target's ground resolution */
+    for (i = 0; i < n_ex; i++) {
+        double factor = 1.0;
+        int cy = geo.height / 2;
+        if (tsio_read_raster_resampled(ex_paths[i], co.band, tdx ? tdx[cy] : 0,
+                                       tdy ? tdy[cy] : 0, &ex[i], &factor, &err) != 0) {
+            fprintf(stderr, "terrasynth: %s\n", err.msg);
+            goto done;
+        }
+        if (tdx && !ex[i].dx_m && co.progress != PROGRESS_QUIET)
+            fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",
+                    ex_paths[i]);
+        if (ex[i].r.width < p.patch_size || ex[i].r.height < p.patch_size) {
+            fprintf(stderr,
+                    "terrasynth: %s: %d x %d cells at the target resolution is smaller than a "
+                    "patch (%d cells)\n",
+                    ex_paths[i], ex[i].r.width, ex[i].r.height, p.patch_size);
+            goto done;
+        }
+        exr[i] = ex[i].r;
+    }
+
+    if (ts_raster_alloc(ctx, geo.width, geo.height, &out) != TS_OK) {
+        fprintf(stderr, "terrasynth: %s: %s\n", output, ts_ctx_message(ctx));
+        goto done;
+    }
+    if (debug_dir) {
+        size_t n = (size_t)geo.width * (size_t)geo.height;
+        m_ex = malloc(n * sizeof *m_ex);
+        m_x = malloc(n * sizeof *m_x);
+        m_y = malloc(n * sizeof *m_y);
+        m_order = malloc(n * sizeof *m_order);
+        m_seams = malloc(n);
+        tmp = malloc(n * sizeof *tmp);
+        if (!m_ex || !m_x || !m_y || !m_order || !m_seams || !tmp) {
+            fprintf(stderr, "terrasynth: out of memory\n");
+            goto done;
+        }
+        maps.source_exemplar = m_ex;
+        maps.source_x = m_x;
+        maps.source_y = m_y;
+        maps.order = m_order;
+        maps.seams = m_seams;
+    }
+    ts_ctx_set_seed(ctx, seed);
+    ts_ctx_set_threads(ctx, co.threads);
+    set_progress(ctx, co.progress, &progress_state);
+    st = ts_synth_patches(ctx, exr, n_ex, &p, &out, NULL, debug_dir ? &maps : NULL);
+    if (st != TS_OK) {
+        const char *msg = ts_ctx_message(ctx);
+        int which = 0;
+        /* name the exemplar file when the core names its index */
+        if (sscanf(msg, "synth: exemplar %d:", &which) == 1 && which >= 1 && which <= n_ex)
+            fprintf(stderr, "terrasynth: %s: %s\n", ex_paths[which - 1], msg);
+        else
+            fprintf(stderr, "terrasynth: %s: %s\n", output, msg);
+        goto done;
+    }
+    if (tsio_write_float(output, &wo, &geo, &out, -9999.0, &err) != 0) {
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+        goto done;
+    }
+    if (preview) {
+        tm.dx = tdx;
+        tm.dy = tdy;
+        if (write_preview(ctx, preview, &out, &geo, tdx ? &tm : NULL, NULL) != TS_OK)
+            goto done;
+    }
+    if (debug_dir) {
+        char *sp = CPLStrdup(CPLFormFilename(debug_dir, "seams", "tif"));
+        int bad = tsio_write_byte(sp, NULL, &geo, m_seams, -1, &err);
+        if (bad)
+            fprintf(stderr, "terrasynth: %s\n", err.msg);
+        CPLFree(sp);
+        if (bad || write_int_map(debug_dir, "source_exemplar", &geo, m_ex, tmp) ||
+            write_int_map(debug_dir, "source_x", &geo, m_x, tmp) ||
+            write_int_map(debug_dir, "source_y", &geo, m_y, tmp) ||
+            write_int_map(debug_dir, "order", &geo, m_order, tmp))
+            goto done;
+    }
+    rc = 0;
+done:
+    for (i = 0; i < n_ex; i++)
+        tsio_raster_free(&ex[i]);
+    ts_raster_free(&out);
+    tsio_georef_free(&geo);
+    free(tdx);
+    free(tdy);
+    free(m_ex);
+    free(m_x);
+    free(m_y);
+    free(m_order);
+    free(m_seams);
+    free(tmp);
     CSLDestroy(co.create_options);
     ts_ctx_free(ctx);
     return rc;
@@ -432,6 +836,7 @@ static void main_help(FILE *out)
             "\n"
             "Commands:\n"
             "  ppa        map ridge and valley axes of a DEM (raster, vector lines, preview)\n"
+            "  synth      grow a new terrain from real DEMs (patch synthesis)\n"
             "\n"
             "'terrasynth COMMAND --help' lists a command's options with defaults and units.\n"
             "  --version  print the version\n",
@@ -456,6 +861,8 @@ int main(int argc, char **argv)
     GDALAllRegister();
     if (!strcmp(argv[1], "ppa"))
         rc = cmd_ppa(argc, argv);
+    else if (!strcmp(argv[1], "synth"))
+        rc = cmd_synth(argc, argv);
     else {
         fprintf(stderr, "terrasynth: unknown command '%s' (see 'terrasynth --help')\n", argv[1]);
         rc = EXIT_USAGE;

@@ -29,6 +29,7 @@
 #include <cpl_string.h>
 #include <cpl_vsi.h>
 #include <gdal.h>
+#include <gdal_utils.h>
 #include <ogr_api.h>
 #include <ogr_srs_api.h>
 
@@ -1804,4 +1805,288 @@ int tsio_write_features(const char *path, const tsio_georef *geo, const ts_featu
     CPLErrorReset();
     CPLPopErrorHandler();
     return rc;
+}
+
+/* ------------------------------------------------------------------ */
+/* Reading at a ground resolution                                      */
+/* ------------------------------------------------------------------ */
+
+/* The raster as a Float32 MEM dataset (NaN nodata) with its georeferencing. */
+static GDALDatasetH mem_from_raster(const tsio_raster *r)
+{
+    GDALDriverH mem = GDALGetDriverByName("MEM");
+    GDALDatasetH ds;
+    GDALRasterBandH b;
+    if (!mem)
+        return NULL;
+    ds = GDALCreate(mem, "", r->geo.width, r->geo.height, 1, GDT_Float32, NULL);
+    if (!ds)
+        return NULL;
+    GDALSetGeoTransform(ds, (double *)r->geo.gt);
+    if (r->geo.wkt)
+        GDALSetProjection(ds, r->geo.wkt);
+    b = GDALGetRasterBand(ds, 1);
+    GDALSetRasterNoDataValue(b, NAN);
+    if (GDALRasterIOEx(b, GF_Write, 0, 0, r->geo.width, r->geo.height, r->r.data, r->geo.width,
+                       r->geo.height, GDT_Float32, sizeof(float),
+                       (GSpacing)r->r.stride * (GSpacing)sizeof(float), NULL) != CE_None) {
+        GDALClose(ds);
+        return NULL;
+    }
+    return ds;
+}
+
+/* Replace `out` by the warped dataset's contents and georeferencing. */
+static int raster_from_mem(GDALDatasetH ds, tsio_raster *out, const char *path, tsio_err *err)
+{
+    int w = GDALGetRasterXSize(ds), h = GDALGetRasterYSize(ds);
+    size_t i;
+    double gt[6];
+    OGRSpatialReferenceH srs = NULL;
+    const char *wkt = GDALGetProjectionRef(ds);
+    float *data = (w > 0 && h > 0 && (size_t)w <= SIZE_MAX / sizeof(float) / (size_t)h)
+                      ? malloc((size_t)w * (size_t)h * sizeof *data)
+                      : NULL;
+    double *dx = h > 0 ? malloc((size_t)h * sizeof *dx) : NULL;
+    double *dy = h > 0 ? malloc((size_t)h * sizeof *dy) : NULL;
+    char why[256];
+    if (!data || !dx || !dy) {
+        set_err(err, path, "out of memory");
+        goto fail;
+    }
+    GDALGetGeoTransform(ds, gt);
+    if (GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Read, 0, 0, w, h, data, w, h, GDT_Float32, 0,
+                     0) != CE_None) {
+        set_err_gdal(err, path, "cannot read the resampled raster");
+        goto fail;
+    }
+    srs = wkt && wkt[0] ? srs_from_wkt(wkt) : NULL;
+    if (!srs || compute_metrics(srs, gt, h, dx, dy, why, sizeof why) != 0) {
+        set_err(err, path, "cannot measure the resampled grid");
+        goto fail;
+    }
+    for (i = 0; i < (size_t)w * (size_t)h; i++)
+        if (!isfinite(data[i]))
+            data[i] = NAN;
+    free(out->r.data);
+    free(out->dx_m);
+    free(out->dy_m);
+    free(out->geo.wkt);
+    out->r = ts_raster_wrap(data, w, h, w);
+    out->dx_m = dx;
+    out->dy_m = dy;
+    out->geo.width = w;
+    out->geo.height = h;
+    memcpy(out->geo.gt, gt, sizeof gt);
+    out->geo.has_gt = 1;
+    out->geo.wkt = srs_to_wkt2(srs);
+    out->geo.is_geographic = OSRIsGeographic(srs);
+    OSRDestroySpatialReference(srs);
+    return 0;
+fail:
+    if (srs)
+        OSRDestroySpatialReference(srs);
+    free(data);
+    free(dx);
+    free(dy);
+    return -1;
+}
+
+int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
+                               double target_dy_m, tsio_raster *out, double *factor,
+                               tsio_err *err)
+{
+    GDALDatasetH src = NULL, dst = NULL;
+    GDALWarpAppOptions *wo = NULL;
+    OGRSpatialReferenceH srs = NULL, local = NULL;
+    char *wkt_local = NULL, trx[64], try_[64], *t_srs = NULL;
+    const char *alg;
+    double gdx, gdy, f, unit = 1.0;
+    int rc = -1, usage = 0, geographic;
+    if (factor)
+        *factor = 1.0;
+    if (tsio_read_raster(path, band, out, err) != 0)
+        return -1;
+    if (!(target_dx_m > 0) || !(target_dy_m > 0) || !out->dx_m)
+        return 0; /* no CRS, or nothing asked: cells as they are */
+    gdx = out->dx_m[out->geo.height / 2];
+    gdy = out->dy_m[out->geo.height / 2];
+    geographic = out->geo.is_geographic;
+    f = sqrt((gdx * gdy) / (target_dx_m * target_dy_m));
+    if (factor)
+        *factor = f;
+    if (!geographic && fabs(gdx / target_dx_m - 1.0) < 1e-3 && fabs(gdy / target_dy_m - 1.0) < 1e-3)
+        return 0;
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    srs = srs_from_wkt(out->geo.wkt);
+    if (!srs) {
+        set_err(err, path, "cannot read its CRS");
+        goto done;
+    }
+    if (geographic) {
+        /* a local azimuthal equidistant grid on the raster's own datum */
+        double cx = out->geo.gt[0] + 0.5 * out->geo.width * out->geo.gt[1];
+        double cy = out->geo.gt[3] + 0.5 * out->geo.height * out->geo.gt[5];
+        local = OSRNewSpatialReference(NULL);
+        if (!local || OSRCopyGeogCSFrom(local, srs) != OGRERR_NONE ||
+            OSRSetProjCS(local, "TerraSynth local azimuthal equidistant") != OGRERR_NONE ||
+            OSRSetAE(local, cy, cx, 0.0, 0.0) != OGRERR_NONE ||
+            OSRSetLinearUnits(local, SRS_UL_METER, 1.0) != OGRERR_NONE) {
+            set_err(err, path, "cannot build a local projection for resampling");
+            goto done;
+        }
+        wkt_local = srs_to_wkt2(local);
+        t_srs = wkt_local;
+    } else {
+        unit = OSRGetLinearUnits(srs, NULL);
+        if (!(unit > 0))
+            unit = 1.0;
+        t_srs = out->geo.wkt;
+    }
+    snprintf(trx, sizeof trx, "%.17g", target_dx_m / unit);
+    snprintf(try_, sizeof try_, "%.17g", target_dy_m / unit);
+    alg = f > 1.0 ? "cubic" : "average"; /* finer target: interpolate; coarser: average */
+    {
+        char *argv[] = {"-of", "MEM", "-t_srs", t_srs, "-tr", trx, try_, "-r", (char *)alg,
+                        "-dstnodata", "nan", "-ot", "Float32", NULL};
+        src = mem_from_raster(out);
+        wo = GDALWarpAppOptionsNew(argv, NULL);
+        if (!src || !wo) {
+            set_err(err, path, "cannot prepare the resampling");
+            goto done;
+        }
+        dst = GDALWarp("", NULL, 1, &src, wo, &usage);
+        if (!dst) {
+            set_err_gdal(err, path, "resampling failed");
+            goto done;
+        }
+    }
+    rc = raster_from_mem(dst, out, path, err);
+done:
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    if (wo)
+        GDALWarpAppOptionsFree(wo);
+    if (dst)
+        GDALClose(dst);
+    if (src)
+        GDALClose(src);
+    if (srs)
+        OSRDestroySpatialReference(srs);
+    if (local)
+        OSRDestroySpatialReference(local);
+    free(wkt_local);
+    if (rc != 0)
+        tsio_raster_free(out);
+    return rc;
+}
+
+/* ------------------------------------------------------------------ */
+/* Output grids                                                        */
+/* ------------------------------------------------------------------ */
+
+int tsio_georef_metrics(const tsio_georef *geo, double **dx, double **dy, tsio_err *err)
+{
+    OGRSpatialReferenceH srs;
+    char why[256];
+    *dx = *dy = NULL;
+    if (!geo->wkt || !geo->has_gt)
+        return 0;
+    srs = srs_from_wkt(geo->wkt);
+    if (!srs) {
+        set_err(err, "output grid", "cannot read the CRS");
+        return -1;
+    }
+    *dx = malloc((size_t)geo->height * sizeof **dx);
+    *dy = malloc((size_t)geo->height * sizeof **dy);
+    if (!*dx || !*dy || compute_metrics(srs, geo->gt, geo->height, *dx, *dy, why, sizeof why)) {
+        set_err(err, "output grid", "%s", (*dx && *dy) ? why : "out of memory");
+        free(*dx);
+        free(*dy);
+        *dx = *dy = NULL;
+        OSRDestroySpatialReference(srs);
+        return -1;
+    }
+    OSRDestroySpatialReference(srs);
+    return 0;
+}
+
+int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err)
+{
+    GDALDatasetH ds;
+    const char *wkt;
+    memset(geo, 0, sizeof *geo);
+    ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    ds = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY, NULL, NULL, NULL);
+    CPLPopErrorHandler();
+    if (!ds) {
+        VSIStatBufL st;
+        if (VSIStatL(path, &st) != 0)
+            set_err(err, path, "no such file");
+        else
+            set_err(err, path, "not a raster GDAL can open");
+        return -1;
+    }
+    geo->width = GDALGetRasterXSize(ds);
+    geo->height = GDALGetRasterYSize(ds);
+    geo->has_gt = GDALGetGeoTransform(ds, geo->gt) == CE_None;
+    if (!geo->has_gt) {
+        double id[6] = {0, 1, 0, 0, 0, 1};
+        memcpy(geo->gt, id, sizeof id);
+    }
+    if (geo->gt[2] != 0.0 || geo->gt[4] != 0.0) {
+        set_err(err, path, "rotated geotransforms are not supported");
+        GDALClose(ds);
+        return -1;
+    }
+    wkt = GDALGetProjectionRef(ds);
+    if (wkt && wkt[0]) {
+        OGRSpatialReferenceH srs = srs_from_wkt(wkt);
+        if (srs) {
+            geo->wkt = srs_to_wkt2(srs);
+            geo->is_geographic = OSRIsGeographic(srs);
+            OSRDestroySpatialReference(srs);
+        }
+    }
+    GDALClose(ds);
+    return 0;
+}
+
+int tsio_georef_make(int width, int height, double origin_x, double origin_y, double res_x,
+                     double res_y, const char *crs, tsio_georef *geo, tsio_err *err)
+{
+    memset(geo, 0, sizeof *geo);
+    if (width <= 0 || height <= 0 || !(res_x > 0) || !(res_y > 0) || !isfinite(origin_x) ||
+        !isfinite(origin_y)) {
+        set_err(err, "output grid", "invalid size, origin or resolution");
+        return -1;
+    }
+    geo->width = width;
+    geo->height = height;
+    geo->has_gt = 1;
+    geo->gt[0] = origin_x;
+    geo->gt[1] = res_x;
+    geo->gt[3] = origin_y;
+    geo->gt[5] = -res_y;
+    if (crs && crs[0]) {
+        OGRSpatialReferenceH srs = OSRNewSpatialReference(NULL);
+        OGRErr e;
+        ensure_registered();
+        CPLPushErrorHandler(CPLQuietErrorHandler);
+        e = srs ? OSRSetFromUserInput(srs, crs) : OGRERR_FAILURE;
+        CPLErrorReset();
+        CPLPopErrorHandler();
+        if (e != OGRERR_NONE) {
+            if (srs)
+                OSRDestroySpatialReference(srs);
+            set_err(err, crs, "not a CRS PROJ knows");
+            return -1;
+        }
+        OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
+        geo->wkt = srs_to_wkt2(srs);
+        geo->is_geographic = OSRIsGeographic(srs);
+        OSRDestroySpatialReference(srs);
+    }
+    return 0;
 }

@@ -111,6 +111,33 @@ int tsio_write_png_rgb(const char *path, int width, int height, const unsigned c
 int tsio_write_features(const char *path, const tsio_georef *geo, const ts_features *f,
                         const ts_grid_metrics *metrics, tsio_err *err);
 
+/**
+ * Read like tsio_read_raster, then resample to cells of target_dx_m x
+ * target_dy_m metres on the ground (for exemplars whose resolution differs
+ * from the output's): a projected raster is warped in its own CRS; a
+ * geographic one onto a local azimuthal equidistant grid on its own datum
+ * (so its cells become square metres).  Cubic interpolation when the
+ * target is finer, averaging when it is coarser; nodata stays NaN.  A
+ * raster without CRS is returned as read (its ground size is unknown).
+ * *factor (may be NULL) = source cell size / target cell size.
+ */
+int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
+                               double target_dy_m, tsio_raster *out, double *factor,
+                               tsio_err *err);
+
+/** Georeferencing of a raster without reading its cells. */
+int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err);
+
+/** A north-up grid: origin = top-left corner, res_x, res_y > 0 in the
+ *  CRS's units; crs: anything OSRSetFromUserInput takes (EPSG:32633, WKT,
+ *  PROJ string), or NULL/"" for none. */
+int tsio_georef_make(int width, int height, double origin_x, double origin_y, double res_x,
+                     double res_y, const char *crs, tsio_georef *geo, tsio_err *err);
+
+/** Per-row ground metrics (metres) of a grid, as tsio_read_raster computes
+ *  them; *dx = *dy = NULL without CRS.  Caller frees both with free(). */
+int tsio_georef_metrics(const tsio_georef *geo, double **dx, double **dy, tsio_err *err);
+
 /** Check that a vector output can be written (format from the extension,
  *  driver present, directory exists) without writing anything. */
 int tsio_check_vector_output(const char *path, tsio_err *err);

@@ -274,6 +274,155 @@ TS_API ts_status ts_ppa_polygon_breaking(ts_ctx *ctx, const ts_ppa_segment *segs
                                          unsigned char *keep);
 
 /* ------------------------------------------------------------------ */
+/* Patch machinery (Zhou et al. 2007 section 4.2, section 5, App. A-B)*/
+/* ------------------------------------------------------------------ */
+
+/** Masked SSD matcher (FFT), planned once per exemplar and patch size. */
+typedef struct ts_matcher ts_matcher;
+
+/** A candidate exemplar position (top-left corner of the window). */
+typedef struct ts_candidate {
+    int x, y;
+    double ssd;
+} ts_candidate;
+
+/**
+ * Plan FFT-accelerated masked SSD matching of patch_w x patch_h windows
+ * against every position of `exemplar` (borrowed: it must outlive the
+ * matcher and not change).  Caller frees with ts_matcher_free.
+ * TS_ERR_SIZE when the exemplar is smaller than a patch; TS_ERR_NUMERIC
+ * when no window of the exemplar is free of nodata.
+ */
+TS_API ts_status ts_matcher_new(ts_ctx *ctx, const ts_raster *exemplar, int patch_w, int patch_h,
+                                ts_matcher **out);
+TS_API void ts_matcher_free(ts_matcher *m);
+/** Number of window positions: (ex_w - patch_w + 1) x (ex_h - patch_h + 1). */
+TS_API void ts_matcher_positions(const ts_matcher *m, int *nx, int *ny);
+/**
+ * SSD map: out (caller-allocated, nx*ny floats, row-major) gets, for every
+ * position (x, y), the sum over the known cells of `target` (patch_w x
+ * patch_h; NaN = unknown) of (target(i,j) - exemplar(x+i, y+j))^2, computed
+ * by FFT in O(n log n); +INFINITY where the exemplar window contains any
+ * nodata.  Accuracy: relative error ~1e-5 of the SSD scale (float FFT);
+ * use ts_matcher_best for exact values.
+ */
+TS_API ts_status ts_matcher_ssd(ts_ctx *ctx, ts_matcher *m, const ts_raster *target, float *out);
+/**
+ * The k best positions (lowest SSD), exact SSD recomputed in double,
+ * ascending (ties: lower y, then lower x), pairwise at least min_separation
+ * cells apart (Chebyshev distance; 0 or 1 = any).  out: caller-allocated, k
+ * entries; *n_found <= k.  A target with no known cell matches everywhere
+ * with SSD 0.
+ */
+TS_API ts_status ts_matcher_best(ts_ctx *ctx, ts_matcher *m, const ts_raster *target, int k,
+                                 int min_separation, ts_candidate *out, int *n_found);
+
+/** Per-cell constraints for the seam finder. */
+enum { TS_SEAM_FREE = 0, TS_SEAM_OLD = 1, TS_SEAM_NEW = 2 };
+
+/**
+ * Graph-cut seam (Kwatra et al. 2003; Zhou et al. 2007 App. A) between the
+ * output's current content `old` and a new `patch` over one window (both
+ * the same size, borrowed).  Edge weight between 4-adjacent cells s, t of
+ * the overlap is M = |a(s)-b(s)| + |a(t)-b(t)| (eq. 1).  Cells where old is
+ * NaN must take the patch; cells where the patch is NaN must keep old;
+ * `constraint` (may be NULL; w*h bytes) forces TS_SEAM_OLD / TS_SEAM_NEW
+ * cells (infinite terminal weights).  The overlap may touch several earlier
+ * patches and be disjoint.  labels (caller-allocated, w*h): 0 keep old,
+ * 1 take the patch.  *cost = c_g, the summed M of the cut (eq. 2).
+ * TS_ERR_ARG when constraints contradict (a cell forced both ways).
+ */
+TS_API ts_status ts_seam_graphcut(ts_ctx *ctx, const ts_raster *old, const ts_raster *patch,
+                                  const unsigned char *constraint, unsigned char *labels,
+                                  double *cost);
+
+/**
+ * Discrete Poisson solve with Dirichlet boundary: for every cell p with
+ * mask[p] != 0, sum over its 4-neighbours q inside the grid of
+ * (u_p - u_q) = sum of the guidance differences (g(p) - g(q)) where the
+ * guidance difference to the right neighbour is gx[p] (desired
+ * u(x+1,y) - u(x,y)) and to the neighbour below gy[p].  Cells with mask 0
+ * keep their value in u and act as boundary.  Neighbours outside the grid
+ * are left out (natural boundary).  u: w*h floats, in (initial guess /
+ * boundary values) and out; gx, gy: w*h floats (last column of gx and last
+ * row of gy unused).  Solved by preconditioned conjugate gradients to a
+ * relative residual of `tolerance` (e.g. 1e-6) in at most max_iter
+ * iterations; TS_ERR_NUMERIC if it does not converge.
+ */
+TS_API ts_status ts_poisson_solve(ts_ctx *ctx, int w, int h, const unsigned char *mask,
+                                  const float *gx, const float *gy, float *u, double tolerance,
+                                  int max_iter);
+
+/**
+ * Poisson seam removal (Zhou et al. 2007 App. B): in `merged` (w x h,
+ * borrowed, modified in place), the gradients of the merged field inside
+ * `region` (mask, w*h) are kept except across the seam, where `labels`
+ * (w*h, 0 old / 1 new) changes, which are set to zero; the field inside the
+ * region is then re-solved with Dirichlet boundary values from outside the
+ * region.  NaN cells are never part of the region.
+ */
+TS_API ts_status ts_poisson_seam_remove(ts_ctx *ctx, ts_raster *merged,
+                                        const unsigned char *labels,
+                                        const unsigned char *region);
+
+/* ------------------------------------------------------------------ */
+/* Non-feature patch synthesis (Zhou et al. 2007 section 4.2)         */
+/* ------------------------------------------------------------------ */
+
+/** Values of ts_synth_params.order. */
+enum { TS_ORDER_GROW = 0, TS_ORDER_RASTER = 1 };
+
+typedef struct ts_synth_params {
+    int patch_size;    /* cells, square patches */
+    int overlap;       /* cells shared by neighbouring patch positions */
+    int candidates;    /* k best SSD matches examined per position */
+    int order;         /* TS_ORDER_GROW or TS_ORDER_RASTER */
+    double alpha_g;    /* weight of the graph-cut seam cost against the SSD */
+    double variety;    /* pick at random among candidates within (1+variety) of the best */
+    int coarse_factor; /* match on exemplars downsampled by this factor, refine at full
+                          resolution (1 = exhaustive full-resolution search) */
+} ts_synth_params;
+
+TS_API ts_synth_params ts_synth_params_default(void);
+
+/**
+ * Optional per-cell records of a synthesis (each array caller-allocated,
+ * width*height entries of the output, or NULL if not wanted).
+ */
+typedef struct ts_synth_maps {
+    int32_t *source_exemplar; /* index of the exemplar a cell came from, -1 if none */
+    int32_t *source_x, *source_y; /* its position in that exemplar */
+    int32_t *order;           /* index of the placed patch the cell came from, -1 if none */
+    unsigned char *seams;     /* 1 on cells next to a graph-cut seam */
+    /* filled in by the call: patches placed and seconds spent per stage */
+    int n_patches;
+    double seconds_prepare, seconds_match, seconds_cut, seconds_poisson;
+} ts_synth_maps;
+
+/** Bits of the cell_flags of ts_synth_patches. */
+enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2 };
+
+/**
+ * Fill the NaN cells of `out` (caller-allocated, borrowed) with patches of
+ * the exemplars (borrowed array of n_exemplars rasters at the output's
+ * ground resolution): positions on a grid of step patch_size - overlap,
+ * visited in descending order of overlap with what is filled (grow) or in
+ * scan order (raster); k candidates by masked SSD (FFT); the winner by
+ * SSD + alpha_g * graph-cut cost; merged by graph cut and Poisson seam
+ * removal.  Cells of `out` that are not NaN on entry are matched against
+ * and may be replaced by the graph cut or smoothed by the seam remover
+ * (within `overlap` cells of new content), unless fixed.
+ * `cell_flags` (may be NULL; width*height bytes): TS_CELL_NODATA cells stay
+ * NaN; TS_CELL_FIXED cells (filled on entry) never change.
+ * The seed of ctx picks the first patch and breaks near-ties.
+ * Returns TS_ERR_SIZE when an exemplar or the output is smaller than a
+ * patch, TS_ERR_ARG for bad parameters, TS_ERR_CANCELLED, TS_ERR_NOMEM.
+ */
+TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                  const ts_synth_params *params, ts_raster *out,
+                                  const unsigned char *cell_flags, ts_synth_maps *maps);
+
+/* ------------------------------------------------------------------ */
 /* Rendering                                                          */
 /* ------------------------------------------------------------------ */
 

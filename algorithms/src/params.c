@@ -33,7 +33,32 @@ static const ts_param_desc ppa_desc[] = {
      offsetof(ts_ppa_params, min_branch_length)},
 };
 
-static const char *const stage_names[] = {"ppa", NULL};
+static const ts_param_desc synth_desc[] = {
+    {"patch_size", TS_PARAM_INT, 64, 8, 1024, TS_UNIT_CELLS, "cells", NULL,
+     "Side of the square patches copied from the exemplars.",
+     offsetof(ts_synth_params, patch_size)},
+    {"overlap", TS_PARAM_INT, 16, 2, 512, TS_UNIT_CELLS, "cells", NULL,
+     "Cells shared by neighbouring patches, where seams are cut and smoothed.",
+     offsetof(ts_synth_params, overlap)},
+    {"candidates", TS_PARAM_INT, 8, 1, 256, TS_UNIT_CELLS, "", NULL,
+     "Best SSD matches examined per patch position (k).",
+     offsetof(ts_synth_params, candidates)},
+    {"order", TS_PARAM_ENUM, TS_ORDER_GROW, 0, 1, TS_UNIT_CELLS, "", "grow|raster",
+     "Placement order: grow out from what is filled, or raster scan.",
+     offsetof(ts_synth_params, order)},
+    {"alpha_g", TS_PARAM_DOUBLE, 1.0, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Weight of the graph-cut seam cost against the SSD when choosing a candidate.",
+     offsetof(ts_synth_params, alpha_g)},
+    {"variety", TS_PARAM_DOUBLE, 0.1, 0.0, 10.0, TS_UNIT_CELLS, "fraction", NULL,
+     "Pick at random (seeded) among candidates whose cost is within this fraction of the best.",
+     offsetof(ts_synth_params, variety)},
+    {"coarse_factor", TS_PARAM_INT, 4, 1, 16, TS_UNIT_CELLS, "", NULL,
+     "Search on exemplars downsampled by this factor, then refine at full resolution "
+     "(1 = exhaustive full-resolution search).",
+     offsetof(ts_synth_params, coarse_factor)},
+};
+
+static const char *const stage_names[] = {"ppa", "synth", NULL};
 
 TS_API const char *const *ts_params_stages(void)
 {
@@ -45,6 +70,10 @@ TS_API const ts_param_desc *ts_params_describe(const char *stage, size_t *n)
     if (stage && strcmp(stage, "ppa") == 0) {
         *n = sizeof ppa_desc / sizeof ppa_desc[0];
         return ppa_desc;
+    }
+    if (stage && strcmp(stage, "synth") == 0) {
+        *n = sizeof synth_desc / sizeof synth_desc[0];
+        return synth_desc;
     }
     *n = 0;
     return NULL;
@@ -228,15 +257,15 @@ TS_API ts_status ts_params_validate(ts_ctx *ctx, const char *stage, const void *
     return TS_OK;
 }
 
-TS_API ts_ppa_params ts_ppa_params_default(void)
+/* Fill a params struct with the defaults of its descriptor table: one
+ * place to change them. */
+static void params_fill_defaults(const char *stage, void *params, size_t size)
 {
-    ts_ppa_params p;
     size_t i, n;
-    const ts_param_desc *d = ts_params_describe("ppa", &n);
-    /* defaults come from the descriptor table: one place to change them */
-    memset(&p, 0, sizeof p);
+    const ts_param_desc *d = ts_params_describe(stage, &n);
+    memset(params, 0, size);
     for (i = 0; i < n; i++) {
-        char *f = (char *)&p + d[i].offset;
+        char *f = (char *)params + d[i].offset;
         switch (d[i].type) {
         case TS_PARAM_ENUM:
         case TS_PARAM_INT: *(int *)f = (int)d[i].def; break;
@@ -247,5 +276,18 @@ TS_API ts_ppa_params ts_ppa_params_default(void)
             break;
         }
     }
+}
+
+TS_API ts_ppa_params ts_ppa_params_default(void)
+{
+    ts_ppa_params p;
+    params_fill_defaults("ppa", &p, sizeof p);
+    return p;
+}
+
+TS_API ts_synth_params ts_synth_params_default(void)
+{
+    ts_synth_params p;
+    params_fill_defaults("synth", &p, sizeof p);
     return p;
 }

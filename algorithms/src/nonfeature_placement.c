@@ -1,0 +1,710 @@
+/*
+ * nonfeature_placement.c - non-feature patch placement (Zhou et al. 2007
+ * section 4.2) with patch merging (section 5): fills the empty cells of an
+ * output raster with exemplar patches.
+ *
+ * Patch positions lie on a grid of step patch - overlap.  They are visited
+ * in descending order of overlap with the filled area (grow) or in scan
+ * order (raster).  For each, the k best exemplar windows by masked SSD are
+ * found (FFT, match_ssd.c), optionally on exemplars downsampled by
+ * coarse_factor and refined at full resolution in a +-factor window by
+ * exact SSD; each candidate is cut in with a graph cut (seam_graphcut.c)
+ * and the winner is the lowest RMS(SSD) + alpha_g * mean seam mismatch;
+ * the seam is then smoothed by Poisson seam removal (poisson.c) over the
+ * patch window with the cells around it as Dirichlet boundary.
+ * Cost per position: one FFT match per exemplar + k graph cuts + one
+ * Poisson solve.  Deterministic for a given seed.
+ */
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "internal.h"
+
+typedef struct placement {
+    int x, y;      /* window top-left in the output */
+    int overlap;   /* filled cells in the window */
+    int needed;    /* still has empty cells to fill */
+} placement;
+
+typedef struct exemplar_data {
+    const ts_raster *full;
+    ts_raster coarse;      /* box-downsampled by the coarse factor (NaN if any cell is) */
+    ts_matcher *matcher;   /* on `coarse` (factor > 1) or on `full` */
+    int32_t *nodata_sat;   /* summed-area table of full-resolution nodata, (w+1)*(h+1) */
+} exemplar_data;
+
+typedef struct placer {
+    ts_ctx *ctx;
+    const ts_synth_params *p;
+    ts_raster *out;
+    const unsigned char *flags; /* TS_CELL_* per output cell, or NULL */
+    ts_synth_maps *maps;
+    exemplar_data *ex;
+    int n_ex;
+    int P, f, Pc;          /* patch size, coarse factor, coarse patch size */
+    uint64_t rng;
+    /* work buffers */
+    float *target, *target_c, *patch, *merged;
+    unsigned char *constraint, *labels, *best_labels, *region, *mlabels;
+    int *known;            /* indices of known target cells */
+    ts_candidate *cands;
+    int n_cands_cap;
+} placer;
+
+static double place_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* Add the time since *t0 to a stage counter (when stats are wanted). */
+static void place_tick(placer *pl, double *counter, double *t0)
+{
+    double t = place_now();
+    if (pl->maps)
+        *counter += t - *t0;
+    *t0 = t;
+}
+
+/* splitmix64: the only randomness, seeded from the context */
+static uint64_t place_rand(placer *pl)
+{
+    uint64_t z = (pl->rng += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+}
+
+static int place_flag(const placer *pl, int x, int y, int bit)
+{
+    return pl->flags && (pl->flags[(size_t)y * (size_t)pl->out->width + (size_t)x] & bit);
+}
+
+static void place_count(const placer *pl, placement *q)
+{
+    int x, y, filled = 0, empty = 0;
+    for (y = q->y; y < q->y + pl->P; y++)
+        for (x = q->x; x < q->x + pl->P; x++) {
+            if (!isnan(TS_PIX(pl->out, x, y)))
+                filled++;
+            else if (!(place_flag(pl, x, y, TS_CELL_NODATA)))
+                empty++;
+        }
+    q->overlap = filled;
+    q->needed = empty > 0;
+}
+
+/* Grid coordinates 0, step, 2 step, ..., with the last one flush with the end. */
+static int place_axis(int size, int P, int step, int *coords)
+{
+    int n = 0, c;
+    for (c = 0; c + P < size; c += step)
+        coords[n++] = c;
+    coords[n++] = size - P;
+    return n;
+}
+
+static int32_t sat_sum(const int32_t *sat, int w, int x0, int y0, int x1, int y1)
+{
+    size_t W = (size_t)w + 1;
+    return sat[(size_t)y1 * W + x1] - sat[(size_t)y0 * W + x1] - sat[(size_t)y1 * W + x0] +
+           sat[(size_t)y0 * W + x0];
+}
+
+/* Exact masked SSD of the target's known cells against exemplar window (x, y). */
+static double place_ssd(const placer *pl, const ts_raster *ex, int x, int y, int n_known)
+{
+    double s = 0.0;
+    int i;
+    for (i = 0; i < n_known; i++) {
+        int k = pl->known[i], tx = k % pl->P, ty = k / pl->P;
+        double d = (double)pl->target[k] - (double)TS_PIX(ex, x + tx, y + ty);
+        s += d * d;
+    }
+    return s;
+}
+
+static ts_status place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_raster *full)
+{
+    ts_ctx *ctx = pl->ctx;
+    int w = full->width, h = full->height, x, y, cw, ch;
+    size_t W = (size_t)w + 1;
+    ts_status st;
+    e->full = full;
+    if (w < pl->P || h < pl->P)
+        return ts_fail(ctx, TS_ERR_SIZE, "synth",
+                       "an exemplar (%d x %d) is smaller than a patch (%d x %d)", w, h, pl->P,
+                       pl->P);
+    e->nodata_sat = ts_calloc_array(W * ((size_t)h + 1), sizeof *e->nodata_sat);
+    if (!e->nodata_sat)
+        return ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
+    for (y = 0; y < h; y++) {
+        int32_t row = 0;
+        for (x = 0; x < w; x++) {
+            row += isnan(TS_PIX(full, x, y)) ? 1 : 0;
+            e->nodata_sat[(size_t)(y + 1) * W + (size_t)(x + 1)] =
+                e->nodata_sat[(size_t)y * W + (size_t)(x + 1)] + row;
+        }
+    }
+    if (pl->f == 1) {
+        st = ts_matcher_new(ctx, full, pl->P, pl->P, &e->matcher);
+        return st;
+    }
+    cw = w / pl->f;
+    ch = h / pl->f;
+    if ((st = ts_raster_alloc(ctx, cw, ch, &e->coarse)) != TS_OK)
+        return st;
+    for (y = 0; y < ch; y++)
+        for (x = 0; x < cw; x++) {
+            double s = 0.0;
+            int i, j, bad = 0;
+            for (j = 0; j < pl->f && !bad; j++)
+                for (i = 0; i < pl->f; i++) {
+                    float v = TS_PIX(full, x * pl->f + i, y * pl->f + j);
+                    if (isnan(v)) {
+                        bad = 1;
+                        break;
+                    }
+                    s += v;
+                }
+            TS_PIX(&e->coarse, x, y) = bad ? NAN : (float)(s / (pl->f * pl->f));
+        }
+    return ts_matcher_new(ctx, &e->coarse, pl->Pc, pl->Pc, &e->matcher);
+}
+
+/* Downsample the target (known where at least half the block is known). */
+static void place_coarse_target(placer *pl)
+{
+    int x, y, i, j;
+    for (y = 0; y < pl->Pc; y++)
+        for (x = 0; x < pl->Pc; x++) {
+            double s = 0.0;
+            int n = 0;
+            for (j = 0; j < pl->f; j++)
+                for (i = 0; i < pl->f; i++) {
+                    float v = pl->target[(y * pl->f + j) * pl->P + x * pl->f + i];
+                    if (!isnan(v)) {
+                        s += v;
+                        n++;
+                    }
+                }
+            pl->target_c[y * pl->Pc + x] =
+                2 * n >= pl->f * pl->f ? (float)(s / n) : NAN;
+        }
+}
+
+static int cand_cmp(const void *a, const void *b)
+{
+    const ts_candidate *p = a, *q = b;
+    if (p->ssd != q->ssd)
+        return p->ssd < q->ssd ? -1 : 1;
+    if (p->y != q->y)
+        return p->y < q->y ? -1 : 1;
+    return (p->x > q->x) - (p->x < q->x);
+}
+
+/* k best full-resolution windows of exemplar e; candidates' x carries the
+ * exemplar index in the high bits via a parallel array. */
+static ts_status place_search(placer *pl, int e, int n_known, ts_candidate *out, int *n_out)
+{
+    exemplar_data *ed = &pl->ex[e];
+    int k = pl->p->candidates, found = 0, i;
+    ts_status st;
+    if (pl->f == 1) {
+        ts_raster t = ts_raster_wrap(pl->target, pl->P, pl->P, pl->P);
+        st = ts_matcher_best(pl->ctx, ed->matcher, &t, k, 1, out, &found);
+        *n_out = found;
+        return st;
+    } else {
+        int kc = 2 * k, nc = 0, w = ed->full->width, h = ed->full->height;
+        ts_raster tc = ts_raster_wrap(pl->target_c, pl->Pc, pl->Pc, pl->Pc);
+        ts_candidate *coarse = pl->cands + pl->n_cands_cap / 2;
+        place_coarse_target(pl);
+        st = ts_matcher_best(pl->ctx, ed->matcher, &tc, kc, 2, coarse, &nc);
+        if (st != TS_OK)
+            return st;
+        for (i = 0; i < nc; i++) {
+            int cx = coarse[i].x * pl->f, cy = coarse[i].y * pl->f, x, y;
+            ts_candidate best = {-1, -1, INFINITY};
+            for (y = TS_MAX(0, cy - pl->f); y <= TS_MIN(h - pl->P, cy + pl->f); y++)
+                for (x = TS_MAX(0, cx - pl->f); x <= TS_MIN(w - pl->P, cx + pl->f); x++) {
+                    double s;
+                    if (sat_sum(ed->nodata_sat, w, x, y, x + pl->P, y + pl->P) != 0)
+                        continue;
+                    s = place_ssd(pl, ed->full, x, y, n_known);
+                    if (s < best.ssd) {
+                        best.x = x;
+                        best.y = y;
+                        best.ssd = s;
+                    }
+                }
+            if (best.x >= 0)
+                out[found++] = best;
+        }
+        qsort(out, (size_t)found, sizeof *out, cand_cmp);
+        *n_out = TS_MIN(found, k);
+        return TS_OK;
+    }
+}
+
+/* Count 4-adjacent label changes inside the window. */
+static int place_cut_edges(const unsigned char *labels, int P)
+{
+    int x, y, n = 0;
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++) {
+            if (x + 1 < P && labels[y * P + x] != labels[y * P + x + 1])
+                n++;
+            if (y + 1 < P && labels[y * P + x] != labels[(y + 1) * P + x])
+                n++;
+        }
+    return n;
+}
+
+static void place_copy_patch(const placer *pl, const ts_raster *ex, int sx, int sy)
+{
+    int x, y;
+    for (y = 0; y < pl->P; y++)
+        for (x = 0; x < pl->P; x++)
+            pl->patch[y * pl->P + x] = TS_PIX(ex, sx + x, sy + y);
+}
+
+/* Keep in the Poisson region only the new cells and the old cells within
+ * `overlap` cells (Chebyshev) of new ones: the seam is smoothed in a band,
+ * old content farther away stays as it was. */
+static void place_limit_region(placer *pl)
+{
+    int P = pl->P, M = P + 2, r = pl->p->overlap, x, y;
+    int *dist = pl->known; /* reused: P*P ints, distance to the nearest new cell */
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++)
+            dist[y * P + x] = pl->best_labels[y * P + x] ? 0 : P + r + 1;
+    /* two-pass chamfer (Chebyshev) distance */
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++) {
+            int d = dist[y * P + x];
+            if (x > 0) d = TS_MIN(d, dist[y * P + x - 1] + 1);
+            if (y > 0) d = TS_MIN(d, dist[(y - 1) * P + x] + 1);
+            if (x > 0 && y > 0) d = TS_MIN(d, dist[(y - 1) * P + x - 1] + 1);
+            if (x + 1 < P && y > 0) d = TS_MIN(d, dist[(y - 1) * P + x + 1] + 1);
+            dist[y * P + x] = d;
+        }
+    for (y = P - 1; y >= 0; y--)
+        for (x = P - 1; x >= 0; x--) {
+            int d = dist[y * P + x];
+            if (x + 1 < P) d = TS_MIN(d, dist[y * P + x + 1] + 1);
+            if (y + 1 < P) d = TS_MIN(d, dist[(y + 1) * P + x] + 1);
+            if (x + 1 < P && y + 1 < P) d = TS_MIN(d, dist[(y + 1) * P + x + 1] + 1);
+            if (x > 0 && y + 1 < P) d = TS_MIN(d, dist[(y + 1) * P + x - 1] + 1);
+            dist[y * P + x] = d;
+        }
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++)
+            if (dist[y * P + x] > r)
+                pl->region[(y + 1) * M + x + 1] = 0;
+}
+
+/* Write the chosen patch into the output, then Poisson seam removal over
+ * the window with a one-cell ring of outside cells as boundary. */
+static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int sy, int index)
+{
+    ts_raster *out = pl->out;
+    int P = pl->P, M = P + 2, x, y, W = out->width, H = out->height, any_seam = 0;
+    ts_raster mr;
+    ts_status st;
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++) {
+            int ox = q->x + x, oy = q->y + y;
+            size_t o = (size_t)oy * (size_t)W + (size_t)ox;
+            if (!pl->best_labels[y * P + x] || (pl->flags && (pl->flags[o] & TS_CELL_NODATA)))
+                continue;
+            TS_PIX(out, ox, oy) = pl->patch[y * P + x];
+            if (pl->maps) {
+                if (pl->maps->source_exemplar) pl->maps->source_exemplar[o] = e;
+                if (pl->maps->source_x) pl->maps->source_x[o] = sx + x;
+                if (pl->maps->source_y) pl->maps->source_y[o] = sy + y;
+                if (pl->maps->order) pl->maps->order[o] = index;
+            }
+        }
+    /* the window with its ring */
+    for (y = 0; y < M; y++)
+        for (x = 0; x < M; x++) {
+            int ox = q->x + x - 1, oy = q->y + y - 1, inside = x > 0 && y > 0 && x <= P && y <= P;
+            float v = (ox >= 0 && oy >= 0 && ox < W && oy < H) ? TS_PIX(out, ox, oy) : NAN;
+            pl->merged[y * M + x] = v;
+            pl->mlabels[y * M + x] = inside ? pl->best_labels[(y - 1) * P + (x - 1)] : 0;
+            pl->region[y * M + x] =
+                inside && !isnan(v) && !place_flag(pl, ox, oy, TS_CELL_FIXED);
+        }
+    for (y = 0; y < M && !any_seam; y++)
+        for (x = 0; x + 1 < M; x++)
+            if (!isnan(pl->merged[y * M + x]) && !isnan(pl->merged[y * M + x + 1]) &&
+                pl->mlabels[y * M + x] != pl->mlabels[y * M + x + 1]) {
+                any_seam = 1;
+                break;
+            }
+    for (y = 0; y + 1 < M && !any_seam; y++)
+        for (x = 0; x < M; x++)
+            if (!isnan(pl->merged[y * M + x]) && !isnan(pl->merged[(y + 1) * M + x]) &&
+                pl->mlabels[y * M + x] != pl->mlabels[(y + 1) * M + x]) {
+                any_seam = 1;
+                break;
+            }
+    if (!any_seam)
+        return TS_OK;
+    if (pl->maps && pl->maps->seams)
+        for (y = 1; y <= P; y++)
+            for (x = 1; x <= P; x++) {
+                unsigned char l = pl->mlabels[y * M + x];
+                int ox = q->x + x - 1, oy = q->y + y - 1;
+                if (isnan(pl->merged[y * M + x]))
+                    continue;
+                if ((!isnan(pl->merged[y * M + x - 1]) && pl->mlabels[y * M + x - 1] != l) ||
+                    (!isnan(pl->merged[y * M + x + 1]) && pl->mlabels[y * M + x + 1] != l) ||
+                    (!isnan(pl->merged[(y - 1) * M + x]) && pl->mlabels[(y - 1) * M + x] != l) ||
+                    (!isnan(pl->merged[(y + 1) * M + x]) && pl->mlabels[(y + 1) * M + x] != l))
+                    pl->maps->seams[(size_t)oy * (size_t)W + (size_t)ox] = 1;
+            }
+    place_limit_region(pl);
+    mr = ts_raster_wrap(pl->merged, M, M, M);
+    st = ts_poisson_seam_remove(pl->ctx, &mr, pl->mlabels, pl->region);
+    if (st != TS_OK)
+        return st;
+    for (y = 1; y <= P; y++)
+        for (x = 1; x <= P; x++)
+            if (pl->region[y * M + x])
+                TS_PIX(out, q->x + x - 1, q->y + y - 1) = pl->merged[y * M + x];
+    return TS_OK;
+}
+
+/* Place one patch at q: the first ever (nothing to match) is random. */
+static ts_status place_one(placer *pl, placement *q, int index)
+{
+    ts_ctx *ctx = pl->ctx;
+    int P = pl->P, x, y, n_known = 0, e, i, total = 0, best = -1, W = pl->out->width;
+    int H = pl->out->height;
+    int *cand_ex;
+    double *cost, best_cost = INFINITY, t0 = 0;
+    ts_status st = TS_OK;
+    /* target window and the graph-cut constraints */
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++) {
+            int ox = q->x + x, oy = q->y + y;
+            float v = TS_PIX(pl->out, ox, oy);
+            unsigned char c = TS_SEAM_FREE;
+            pl->target[y * P + x] = v;
+            if (!isnan(v)) {
+                pl->known[n_known++] = y * P + x;
+                /* a filled border cell next to filled cells outside stays old,
+                 * so every seam lies inside the window where it is costed */
+                if ((x == 0 && ox > 0 && !isnan(TS_PIX(pl->out, ox - 1, oy))) ||
+                    (y == 0 && oy > 0 && !isnan(TS_PIX(pl->out, ox, oy - 1))) ||
+                    (x == P - 1 && ox + 1 < W && !isnan(TS_PIX(pl->out, ox + 1, oy))) ||
+                    (y == P - 1 && oy + 1 < H && !isnan(TS_PIX(pl->out, ox, oy + 1))))
+                    c = TS_SEAM_OLD;
+            }
+            /* keep_nodata cells take the patch in the cut (there is nothing
+             * old there) but are never written */
+            if (!isnan(v) && place_flag(pl, ox, oy, TS_CELL_FIXED))
+                c = TS_SEAM_OLD;
+            pl->constraint[y * P + x] = c;
+        }
+    cand_ex = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *cand_ex);
+    cost = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *cost);
+    if (!cand_ex || !cost) {
+        st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
+        goto done;
+    }
+    if (n_known == 0) {
+        /* nothing to match: a random valid window of a random exemplar */
+        int tries;
+        for (tries = 0; tries < 100000; tries++) {
+            exemplar_data *ed;
+            e = (int)(place_rand(pl) % (uint64_t)pl->n_ex);
+            ed = &pl->ex[e];
+            x = (int)(place_rand(pl) % (uint64_t)(ed->full->width - P + 1));
+            y = (int)(place_rand(pl) % (uint64_t)(ed->full->height - P + 1));
+            if (sat_sum(ed->nodata_sat, ed->full->width, x, y, x + P, y + P) == 0)
+                break;
+        }
+        if (tries == 100000) {
+            st = ts_fail(ctx, TS_ERR_NUMERIC, "synth", "no exemplar window free of nodata");
+            goto done;
+        }
+        place_copy_patch(pl, pl->ex[e].full, x, y);
+        for (i = 0; i < P * P; i++)
+            pl->best_labels[i] = isnan(pl->target[i]);
+        st = place_merge(pl, q, e, x, y, index);
+        goto done;
+    }
+    /* k candidates per exemplar, pooled */
+    t0 = place_now();
+    for (e = 0; e < pl->n_ex; e++) {
+        int n = 0;
+        st = place_search(pl, e, n_known, pl->cands + total, &n);
+        if (st != TS_OK)
+            goto done;
+        for (i = 0; i < n; i++)
+            cand_ex[total + i] = e;
+        total += n;
+    }
+    if (total == 0) {
+        st = ts_fail(ctx, TS_ERR_NUMERIC, "synth", "no exemplar window matches");
+        goto done;
+    }
+    if (pl->maps)
+        place_tick(pl, &pl->maps->seconds_match, &t0);
+    /* graph cut each; cost = RMS of the SSD + alpha_g * mean mismatch across the seam */
+    for (i = 0; i < total; i++) {
+        ts_raster old = ts_raster_wrap(pl->target, P, P, P);
+        ts_raster patch = ts_raster_wrap(pl->patch, P, P, P);
+        double cg = 0.0;
+        int cuts;
+        place_copy_patch(pl, pl->ex[cand_ex[i]].full, pl->cands[i].x, pl->cands[i].y);
+        st = ts_seam_graphcut(ctx, &old, &patch, pl->constraint, pl->labels, &cg);
+        if (st != TS_OK)
+            goto done;
+        cuts = place_cut_edges(pl->labels, P);
+        cost[i] = sqrt(pl->cands[i].ssd / n_known) + pl->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts));
+        if (cost[i] < best_cost) {
+            best_cost = cost[i];
+            best = i;
+        }
+    }
+    /* variety: a seeded pick among the near-best */
+    if (pl->p->variety > 0) {
+        int n_ok = 0, pick;
+        for (i = 0; i < total; i++)
+            n_ok += cost[i] <= best_cost * (1.0 + pl->p->variety);
+        pick = (int)(place_rand(pl) % (uint64_t)n_ok);
+        for (i = 0; i < total; i++)
+            if (cost[i] <= best_cost * (1.0 + pl->p->variety) && pick-- == 0) {
+                best = i;
+                break;
+            }
+    }
+    {
+        ts_raster old = ts_raster_wrap(pl->target, P, P, P);
+        ts_raster patch = ts_raster_wrap(pl->patch, P, P, P);
+        double cg;
+        place_copy_patch(pl, pl->ex[cand_ex[best]].full, pl->cands[best].x, pl->cands[best].y);
+        st = ts_seam_graphcut(ctx, &old, &patch, pl->constraint, pl->best_labels, &cg);
+        if (pl->maps)
+            place_tick(pl, &pl->maps->seconds_cut, &t0);
+        if (st == TS_OK)
+            st = place_merge(pl, q, cand_ex[best], pl->cands[best].x, pl->cands[best].y, index);
+        if (pl->maps)
+            place_tick(pl, &pl->maps->seconds_poisson, &t0);
+    }
+done:
+    free(cand_ex);
+    free(cost);
+    return st;
+}
+
+static ts_status place_validate(ts_ctx *ctx, const ts_raster *ex, int n_ex,
+                                const ts_synth_params *p, const ts_raster *out)
+{
+    int i;
+    if (!ex || n_ex < 1 || !p || !out || !out->data)
+        return ts_fail(ctx, TS_ERR_ARG, "synth", "missing exemplars, parameters or output");
+    if (ts_params_validate(ctx, "synth", p) != TS_OK)
+        return ctx->status;
+    if (p->overlap >= p->patch_size)
+        return ts_fail(ctx, TS_ERR_ARG, "synth", "overlap %d must be smaller than patch_size %d",
+                       p->overlap, p->patch_size);
+    if (p->coarse_factor > 1 && p->patch_size / p->coarse_factor < 4)
+        return ts_fail(ctx, TS_ERR_ARG, "synth",
+                       "patch_size %d / coarse_factor %d leaves fewer than 4 coarse cells",
+                       p->patch_size, p->coarse_factor);
+    if (out->width < p->patch_size || out->height < p->patch_size)
+        return ts_fail(ctx, TS_ERR_SIZE, "synth",
+                       "the output (%d x %d) is smaller than a patch (%d x %d)", out->width,
+                       out->height, p->patch_size, p->patch_size);
+    for (i = 0; i < n_ex; i++)
+        if (!ex[i].data || ex[i].width <= 0 || ex[i].height <= 0)
+            return ts_fail(ctx, TS_ERR_ARG, "synth", "exemplar %d is empty", i);
+    return TS_OK;
+}
+
+static void placer_free(placer *pl)
+{
+    int e;
+    if (pl->ex)
+        for (e = 0; e < pl->n_ex; e++) {
+            ts_matcher_free(pl->ex[e].matcher);
+            ts_raster_free(&pl->ex[e].coarse);
+            free(pl->ex[e].nodata_sat);
+        }
+    free(pl->ex);
+    free(pl->target);
+    free(pl->target_c);
+    free(pl->patch);
+    free(pl->merged);
+    free(pl->constraint);
+    free(pl->labels);
+    free(pl->best_labels);
+    free(pl->region);
+    free(pl->mlabels);
+    free(pl->known);
+    free(pl->cands);
+}
+
+TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                  const ts_synth_params *params, ts_raster *out,
+                                  const unsigned char *cell_flags, ts_synth_maps *maps)
+{
+    placer pl;
+    placement *pos = NULL;
+    int *xs = NULL, *ys = NULL, nx, ny, n_pos, i, e, placed = 0, step;
+    size_t P2, M2, n_out;
+    double t_start = place_now();
+    ts_status st;
+
+    ts_clear(ctx);
+    if ((st = place_validate(ctx, exemplars, n_exemplars, params, out)) != TS_OK)
+        return st;
+    memset(&pl, 0, sizeof pl);
+    pl.ctx = ctx;
+    pl.p = params;
+    pl.out = out;
+    pl.flags = cell_flags;
+    pl.maps = maps;
+    pl.n_ex = n_exemplars;
+    pl.P = params->patch_size;
+    pl.f = params->coarse_factor;
+    pl.Pc = pl.P / pl.f;
+    pl.rng = ts_ctx_seed(ctx) ^ 0x5eed5eed5eedull;
+    P2 = (size_t)pl.P * (size_t)pl.P;
+    M2 = (size_t)(pl.P + 2) * (size_t)(pl.P + 2);
+    pl.n_cands_cap = 2 * (3 * params->candidates * n_exemplars + 8);
+    pl.ex = calloc((size_t)n_exemplars, sizeof *pl.ex);
+    pl.target = ts_malloc_array(P2, sizeof(float));
+    pl.target_c = ts_malloc_array(P2, sizeof(float));
+    pl.patch = ts_malloc_array(P2, sizeof(float));
+    pl.merged = ts_malloc_array(M2, sizeof(float));
+    pl.constraint = ts_malloc_array(P2, 1);
+    pl.labels = ts_malloc_array(P2, 1);
+    pl.best_labels = ts_malloc_array(P2, 1);
+    pl.region = ts_malloc_array(M2, 1);
+    pl.mlabels = ts_malloc_array(M2, 1);
+    pl.known = ts_malloc_array(P2, sizeof(int));
+    pl.cands = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cands);
+    step = pl.P - params->overlap;
+    xs = ts_malloc_array((size_t)out->width / (size_t)step + 2, sizeof *xs);
+    ys = ts_malloc_array((size_t)out->height / (size_t)step + 2, sizeof *ys);
+    if (!pl.ex || !pl.target || !pl.target_c || !pl.patch || !pl.merged || !pl.constraint ||
+        !pl.labels || !pl.best_labels || !pl.region || !pl.mlabels || !pl.known || !pl.cands ||
+        !xs || !ys) {
+        st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
+        goto done;
+    }
+    n_out = (size_t)out->width * (size_t)out->height;
+    if (maps) {
+        size_t k;
+        maps->n_patches = 0;
+        maps->seconds_prepare = maps->seconds_match = maps->seconds_cut = 0;
+        maps->seconds_poisson = 0;
+        for (k = 0; k < n_out; k++) {
+            if (maps->source_exemplar) maps->source_exemplar[k] = -1;
+            if (maps->source_x) maps->source_x[k] = -1;
+            if (maps->source_y) maps->source_y[k] = -1;
+            if (maps->order) maps->order[k] = -1;
+            if (maps->seams) maps->seams[k] = 0;
+        }
+    }
+    for (e = 0; e < n_exemplars; e++) {
+        ts_progress_saved sv = ts_progress_push(ctx, 0.1 * e / n_exemplars,
+                                                0.1 * (e + 1) / n_exemplars);
+        st = place_prepare_exemplar(&pl, &pl.ex[e], &exemplars[e]);
+        ts_progress_pop(ctx, sv);
+        if (st != TS_OK) {
+            if (st == TS_ERR_SIZE || st == TS_ERR_NUMERIC)
+                ts_fail(ctx, st, "synth", "exemplar %d: %s", e + 1,
+                        strchr(ctx->message, ':') ? strchr(ctx->message, ':') + 2 : ctx->message);
+            goto done;
+        }
+    }
+    if (maps)
+        maps->seconds_prepare = place_now() - t_start;
+    nx = place_axis(out->width, pl.P, step, xs);
+    ny = place_axis(out->height, pl.P, step, ys);
+    n_pos = nx * ny;
+    pos = ts_malloc_array((size_t)n_pos, sizeof *pos);
+    if (!pos) {
+        st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
+        goto done;
+    }
+    for (i = 0; i < n_pos; i++) {
+        pos[i].x = xs[i % nx];
+        pos[i].y = ys[i / nx];
+        place_count(&pl, &pos[i]);
+    }
+    for (;;) {
+        int pick = -1, j;
+        if (params->order == TS_ORDER_RASTER) {
+            for (j = 0; j < n_pos; j++)
+                if (pos[j].needed) {
+                    pick = j;
+                    break;
+                }
+        } else {
+            /* most overlap first; nothing filled yet: the centre */
+            long best_d = 0;
+            for (j = 0; j < n_pos; j++) {
+                long d;
+                if (!pos[j].needed)
+                    continue;
+                d = labs((long)pos[j].x - (out->width - pl.P) / 2) +
+                    labs((long)pos[j].y - (out->height - pl.P) / 2);
+                if (pick < 0 || pos[j].overlap > pos[pick].overlap ||
+                    (pos[j].overlap == pos[pick].overlap && d < best_d)) {
+                    pick = j;
+                    best_d = d;
+                }
+            }
+        }
+        if (pick < 0)
+            break;
+        {
+            /* the stages inside report at the current fraction (they can still cancel) */
+            int remaining = 0;
+            double frac;
+            ts_progress_saved sv;
+            for (j = 0; j < n_pos; j++)
+                remaining += pos[j].needed;
+            frac = 0.1 + 0.9 * (double)placed / (double)(placed + remaining);
+            sv = ts_progress_push(ctx, frac, frac);
+            st = place_one(&pl, &pos[pick], placed);
+            ts_progress_pop(ctx, sv);
+            if (st != TS_OK)
+                goto done;
+        }
+        placed++;
+        if (maps)
+            maps->n_patches = placed;
+        /* windows that intersect the new patch changed */
+        for (j = 0; j < n_pos; j++)
+            if (abs(pos[j].x - pos[pick].x) < pl.P && abs(pos[j].y - pos[pick].y) < pl.P)
+                place_count(&pl, &pos[j]);
+        pos[pick].needed = 0;
+        {
+            int remaining = 0;
+            for (j = 0; j < n_pos; j++)
+                remaining += pos[j].needed;
+            st = ts_progress(ctx, 0.1 + 0.9 * (double)placed / (double)(placed + remaining),
+                             "patch placement");
+            if (st != TS_OK)
+                goto done;
+        }
+    }
+    st = ts_progress(ctx, 1.0, "patch placement");
+done:
+    free(pos);
+    free(xs);
+    free(ys);
+    placer_free(&pl);
+    return st;
+}

@@ -1,0 +1,236 @@
+/*
+ * test_synth.c - non-feature patch synthesis: fills everything, never uses
+ * exemplar nodata, keeps pre-filled and keep-nodata cells, deterministic,
+ * clear errors.  (Visual and statistical checks on real DEMs are in
+ * tests/cli/test_synth_cli.py.)
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include "harness.h"
+#include "terrasynth.h"
+
+static ts_raster make_exemplar(ts_ctx *ctx, int w, int h, uint64_t seed, int holes)
+{
+    ts_raster r;
+    int x, y;
+    uint64_t s = seed;
+    double ph[6];
+    for (x = 0; x < 6; x++)
+        ph[x] = 6.283 * th_uniform(&s);
+    ts_raster_alloc(ctx, w, h, &r);
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++)
+            TS_PIX(&r, x, y) = (float)(1000.0 + 80.0 * sin(x / 13.0 + ph[0]) * cos(y / 17.0 + ph[1]) +
+                                       40.0 * sin((x + y) / 7.0 + ph[2]) +
+                                       15.0 * sin(x / 3.1 + ph[3]) * sin(y / 4.3 + ph[4]) +
+                                       3.0 * th_uniform(&s));
+    if (holes)
+        for (y = 40; y < 60; y++)
+            for (x = 50; x < 75; x++)
+                TS_PIX(&r, x, y) = NAN;
+    return r;
+}
+
+static ts_synth_params small_params(void)
+{
+    ts_synth_params p = ts_synth_params_default();
+    p.patch_size = 32;
+    p.overlap = 8;
+    p.candidates = 4;
+    p.coarse_factor = 2;
+    return p;
+}
+
+static size_t count_nan(const ts_raster *r)
+{
+    size_t n = 0;
+    int x, y;
+    for (y = 0; y < r->height; y++)
+        for (x = 0; x < r->width; x++)
+            n += isnan(TS_PIX(r, x, y)) != 0;
+    return n;
+}
+
+static void test_fills_everything_without_exemplar_nodata(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_exemplar(ctx, 160, 120, 1, 1), out;
+    ts_synth_params p = small_params();
+    int32_t *se, *sx, *sy, *ord;
+    unsigned char *seams;
+    ts_synth_maps maps;
+    int order;
+    memset(&maps, 0, sizeof maps);
+    for (order = 0; order < 2; order++) {
+        int x, y, bad_source = 0;
+        p.order = order;
+        ts_raster_alloc(ctx, 150, 110, &out);
+        se = malloc(150 * 110 * sizeof *se);
+        sx = malloc(150 * 110 * sizeof *sx);
+        sy = malloc(150 * 110 * sizeof *sy);
+        ord = malloc(150 * 110 * sizeof *ord);
+        seams = malloc(150 * 110);
+        maps.source_exemplar = se;
+        maps.source_x = sx;
+        maps.source_y = sy;
+        maps.order = ord;
+        maps.seams = seams;
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, &maps) == TS_OK);
+        CHECK_MSG(count_nan(&out) == 0, "%zu NaN cells (order %d)", count_nan(&out), order);
+        for (y = 0; y < 110; y++)
+            for (x = 0; x < 150; x++) {
+                int k = y * 150 + x;
+                if (se[k] != 0 || sx[k] < 0 || sy[k] < 0 || isnan(TS_PIX(&ex, sx[k], sy[k])))
+                    bad_source++;
+                CHECK(ord[k] >= 0);
+            }
+        CHECK_MSG(bad_source == 0, "%d cells without a valid exemplar source", bad_source);
+        free(se);
+        free(sx);
+        free(sy);
+        free(ord);
+        free(seams);
+        ts_raster_free(&out);
+    }
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
+static void test_deterministic_and_seeded(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_exemplar(ctx, 160, 120, 2, 0), a, b, c;
+    ts_synth_params p = small_params();
+    ts_raster_alloc(ctx, 120, 100, &a);
+    ts_raster_alloc(ctx, 120, 100, &b);
+    ts_raster_alloc(ctx, 120, 100, &c);
+    ts_ctx_set_seed(ctx, 42);
+    ts_ctx_set_threads(ctx, 1);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &a, NULL, NULL) == TS_OK);
+    ts_ctx_set_threads(ctx, 2);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &b, NULL, NULL) == TS_OK);
+    ts_ctx_set_seed(ctx, 43);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &c, NULL, NULL) == TS_OK);
+    CHECK(memcmp(a.data, b.data, 120 * 100 * sizeof(float)) == 0);
+    CHECK(memcmp(a.data, c.data, 120 * 100 * sizeof(float)) != 0);
+    ts_raster_free(&a);
+    ts_raster_free(&b);
+    ts_raster_free(&c);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
+static void test_keep_nodata_and_prefilled(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_exemplar(ctx, 160, 120, 3, 0), out;
+    ts_synth_params p = small_params();
+    unsigned char *keep = calloc(100 * 90, 1);
+    int x, y, kept_nan = 1, far_kept = 1;
+    ts_raster_alloc(ctx, 100, 90, &out);
+    for (y = 0; y < 90; y++)
+        for (x = 0; x < 100; x++) {
+            if (x < 10)
+                keep[y * 100 + x] = TS_CELL_NODATA; /* a nodata strip */
+            if (x >= 60 && y >= 50) {
+                TS_PIX(&out, x, y) = 1000.0f + (float)(x - y); /* a fixed pre-filled block */
+                keep[y * 100 + x] = TS_CELL_FIXED;
+            }
+        }
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, keep, NULL) == TS_OK);
+    for (y = 0; y < 90; y++)
+        for (x = 0; x < 100; x++) {
+            if (x < 10 && !isnan(TS_PIX(&out, x, y)))
+                kept_nan = 0;
+            if (x >= 10 && isnan(TS_PIX(&out, x, y)))
+                kept_nan = 0;
+            if (x >= 60 && y >= 50 && TS_PIX(&out, x, y) != 1000.0f + (float)(x - y))
+                far_kept = 0;
+        }
+    CHECK(kept_nan);
+    CHECK(far_kept);
+    free(keep);
+    ts_raster_free(&out);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
+static void test_several_exemplars(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex[2], out;
+    ts_synth_params p = small_params();
+    int32_t *se = malloc(128 * 128 * sizeof *se);
+    ts_synth_maps maps;
+    int used[2] = {0, 0}, i;
+    memset(&maps, 0, sizeof maps);
+    maps.source_exemplar = se;
+    ex[0] = make_exemplar(ctx, 100, 100, 4, 0);
+    ex[1] = make_exemplar(ctx, 90, 110, 5, 0);
+    ts_raster_alloc(ctx, 128, 128, &out);
+    ts_ctx_set_seed(ctx, 9);
+    CHECK(ts_synth_patches(ctx, ex, 2, &p, &out, NULL, &maps) == TS_OK);
+    for (i = 0; i < 128 * 128; i++)
+        if (se[i] == 0 || se[i] == 1)
+            used[se[i]]++;
+    CHECK(used[0] + used[1] == 128 * 128);
+    CHECK(count_nan(&out) == 0);
+    free(se);
+    ts_raster_free(&out);
+    ts_raster_free(&ex[0]);
+    ts_raster_free(&ex[1]);
+    ts_ctx_free(ctx);
+}
+
+static int cancel_soon(double done, const char *msg, void *user)
+{
+    (void)msg;
+    (void)user;
+    return done < 0.4;
+}
+
+static void test_errors_and_cancel(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_exemplar(ctx, 160, 120, 6, 0), small = make_exemplar(ctx, 20, 20, 7, 0), out;
+    ts_synth_params p = small_params();
+    ts_raster_alloc(ctx, 100, 100, &out);
+    CHECK(ts_synth_patches(ctx, &small, 1, &p, &out, NULL, NULL) == TS_ERR_SIZE);
+    CHECK(strstr(ts_ctx_message(ctx), "smaller than a patch") != NULL);
+    p.overlap = 40;
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
+    p = small_params();
+    p.patch_size = 5000;
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
+    p = small_params();
+    {
+        ts_raster tiny;
+        ts_raster_alloc(ctx, 10, 10, &tiny);
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, &tiny, NULL, NULL) == TS_ERR_SIZE);
+        ts_raster_free(&tiny);
+    }
+    {
+        ts_raster allnan;
+        ts_raster_alloc(ctx, 64, 64, &allnan);
+        CHECK(ts_synth_patches(ctx, &allnan, 1, &p, &out, NULL, NULL) == TS_ERR_NUMERIC);
+        ts_raster_free(&allnan);
+    }
+    ts_ctx_set_progress(ctx, cancel_soon, NULL);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_CANCELLED);
+    ts_raster_free(&out);
+    ts_raster_free(&ex);
+    ts_raster_free(&small);
+    ts_ctx_free(ctx);
+}
+
+int main(int argc, char **argv)
+{
+    static const th_case cases[] = {
+        {"fills_everything_without_exemplar_nodata", test_fills_everything_without_exemplar_nodata},
+        {"deterministic_and_seeded", test_deterministic_and_seeded},
+        {"keep_nodata_and_prefilled", test_keep_nodata_and_prefilled},
+        {"several_exemplars", test_several_exemplars},
+        {"errors_and_cancel", test_errors_and_cancel},
+    };
+    return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
+}

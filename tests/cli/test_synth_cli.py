@@ -1,0 +1,239 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""End-to-end tests of `terrasynth synth` (non-feature patch synthesis):
+georeferencing, statistics against the exemplar, seams, determinism, errors,
+and real DEMs from ../shared/data/dem when present."""
+import math
+import os
+import subprocess
+
+import numpy as np
+import pytest
+from osgeo import gdal, osr
+
+gdal.UseExceptions()
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+TERRASYNTH = os.environ.get("TERRASYNTH", os.path.join(ROOT, "build", "gdal_driver", "terrasynth"))
+DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))
+SHARED = os.environ.get("TS_SHARED_DEM_DIR", os.path.join(ROOT, "..", "shared", "data", "dem"))
+JACKSBORO = os.path.join(DATA, "jacksboro_fault_dem.tif")
+
+
+def run(*args, check=True):
+    p = subprocess.run([TERRASYNTH, *map(str, args)], capture_output=True, text=True, timeout=900)
+    if check and p.returncode != 0:
+        raise AssertionError(f"terrasynth failed ({p.returncode}): {p.stderr}")
+    return p
+
+
+def load(path):
+    ds = gdal.Open(str(path))
+    b = ds.GetRasterBand(1)
+    z = b.ReadAsArray().astype(np.float64)
+    nd = b.GetNoDataValue()
+    if nd is not None:
+        z[z == nd] = np.nan
+    return ds, z
+
+
+def cell_size_m(ds):
+    """(dx, dy) in metres at the centre row (spherical approximation is enough for statistics)."""
+    gt = ds.GetGeoTransform()
+    srs = osr.SpatialReference(ds.GetProjection()) if ds.GetProjection() else None
+    if srs is not None and srs.IsGeographic():
+        lat = gt[3] + gt[5] * ds.RasterYSize / 2
+        m = 6371008.8 * math.pi / 180
+        return abs(gt[1]) * m * math.cos(math.radians(lat)), abs(gt[5]) * m
+    unit = srs.GetLinearUnits() if srs is not None else 1.0
+    return abs(gt[1]) * unit, abs(gt[5]) * unit
+
+
+def slopes_deg(z, dx, dy):
+    gy, gx = np.gradient(z, dy, dx)
+    s = np.degrees(np.arctan(np.hypot(gx, gy)))
+    return s[np.isfinite(s)]
+
+
+def steps(z):
+    """Absolute height differences between 4-adjacent cells."""
+    return np.concatenate([np.abs(np.diff(z, axis=1)).ravel(), np.abs(np.diff(z, axis=0)).ravel()])
+
+
+@pytest.fixture(scope="module")
+def jb_synth(tmp_path_factory):
+    d = tmp_path_factory.mktemp("synth")
+    out = d / "new.tif"
+    run("synth", "--exemplar", JACKSBORO, "--size", "320x288", "--seed", "7", out,
+        "--debug-dir", d / "debug", "--preview", d / "new.png", "-q")
+    return d, out
+
+
+def test_output_grid_and_nodata(jb_synth):
+    d, out = jb_synth
+    ds, z = load(out)
+    src = gdal.Open(JACKSBORO)
+    assert (ds.RasterXSize, ds.RasterYSize) == (320, 288)
+    gt, sgt = ds.GetGeoTransform(), src.GetGeoTransform()
+    assert gt[0] == pytest.approx(sgt[0]) and gt[3] == pytest.approx(sgt[3])
+    assert gt[1] == pytest.approx(sgt[1]) and gt[5] == pytest.approx(sgt[5])
+    assert osr.SpatialReference(ds.GetProjection()).IsSame(
+        osr.SpatialReference(src.GetProjection()), ["IGNORE_DATA_AXIS_TO_SRS_AXIS_MAPPING=YES"])
+    assert ds.GetRasterBand(1).GetNoDataValue() == -9999
+    assert ds.GetRasterBand(1).DataType == gdal.GDT_Float32
+    assert np.isfinite(z).all()
+
+
+def test_statistics_follow_the_exemplar(jb_synth):
+    _, out = jb_synth
+    ds, z = load(out)
+    sds, sz = load(JACKSBORO)
+    s_out = slopes_deg(z, *cell_size_m(ds))
+    s_ex = slopes_deg(sz, *cell_size_m(sds))
+    # the slope distribution stays close to the exemplar's (quantiles within 3 degrees)
+    for q in (25, 50, 75, 90):
+        assert abs(np.percentile(s_out, q) - np.percentile(s_ex, q)) < 3.0, q
+    # heights in the exemplar's range (the seam remover may shift them a little)
+    span = np.nanmax(sz) - np.nanmin(sz)
+    assert np.nanmin(z) > np.nanmin(sz) - 0.25 * span and np.nanmax(z) < np.nanmax(sz) + 0.25 * span
+
+
+def test_no_seams(jb_synth):
+    d, out = jb_synth
+    _, z = load(out)
+    _, sz = load(JACKSBORO)
+    seams = gdal.Open(str(d / "debug" / "seams.tif")).ReadAsArray().astype(bool)
+    assert seams.sum() > 100  # there are seams to look at
+    limit = np.percentile(steps(sz), 99.9)
+    # height steps between seam cells and their neighbours stay within the exemplar's own 99.9th percentile
+    sx = seams[:, 1:] | seams[:, :-1]
+    sy = seams[1:, :] | seams[:-1, :]
+    seam_steps = np.concatenate([np.abs(np.diff(z, axis=1))[sx], np.abs(np.diff(z, axis=0))[sy]])
+    # (strictly for 99 %; the 99.9th percentile within 10 %, since the exemplar is resampled
+    # from 3" cells onto the output's metric cells)
+    assert np.percentile(seam_steps, 99) <= limit
+    assert np.percentile(seam_steps, 99.9) <= 1.1 * limit, (np.percentile(seam_steps, 99.9), limit)
+    # and seams are no steeper than the rest of the output
+    assert np.percentile(seam_steps, 99) <= 1.1 * np.percentile(steps(z), 99)
+
+
+def test_debug_maps(jb_synth):
+    d, _ = jb_synth
+    for name in ("seams", "source_exemplar", "source_x", "source_y", "order"):
+        ds = gdal.Open(str(d / "debug" / f"{name}.tif"))
+        assert (ds.RasterXSize, ds.RasterYSize) == (320, 288)
+        assert ds.GetProjection()
+    order = gdal.Open(str(d / "debug" / "order.tif")).ReadAsArray()
+    assert order.min() >= 0 and len(np.unique(order)) > 10
+    sx = gdal.Open(str(d / "debug" / "source_x.tif")).ReadAsArray()
+    assert sx.min() >= 0
+
+
+def test_preview(jb_synth):
+    d, _ = jb_synth
+    ds = gdal.Open(str(d / "new.png"))
+    assert ds.RasterCount == 3 and ds.ReadAsArray().std() > 20
+
+
+def test_same_seed_same_bytes_other_seed_differs(tmp_path):
+    args = ["synth", "--exemplar", JACKSBORO, "--size", "200x180", "-q"]
+    run(*args, "--seed", "3", tmp_path / "a.tif")
+    run(*args, "--seed", "3", tmp_path / "b.tif", "--threads", "1")
+    run(*args, "--seed", "4", tmp_path / "c.tif")
+    a, b, c = ((tmp_path / n).read_bytes() for n in ("a.tif", "b.tif", "c.tif"))
+    assert a == b
+    assert load(tmp_path / "a.tif")[1].tobytes() != load(tmp_path / "c.tif")[1].tobytes()
+
+
+def test_raster_order_and_like_grid(tmp_path):
+    # a UTM grid at 120 m: the geographic exemplar is resampled to it on the ground
+    like = tmp_path / "grid.tif"
+    ds = gdal.GetDriverByName("GTiff").Create(str(like), 150, 130, 1, gdal.GDT_Float32)
+    ds.SetGeoTransform((700000, 120, 0, 4020000, 0, -120))
+    s = osr.SpatialReference()
+    s.ImportFromEPSG(32616)
+    ds.SetProjection(s.ExportToWkt())
+    ds = None
+    out = tmp_path / "o.tif"
+    run("synth", "--exemplar", JACKSBORO, "--like", like, "--order", "raster", "--patch-size", "32",
+        "--overlap", "8", out, "-q")
+    o, z = load(out)
+    assert o.GetGeoTransform() == pytest.approx((700000, 120, 0, 4020000, 0, -120))
+    assert osr.SpatialReference(o.GetProjection()).GetAuthorityCode(None) == "32616"
+    assert np.isfinite(z).all()
+
+
+def test_progress_lines(tmp_path):
+    p = run("synth", "--exemplar", JACKSBORO, "--size", "150x150", tmp_path / "o.tif", "--progress-lines")
+    pcts = [int(l.split()[1]) for l in p.stdout.splitlines() if l.startswith("PROGRESS ")]
+    assert pcts and pcts == sorted(pcts) and pcts[-1] == 100
+
+
+def write_tif(path, arr, srs="EPSG:32611"):
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), arr.shape[1], arr.shape[0], 1, gdal.GDT_Float32)
+    ds.SetGeoTransform((400000, 30, 0, 3800000, 0, -30))
+    s = osr.SpatialReference()
+    s.SetFromUserInput(srs)
+    ds.SetProjection(s.ExportToWkt())
+    ds.GetRasterBand(1).SetNoDataValue(-9999)
+    ds.GetRasterBand(1).WriteArray(arr)
+    ds = None
+
+
+@pytest.mark.parametrize(
+    "extra,words",
+    [
+        (["--exemplar", "TINY"], "smaller than a patch"),
+        (["--exemplar", "missing.tif"], "no such file"),
+        (["--exemplar", "ALLNODATA"], "nodata"),
+        (["--exemplar", "JB", "--patch-size", "4"], "out of range"),
+        (["--exemplar", "JB", "--overlap", "64"], "overlap"),
+        (["--exemplar", "JB", "--order", "spiral"], "spiral"),
+        (["--exemplar", "JB", "--size", "0x10"], "--size"),
+        (["--exemplar", "JB", "--size", "10x10"], "smaller than a patch"),
+        (["--exemplar", "JB", "--crs", "EPSG:32611"], "--origin"),
+        (["--exemplar", "JB", "--crs", "EPSG:99999999", "--origin", "0,0", "--resolution", "30"], "CRS"),
+        (["--exemplar", "JB", "--seed", "-3"], "--seed"),
+        (["--exemplar", "JB", "-co", "BOGUS=1"], "BOGUS"),
+    ],
+)
+def test_errors_are_one_line_and_leave_nothing(tmp_path, extra, words):
+    write_tif(tmp_path / "tiny.tif", np.ones((20, 20), np.float32))
+    write_tif(tmp_path / "allnodata.tif", np.full((100, 100), -9999, np.float32))
+    names = {"TINY": tmp_path / "tiny.tif", "ALLNODATA": tmp_path / "allnodata.tif", "JB": JACKSBORO,
+             "missing.tif": tmp_path / "missing.tif"}
+    args = [names.get(a, a) for a in extra]
+    if "--size" not in extra and "--crs" not in extra:
+        args += ["--size", "100x100"]
+    elif "--crs" in extra:
+        args += ["--size", "100x100"]
+    before = set(os.listdir(tmp_path))
+    p = run("synth", *args, tmp_path / "out.tif", "-q", check=False)
+    assert p.returncode != 0
+    err = p.stderr.strip()
+    assert err.count("\n") == 0, err
+    assert words.lower() in err.lower(), err
+    assert set(os.listdir(tmp_path)) == before
+
+
+SHARED_DEMS = sorted(f for f in os.listdir(SHARED) if f.endswith(".tif")) if os.path.isdir(SHARED) else []
+
+
+@pytest.mark.skipif(not SHARED_DEMS, reason="../shared/data/dem not present")
+@pytest.mark.parametrize("name", [n for n in SHARED_DEMS if "etopo5" not in n] or ["none"])
+def test_real_dems_grow_seamless_terrain(tmp_path, name):
+    src = os.path.join(SHARED, name)
+    out = tmp_path / "o.tif"
+    run("synth", "--exemplar", src, "--size", "256x256", "--seed", "1", out, "--debug-dir", tmp_path / "dbg",
+        "--preview", tmp_path / "o.png", "-q")
+    _, z = load(out)
+    _, sz = load(src)
+    assert np.isfinite(z).all()
+    seams = gdal.Open(str(tmp_path / "dbg" / "seams.tif")).ReadAsArray().astype(bool)
+    sx = seams[:, 1:] | seams[:, :-1]
+    sy = seams[1:, :] | seams[:-1, :]
+    seam_steps = np.concatenate([np.abs(np.diff(z, axis=1))[sx], np.abs(np.diff(z, axis=0))[sy]])
+    ex_steps = steps(sz)
+    ex_steps = ex_steps[np.isfinite(ex_steps)]
+    if seam_steps.size:
+        assert np.percentile(seam_steps, 99.9) <= 1.2 * np.percentile(ex_steps, 99.9)
