@@ -365,6 +365,19 @@ TS_API ts_status ts_poisson_seam_remove(ts_ctx *ctx, ts_raster *merged,
                                         const unsigned char *labels,
                                         const unsigned char *region);
 
+/**
+ * As ts_poisson_seam_remove, but across the seam the wanted difference is
+ * seam_gx[p] (to the right neighbour) / seam_gy[p] (to the one below),
+ * w*h floats each (with the merged raster's width as stride), instead of
+ * zero; NaN entries mean zero.  Passing the mean of the two sources'
+ * gradients there keeps the terrain's slope across the seam while removing
+ * the height step, where zero would flatten the slope along every seam.
+ */
+TS_API ts_status ts_poisson_seam_remove_guided(ts_ctx *ctx, ts_raster *merged,
+                                               const unsigned char *labels,
+                                               const unsigned char *region,
+                                               const float *seam_gx, const float *seam_gy);
+
 /* ------------------------------------------------------------------ */
 /* Non-feature patch synthesis (Zhou et al. 2007 section 4.2)         */
 /* ------------------------------------------------------------------ */
@@ -380,7 +393,7 @@ typedef struct ts_synth_params {
     double alpha_g;    /* weight of the graph-cut seam cost against the SSD */
     double variety;    /* pick at random among candidates within (1+variety) of the best */
     int coarse_factor; /* match on exemplars downsampled by this factor, refine at full
-                          resolution (1 = exhaustive full-resolution search) */
+                          resolution (1 = exhaustive full-resolution search, 0 = automatic) */
 } ts_synth_params;
 
 TS_API ts_synth_params ts_synth_params_default(void);

@@ -14,7 +14,6 @@
 #include <limits.h>
 #include <pthread.h>
 #include <stdint.h>
-#include <string.h>
 
 #include "fft.h"
 
@@ -41,7 +40,7 @@ size_t ts_fft_good_size(size_t n)
     return 0;
 }
 
-void *ts_fft_calloc(size_t n, size_t size)
+void *ts_fft_alloc(size_t n, size_t size)
 {
     void *p;
     if (size && n > SIZE_MAX / size)
@@ -49,8 +48,6 @@ void *ts_fft_calloc(size_t n, size_t size)
     pthread_mutex_lock(&fft_planner_lock);
     p = fftwf_malloc((n && size) ? n * size : 1);
     pthread_mutex_unlock(&fft_planner_lock);
-    if (p)
-        memset(p, 0, (n && size) ? n * size : 1);
     return p;
 }
 
@@ -83,14 +80,9 @@ fftwf_plan ts_fft_plan_row_c2r(int n, fftwf_complex *row)
 
 fftwf_plan ts_fft_plan_columns(int n, int count, fftwf_complex *buf, int sign)
 {
-    fftwf_iodim dim, loop;
     fftwf_plan p;
-    dim.n = n;
-    dim.is = dim.os = count;
-    loop.n = count;
-    loop.is = loop.os = 1;
     pthread_mutex_lock(&fft_planner_lock);
-    p = fftwf_plan_guru_dft(1, &dim, 1, &loop, buf, buf, sign, FFTW_ESTIMATE);
+    p = fftwf_plan_many_dft(1, &n, count, buf, NULL, 1, n, buf, NULL, 1, n, sign, FFTW_ESTIMATE);
     pthread_mutex_unlock(&fft_planner_lock);
     return p;
 }

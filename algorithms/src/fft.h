@@ -15,9 +15,10 @@
  * n is 0 or n' would not fit in an int. */
 size_t ts_fft_good_size(size_t n);
 
-/* n * size bytes from fftwf_malloc, zeroed; NULL on overflow or failure.
- * Free with ts_fft_free (NULL-safe).  Both run under the planner lock. */
-void *ts_fft_calloc(size_t n, size_t size);
+/* n * size bytes from fftwf_malloc (SIMD-aligned, not initialised); NULL
+ * on overflow or failure.  Free with ts_fft_free (NULL-safe).  Both run
+ * under the planner lock. */
+void *ts_fft_alloc(size_t n, size_t size);
 void ts_fft_free(void *p);
 
 /* In-place length-n real-to-complex (forward) and complex-to-real
@@ -29,8 +30,8 @@ void ts_fft_free(void *p);
 fftwf_plan ts_fft_plan_row_r2c(int n, fftwf_complex *row);
 fftwf_plan ts_fft_plan_row_c2r(int n, fftwf_complex *row);
 
-/* In-place length-n complex transforms of `count` interleaved sequences:
- * element j of sequence c is buf[j * count + c].  sign is FFTW_FORWARD or
+/* In-place length-n complex transforms of `count` consecutive sequences:
+ * element j of sequence c is buf[c * n + j].  sign is FFTW_FORWARD or
  * FFTW_BACKWARD (unnormalised).  Execute with fftwf_execute_dft on other
  * buffers of the same shape and alignment. */
 fftwf_plan ts_fft_plan_columns(int n, int count, fftwf_complex *buf, int sign);

@@ -22,9 +22,10 @@
 #include "internal.h"
 
 #define MATCH_STAGE "matcher"
-/* Complex columns per column block: 128 bytes, so every block, row and
- * scratch buffer keeps the alignment the plans were made with. */
-#define MATCH_BLOCK 16
+/* Complex columns per column block.  8 (64 bytes) keeps every block, row
+ * and scratch buffer at the alignment the plans were made with, and was
+ * the fastest of 4..32 (a block of 4096-point columns stays in L2). */
+#define MATCH_BLOCK 8
 #define MATCH_MAX_SLOTS 64
 /* Bound on |float map - exact SSD| relative to sum M T'^2 + known * max E'^2
  * (observed <= ~1e-6 in tests/c/test_match_ssd.c; float eps is 6e-8). */
@@ -43,12 +44,12 @@ struct ts_matcher {
     size_t n_valid;    /* windows free of nodata */
     unsigned char *valid; /* nx * ny: 1 where the window is free of nodata */
     /* Half spectra of E' and E'^2, pre-scaled by -2/F and 1/F, stored by
-     * column block: element (row j, column b * MATCH_BLOCK + c) at
-     * [(b * fh + j) * MATCH_BLOCK + c]. */
+     * column (transposed): element (row j, column c) at [c * fh + j],
+     * for stride columns (those past cols are zero). */
     fftwf_complex *spec1, *spec2;
     fftwf_complex *rows1; /* H rows: exemplar rows, then target rows and output rows */
     fftwf_complex *rows2; /* patch_h rows: mask rows */
-    fftwf_complex *scratch[MATCH_MAX_SLOTS]; /* per worker: 2 blocks of fh x MATCH_BLOCK */
+    fftwf_complex *scratch[MATCH_MAX_SLOTS]; /* per worker: 2 transposed blocks */
     int n_scratch;
     fftwf_plan row_r2c, row_c2r, col_fwd, col_bwd;
 };
@@ -143,29 +144,38 @@ static ts_status match_validity(ts_ctx *ctx, ts_matcher *m)
 static int match_scratch(ts_matcher *m, int want)
 {
     while (m->n_scratch < want && m->n_scratch < MATCH_MAX_SLOTS) {
-        fftwf_complex *p = ts_fft_calloc(2 * (size_t)m->fh * MATCH_BLOCK, sizeof *p);
+        fftwf_complex *p = ts_fft_alloc(2 * (size_t)m->fh * MATCH_BLOCK, sizeof *p);
         if (!p)
             break;
+        if (m->n_scratch > 0 && fftwf_alignment_of((float *)p) !=
+                                    fftwf_alignment_of((float *)m->scratch[0])) {
+            ts_fft_free(p); /* cannot happen with fftwf_malloc; never run a plan misaligned */
+            break;
+        }
         m->scratch[m->n_scratch++] = p;
     }
     return m->n_scratch;
 }
 
-/* Copy column block b of the first nrows rows of `rows` into blk (fh x
- * MATCH_BLOCK), zero elsewhere. */
+/* Column block b of the first nrows rows of `rows` into blk, transposed
+ * (column c of the block is blk[c * fh .. c * fh + fh - 1]), zero below. */
 static void match_gather(const ts_matcher *m, const fftwf_complex *rows, int nrows, int b,
                          fftwf_complex *blk)
 {
     const int c0 = b * MATCH_BLOCK, nc = TS_MIN(MATCH_BLOCK, m->cols - c0);
-    int j;
+    const size_t fh = (size_t)m->fh;
+    int j, c;
     for (j = 0; j < nrows; j++) {
-        fftwf_complex *d = blk + (size_t)j * MATCH_BLOCK;
-        memcpy(d, rows + (size_t)j * m->stride + c0, (size_t)nc * sizeof *d);
-        if (nc < MATCH_BLOCK)
-            memset(d + nc, 0, (size_t)(MATCH_BLOCK - nc) * sizeof *d);
+        const fftwf_complex *src = rows + (size_t)j * m->stride + c0;
+        for (c = 0; c < nc; c++) {
+            blk[c * fh + (size_t)j][0] = src[c][0];
+            blk[c * fh + (size_t)j][1] = src[c][1];
+        }
     }
-    memset(blk + (size_t)nrows * MATCH_BLOCK, 0,
-           (size_t)(m->fh - nrows) * MATCH_BLOCK * sizeof *blk);
+    for (c = 0; c < MATCH_BLOCK; c++) {
+        const size_t from = c < nc ? (size_t)nrows : 0;
+        memset(blk + c * fh + from, 0, (fh - from) * sizeof *blk);
+    }
 }
 
 /* Exemplar rows [begin, end): E' or E'^2 (nodata -> 0), forward along x. */
@@ -262,9 +272,14 @@ static void match_cols_query(void *arg, size_t begin, size_t end)
                 a[i][1] = s1[i][1] * ar - s1[i][0] * ai + s2[i][1] * qr - s2[i][0] * qi;
             }
             fftwf_execute_dft(m->col_bwd, a, a);
-            for (y = 0; y < m->ny; y++)
-                memcpy(m->rows1 + (size_t)y * m->stride + c0, a + (size_t)y * MATCH_BLOCK,
-                       (size_t)nc * sizeof *a);
+            for (y = 0; y < m->ny; y++) {
+                fftwf_complex *d = m->rows1 + (size_t)y * m->stride + c0;
+                int c;
+                for (c = 0; c < nc; c++) {
+                    d[c][0] = a[(size_t)c * m->fh + (size_t)y][0];
+                    d[c][1] = a[(size_t)c * m->fh + (size_t)y][1];
+                }
+            }
         }
     }
 }
@@ -708,16 +723,17 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const float
             for (q = 0; q < r; q++)
                 order[q] = rs[q].idx;
             nt = match_greedy(s, order, r, m->nx, k, taken);
+            if (r == n_pool && complete) {
+                done = 1; /* R holds every window: nothing can be missing */
+                break;
+            }
             if (nt == k) {
                 const double ek = rs[taken[k - 1]].e;
-                if (ek <= tau - delta) {
+                if (ek + delta <= tau) {
                     done = 1;
                     break;
                 }
-                tau = ek + delta;
-            } else if (r == n_pool) {
-                done = 1; /* complete: fewer than k separated windows exist */
-                break;
+                tau = ek + delta > tau ? ek + delta : INFINITY;
             } else {
                 const double next = pool[TS_MIN(n_pool - 1, 2 * r + 64)].v;
                 tau = next > tau ? next : INFINITY;
@@ -821,11 +837,11 @@ TS_API ts_status ts_matcher_new(ts_ctx *ctx, const ts_raster *exemplar, int patc
                        exemplar->width, exemplar->height);
     }
     spec_n *= fh;
-    m->spec1 = ts_fft_calloc(spec_n, sizeof(fftwf_complex));
-    m->spec2 = ts_fft_calloc(spec_n, sizeof(fftwf_complex));
-    m->rows1 = ts_fft_calloc((size_t)exemplar->height * (size_t)m->stride,
+    m->spec1 = ts_fft_alloc(spec_n, sizeof(fftwf_complex));
+    m->spec2 = ts_fft_alloc(spec_n, sizeof(fftwf_complex));
+    m->rows1 = ts_fft_alloc((size_t)exemplar->height * (size_t)m->stride,
                              sizeof(fftwf_complex));
-    m->rows2 = ts_fft_calloc((size_t)patch_h * (size_t)m->stride, sizeof(fftwf_complex));
+    m->rows2 = ts_fft_alloc((size_t)patch_h * (size_t)m->stride, sizeof(fftwf_complex));
     if (!m->spec1 || !m->spec2 || !m->rows1 || !m->rows2 || match_scratch(m, 1) < 1) {
         ts_matcher_free(m);
         return ts_fail(ctx, TS_ERR_NOMEM, MATCH_STAGE,
@@ -836,7 +852,8 @@ TS_API ts_status ts_matcher_new(ts_ctx *ctx, const ts_raster *exemplar, int patc
     m->row_c2r = ts_fft_plan_row_c2r(m->fw, m->rows1);
     m->col_fwd = ts_fft_plan_columns(m->fh, MATCH_BLOCK, m->scratch[0], FFTW_FORWARD);
     m->col_bwd = ts_fft_plan_columns(m->fh, MATCH_BLOCK, m->scratch[0], FFTW_BACKWARD);
-    if (!m->row_r2c || !m->row_c2r || !m->col_fwd || !m->col_bwd) {
+    if (!m->row_r2c || !m->row_c2r || !m->col_fwd || !m->col_bwd ||
+        fftwf_alignment_of((float *)m->rows2) != fftwf_alignment_of((float *)m->rows1)) {
         ts_matcher_free(m);
         return ts_fail(ctx, TS_ERR_INTERNAL, MATCH_STAGE, "FFTW cannot plan %zu x %zu transforms",
                        fw, fh);

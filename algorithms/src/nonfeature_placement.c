@@ -27,10 +27,14 @@ typedef struct placement {
     int needed;    /* still has empty cells to fill */
 } placement;
 
+#define PLACE_MAX_LEVELS 5 /* pyramid levels: factors 1, 2, 4, 8, 16 */
+
 typedef struct exemplar_data {
     const ts_raster *full;
-    ts_raster coarse;      /* box-downsampled by the coarse factor (NaN if any cell is) */
-    ts_matcher *matcher;   /* on `coarse` (factor > 1) or on `full` */
+    /* level[k]: box-downsampled by 2^k (NaN where any cell is); level[0] = *full */
+    ts_raster level[PLACE_MAX_LEVELS];
+    int K;                 /* coarsest level: the coarse factor is 2^K */
+    ts_matcher *matcher;   /* on level[K] */
     int32_t *nodata_sat;   /* summed-area table of full-resolution nodata, (w+1)*(h+1) */
 } exemplar_data;
 
@@ -42,10 +46,15 @@ typedef struct placer {
     ts_synth_maps *maps;
     exemplar_data *ex;
     int n_ex;
-    int P, f, Pc;          /* patch size, coarse factor, coarse patch size */
+    int P;                 /* patch size */
     uint64_t rng;
     /* work buffers */
-    float *target, *target_c, *patch, *merged;
+    float *target, *patch, *merged;
+    float *cand_patch;     /* one P x P window per candidate, for parallel cuts */
+    float *old_m, *new_m, *sgx, *sgy; /* (P+2)^2: the two sources and seam guidance */
+    float *tlevel[PLACE_MAX_LEVELS]; /* target pyramid (tlevel[0] = target) */
+    int *tknown[PLACE_MAX_LEVELS];   /* known cells per level */
+    int n_tknown[PLACE_MAX_LEVELS];
     unsigned char *constraint, *labels, *best_labels, *region, *mlabels;
     int *known;            /* indices of known target cells */
     ts_candidate *cands;
@@ -113,23 +122,10 @@ static int32_t sat_sum(const int32_t *sat, int w, int x0, int y0, int x1, int y1
            sat[(size_t)y0 * W + x0];
 }
 
-/* Exact masked SSD of the target's known cells against exemplar window (x, y). */
-static double place_ssd(const placer *pl, const ts_raster *ex, int x, int y, int n_known)
-{
-    double s = 0.0;
-    int i;
-    for (i = 0; i < n_known; i++) {
-        int k = pl->known[i], tx = k % pl->P, ty = k / pl->P;
-        double d = (double)pl->target[k] - (double)TS_PIX(ex, x + tx, y + ty);
-        s += d * d;
-    }
-    return s;
-}
-
 static ts_status place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_raster *full)
 {
     ts_ctx *ctx = pl->ctx;
-    int w = full->width, h = full->height, x, y, cw, ch;
+    int w = full->width, h = full->height, x, y, cw, ch, k;
     size_t W = (size_t)w + 1;
     ts_status st;
     e->full = full;
@@ -148,51 +144,82 @@ static ts_status place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_r
                 e->nodata_sat[(size_t)y * W + (size_t)(x + 1)] + row;
         }
     }
-    if (pl->f == 1) {
-        st = ts_matcher_new(ctx, full, pl->P, pl->P, &e->matcher);
-        return st;
+    /* coarse factor: as asked (rounded down to a power of two), or (0) the
+     * smallest that brings the exemplar to at most 512 x 512 cells, keeping
+     * at least 8 coarse cells a patch */
+    e->K = 0;
+    if (pl->p->coarse_factor == 0) {
+        while ((double)(w >> e->K) * (double)(h >> e->K) > 512.0 * 512.0 &&
+               (pl->P >> (e->K + 1)) >= 8 && e->K + 1 < PLACE_MAX_LEVELS)
+            e->K++;
+    } else {
+        while ((2 << e->K) <= pl->p->coarse_factor && e->K + 1 < PLACE_MAX_LEVELS)
+            e->K++;
     }
-    cw = w / pl->f;
-    ch = h / pl->f;
-    if ((st = ts_raster_alloc(ctx, cw, ch, &e->coarse)) != TS_OK)
-        return st;
-    for (y = 0; y < ch; y++)
-        for (x = 0; x < cw; x++) {
-            double s = 0.0;
-            int i, j, bad = 0;
-            for (j = 0; j < pl->f && !bad; j++)
-                for (i = 0; i < pl->f; i++) {
-                    float v = TS_PIX(full, x * pl->f + i, y * pl->f + j);
-                    if (isnan(v)) {
-                        bad = 1;
-                        break;
-                    }
-                    s += v;
-                }
-            TS_PIX(&e->coarse, x, y) = bad ? NAN : (float)(s / (pl->f * pl->f));
-        }
-    return ts_matcher_new(ctx, &e->coarse, pl->Pc, pl->Pc, &e->matcher);
+    e->level[0] = *full;
+    for (k = 1; k <= e->K; k++) {
+        const ts_raster *src = &e->level[k - 1];
+        cw = src->width / 2;
+        ch = src->height / 2;
+        if ((st = ts_raster_alloc(ctx, cw, ch, &e->level[k])) != TS_OK)
+            return st;
+        for (y = 0; y < ch; y++)
+            for (x = 0; x < cw; x++)
+                TS_PIX(&e->level[k], x, y) =
+                    0.25f * (TS_PIX(src, 2 * x, 2 * y) + TS_PIX(src, 2 * x + 1, 2 * y) +
+                             TS_PIX(src, 2 * x, 2 * y + 1) + TS_PIX(src, 2 * x + 1, 2 * y + 1));
+    }
+    return ts_matcher_new(ctx, &e->level[e->K], pl->P >> e->K, pl->P >> e->K, &e->matcher);
 }
 
-/* Downsample the target (known where at least half the block is known). */
-static void place_coarse_target(placer *pl)
+/* The target pyramid: a coarse cell is known (the mean of its known
+ * cells) where at least half of its four cells are. */
+static void place_target_pyramid(placer *pl, int K)
 {
-    int x, y, i, j;
-    for (y = 0; y < pl->Pc; y++)
-        for (x = 0; x < pl->Pc; x++) {
-            double s = 0.0;
-            int n = 0;
-            for (j = 0; j < pl->f; j++)
-                for (i = 0; i < pl->f; i++) {
-                    float v = pl->target[(y * pl->f + j) * pl->P + x * pl->f + i];
-                    if (!isnan(v)) {
-                        s += v;
-                        n++;
+    int k, x, y;
+    for (k = 1; k <= K; k++) {
+        int Pk = pl->P >> k, Ps = pl->P >> (k - 1), n = 0;
+        const float *src = pl->tlevel[k - 1];
+        float *dst = pl->tlevel[k];
+        for (y = 0; y < Pk; y++)
+            for (x = 0; x < Pk; x++) {
+                float v[4];
+                double sum = 0.0;
+                int i, m = 0;
+                v[0] = src[(2 * y) * Ps + 2 * x];
+                v[1] = src[(2 * y) * Ps + 2 * x + 1];
+                v[2] = src[(2 * y + 1) * Ps + 2 * x];
+                v[3] = src[(2 * y + 1) * Ps + 2 * x + 1];
+                for (i = 0; i < 4; i++)
+                    if (!isnan(v[i])) {
+                        sum += v[i];
+                        m++;
                     }
-                }
-            pl->target_c[y * pl->Pc + x] =
-                2 * n >= pl->f * pl->f ? (float)(s / n) : NAN;
-        }
+                dst[y * Pk + x] = m >= 2 ? (float)(sum / m) : NAN;
+                if (m >= 2)
+                    pl->tknown[k][n++] = y * Pk + x;
+            }
+        pl->n_tknown[k] = n;
+    }
+}
+
+/* SSD of target level k against exemplar level k at (x, y); stops early
+ * above `bound`; INFINITY where the exemplar level has nodata. */
+static double place_ssd_level(const placer *pl, const ts_raster *ex, int k, int x, int y,
+                              double bound)
+{
+    int Pk = pl->P >> k, i, n = pl->n_tknown[k];
+    const float *t = pl->tlevel[k];
+    const int *idx = pl->tknown[k];
+    double s = 0.0;
+    for (i = 0; i < n; i++) {
+        int c = idx[i];
+        double d = (double)t[c] - (double)TS_PIX(ex, x + c % Pk, y + c / Pk);
+        s += d * d;
+        if (!(s <= bound)) /* also catches NaN */
+            return isnan(s) ? INFINITY : s;
+    }
+    return s;
 }
 
 static int cand_cmp(const void *a, const void *b)
@@ -205,48 +232,97 @@ static int cand_cmp(const void *a, const void *b)
     return (p->x > q->x) - (p->x < q->x);
 }
 
-/* k best full-resolution windows of exemplar e; candidates' x carries the
- * exemplar index in the high bits via a parallel array. */
-static ts_status place_search(placer *pl, int e, int n_known, ts_candidate *out, int *n_out)
+typedef struct refine_job {
+    const placer *pl;
+    const exemplar_data *ed;
+    const ts_candidate *coarse;
+    ts_candidate *out; /* out[i] for coarse[i]; x = -1 when nothing valid */
+} refine_job;
+
+/* Refine coarse candidates [b, e) level by level (read-only on the placer,
+ * so ranges run in parallel). */
+static void place_refine_range(void *arg, size_t b, size_t e)
+{
+    const refine_job *j = arg;
+    const placer *pl = j->pl;
+    const exemplar_data *ed = j->ed;
+    int K = ed->K, w = ed->full->width, h = ed->full->height;
+    size_t i;
+    for (i = b; i < e; i++) {
+        int cx = j->coarse[i].x, cy = j->coarse[i].y, lv;
+        double best = INFINITY;
+        for (lv = K - 1; lv >= 0; lv--) {
+            const ts_raster *ex = &ed->level[lv];
+            int Pk = pl->P >> lv, bx = -1, by = -1, x, y;
+            /* +-2 below the matcher's level, then +-1: each level halves the doubt */
+            int r = lv == K - 1 ? 2 : 1;
+            best = INFINITY;
+            for (y = TS_MAX(0, 2 * cy - r); y <= TS_MIN(ex->height - Pk, 2 * cy + r); y++)
+                for (x = TS_MAX(0, 2 * cx - r); x <= TS_MIN(ex->width - Pk, 2 * cx + r); x++) {
+                    double s;
+                    if (lv == 0 && sat_sum(ed->nodata_sat, w, x, y, x + pl->P, y + pl->P) != 0)
+                        continue;
+                    s = place_ssd_level(pl, ex, lv, x, y, best);
+                    if (s < best) {
+                        best = s;
+                        bx = x;
+                        by = y;
+                    }
+                }
+            if (bx < 0)
+                break;
+            cx = bx;
+            cy = by;
+        }
+        j->out[i].x = -1;
+        if (lv < 0 && isfinite(best) && cx + pl->P <= w && cy + pl->P <= h) {
+            j->out[i].x = cx;
+            j->out[i].y = cy;
+            j->out[i].ssd = best;
+        }
+    }
+}
+
+/* k best full-resolution windows of exemplar e: the matcher's candidates on
+ * the coarsest level, each refined level by level by exact SSD (+-2 cells on
+ * the first finer level, +-1 on the others), so the full-resolution SSD is
+ * exact. */
+static ts_status place_search(placer *pl, int e, ts_candidate *out, int *n_out)
 {
     exemplar_data *ed = &pl->ex[e];
-    int k = pl->p->candidates, found = 0, i;
+    int k = pl->p->candidates, found = 0, i, K = ed->K, nc = 0;
+    ts_candidate *coarse = pl->cands + pl->n_cands_cap / 2;
+    ts_raster tc;
     ts_status st;
-    if (pl->f == 1) {
+    if (K == 0) {
         ts_raster t = ts_raster_wrap(pl->target, pl->P, pl->P, pl->P);
         st = ts_matcher_best(pl->ctx, ed->matcher, &t, k, 1, out, &found);
         *n_out = found;
         return st;
-    } else {
-        int kc = 2 * k, nc = 0, w = ed->full->width, h = ed->full->height;
-        ts_raster tc = ts_raster_wrap(pl->target_c, pl->Pc, pl->Pc, pl->Pc);
-        ts_candidate *coarse = pl->cands + pl->n_cands_cap / 2;
-        place_coarse_target(pl);
-        st = ts_matcher_best(pl->ctx, ed->matcher, &tc, kc, 2, coarse, &nc);
-        if (st != TS_OK)
-            return st;
-        for (i = 0; i < nc; i++) {
-            int cx = coarse[i].x * pl->f, cy = coarse[i].y * pl->f, x, y;
-            ts_candidate best = {-1, -1, INFINITY};
-            for (y = TS_MAX(0, cy - pl->f); y <= TS_MIN(h - pl->P, cy + pl->f); y++)
-                for (x = TS_MAX(0, cx - pl->f); x <= TS_MIN(w - pl->P, cx + pl->f); x++) {
-                    double s;
-                    if (sat_sum(ed->nodata_sat, w, x, y, x + pl->P, y + pl->P) != 0)
-                        continue;
-                    s = place_ssd(pl, ed->full, x, y, n_known);
-                    if (s < best.ssd) {
-                        best.x = x;
-                        best.y = y;
-                        best.ssd = s;
-                    }
-                }
-            if (best.x >= 0)
-                out[found++] = best;
-        }
-        qsort(out, (size_t)found, sizeof *out, cand_cmp);
-        *n_out = TS_MIN(found, k);
-        return TS_OK;
     }
+    place_target_pyramid(pl, K);
+    tc = ts_raster_wrap(pl->tlevel[K], pl->P >> K, pl->P >> K, pl->P >> K);
+    st = ts_matcher_best(pl->ctx, ed->matcher, &tc, 2 * k, 2, coarse, &nc);
+    if (st != TS_OK)
+        return st;
+    {
+        refine_job job;
+        job.pl = pl;
+        job.ed = ed;
+        job.coarse = coarse;
+        job.out = out;
+        ts_parallel_for(pl->ctx, (size_t)nc, place_refine_range, &job);
+    }
+    for (i = 0; i < nc; i++)
+        if (out[i].x >= 0)
+            out[found++] = out[i];
+    qsort(out, (size_t)found, sizeof *out, cand_cmp);
+    /* two coarse candidates may refine to one window: keep it once */
+    for (i = 1, nc = found ? 1 : 0; i < found; i++)
+        if (out[i].x != out[nc - 1].x || out[i].y != out[nc - 1].y)
+            out[nc++] = out[i];
+    *n_out = TS_MIN(nc, k);
+    return TS_OK;
 }
 
 /* Count 4-adjacent label changes inside the window. */
@@ -306,6 +382,36 @@ static void place_limit_region(placer *pl)
                 pl->region[(y + 1) * M + x + 1] = 0;
 }
 
+/* Mean of the available differences a(q) - a(p) of the two sources. */
+static float place_mean_diff(const float *o, const float *n, int p, int q)
+{
+    double s = 0.0;
+    int k = 0;
+    if (!isnan(o[p]) && !isnan(o[q])) {
+        s += (double)o[q] - (double)o[p];
+        k++;
+    }
+    if (!isnan(n[p]) && !isnan(n[q])) {
+        s += (double)n[q] - (double)n[p];
+        k++;
+    }
+    return k ? (float)(s / k) : NAN;
+}
+
+/* Guidance across the seam: the mean of the old and new gradients there
+ * (Zhou et al. use zero, which flattens the slope along every seam and
+ * shows as lines in a hillshade). */
+static void place_seam_guidance(placer *pl)
+{
+    int M = pl->P + 2, x, y;
+    for (y = 0; y < M; y++)
+        for (x = 0; x < M; x++) {
+            int c = y * M + x;
+            pl->sgx[c] = x + 1 < M ? place_mean_diff(pl->old_m, pl->new_m, c, c + 1) : NAN;
+            pl->sgy[c] = y + 1 < M ? place_mean_diff(pl->old_m, pl->new_m, c, c + M) : NAN;
+        }
+}
+
 /* Write the chosen patch into the output, then Poisson seam removal over
  * the window with a one-cell ring of outside cells as boundary. */
 static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int sy, int index)
@@ -328,11 +434,18 @@ static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int 
                 if (pl->maps->order) pl->maps->order[o] = index;
             }
         }
-    /* the window with its ring */
+    /* the window with its ring, and both sources on it */
     for (y = 0; y < M; y++)
         for (x = 0; x < M; x++) {
             int ox = q->x + x - 1, oy = q->y + y - 1, inside = x > 0 && y > 0 && x <= P && y <= P;
+            int ex_x = sx + x - 1, ex_y = sy + y - 1;
+            const ts_raster *exr = pl->ex[e].full;
             float v = (ox >= 0 && oy >= 0 && ox < W && oy < H) ? TS_PIX(out, ox, oy) : NAN;
+            pl->old_m[y * M + x] = inside ? pl->target[(y - 1) * P + (x - 1)] : v;
+            pl->new_m[y * M + x] = (ex_x >= 0 && ex_y >= 0 && ex_x < exr->width &&
+                                    ex_y < exr->height)
+                                       ? TS_PIX(exr, ex_x, ex_y)
+                                       : NAN;
             pl->merged[y * M + x] = v;
             pl->mlabels[y * M + x] = inside ? pl->best_labels[(y - 1) * P + (x - 1)] : 0;
             pl->region[y * M + x] =
@@ -368,8 +481,9 @@ static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int 
                     pl->maps->seams[(size_t)oy * (size_t)W + (size_t)ox] = 1;
             }
     place_limit_region(pl);
+    place_seam_guidance(pl);
     mr = ts_raster_wrap(pl->merged, M, M, M);
-    st = ts_poisson_seam_remove(pl->ctx, &mr, pl->mlabels, pl->region);
+    st = ts_poisson_seam_remove_guided(pl->ctx, &mr, pl->mlabels, pl->region, pl->sgx, pl->sgy);
     if (st != TS_OK)
         return st;
     for (y = 1; y <= P; y++)
@@ -377,6 +491,48 @@ static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int 
             if (pl->region[y * M + x])
                 TS_PIX(out, q->x + x - 1, q->y + y - 1) = pl->merged[y * M + x];
     return TS_OK;
+}
+
+typedef struct cut_job {
+    placer *pl;
+    const int *cand_ex;
+    double *cost;
+    ts_status *status;
+    int n_known;
+} cut_job;
+
+/* Graph cuts of candidates [b, e): each has its own window, labels and a
+ * private context, so they run in parallel. */
+static void place_cut_range(void *arg, size_t b, size_t e)
+{
+    cut_job *j = arg;
+    placer *pl = j->pl;
+    int P = pl->P;
+    ts_ctx *c = ts_ctx_new();
+    size_t i;
+    for (i = b; i < e; i++) {
+        float *win = pl->cand_patch + i * (size_t)P * P;
+        unsigned char *lab = pl->labels + i * (size_t)P * P;
+        const ts_raster *ex = pl->ex[j->cand_ex[i]].full;
+        ts_raster old = ts_raster_wrap(pl->target, P, P, P);
+        ts_raster patch = ts_raster_wrap(win, P, P, P);
+        double cg = 0.0;
+        int x, y, cuts;
+        if (!c) {
+            j->status[i] = TS_ERR_NOMEM;
+            continue;
+        }
+        for (y = 0; y < P; y++)
+            for (x = 0; x < P; x++)
+                win[y * P + x] = TS_PIX(ex, pl->cands[i].x + x, pl->cands[i].y + y);
+        j->status[i] = ts_seam_graphcut(c, &old, &patch, pl->constraint, lab, &cg);
+        if (j->status[i] != TS_OK)
+            continue;
+        cuts = place_cut_edges(lab, P);
+        j->cost[i] = sqrt(pl->cands[i].ssd / j->n_known) +
+                     pl->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts));
+    }
+    ts_ctx_free(c);
 }
 
 /* Place one patch at q: the first ever (nothing to match) is random. */
@@ -387,6 +543,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
     int H = pl->out->height;
     int *cand_ex;
     double *cost, best_cost = INFINITY, t0 = 0;
+    ts_status *status;
     ts_status st = TS_OK;
     /* target window and the graph-cut constraints */
     for (y = 0; y < P; y++)
@@ -411,9 +568,11 @@ static ts_status place_one(placer *pl, placement *q, int index)
                 c = TS_SEAM_OLD;
             pl->constraint[y * P + x] = c;
         }
+    pl->n_tknown[0] = n_known;
     cand_ex = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *cand_ex);
     cost = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *cost);
-    if (!cand_ex || !cost) {
+    status = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *status);
+    if (!cand_ex || !cost || !status) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
         goto done;
     }
@@ -443,7 +602,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
     t0 = place_now();
     for (e = 0; e < pl->n_ex; e++) {
         int n = 0;
-        st = place_search(pl, e, n_known, pl->cands + total, &n);
+        st = place_search(pl, e, pl->cands + total, &n);
         if (st != TS_OK)
             goto done;
         for (i = 0; i < n; i++)
@@ -456,21 +615,25 @@ static ts_status place_one(placer *pl, placement *q, int index)
     }
     if (pl->maps)
         place_tick(pl, &pl->maps->seconds_match, &t0);
-    /* graph cut each; cost = RMS of the SSD + alpha_g * mean mismatch across the seam */
-    for (i = 0; i < total; i++) {
-        ts_raster old = ts_raster_wrap(pl->target, P, P, P);
-        ts_raster patch = ts_raster_wrap(pl->patch, P, P, P);
-        double cg = 0.0;
-        int cuts;
-        place_copy_patch(pl, pl->ex[cand_ex[i]].full, pl->cands[i].x, pl->cands[i].y);
-        st = ts_seam_graphcut(ctx, &old, &patch, pl->constraint, pl->labels, &cg);
-        if (st != TS_OK)
-            goto done;
-        cuts = place_cut_edges(pl->labels, P);
-        cost[i] = sqrt(pl->cands[i].ssd / n_known) + pl->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts));
-        if (cost[i] < best_cost) {
-            best_cost = cost[i];
-            best = i;
+    /* graph cut each (in parallel); cost = RMS of the SSD + alpha_g * mean
+     * mismatch across the seam */
+    {
+        cut_job job;
+        job.pl = pl;
+        job.cand_ex = cand_ex;
+        job.cost = cost;
+        job.status = status;
+        job.n_known = n_known;
+        ts_parallel_for(ctx, (size_t)total, place_cut_range, &job);
+        for (i = 0; i < total; i++) {
+            if (status[i] != TS_OK) {
+                st = ts_fail(ctx, status[i], "synth", "graph cut failed for a candidate");
+                goto done;
+            }
+            if (cost[i] < best_cost) {
+                best_cost = cost[i];
+                best = i;
+            }
         }
     }
     /* variety: a seeded pick among the near-best */
@@ -486,11 +649,8 @@ static ts_status place_one(placer *pl, placement *q, int index)
             }
     }
     {
-        ts_raster old = ts_raster_wrap(pl->target, P, P, P);
-        ts_raster patch = ts_raster_wrap(pl->patch, P, P, P);
-        double cg;
-        place_copy_patch(pl, pl->ex[cand_ex[best]].full, pl->cands[best].x, pl->cands[best].y);
-        st = ts_seam_graphcut(ctx, &old, &patch, pl->constraint, pl->best_labels, &cg);
+        memcpy(pl->patch, pl->cand_patch + (size_t)best * P * P, (size_t)P * P * sizeof(float));
+        memcpy(pl->best_labels, pl->labels + (size_t)best * P * P, (size_t)P * P);
         if (pl->maps)
             place_tick(pl, &pl->maps->seconds_cut, &t0);
         if (st == TS_OK)
@@ -501,6 +661,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
 done:
     free(cand_ex);
     free(cost);
+    free(status);
     return st;
 }
 
@@ -534,15 +695,28 @@ static void placer_free(placer *pl)
     int e;
     if (pl->ex)
         for (e = 0; e < pl->n_ex; e++) {
+            int k;
             ts_matcher_free(pl->ex[e].matcher);
-            ts_raster_free(&pl->ex[e].coarse);
+            for (k = 1; k < PLACE_MAX_LEVELS; k++)
+                ts_raster_free(&pl->ex[e].level[k]);
             free(pl->ex[e].nodata_sat);
         }
     free(pl->ex);
     free(pl->target);
-    free(pl->target_c);
+    {
+        int k;
+        for (k = 1; k < PLACE_MAX_LEVELS; k++) {
+            free(pl->tlevel[k]);
+            free(pl->tknown[k]);
+        }
+    }
     free(pl->patch);
+    free(pl->cand_patch);
     free(pl->merged);
+    free(pl->old_m);
+    free(pl->new_m);
+    free(pl->sgx);
+    free(pl->sgy);
     free(pl->constraint);
     free(pl->labels);
     free(pl->best_labels);
@@ -558,7 +732,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
 {
     placer pl;
     placement *pos = NULL;
-    int *xs = NULL, *ys = NULL, nx, ny, n_pos, i, e, placed = 0, step;
+    int *xs = NULL, *ys = NULL, nx, ny, n_pos, i, e, placed = 0, step, alloc_failed = 0;
     size_t P2, M2, n_out;
     double t_start = place_now();
     ts_status st;
@@ -574,19 +748,32 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.maps = maps;
     pl.n_ex = n_exemplars;
     pl.P = params->patch_size;
-    pl.f = params->coarse_factor;
-    pl.Pc = pl.P / pl.f;
     pl.rng = ts_ctx_seed(ctx) ^ 0x5eed5eed5eedull;
     P2 = (size_t)pl.P * (size_t)pl.P;
     M2 = (size_t)(pl.P + 2) * (size_t)(pl.P + 2);
     pl.n_cands_cap = 2 * (3 * params->candidates * n_exemplars + 8);
     pl.ex = calloc((size_t)n_exemplars, sizeof *pl.ex);
     pl.target = ts_malloc_array(P2, sizeof(float));
-    pl.target_c = ts_malloc_array(P2, sizeof(float));
+    pl.tlevel[0] = pl.target;
+    pl.tknown[0] = NULL; /* set to pl.known below */
+    for (i = 1; i < PLACE_MAX_LEVELS; i++) {
+        pl.tlevel[i] = ts_malloc_array(P2, sizeof(float));
+        pl.tknown[i] = ts_malloc_array(P2, sizeof(int));
+        if (!pl.tlevel[i] || !pl.tknown[i])
+            alloc_failed = 1;
+    }
     pl.patch = ts_malloc_array(P2, sizeof(float));
+    pl.cand_patch = ts_malloc_array(P2 * (size_t)params->candidates * (size_t)n_exemplars,
+                                    sizeof(float));
     pl.merged = ts_malloc_array(M2, sizeof(float));
+    pl.old_m = ts_malloc_array(M2, sizeof(float));
+    pl.new_m = ts_malloc_array(M2, sizeof(float));
+    pl.sgx = ts_malloc_array(M2, sizeof(float));
+    pl.sgy = ts_malloc_array(M2, sizeof(float));
+    if (!pl.old_m || !pl.new_m || !pl.sgx || !pl.sgy)
+        alloc_failed = 1;
     pl.constraint = ts_malloc_array(P2, 1);
-    pl.labels = ts_malloc_array(P2, 1);
+    pl.labels = ts_malloc_array(P2, (size_t)params->candidates * (size_t)n_exemplars);
     pl.best_labels = ts_malloc_array(P2, 1);
     pl.region = ts_malloc_array(M2, 1);
     pl.mlabels = ts_malloc_array(M2, 1);
@@ -595,7 +782,9 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     step = pl.P - params->overlap;
     xs = ts_malloc_array((size_t)out->width / (size_t)step + 2, sizeof *xs);
     ys = ts_malloc_array((size_t)out->height / (size_t)step + 2, sizeof *ys);
-    if (!pl.ex || !pl.target || !pl.target_c || !pl.patch || !pl.merged || !pl.constraint ||
+    pl.tlevel[0] = pl.target;
+    pl.tknown[0] = pl.known;
+    if (alloc_failed || !pl.ex || !pl.target || !pl.patch || !pl.cand_patch || !pl.merged || !pl.constraint ||
         !pl.labels || !pl.best_labels || !pl.region || !pl.mlabels || !pl.known || !pl.cands ||
         !xs || !ys) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");

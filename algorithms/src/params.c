@@ -52,9 +52,10 @@ static const ts_param_desc synth_desc[] = {
     {"variety", TS_PARAM_DOUBLE, 0.1, 0.0, 10.0, TS_UNIT_CELLS, "fraction", NULL,
      "Pick at random (seeded) among candidates whose cost is within this fraction of the best.",
      offsetof(ts_synth_params, variety)},
-    {"coarse_factor", TS_PARAM_INT, 4, 1, 16, TS_UNIT_CELLS, "", NULL,
+    {"coarse_factor", TS_PARAM_INT, 0, 0, 16, TS_UNIT_CELLS, "", NULL,
      "Search on exemplars downsampled by this factor, then refine at full resolution "
-     "(1 = exhaustive full-resolution search).",
+     "(1 = exhaustive full-resolution search; 0 = automatic: exemplars brought to at most "
+     "512 x 512 cells).",
      offsetof(ts_synth_params, coarse_factor)},
 };
 

@@ -35,6 +35,7 @@ typedef struct poisson_grid {
     const unsigned char *mask;
     const float *gx, *gy;
     const unsigned char *labels;
+    const float *seam_gx, *seam_gy; /* seam mode: guidance across the seam, or NULL = 0 */
 } poisson_grid;
 
 /* A pinned pure-Neumann component: queue[start .. start+len-1], target mean. */
@@ -89,8 +90,11 @@ static inline double poisson_guide(const poisson_grid *g, int x, int y, int dir)
     size_t cq = dir ? c + (size_t)g->w : c + 1;
     if (!g->labels)
         return dir ? g->gy[c] : g->gx[c];
-    if (g->labels[c] != g->labels[cq])
-        return 0.0; /* across the seam */
+    if (g->labels[c] != g->labels[cq]) {
+        /* across the seam: zero (Zhou et al.), or the caller's guidance */
+        const float *sg = dir ? g->seam_gy : g->seam_gx;
+        return (sg && isfinite(sg[c])) ? (double)sg[c] : 0.0;
+    }
     return (double)*poisson_u(g, x + !dir, y + dir) - (double)*poisson_u(g, x, y);
 }
 
@@ -556,6 +560,14 @@ TS_API ts_status ts_poisson_seam_remove(ts_ctx *ctx, ts_raster *merged,
                                         const unsigned char *labels,
                                         const unsigned char *region)
 {
+    return ts_poisson_seam_remove_guided(ctx, merged, labels, region, NULL, NULL);
+}
+
+TS_API ts_status ts_poisson_seam_remove_guided(ts_ctx *ctx, ts_raster *merged,
+                                               const unsigned char *labels,
+                                               const unsigned char *region,
+                                               const float *seam_gx, const float *seam_gy)
+{
     poisson_grid g;
     int max_iter;
     ts_clear(ctx);
@@ -571,6 +583,8 @@ TS_API ts_status ts_poisson_seam_remove(ts_ctx *ctx, ts_raster *merged,
     g.stride = merged->stride;
     g.mask = region;
     g.labels = labels;
+    g.seam_gx = seam_gx;
+    g.seam_gy = seam_gy;
     /* generous: MIC-PCG needs about 2 (w + h)^0.7 iterations */
     max_iter = (int)TS_MIN(1000.0 + 20.0 * ((double)g.w + (double)g.h), 1e9);
     return poisson_run(ctx, &g, 1e-6, max_iter);

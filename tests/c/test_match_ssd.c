@@ -419,6 +419,34 @@ static void test_best_smooth(void)
     ts_ctx_free(ctx);
 }
 
+/* Near-ties below the float map's resolution: a flat region (3000 m +-
+ * 0.05) next to a rough one that sets the FFT's error scale.  The float
+ * map cannot order the flat windows; the exact search still must. */
+static void test_best_near_ties(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t seed = 13;
+    int rep, x, y;
+    for (rep = 0; rep < 4; rep++) {
+        ts_raster e = make_random(&seed, 120 + rep, 100, 120 + rep, 0.0);
+        ts_raster t;
+        for (y = 0; y < 100; y++)
+            for (x = 0; x < 80; x++)
+                TS_PIX(&e, x, y) = (float)(3000.0 + 0.1 * (th_uniform(&seed) - 0.5));
+        t = make_target(&seed, &e, 0, 0, 10, 10, rep < 2 ? 1.0 : 0.6, 0.0);
+        for (y = 0; y < 10; y++)
+            for (x = 0; x < 10; x++)
+                if (isfinite(TS_PIX(&t, x, y)))
+                    TS_PIX(&t, x, y) = (float)(3000.0 + 0.1 * (th_uniform(&seed) - 0.5));
+        check_best(ctx, &e, &t, 1, 0);
+        check_best(ctx, &e, &t, 5, 4);
+        check_best(ctx, &e, &t, 30, 0);
+        free(e.data);
+        free(t.data);
+    }
+    ts_ctx_free(ctx);
+}
+
 /* A window of the exemplar itself, half masked, is found with SSD 0. */
 static void test_best_self(void)
 {
@@ -655,6 +683,7 @@ int main(int argc, char **argv)
         {"stride", test_stride},
         {"best_vs_naive", test_best_vs_naive},
         {"best_smooth", test_best_smooth},
+        {"best_near_ties", test_best_near_ties},
         {"best_self", test_best_self},
         {"best_empty", test_best_empty},
         {"best_few", test_best_few},
