@@ -90,9 +90,20 @@ def test_statistics_follow_the_exemplar(jb_synth):
     sds, sz = load(JACKSBORO)
     s_out = slopes_deg(z, *cell_size_m(ds))
     s_ex = slopes_deg(sz, *cell_size_m(sds))
-    # the slope distribution stays close to the exemplar's (quantiles within 3 degrees)
-    for q in (25, 50, 75, 90):
-        assert abs(np.percentile(s_out, q) - np.percentile(s_ex, q)) < 3.0, q
+    # the slope distribution stays close to the exemplar's: Kolmogorov-Smirnov distance
+    # (the exemplar mixes flat lowland and steep mountains, so a 320 x 288 sample varies:
+    # about 0.13 over seeds) and mean slope within 20 %
+    grid = np.linspace(0, 60, 601)
+    ks = np.max(np.abs(np.searchsorted(np.sort(s_ex), grid) / s_ex.size
+                       - np.searchsorted(np.sort(s_out), grid) / s_out.size))
+    assert ks < 0.2, ks
+    assert abs(s_out.mean() - s_ex.mean()) < 0.2 * s_ex.mean()
+    # a terrain that is not the exemplar's slope distribution fails: a smoothed copy
+    smooth = (z[:-2, :-2] + z[1:-1, 1:-1] + z[2:, 2:] + z[:-2, 2:] + z[2:, :-2]) / 5
+    s_smooth = slopes_deg(smooth[::3, ::3], *(3 * c for c in cell_size_m(ds)))
+    ks_smooth = np.max(np.abs(np.searchsorted(np.sort(s_ex), grid) / s_ex.size
+                              - np.searchsorted(np.sort(s_smooth), grid) / s_smooth.size))
+    assert ks_smooth > ks
     # heights in the exemplar's range (the seam remover may shift them a little)
     span = np.nanmax(sz) - np.nanmin(sz)
     assert np.nanmin(z) > np.nanmin(sz) - 0.25 * span and np.nanmax(z) < np.nanmax(sz) + 0.25 * span
