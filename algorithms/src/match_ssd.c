@@ -66,6 +66,49 @@ typedef struct match_job {
     int nslots;           /* column phases: worker slots */
 } match_job;
 
+/* ---- parallel helpers ---------------------------------------------------- */
+
+/* Cells of work per worker below which a thread costs more than it saves. */
+#define MATCH_MIN_WORK ((size_t)1 << 17)
+
+/* Workers for n_items items of total_cost cells: ts_thread_count, but at
+ * most one per MATCH_MIN_WORK cells. */
+static int match_workers(const ts_ctx *ctx, size_t n_items, size_t total_cost)
+{
+    const size_t by_work = total_cost / MATCH_MIN_WORK;
+    const int nt = ts_thread_count(ctx, n_items);
+    return by_work < 1 ? 1 : (by_work < (size_t)nt ? (int)by_work : nt);
+}
+
+typedef struct match_group {
+    size_t n, groups;
+    ts_range_fn fn;
+    void *arg;
+} match_group;
+
+static void match_group_run(void *arg, size_t begin, size_t end)
+{
+    const match_group *g = arg;
+    g->fn(g->arg, g->n * begin / g->groups, g->n * end / g->groups);
+}
+
+/* fn over items [0, n) of `cost` cells each, on match_workers() threads.
+ * Items are independent, so the split never changes a result. */
+static void match_parallel(ts_ctx *ctx, size_t n, size_t cost, ts_range_fn fn, void *arg)
+{
+    match_group g;
+    g.n = n;
+    g.groups = (size_t)match_workers(ctx, n, n * cost);
+    g.fn = fn;
+    g.arg = arg;
+    if (n == 0)
+        return;
+    if (g.groups <= 1)
+        fn(arg, 0, n);
+    else
+        ts_parallel_for(ctx, g.groups, match_group_run, &g);
+}
+
 /* ---- validity, mean ---------------------------------------------------- */
 
 /* Mean and spread of the valid cells, and the windows free of nodata:
@@ -308,10 +351,11 @@ static void match_rows_output(void *arg, size_t begin, size_t end)
  * one plan per direction make the result independent of the thread count. */
 static ts_status match_run_columns(ts_ctx *ctx, ts_matcher *m, match_job *job, ts_range_fn fn)
 {
-    int nslots = match_scratch(m, ts_thread_count(ctx, (size_t)m->nblk));
+    const int want = match_workers(ctx, (size_t)m->nblk, (size_t)m->cols * (size_t)m->fh);
+    int nslots = match_scratch(m, want);
     if (nslots < 1)
         return ts_fail(ctx, TS_ERR_NOMEM, MATCH_STAGE, "cannot allocate FFT scratch");
-    nslots = TS_MIN(nslots, ts_thread_count(ctx, (size_t)m->nblk));
+    nslots = TS_MIN(nslots, want);
     job->nslots = nslots;
     ts_parallel_for(ctx, (size_t)nslots, fn, job);
     return TS_OK;
@@ -348,14 +392,14 @@ static ts_status match_map(ts_ctx *ctx, ts_matcher *m, const ts_raster *t, float
             out[k] = m->valid[k] ? 0.0f : INFINITY;
         return ts_progress(ctx, 1.0, "SSD map");
     }
-    ts_parallel_for(ctx, 2 * (size_t)m->ph, match_rows_target, &job);
+    match_parallel(ctx, 2 * (size_t)m->ph, (size_t)m->fw, match_rows_target, &job);
     if ((st = ts_progress(ctx, 0.1, "SSD map")) != TS_OK)
         return st;
     if ((st = match_run_columns(ctx, m, &job, match_cols_query)) != TS_OK)
         return st;
     if ((st = ts_progress(ctx, 0.7, "SSD map")) != TS_OK)
         return st;
-    ts_parallel_for(ctx, (size_t)m->ny, match_rows_output, &job);
+    match_parallel(ctx, (size_t)m->ny, (size_t)m->fw, match_rows_output, &job);
     return ts_progress(ctx, 1.0, "SSD map");
 }
 
@@ -370,7 +414,7 @@ static ts_status match_spectrum(ts_ctx *ctx, ts_matcher *m, int square, fftwf_co
     job.square = square;
     job.dest = dest;
     job.scale = scale;
-    ts_parallel_for(ctx, (size_t)m->ex.height, match_rows_exemplar, &job);
+    match_parallel(ctx, (size_t)m->ex.height, (size_t)m->fw, match_rows_exemplar, &job);
     if ((st = ts_progress(ctx, 0.4, "exemplar spectra")) != TS_OK)
         return st;
     if ((st = match_run_columns(ctx, m, &job, match_cols_exemplar)) != TS_OK)
@@ -427,15 +471,14 @@ static int match_pick_greater(const match_pick *a, const match_pick *b)
     return a->v > b->v || (a->v == b->v && a->idx > b->idx);
 }
 
-/* The cap lowest finite map entries, sorted by (value, index), via a
- * bounded max-heap; *n_finite = finite entries in the whole map. */
-static size_t match_pool(const float *map, size_t npos, size_t cap, match_pick *heap,
-                         size_t *n_finite)
+/* The cap lowest finite entries of map[from, to) by (value, index), in a
+ * bounded max-heap (unsorted); *n_finite = finite entries seen. */
+static size_t match_heap_scan(const float *map, size_t from, size_t to, size_t cap,
+                              match_pick *heap, size_t *n_finite)
 {
-    size_t n = 0, nf = 0, i;
-    for (i = 0; i < npos; i++) {
+    size_t n = 0, nf = 0, i, c, p;
+    for (i = from; i < to; i++) {
         const float v = map[i];
-        size_t c, p;
         if (!(v < INFINITY))
             continue;
         nf++;
@@ -466,8 +509,57 @@ static size_t match_pool(const float *map, size_t npos, size_t cap, match_pick *
         }
     }
     *n_finite = nf;
-    qsort(heap, n, sizeof *heap, match_pick_cmp);
     return n;
+}
+
+typedef struct match_pool_job {
+    const float *map;
+    size_t npos, cap;
+    int nslots;
+    match_pick *heaps;     /* nslots * cap */
+    size_t *count, *finite; /* per slot */
+} match_pool_job;
+
+static void match_pool_slot(void *arg, size_t begin, size_t end)
+{
+    const match_pool_job *job = arg;
+    size_t slot;
+    for (slot = begin; slot < end; slot++)
+        job->count[slot] = match_heap_scan(
+            job->map, job->npos * slot / (size_t)job->nslots,
+            job->npos * (slot + 1) / (size_t)job->nslots, job->cap, job->heaps + slot * job->cap,
+            &job->finite[slot]);
+}
+
+/* The cap lowest finite map entries, sorted by (value, index), into
+ * pool[0 ..] (room for nslots * cap entries: one heap per worker, each
+ * over a slice of the map; the union holds the cap lowest of all, a set
+ * that does not depend on the slicing).  *n_finite = finite entries. */
+static size_t match_pool(ts_ctx *ctx, const float *map, size_t npos, size_t cap, int nslots,
+                         match_pick *pool, size_t *n_finite)
+{
+    match_pool_job job;
+    size_t count[MATCH_MAX_SLOTS], finite[MATCH_MAX_SLOTS], n = 0;
+    int slot;
+    job.map = map;
+    job.npos = npos;
+    job.cap = cap;
+    job.nslots = nslots;
+    job.heaps = pool;
+    job.count = count;
+    job.finite = finite;
+    if (nslots > 1)
+        ts_parallel_for(ctx, (size_t)nslots, match_pool_slot, &job);
+    else
+        match_pool_slot(&job, 0, 1);
+    *n_finite = 0;
+    for (slot = 0; slot < nslots; slot++) {
+        memmove(pool + n, pool + (size_t)slot * cap, count[slot] * sizeof *pool);
+        n += count[slot];
+        *n_finite += finite[slot];
+    }
+    qsort(pool, n, sizeof *pool, match_pick_cmp);
+    return TS_MIN(n, cap);
 }
 
 /* Taken positions for the Chebyshev separation test.  With sep x sep
@@ -668,6 +760,7 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const float
     const double sep = s->sep > 1 ? s->sep : 1;
     double want = 4.0 * k * sep * sep + 1024.0;
     size_t cap = want < (double)m->n_valid ? (size_t)want : m->n_valid;
+    const int nslots = TS_MIN(match_workers(ctx, npos, npos), MATCH_MAX_SLOTS);
     match_pick *pool = NULL;
     match_exact *rs = NULL;
     double *exact = NULL;
@@ -680,13 +773,14 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const float
         return TS_ERR_NOMEM;
     while (!done) {
         size_t n_pool, n_finite, n_exact = 0, r = 0;
-        int complete, na;
+        int complete, na, ns;
         double tau;
         free(pool);
         free(rs);
         free(exact);
         free(order);
-        pool = ts_malloc_array(cap, sizeof *pool);
+        ns = cap > npos / 16 ? 1 : nslots; /* big pools: one heap, bounded memory */
+        pool = ts_malloc_array((size_t)ns * cap, sizeof *pool);
         rs = ts_malloc_array(cap, sizeof *rs);
         exact = ts_malloc_array(cap, sizeof *exact);
         order = ts_malloc_array(cap, sizeof *order);
@@ -694,7 +788,7 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const float
             st = TS_ERR_NOMEM;
             break;
         }
-        n_pool = match_pool(map, npos, cap, pool, &n_finite);
+        n_pool = match_pool(ctx, map, npos, cap, ns, pool, &n_finite);
         complete = n_pool == n_finite;
         for (r = 0; r < n_pool; r++)
             order[r] = pool[r].idx;
@@ -713,7 +807,7 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const float
             job.pool = pool;
             job.exact = exact;
             job.base = n_exact;
-            ts_parallel_for(ctx, r - n_exact, match_rescore, &job);
+            match_parallel(ctx, r - n_exact, kn->n, match_rescore, &job);
             n_exact = r;
             for (q = 0; q < r; q++) {
                 rs[q].e = exact[q];

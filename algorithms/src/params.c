@@ -40,7 +40,7 @@ static const ts_param_desc synth_desc[] = {
     {"overlap", TS_PARAM_INT, 16, 2, 512, TS_UNIT_CELLS, "cells", NULL,
      "Cells shared by neighbouring patches, where seams are cut and smoothed.",
      offsetof(ts_synth_params, overlap)},
-    {"candidates", TS_PARAM_INT, 8, 1, 256, TS_UNIT_CELLS, "", NULL,
+    {"candidates", TS_PARAM_INT, 6, 1, 256, TS_UNIT_CELLS, "", NULL,
      "Best SSD matches examined per patch position (k).",
      offsetof(ts_synth_params, candidates)},
     {"order", TS_PARAM_ENUM, TS_ORDER_GROW, 0, 1, TS_UNIT_CELLS, "", "grow|raster",
