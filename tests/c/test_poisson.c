@@ -745,8 +745,8 @@ static void test_errors(void)
         CHECK(memcmp(bu, bu0, n * sizeof(float)) == 0);
         /* a Dirichlet frame only: more than 64 iterations, cancelled in the loop */
         for (c = 0; c < n; c++)
-            bm[c] = c % side != 0 && c % side != side - 1 && c / side != 0 &&
-                    c / side != side - 1;
+            bm[c] = c % (size_t)side != 0 && c % (size_t)side != (size_t)side - 1 &&
+                    c / (size_t)side != 0 && c / (size_t)side != (size_t)side - 1;
         ts_ctx_set_progress(ctx, cancel_progress, &calls);
         CHECK(ts_poisson_solve(ctx, side, side, bm, bgx, bgy, bu, 1e-14, 5000) ==
               TS_ERR_CANCELLED);
