@@ -1898,8 +1898,8 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
 {
     GDALDatasetH src = NULL, dst = NULL;
     GDALWarpAppOptions *wo = NULL;
-    OGRSpatialReferenceH srs = NULL, local = NULL;
-    char *wkt_local = NULL, trx[64], try_[64], *t_srs = NULL;
+    OGRSpatialReferenceH srs = NULL;
+    char trx[64], try_[64], *t_srs = NULL;
     const char *alg;
     double gdx, gdy, f, unit = 1.0;
     int rc = -1, usage = 0, geographic;
@@ -1924,27 +1924,27 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
         goto done;
     }
     if (geographic) {
-        /* a local azimuthal equidistant grid on the raster's own datum */
-        double cx = out->geo.gt[0] + 0.5 * out->geo.width * out->geo.gt[1];
-        double cy = out->geo.gt[3] + 0.5 * out->geo.height * out->geo.gt[5];
-        local = OSRNewSpatialReference(NULL);
-        if (!local || OSRCopyGeogCSFrom(local, srs) != OGRERR_NONE ||
-            OSRSetProjCS(local, "TerraSynth local azimuthal equidistant") != OGRERR_NONE ||
-            OSRSetAE(local, cy, cx, 0.0, 0.0) != OGRERR_NONE ||
-            OSRSetLinearUnits(local, SRS_UL_METER, 1.0) != OGRERR_NONE) {
-            set_err(err, path, "cannot build a local projection for resampling");
+        /* stay in the geographic CRS: degrees per cell chosen so that a cell
+         * measures target_dx_m x target_dy_m at the raster's centre latitude
+         * (one projection for a large raster would distort far more) */
+        int c = out->geo.height / 2;
+        double mdeg_x = out->dx_m[c] / fabs(out->geo.gt[1]);
+        double mdeg_y = out->dy_m[c] / fabs(out->geo.gt[5]);
+        if (!(mdeg_x > 0) || !(mdeg_y > 0)) {
+            set_err(err, path, "cannot measure its cells on the ground");
             goto done;
         }
-        wkt_local = srs_to_wkt2(local);
-        t_srs = wkt_local;
+        snprintf(trx, sizeof trx, "%.17g", target_dx_m / mdeg_x);
+        snprintf(try_, sizeof try_, "%.17g", target_dy_m / mdeg_y);
+        t_srs = out->geo.wkt;
     } else {
         unit = OSRGetLinearUnits(srs, NULL);
         if (!(unit > 0))
             unit = 1.0;
         t_srs = out->geo.wkt;
+        snprintf(trx, sizeof trx, "%.17g", target_dx_m / unit);
+        snprintf(try_, sizeof try_, "%.17g", target_dy_m / unit);
     }
-    snprintf(trx, sizeof trx, "%.17g", target_dx_m / unit);
-    snprintf(try_, sizeof try_, "%.17g", target_dy_m / unit);
     alg = f > 1.0 ? "cubic" : "average"; /* finer target: interpolate; coarser: average */
     {
         char *argv[] = {"-of", "MEM", "-t_srs", t_srs, "-tr", trx, try_, "-r", (char *)alg,
@@ -1973,9 +1973,6 @@ done:
         GDALClose(src);
     if (srs)
         OSRDestroySpatialReference(srs);
-    if (local)
-        OSRDestroySpatialReference(local);
-    free(wkt_local);
     if (rc != 0)
         tsio_raster_free(out);
     return rc;

@@ -115,8 +115,8 @@ int tsio_write_features(const char *path, const tsio_georef *geo, const ts_featu
  * Read like tsio_read_raster, then resample to cells of target_dx_m x
  * target_dy_m metres on the ground (for exemplars whose resolution differs
  * from the output's): a projected raster is warped in its own CRS; a
- * geographic one onto a local azimuthal equidistant grid on its own datum
- * (so its cells become square metres).  Cubic interpolation when the
+ * geographic one stays in its CRS with degrees per cell chosen so that a
+ * cell has that ground size at its centre latitude.  Cubic interpolation when the
  * target is finer, averaging when it is coarser; nodata stays NaN.  A
  * raster without CRS is returned as read (its ground size is unknown).
  * *factor (may be NULL) = source cell size / target cell size.

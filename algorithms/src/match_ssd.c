@@ -61,7 +61,7 @@ typedef struct match_job {
     int square;           /* exemplar rows: 0 = E', 1 = E'^2 */
     fftwf_complex *dest;  /* exemplar columns: blocked spectrum */
     float scale;          /* exemplar columns: factor applied to the spectrum */
-    float *out;           /* query: the SSD map */
+    float *out;           /* query: the SSD map, or NULL to leave it in rows1 */
     double sum_t2;        /* query: sum M T'^2 */
     int nslots;           /* column phases: worker slots */
 } match_job;
@@ -336,7 +336,7 @@ static void match_rows_output(void *arg, size_t begin, size_t end)
     for (y = begin; y < end; y++) {
         fftwf_complex *row = m->rows1 + y * (size_t)m->stride;
         float *r = (float *)row;
-        float *o = job->out + y * (size_t)m->nx;
+        float *o = job->out ? job->out + y * (size_t)m->nx : r;
         const unsigned char *v = m->valid + y * (size_t)m->nx;
         int x;
         fftwf_execute_dft_c2r(m->row_c2r, row, r);
@@ -361,7 +361,9 @@ static ts_status match_run_columns(ts_ctx *ctx, ts_matcher *m, match_job *job, t
     return TS_OK;
 }
 
-/* The SSD map of a checked target into out (nx * ny); *sum_t2 = sum M T'^2. */
+/* The SSD map of a checked target with known cells into out (nx * ny),
+ * or, if out is NULL, into rows1 (row y at (float *)rows1 + y * 2 * stride,
+ * valid until the next query); *sum_t2 = sum M T'^2. */
 static ts_status match_map(ts_ctx *ctx, ts_matcher *m, const ts_raster *t, float *out,
                            double *sum_t2)
 {
@@ -385,7 +387,7 @@ static ts_status match_map(ts_ctx *ctx, ts_matcher *m, const ts_raster *t, float
     job.target = t;
     job.out = out;
     job.sum_t2 = s;
-    if (n_known == 0) {
+    if (n_known == 0 && out) {
         /* nothing to compare: every valid window matches exactly */
         size_t k, n = (size_t)m->nx * (size_t)m->ny;
         for (k = 0; k < n; k++)
@@ -438,69 +440,63 @@ static ts_status match_check_target(ts_ctx *ctx, const ts_matcher *m, const ts_r
     return TS_OK;
 }
 
-/* ---- k best: pool, separation, exact rescoring ------------------------- */
+/* ---- k best: a stream of map entries, separation, exact rescoring ------ */
 
 typedef struct match_pick {
-    float v;
+    float v;    /* float map value */
     size_t idx; /* y * nx + x */
 } match_pick;
 
 typedef struct match_exact {
-    double e;
+    double e;   /* exact SSD */
     size_t idx;
 } match_exact;
 
-static int match_pick_cmp(const void *pa, const void *pb)
+/* Total orders: by value, ties by index (lower y, then lower x). */
+static int match_pick_less(const match_pick *a, const match_pick *b)
 {
-    const match_pick *a = pa, *b = pb;
-    if (a->v != b->v)
-        return a->v < b->v ? -1 : 1;
-    return (a->idx > b->idx) - (a->idx < b->idx);
+    return a->v < b->v || (a->v == b->v && a->idx < b->idx);
 }
 
-static int match_exact_cmp(const void *pa, const void *pb)
+static int match_exact_less(const match_exact *a, const match_exact *b)
 {
-    const match_exact *a = pa, *b = pb;
-    if (a->e != b->e)
-        return a->e < b->e ? -1 : 1;
-    return (a->idx > b->idx) - (a->idx < b->idx);
+    return a->e < b->e || (a->e == b->e && a->idx < b->idx);
 }
 
-static int match_pick_greater(const match_pick *a, const match_pick *b)
+/* The cap lowest finite entries of positions [from, to) of the map (row y
+ * at map + y * pitch, nx entries) above `after` (NULL: no bound), in a
+ * bounded max-heap.  Entries come in index order, so a new one beats the
+ * top exactly when its value is lower. */
+static size_t match_heap_scan(const float *map, size_t pitch, size_t nx, size_t from, size_t to,
+                              size_t cap, const match_pick *after, match_pick *heap)
 {
-    return a->v > b->v || (a->v == b->v && a->idx > b->idx);
-}
-
-/* The cap lowest finite entries of map[from, to) by (value, index), in a
- * bounded max-heap (unsorted); *n_finite = finite entries seen. */
-static size_t match_heap_scan(const float *map, size_t from, size_t to, size_t cap,
-                              match_pick *heap, size_t *n_finite)
-{
-    size_t n = 0, nf = 0, i, c, p;
-    for (i = from; i < to; i++) {
-        const float v = map[i];
-        if (!(v < INFINITY))
+    const float *row = map + from / nx * pitch;
+    size_t n = 0, i, c, p, x = from % nx;
+    for (i = from; i < to; i++, x++) {
+        match_pick item;
+        if (x == nx) {
+            x = 0;
+            row += pitch;
+        }
+        item.v = row[x];
+        item.idx = i;
+        if (!(item.v < INFINITY) || (after && !match_pick_less(after, &item)))
             continue;
-        nf++;
         if (n < cap) {
-            const match_pick item = {v, i};
             c = n++;
-            while (c > 0 && match_pick_greater(&item, &heap[(c - 1) / 2])) {
+            while (c > 0 && match_pick_less(&heap[(c - 1) / 2], &item)) {
                 heap[c] = heap[(c - 1) / 2];
                 c = (c - 1) / 2;
             }
             heap[c] = item;
-        } else if (v < heap[0].v) {
-            /* below the largest kept entry: i exceeds every kept index, so
-             * only the value decides.  Replace the top and sift down. */
-            const match_pick item = {v, i};
+        } else if (item.v < heap[0].v) {
             p = 0;
             for (;;) {
                 size_t l = 2 * p + 1, big;
                 if (l >= n)
                     break;
-                big = (l + 1 < n && match_pick_greater(&heap[l + 1], &heap[l])) ? l + 1 : l;
-                if (!match_pick_greater(&heap[big], &item))
+                big = (l + 1 < n && match_pick_less(&heap[l], &heap[l + 1])) ? l + 1 : l;
+                if (!match_pick_less(&item, &heap[big]))
                     break;
                 heap[p] = heap[big];
                 p = big;
@@ -508,58 +504,74 @@ static size_t match_heap_scan(const float *map, size_t from, size_t to, size_t c
             heap[p] = item;
         }
     }
-    *n_finite = nf;
     return n;
 }
 
-typedef struct match_pool_job {
-    const float *map;
+typedef struct match_batch_job {
+    const float *map;       /* row y at map + y * pitch */
+    size_t pitch, nx;
+    const match_pick *after;
     size_t npos, cap;
     int nslots;
-    match_pick *heaps;     /* nslots * cap */
-    size_t *count, *finite; /* per slot */
-} match_pool_job;
+    match_pick *heaps;      /* nslots * cap */
+    size_t count[MATCH_MAX_SLOTS];
+} match_batch_job;
 
-static void match_pool_slot(void *arg, size_t begin, size_t end)
+static void match_batch_slot(void *arg, size_t begin, size_t end)
 {
-    const match_pool_job *job = arg;
+    match_batch_job *job = arg;
     size_t slot;
     for (slot = begin; slot < end; slot++)
-        job->count[slot] = match_heap_scan(
-            job->map, job->npos * slot / (size_t)job->nslots,
-            job->npos * (slot + 1) / (size_t)job->nslots, job->cap, job->heaps + slot * job->cap,
-            &job->finite[slot]);
+        job->count[slot] = match_heap_scan(job->map, job->pitch, job->nx,
+                                           job->npos * slot / (size_t)job->nslots,
+                                           job->npos * (slot + 1) / (size_t)job->nslots,
+                                           job->cap, job->after, job->heaps + slot * job->cap);
 }
 
-/* The cap lowest finite map entries, sorted by (value, index), into
- * pool[0 ..] (room for nslots * cap entries: one heap per worker, each
- * over a slice of the map; the union holds the cap lowest of all, a set
- * that does not depend on the slicing).  *n_finite = finite entries. */
-static size_t match_pool(ts_ctx *ctx, const float *map, size_t npos, size_t cap, int nslots,
-                         match_pick *pool, size_t *n_finite)
+/* Min-heap of picks, and of exact entries. */
+static void match_pick_sift(match_pick *h, size_t n, size_t p)
 {
-    match_pool_job job;
-    size_t count[MATCH_MAX_SLOTS], finite[MATCH_MAX_SLOTS], n = 0;
-    int slot;
-    job.map = map;
-    job.npos = npos;
-    job.cap = cap;
-    job.nslots = nslots;
-    job.heaps = pool;
-    job.count = count;
-    job.finite = finite;
-    if (nslots > 1)
-        ts_parallel_for(ctx, (size_t)nslots, match_pool_slot, &job);
-    else
-        match_pool_slot(&job, 0, 1);
-    *n_finite = 0;
-    for (slot = 0; slot < nslots; slot++) {
-        memmove(pool + n, pool + (size_t)slot * cap, count[slot] * sizeof *pool);
-        n += count[slot];
-        *n_finite += finite[slot];
+    const match_pick item = h[p];
+    for (;;) {
+        size_t l = 2 * p + 1, small;
+        if (l >= n)
+            break;
+        small = (l + 1 < n && match_pick_less(&h[l + 1], &h[l])) ? l + 1 : l;
+        if (!match_pick_less(&h[small], &item))
+            break;
+        h[p] = h[small];
+        p = small;
     }
-    qsort(pool, n, sizeof *pool, match_pick_cmp);
-    return TS_MIN(n, cap);
+    h[p] = item;
+}
+
+static void match_exact_push(match_exact *h, size_t *n, match_exact item)
+{
+    size_t c = (*n)++;
+    while (c > 0 && match_exact_less(&item, &h[(c - 1) / 2])) {
+        h[c] = h[(c - 1) / 2];
+        c = (c - 1) / 2;
+    }
+    h[c] = item;
+}
+
+static match_exact match_exact_pop(match_exact *h, size_t *n)
+{
+    const match_exact top = h[0], item = h[--*n];
+    size_t p = 0;
+    for (;;) {
+        size_t l = 2 * p + 1, small;
+        if (l >= *n)
+            break;
+        small = (l + 1 < *n && match_exact_less(&h[l + 1], &h[l])) ? l + 1 : l;
+        if (!match_exact_less(&h[small], &item))
+            break;
+        h[p] = h[small];
+        p = small;
+    }
+    if (*n > 0)
+        h[p] = item;
+    return top;
 }
 
 /* Taken positions for the Chebyshev separation test.  With sep x sep
@@ -576,7 +588,7 @@ typedef struct match_sep {
 
 static ts_status match_sep_init(match_sep *s, int sep, int nx, int k)
 {
-    size_t cap = 16;
+    size_t cap = 16, i;
     memset(s, 0, sizeof *s);
     s->sep = sep;
     if (sep <= 1)
@@ -588,7 +600,11 @@ static ts_status match_sep_init(match_sep *s, int sep, int nx, int k)
     s->key = ts_malloc_array(cap, sizeof *s->key);
     s->px = ts_malloc_array(cap, sizeof *s->px);
     s->py = ts_malloc_array(cap, sizeof *s->py);
-    return (s->key && s->px && s->py) ? TS_OK : TS_ERR_NOMEM;
+    if (!s->key || !s->px || !s->py)
+        return TS_ERR_NOMEM;
+    for (i = 0; i < cap; i++)
+        s->key[i] = -1;
+    return TS_OK;
 }
 
 static void match_sep_free(match_sep *s)
@@ -596,13 +612,6 @@ static void match_sep_free(match_sep *s)
     free(s->key);
     free(s->px);
     free(s->py);
-}
-
-static void match_sep_reset(match_sep *s)
-{
-    size_t i;
-    for (i = 0; i < s->cap; i++)
-        s->key[i] = -1;
 }
 
 static size_t match_sep_slot(const match_sep *s, int64_t key)
@@ -613,9 +622,10 @@ static size_t match_sep_slot(const match_sep *s, int64_t key)
     return h;
 }
 
-/* 1 if (x, y) is at least sep from every taken position. */
-static int match_sep_ok(const match_sep *s, int x, int y)
+/* 1 if position idx is at least sep from every taken position. */
+static int match_sep_ok(const match_sep *s, int nx, size_t idx)
 {
+    const int x = (int)(idx % (size_t)nx), y = (int)(idx / (size_t)nx);
     int64_t bx, by, dx, dy;
     if (s->sep <= 1)
         return 1;
@@ -633,35 +643,23 @@ static int match_sep_ok(const match_sep *s, int x, int y)
     return 1;
 }
 
-static void match_sep_add(match_sep *s, int x, int y)
+/* Take position idx if it is far enough from the taken ones. */
+static int match_take(match_sep *s, int nx, size_t idx, double ssd, ts_candidate *out, int *nt)
 {
-    size_t h;
-    if (s->sep <= 1)
-        return;
-    h = match_sep_slot(s, (int64_t)(y / s->sep) * s->gx + x / s->sep);
-    s->key[h] = (int64_t)(y / s->sep) * s->gx + x / s->sep;
-    s->px[h] = x;
-    s->py[h] = y;
-}
-
-/* Greedy selection over positions in the given order: take a position if
- * it is far enough from all taken ones, up to k.  taken[] receives indices
- * into order[]; returns how many were taken. */
-static int match_greedy(match_sep *s, const size_t *order, size_t n, int nx, int k,
-                        size_t *taken)
-{
-    size_t i;
-    int nt = 0;
-    if (s->sep > 1)
-        match_sep_reset(s);
-    for (i = 0; i < n && nt < k; i++) {
-        const int x = (int)(order[i] % (size_t)nx), y = (int)(order[i] / (size_t)nx);
-        if (!match_sep_ok(s, x, y))
-            continue;
-        match_sep_add(s, x, y);
-        taken[nt++] = i;
+    if (!match_sep_ok(s, nx, idx))
+        return 0;
+    out[*nt].x = (int)(idx % (size_t)nx);
+    out[*nt].y = (int)(idx / (size_t)nx);
+    out[*nt].ssd = ssd;
+    (*nt)++;
+    if (s->sep > 1) {
+        const int64_t key = (int64_t)(out[*nt - 1].y / s->sep) * s->gx + out[*nt - 1].x / s->sep;
+        const size_t h = match_sep_slot(s, key);
+        s->key[h] = key;
+        s->px[h] = out[*nt - 1].x;
+        s->py[h] = out[*nt - 1].y;
     }
-    return nt;
+    return 1;
 }
 
 /* Known target cells as offsets into the exemplar and values in double. */
@@ -695,31 +693,18 @@ static void match_known_free(match_known *kn)
     free(kn->val);
 }
 
-/* Exact rescoring of pool entries [begin, end) in double. */
-typedef struct match_rescore_job {
-    const ts_matcher *m;
-    const match_known *kn;
-    const match_pick *pool;
-    double *exact;
-    size_t base;
-} match_rescore_job;
-
-static void match_rescore(void *arg, size_t begin, size_t end)
+/* The exact SSD of window idx, in double, in the target's row-major order. */
+static double match_exact_ssd(const ts_matcher *m, const match_known *kn, size_t idx)
 {
-    const match_rescore_job *job = arg;
-    const ts_matcher *m = job->m;
-    size_t i, c;
-    for (i = job->base + begin; i < job->base + end; i++) {
-        const size_t idx = job->pool[i].idx;
-        const float *e = m->ex.data + (ptrdiff_t)(idx / (size_t)m->nx) * m->ex.stride +
-                         (ptrdiff_t)(idx % (size_t)m->nx);
-        double s = 0.0;
-        for (c = 0; c < job->kn->n; c++) {
-            const double d = job->kn->val[c] - e[job->kn->off[c]];
-            s += d * d;
-        }
-        job->exact[i] = s;
+    const float *e = m->ex.data + (ptrdiff_t)(idx / (size_t)m->nx) * m->ex.stride +
+                     (ptrdiff_t)(idx % (size_t)m->nx);
+    double s = 0.0;
+    size_t c;
+    for (c = 0; c < kn->n; c++) {
+        const double d = kn->val[c] - e[kn->off[c]];
+        s += d * d;
     }
+    return s;
 }
 
 /* No known target cell: every valid window has SSD 0; take them in
@@ -729,127 +714,106 @@ static int match_best_empty(const ts_matcher *m, match_sep *s, int k, ts_candida
     const size_t n = (size_t)m->nx * (size_t)m->ny;
     size_t i;
     int nt = 0;
-    if (s->sep > 1)
-        match_sep_reset(s);
-    for (i = 0; i < n && nt < k; i++) {
-        const int x = (int)(i % (size_t)m->nx), y = (int)(i / (size_t)m->nx);
-        if (!m->valid[i] || !match_sep_ok(s, x, y))
-            continue;
-        match_sep_add(s, x, y);
-        out[nt].x = x;
-        out[nt].y = y;
-        out[nt].ssd = 0.0;
-        nt++;
-    }
+    for (i = 0; i < n && nt < k; i++)
+        if (m->valid[i])
+            match_take(s, m->nx, i, 0.0, out, &nt);
     return nt;
 }
 
 /*
- * Greedy k best on exact SSDs without rescoring every window.  With
- * |map - exact| <= delta, let R = {map <= tau}: positions outside R have
- * exact > tau - delta, so if the greedy on R (exact order) takes k
- * positions with the k-th at e_k <= tau - delta, it equals the greedy over
- * all windows.  tau starts at the k-th float-greedy value + 2 delta and
- * grows (with the pool of lowest map values) until that holds.
+ * The greedy k best in exact order (exact SSD, then index), reading the
+ * float map as a stream in (value, index) order with |map - exact| <=
+ * delta.  Rescored entries wait in a heap; the lowest is decided (taken if
+ * far enough from the taken ones, else dropped) once it is below the next
+ * stream value minus delta, as no unseen window can then precede it.  A
+ * stream entry already too close to a taken window is dropped unscored:
+ * that window precedes it, so the full greedy would drop it too.  The
+ * stream comes in batches of the cap lowest entries above the last one
+ * read (one pass over the map per batch, cap x 4 each time).
  */
-static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const float *map,
-                                   const match_known *kn, double delta, match_sep *s, int k,
-                                   ts_candidate *out, int *n_found)
+static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const match_known *kn,
+                                   double delta, match_sep *s, int k, ts_candidate *out,
+                                   int *n_found)
 {
     const size_t npos = (size_t)m->nx * (size_t)m->ny;
-    const double sep = s->sep > 1 ? s->sep : 1;
-    double want = 4.0 * k * sep * sep + 1024.0;
-    size_t cap = want < (double)m->n_valid ? (size_t)want : m->n_valid;
     const int nslots = TS_MIN(match_workers(ctx, npos, npos), MATCH_MAX_SLOTS);
-    match_pick *pool = NULL;
-    match_exact *rs = NULL;
-    double *exact = NULL;
-    size_t *order = NULL, *taken = NULL;
+    size_t cap = TS_MIN(m->n_valid, 1024 + 64 * (size_t)k);
+    match_batch_job *job = malloc(sizeof *job);
+    match_exact *wait = NULL;
+    size_t n_wait = 0, cap_wait = 0;
+    match_pick last;
+    int have_last = 0, nt = 0, exhausted = 0;
     ts_status st = TS_OK;
-    int done = 0, nt = 0, i;
-
-    taken = ts_malloc_array((size_t)k, sizeof *taken);
-    if (!taken)
+    if (!job)
         return TS_ERR_NOMEM;
-    while (!done) {
-        size_t n_pool, n_finite, n_exact = 0, r = 0;
-        int complete, na, ns;
-        double tau;
-        free(pool);
-        free(rs);
-        free(exact);
-        free(order);
-        ns = cap > npos / 16 ? 1 : nslots; /* big pools: one heap, bounded memory */
-        pool = ts_malloc_array((size_t)ns * cap, sizeof *pool);
-        rs = ts_malloc_array(cap, sizeof *rs);
-        exact = ts_malloc_array(cap, sizeof *exact);
-        order = ts_malloc_array(cap, sizeof *order);
-        if (!pool || !rs || !exact || !order) {
+    job->heaps = NULL;
+    while (nt < k && !exhausted) {
+        size_t n = 0, popped, slot;
+        job->map = (const float *)m->rows1; /* where match_map left it */
+        job->pitch = 2 * (size_t)m->stride;
+        job->nx = (size_t)m->nx;
+        job->after = have_last ? &last : NULL;
+        job->npos = npos;
+        job->cap = cap;
+        job->nslots = cap > npos / 16 ? 1 : nslots; /* big batches: one heap, bounded memory */
+        free(job->heaps);
+        job->heaps = ts_malloc_array((size_t)job->nslots * cap, sizeof *job->heaps);
+        if (!job->heaps) {
             st = TS_ERR_NOMEM;
             break;
         }
-        n_pool = match_pool(ctx, map, npos, cap, ns, pool, &n_finite);
-        complete = n_pool == n_finite;
-        for (r = 0; r < n_pool; r++)
-            order[r] = pool[r].idx;
-        na = match_greedy(s, order, n_pool, m->nx, k, taken);
-        tau = na == k ? (double)pool[taken[k - 1]].v + 2.0 * delta : INFINITY;
-        r = 0;
-        for (;;) {
-            match_rescore_job job;
-            size_t q;
-            while (r < n_pool && pool[r].v <= tau)
-                r++;
-            if (r == n_pool && !complete)
-                break; /* windows outside the pool may be below tau */
-            job.m = m;
-            job.kn = kn;
-            job.pool = pool;
-            job.exact = exact;
-            job.base = n_exact;
-            match_parallel(ctx, r - n_exact, kn->n, match_rescore, &job);
-            n_exact = r;
-            for (q = 0; q < r; q++) {
-                rs[q].e = exact[q];
-                rs[q].idx = pool[q].idx;
+        if (job->nslots > 1)
+            ts_parallel_for(ctx, (size_t)job->nslots, match_batch_slot, job);
+        else
+            match_batch_slot(job, 0, 1);
+        /* the union of the slices' heaps holds the cap lowest of the map */
+        for (slot = 0; slot < (size_t)job->nslots; slot++) {
+            memmove(job->heaps + n, job->heaps + slot * cap, job->count[slot] * sizeof *job->heaps);
+            n += job->count[slot];
+        }
+        exhausted = n < cap; /* every remaining entry is in this batch */
+        for (slot = n / 2; slot-- > 0;)
+            match_pick_sift(job->heaps, n, slot);
+        for (popped = 0; popped < cap && n > 0 && nt < k; popped++) {
+            const match_pick p = job->heaps[0];
+            job->heaps[0] = job->heaps[--n];
+            if (n > 0)
+                match_pick_sift(job->heaps, n, 0);
+            last = p;
+            have_last = 1;
+            while (n_wait > 0 && nt < k && wait[0].e < (double)p.v - delta) {
+                const match_exact a = match_exact_pop(wait, &n_wait);
+                match_take(s, m->nx, a.idx, a.e, out, &nt);
             }
-            qsort(rs, r, sizeof *rs, match_exact_cmp);
-            for (q = 0; q < r; q++)
-                order[q] = rs[q].idx;
-            nt = match_greedy(s, order, r, m->nx, k, taken);
-            if (r == n_pool && complete) {
-                done = 1; /* R holds every window: nothing can be missing */
-                break;
-            }
-            if (nt == k) {
-                const double ek = rs[taken[k - 1]].e;
-                if (ek + delta <= tau) {
-                    done = 1;
+            if (nt == k || !match_sep_ok(s, m->nx, p.idx))
+                continue;
+            if (n_wait == cap_wait) {
+                size_t grow = cap_wait ? 2 * cap_wait : 256;
+                match_exact *w = realloc(wait, grow * sizeof *w);
+                if (!w) {
+                    st = TS_ERR_NOMEM;
                     break;
                 }
-                tau = ek + delta > tau ? ek + delta : INFINITY;
-            } else {
-                const double next = pool[TS_MIN(n_pool - 1, 2 * r + 64)].v;
-                tau = next > tau ? next : INFINITY;
+                wait = w;
+                cap_wait = grow;
             }
+            match_exact_push(wait, &n_wait, (match_exact){match_exact_ssd(m, kn, p.idx), p.idx});
         }
-        if (!done)
-            cap = cap > n_finite / 4 ? n_finite : cap * 4;
+        if (st != TS_OK)
+            break;
+        exhausted = exhausted && n == 0;
+        cap = cap > m->n_valid / 4 ? m->n_valid : 4 * cap;
     }
-    if (st == TS_OK) {
-        for (i = 0; i < nt; i++) {
-            const size_t idx = rs[taken[i]].idx;
-            out[i].x = (int)(idx % (size_t)m->nx);
-            out[i].y = (int)(idx / (size_t)m->nx);
-            out[i].ssd = rs[taken[i]].e;
-        }
+    /* the stream is exhausted: what waits is in exact order */
+    while (st == TS_OK && nt < k && n_wait > 0) {
+        const match_exact a = match_exact_pop(wait, &n_wait);
+        match_take(s, m->nx, a.idx, a.e, out, &nt);
+    }
+    if (st == TS_OK)
         *n_found = nt;
-    }
-    free(pool);
-    free(rs);
-    free(exact);
-    free(order);
-    free(taken);
+    free(job->heaps);
+    free(job);
+    free(wait);
     return st;
 }
 
@@ -997,7 +961,6 @@ TS_API ts_status ts_matcher_best(ts_ctx *ctx, ts_matcher *m, const ts_raster *ta
     ts_status st;
     match_sep sep;
     match_known kn = {0, NULL, NULL};
-    float *map = NULL;
     double sum_t2 = 0.0, delta;
     ts_progress_saved saved;
     ts_clear(ctx);
@@ -1024,24 +987,17 @@ TS_API ts_status ts_matcher_best(ts_ctx *ctx, ts_matcher *m, const ts_raster *ta
         match_known_free(&kn);
         return ts_progress(ctx, 1.0, "best candidates");
     }
-    map = ts_malloc_array((size_t)m->nx * (size_t)m->ny, sizeof *map);
-    if (!map) {
-        st = ts_fail(ctx, TS_ERR_NOMEM, MATCH_STAGE, "cannot allocate an SSD map of %d x %d",
-                     m->nx, m->ny);
-    } else {
-        saved = ts_progress_push(ctx, 0.0, 0.9);
-        st = match_map(ctx, m, target, map, &sum_t2);
-        ts_progress_pop(ctx, saved);
-    }
+    saved = ts_progress_push(ctx, 0.0, 0.9);
+    st = match_map(ctx, m, target, NULL, &sum_t2);
+    ts_progress_pop(ctx, saved);
     if (st == TS_OK) {
         delta = MATCH_FLOAT_ERR * (sum_t2 + (double)kn.n * m->max_dev2);
-        st = match_best_search(ctx, m, map, &kn, delta, &sep, k, out, n_found);
+        st = match_best_search(ctx, m, &kn, delta, &sep, k, out, n_found);
         if (st != TS_OK)
-            st = ts_fail(ctx, st, MATCH_STAGE, "cannot allocate the candidate pool");
+            st = ts_fail(ctx, st, MATCH_STAGE, "cannot allocate the candidate stream");
         else
             st = ts_progress(ctx, 1.0, "best candidates");
     }
-    free(map);
     match_sep_free(&sep);
     match_known_free(&kn);
     return st;

@@ -419,6 +419,28 @@ static void test_best_smooth(void)
     ts_ctx_free(ctx);
 }
 
+/* A map large enough for the candidate stream to be read by several
+ * workers (and several threads in every FFT phase). */
+static void test_best_large(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t seed = 14;
+    ts_raster e = make_smooth(&seed, 640, 480);
+    ts_raster r = make_random(&seed, 700, 420, 700, 0.0);
+    ts_raster t = make_target(&seed, &e, 200, 100, 12, 10, 0.6, 3.0);
+    ts_raster tr = make_target(&seed, &r, 5, 400, 10, 12, 0.6, 30.0);
+    ts_ctx_set_threads(ctx, 3);
+    check_best(ctx, &e, &t, 10, 16);
+    check_best(ctx, &e, &t, 3, 0);
+    check_best(ctx, &r, &tr, 10, 16);
+    check_best(ctx, &r, &tr, 50, 0);
+    free(e.data);
+    free(r.data);
+    free(t.data);
+    free(tr.data);
+    ts_ctx_free(ctx);
+}
+
 /* Near-ties below the float map's resolution: a flat region (3000 m +-
  * 0.05) next to a rough one that sets the FFT's error scale.  The float
  * map cannot order the flat windows; the exact search still must. */
@@ -587,10 +609,11 @@ static void test_determinism(void)
 {
     ts_ctx *c1 = ts_ctx_new(), *c3 = ts_ctx_new();
     uint64_t seed = 11;
-    ts_raster e = make_random(&seed, 301, 203, 301, 0.001);
+    /* big enough for every phase to use several workers */
+    ts_raster e = make_random(&seed, 1024, 600, 1024, 0.001);
     ts_raster t = make_target(&seed, &e, 30, 40, 33, 21, 0.5, 4.0);
     ts_matcher *m1 = NULL, *m3 = NULL;
-    const size_t n = (size_t)(301 - 33 + 1) * (203 - 21 + 1);
+    const size_t n = (size_t)(1024 - 33 + 1) * (600 - 21 + 1);
     float *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b), *c = malloc(n * sizeof *c);
     ts_candidate k1[12], k2[12], k3[12];
     int n1 = 0, n2 = 0, n3 = 0;
@@ -684,6 +707,7 @@ int main(int argc, char **argv)
         {"best_vs_naive", test_best_vs_naive},
         {"best_smooth", test_best_smooth},
         {"best_near_ties", test_best_near_ties},
+        {"best_large", test_best_large},
         {"best_self", test_best_self},
         {"best_empty", test_best_empty},
         {"best_few", test_best_few},
