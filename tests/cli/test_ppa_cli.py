@@ -294,3 +294,19 @@ def test_real_dem_axes_follow_terrain(tmp_path, name):
     assert np.nanmean(rel[ridge]) > 0 and np.nanmean(rel[valley]) < 0
     assert ogr.Open(str(lines)).GetLayerByName("paths").GetFeatureCount() > 10
     assert gdal.Open(str(png)).RasterCount == 3
+
+
+def test_describe_json_matches_help():
+    import json
+    d = json.loads(run("describe").stdout)
+    assert set(d["stages"]) >= {"ppa", "synth"}
+    for stage, params in d["stages"].items():
+        helptext = run(stage, "--help").stdout
+        for p in params:
+            assert p["flag"] == "--" + p["name"].replace("_", "-")
+            assert p["min"] <= p["default"] <= p["max"]
+            if stage != "ppa" or p["name"] != "features":  # ppa spells features as --ridges etc.
+                assert p["flag"] in helptext, (stage, p["flag"])
+    one = json.loads(run("describe", "ppa").stdout)
+    assert list(one["stages"]) == ["ppa"]
+    assert run("describe", "nosuchstage", check=False).returncode == 2
