@@ -116,8 +116,8 @@ int main(int argc, char **argv)
         return 1;
     }
     ts_ctx_set_threads(ctx, threads);
-    printf("bench_match: %dx%d patch (right half unknown), best k=%d sep=%d, threads %d%s\n",
-           PATCH, PATCH, K_BEST, SEPARATION, threads, threads == 0 ? " (= all online)" : "");
+    printf("bench_match: %dx%d patch (right half unknown), best k=%d sep=%d, threads %d%s\n", PATCH,
+           PATCH, K_BEST, SEPARATION, threads, threads == 0 ? " (= all online)" : "");
     for (size_t s = 0; s < sizeof sizes / sizeof sizes[0] && rc == 0; s++) {
         const int n = sizes[s], x0 = n / 3, y0 = n / 4;
         float *z = make_terrain(n, &seed);
@@ -205,8 +205,8 @@ int main(int argc, char **argv)
             printf("%4d^2: new %.4f s, ssd %.4f s, best %.4f s; memory %.1f MB after new, "
                    "%.1f MB after a query; best (%d,%d) ssd %.3g (target cut at (%d,%d)), "
                    "%d found\n",
-                   n, t_new, t_ssd, t_best, mb_new, mb_query, best[0].x, best[0].y,
-                   best[0].ssd, x0, y0, n_found);
+                   n, t_new, t_ssd, t_best, mb_new, mb_query, best[0].x, best[0].y, best[0].ssd, x0,
+                   y0, n_found);
             fflush(stdout);
         }
         free(map);

@@ -21,6 +21,8 @@
 #include <gdal.h>
 
 #include "cli_params.h"
+#include "recipe.h"
+#include "tsjob.h"
 #include "terrasynth.h"
 #include "tsio.h"
 
@@ -149,21 +151,6 @@ static const char common_help[] =
     "  --progress-lines                 print 'PROGRESS <percent> <stage>' lines\n"
     "  -q, --quiet                      no progress bar or summary\n";
 
-/* Ground metrics for a raster without CRS when --cell-size is given. */
-static int fill_cell_size(tsio_raster *in, double cell_size)
-{
-    int y;
-    if (in->dx_m || cell_size <= 0)
-        return 0;
-    in->dx_m = malloc((size_t)in->geo.height * sizeof *in->dx_m);
-    in->dy_m = malloc((size_t)in->geo.height * sizeof *in->dy_m);
-    if (!in->dx_m || !in->dy_m)
-        return -1;
-    for (y = 0; y < in->geo.height; y++)
-        in->dx_m[y] = in->dy_m[y] = cell_size;
-    return 0;
-}
-
 static ts_status write_preview(ts_ctx *ctx, const char *path, const ts_raster *dem,
                                const tsio_georef *geo, const ts_grid_metrics *metrics,
                                const ts_features *f);
@@ -176,7 +163,7 @@ static void ppa_help(FILE *out)
 {
     static const char *const skip[] = {"features", NULL};
     fprintf(out,
-            "Usage: terrasynth ppa INPUT OUTPUT [options]\n"
+            "Usage: terrasynth ppa INPUT (OUTPUT | --recipe FILE.tsyn) [options]\n"
             "\n"
             "Map the ridge and valley axes of a DEM with the Profile recognition and Polygon\n"
             "breaking Algorithm (Chang, Song & Hsu 1998). OUTPUT is a Byte raster on the\n"
@@ -197,6 +184,8 @@ static void ppa_help(FILE *out)
             "                                   and layer 'nodes' (endpoints, branch points);\n"
             "                                   format from the extension (.gpkg, .shp, .geojson)\n"
             "  --preview FILE.png               hillshade with ridges (red) and valleys (blue)\n"
+            "  --recipe FILE.tsyn               write a recipe for this command instead (no\n"
+            "                                   OUTPUT): gdal_translate FILE.tsyn out.tif\n"
             "\n"
             "Common options:\n%s"
             "\n"
@@ -210,19 +199,17 @@ static int cmd_ppa(int argc, char **argv)
     ts_ppa_params p = ts_ppa_params_default();
     common_opts co = {NULL, NULL, PROGRESS_BAR, 0, 0.0, 1};
     const char *input = NULL, *output = NULL, *lines = NULL, *preview = NULL;
+    const char *recipe_path = NULL;
     int i, rc = EXIT_RUN, seen_threshold = 0, seen_fraction = 0, progress_state = -1;
     ts_ctx *ctx = ts_ctx_new();
-    tsio_raster in;
+    tsjob_ppa job;
+    tsjob_ppa_result res;
     tsio_err err;
     ts_features *f = NULL;
-    unsigned char *bytes = NULL;
-    ts_grid_metrics mstore;
-    const ts_grid_metrics *metrics;
     tsio_write_opts wo;
-    ts_status st;
-    size_t n, k;
+    size_t k;
 
-    memset(&in, 0, sizeof in);
+    memset(&res, 0, sizeof res);
     if (!ctx) {
         fprintf(stderr, "terrasynth: out of memory\n");
         return EXIT_RUN;
@@ -238,7 +225,7 @@ static int cmd_ppa(int argc, char **argv)
         if (!strcmp(a, "--ridges")) { p.features = TS_PPA_RIDGES; continue; }
         if (!strcmp(a, "--valleys")) { p.features = TS_PPA_VALLEYS; continue; }
         if (!strcmp(a, "--both")) { p.features = TS_PPA_BOTH; continue; }
-        if (!strcmp(a, "--lines") || !strcmp(a, "--preview")) {
+        if (!strcmp(a, "--lines") || !strcmp(a, "--preview") || !strcmp(a, "--recipe")) {
             if (i + 1 >= argc) {
                 usage_error("ppa", "%s needs a file name", a);
                 rc = EXIT_USAGE;
@@ -246,8 +233,10 @@ static int cmd_ppa(int argc, char **argv)
             }
             if (!strcmp(a, "--lines"))
                 lines = argv[++i];
-            else
+            else if (!strcmp(a, "--preview"))
                 preview = argv[++i];
+            else
+                recipe_path = argv[++i];
             continue;
         }
         if ((r = parse_common("ppa", &co, argc, argv, &i)) != 0) {
@@ -284,8 +273,13 @@ static int cmd_ppa(int argc, char **argv)
             goto done;
         }
     }
-    if (!input || !output) {
-        usage_error("ppa", "%s", "needs INPUT and OUTPUT");
+    if (!input || (!output && !recipe_path)) {
+        usage_error("ppa", "%s", "needs INPUT and OUTPUT (or --recipe)");
+        rc = EXIT_USAGE;
+        goto done;
+    }
+    if (recipe_path && (output || lines || preview)) {
+        usage_error("ppa", "%s", "--recipe writes the recipe instead of outputs: give no OUTPUT");
         rc = EXIT_USAGE;
         goto done;
     }
@@ -298,31 +292,29 @@ static int cmd_ppa(int argc, char **argv)
         p.threshold_fraction = 0.0;
     if (seen_fraction)
         p.threshold = 0.0;
-    if (!strcmp(input, output) || (lines && !strcmp(lines, input)) ||
+    if ((output && !strcmp(input, output)) || (lines && !strcmp(lines, input)) ||
         (preview && !strcmp(preview, input))) {
         fprintf(stderr, "terrasynth: %s: an output would overwrite the input\n", input);
         goto done;
     }
-    if (tsio_read_raster(input, co.band, &in, &err) != 0) {
+    job.input = input;
+    job.band = co.band;
+    job.cell_size = co.cell_size;
+    job.params = p;
+    if (recipe_path) {
+        if (recipe_write_ppa(recipe_path, &job, &err) != 0) {
+            fprintf(stderr, "terrasynth: %s\n", err.msg);
+            goto done;
+        }
+        rc = 0;
+        goto done;
+    }
+    if (tsjob_ppa_prepare(&job, &res, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
-    if (fill_cell_size(&in, co.cell_size) != 0) {
-        fprintf(stderr, "terrasynth: out of memory\n");
-        goto done;
-    }
-    if (!in.dx_m) {
-        if (p.min_branch_length.unit == TS_UNIT_METRES) {
-            fprintf(stderr,
-                    "terrasynth: %s: has no CRS, so --min-branch-length must be in cells "
-                    "(or give --cell-size)\n",
-                    input);
-            goto done;
-        }
-        if (co.progress != PROGRESS_QUIET)
-            fprintf(stderr, "terrasynth: warning: %s has no CRS: lengths are in cells\n", input);
-    }
-    metrics = tsio_metrics(&in, &mstore);
+    if (res.no_crs && co.progress != PROGRESS_QUIET)
+        fprintf(stderr, "terrasynth: warning: %s has no CRS: lengths are in cells\n", input);
 
     /* every output is checked before the work starts */
     memset(&wo, 0, sizeof wo);
@@ -332,9 +324,9 @@ static int cmd_ppa(int argc, char **argv)
     {
         unsigned char probe = 0;
         tsio_write_opts png = {"PNG", NULL, 1};
-        if (tsio_write_byte(output, &wo, &in.geo, &probe, 255, &err) != 0 ||
+        if (tsio_write_byte(output, &wo, &res.in.geo, &probe, 255, &err) != 0 ||
             (lines && tsio_check_vector_output(lines, &err) != 0) ||
-            (preview && tsio_write_byte(preview, &png, &in.geo, &probe, -1, &err) != 0)) {
+            (preview && tsio_write_byte(preview, &png, &res.in.geo, &probe, -1, &err) != 0)) {
             fprintf(stderr, "terrasynth: %s\n", err.msg);
             goto done;
         }
@@ -343,32 +335,20 @@ static int cmd_ppa(int argc, char **argv)
 
     ts_ctx_set_threads(ctx, co.threads);
     set_progress(ctx, co.progress, &progress_state);
-    st = ts_ppa_extract(ctx, &in.r, metrics, &p, &f);
-    if (st != TS_OK) {
-        fprintf(stderr, "terrasynth: %s: %s\n", input, ts_ctx_message(ctx));
-        goto done;
-    }
-
-    /* the feature raster */
-    n = (size_t)in.geo.width * (size_t)in.geo.height;
-    bytes = malloc(n);
-    if (!bytes) {
-        fprintf(stderr, "terrasynth: out of memory\n");
-        goto done;
-    }
-    for (k = 0; k < n; k++) {
-        size_t y = k / (size_t)in.geo.width, x = k % (size_t)in.geo.width;
-        bytes[k] = isnan(in.r.data[(ptrdiff_t)y * in.r.stride + (ptrdiff_t)x]) ? 255 : f->mask[k];
-    }
-    if (tsio_write_byte(output, &wo, &in.geo, bytes, 255, &err) != 0) {
+    if (tsjob_ppa_compute(ctx, &job, &res, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
-    if (lines && tsio_write_features(lines, &in.geo, f, metrics, &err) != 0) {
+    f = res.features;
+    if (tsio_write_byte(output, &wo, &res.in.geo, res.codes, 255, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
-    if (preview && write_preview(ctx, preview, &in.r, &in.geo, metrics, f) != TS_OK)
+    if (lines && tsio_write_features(lines, &res.in.geo, f, res.metrics, &err) != 0) {
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+        goto done;
+    }
+    if (preview && write_preview(ctx, preview, &res.in.r, &res.in.geo, res.metrics, f) != TS_OK)
         goto done;
     if (co.progress != PROGRESS_QUIET) {
         size_t nb = 0, ne = 0, np[3] = {0, 0, 0};
@@ -384,9 +364,7 @@ static int cmd_ppa(int argc, char **argv)
     }
     rc = 0;
 done:
-    free(bytes);
-    ts_features_free(f);
-    tsio_raster_free(&in);
+    tsjob_ppa_result_free(&res);
     CSLDestroy(co.create_options);
     ts_ctx_free(ctx);
     return rc;
@@ -396,8 +374,6 @@ done:
 /* ------------------------------------------------------------------ */
 /* terrasynth synth                                                   */
 /* ------------------------------------------------------------------ */
-
-#define MAX_EXEMPLARS 64
 
 static void synth_help(FILE *out)
 {
@@ -431,6 +407,8 @@ static void synth_help(FILE *out)
             "  --preview FILE.png               hillshade of the result\n"
             "  --debug-dir DIR                  seams.tif, source_exemplar.tif, source_x.tif,\n"
             "                                   source_y.tif, order.tif (georeferenced)\n"
+            "  --recipe FILE.tsyn               write a recipe for this command instead (no\n"
+            "                                   OUTPUT): gdal_translate FILE.tsyn out.tif\n"
             "\n"
             "Common options:\n%s"
             "\n"
@@ -515,27 +493,22 @@ static int cmd_synth(int argc, char **argv)
 {
     ts_synth_params p = ts_synth_params_default();
     common_opts co = {NULL, NULL, PROGRESS_BAR, 0, 0.0, 1};
-    const char *ex_paths[MAX_EXEMPLARS], *like = NULL, *output = NULL, *preview = NULL;
-    const char *debug_dir = NULL, *crs = NULL;
-    int n_ex = 0, i, rc = EXIT_RUN, width = 0, height = 0, has_origin = 0, has_res = 0;
-    int progress_state = -1;
-    double ox = 0, oy = 0, res = 0, *tdx = NULL, *tdy = NULL;
+    const char *output = NULL, *preview = NULL, *debug_dir = NULL, *recipe_path = NULL;
+    int i, rc = EXIT_RUN, progress_state = -1;
     uint64_t seed = 0;
-    tsio_raster ex[MAX_EXEMPLARS];
-    ts_raster exr[MAX_EXEMPLARS], out = {0, 0, 0, NULL};
-    tsio_georef geo;
+    tsjob_synth job;
+    tsjob_synth_result res;
+    tsjob_grid *grid = &job.grid;
     tsio_err err;
     tsio_write_opts wo;
-    ts_grid_metrics tm;
     ts_synth_maps maps;
     int32_t *m_ex = NULL, *m_x = NULL, *m_y = NULL, *m_order = NULL;
     unsigned char *m_seams = NULL;
     float *tmp = NULL;
     ts_ctx *ctx = ts_ctx_new();
-    ts_status st;
 
-    memset(ex, 0, sizeof ex);
-    memset(&geo, 0, sizeof geo);
+    memset(&job, 0, sizeof job);
+    memset(&res, 0, sizeof res);
     memset(&maps, 0, sizeof maps);
     if (!ctx) {
         fprintf(stderr, "terrasynth: out of memory\n");
@@ -552,7 +525,8 @@ static int cmd_synth(int argc, char **argv)
         }
         if (!strcmp(a, "--exemplar") || !strcmp(a, "--like") || !strcmp(a, "--size") ||
             !strcmp(a, "--origin") || !strcmp(a, "--resolution") || !strcmp(a, "--crs") ||
-            !strcmp(a, "--seed") || !strcmp(a, "--preview") || !strcmp(a, "--debug-dir")) {
+            !strcmp(a, "--seed") || !strcmp(a, "--preview") || !strcmp(a, "--debug-dir") ||
+            !strcmp(a, "--recipe")) {
             if (!v) {
                 usage_error("synth", "%s needs a value", a);
                 rc = EXIT_USAGE;
@@ -560,14 +534,14 @@ static int cmd_synth(int argc, char **argv)
             }
             i++;
             if (!strcmp(a, "--exemplar")) {
-                if (n_ex == MAX_EXEMPLARS) {
+                if (job.n_exemplars == TSJOB_MAX_EXEMPLARS) {
                     usage_error("synth", "at most %s exemplars", "64");
                     rc = EXIT_USAGE;
                     goto done;
                 }
-                ex_paths[n_ex++] = v;
+                job.exemplars[job.n_exemplars++] = v;
             } else if (!strcmp(a, "--like")) {
-                like = v;
+                grid->like = v;
             } else if (!strcmp(a, "--size")) {
                 double w, h;
                 if (parse_pair(v, 'x', &w, &h) || w < 1 || h < 1 || w > 65536 || h > 65536 ||
@@ -576,25 +550,25 @@ static int cmd_synth(int argc, char **argv)
                     rc = EXIT_USAGE;
                     goto done;
                 }
-                width = (int)w;
-                height = (int)h;
+                grid->width = (int)w;
+                grid->height = (int)h;
             } else if (!strcmp(a, "--origin")) {
-                if (parse_pair(v, ',', &ox, &oy)) {
+                if (parse_pair(v, ',', &grid->origin_x, &grid->origin_y)) {
                     usage_error("synth", "--origin takes X,Y, not '%s'", v);
                     rc = EXIT_USAGE;
                     goto done;
                 }
-                has_origin = 1;
+                grid->has_origin = 1;
             } else if (!strcmp(a, "--resolution")) {
-                res = strtod(v, &end);
-                if (*end || !(res > 0) || !isfinite(res)) {
+                grid->res = strtod(v, &end);
+                if (*end || !(grid->res > 0) || !isfinite(grid->res)) {
                     usage_error("synth", "--resolution must be a positive number, not '%s'", v);
                     rc = EXIT_USAGE;
                     goto done;
                 }
-                has_res = 1;
+                grid->has_res = 1;
             } else if (!strcmp(a, "--crs")) {
-                crs = v;
+                grid->crs = v;
             } else if (!strcmp(a, "--seed")) {
                 unsigned long long s = strtoull(v, &end, 10);
                 if (*end || v[0] == '-') {
@@ -605,6 +579,8 @@ static int cmd_synth(int argc, char **argv)
                 seed = (uint64_t)s;
             } else if (!strcmp(a, "--preview")) {
                 preview = v;
+            } else if (!strcmp(a, "--recipe")) {
+                recipe_path = v;
             } else {
                 debug_dir = v;
             }
@@ -637,17 +613,22 @@ static int cmd_synth(int argc, char **argv)
         }
         output = a;
     }
-    if (!output || n_ex == 0) {
-        usage_error("synth", "%s", "needs --exemplar and OUTPUT");
+    if ((!output && !recipe_path) || job.n_exemplars == 0) {
+        usage_error("synth", "%s", "needs --exemplar and OUTPUT (or --recipe)");
         rc = EXIT_USAGE;
         goto done;
     }
-    if (!like == !width) {
+    if (recipe_path && (output || preview || debug_dir)) {
+        usage_error("synth", "%s", "--recipe writes the recipe instead of outputs: give no OUTPUT");
+        rc = EXIT_USAGE;
+        goto done;
+    }
+    if (!grid->like == !grid->width) {
         usage_error("synth", "%s", "give the target grid with --like or with --size");
         rc = EXIT_USAGE;
         goto done;
     }
-    if (crs && !(has_origin && has_res)) {
+    if (grid->crs && !(grid->has_origin && grid->has_res)) {
         usage_error("synth", "%s", "--crs needs --origin and --resolution");
         rc = EXIT_USAGE;
         goto done;
@@ -663,39 +644,21 @@ static int cmd_synth(int argc, char **argv)
         goto done;
     }
 
-    /* the target grid */
-    if (like) {
-        if (tsio_read_georef(like, &geo, &err) != 0) {
+    job.band = co.band;
+    job.params = p;
+    if (recipe_path) {
+        if (recipe_write_synth(recipe_path, &job, seed, &err) != 0) {
             fprintf(stderr, "terrasynth: %s\n", err.msg);
             goto done;
         }
-    } else if (crs) {
-        if (tsio_georef_make(width, height, ox, oy, res, res, crs, &geo, &err) != 0) {
-            fprintf(stderr, "terrasynth: %s\n", err.msg);
-            goto done;
-        }
-    } else {
-        tsio_georef g0;
-        if (tsio_read_georef(ex_paths[0], &g0, &err) != 0) {
-            fprintf(stderr, "terrasynth: %s\n", err.msg);
-            goto done;
-        }
-        rc = tsio_georef_make(width, height, has_origin ? ox : g0.gt[0],
-                              has_origin ? oy : g0.gt[3], has_res ? res : fabs(g0.gt[1]),
-                              has_res ? res : fabs(g0.gt[5]), g0.wkt, &geo, &err);
-        tsio_georef_free(&g0);
-        if (rc != 0) {
-            fprintf(stderr, "terrasynth: %s\n", err.msg);
-            rc = EXIT_RUN;
-            goto done;
-        }
-        rc = EXIT_RUN;
+        rc = 0;
+        goto done;
     }
-    if (tsio_georef_metrics(&geo, &tdx, &tdy, &err) != 0) {
+    if (tsjob_synth_prepare(&job, &res, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
-    if (!tdx && co.progress != PROGRESS_QUIET)
+    if (!res.dx_m && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: the target grid has no CRS: exemplars are used "
                         "cell for cell\n");
 
@@ -709,7 +672,7 @@ static int cmd_synth(int argc, char **argv)
         ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
         unsigned char bp = 0;
         tsio_write_opts png = {"PNG", NULL, 1};
-        tsio_georef g1 = geo;
+        tsio_georef g1 = res.geo;
         g1.width = g1.height = 1;
         if (tsio_write_float(output, &wo, &g1, &pr, -9999.0, &err) != 0 ||
             (preview && tsio_write_byte(preview, &png, &g1, &bp, -1, &err) != 0)) {
@@ -726,34 +689,8 @@ static int cmd_synth(int argc, char **argv)
     }
     wo.check_only = 0;
 
-    /* exemplars at the target's ground resolution */
-    for (i = 0; i < n_ex; i++) {
-        double factor = 1.0;
-        int cy = geo.height / 2;
-        if (tsio_read_raster_resampled(ex_paths[i], co.band, tdx ? tdx[cy] : 0,
-                                       tdy ? tdy[cy] : 0, &ex[i], &factor, &err) != 0) {
-            fprintf(stderr, "terrasynth: %s\n", err.msg);
-            goto done;
-        }
-        if (tdx && !ex[i].dx_m && co.progress != PROGRESS_QUIET)
-            fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",
-                    ex_paths[i]);
-        if (ex[i].r.width < p.patch_size || ex[i].r.height < p.patch_size) {
-            fprintf(stderr,
-                    "terrasynth: %s: %d x %d cells at the target resolution is smaller than a "
-                    "patch (%d cells)\n",
-                    ex_paths[i], ex[i].r.width, ex[i].r.height, p.patch_size);
-            goto done;
-        }
-        exr[i] = ex[i].r;
-    }
-
-    if (ts_raster_alloc(ctx, geo.width, geo.height, &out) != TS_OK) {
-        fprintf(stderr, "terrasynth: %s: %s\n", output, ts_ctx_message(ctx));
-        goto done;
-    }
     if (debug_dir) {
-        size_t n = (size_t)geo.width * (size_t)geo.height;
+        size_t n = (size_t)res.geo.width * (size_t)res.geo.height;
         m_ex = malloc(n * sizeof *m_ex);
         m_x = malloc(n * sizeof *m_x);
         m_y = malloc(n * sizeof *m_y);
@@ -773,47 +710,34 @@ static int cmd_synth(int argc, char **argv)
     ts_ctx_set_seed(ctx, seed);
     ts_ctx_set_threads(ctx, co.threads);
     set_progress(ctx, co.progress, &progress_state);
-    st = ts_synth_patches(ctx, exr, n_ex, &p, &out, NULL, debug_dir ? &maps : NULL);
-    if (st != TS_OK) {
-        const char *msg = ts_ctx_message(ctx);
-        int which = 0;
-        /* name the exemplar file when the core names its index */
-        if (sscanf(msg, "synth: exemplar %d:", &which) == 1 && which >= 1 && which <= n_ex)
-            fprintf(stderr, "terrasynth: %s: %s\n", ex_paths[which - 1], msg);
-        else
-            fprintf(stderr, "terrasynth: %s: %s\n", output, msg);
-        goto done;
-    }
-    if (tsio_write_float(output, &wo, &geo, &out, -9999.0, &err) != 0) {
+    if (tsjob_synth_compute(ctx, &job, &res, debug_dir ? &maps : NULL, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
-    if (preview) {
-        tm.dx = tdx;
-        tm.dy = tdy;
-        if (write_preview(ctx, preview, &out, &geo, tdx ? &tm : NULL, NULL) != TS_OK)
-            goto done;
+    if (res.exemplar_no_crs && co.progress != PROGRESS_QUIET)
+        fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",
+                job.exemplars[res.exemplar_no_crs - 1]);
+    if (tsio_write_float(output, &wo, &res.geo, &res.out, -9999.0, &err) != 0) {
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+        goto done;
     }
+    if (preview && write_preview(ctx, preview, &res.out, &res.geo, res.metrics, NULL) != TS_OK)
+        goto done;
     if (debug_dir) {
         char *sp = CPLStrdup(CPLFormFilename(debug_dir, "seams", "tif"));
-        int bad = tsio_write_byte(sp, NULL, &geo, m_seams, -1, &err);
+        int bad = tsio_write_byte(sp, NULL, &res.geo, m_seams, -1, &err);
         if (bad)
             fprintf(stderr, "terrasynth: %s\n", err.msg);
         CPLFree(sp);
-        if (bad || write_int_map(debug_dir, "source_exemplar", &geo, m_ex, tmp) ||
-            write_int_map(debug_dir, "source_x", &geo, m_x, tmp) ||
-            write_int_map(debug_dir, "source_y", &geo, m_y, tmp) ||
-            write_int_map(debug_dir, "order", &geo, m_order, tmp))
+        if (bad || write_int_map(debug_dir, "source_exemplar", &res.geo, m_ex, tmp) ||
+            write_int_map(debug_dir, "source_x", &res.geo, m_x, tmp) ||
+            write_int_map(debug_dir, "source_y", &res.geo, m_y, tmp) ||
+            write_int_map(debug_dir, "order", &res.geo, m_order, tmp))
             goto done;
     }
     rc = 0;
 done:
-    for (i = 0; i < n_ex; i++)
-        tsio_raster_free(&ex[i]);
-    ts_raster_free(&out);
-    tsio_georef_free(&geo);
-    free(tdx);
-    free(tdy);
+    tsjob_synth_result_free(&res);
     free(m_ex);
     free(m_x);
     free(m_y);

@@ -232,6 +232,12 @@ typedef struct ts_features {
 
 TS_API void ts_features_free(ts_features *f);
 
+/** The feature raster a GIS writes: codes (caller-allocated, width*height
+ *  bytes) = the mask bits (1 ridge, 2 valley, 3 both, 0 none), 255 where
+ *  `dem` (borrowed, same size) is nodata. */
+TS_API ts_status ts_features_codes(ts_ctx *ctx, const ts_features *f, const ts_raster *dem,
+                                   unsigned char *codes);
+
 /**
  * Extract ridge and/or valley axes from `dem` (borrowed; NaN = nodata).
  * `metrics` may be NULL (cell units).  On success *out is a new feature
@@ -434,6 +440,29 @@ enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2 };
 TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
                                   const ts_synth_params *params, ts_raster *out,
                                   const unsigned char *cell_flags, ts_synth_maps *maps);
+
+/* ------------------------------------------------------------------ */
+/* Per-pixel operations (the kernels behind the VRT pixel functions)  */
+/* ------------------------------------------------------------------ */
+
+/**
+ * Weighted blend of n_terms terrains: out[i] = sum_k w_k[i] t_k[i] /
+ * sum_k w_k[i] over the terms whose terrain is not NaN and whose weight is
+ * finite and > 0; NaN where no term counts.  All arrays borrowed, n cells.
+ */
+TS_API void ts_blend_weighted(size_t n, int n_terms, const float *const *terrain,
+                              const float *const *weight, float *out);
+/** Linear map of [from_min, from_max] onto [to_min, to_max]; NaN stays NaN.
+ *  from_min == from_max maps everything to to_min. */
+TS_API void ts_rescale_linear(size_t n, const float *in, double from_min, double from_max,
+                              double to_min, double to_max, float *out);
+
+/** Modes of ts_water_level. */
+enum { TS_WATER_FILL = 0, TS_WATER_DEPTH = 1, TS_WATER_MASK = 2 };
+/** A water level over a terrain: FILL gives max(z, level) (a lake surface),
+ *  DEPTH gives max(level - z, 0), MASK gives 1 below the level, else 0.
+ *  NaN stays NaN. */
+TS_API void ts_water_level(size_t n, const float *in, double level, int mode, float *out);
 
 /* ------------------------------------------------------------------ */
 /* Rendering                                                          */

@@ -2,16 +2,17 @@
  * match_ssd.c - masked SSD of a patch against every window of an exemplar,
  * by FFT, and the k best separated candidates (Zhou et al. 2007 section 4.2).
  *
- * SSD(x,y) = sum M T'^2 - 2 corr(E', M T')(x,y) + corr(E'^2, M)(x,y) with
- * M = 1 on known target cells, E' = E - mean(E), T' = T - mean(E) (the
- * shift leaves the SSD unchanged and keeps float cancellation small).  The
- * spectra of E' and E'^2 are made once; a query is two forward transforms
- * of inputs with only patch_h nonzero rows, a product and one inverse:
- * O(F log F), F = fw * fh padded cells (fw >= W, fh >= H, 7-smooth).
- * ts_matcher_best rescores its candidates exactly in double.
+ * SSD(x,y) = sum M T'^2 - 2 corr(E', M T')(x,y) + corr(E'^2, M)(x,y), M = 1 on
+ * known target cells, ' = minus the exemplar mean (the SSD is unchanged and
+ * float cancellation smaller).  The spectra of E' and E'^2 are made once; a
+ * query transforms 2 x patch_h rows, then column blocks (forward, product,
+ * one inverse), then the output rows: O(F log F) for F = fw * fh padded cells
+ * (7-smooth, >= W x H).  ts_matcher_best reads the float map in order and
+ * rescores in double only what the float error bound cannot rule out.
  * Memory: ~13 bytes per padded cell (two half spectra 8, an H-row buffer 4,
- * validity 1): ~220 MB for a 4096 x 4096 exemplar.  Thread-safety: one
- * thread per matcher at a time; FFTW planning runs under fft.c's mutex.
+ * validity 1): 210 MB for 4096 x 4096.  Thread-safety: one thread per matcher
+ * at a time; FFTW planning runs under fft.c's mutex; results do not depend on
+ * the thread count.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -32,16 +33,16 @@
 #define MATCH_FLOAT_ERR 1e-5
 
 struct ts_matcher {
-    ts_raster ex;      /* borrowed */
-    int pw, ph;        /* patch size */
-    int nx, ny;        /* window positions */
-    int fw, fh;        /* padded transform size */
-    int cols;          /* fw / 2 + 1 complex columns of a half spectrum */
-    int stride;        /* row stride of rows1/rows2, complex: cols rounded up to a block */
-    int nblk;          /* column blocks */
-    double mean;       /* mean of the exemplar's valid cells */
-    double max_dev2;   /* max (E - mean)^2 over valid cells */
-    size_t n_valid;    /* windows free of nodata */
+    ts_raster ex;         /* borrowed */
+    int pw, ph;           /* patch size */
+    int nx, ny;           /* window positions */
+    int fw, fh;           /* padded transform size */
+    int cols;             /* fw / 2 + 1 complex columns of a half spectrum */
+    int stride;           /* row stride of rows1/rows2, complex: cols rounded up to a block */
+    int nblk;             /* column blocks */
+    double mean;          /* mean of the exemplar's valid cells */
+    double max_dev2;      /* max (E - mean)^2 over valid cells */
+    size_t n_valid;       /* windows free of nodata */
     unsigned char *valid; /* nx * ny: 1 where the window is free of nodata */
     /* Half spectra of E' and E'^2, pre-scaled by -2/F and 1/F, stored by
      * column (transposed): element (row j, column c) at [c * fh + j],
@@ -58,12 +59,12 @@ struct ts_matcher {
 typedef struct match_job {
     ts_matcher *m;
     const ts_raster *target;
-    int square;           /* exemplar rows: 0 = E', 1 = E'^2 */
-    fftwf_complex *dest;  /* exemplar columns: blocked spectrum */
-    float scale;          /* exemplar columns: factor applied to the spectrum */
-    float *out;           /* query: the SSD map, or NULL to leave it in rows1 */
-    double sum_t2;        /* query: sum M T'^2 */
-    int nslots;           /* column phases: worker slots */
+    int square;          /* exemplar rows: 0 = E', 1 = E'^2 */
+    fftwf_complex *dest; /* exemplar columns: the spectrum to fill */
+    float scale;         /* exemplar columns: factor applied to the spectrum */
+    float *out;          /* query: the SSD map, or NULL to leave it in rows1 */
+    double sum_t2;       /* query: sum M T'^2 */
+    int nslots;          /* column phases: worker slots */
 } match_job;
 
 /* ---- parallel helpers ---------------------------------------------------- */
@@ -190,8 +191,8 @@ static int match_scratch(ts_matcher *m, int want)
         fftwf_complex *p = ts_fft_alloc(2 * (size_t)m->fh * MATCH_BLOCK, sizeof *p);
         if (!p)
             break;
-        if (m->n_scratch > 0 && fftwf_alignment_of((float *)p) !=
-                                    fftwf_alignment_of((float *)m->scratch[0])) {
+        if (m->n_scratch > 0 &&
+            fftwf_alignment_of((float *)p) != fftwf_alignment_of((float *)m->scratch[0])) {
             ts_fft_free(p); /* cannot happen with fftwf_malloc; never run a plan misaligned */
             break;
         }
@@ -448,7 +449,7 @@ typedef struct match_pick {
 } match_pick;
 
 typedef struct match_exact {
-    double e;   /* exact SSD */
+    double e; /* exact SSD */
     size_t idx;
 } match_exact;
 
@@ -458,20 +459,68 @@ static int match_pick_less(const match_pick *a, const match_pick *b)
     return a->v < b->v || (a->v == b->v && a->idx < b->idx);
 }
 
+static int match_pick_cmp(const void *a, const void *b)
+{
+    return match_pick_less(a, b) ? -1 : match_pick_less(b, a);
+}
+
 static int match_exact_less(const match_exact *a, const match_exact *b)
 {
     return a->e < b->e || (a->e == b->e && a->idx < b->idx);
 }
 
+/* Rearrange a[0, n) so that a[k] is the k-th lowest, lower ones before it
+ * and higher ones after (quickselect, median-of-three pivots; keys are
+ * distinct because indices are). */
+static void match_select(match_pick *a, ptrdiff_t n, ptrdiff_t k)
+{
+    ptrdiff_t lo = 0, hi = n - 1;
+    while (hi > lo) {
+        const ptrdiff_t mid = lo + (hi - lo) / 2;
+        match_pick t, pivot;
+        ptrdiff_t i = lo, j = hi;
+        if (match_pick_less(&a[mid], &a[lo])) {
+            t = a[mid], a[mid] = a[lo], a[lo] = t;
+        }
+        if (match_pick_less(&a[hi], &a[lo])) {
+            t = a[hi], a[hi] = a[lo], a[lo] = t;
+        }
+        if (match_pick_less(&a[hi], &a[mid])) {
+            t = a[hi], a[hi] = a[mid], a[mid] = t;
+        }
+        pivot = a[mid];
+        while (i <= j) {
+            while (match_pick_less(&a[i], &pivot))
+                i++;
+            while (match_pick_less(&pivot, &a[j]))
+                j--;
+            if (i <= j) {
+                t = a[i], a[i] = a[j], a[j] = t;
+                i++;
+                j--;
+            }
+        }
+        if (k <= j)
+            hi = j;
+        else if (k >= i)
+            lo = i;
+        else
+            return;
+    }
+}
+
 /* The cap lowest finite entries of positions [from, to) of the map (row y
- * at map + y * pitch, nx entries) above `after` (NULL: no bound), in a
- * bounded max-heap.  Entries come in index order, so a new one beats the
- * top exactly when its value is lower. */
-static size_t match_heap_scan(const float *map, size_t pitch, size_t nx, size_t from, size_t to,
-                              size_t cap, const match_pick *after, match_pick *heap)
+ * at map + y * pitch, nx entries) above `after` (NULL: no bound), unsorted,
+ * in buf (room for 2 * cap).  Candidates are appended; when buf is full a
+ * quickselect keeps the cap lowest and raises the bar: O(1) amortised per
+ * entry whatever the order of the values (a smooth map in scan order is
+ * the worst case of a bounded heap). */
+static size_t match_scan(const float *map, size_t pitch, size_t nx, size_t from, size_t to,
+                         size_t cap, const match_pick *after, match_pick *buf)
 {
     const float *row = map + from / nx * pitch;
-    size_t n = 0, i, c, p, x = from % nx;
+    float bar = INFINITY; /* entries come in index order: the value decides */
+    size_t n = 0, i, x = from % nx;
     for (i = from; i < to; i++, x++) {
         match_pick item;
         if (x == nx) {
@@ -480,40 +529,27 @@ static size_t match_heap_scan(const float *map, size_t pitch, size_t nx, size_t 
         }
         item.v = row[x];
         item.idx = i;
-        if (!(item.v < INFINITY) || (after && !match_pick_less(after, &item)))
+        if (!(item.v < bar) || (after && !match_pick_less(after, &item)))
             continue;
-        if (n < cap) {
-            c = n++;
-            while (c > 0 && match_pick_less(&heap[(c - 1) / 2], &item)) {
-                heap[c] = heap[(c - 1) / 2];
-                c = (c - 1) / 2;
-            }
-            heap[c] = item;
-        } else if (item.v < heap[0].v) {
-            p = 0;
-            for (;;) {
-                size_t l = 2 * p + 1, big;
-                if (l >= n)
-                    break;
-                big = (l + 1 < n && match_pick_less(&heap[l], &heap[l + 1])) ? l + 1 : l;
-                if (!match_pick_less(&item, &heap[big]))
-                    break;
-                heap[p] = heap[big];
-                p = big;
-            }
-            heap[p] = item;
+        buf[n++] = item;
+        if (n == 2 * cap) {
+            match_select(buf, (ptrdiff_t)n, (ptrdiff_t)cap - 1);
+            n = cap;
+            bar = buf[cap - 1].v;
         }
     }
-    return n;
+    if (n > cap)
+        match_select(buf, (ptrdiff_t)n, (ptrdiff_t)cap - 1);
+    return TS_MIN(n, cap);
 }
 
 typedef struct match_batch_job {
-    const float *map;       /* row y at map + y * pitch */
+    const float *map; /* row y at map + y * pitch */
     size_t pitch, nx;
     const match_pick *after;
     size_t npos, cap;
     int nslots;
-    match_pick *heaps;      /* nslots * cap */
+    match_pick *heaps; /* nslots * 2 * cap: a selection buffer per slice */
     size_t count[MATCH_MAX_SLOTS];
 } match_batch_job;
 
@@ -522,29 +558,13 @@ static void match_batch_slot(void *arg, size_t begin, size_t end)
     match_batch_job *job = arg;
     size_t slot;
     for (slot = begin; slot < end; slot++)
-        job->count[slot] = match_heap_scan(job->map, job->pitch, job->nx,
-                                           job->npos * slot / (size_t)job->nslots,
-                                           job->npos * (slot + 1) / (size_t)job->nslots,
-                                           job->cap, job->after, job->heaps + slot * job->cap);
+        job->count[slot] =
+            match_scan(job->map, job->pitch, job->nx, job->npos * slot / (size_t)job->nslots,
+                       job->npos * (slot + 1) / (size_t)job->nslots, job->cap, job->after,
+                       job->heaps + slot * 2 * job->cap);
 }
 
-/* Min-heap of picks, and of exact entries. */
-static void match_pick_sift(match_pick *h, size_t n, size_t p)
-{
-    const match_pick item = h[p];
-    for (;;) {
-        size_t l = 2 * p + 1, small;
-        if (l >= n)
-            break;
-        small = (l + 1 < n && match_pick_less(&h[l + 1], &h[l])) ? l + 1 : l;
-        if (!match_pick_less(&h[small], &item))
-            break;
-        h[p] = h[small];
-        p = small;
-    }
-    h[p] = item;
-}
-
+/* Min-heap of exact entries. */
 static void match_exact_push(match_exact *h, size_t *n, match_exact item)
 {
     size_t c = (*n)++;
@@ -580,10 +600,10 @@ static match_exact match_exact_pop(match_exact *h, size_t *n)
  * candidates in the 3 x 3 neighbouring buckets in O(1). */
 typedef struct match_sep {
     int sep;
-    int64_t gx;     /* buckets per row */
-    size_t cap;     /* power of two >= 2 * max taken */
-    int64_t *key;   /* bucket id, -1 = empty */
-    int *px, *py;   /* the taken position in that slot */
+    int64_t gx;   /* buckets per row */
+    size_t cap;   /* power of two >= 2 * max taken */
+    int64_t *key; /* bucket id, -1 = empty */
+    int *px, *py; /* the taken position in that slot */
 } match_sep;
 
 static ts_status match_sep_init(match_sep *s, int sep, int nx, int k)
@@ -747,17 +767,17 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const match
     if (!job)
         return TS_ERR_NOMEM;
     job->heaps = NULL;
-    while (nt < k && !exhausted) {
-        size_t n = 0, popped, slot;
+    while (st == TS_OK && nt < k && !exhausted) {
+        size_t n = 0, i, slot;
         job->map = (const float *)m->rows1; /* where match_map left it */
         job->pitch = 2 * (size_t)m->stride;
         job->nx = (size_t)m->nx;
         job->after = have_last ? &last : NULL;
         job->npos = npos;
         job->cap = cap;
-        job->nslots = cap > npos / 16 ? 1 : nslots; /* big batches: one heap, bounded memory */
+        job->nslots = cap > npos / 16 ? 1 : nslots; /* big batches: one slice, bounded memory */
         free(job->heaps);
-        job->heaps = ts_malloc_array((size_t)job->nslots * cap, sizeof *job->heaps);
+        job->heaps = ts_malloc_array((size_t)job->nslots * 2 * cap, sizeof *job->heaps);
         if (!job->heaps) {
             st = TS_ERR_NOMEM;
             break;
@@ -766,19 +786,17 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const match
             ts_parallel_for(ctx, (size_t)job->nslots, match_batch_slot, job);
         else
             match_batch_slot(job, 0, 1);
-        /* the union of the slices' heaps holds the cap lowest of the map */
+        /* the union of the slices' cap lowest holds the cap lowest overall */
         for (slot = 0; slot < (size_t)job->nslots; slot++) {
-            memmove(job->heaps + n, job->heaps + slot * cap, job->count[slot] * sizeof *job->heaps);
+            memmove(job->heaps + n, job->heaps + slot * 2 * cap,
+                    job->count[slot] * sizeof *job->heaps);
             n += job->count[slot];
         }
+        qsort(job->heaps, n, sizeof *job->heaps, match_pick_cmp);
         exhausted = n < cap; /* every remaining entry is in this batch */
-        for (slot = n / 2; slot-- > 0;)
-            match_pick_sift(job->heaps, n, slot);
-        for (popped = 0; popped < cap && n > 0 && nt < k; popped++) {
-            const match_pick p = job->heaps[0];
-            job->heaps[0] = job->heaps[--n];
-            if (n > 0)
-                match_pick_sift(job->heaps, n, 0);
+        n = TS_MIN(n, cap);
+        for (i = 0; i < n && nt < k; i++) {
+            const match_pick p = job->heaps[i];
             last = p;
             have_last = 1;
             while (n_wait > 0 && nt < k && wait[0].e < (double)p.v - delta) {
@@ -799,9 +817,6 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const match
             }
             match_exact_push(wait, &n_wait, (match_exact){match_exact_ssd(m, kn, p.idx), p.idx});
         }
-        if (st != TS_OK)
-            break;
-        exhausted = exhausted && n == 0;
         cap = cap > m->n_valid / 4 ? m->n_valid : 4 * cap;
     }
     /* the stream is exhausted: what waits is in exact order */
@@ -858,12 +873,12 @@ TS_API ts_status ts_matcher_new(ts_ctx *ctx, const ts_raster *exemplar, int patc
         return ts_fail(ctx, TS_ERR_ARG, MATCH_STAGE, "exemplar stride %td is below its width %d",
                        exemplar->stride, exemplar->width);
     if (patch_w < 1 || patch_h < 1)
-        return ts_fail(ctx, TS_ERR_ARG, MATCH_STAGE, "patch size %d x %d is not positive",
-                       patch_w, patch_h);
+        return ts_fail(ctx, TS_ERR_ARG, MATCH_STAGE, "patch size %d x %d is not positive", patch_w,
+                       patch_h);
     if (patch_w > exemplar->width || patch_h > exemplar->height)
         return ts_fail(ctx, TS_ERR_SIZE, MATCH_STAGE,
-                       "the exemplar (%d x %d) is smaller than a patch (%d x %d)",
-                       exemplar->width, exemplar->height, patch_w, patch_h);
+                       "the exemplar (%d x %d) is smaller than a patch (%d x %d)", exemplar->width,
+                       exemplar->height, patch_w, patch_h);
     fw = ts_fft_good_size((size_t)exemplar->width);
     fh = ts_fft_good_size((size_t)exemplar->height);
     if (fw == 0 || fh == 0 || fw / 2 + 1 > (size_t)INT32_MAX - MATCH_BLOCK)
@@ -897,8 +912,7 @@ TS_API ts_status ts_matcher_new(ts_ctx *ctx, const ts_raster *exemplar, int patc
     spec_n *= fh;
     m->spec1 = ts_fft_alloc(spec_n, sizeof(fftwf_complex));
     m->spec2 = ts_fft_alloc(spec_n, sizeof(fftwf_complex));
-    m->rows1 = ts_fft_alloc((size_t)exemplar->height * (size_t)m->stride,
-                             sizeof(fftwf_complex));
+    m->rows1 = ts_fft_alloc((size_t)exemplar->height * (size_t)m->stride, sizeof(fftwf_complex));
     m->rows2 = ts_fft_alloc((size_t)patch_h * (size_t)m->stride, sizeof(fftwf_complex));
     if (!m->spec1 || !m->spec2 || !m->rows1 || !m->rows2 || match_scratch(m, 1) < 1) {
         ts_matcher_free(m);

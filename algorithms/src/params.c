@@ -218,12 +218,19 @@ TS_API ts_status ts_params_get(ts_ctx *ctx, const char *stage, const void *param
     case TS_PARAM_INT:
         snprintf(buf, buflen, "%d", *(const int *)(p + d->offset));
         break;
-    case TS_PARAM_DOUBLE:
-        snprintf(buf, buflen, "%.17g", *(const double *)(p + d->offset));
+    case TS_PARAM_DOUBLE: {
+        /* the shortest of %.15g / %.17g that reads back to the same value */
+        double v = *(const double *)(p + d->offset);
+        snprintf(buf, buflen, "%.15g", v);
+        if (strtod(buf, NULL) != v)
+            snprintf(buf, buflen, "%.17g", v);
         break;
+    }
     case TS_PARAM_LENGTH: {
         const ts_length *L = (const ts_length *)(p + d->offset);
-        snprintf(buf, buflen, "%.17g%s", L->value, L->unit == TS_UNIT_METRES ? "m" : "");
+        snprintf(buf, buflen, "%.15g%s", L->value, L->unit == TS_UNIT_METRES ? "m" : "");
+        if (strtod(buf, NULL) != L->value)
+            snprintf(buf, buflen, "%.17g%s", L->value, L->unit == TS_UNIT_METRES ? "m" : "");
         break;
     }
     }

@@ -27,6 +27,21 @@ TS_API void ts_features_free(ts_features *f)
     free(f);
 }
 
+TS_API ts_status ts_features_codes(ts_ctx *ctx, const ts_features *f, const ts_raster *dem,
+                                   unsigned char *codes)
+{
+    int x, y;
+    ts_clear(ctx);
+    if (!f || !dem || !dem->data || !codes || f->width != dem->width || f->height != dem->height)
+        return ts_fail(ctx, TS_ERR_ARG, "ppa", "features and DEM do not match");
+    for (y = 0; y < dem->height; y++)
+        for (x = 0; x < dem->width; x++) {
+            size_t k = (size_t)y * (size_t)dem->width + (size_t)x;
+            codes[k] = isnan(TS_PIX(dem, x, y)) ? 255 : f->mask[k];
+        }
+    return TS_OK;
+}
+
 /* Steps 2-4 for one kind, into f. */
 static ts_status ppa_one_kind(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *m,
                               const unsigned char *targets, int kind, double min_length,

@@ -5,6 +5,8 @@
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
+#include <pthread.h>
+
 #include "harness.h"
 #include "terrasynth.h"
 
@@ -178,8 +180,8 @@ static void check_map(ts_ctx *ctx, const ts_raster *e, const ts_raster *t, uint6
         double got = map[(size_t)py[s] * (size_t)nx + (size_t)px[s]], err;
         if (isinf(ref[s])) {
             if (!(isinf(got) && got > 0) && bad++ < 5)
-                CHECK_MSG(0, "%dx%d patch %dx%d at (%d,%d): %g, want +inf", e->width,
-                          e->height, t->width, t->height, px[s], py[s], got);
+                CHECK_MSG(0, "%dx%d patch %dx%d at (%d,%d): %g, want +inf", e->width, e->height,
+                          t->width, t->height, px[s], py[s], got);
             continue;
         }
         err = fabs(got - ref[s]);
@@ -276,9 +278,9 @@ static void check_best(ts_ctx *ctx, const ts_raster *e, const ts_raster *t, int 
 
 static const int sizes[][4] = {
     /* exemplar w, h, patch w, h */
-    {37, 29, 7, 5},    {16, 16, 16, 16}, {1, 1, 1, 1},     {64, 48, 8, 8},
-    {101, 67, 13, 11}, {97, 89, 31, 1},  {53, 41, 1, 41},  {128, 128, 32, 32},
-    {211, 149, 40, 30}, {2, 300, 1, 5},  {331, 17, 3, 17},
+    {37, 29, 7, 5},     {16, 16, 16, 16}, {1, 1, 1, 1},     {64, 48, 8, 8},
+    {101, 67, 13, 11},  {97, 89, 31, 1},  {53, 41, 1, 41},  {128, 128, 32, 32},
+    {211, 149, 40, 30}, {2, 300, 1, 5},   {331, 17, 3, 17},
 };
 
 static void test_ssd_vs_naive(void)
@@ -292,8 +294,8 @@ static void test_ssd_vs_naive(void)
         for (mask = 0; mask < 4; mask++) {
             ts_raster e = make_random(&seed, sizes[c][0], sizes[c][1], sizes[c][0], 0.0);
             ts_raster src = make_random(&seed, sizes[c][2], sizes[c][3], sizes[c][2], 0.0);
-            ts_raster t = make_target(&seed, &src, 0, 0, sizes[c][2], sizes[c][3], known[mask],
-                                      0.0);
+            ts_raster t =
+                make_target(&seed, &src, 0, 0, sizes[c][2], sizes[c][3], known[mask], 0.0);
             check_map(ctx, &e, &t, &seed, 0);
             free(e.data);
             free(src.data);
@@ -313,7 +315,7 @@ static void test_ssd_nodata(void)
         for (y = 30; y < 36; y++) /* a nodata hole */
             for (x = 40; x < 45; x++)
                 TS_PIX(&e, x, y) = NAN;
-        TS_PIX(&e, 3, 50) = INFINITY; /* non-finite counts as nodata */
+        TS_PIX(&e, 3, 50) = INFINITY;  /* non-finite counts as nodata */
         for (y = 0; y < t.height; y++) /* the target must not carry NaN from e */
             for (x = 0; x < t.width; x++)
                 if (isnan(TS_PIX(&t, x, y)) && th_uniform(&seed) < 0.5)
@@ -646,6 +648,67 @@ static void test_determinism(void)
     ts_ctx_free(c3);
 }
 
+/* Matchers planned, queried and freed concurrently from several threads
+ * (the FFTW planner is serialised inside the library) give the same bits
+ * as the same work done sequentially. */
+typedef struct thread_work {
+    ts_raster e, t;
+    float *map;
+    ts_candidate best[4];
+    int n_best, ok;
+} thread_work;
+
+static void *thread_run(void *arg)
+{
+    thread_work *w = arg;
+    ts_ctx *ctx = ts_ctx_new();
+    int rep;
+    w->ok = ctx != NULL;
+    for (rep = 0; rep < 4 && w->ok; rep++) {
+        ts_matcher *m = NULL;
+        ts_ctx_set_threads(ctx, 1 + rep % 2);
+        w->ok = ts_matcher_new(ctx, &w->e, w->t.width, w->t.height, &m) == TS_OK &&
+                ts_matcher_ssd(ctx, m, &w->t, w->map) == TS_OK &&
+                ts_matcher_best(ctx, m, &w->t, 4, 3, w->best, &w->n_best) == TS_OK;
+        ts_matcher_free(m);
+    }
+    ts_ctx_free(ctx);
+    return NULL;
+}
+
+static void test_threads(void)
+{
+    enum { NT = 4 };
+    uint64_t seed = 15;
+    thread_work par[NT], seq[NT];
+    pthread_t tid[NT];
+    int i;
+    for (i = 0; i < NT; i++) {
+        const int w = 90 + 17 * i, h = 70 + 9 * i;
+        const size_t n = (size_t)(w - 11 + 1) * (size_t)(h - 9 + 1);
+        par[i].e = make_random(&seed, w, h, w, 0.002);
+        par[i].t = make_target(&seed, &par[i].e, 5, 6, 11, 9, 0.6, 2.0);
+        par[i].map = malloc(n * sizeof *par[i].map);
+        seq[i] = par[i];
+        seq[i].map = malloc(n * sizeof *seq[i].map);
+        thread_run(&seq[i]);
+    }
+    for (i = 0; i < NT; i++)
+        CHECK(pthread_create(&tid[i], NULL, thread_run, &par[i]) == 0);
+    for (i = 0; i < NT; i++) {
+        const size_t n = (size_t)(par[i].e.width - 10) * (size_t)(par[i].e.height - 8);
+        pthread_join(tid[i], NULL);
+        CHECK(par[i].ok && seq[i].ok);
+        CHECK(memcmp(par[i].map, seq[i].map, n * sizeof *par[i].map) == 0);
+        CHECK(par[i].n_best == 4 && seq[i].n_best == 4);
+        CHECK(memcmp(par[i].best, seq[i].best, sizeof par[i].best) == 0);
+        free(par[i].e.data);
+        free(par[i].t.data);
+        free(par[i].map);
+        free(seq[i].map);
+    }
+}
+
 static int cancel_after;
 static int progress_calls;
 
@@ -713,6 +776,7 @@ int main(int argc, char **argv)
         {"best_few", test_best_few},
         {"errors", test_errors},
         {"determinism", test_determinism},
+        {"threads", test_threads},
         {"cancel", test_cancel},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);

@@ -1,0 +1,59 @@
+/*
+ * recipe.h - TerraSynth recipes (.tsyn): a small XML file that names a
+ * method, its inputs (GDAL dataset names, relative to the recipe or
+ * absolute, /vsi paths included), its parameters by the CLI's names, and
+ * the seed.  The GDAL driver opens recipes; `terrasynth ... --recipe`
+ * writes them.  Format: gdal_driver/docs/recipes.md.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#ifndef TS_RECIPE_H
+#define TS_RECIPE_H
+
+#include <stdint.h>
+
+#include "tsjob.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { RECIPE_PPA = 1, RECIPE_SYNTH = 2 };
+
+typedef struct ts_recipe ts_recipe;
+
+/** Is this (file name, first bytes) a recipe? */
+int recipe_identify(const char *filename, const unsigned char *header, int n_header);
+
+/** Parse the recipe file `path` (read through GDAL's VSI layer).
+ *  open_options: NULL-terminated "NAME=VALUE" overriding parameters (any
+ *  case; SEED too) or NULL.  Resolves the output grid without computing.
+ *  Caller frees with recipe_free. */
+int recipe_open(const char *path, const char *const *open_options, ts_recipe **out,
+                tsio_err *err);
+void recipe_free(ts_recipe *r);
+
+/** Output grid and pixel type (GDT_Byte for ppa, GDT_Float32 for synth). */
+const tsio_georef *recipe_georef(const ts_recipe *r);
+int recipe_gdal_type(const ts_recipe *r);
+double recipe_nodata(const ts_recipe *r);
+
+/** Run the method once (idempotent).  Not thread-safe: the driver locks.
+ *  On success recipe_data gives width*height cells of recipe_gdal_type. */
+int recipe_compute(ts_recipe *r, tsio_err *err);
+const void *recipe_data(const ts_recipe *r);
+
+/** Write a recipe for a job (temporary file + rename).  Input paths are
+ *  stored relative to the recipe's folder when they lie under it, else
+ *  absolute. */
+int recipe_write_ppa(const char *path, const tsjob_ppa *job, tsio_err *err);
+int recipe_write_synth(const char *path, const tsjob_synth *job, uint64_t seed, tsio_err *err);
+
+/** Open-option list XML for the driver metadata, from the descriptor
+ *  tables (caller frees with free()). */
+char *recipe_open_option_list(void);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

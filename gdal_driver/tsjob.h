@@ -1,0 +1,85 @@
+/*
+ * tsjob.h - the jobs behind every front end: read the inputs with tsio, run
+ * a core stage, hand back the result with its georeferencing.  The CLI
+ * writes the result to files; the GDAL driver serves it block by block.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ *
+ * Errors: 0 on success, -1 with one line "<file>: <problem>" in err.
+ */
+#ifndef TSJOB_H
+#define TSJOB_H
+
+#include <stdint.h>
+
+#include "terrasynth.h"
+#include "tsio.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- ppa ---- */
+
+typedef struct tsjob_ppa {
+    const char *input;
+    int band;            /* 1-based */
+    double cell_size;    /* > 0: metres per cell for a raster without CRS */
+    ts_ppa_params params;
+} tsjob_ppa;
+
+typedef struct tsjob_ppa_result {
+    tsio_raster in;          /* the DEM as read (metres, NaN nodata) */
+    ts_features *features;
+    unsigned char *codes;    /* w*h: 1 ridge, 2 valley, 3 both, 0 none, 255 nodata */
+    ts_grid_metrics mstore;
+    const ts_grid_metrics *metrics; /* NULL without CRS */
+    int no_crs;              /* the input has no CRS (lengths in cells) */
+} tsjob_ppa_result;
+
+/** Read and check the input (no computation); res->in is filled. */
+int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err);
+/** Extract the axes (after prepare); progress and cancel through ctx. */
+int tsjob_ppa_compute(ts_ctx *ctx, const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err);
+void tsjob_ppa_result_free(tsjob_ppa_result *res);
+
+/* ---- synth ---- */
+
+#define TSJOB_MAX_EXEMPLARS 64
+
+typedef struct tsjob_grid {
+    const char *like;    /* raster whose grid to use, or NULL */
+    int width, height;   /* with like == NULL */
+    int has_origin, has_res;
+    double origin_x, origin_y, res;
+    const char *crs;     /* needs origin and res */
+} tsjob_grid;
+
+typedef struct tsjob_synth {
+    const char *exemplars[TSJOB_MAX_EXEMPLARS];
+    int n_exemplars;
+    int band;
+    tsjob_grid grid;
+    ts_synth_params params;
+} tsjob_synth;
+
+typedef struct tsjob_synth_result {
+    tsio_georef geo;         /* the target grid */
+    double *dx_m, *dy_m;     /* its ground metrics, NULL without CRS */
+    ts_grid_metrics mstore;
+    const ts_grid_metrics *metrics;
+    ts_raster out;           /* the terrain (owned) */
+    int exemplar_no_crs;     /* index+1 of an exemplar without CRS used cell for cell, or 0 */
+} tsjob_synth_result;
+
+/** Check the job and resolve the target grid (cheap: no exemplar is read). */
+int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err);
+/** Read the exemplars at the target's resolution and synthesize; maps may be NULL. */
+int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
+                        ts_synth_maps *maps, tsio_err *err);
+void tsjob_synth_result_free(tsjob_synth_result *res);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,193 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""What every TerraSynth algorithm shares: the core's parameters built from its
+descriptor tables, checks, and the hand-over to runner.py."""
+from qgis.core import (
+    QgsProcessingAlgorithm,
+    QgsProcessingException,
+    QgsProcessingParameterDefinition,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterNumber,
+    QgsProviderRegistry,
+)
+from qgis.PyQt.QtCore import QCoreApplication
+
+from .. import descriptors, runner
+
+
+def exception_text(e):
+    return str(e.args[0]) if getattr(e, "args", None) else str(e)
+
+
+def gdal_source(layer, key):
+    """The GDAL dataset name of a raster layer, for the CLI."""
+    if layer.providerType() != "gdal":
+        raise QgsProcessingException(
+            "%s: layer '%s' comes from the '%s' provider; terrasynth reads rasters GDAL opens "
+            "(files)" % (key, layer.name(), layer.providerType()))
+    src = layer.source()
+    try:
+        parts = QgsProviderRegistry.instance().decodeUri("gdal", src)
+    except Exception:  # pragma: no cover - decodeUri is always there in 3.22
+        parts = {}
+    path = parts.get("path") if parts else None
+    if path and not parts.get("layerName") and not parts.get("openOptions"):
+        return path  # a plain file, without any "|option:..." suffix
+    return src  # a GDAL connection string (NETCDF:..., GPKG:..., /vsizip/...)
+
+
+def is_set(parameters, key):
+    """Was an optional parameter given (0 and 0.0 count as given)?"""
+    v = parameters.get(key)
+    return v is not None and not (isinstance(v, str) and v.strip() == "")
+
+
+class TerraSynthAlgorithm(QgsProcessingAlgorithm):
+    """Subclasses set the class attributes and implement initAlgorithm,
+    prepareJob (and optionally checkJob)."""
+
+    STAGE = None          # the core's stage, `terrasynth <STAGE>`, descriptor table name
+    NAME = None           # algorithm id inside the provider: terrasynth:<NAME>
+    DISPLAY_NAME = None
+    GROUP = None
+    GROUP_ID = None
+    HELP = ""             # HTML, condensed from algorithms/docs/<stage>.md
+    LABELS = {}           # descriptor name -> dialog label (default: from the name)
+    ADVANCED = ()         # descriptor names shown under "Advanced parameters"
+
+    def __init__(self):
+        super().__init__()
+        self._descs = [d for d in descriptors.stage(self.STAGE)
+                       if d.get("type") in descriptors.KNOWN_TYPES]
+
+    # -- identity -----------------------------------------------------------
+    def name(self):
+        return self.NAME
+
+    def displayName(self):  # noqa: N802
+        return self.tr(self.DISPLAY_NAME)
+
+    def group(self):
+        return self.tr(self.GROUP)
+
+    def groupId(self):  # noqa: N802
+        return self.GROUP_ID
+
+    def shortHelpString(self):  # noqa: N802
+        return self.HELP
+
+    def createInstance(self):  # noqa: N802
+        return type(self)()
+
+    def tr(self, text):
+        return QCoreApplication.translate("TerraSynth", text)
+
+    # -- the core's parameters ----------------------------------------------
+    def descriptors(self):
+        """The descriptors this instance was built from (copies)."""
+        return [dict(d) for d in self._descs]
+
+    def _label(self, d):
+        text = self.LABELS.get(d["name"]) or d["name"].replace("_", " ").capitalize()
+        units = d.get("units") or ""
+        if d["type"] in ("int", "double") and units and units.lower() not in text.lower():
+            text += " (%s)" % units
+        return text
+
+    def descriptorParameters(self, d):  # noqa: N802
+        """QGIS parameters for one descriptor: key = name in UPPER_SNAKE_CASE."""
+        key, label = descriptors.key(d), self._label(d)
+        t = d["type"]
+        if t in ("int", "double"):
+            p = QgsProcessingParameterNumber(
+                key, label,
+                QgsProcessingParameterNumber.Integer if t == "int"
+                else QgsProcessingParameterNumber.Double,
+                defaultValue=int(d["default"]) if t == "int" else float(d["default"]),
+                minValue=float(d["min"]), maxValue=float(d["max"]))
+            if t == "double" and float(d["max"]) <= 1.0:
+                p.setMetadata({"widget_wrapper": {"decimals": 5}})
+            params = [p]
+        elif t == "enum":
+            params = [QgsProcessingParameterEnum(key, label, options=list(d["choices"]),
+                                                 defaultValue=int(d["default"]))]
+        else:  # length: a number and its unit
+            p = QgsProcessingParameterNumber(
+                key, label, QgsProcessingParameterNumber.Double,
+                defaultValue=float(d["default"]), minValue=float(d["min"]),
+                maxValue=float(d["max"]))
+            unit_default = 1 if d.get("default_unit") in ("m", "metres") else 0
+            u = QgsProcessingParameterEnum(descriptors.unit_key(d), label + " unit",
+                                           options=list(descriptors.LENGTH_UNITS),
+                                           defaultValue=unit_default)
+            u.setHelp("Unit of %s: cells, or metres on the ground (needs a CRS or CELL_SIZE)."
+                      % key)
+            params = [p, u]
+        params[0].setHelp(d.get("help", ""))
+        if d["name"] in self.ADVANCED:
+            for p in params:
+                p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+        return params
+
+    def addDescriptorParameters(self):  # noqa: N802
+        for d in self._descs:
+            for p in self.descriptorParameters(d):
+                self.addParameter(p)
+
+    def descriptorValues(self, parameters, context):  # noqa: N802
+        """{descriptor name: value} in the form runner.format_value takes."""
+        values = {}
+        for d in self._descs:
+            key = descriptors.key(d)
+            if d["type"] == "int":
+                values[d["name"]] = self.parameterAsInt(parameters, key, context)
+            elif d["type"] == "double":
+                values[d["name"]] = self.parameterAsDouble(parameters, key, context)
+            elif d["type"] == "enum":
+                values[d["name"]] = self.parameterAsEnum(parameters, key, context)
+            else:
+                unit = self.parameterAsEnum(parameters, descriptors.unit_key(d), context)
+                values[d["name"]] = (self.parameterAsDouble(parameters, key, context),
+                                     descriptors.LENGTH_UNITS[unit])
+        return values
+
+    # -- checks and running ---------------------------------------------------
+    def checkJob(self, parameters, context):  # noqa: N802
+        """Cross-parameter checks; raise QgsProcessingException."""
+
+    def checkParameterValues(self, parameters, context):  # noqa: N802
+        ok, msg = super().checkParameterValues(parameters, context)
+        if not ok:
+            return ok, msg
+        try:
+            self.checkJob(parameters, context)
+        except QgsProcessingException as e:
+            return False, exception_text(e)
+        msg = runner.exclusive_conflict(self.STAGE, self._descs,
+                                        self.descriptorValues(parameters, context))
+        if msg:
+            return False, msg
+        return True, ""
+
+    def prepareJob(self, parameters, context):  # noqa: N802
+        """Return a dict: positional (list), options (list of (name, value)),
+        outputs (files written), output_dirs (folders written into), results."""
+        raise NotImplementedError
+
+    def buildCommand(self, parameters, context, cli=None):  # noqa: N802
+        """(argv, job) for these parameters; nothing is run."""
+        self.checkJob(parameters, context)
+        job = self.prepareJob(parameters, context)
+        argv = runner.build_argv(cli or runner.find_cli(), self.STAGE,
+                                 positional=job["positional"],
+                                 params=self.descriptorValues(parameters, context),
+                                 descs=self._descs, options=job["options"])
+        return argv, job
+
+    def finishJob(self, job, context, feedback):  # noqa: N802
+        """Hook after a successful run (e.g. which layers QGIS loads)."""
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        argv, job = self.buildCommand(parameters, context)
+        runner.run(argv, feedback, outputs=job["outputs"], output_dirs=job.get("output_dirs", ()))
+        self.finishJob(job, context, feedback)
+        return job["results"]

@@ -1,0 +1,167 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""terrasynth:ppa - ridge and valley axes of a DEM (`terrasynth ppa`)."""
+import os
+
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingContext,
+    QgsProcessingException,
+    QgsProcessingOutputVectorLayer,
+    QgsProcessingParameterBand,
+    QgsProcessingParameterDefinition,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterDestination,
+    QgsProcessingParameterRasterLayer,
+    QgsProcessingParameterVectorDestination,
+    QgsProcessingUtils,
+)
+
+from .base import TerraSynthAlgorithm, gdal_source, is_set
+
+# Condensed from algorithms/docs/ppa.md (the manual page).
+HELP = """
+<p>Maps the <b>ridge and valley axes</b> of a DEM with the Profile recognition and Polygon
+breaking Algorithm (PPA; Chang, Song &amp; Hsu 1998, as summarised by Zhou et al. 2007,
+section 3). Runs <code>terrasynth ppa</code>.</p>
+<ol>
+<li><b>Profile recognition</b>: through every cell run four profiles (E-W, N-S, two
+diagonals), each <i>Profile length</i> cells long. A cell is a ridge target if along one
+profile the terrain dips below it by more than the threshold on both sides within half the
+profile; a valley target if it rises above it likewise. Profiles stop at the raster edge and at
+nodata.</li>
+<li><b>Target connection</b>: 8-adjacent targets are joined by segments; where two diagonals
+cross, the less important one is cancelled.</li>
+<li><b>Polygon breaking</b>: the least important segment of every closed polygon is removed
+(a maximum spanning forest).</li>
+<li><b>Branch reduction</b>: branches shorter than <i>Minimum branch length</i> are removed,
+keeping the main axes whole.</li>
+</ol>
+<h3>Parameters</h3>
+<ul>
+<li><b>Features</b>: ridges, valleys or both.</li>
+<li><b>Profile length</b> (odd, 3..1001 cells, default 11): lengthen it for broad valleys on fine
+grids.</li>
+<li><b>Threshold</b> (metres) and <b>Threshold fraction</b> (of the DEM's elevation range, default
+0.0025): the minimum dip. As on the command line, the two exclude each other: changing one from
+its default replaces the other (which is then 0); changing both is an error.</li>
+<li><b>Minimum branch length</b> with its <b>unit</b> (cells, or metres on the ground; default
+40 cells): the main knob for detail (20 cells: dense network, 80: only the main axes). Metres
+need a CRS, or <i>Cell size</i> for a raster without one.</li>
+<li><b>Band</b>: the input band. Heights are read in metres (scale/offset applied, feet
+converted); lengths are measured on the ground (geodesic in a geographic CRS).</li>
+</ul>
+<h3>Outputs</h3>
+<ul>
+<li><b>Ridges and valleys</b>: a Byte raster on the input's grid: 1 ridge, 2 valley, 3 both,
+0 none, 255 where the input is nodata.</li>
+<li><b>Ridge and valley lines</b> (optional, GeoPackage): layer <code>paths</code> (LineStrings
+with kind, length_m, length_cells, mean/min/max elevation, start/end node kind), returned as
+LINES, and layer <code>nodes</code> (endpoints and branch points), returned as NODES; both are
+loaded.</li>
+<li><b>Preview</b> (optional PNG): hillshade with ridges in red and valleys in blue.</li>
+</ul>
+<p>Outputs are written to temporary names and renamed into place: a failed or canceled run
+leaves no file. Same input and parameters give the same bytes.</p>
+"""
+
+
+class PpaAlgorithm(TerraSynthAlgorithm):
+    STAGE = "ppa"
+    NAME = "ppa"
+    DISPLAY_NAME = "Extract ridges and valleys (PPA)"
+    GROUP = "Terrain analysis"
+    GROUP_ID = "terrainanalysis"
+    HELP = HELP
+    LABELS = {"features": "Features", "min_branch_length": "Minimum branch length",
+              "threshold": "Threshold (metres)"}
+
+    INPUT = "INPUT"
+    BAND = "BAND"
+    CELL_SIZE = "CELL_SIZE"
+    THREADS = "THREADS"
+    OUTPUT = "OUTPUT"
+    LINES = "LINES"
+    NODES = "NODES"
+    PREVIEW = "PREVIEW"
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.addParameter(QgsProcessingParameterRasterLayer(self.INPUT, self.tr("Input DEM")))
+        band = QgsProcessingParameterBand(self.BAND, self.tr("Band"), defaultValue=1,
+                                          parentLayerParameterName=self.INPUT)
+        band.setHelp("Input band (--band).")
+        self.addParameter(band)
+        self.addDescriptorParameters()
+        cell = QgsProcessingParameterNumber(self.CELL_SIZE, self.tr("Cell size for a raster "
+                                                                    "without CRS (metres)"),
+                                            QgsProcessingParameterNumber.Double,
+                                            optional=True, minValue=0.0, maxValue=1e7)
+        cell.setHelp("Ground size of a cell in metres, for a raster with no CRS (--cell-size); "
+                     "otherwise lengths are in cells.")
+        threads = QgsProcessingParameterNumber(self.THREADS, self.tr("Threads (0 = all cores)"),
+                                               QgsProcessingParameterNumber.Integer,
+                                               defaultValue=0, minValue=0, maxValue=256)
+        threads.setHelp("Worker threads (--threads); results never depend on it.")
+        for p in (cell, threads):
+            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            self.addParameter(p)
+        self.addParameter(QgsProcessingParameterRasterDestination(
+            self.OUTPUT, self.tr("Ridges and valleys")))
+        self.addParameter(QgsProcessingParameterVectorDestination(
+            self.LINES, self.tr("Ridge and valley lines (GeoPackage)"),
+            QgsProcessing.TypeVectorLine, optional=True, createByDefault=True))
+        self.addOutput(QgsProcessingOutputVectorLayer(
+            self.NODES, self.tr("Ridge and valley nodes"), QgsProcessing.TypeVectorPoint))
+        self.addParameter(QgsProcessingParameterFileDestination(
+            self.PREVIEW, self.tr("Preview"), fileFilter="PNG files (*.png)", optional=True,
+            createByDefault=False))
+
+    def checkJob(self, parameters, context):  # noqa: N802
+        if is_set(parameters, self.CELL_SIZE) and \
+                self.parameterAsDouble(parameters, self.CELL_SIZE, context) <= 0:
+            raise QgsProcessingException("CELL_SIZE must be a positive number of metres")
+
+    def prepareJob(self, parameters, context):  # noqa: N802
+        layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)
+        if layer is None:
+            raise QgsProcessingException(self.invalidRasterError(parameters, self.INPUT))
+        source = gdal_source(layer, self.INPUT)
+        output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
+        lines = self.parameterAsOutputLayer(parameters, self.LINES, context) or ""
+        preview = self.parameterAsFileOutput(parameters, self.PREVIEW, context) or ""
+        if lines and os.path.splitext(lines)[1].lower() != ".gpkg":
+            raise QgsProcessingException(
+                "LINES must be a GeoPackage (.gpkg), which holds both layers 'paths' and "
+                "'nodes', not %s" % lines)
+        if preview and os.path.splitext(preview)[1].lower() != ".png":
+            raise QgsProcessingException("PREVIEW must be a .png file, not %s" % preview)
+        cell = (self.parameterAsDouble(parameters, self.CELL_SIZE, context)
+                if is_set(parameters, self.CELL_SIZE) else None)
+        options = [("band", self.parameterAsInt(parameters, self.BAND, context) or 1),
+                   ("cell_size", cell),
+                   ("threads", self.parameterAsInt(parameters, self.THREADS, context)),
+                   ("lines", lines),
+                   ("preview", preview)]
+        results = {self.OUTPUT: output}
+        if lines:
+            results[self.LINES] = lines + "|layername=paths"
+            results[self.NODES] = lines + "|layername=nodes"
+        if preview:
+            results[self.PREVIEW] = preview
+        return {"positional": [source, output], "options": options,
+                "outputs": [output, lines, preview], "results": results, "lines": lines}
+
+    def finishJob(self, job, context, feedback):  # noqa: N802
+        """QGIS would load LINES' .gpkg as one layer: load 'paths' and 'nodes' instead."""
+        lines = job["lines"]
+        if not lines or not context.willLoadLayerOnCompletion(lines):
+            return
+        details = context.layerToLoadOnCompletionDetails(lines)
+        layers = context.layersToLoadOnCompletion()
+        layers.pop(lines, None)
+        hint = QgsProcessingUtils.LayerHint.Vector
+        layers[job["results"][self.LINES]] = QgsProcessingContext.LayerDetails(
+            details.name or self.tr("Ridge and valley lines"), details.project, self.LINES, hint)
+        layers[job["results"][self.NODES]] = QgsProcessingContext.LayerDetails(
+            self.tr("Ridge and valley nodes"), details.project, self.NODES, hint)
+        context.setLayersToLoadOnCompletion(layers)

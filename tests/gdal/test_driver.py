@@ -1,0 +1,293 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""The TSYN GDAL plugin: recipes through the GDAL tools and osgeo.gdal, VRTs
+over recipes, TerraSynth pixel functions, broken recipes."""
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
+TERRASYNTH = os.environ.get("TERRASYNTH", os.path.join(ROOT, "build", "gdal_driver", "terrasynth"))
+DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))
+JACKSBORO = os.path.join(DATA, "jacksboro_fault_dem.tif")
+
+os.environ["GDAL_DRIVER_PATH"] = PLUGINS  # before osgeo is imported
+from osgeo import gdal, osr  # noqa: E402
+
+gdal.UseExceptions()
+gdal.AllRegister()
+
+ENV = dict(os.environ, GDAL_DRIVER_PATH=PLUGINS)
+
+
+def tool(*args, check=True):
+    p = subprocess.run([*map(str, args)], capture_output=True, text=True, env=ENV, timeout=600)
+    if check and p.returncode != 0:
+        raise AssertionError(f"{args[0]} failed: {p.stderr}")
+    return p
+
+
+def ts(*args):
+    return tool(TERRASYNTH, *args)
+
+
+def arr(path):
+    return gdal.Open(str(path)).ReadAsArray()
+
+
+def write_tif(path, a, nodata=None, srs="EPSG:32611", gt=(400000, 30, 0, 3800000, 0, -30), unit=None):
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), a.shape[1], a.shape[0], 1, gdal.GDT_Float32)
+    ds.SetGeoTransform(gt)
+    s = osr.SpatialReference()
+    s.SetFromUserInput(srs)
+    ds.SetProjection(s.ExportToWkt())
+    if nodata is not None:
+        ds.GetRasterBand(1).SetNoDataValue(nodata)
+    if unit:
+        ds.GetRasterBand(1).SetUnitType(unit)
+    ds.GetRasterBand(1).WriteArray(a)
+    ds = None
+
+
+# ---------------------------------------------------------------- the driver
+
+
+def test_formats_lists_tsyn():
+    assert gdal.GetDriverByName("TSYN") is not None
+    out = tool("gdalinfo", "--formats").stdout
+    assert "TSYN -raster- (rov)" in out
+
+
+@pytest.fixture(scope="module")
+def ppa_recipe(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ppa")
+    ts("ppa", JACKSBORO, "--both", "--recipe", d / "axes.tsyn")
+    ts("ppa", JACKSBORO, d / "cli.tif", "--both", "-q")
+    return d
+
+
+def test_gdalinfo_reports_driver_size_crs_nodata(ppa_recipe):
+    info = tool("gdalinfo", ppa_recipe / "axes.tsyn").stdout
+    assert "Driver: TSYN/" in info
+    assert "Size is 403, 344" in info
+    assert 'ID["EPSG",4326]' in info
+    assert "NoData Value=255" in info
+    ds = gdal.Open(str(ppa_recipe / "axes.tsyn"))
+    assert ds.GetDriver().ShortName == "TSYN"
+    assert ds.GetGeoTransform() == pytest.approx(gdal.Open(JACKSBORO).GetGeoTransform())
+
+
+def test_translate_equals_cli_ppa(ppa_recipe):
+    tool("gdal_translate", "-q", ppa_recipe / "axes.tsyn", ppa_recipe / "gdal.tif")
+    a, b = arr(ppa_recipe / "gdal.tif"), arr(ppa_recipe / "cli.tif")
+    assert a.dtype == np.uint8 and a.tobytes() == b.tobytes()
+    assert (a == 1).sum() > 100
+
+
+def test_python_reads_blocks_and_windows(ppa_recipe):
+    ds = gdal.Open(str(ppa_recipe / "axes.tsyn"))
+    band = ds.GetRasterBand(1)
+    assert band.GetBlockSize() == [256, 256]
+    whole = band.ReadAsArray()
+    assert (band.ReadAsArray(300, 200, 50, 40) == whole[200:240, 300:350]).all()
+    assert (band.ReadBlock(1, 1) is not None)
+
+
+def test_synth_recipe_equals_cli_and_warps(tmp_path):
+    args = ["--exemplar", JACKSBORO, "--size", "160x150", "--seed", "5", "--patch-size", "32", "--overlap", "8"]
+    ts("synth", *args, "--recipe", tmp_path / "s.tsyn")
+    ts("synth", *args, tmp_path / "cli.tif", "-q")
+    tool("gdal_translate", "-q", tmp_path / "s.tsyn", tmp_path / "gdal.tif")
+    assert arr(tmp_path / "gdal.tif").tobytes() == arr(tmp_path / "cli.tif").tobytes()
+    # a VRT around the recipe
+    tool("gdal_translate", "-q", "-of", "VRT", tmp_path / "s.tsyn", tmp_path / "wrap.vrt")
+    tool("gdal_translate", "-q", tmp_path / "wrap.vrt", tmp_path / "wrap.tif")
+    assert arr(tmp_path / "wrap.tif").tobytes() == arr(tmp_path / "cli.tif").tobytes()
+    # gdalwarp to another CRS
+    tool("gdalwarp", "-q", "-t_srs", "EPSG:32616", "-tr", "100", "100", tmp_path / "s.tsyn", tmp_path / "utm.tif")
+    w = gdal.Open(str(tmp_path / "utm.tif"))
+    assert osr.SpatialReference(w.GetProjection()).GetAuthorityCode(None) == "32616"
+    assert w.GetRasterBand(1).GetNoDataValue() == -9999
+
+
+def test_open_options_override(tmp_path):
+    args = ["--exemplar", JACKSBORO, "--size", "150x150", "--seed", "5", "--patch-size", "32", "--overlap", "8"]
+    ts("synth", *args, "--recipe", tmp_path / "s.tsyn")
+    base = gdal.Open(str(tmp_path / "s.tsyn")).ReadAsArray()
+    other = gdal.OpenEx(str(tmp_path / "s.tsyn"), open_options=["SEED=6"]).ReadAsArray()
+    assert base.tobytes() != other.tobytes()
+    ts("synth", *args[:-5], "6", "--patch-size", "32", "--overlap", "8", tmp_path / "s6.tif", "-q")
+    assert other.tobytes() == arr(tmp_path / "s6.tif").tobytes()
+    with pytest.raises(RuntimeError, match="patch_size"):
+        gdal.OpenEx(str(tmp_path / "s.tsyn"), open_options=["PATCH_SIZE=5000"])
+
+
+def test_nodata_round_trips(tmp_path):
+    z = gdal.Open(JACKSBORO).ReadAsArray().astype(np.float32)
+    z[50:90, 100:180] = -32768
+    write_tif(tmp_path / "holes.tif", z, nodata=-32768, srs="EPSG:4326",
+              gt=gdal.Open(JACKSBORO).GetGeoTransform())
+    (tmp_path / "h.tsyn").write_text(
+        '<TerraSynth version="1"><PPA><Input>holes.tif</Input>'
+        '<Param name="features">both</Param></PPA></TerraSynth>')
+    a = gdal.Open(str(tmp_path / "h.tsyn")).ReadAsArray()
+    assert (a[50:90, 100:180] == 255).all() and (a[z != -32768] != 255).all()
+
+
+def test_relative_and_vsimem_recipes(tmp_path):
+    import shutil
+    shutil.copy(JACKSBORO, tmp_path / "dem.tif")
+    (tmp_path / "rel.tsyn").write_text(
+        '<TerraSynth version="1"><PPA><Input>dem.tif</Input></PPA></TerraSynth>')
+    cwd = os.getcwd()
+    try:
+        os.chdir("/")
+        a = gdal.Open(str(tmp_path / "rel.tsyn")).ReadAsArray()
+    finally:
+        os.chdir(cwd)
+    gdal.FileFromMemBuffer("/vsimem/x.tsyn",
+                           f'<TerraSynth version="1"><PPA><Input>{tmp_path / "dem.tif"}</Input></PPA></TerraSynth>')
+    b = gdal.Open("/vsimem/x.tsyn").ReadAsArray()
+    gdal.Unlink("/vsimem/x.tsyn")
+    assert a.tobytes() == b.tobytes() and (a == 1).sum() > 100
+
+
+# ---------------------------------------------------------------- broken recipes
+
+
+@pytest.mark.parametrize(
+    "text,words",
+    [
+        ("<TerraSynth version='1'><PPA><Input>dem.tif</Input>", "XML"),
+        ("<Other/>", "root element"),
+        ("<TerraSynth version='9'><PPA/></TerraSynth>", "version"),
+        ("<TerraSynth version='1'/>", "<PPA> or a <Synth>"),
+        ("<TerraSynth version='1'><PPA/></TerraSynth>", "<Input>"),
+        ("<TerraSynth version='1'><PPA><Input>missing.tif</Input></PPA></TerraSynth>", "no such file"),
+        ("<TerraSynth version='1'><PPA><Input>dem.tif</Input><Param name='profile_length'>abc</Param></PPA></TerraSynth>",
+         "profile_length"),
+        ("<TerraSynth version='1'><PPA><Input>dem.tif</Input><Param name='profile_length'>4</Param></PPA></TerraSynth>",
+         "odd"),
+        ("<TerraSynth version='1'><PPA><Input>dem.tif</Input><Param name='nope'>1</Param></PPA></TerraSynth>",
+         "unknown parameter"),
+        ("<TerraSynth version='1'><PPA><Input>dem.tif</Input><Param>1</Param></PPA></TerraSynth>", "name"),
+        ("<TerraSynth version='1'><PPA><Input band='x'>dem.tif</Input></PPA></TerraSynth>", "band"),
+        ("<TerraSynth version='1'><Synth><Grid width='10' height='10'/></Synth></TerraSynth>", "<Exemplar>"),
+        ("<TerraSynth version='1'><Synth><Exemplar>dem.tif</Exemplar></Synth></TerraSynth>", "<Grid"),
+        ("<TerraSynth version='1'><Synth seed='-1'><Exemplar>dem.tif</Exemplar><Grid width='10' height='10'/></Synth></TerraSynth>",
+         "seed"),
+        ("<TerraSynth version='1'><Synth><Exemplar>dem.tif</Exemplar><Grid width='0' height='10'/></Synth></TerraSynth>",
+         "width"),
+        ("<TerraSynth version='1'><Synth><Exemplar>dem.tif</Exemplar><Grid width='100' height='100' crs='EPSG:32611'/></Synth></TerraSynth>",
+         "origin"),
+        ("<TerraSynth version='1'><PPA><Input>self.tsyn</Input></PPA></TerraSynth>", "recursion"),
+        ("", "1 byte"),
+    ],
+)
+def test_broken_recipes_give_gdal_errors(tmp_path, text, words):
+    import shutil
+    shutil.copy(JACKSBORO, tmp_path / "dem.tif")
+    (tmp_path / "self.tsyn").write_text(text)
+    with pytest.raises(RuntimeError) as e:
+        gdal.Open(str(tmp_path / "self.tsyn"))
+    assert words.lower() in str(e.value).lower(), str(e.value)
+    p = tool("gdalinfo", tmp_path / "self.tsyn", check=False)
+    assert p.returncode != 0 and "self.tsyn" in p.stderr
+
+
+def test_indirect_recursion(tmp_path):
+    (tmp_path / "a.tsyn").write_text("<TerraSynth version='1'><PPA><Input>b.tsyn</Input></PPA></TerraSynth>")
+    (tmp_path / "b.tsyn").write_text("<TerraSynth version='1'><PPA><Input>a.tsyn</Input></PPA></TerraSynth>")
+    with pytest.raises(RuntimeError, match="recursion|nested"):
+        gdal.Open(str(tmp_path / "a.tsyn"))
+
+
+def test_compute_error_is_a_read_error(tmp_path):
+    # an exemplar smaller than a patch fails when the cells are read, with a GDAL error
+    write_tif(tmp_path / "tiny.tif", np.ones((20, 20), np.float32))
+    (tmp_path / "t.tsyn").write_text(
+        "<TerraSynth version='1'><Synth><Exemplar>tiny.tif</Exemplar>"
+        "<Grid width='100' height='100'/></Synth></TerraSynth>")
+    ds = gdal.Open(str(tmp_path / "t.tsyn"))
+    with pytest.raises(RuntimeError, match="smaller than a patch"):
+        ds.ReadAsArray()
+
+
+# ---------------------------------------------------------------- pixel functions
+
+
+def pixfun_vrt(path, func, sources, args="", nodata=None, size=(40, 30)):
+    srcs = "".join(
+        f"<SimpleSource><SourceFilename>{s}</SourceFilename><SourceBand>1</SourceBand></SimpleSource>"
+        for s in sources)
+    nd = f"<NoDataValue>{nodata}</NoDataValue>" if nodata is not None else ""
+    path.write_text(
+        f'<VRTDataset rasterXSize="{size[0]}" rasterYSize="{size[1]}">'
+        '<SRS>EPSG:32611</SRS><GeoTransform>400000, 30, 0, 3800000, 0, -30</GeoTransform>'
+        f'<VRTRasterBand dataType="Float32" band="1" subClass="VRTDerivedRasterBand">{nd}'
+        f"<PixelFunctionType>{func}</PixelFunctionType><PixelFunctionArguments {args}/>{srcs}"
+        "</VRTRasterBand></VRTDataset>")
+
+
+@pytest.fixture()
+def rasters(tmp_path):
+    rng = np.random.default_rng(1)
+    t1 = (1000 + 300 * rng.random((30, 40))).astype(np.float32)
+    t2 = (500 + 100 * rng.random((30, 40))).astype(np.float32)
+    w1 = rng.random((30, 40)).astype(np.float32)
+    w2 = (1 - w1).astype(np.float32)
+    t1[0, 0] = -9999
+    for name, a in (("t1", t1), ("t2", t2), ("w1", w1), ("w2", w2)):
+        write_tif(tmp_path / f"{name}.tif", a, nodata=-9999 if name[0] == "t" else None)
+    return tmp_path, t1, t2, w1, w2
+
+
+def test_pixfun_blend(rasters):
+    d, t1, t2, w1, w2 = rasters
+    pixfun_vrt(d / "b.vrt", "tsyn_blend", [d / "t1.tif", d / "t2.tif", d / "w1.tif", d / "w2.tif"],
+               'nodata="-9999"', nodata=-9999)
+    tool("gdal_translate", "-q", d / "b.vrt", d / "b.tif")
+    got = arr(d / "b.tif")
+    want = (w1 * t1 + w2 * t2) / (w1 + w2)
+    want[0, 0] = t2[0, 0]  # the nodata terrain does not count
+    assert np.allclose(got, want, rtol=1e-5)
+
+
+def test_pixfun_rescale_units_water(rasters):
+    d, t1, *_ = rasters
+    pixfun_vrt(d / "r.vrt", "tsyn_rescale", [d / "t1.tif"],
+               'from_min="1000" from_max="1300" to_min="0" to_max="1" nodata="-9999"', nodata=-9999)
+    r = gdal.Open(str(d / "r.vrt")).ReadAsArray()
+    assert r[0, 0] == -9999 and np.allclose(r.ravel()[1:], ((t1 - 1000) / 300).ravel()[1:], atol=1e-5)
+    pixfun_vrt(d / "u.vrt", "tsyn_units", [d / "t1.tif"], 'from="ft" to="m" nodata="-9999"', nodata=-9999)
+    u = gdal.Open(str(d / "u.vrt")).ReadAsArray()
+    assert np.allclose(u.ravel()[1:], (t1 * 0.3048).ravel()[1:], rtol=1e-6)
+    for mode, f in (("fill", lambda z: np.maximum(z, 1150)), ("depth", lambda z: np.maximum(1150 - z, 0)),
+                    ("mask", lambda z: (z < 1150).astype(np.float32))):
+        pixfun_vrt(d / "w.vrt", "tsyn_water", [d / "t1.tif"], f'level="1150" mode="{mode}" nodata="-9999"',
+                   nodata=-9999)
+        w = gdal.Open(str(d / "w.vrt")).ReadAsArray()
+        assert np.allclose(w.ravel()[1:], f(t1).ravel()[1:], atol=1e-4), mode
+
+
+@pytest.mark.parametrize(
+    "func,args,nsrc,words",
+    [
+        ("tsyn_rescale", 'from_min="0" from_max="1" to_min="0"', 1, "to_max"),
+        ("tsyn_rescale", 'from_min="0" from_max="0" to_min="0" to_max="1"', 1, "equals"),
+        ("tsyn_rescale", 'from_min="a" from_max="1" to_min="0" to_max="1"', 1, "not a number"),
+        ("tsyn_units", 'from="furlong" to="m"', 1, "ft"),
+        ("tsyn_water", 'mode="fill"', 1, "level"),
+        ("tsyn_water", 'level="1" mode="swim"', 1, "swim"),
+        ("tsyn_blend", "", 3, "even"),
+        ("tsyn_water", 'level="1"', 2, "1 source"),
+    ],
+)
+def test_pixfun_bad_arguments(rasters, func, args, nsrc, words):
+    d = rasters[0]
+    pixfun_vrt(d / "bad.vrt", func, [d / "t1.tif"] * nsrc, args)
+    with pytest.raises(RuntimeError, match=words):
+        gdal.Open(str(d / "bad.vrt")).ReadAsArray()
