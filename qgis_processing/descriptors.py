@@ -117,3 +117,8 @@ def validate(tables):
             if d["type"] == "enum" and not d.get("choices"):
                 raise ValueError("stage %s: enum %s has no choices" % (st, d["name"]))
     return tables
+
+
+def current_version():
+    """Version of the core the current tables describe."""
+    return _current["tables"].get("version", "")

@@ -433,6 +433,11 @@ def run(argv, feedback=None, outputs=(), output_dirs=(), poll_seconds=0.05):
     returncode = proc.wait()
     for t in pumps:
         t.join(timeout=5)
+    for stream in (proc.stdout, proc.stderr):
+        try:
+            stream.close()
+        except OSError:
+            pass
     canceled = canceled or feedback.isCanceled()
     if canceled or returncode != 0:
         _cleanup(proc.pid, outputs, output_dirs)

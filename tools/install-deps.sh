@@ -3,7 +3,8 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 set -euo pipefail
 PKGS=(build-essential cmake pkg-config libgdal-dev gdal-bin python3-gdal python3-numpy
-      libproj-dev proj-bin libgeographiclib-dev libfftw3-dev python3-pytest)
+      libproj-dev proj-bin libgeographiclib-dev libfftw3-dev python3-pytest clang
+      libclang-rt-14-dev)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

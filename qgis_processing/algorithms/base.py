@@ -35,6 +35,17 @@ def gdal_source(layer, key):
     return src  # a GDAL connection string (NETCDF:..., GPKG:..., /vsizip/...)
 
 
+def _decimals(d):
+    """Decimals shown for a double: 5 for fractions, else enough for the default (>= 2)."""
+    if float(d["max"]) <= 1.0:
+        return 5
+    default = float(d["default"])
+    for k in range(2, 7):
+        if round(default, k) == default:
+            return k
+    return 6
+
+
 def is_set(parameters, key):
     """Was an optional parameter given (0 and 0.0 count as given)?"""
     v = parameters.get(key)
@@ -73,7 +84,8 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
         return self.GROUP_ID
 
     def shortHelpString(self):  # noqa: N802
-        return self.HELP
+        # the dialog turns newlines into breaks: hand over one line of HTML
+        return " ".join(self.HELP.split())
 
     def createInstance(self):  # noqa: N802
         return type(self)()
@@ -104,8 +116,8 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
                 else QgsProcessingParameterNumber.Double,
                 defaultValue=int(d["default"]) if t == "int" else float(d["default"]),
                 minValue=float(d["min"]), maxValue=float(d["max"]))
-            if t == "double" and float(d["max"]) <= 1.0:
-                p.setMetadata({"widget_wrapper": {"decimals": 5}})
+            if t == "double":
+                p.setMetadata({"widget_wrapper": {"decimals": _decimals(d)}})
             params = [p]
         elif t == "enum":
             params = [QgsProcessingParameterEnum(key, label, options=list(d["choices"]),
@@ -115,6 +127,7 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
                 key, label, QgsProcessingParameterNumber.Double,
                 defaultValue=float(d["default"]), minValue=float(d["min"]),
                 maxValue=float(d["max"]))
+            p.setMetadata({"widget_wrapper": {"decimals": _decimals(d)}})
             unit_default = 1 if d.get("default_unit") in ("m", "metres") else 0
             u = QgsProcessingParameterEnum(descriptors.unit_key(d), label + " unit",
                                            options=list(descriptors.LENGTH_UNITS),

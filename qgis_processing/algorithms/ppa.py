@@ -73,8 +73,7 @@ class PpaAlgorithm(TerraSynthAlgorithm):
     GROUP = "Terrain analysis"
     GROUP_ID = "terrainanalysis"
     HELP = HELP
-    LABELS = {"features": "Features", "min_branch_length": "Minimum branch length",
-              "threshold": "Threshold (metres)"}
+    LABELS = {"features": "Features", "min_branch_length": "Minimum branch length"}
 
     INPUT = "INPUT"
     BAND = "BAND"
@@ -87,9 +86,10 @@ class PpaAlgorithm(TerraSynthAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.addParameter(QgsProcessingParameterRasterLayer(self.INPUT, self.tr("Input DEM")))
+        # optional: QGIS 3.22 rejects an omitted band parameter even with a default
         band = QgsProcessingParameterBand(self.BAND, self.tr("Band"), defaultValue=1,
-                                          parentLayerParameterName=self.INPUT)
-        band.setHelp("Input band (--band).")
+                                          parentLayerParameterName=self.INPUT, optional=True)
+        band.setHelp("Input band (--band); default 1.")
         self.addParameter(band)
         self.addDescriptorParameters()
         cell = QgsProcessingParameterNumber(self.CELL_SIZE, self.tr("Cell size for a raster "

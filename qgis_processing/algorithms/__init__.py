@@ -1,0 +1,2 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""One module per algorithm (one per `terrasynth` stage); base.py holds what they share."""

@@ -1,0 +1,238 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""terrasynth:synth - a new terrain grown from real DEMs (`terrasynth synth`).
+
+The sketch-guided options (sketch, regions, pins, water...) do not exist in the
+CLI yet.  When they do, they get their own algorithm module (or parameters added
+here in initAlgorithm/prepareJob); the core's numeric parameters appear by
+themselves, since they come from `terrasynth describe`.
+"""
+import os
+
+from qgis.core import (
+    QgsCoordinateReferenceSystem,
+    QgsProcessing,
+    QgsProcessingException,
+    QgsProcessingParameterCrs,
+    QgsProcessingParameterDefinition,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterFolderDestination,
+    QgsProcessingParameterMultipleLayers,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterDestination,
+    QgsProcessingParameterRasterLayer,
+)
+
+from .base import TerraSynthAlgorithm, gdal_source, is_set
+
+MAX_EXEMPLARS = 64  # the CLI's limit
+
+# Condensed from algorithms/docs/synth.md (the manual page).
+HELP = """
+<p>Grows a <b>new terrain</b> of any size from one or more real DEMs (the exemplars), without
+visible seams: non-feature patch synthesis of Zhou et al. (2007, sections 4.2 and 5). The new
+terrain has the exemplars' style (slopes, valley spacing, roughness) but a layout of its own.
+Runs <code>terrasynth synth</code>.</p>
+<ol>
+<li><b>Exemplars at the target's scale</b>: each is read in metres and resampled to the target's
+ground resolution when it differs (cubic when finer, averaging when coarser).</li>
+<li><b>Placement</b>: patch positions on a grid of step <i>Patch size - Overlap</i>, visited
+growing out from the centre (<i>grow</i>) or in scan order (<i>raster</i>).</li>
+<li><b>Matching</b>: masked SSD by FFT against every exemplar window, on a pyramid (<i>Coarse
+factor</i>; 0 = automatic). Windows with nodata are never candidates.</li>
+<li><b>Seams</b>: each of the <i>Candidates</i> best matches is cut in with a minimum-cost graph
+cut; the winner has the lowest RMS SSD + <i>alpha_g</i> x seam mismatch; <i>Variety</i> picks at
+random (seeded) among candidates within that fraction of the best.</li>
+<li><b>Seam removal</b>: Poisson re-solve of the heights around each new patch.</li>
+</ol>
+<h3>Target grid</h3>
+<p>Either <b>Target grid like</b> (size, geotransform and CRS of a raster), or <b>Width</b> and
+<b>Height</b> in cells, on the first exemplar's CRS, resolution and origin unless <b>Origin X/Y</b>
+(top-left corner, CRS units), <b>Resolution</b> (CRS units) and <b>CRS</b> are given. A CRS
+needs the origin and the resolution.</p>
+<h3>Parameters</h3>
+<ul>
+<li><b>Patch size</b> (8..1024 cells, default 64) and <b>Overlap</b> (2..512, default 16, smaller
+than the patch), in target cells. A patch should hold a few ridge and valley spacings.</li>
+<li><b>Seed</b>: same inputs and seed give identical bytes.</li>
+<li><b>Band</b>: the band read from every exemplar.</li>
+</ul>
+<h3>Outputs</h3>
+<ul>
+<li><b>Synthesized DEM</b>: Float32 on the target grid with its CRS, nodata -9999.</li>
+<li><b>Preview</b> (optional PNG): hillshade of the result.</li>
+<li><b>Debug folder</b> (optional): seams.tif, source_exemplar.tif, source_x.tif, source_y.tif,
+order.tif on the target grid (where every cell came from).</li>
+</ul>
+<p>An exemplar smaller than a patch (after resampling), all nodata or unreadable gives a
+one-line error naming the file, and nothing is written.</p>
+"""
+
+
+class SynthAlgorithm(TerraSynthAlgorithm):
+    STAGE = "synth"
+    NAME = "synth"
+    DISPLAY_NAME = "Synthesize terrain"
+    GROUP = "Terrain synthesis"
+    GROUP_ID = "terrainsynthesis"
+    HELP = HELP
+    LABELS = {"alpha_g": "Seam cost weight (alpha_g)", "coarse_factor": "Coarse search factor",
+              "candidates": "Candidates per patch", "order": "Placement order"}
+    ADVANCED = ("candidates", "alpha_g", "coarse_factor")
+
+    EXEMPLARS = "EXEMPLARS"
+    LIKE = "LIKE"
+    WIDTH = "WIDTH"
+    HEIGHT = "HEIGHT"
+    ORIGIN_X = "ORIGIN_X"
+    ORIGIN_Y = "ORIGIN_Y"
+    RESOLUTION = "RESOLUTION"
+    CRS = "CRS"
+    SEED = "SEED"
+    BAND = "BAND"
+    CELL_SIZE = "CELL_SIZE"
+    THREADS = "THREADS"
+    OUTPUT = "OUTPUT"
+    PREVIEW = "PREVIEW"
+    DEBUG_DIR = "DEBUG_DIR"
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        Number = QgsProcessingParameterNumber
+        ex = QgsProcessingParameterMultipleLayers(self.EXEMPLARS, self.tr("Exemplar DEMs"),
+                                                  QgsProcessing.TypeRaster)
+        ex.setMinimumNumberInputs(1)
+        ex.setHelp("Real DEMs (any GDAL raster) whose style the new terrain takes "
+                   "(--exemplar, 1..64).")
+        self.addParameter(ex)
+        like = QgsProcessingParameterRasterLayer(self.LIKE, self.tr("Target grid like"),
+                                                 optional=True)
+        like.setHelp("Size, geotransform and CRS of this raster (--like); or give WIDTH and "
+                     "HEIGHT.")
+        self.addParameter(like)
+        grid = [
+            (Number(self.WIDTH, self.tr("Width (cells)"), Number.Integer, optional=True,
+                    minValue=1, maxValue=65536), "Target width in cells (--size WxH)."),
+            (Number(self.HEIGHT, self.tr("Height (cells)"), Number.Integer, optional=True,
+                    minValue=1, maxValue=65536), "Target height in cells (--size WxH)."),
+            (Number(self.ORIGIN_X, self.tr("Origin X (top-left corner, CRS units)"),
+                    Number.Double, optional=True),
+             "Top-left corner X (--origin X,Y); default the first exemplar's."),
+            (Number(self.ORIGIN_Y, self.tr("Origin Y (top-left corner, CRS units)"),
+                    Number.Double, optional=True),
+             "Top-left corner Y (--origin X,Y); default the first exemplar's."),
+            (Number(self.RESOLUTION, self.tr("Resolution (cell size, CRS units)"),
+                    Number.Double, optional=True, minValue=0.0),
+             "Cell size in CRS units (--resolution); default the first exemplar's."),
+            (QgsProcessingParameterCrs(self.CRS, self.tr("CRS"), optional=True),
+             "Target CRS (--crs); needs ORIGIN_X/ORIGIN_Y and RESOLUTION."),
+        ]
+        for p, text in grid:
+            p.setHelp(text)
+            self.addParameter(p)
+        self.addDescriptorParameters()
+        seed = Number(self.SEED, self.tr("Random seed"), Number.Integer, defaultValue=0,
+                      minValue=0, maxValue=2147483647)
+        seed.setHelp("Random seed (--seed); same inputs and seed give identical bytes.")
+        self.addParameter(seed)
+        band = Number(self.BAND, self.tr("Band of the exemplars"), Number.Integer,
+                      defaultValue=1, minValue=1, maxValue=65535)
+        band.setHelp("Band read from every exemplar (--band).")
+        cell = Number(self.CELL_SIZE, self.tr("Cell size for rasters without CRS (metres)"),
+                      Number.Double, optional=True, minValue=0.0, maxValue=1e7)
+        cell.setHelp("Ground size of a cell in metres, for rasters with no CRS (--cell-size).")
+        threads = Number(self.THREADS, self.tr("Threads (0 = all cores)"), Number.Integer,
+                         defaultValue=0, minValue=0, maxValue=256)
+        threads.setHelp("Worker threads (--threads); results never depend on it.")
+        for p in (band, cell, threads):
+            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            self.addParameter(p)
+        self.addParameter(QgsProcessingParameterRasterDestination(
+            self.OUTPUT, self.tr("Synthesized DEM")))
+        self.addParameter(QgsProcessingParameterFileDestination(
+            self.PREVIEW, self.tr("Preview"), fileFilter="PNG files (*.png)", optional=True,
+            createByDefault=False))
+        self.addParameter(QgsProcessingParameterFolderDestination(
+            self.DEBUG_DIR, self.tr("Debug maps folder"), optional=True,
+            createByDefault=False))
+
+    # -- the target grid --------------------------------------------------------
+    def targetOptions(self, parameters, context):  # noqa: N802
+        """[(option, value)] for the target grid; raises on an incomplete grid."""
+        like = self.parameterAsRasterLayer(parameters, self.LIKE, context) \
+            if is_set(parameters, self.LIKE) else None
+        if is_set(parameters, self.LIKE) and like is None:
+            raise QgsProcessingException(self.invalidRasterError(parameters, self.LIKE))
+        width = self.parameterAsInt(parameters, self.WIDTH, context) \
+            if is_set(parameters, self.WIDTH) else 0
+        height = self.parameterAsInt(parameters, self.HEIGHT, context) \
+            if is_set(parameters, self.HEIGHT) else 0
+        has_x, has_y = is_set(parameters, self.ORIGIN_X), is_set(parameters, self.ORIGIN_Y)
+        has_res = is_set(parameters, self.RESOLUTION)
+        crs = self.parameterAsCrs(parameters, self.CRS, context) \
+            if is_set(parameters, self.CRS) else QgsCoordinateReferenceSystem()
+        if like is not None and (width or height or has_x or has_y or has_res or crs.isValid()):
+            raise QgsProcessingException(
+                "give the target grid with LIKE or with WIDTH and HEIGHT (plus ORIGIN_X/"
+                "ORIGIN_Y, RESOLUTION, CRS), not both")
+        if like is not None:
+            return [("like", gdal_source(like, self.LIKE))]
+        if not (width and height):
+            raise QgsProcessingException(
+                "give the target grid: LIKE (a raster), or WIDTH and HEIGHT in cells")
+        if has_x != has_y:
+            raise QgsProcessingException("give both ORIGIN_X and ORIGIN_Y, or neither")
+        res = self.parameterAsDouble(parameters, self.RESOLUTION, context) if has_res else None
+        if res is not None and not res > 0:
+            raise QgsProcessingException("RESOLUTION must be a positive number")
+        if is_set(parameters, self.CRS) and not crs.isValid():
+            raise QgsProcessingException("CRS: not a valid coordinate reference system")
+        if crs.isValid() and not (has_x and has_res):
+            raise QgsProcessingException("CRS needs ORIGIN_X, ORIGIN_Y and RESOLUTION")
+        origin = (self.parameterAsDouble(parameters, self.ORIGIN_X, context),
+                  self.parameterAsDouble(parameters, self.ORIGIN_Y, context)) if has_x else None
+        crs_text = None
+        if crs.isValid():
+            crs_text = crs.authid() or crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
+        return [("size", (width, height)), ("origin", origin), ("resolution", res),
+                ("crs", crs_text)]
+
+    def checkJob(self, parameters, context):  # noqa: N802
+        layers = self.parameterAsLayerList(parameters, self.EXEMPLARS, context)
+        if not layers:
+            raise QgsProcessingException("EXEMPLARS: give at least one raster")
+        if len(layers) > MAX_EXEMPLARS:
+            raise QgsProcessingException("EXEMPLARS: at most %d rasters" % MAX_EXEMPLARS)
+        names = {d["name"] for d in self._descs}
+        if {"patch_size", "overlap"} <= names and \
+                self.parameterAsInt(parameters, "OVERLAP", context) >= \
+                self.parameterAsInt(parameters, "PATCH_SIZE", context):
+            raise QgsProcessingException("OVERLAP must be smaller than PATCH_SIZE")
+        if is_set(parameters, self.CELL_SIZE) and \
+                self.parameterAsDouble(parameters, self.CELL_SIZE, context) <= 0:
+            raise QgsProcessingException("CELL_SIZE must be a positive number of metres")
+        self.targetOptions(parameters, context)
+
+    def prepareJob(self, parameters, context):  # noqa: N802
+        layers = self.parameterAsLayerList(parameters, self.EXEMPLARS, context)
+        exemplars = [gdal_source(layer, self.EXEMPLARS) for layer in layers]
+        output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
+        preview = self.parameterAsFileOutput(parameters, self.PREVIEW, context) or ""
+        debug_dir = self.parameterAsFileOutput(parameters, self.DEBUG_DIR, context) or ""
+        if preview and os.path.splitext(preview)[1].lower() != ".png":
+            raise QgsProcessingException("PREVIEW must be a .png file, not %s" % preview)
+        cell = (self.parameterAsDouble(parameters, self.CELL_SIZE, context)
+                if is_set(parameters, self.CELL_SIZE) else None)
+        options = [("exemplar", exemplars)]
+        options += self.targetOptions(parameters, context)
+        options += [("seed", self.parameterAsInt(parameters, self.SEED, context)),
+                    ("band", self.parameterAsInt(parameters, self.BAND, context)),
+                    ("cell_size", cell),
+                    ("threads", self.parameterAsInt(parameters, self.THREADS, context)),
+                    ("preview", preview),
+                    ("debug_dir", debug_dir)]
+        results = {self.OUTPUT: output}
+        if preview:
+            results[self.PREVIEW] = preview
+        if debug_dir:
+            results[self.DEBUG_DIR] = debug_dir
+        return {"positional": [output], "options": options, "outputs": [output, preview],
+                "output_dirs": [debug_dir] if debug_dir else [], "results": results}
