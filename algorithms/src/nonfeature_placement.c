@@ -19,7 +19,7 @@
 #include <string.h>
 #include <time.h>
 
-#include "internal.h"
+#include "patch_merge.h"
 
 typedef struct placement {
     int x, y;      /* window top-left in the output */
@@ -49,13 +49,14 @@ typedef struct placer {
     int P;                 /* patch size */
     uint64_t rng;
     /* work buffers */
-    float *target, *patch, *merged;
+    float *target, *patch;
     float *cand_patch;     /* one P x P window per candidate, for parallel cuts */
-    float *old_m, *new_m, *sgx, *sgy; /* (P+2)^2: the two sources and seam guidance */
+    ts_merger merger;
+    int32_t *src_x, *src_y; /* P x P: where each cell of the chosen patch comes from */
     float *tlevel[PLACE_MAX_LEVELS]; /* target pyramid (tlevel[0] = target) */
     int *tknown[PLACE_MAX_LEVELS];   /* known cells per level */
     int n_tknown[PLACE_MAX_LEVELS];
-    unsigned char *constraint, *labels, *best_labels, *region, *mlabels;
+    unsigned char *constraint, *labels, *best_labels;
     int *known;            /* indices of known target cells */
     ts_candidate *cands;
     int n_cands_cap;
@@ -325,20 +326,6 @@ static ts_status place_search(placer *pl, int e, ts_candidate *out, int *n_out)
     return TS_OK;
 }
 
-/* Count 4-adjacent label changes inside the window. */
-static int place_cut_edges(const unsigned char *labels, int P)
-{
-    int x, y, n = 0;
-    for (y = 0; y < P; y++)
-        for (x = 0; x < P; x++) {
-            if (x + 1 < P && labels[y * P + x] != labels[y * P + x + 1])
-                n++;
-            if (y + 1 < P && labels[y * P + x] != labels[(y + 1) * P + x])
-                n++;
-        }
-    return n;
-}
-
 static void place_copy_patch(const placer *pl, const ts_raster *ex, int sx, int sy)
 {
     int x, y;
@@ -347,150 +334,27 @@ static void place_copy_patch(const placer *pl, const ts_raster *ex, int sx, int 
             pl->patch[y * pl->P + x] = TS_PIX(ex, sx + x, sy + y);
 }
 
-/* Keep in the Poisson region only the new cells and the old cells within
- * `overlap` cells (Chebyshev) of new ones: the seam is smoothed in a band,
- * old content farther away stays as it was. */
-static void place_limit_region(placer *pl)
-{
-    int P = pl->P, M = P + 2, r = pl->p->overlap, x, y;
-    int *dist = pl->known; /* reused: P*P ints, distance to the nearest new cell */
-    for (y = 0; y < P; y++)
-        for (x = 0; x < P; x++)
-            dist[y * P + x] = pl->best_labels[y * P + x] ? 0 : P + r + 1;
-    /* two-pass chamfer (Chebyshev) distance */
-    for (y = 0; y < P; y++)
-        for (x = 0; x < P; x++) {
-            int d = dist[y * P + x];
-            if (x > 0) d = TS_MIN(d, dist[y * P + x - 1] + 1);
-            if (y > 0) d = TS_MIN(d, dist[(y - 1) * P + x] + 1);
-            if (x > 0 && y > 0) d = TS_MIN(d, dist[(y - 1) * P + x - 1] + 1);
-            if (x + 1 < P && y > 0) d = TS_MIN(d, dist[(y - 1) * P + x + 1] + 1);
-            dist[y * P + x] = d;
-        }
-    for (y = P - 1; y >= 0; y--)
-        for (x = P - 1; x >= 0; x--) {
-            int d = dist[y * P + x];
-            if (x + 1 < P) d = TS_MIN(d, dist[y * P + x + 1] + 1);
-            if (y + 1 < P) d = TS_MIN(d, dist[(y + 1) * P + x] + 1);
-            if (x + 1 < P && y + 1 < P) d = TS_MIN(d, dist[(y + 1) * P + x + 1] + 1);
-            if (x > 0 && y + 1 < P) d = TS_MIN(d, dist[(y + 1) * P + x - 1] + 1);
-            dist[y * P + x] = d;
-        }
-    for (y = 0; y < P; y++)
-        for (x = 0; x < P; x++)
-            if (dist[y * P + x] > r)
-                pl->region[(y + 1) * M + x + 1] = 0;
-}
-
-/* Mean of the available differences a(q) - a(p) of the two sources. */
-static float place_mean_diff(const float *o, const float *n, int p, int q)
-{
-    double s = 0.0;
-    int k = 0;
-    if (!isnan(o[p]) && !isnan(o[q])) {
-        s += (double)o[q] - (double)o[p];
-        k++;
-    }
-    if (!isnan(n[p]) && !isnan(n[q])) {
-        s += (double)n[q] - (double)n[p];
-        k++;
-    }
-    return k ? (float)(s / k) : NAN;
-}
-
-/* Guidance across the seam: the mean of the old and new gradients there
- * (Zhou et al. use zero, which flattens the slope along every seam and
- * shows as lines in a hillshade). */
-static void place_seam_guidance(placer *pl)
-{
-    int M = pl->P + 2, x, y;
-    for (y = 0; y < M; y++)
-        for (x = 0; x < M; x++) {
-            int c = y * M + x;
-            pl->sgx[c] = x + 1 < M ? place_mean_diff(pl->old_m, pl->new_m, c, c + 1) : NAN;
-            pl->sgy[c] = y + 1 < M ? place_mean_diff(pl->old_m, pl->new_m, c, c + M) : NAN;
-        }
-}
-
-/* Write the chosen patch into the output, then Poisson seam removal over
- * the window with a one-cell ring of outside cells as boundary. */
+/* Merge the chosen window (sx, sy) of exemplar e at q: the patch with its
+ * ring from the exemplar, then ts_merger_apply. */
 static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int sy, int index)
 {
-    ts_raster *out = pl->out;
-    int P = pl->P, M = P + 2, x, y, W = out->width, H = out->height, any_seam = 0;
-    ts_raster mr;
-    ts_status st;
-    for (y = 0; y < P; y++)
-        for (x = 0; x < P; x++) {
-            int ox = q->x + x, oy = q->y + y;
-            size_t o = (size_t)oy * (size_t)W + (size_t)ox;
-            if (!pl->best_labels[y * P + x] || (pl->flags && (pl->flags[o] & TS_CELL_NODATA)))
-                continue;
-            TS_PIX(out, ox, oy) = pl->patch[y * P + x];
-            if (pl->maps) {
-                if (pl->maps->source_exemplar) pl->maps->source_exemplar[o] = e;
-                if (pl->maps->source_x) pl->maps->source_x[o] = sx + x;
-                if (pl->maps->source_y) pl->maps->source_y[o] = sy + y;
-                if (pl->maps->order) pl->maps->order[o] = index;
-            }
-        }
-    /* the window with its ring, and both sources on it */
+    const ts_raster *exr = pl->ex[e].full;
+    int P = pl->P, M = P + 2, x, y;
     for (y = 0; y < M; y++)
         for (x = 0; x < M; x++) {
-            int ox = q->x + x - 1, oy = q->y + y - 1, inside = x > 0 && y > 0 && x <= P && y <= P;
             int ex_x = sx + x - 1, ex_y = sy + y - 1;
-            const ts_raster *exr = pl->ex[e].full;
-            float v = (ox >= 0 && oy >= 0 && ox < W && oy < H) ? TS_PIX(out, ox, oy) : NAN;
-            pl->old_m[y * M + x] = inside ? pl->target[(y - 1) * P + (x - 1)] : v;
-            pl->new_m[y * M + x] = (ex_x >= 0 && ex_y >= 0 && ex_x < exr->width &&
-                                    ex_y < exr->height)
-                                       ? TS_PIX(exr, ex_x, ex_y)
-                                       : NAN;
-            pl->merged[y * M + x] = v;
-            pl->mlabels[y * M + x] = inside ? pl->best_labels[(y - 1) * P + (x - 1)] : 0;
-            pl->region[y * M + x] =
-                inside && !isnan(v) && !place_flag(pl, ox, oy, TS_CELL_FIXED);
+            pl->merger.new_m[y * M + x] =
+                (ex_x >= 0 && ex_y >= 0 && ex_x < exr->width && ex_y < exr->height)
+                    ? TS_PIX(exr, ex_x, ex_y)
+                    : NAN;
         }
-    for (y = 0; y < M && !any_seam; y++)
-        for (x = 0; x + 1 < M; x++)
-            if (!isnan(pl->merged[y * M + x]) && !isnan(pl->merged[y * M + x + 1]) &&
-                pl->mlabels[y * M + x] != pl->mlabels[y * M + x + 1]) {
-                any_seam = 1;
-                break;
-            }
-    for (y = 0; y + 1 < M && !any_seam; y++)
-        for (x = 0; x < M; x++)
-            if (!isnan(pl->merged[y * M + x]) && !isnan(pl->merged[(y + 1) * M + x]) &&
-                pl->mlabels[y * M + x] != pl->mlabels[(y + 1) * M + x]) {
-                any_seam = 1;
-                break;
-            }
-    if (!any_seam)
-        return TS_OK;
-    if (pl->maps && pl->maps->seams)
-        for (y = 1; y <= P; y++)
-            for (x = 1; x <= P; x++) {
-                unsigned char l = pl->mlabels[y * M + x];
-                int ox = q->x + x - 1, oy = q->y + y - 1;
-                if (isnan(pl->merged[y * M + x]))
-                    continue;
-                if ((!isnan(pl->merged[y * M + x - 1]) && pl->mlabels[y * M + x - 1] != l) ||
-                    (!isnan(pl->merged[y * M + x + 1]) && pl->mlabels[y * M + x + 1] != l) ||
-                    (!isnan(pl->merged[(y - 1) * M + x]) && pl->mlabels[(y - 1) * M + x] != l) ||
-                    (!isnan(pl->merged[(y + 1) * M + x]) && pl->mlabels[(y + 1) * M + x] != l))
-                    pl->maps->seams[(size_t)oy * (size_t)W + (size_t)ox] = 1;
-            }
-    place_limit_region(pl);
-    place_seam_guidance(pl);
-    mr = ts_raster_wrap(pl->merged, M, M, M);
-    st = ts_poisson_seam_remove_guided(pl->ctx, &mr, pl->mlabels, pl->region, pl->sgx, pl->sgy);
-    if (st != TS_OK)
-        return st;
-    for (y = 1; y <= P; y++)
-        for (x = 1; x <= P; x++)
-            if (pl->region[y * M + x])
-                TS_PIX(out, q->x + x - 1, q->y + y - 1) = pl->merged[y * M + x];
-    return TS_OK;
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++) {
+            pl->src_x[y * P + x] = sx + x;
+            pl->src_y[y * P + x] = sy + y;
+        }
+    return ts_merger_apply(pl->ctx, &pl->merger, pl->out, pl->flags, q->x, q->y, pl->target,
+                           pl->best_labels, pl->maps, e, pl->src_x, pl->src_y, index);
 }
 
 typedef struct cut_job {
@@ -528,7 +392,7 @@ static void place_cut_range(void *arg, size_t b, size_t e)
         j->status[i] = ts_seam_graphcut(c, &old, &patch, pl->constraint, lab, &cg);
         if (j->status[i] != TS_OK)
             continue;
-        cuts = place_cut_edges(lab, P);
+        cuts = ts_label_cut_edges(lab, P);
         j->cost[i] = sqrt(pl->cands[i].ssd / j->n_known) +
                      pl->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts));
     }
@@ -712,16 +576,12 @@ static void placer_free(placer *pl)
     }
     free(pl->patch);
     free(pl->cand_patch);
-    free(pl->merged);
-    free(pl->old_m);
-    free(pl->new_m);
-    free(pl->sgx);
-    free(pl->sgy);
+    ts_merger_free(&pl->merger);
+    free(pl->src_x);
+    free(pl->src_y);
     free(pl->constraint);
     free(pl->labels);
     free(pl->best_labels);
-    free(pl->region);
-    free(pl->mlabels);
     free(pl->known);
     free(pl->cands);
 }
@@ -733,7 +593,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     placer pl;
     placement *pos = NULL;
     int *xs = NULL, *ys = NULL, nx, ny, n_pos, i, e, placed = 0, step, alloc_failed = 0;
-    size_t P2, M2, n_out;
+    size_t P2, n_out;
     double t_start = place_now();
     ts_status st;
 
@@ -750,7 +610,6 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.P = params->patch_size;
     pl.rng = ts_ctx_seed(ctx) ^ 0x5eed5eed5eedull;
     P2 = (size_t)pl.P * (size_t)pl.P;
-    M2 = (size_t)(pl.P + 2) * (size_t)(pl.P + 2);
     pl.n_cands_cap = 2 * (3 * params->candidates * n_exemplars + 8);
     pl.ex = calloc((size_t)n_exemplars, sizeof *pl.ex);
     pl.target = ts_malloc_array(P2, sizeof(float));
@@ -765,18 +624,15 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.patch = ts_malloc_array(P2, sizeof(float));
     pl.cand_patch = ts_malloc_array(P2 * (size_t)params->candidates * (size_t)n_exemplars,
                                     sizeof(float));
-    pl.merged = ts_malloc_array(M2, sizeof(float));
-    pl.old_m = ts_malloc_array(M2, sizeof(float));
-    pl.new_m = ts_malloc_array(M2, sizeof(float));
-    pl.sgx = ts_malloc_array(M2, sizeof(float));
-    pl.sgy = ts_malloc_array(M2, sizeof(float));
-    if (!pl.old_m || !pl.new_m || !pl.sgx || !pl.sgy)
+    if (ts_merger_init(ctx, &pl.merger, pl.P, params->overlap) != TS_OK)
+        alloc_failed = 1;
+    pl.src_x = ts_malloc_array(P2, sizeof(int32_t));
+    pl.src_y = ts_malloc_array(P2, sizeof(int32_t));
+    if (!pl.src_x || !pl.src_y)
         alloc_failed = 1;
     pl.constraint = ts_malloc_array(P2, 1);
     pl.labels = ts_malloc_array(P2, (size_t)params->candidates * (size_t)n_exemplars);
     pl.best_labels = ts_malloc_array(P2, 1);
-    pl.region = ts_malloc_array(M2, 1);
-    pl.mlabels = ts_malloc_array(M2, 1);
     pl.known = ts_malloc_array(P2, sizeof(int));
     pl.cands = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cands);
     step = pl.P - params->overlap;
@@ -784,8 +640,8 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     ys = ts_malloc_array((size_t)out->height / (size_t)step + 2, sizeof *ys);
     pl.tlevel[0] = pl.target;
     pl.tknown[0] = pl.known;
-    if (alloc_failed || !pl.ex || !pl.target || !pl.patch || !pl.cand_patch || !pl.merged || !pl.constraint ||
-        !pl.labels || !pl.best_labels || !pl.region || !pl.mlabels || !pl.known || !pl.cands ||
+    if (alloc_failed || !pl.ex || !pl.target || !pl.patch || !pl.cand_patch || !pl.constraint ||
+        !pl.labels || !pl.best_labels || !pl.known || !pl.cands ||
         !xs || !ys) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
         goto done;

@@ -1,0 +1,42 @@
+/*
+ * patch_merge.h - patch merging (Zhou et al. 2007 section 5), shared by the
+ * feature and non-feature placement: write the cells a graph cut gave to a
+ * new patch, then remove the seam with a guided Poisson solve.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#ifndef TS_PATCH_MERGE_H
+#define TS_PATCH_MERGE_H
+
+#include "internal.h"
+
+/* Work buffers for P x P windows with their one-cell ring (M = P + 2). */
+typedef struct ts_merger {
+    int P;
+    int band;          /* old cells within `band` cells of new ones are smoothed */
+    float *merged, *old_m, *new_m, *sgx, *sgy;
+    unsigned char *mlabels, *region;
+    int *dist;
+} ts_merger;
+
+ts_status ts_merger_init(ts_ctx *ctx, ts_merger *m, int P, int band);
+void ts_merger_free(ts_merger *m);
+
+/*
+ * Merge a patch into `out` at window (wx, wy).  The caller has filled
+ * m->new_m ((P+2)^2 floats, ring included, NaN where the patch has no
+ * value).  old: the P x P window of `out` before the merge (NaN where
+ * empty); labels: P x P, 1 where the cut took the patch.  TS_CELL_NODATA
+ * cells are never written; TS_CELL_FIXED cells are never smoothed.  Maps
+ * (may be NULL) get ex_index, the cells' source positions src_x/src_y (P x
+ * P, may be NULL) and patch_index.
+ */
+ts_status ts_merger_apply(ts_ctx *ctx, ts_merger *m, ts_raster *out, const unsigned char *flags,
+                          int wx, int wy, const float *old, const unsigned char *labels,
+                          ts_synth_maps *maps, int ex_index, const int32_t *src_x,
+                          const int32_t *src_y, int patch_index);
+
+/* Number of 4-adjacent label changes inside a P x P window. */
+int ts_label_cut_edges(const unsigned char *labels, int P);
+
+#endif

@@ -1,0 +1,473 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""The TerraSynth provider inside QGIS (Python API, no GUI): registration, parameters
+against the core's descriptors (`terrasynth describe`), command lines (nothing run),
+and processing.run() end to end on data/jacksboro_fault_dem.tif."""
+import json
+import os
+import subprocess
+
+import pytest
+
+pytest.importorskip("qgis.core", reason="qgis is not importable (python3-qgis)")
+
+from osgeo import gdal, osr  # noqa: E402
+from qgis.core import (  # noqa: E402
+    QgsApplication,
+    QgsProcessingContext,
+    QgsProcessingException,
+    QgsProcessingFeedback,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterNumber,
+    QgsProject,
+    QgsRasterLayer,
+    QgsSettings,
+    QgsVectorLayer,
+    QgsWkbTypes,
+)
+
+gdal.UseExceptions()
+
+pytestmark = pytest.mark.usefixtures("qgis_app")
+
+ALGORITHMS = {"ppa": ("Extract ridges and valleys (PPA)", "Terrain analysis"),
+              "synth": ("Synthesize terrain", "Terrain synthesis")}
+# parameters that are not the core's descriptors, and the CLI flag each maps to
+# (None: a positional file or an output QGIS reports, not a CLI option)
+OTHER_FLAGS = {
+    "ppa": {"INPUT": None, "OUTPUT": None, "NODES": None, "BAND": "--band",
+            "CELL_SIZE": "--cell-size", "THREADS": "--threads", "LINES": "--lines",
+            "PREVIEW": "--preview"},
+    "synth": {"EXEMPLARS": "--exemplar", "LIKE": "--like", "WIDTH": "--size",
+              "HEIGHT": "--size", "ORIGIN_X": "--origin", "ORIGIN_Y": "--origin",
+              "RESOLUTION": "--resolution", "CRS": "--crs", "SEED": "--seed", "BAND": "--band",
+              "CELL_SIZE": "--cell-size", "THREADS": "--threads", "OUTPUT": None,
+              "PREVIEW": "--preview", "DEBUG_DIR": "--debug-dir"},
+}
+
+
+def processing_run(alg_id, params, feedback=None):
+    import processing
+
+    return processing.run(alg_id, params, feedback=feedback or QgsProcessingFeedback())
+
+
+def registry():
+    return QgsApplication.processingRegistry()
+
+
+@pytest.fixture(scope="module")
+def describe(cli):
+    p = subprocess.run([cli, "describe"], capture_output=True, text=True, check=True)
+    return json.loads(p.stdout)
+
+
+def raster_info(path):
+    ds = gdal.Open(str(path))
+    srs = osr.SpatialReference(wkt=ds.GetProjection()) if ds.GetProjection() else None
+    return ds, srs
+
+
+# --------------------------------------------------------------------------- registration
+
+def test_provider_registered_with_both_algorithms():
+    provider = registry().providerById("terrasynth")
+    assert provider is not None
+    assert provider.name() == "TerraSynth"
+    assert sorted(a.id() for a in provider.algorithms()) == ["terrasynth:ppa", "terrasynth:synth"]
+    for name, (display, group) in ALGORITHMS.items():
+        alg = registry().algorithmById("terrasynth:" + name)
+        assert alg.displayName() == display
+        assert alg.group() == group
+        assert "terrasynth " + name in alg.shortHelpString()
+        assert "\n" not in alg.shortHelpString()
+
+
+def test_provider_read_the_descriptors_from_the_cli(cli):
+    from terrasynth_qgis import descriptors
+
+    assert descriptors.source().startswith("describe ")
+
+
+# --------------------------------------------------------------------------- parameters vs the core
+
+@pytest.mark.parametrize("stage", sorted(ALGORITHMS))
+def test_parameters_match_the_core_descriptors(stage, describe):
+    alg = registry().algorithmById("terrasynth:" + stage)
+    for d in describe["stages"][stage]:
+        key = d["name"].upper()
+        assert d["flag"] == "--" + d["name"].replace("_", "-")
+        p = alg.parameterDefinition(key)
+        assert p is not None, "%s has no parameter %s" % (stage, key)
+        assert p.help() == d["help"]
+        if d["type"] in ("int", "double", "length"):
+            assert isinstance(p, QgsProcessingParameterNumber), key
+            want = (QgsProcessingParameterNumber.Integer if d["type"] == "int"
+                    else QgsProcessingParameterNumber.Double)
+            assert p.dataType() == want, key
+            assert p.defaultValue() == d["default"], key
+            assert p.minimum() == d["min"], key
+            assert p.maximum() == d["max"], key
+        if d["type"] == "enum":
+            assert isinstance(p, QgsProcessingParameterEnum), key
+            assert p.options() == d["choices"], key
+            assert p.defaultValue() == d["default"], key
+            assert not p.allowMultiple()
+        if d["type"] == "length":
+            u = alg.parameterDefinition(key + "_UNIT")
+            assert isinstance(u, QgsProcessingParameterEnum)
+            assert u.options() == ["cells", "metres"]
+            assert u.options()[u.defaultValue()] == {"cells": "cells", "m": "metres"}[
+                d["default_unit"]]
+
+
+@pytest.mark.parametrize("stage", sorted(ALGORITHMS))
+def test_every_other_parameter_is_a_cli_option(stage, cli, describe):
+    """One name per parameter: KEY <-> --key for everything that is not a descriptor."""
+    alg = registry().algorithmById("terrasynth:" + stage)
+    help_text = subprocess.run([cli, stage, "--help"], capture_output=True, text=True,
+                               check=True).stdout
+    core = {d["name"].upper() for d in describe["stages"][stage]}
+    core |= {k + "_UNIT" for k in core}
+    names = {p.name() for p in alg.parameterDefinitions()} | \
+        {o.name() for o in alg.outputDefinitions()}
+    for name in sorted(names - core):
+        assert name in OTHER_FLAGS[stage], "%s: %s is not documented here" % (stage, name)
+        flag = OTHER_FLAGS[stage][name]
+        if flag is None:
+            continue
+        assert flag in help_text, "%s: %s not in 'terrasynth %s --help'" % (name, flag, stage)
+        if flag not in ("--size", "--origin", "--exemplar"):
+            assert flag == "--" + name.lower().replace("_", "-")
+
+
+def test_fallback_tables_match_describe(describe):
+    from terrasynth_qgis import descriptors
+
+    fallback = descriptors.FALLBACK
+    assert fallback["version"] == describe["version"]
+    assert sorted(fallback["stages"]) == sorted(describe["stages"])
+    for stage, descs in describe["stages"].items():
+        assert [d["name"] for d in fallback["stages"][stage]] == [d["name"] for d in descs]
+        for want, got in zip(descs, fallback["stages"][stage]):
+            assert got == want, "fallback %s.%s differs from describe" % (stage, want["name"])
+
+
+def test_fallback_is_used_without_a_cli(monkeypatch, tmp_path):
+    from terrasynth_qgis import descriptors, runner
+    from terrasynth_qgis.provider import TerraSynthProvider
+
+    monkeypatch.setattr(runner, "find_cli", lambda: (_ for _ in ()).throw(
+        runner.QgsProcessingException("terrasynth: not found")))
+    try:
+        TerraSynthProvider().loadDescriptors()
+        assert descriptors.source() == "fallback"
+        assert descriptors.stage("ppa") == descriptors.FALLBACK["stages"]["ppa"]
+    finally:
+        monkeypatch.undo()
+        TerraSynthProvider().loadDescriptors()
+    assert descriptors.source().startswith("describe ")
+
+
+def test_metadata(cli):
+    from terrasynth_qgis import runner
+
+    import configparser
+
+    meta = configparser.ConfigParser()
+    meta.read(os.path.join(runner.PLUGIN_DIR, "metadata.txt"))
+    g = meta["general"]
+    assert g["hasProcessingProvider"] == "yes"
+    assert g["qgisMinimumVersion"] == "3.22"
+    assert g["licence"] == "GPL-2.0-or-later"
+    version = subprocess.run([cli, "--version"], capture_output=True, text=True).stdout.split()[1]
+    assert g["version"] == version
+
+
+# --------------------------------------------------------------------------- command lines (not run)
+
+def build(alg_id, params):
+    alg = registry().createAlgorithmById(alg_id)
+    context = QgsProcessingContext()
+    ok, msg = alg.checkParameterValues(params, context)
+    assert ok, msg
+    argv, job = alg.buildCommand(params, context, cli="/x/terrasynth")
+    assert isinstance(argv, list) and all(isinstance(a, str) for a in argv)
+    return argv, job
+
+
+def pairs(argv):
+    out = {}
+    for i, a in enumerate(argv):
+        if a.startswith("--") and i + 1 < len(argv) and not argv[i + 1].startswith("--"):
+            out.setdefault(a, argv[i + 1])
+    return out
+
+
+def test_ppa_command_line(jacksboro, tmp_path):
+    out, lines = str(tmp_path / "axes.tif"), str(tmp_path / "axes.gpkg")
+    argv, job = build("terrasynth:ppa", {
+        "INPUT": jacksboro, "FEATURES": 1, "PROFILE_LENGTH": 15, "THRESHOLD": 5,
+        "MIN_BRANCH_LENGTH": 600, "MIN_BRANCH_LENGTH_UNIT": 1, "BAND": 1,
+        "OUTPUT": out, "LINES": lines})
+    assert argv[:2] == ["/x/terrasynth", "ppa"]
+    assert argv[-2:] == [jacksboro, out]
+    kv = pairs(argv)
+    assert kv["--features"] == "valleys" and kv["--profile-length"] == "15"
+    assert kv["--threshold"] == "5" and "--threshold-fraction" not in argv
+    assert kv["--min-branch-length"] == "600m" and kv["--lines"] == lines
+    assert "--progress-lines" in argv and "--preview" not in argv
+    assert job["results"]["LINES"] == lines + "|layername=paths"
+    assert job["results"]["NODES"] == lines + "|layername=nodes"
+    assert os.listdir(tmp_path) == []  # nothing was run
+
+
+def test_synth_command_line_with_crs_origin_resolution(jacksboro, tmp_path):
+    out = str(tmp_path / "new.tif")
+    argv, _ = build("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro, jacksboro], "WIDTH": 200, "HEIGHT": 100,
+        "CRS": "EPSG:32616", "ORIGIN_X": 500000, "ORIGIN_Y": 4000000.5, "RESOLUTION": 90,
+        "PATCH_SIZE": 48, "OVERLAP": 12, "ORDER": 1, "SEED": 7, "OUTPUT": out,
+        "DEBUG_DIR": str(tmp_path / "dbg")})
+    assert argv[:2] == ["/x/terrasynth", "synth"] and argv[-1] == out
+    assert argv.count("--exemplar") == 2
+    kv = pairs(argv)
+    assert kv["--size"] == "200x100" and kv["--crs"] == "EPSG:32616"
+    assert kv["--origin"] == "500000,4000000.5" and kv["--resolution"] == "90"
+    assert kv["--order"] == "raster" and kv["--seed"] == "7"
+    assert kv["--debug-dir"] == str(tmp_path / "dbg")
+    assert "--like" not in argv
+
+
+def test_synth_command_line_like(jacksboro, tmp_path):
+    argv, _ = build("terrasynth:synth", {"EXEMPLARS": [jacksboro], "LIKE": jacksboro,
+                                         "OUTPUT": str(tmp_path / "n.tif")})
+    assert pairs(argv)["--like"] == jacksboro
+    assert "--size" not in argv and "--origin" not in argv
+
+
+@pytest.mark.parametrize("params,message", [
+    ({}, "LIKE"),
+    ({"WIDTH": 64}, "WIDTH and HEIGHT"),
+    ({"LIKE": "JACKSBORO", "WIDTH": 64, "HEIGHT": 64}, "not both"),
+    ({"WIDTH": 64, "HEIGHT": 64, "ORIGIN_X": 0}, "ORIGIN_Y"),
+    ({"WIDTH": 64, "HEIGHT": 64, "CRS": "EPSG:32616"}, "CRS needs"),
+    ({"WIDTH": 64, "HEIGHT": 64, "PATCH_SIZE": 32, "OVERLAP": 32}, "OVERLAP"),
+])
+def test_synth_bad_parameter_combinations(jacksboro, tmp_path, params, message):
+    params = {k: (jacksboro if v == "JACKSBORO" else v) for k, v in params.items()}
+    params.update(EXEMPLARS=[jacksboro], OUTPUT=str(tmp_path / "n.tif"))
+    with pytest.raises(QgsProcessingException, match=message):
+        processing_run("terrasynth:synth", params)
+    assert os.listdir(tmp_path) == []
+
+
+def test_ppa_both_thresholds_refused(jacksboro, tmp_path):
+    with pytest.raises(QgsProcessingException, match="THRESHOLD"):
+        processing_run("terrasynth:ppa", {"INPUT": jacksboro, "THRESHOLD": 5,
+                                          "THRESHOLD_FRACTION": 0.01,
+                                          "OUTPUT": str(tmp_path / "a.tif")})
+
+
+# --------------------------------------------------------------------------- finding the CLI
+
+def test_processing_setting_wins(cli, tmp_path, monkeypatch):
+    from terrasynth_qgis import runner
+
+    fake = tmp_path / "my_terrasynth"
+    fake.write_text("#!/bin/sh\nexit 0\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("TERRASYNTH", cli)
+    s = QgsSettings()
+    s.setValue(runner.SETTINGS_KEY, str(fake))
+    try:
+        assert runner.find_cli() == str(fake)
+    finally:
+        s.remove(runner.SETTINGS_KEY)
+    assert runner.find_cli() == cli
+
+
+def test_processing_setting_is_registered():
+    from processing.core.ProcessingConfig import ProcessingConfig
+
+    from terrasynth_qgis import runner
+
+    assert runner.SETTING_NAME in ProcessingConfig.settings
+    assert ProcessingConfig.settings[runner.SETTING_NAME].group == "TerraSynth"
+
+
+def test_missing_cli_is_a_clear_error(jacksboro, tmp_path, monkeypatch):
+    monkeypatch.setenv("TERRASYNTH", str(tmp_path / "no_such_terrasynth"))
+    with pytest.raises(QgsProcessingException, match="not an executable file"):
+        processing_run("terrasynth:ppa", {"INPUT": jacksboro, "OUTPUT": str(tmp_path / "a.tif")})
+
+
+# --------------------------------------------------------------------------- end to end
+
+def test_ppa_run(jacksboro, cli, tmp_path):
+    out, lines, preview = tmp_path / "axes.tif", tmp_path / "axes.gpkg", tmp_path / "axes.png"
+    res = processing_run("terrasynth:ppa", {
+        "INPUT": jacksboro, "FEATURES": 2, "OUTPUT": str(out), "LINES": str(lines),
+        "PREVIEW": str(preview)})
+    assert res["OUTPUT"] == str(out)
+    ds, srs = raster_info(out)
+    ds_in, srs_in = raster_info(jacksboro)
+    assert srs is not None and srs.IsSame(srs_in)
+    assert (ds.RasterXSize, ds.RasterYSize) == (ds_in.RasterXSize, ds_in.RasterYSize)
+    assert ds.GetGeoTransform() == pytest.approx(ds_in.GetGeoTransform())
+    values = set(ds.GetRasterBand(1).ReadAsArray().ravel().tolist())
+    assert {1, 2} <= values <= {0, 1, 2, 3, 255}
+    assert res["LINES"] == str(lines) + "|layername=paths"
+    assert res["NODES"] == str(lines) + "|layername=nodes"
+    paths = QgsVectorLayer(res["LINES"], "paths", "ogr")
+    nodes = QgsVectorLayer(res["NODES"], "nodes", "ogr")
+    assert paths.isValid() and nodes.isValid()
+    assert paths.geometryType() == QgsWkbTypes.LineGeometry and paths.featureCount() > 50
+    assert nodes.geometryType() == QgsWkbTypes.PointGeometry and nodes.featureCount() > 50
+    assert paths.crs() == QgsRasterLayer(jacksboro, "in").crs()
+    assert {f["kind"] for f in paths.getFeatures()} == {"ridge", "valley"}
+    assert preview.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not [n for n in os.listdir(tmp_path) if n.startswith(".")]  # no temporary files
+
+
+def test_ppa_loads_paths_and_nodes_layers(jacksboro, cli, tmp_path):
+    """The GUI route: LINES loads as two layers, 'paths' and 'nodes'."""
+    import processing
+
+    project = QgsProject.instance()
+    project.removeAllMapLayers()
+    lines = str(tmp_path / "l.gpkg")
+    processing.runAndLoadResults("terrasynth:ppa", {
+        "INPUT": jacksboro, "OUTPUT": str(tmp_path / "a.tif"), "LINES": lines})
+    sources = sorted(layer.source() for layer in project.mapLayers().values())
+    project.removeAllMapLayers()
+    assert any(s.endswith("a.tif") for s in sources)
+    assert any(s.startswith(lines) and "layername=paths" in s for s in sources)
+    assert any(s.startswith(lines) and "layername=nodes" in s for s in sources)
+    assert len(sources) == 3
+
+
+def test_synth_run(jacksboro, cli, tmp_path):
+    out, preview, dbg = tmp_path / "new.tif", tmp_path / "new.png", tmp_path / "dbg"
+    res = processing_run("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "WIDTH": 128, "HEIGHT": 128, "PATCH_SIZE": 32,
+        "OVERLAP": 8, "SEED": 3, "OUTPUT": str(out), "PREVIEW": str(preview),
+        "DEBUG_DIR": str(dbg)})
+    assert res["OUTPUT"] == str(out) and res["DEBUG_DIR"] == str(dbg)
+    ds, srs = raster_info(out)
+    _, srs_in = raster_info(jacksboro)
+    assert srs is not None and srs.IsSame(srs_in)
+    assert (ds.RasterXSize, ds.RasterYSize) == (128, 128)
+    band = ds.GetRasterBand(1)
+    assert band.DataType == gdal.GDT_Float32 and band.GetNoDataValue() == -9999
+    z = band.ReadAsArray()
+    assert (z != -9999).all()
+    assert 150 < z.min() < z.max() < 1200 and z.std() > 10  # heights in the exemplar's range
+    assert preview.exists()
+    assert {"seams.tif", "source_exemplar.tif", "source_x.tif", "source_y.tif",
+            "order.tif"} <= set(os.listdir(dbg))
+
+
+def test_synth_like_grid(jacksboro, cli, tmp_path):
+    like = tmp_path / "grid.tif"
+    ds_in = gdal.Open(jacksboro)
+    gt = list(ds_in.GetGeoTransform())
+    gt[0] += 0.01
+    drv = gdal.GetDriverByName("GTiff")
+    t = drv.Create(str(like), 72, 56, 1, gdal.GDT_Byte)
+    t.SetGeoTransform(gt)
+    t.SetProjection(ds_in.GetProjection())
+    t = None
+    out = tmp_path / "new.tif"
+    processing_run("terrasynth:synth", {"EXEMPLARS": [jacksboro], "LIKE": str(like),
+                                        "PATCH_SIZE": 24, "OVERLAP": 6, "OUTPUT": str(out)})
+    ds, _ = raster_info(out)
+    assert (ds.RasterXSize, ds.RasterYSize) == (72, 56)
+    assert ds.GetGeoTransform() == pytest.approx(tuple(gt))
+
+
+# --------------------------------------------------------------------------- cancel
+
+class CancelAfterFirstProgress(QgsProcessingFeedback):
+    """Says it is canceled once the first progress report has arrived."""
+
+    def __init__(self):
+        super().__init__()
+        self.reports = []
+
+    def setProgress(self, progress):  # noqa: N802
+        self.reports.append(progress)
+        super().setProgress(progress)
+
+    def isCanceled(self):  # noqa: N802
+        return bool(self.reports) or super().isCanceled()
+
+
+def test_cancel_ppa_leaves_no_file(jacksboro, cli, tmp_path):
+    fb = CancelAfterFirstProgress()
+    with pytest.raises(QgsProcessingException, match="canceled"):
+        processing_run("terrasynth:ppa", {
+            "INPUT": jacksboro, "FEATURES": 2, "OUTPUT": str(tmp_path / "a.tif"),
+            "LINES": str(tmp_path / "a.gpkg"), "PREVIEW": str(tmp_path / "a.png")}, fb)
+    assert len(fb.reports) == 1
+    assert os.listdir(tmp_path) == []
+
+
+def test_cancel_synth_leaves_no_file(jacksboro, cli, tmp_path):
+    fb = CancelAfterFirstProgress()
+    with pytest.raises(QgsProcessingException, match="canceled"):
+        processing_run("terrasynth:synth", {
+            "EXEMPLARS": [jacksboro], "WIDTH": 384, "HEIGHT": 384, "PATCH_SIZE": 32,
+            "OVERLAP": 8, "OUTPUT": str(tmp_path / "n.tif"), "PREVIEW": str(tmp_path / "n.png"),
+            "DEBUG_DIR": str(tmp_path / "dbg")}, fb)
+    assert len(fb.reports) == 1 and fb.reports[0] < 100
+    assert os.listdir(tmp_path) == []
+
+
+# --------------------------------------------------------------------------- errors
+
+def cli_message(cli, *args):
+    p = subprocess.run([cli, *map(str, args)], capture_output=True, text=True)
+    assert p.returncode != 0
+    return p.stderr.strip().splitlines()[-1]
+
+
+def test_cli_error_message_reaches_qgis(jacksboro, cli, tmp_path):
+    out = tmp_path / "a.tif"
+    with pytest.raises(QgsProcessingException) as e:
+        processing_run("terrasynth:ppa", {"INPUT": jacksboro, "BAND": 5, "OUTPUT": str(out)})
+    want = cli_message(cli, "ppa", jacksboro, out, "--band", "5", "-q")
+    assert want == "terrasynth: %s: band 5 does not exist (the file has 1 band)" % jacksboro
+    assert str(e.value.args[0]) == want
+    assert os.listdir(tmp_path) == []
+
+
+def test_synth_small_exemplar_message(jacksboro, cli, tmp_path):
+    small = tmp_path / "small.tif"
+    gdal.Translate(str(small), jacksboro, srcWin=[0, 0, 20, 20])
+    with pytest.raises(QgsProcessingException, match="smaller than a patch") as e:
+        processing_run("terrasynth:synth", {"EXEMPLARS": [str(small)], "WIDTH": 64,
+                                            "HEIGHT": 64, "PATCH_SIZE": 32, "OVERLAP": 8,
+                                            "OUTPUT": str(tmp_path / "n.tif")})
+    assert str(e.value.args[0]).startswith("terrasynth: %s: " % small)
+    assert sorted(os.listdir(tmp_path)) == ["small.tif"]
+
+
+def test_text_file_as_input(cli, tmp_path):
+    """QGIS itself refuses a text file as a raster layer; the CLI says why if reached."""
+    txt = tmp_path / "notes.txt"
+    txt.write_text("this is not a DEM\n")
+    with pytest.raises(QgsProcessingException, match="INPUT"):
+        processing_run("terrasynth:ppa", {"INPUT": str(txt), "OUTPUT": str(tmp_path / "a.tif")})
+    from terrasynth_qgis import runner
+
+    with pytest.raises(QgsProcessingException) as e:
+        runner.run([cli, "ppa", str(txt), str(tmp_path / "a.tif"), "--progress-lines"])
+    assert e.value.args[0] == "terrasynth: %s: not a raster GDAL can open" % txt
+    assert sorted(os.listdir(tmp_path)) == ["notes.txt"]
+
+
+def test_missing_input_file(cli, tmp_path):
+    with pytest.raises(QgsProcessingException, match="INPUT"):
+        processing_run("terrasynth:ppa", {"INPUT": str(tmp_path / "missing.tif"),
+                                          "OUTPUT": str(tmp_path / "a.tif")})
+    assert os.listdir(tmp_path) == []
