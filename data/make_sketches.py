@@ -22,7 +22,7 @@
 # Every sketch is a set of strokes (polylines, Bezier curves, a circle) drawn
 # with a soft round brush: value = 255 * max over strokes of
 # exp(-d^2 / (2 sigma^2)), d = distance from the cell centre to the stroke,
-# bright = high.  Nothing is random.  Values are rounded to multiples of 1/64
+# bright = high.  Nothing is random.  Values are rounded to multiples of 1/16
 # (exact in Float32; compresses well).  The output is byte-for-byte
 # reproducible for a given numpy and GDAL (checked with numpy 1.24.2 and GDAL
 # 3.6.2): no timestamps, files written under a temporary name and renamed into
@@ -43,7 +43,7 @@ ORIGIN_LAT = 36.44625
 CELL = 1.0 / 1200.0          # 3 arc-seconds = 0.000833333 deg
 NODATA = -9999.0             # declared for the Float32 sketches; never present
 REGION_NODATA = 0            # declared for the Byte region map; never present
-QUANTUM = 64.0               # values are multiples of 1/QUANTUM
+QUANTUM = 16.0               # values are multiples of 1/QUANTUM
 CREDIT = ("drawn by the TerraSynth developers with data/make_sketches.py, "
           "GPL-2.0-or-later, no third-party data")
 
@@ -96,7 +96,7 @@ class Canvas:
     def __init__(self, width, height, sigma):
         self.w, self.h, self.sigma = width, height, float(sigma)
         self.d2 = np.full((height, width), np.inf)
-        self.reach = 6.0 * self.sigma       # exp(-18) * 255 < 1/128: rounds to 0
+        self.reach = 6.0 * self.sigma       # exp(-18) * 255 < 1/32: rounds to 0
 
     def polyline(self, pts):
         pts = np.asarray(pts, dtype=np.float64)
@@ -148,10 +148,11 @@ def lambda_ridges():
     The lambda is a long stroke from upper left to lower right (with the
     small leftward curl of the glyph at its top) and a short stroke from the
     middle of the long one down to the lower left: one branch point (degree 3)
-    at J.  Gaps between lambda and ring are >= 4.5 sigma so the ring stays a
-    separate ridge.
+    at J.  Gaps between lambda and ring are >= 5 sigma so the ring stays a
+    separate ridge.  sigma = 6: with 7 or more the round brush ends and the
+    bend of the curl grow ridge spurs longer than 20 cells in PPA.
     """
-    c = Canvas(512, 512, sigma=7.0)
+    c = Canvas(512, 512, sigma=6.0)
     c.circle(256.0, 256.0, 218.0)
     a = np.array([198.0, 132.0])                     # top of the straight part
     b = np.array([366.0, 402.0])                     # foot, lower right
@@ -169,7 +170,10 @@ def water_character():
     Strokes: the central vertical with a hook to the left at its foot; on the
     left a short horizontal then a long diagonal down to the left (one
     stroke, hengpie); on the right a short diagonal up to the right and a long
-    one down to the right, both leaving the vertical at one point.
+    one down to the right, both leaving one point J just right of the
+    vertical.  J is 12 cells (2 sigma) from the vertical's axis: the brushes
+    touch, as the strokes do in the glyph, but PPA maps the pair as a ridge
+    of its own (three ridges in all, no branch point).
     """
     c = Canvas(512, 512, sigma=6.0)
     # Central vertical with a rounded hook up to the left at its foot.
@@ -179,7 +183,7 @@ def water_character():
     c.polyline(np.vstack([[(102.0, 196.0), (206.0, 188.0)],
                           bezier([(206.0, 188.0), (170.0, 320.0), (74.0, 404.0)], n=32)]))
     # Right: short rising diagonal and long falling diagonal from one point
-    # beside the vertical (they join the vertical's flank, not its axis).
+    # beside the vertical (they touch its flank, not its axis).
     j = (268.0, 246.0)
     c.polyline(bezier([j, (330.0, 216.0), (388.0, 142.0)], n=24))
     c.polyline(bezier([j, (330.0, 330.0), (452.0, 420.0)], n=32))
@@ -232,6 +236,7 @@ def write(path, array, gdal_type, nodata, description, predictor):
             "BLOCKXSIZE=256", "BLOCKYSIZE=256"]
     try:
         ds = gdal.GetDriverByName("GTiff").CreateCopy(tmp, mem, strict=1, options=opts)
+        ds.FlushCache()
         ds = None
         os.replace(tmp, path)
     except Exception as e:  # noqa: BLE001 - report any GDAL/OS failure plainly

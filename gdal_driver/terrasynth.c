@@ -379,7 +379,7 @@ static void synth_help(FILE *out)
 {
     fprintf(out,
             "Usage: terrasynth synth --exemplar EX.tif [--exemplar EX2.tif ...]\n"
-            "                        (--like GRID.tif | --size WxH [--origin X,Y]\n"
+            "                        (--sketch SK.tif | --like GRID.tif | --size WxH [--origin X,Y]\n"
             "                         [--resolution R] [--crs CRS]) [options] OUTPUT\n"
             "\n"
             "Grow a new terrain of any size from real DEMs by non-feature patch synthesis\n"
@@ -387,7 +387,13 @@ static void synth_help(FILE *out)
             "with graph-cut seams and smoothed with Poisson seam removal. OUTPUT is a Float32\n"
             "DEM on the target grid with its CRS, geotransform and nodata (-9999).\n"
             "\n"
+            "With --sketch, the terrain follows a drawing: bright strokes are ridges, dark\n"
+            "strokes valleys (Zhou et al. 2007 sections 3-4: feature patches matched along the\n"
+            "sketch's feature tree with thin-plate-spline warps, then the fill above).\n"
+            "\n"
             "Target grid:\n"
+            "  --sketch SK                      a sketch (any single-band raster); the output is\n"
+            "                                   on its grid, nodata where it is nodata\n"
             "  --like GRID                      size, geotransform and CRS of a raster\n"
             "  --size WxH                       size in cells; the grid defaults to the first\n"
             "                                   exemplar's CRS, resolution and origin\n"
@@ -399,6 +405,8 @@ static void synth_help(FILE *out)
             "\n"
             "Synthesis parameters:\n");
     cli_params_help(out, "synth", NULL);
+    fprintf(out, "\nSketch parameters (with --sketch):\n");
+    cli_params_help(out, "sketch", NULL);
     fprintf(out,
             "  --seed S                         random seed (default 0); same inputs and seed\n"
             "                                   give the same bytes\n"
@@ -489,6 +497,39 @@ static int write_int_map(const char *dir, const char *name, const tsio_georef *g
     return rc;
 }
 
+/* With a sketch: its feature tree and the output's PPA features as lines. */
+static int write_debug_features(ts_ctx *ctx, const char *dir, const tsjob_synth *job,
+                                tsjob_synth_result *res)
+{
+    ts_ppa_params pp = ts_ppa_params_default();
+    ts_features *of = NULL;
+    tsio_err err;
+    char *a = CPLStrdup(CPLFormFilename(dir, "sketch_features", "gpkg"));
+    char *b = CPLStrdup(CPLFormFilename(dir, "output_features", "gpkg"));
+    int rc = -1;
+    (void)job;
+    pp.features = res->sketch_info.mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS : TS_PPA_RIDGES;
+    if (res->sketch_features &&
+        tsio_write_features(a, &res->geo, res->sketch_features, NULL, &err) != 0) {
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+        goto out;
+    }
+    if (ts_ppa_extract(ctx, &res->out, res->metrics, &pp, &of) != TS_OK) {
+        fprintf(stderr, "terrasynth: %s: %s\n", b, ts_ctx_message(ctx));
+        goto out;
+    }
+    if (tsio_write_features(b, &res->geo, of, res->metrics, &err) != 0) {
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+        goto out;
+    }
+    rc = 0;
+out:
+    ts_features_free(of);
+    CPLFree(a);
+    CPLFree(b);
+    return rc;
+}
+
 static int cmd_synth(int argc, char **argv)
 {
     ts_synth_params p = ts_synth_params_default();
@@ -508,6 +549,7 @@ static int cmd_synth(int argc, char **argv)
     ts_ctx *ctx = ts_ctx_new();
 
     memset(&job, 0, sizeof job);
+    job.sketch_params = ts_sketch_params_default();
     memset(&res, 0, sizeof res);
     memset(&maps, 0, sizeof maps);
     if (!ctx) {
@@ -526,7 +568,7 @@ static int cmd_synth(int argc, char **argv)
         if (!strcmp(a, "--exemplar") || !strcmp(a, "--like") || !strcmp(a, "--size") ||
             !strcmp(a, "--origin") || !strcmp(a, "--resolution") || !strcmp(a, "--crs") ||
             !strcmp(a, "--seed") || !strcmp(a, "--preview") || !strcmp(a, "--debug-dir") ||
-            !strcmp(a, "--recipe")) {
+            !strcmp(a, "--recipe") || !strcmp(a, "--sketch")) {
             if (!v) {
                 usage_error("synth", "%s needs a value", a);
                 rc = EXIT_USAGE;
@@ -581,6 +623,8 @@ static int cmd_synth(int argc, char **argv)
                 preview = v;
             } else if (!strcmp(a, "--recipe")) {
                 recipe_path = v;
+            } else if (!strcmp(a, "--sketch")) {
+                job.sketch = v;
             } else {
                 debug_dir = v;
             }
@@ -594,6 +638,14 @@ static int cmd_synth(int argc, char **argv)
             continue;
         }
         if ((r = cli_params_parse(ctx, "synth", &p, argc, argv, &i)) != 0) {
+            if (r < 0) {
+                fprintf(stderr, "terrasynth synth: %s\n", ts_ctx_message(ctx));
+                rc = EXIT_USAGE;
+                goto done;
+            }
+            continue;
+        }
+        if ((r = cli_params_parse(ctx, "sketch", &job.sketch_params, argc, argv, &i)) != 0) {
             if (r < 0) {
                 fprintf(stderr, "terrasynth synth: %s\n", ts_ctx_message(ctx));
                 rc = EXIT_USAGE;
@@ -623,7 +675,7 @@ static int cmd_synth(int argc, char **argv)
         rc = EXIT_USAGE;
         goto done;
     }
-    if (!grid->like == !grid->width) {
+    if (!job.sketch && !grid->like == !grid->width) {
         usage_error("synth", "%s", "give the target grid with --like or with --size");
         rc = EXIT_USAGE;
         goto done;
@@ -714,6 +766,13 @@ static int cmd_synth(int argc, char **argv)
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
+    if (job.sketch && co.progress != PROGRESS_QUIET)
+        printf("sketch: %s, %zu feature sites, %zu feature patches placed (from %zu exemplar "
+               "sites), %d patches in all\n",
+               res.sketch_info.mode == TS_SKETCH_VALLEYS ? "valleys" : "ridges",
+               res.sketch_info.n_sites, res.sketch_info.n_feature_patches,
+               res.sketch_info.n_exemplar_sites, debug_dir ? maps.n_patches : -1);
+    ts_ctx_set_progress(ctx, NULL, NULL);
     if (res.exemplar_no_crs && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",
                 job.exemplars[res.exemplar_no_crs - 1]);
@@ -733,6 +792,8 @@ static int cmd_synth(int argc, char **argv)
             write_int_map(debug_dir, "source_x", &res.geo, m_x, tmp) ||
             write_int_map(debug_dir, "source_y", &res.geo, m_y, tmp) ||
             write_int_map(debug_dir, "order", &res.geo, m_order, tmp))
+            goto done;
+        if (job.sketch && write_debug_features(ctx, debug_dir, &job, &res) != 0)
             goto done;
     }
     rc = 0;

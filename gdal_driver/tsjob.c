@@ -102,7 +102,20 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         job_err(err, "synth", "the overlap must be smaller than the patch size");
         return -1;
     }
-    if (g->like) {
+    if (job->sketch) {
+        if (g->like || g->width || g->crs || g->has_origin || g->has_res) {
+            job_err(err, job->sketch, "a sketch sets the output grid: give no other grid");
+            return -1;
+        }
+        if (tsio_read_georef(job->sketch, &res->geo, err) != 0)
+            return -1;
+        if (res->geo.width < job->params.patch_size || res->geo.height < job->params.patch_size) {
+            snprintf(err->msg, sizeof err->msg, "%s: %d x %d cells is smaller than a patch (%d)",
+                     job->sketch, res->geo.width, res->geo.height, job->params.patch_size);
+            tsjob_synth_result_free(res);
+            return -1;
+        }
+    } else if (g->like) {
         if (tsio_read_georef(g->like, &res->geo, err) != 0)
             return -1;
     } else if (g->crs) {
@@ -167,8 +180,27 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         job_err(err, "synth", ts_ctx_message(ctx));
         goto done;
     }
-    if (ts_synth_patches(ctx, exr, job->n_exemplars, &job->params, &res->out, NULL, maps) !=
-        TS_OK) {
+    if (job->sketch) {
+        tsio_raster sk;
+        int bad;
+        if (tsio_read_raster(job->sketch, 1, &sk, err) != 0)
+            goto done;
+        bad = ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params,
+                              &job->params, &res->out, maps, &res->sketch_features,
+                              &res->sketch_info) != TS_OK;
+        tsio_raster_free(&sk);
+        if (bad) {
+            const char *msg = ts_ctx_message(ctx);
+            int which = 0;
+            if (sscanf(msg, "synth: exemplar %d:", &which) == 1 && which >= 1 &&
+                which <= job->n_exemplars)
+                job_err(err, job->exemplars[which - 1], msg);
+            else
+                job_err(err, job->sketch, msg);
+            goto done;
+        }
+    } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &job->params, &res->out, NULL,
+                                maps) != TS_OK) {
         const char *msg = ts_ctx_message(ctx);
         int which = 0;
         /* name the exemplar file when the core names its index */
@@ -191,6 +223,7 @@ void tsjob_synth_result_free(tsjob_synth_result *res)
     if (!res)
         return;
     tsio_georef_free(&res->geo);
+    ts_features_free(res->sketch_features);
     free(res->dx_m);
     free(res->dy_m);
     ts_raster_free(&res->out);

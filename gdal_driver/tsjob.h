@@ -59,8 +59,10 @@ typedef struct tsjob_synth {
     const char *exemplars[TSJOB_MAX_EXEMPLARS];
     int n_exemplars;
     int band;
-    tsjob_grid grid;
+    tsjob_grid grid;         /* unused with a sketch: the output is on its grid */
     ts_synth_params params;
+    const char *sketch;      /* sketch-guided synthesis when not NULL */
+    ts_sketch_params sketch_params;
 } tsjob_synth;
 
 typedef struct tsjob_synth_result {
@@ -70,6 +72,8 @@ typedef struct tsjob_synth_result {
     const ts_grid_metrics *metrics;
     ts_raster out;           /* the terrain (owned) */
     int exemplar_no_crs;     /* index+1 of an exemplar without CRS used cell for cell, or 0 */
+    ts_features *sketch_features; /* the sketch's PPA graph (sketch-guided only) */
+    ts_sketch_info sketch_info;
 } tsjob_synth_result;
 
 /** Check the job and resolve the target grid (cheap: no exemplar is read). */

@@ -4,7 +4,8 @@
 set -euo pipefail
 PKGS=(build-essential cmake pkg-config libgdal-dev gdal-bin python3-gdal python3-numpy
       libproj-dev proj-bin libgeographiclib-dev libfftw3-dev python3-pytest clang
-      libclang-rt-14-dev)
+      libclang-rt-14-dev
+      python3-qgis qgis-providers qgis)  # QGIS provider tests (tests/qgis; qgis = qgis_process)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

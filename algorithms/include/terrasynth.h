@@ -388,8 +388,10 @@ TS_API ts_status ts_poisson_seam_remove_guided(ts_ctx *ctx, ts_raster *merged,
 /* Non-feature patch synthesis (Zhou et al. 2007 section 4.2)         */
 /* ------------------------------------------------------------------ */
 
-/** Values of ts_synth_params.order. */
-enum { TS_ORDER_GROW = 0, TS_ORDER_RASTER = 1 };
+/** Values of ts_synth_params.order: grow out from what is filled (with a
+ *  sketch: its feature tree breadth first, then grow), raster scan, or
+ *  tree (the same as grow; the name the sketch-guided synthesis uses). */
+enum { TS_ORDER_GROW = 0, TS_ORDER_RASTER = 1, TS_ORDER_TREE = 2 };
 
 typedef struct ts_synth_params {
     int patch_size;    /* cells, square patches */
@@ -413,7 +415,8 @@ typedef struct ts_synth_maps {
     int32_t *source_x, *source_y; /* its position in that exemplar */
     int32_t *order;           /* index of the placed patch the cell came from, -1 if none */
     unsigned char *seams;     /* 1 on cells next to a graph-cut seam */
-    /* filled in by the call: patches placed and seconds spent per stage */
+    /* added to by the call: patches placed (also the index the next patch
+     * gets in `order`) and seconds spent per stage */
     int n_patches;
     double seconds_prepare, seconds_match, seconds_cut, seconds_poisson;
 } ts_synth_maps;
@@ -440,6 +443,47 @@ enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2 };
 TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
                                   const ts_synth_params *params, ts_raster *out,
                                   const unsigned char *cell_flags, ts_synth_maps *maps);
+
+/* ------------------------------------------------------------------ */
+/* Sketch-guided synthesis (Zhou et al. 2007 sections 3-4)            */
+/* ------------------------------------------------------------------ */
+
+/** Values of ts_sketch_params.mode. */
+enum { TS_SKETCH_RIDGES = 0, TS_SKETCH_VALLEYS = 1, TS_SKETCH_AUTO = 2 };
+
+typedef struct ts_sketch_params {
+    int mode;        /* ridges (bright strokes), valleys (dark strokes), auto */
+    double alpha_d;  /* weight of the warp's deformation cost c_d */
+    double alpha_f;  /* weight of the feature profile dissimilarity c_f */
+} ts_sketch_params;
+
+TS_API ts_sketch_params ts_sketch_params_default(void);
+
+/** What a sketch-guided synthesis did (all filled in by the call). */
+typedef struct ts_sketch_info {
+    int mode;                /* TS_SKETCH_RIDGES or TS_SKETCH_VALLEYS, as used */
+    size_t n_sites;          /* feature patch sites in the sketch */
+    size_t n_feature_patches;/* of which placed */
+    size_t n_exemplar_sites; /* candidate feature patches found in the exemplars */
+} ts_sketch_info;
+
+/**
+ * Synthesize `out` (caller-allocated, the sketch's size; NaN on entry)
+ * following `sketch` (borrowed; a grey drawing, bright = high, NaN =
+ * nodata, which stays nodata in the output) in the style of the exemplars
+ * (at the output's ground resolution): PPA on the sketch and on the
+ * exemplars; feature patches (branch points, endpoints, paths) matched by
+ * deformation (thin-plate-spline warps), seam and profile costs and placed
+ * breadth first over the sketch's feature tree (or in raster order); then
+ * the non-feature fill of ts_synth_patches.  `sketch_features` (may be
+ * NULL) receives the sketch's PPA graph (caller frees with
+ * ts_features_free); `info` may be NULL.
+ */
+TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_raster *exemplars,
+                                 int n_exemplars, const ts_sketch_params *sp,
+                                 const ts_synth_params *params, ts_raster *out,
+                                 ts_synth_maps *maps, ts_features **sketch_features,
+                                 ts_sketch_info *info);
 
 /* ------------------------------------------------------------------ */
 /* Per-pixel operations (the kernels behind the VRT pixel functions)  */

@@ -595,6 +595,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     int *xs = NULL, *ys = NULL, nx, ny, n_pos, i, e, placed = 0, step, alloc_failed = 0;
     size_t P2, n_out;
     double t_start = place_now();
+    int first_index = maps ? maps->n_patches : 0;
     ts_status st;
 
     ts_clear(ctx);
@@ -649,10 +650,11 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     n_out = (size_t)out->width * (size_t)out->height;
     if (maps) {
         size_t k;
-        maps->n_patches = 0;
-        maps->seconds_prepare = maps->seconds_match = maps->seconds_cut = 0;
-        maps->seconds_poisson = 0;
+        /* cells filled on entry keep what an earlier stage recorded */
         for (k = 0; k < n_out; k++) {
+            if (!isnan(out->data[(k / (size_t)out->width) * (size_t)out->stride +
+                                 k % (size_t)out->width]))
+                continue;
             if (maps->source_exemplar) maps->source_exemplar[k] = -1;
             if (maps->source_x) maps->source_x[k] = -1;
             if (maps->source_y) maps->source_y[k] = -1;
@@ -673,7 +675,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
         }
     }
     if (maps)
-        maps->seconds_prepare = place_now() - t_start;
+        maps->seconds_prepare += place_now() - t_start;
     nx = place_axis(out->width, pl.P, step, xs);
     ny = place_axis(out->height, pl.P, step, ys);
     n_pos = nx * ny;
@@ -689,7 +691,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     }
     for (;;) {
         int pick = -1, j;
-        if (params->order == TS_ORDER_RASTER) {
+        if (params->order == TS_ORDER_RASTER) { /* grow and tree: the same here */
             for (j = 0; j < n_pos; j++)
                 if (pos[j].needed) {
                     pick = j;
@@ -722,14 +724,14 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
                 remaining += pos[j].needed;
             frac = 0.1 + 0.9 * (double)placed / (double)(placed + remaining);
             sv = ts_progress_push(ctx, frac, frac);
-            st = place_one(&pl, &pos[pick], placed);
+            st = place_one(&pl, &pos[pick], placed + first_index);
             ts_progress_pop(ctx, sv);
             if (st != TS_OK)
                 goto done;
         }
         placed++;
         if (maps)
-            maps->n_patches = placed;
+            maps->n_patches = first_index + placed;
         /* windows that intersect the new patch changed */
         for (j = 0; j < n_pos; j++)
             if (abs(pos[j].x - pos[pick].x) < pl.P && abs(pos[j].y - pos[pick].y) < pl.P)

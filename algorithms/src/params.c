@@ -43,8 +43,9 @@ static const ts_param_desc synth_desc[] = {
     {"candidates", TS_PARAM_INT, 6, 1, 256, TS_UNIT_CELLS, "", NULL,
      "Best SSD matches examined per patch position (k).",
      offsetof(ts_synth_params, candidates)},
-    {"order", TS_PARAM_ENUM, TS_ORDER_GROW, 0, 1, TS_UNIT_CELLS, "", "grow|raster",
-     "Placement order: grow out from what is filled, or raster scan.",
+    {"order", TS_PARAM_ENUM, TS_ORDER_GROW, 0, 2, TS_UNIT_CELLS, "", "grow|raster|tree",
+     "Placement order: grow out from what is filled (with a sketch: its feature tree breadth "
+     "first), raster scan, or tree (= grow).",
      offsetof(ts_synth_params, order)},
     {"alpha_g", TS_PARAM_DOUBLE, 1.0, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
      "Weight of the graph-cut seam cost against the SSD when choosing a candidate.",
@@ -59,7 +60,19 @@ static const ts_param_desc synth_desc[] = {
      offsetof(ts_synth_params, coarse_factor)},
 };
 
-static const char *const stage_names[] = {"ppa", "synth", NULL};
+static const ts_param_desc sketch_desc[] = {
+    {"mode", TS_PARAM_ENUM, TS_SKETCH_AUTO, 0, 2, TS_UNIT_CELLS, "", "ridges|valleys|auto",
+     "What the sketch draws: ridges (bright strokes), valleys (dark strokes), or auto.",
+     offsetof(ts_sketch_params, mode)},
+    {"alpha_d", TS_PARAM_DOUBLE, 1000.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the warp deformation cost c_d of feature patches.",
+     offsetof(ts_sketch_params, alpha_d)},
+    {"alpha_f", TS_PARAM_DOUBLE, 3.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the feature profile dissimilarity c_f of feature patches.",
+     offsetof(ts_sketch_params, alpha_f)},
+};
+
+static const char *const stage_names[] = {"ppa", "synth", "sketch", NULL};
 
 TS_API const char *const *ts_params_stages(void)
 {
@@ -75,6 +88,10 @@ TS_API const ts_param_desc *ts_params_describe(const char *stage, size_t *n)
     if (stage && strcmp(stage, "synth") == 0) {
         *n = sizeof synth_desc / sizeof synth_desc[0];
         return synth_desc;
+    }
+    if (stage && strcmp(stage, "sketch") == 0) {
+        *n = sizeof sketch_desc / sizeof sketch_desc[0];
+        return sketch_desc;
     }
     *n = 0;
     return NULL;
@@ -290,6 +307,13 @@ TS_API ts_ppa_params ts_ppa_params_default(void)
 {
     ts_ppa_params p;
     params_fill_defaults("ppa", &p, sizeof p);
+    return p;
+}
+
+TS_API ts_sketch_params ts_sketch_params_default(void)
+{
+    ts_sketch_params p;
+    params_fill_defaults("sketch", &p, sizeof p);
     return p;
 }
 

@@ -35,7 +35,8 @@ typedef struct ts_tps {
  *
  * Special cases (w = 0, bending 0): n == 1 is a pure translation; n == 2
  * the similarity (rotation, uniform scale, translation) through both
- * points.  For n >= 3 the source points must not be collinear.
+ * points (lambda is not used for n <= 2).  For n >= 3 the source points
+ * must not be collinear.
  *
  * out->bending is the raw quadratic form w_x^T K w_x + w_y^T K w_y with
  * K_ij = U(|c_i - c_j|) (clamped at 0 against rounding).  It is

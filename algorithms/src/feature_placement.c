@@ -1,0 +1,573 @@
+/*
+ * feature_placement.c - sketch-guided synthesis (Zhou et al. 2007 sections
+ * 3 and 4.1): feature patch matching and placement, then the non-feature
+ * fill of nonfeature_placement.c.
+ *
+ * 1. PPA on the sketch (ridges or valleys) and on every exemplar.
+ * 2. The sketch's patch sites in breadth-first order over its feature tree
+ *    (feature_tree.c), or in raster order.
+ * 3. For each site, candidates are the exemplar sites of the same type
+ *    (branch points of the same degree in each of the d cyclic alignments
+ *    and mirrored; endpoints; path sites both ways round).  Their
+ *    deformation cost c_d: for branch points the bending energy of the
+ *    thin-plate spline taking the exemplar's control points onto the
+ *    sketch's (Bookstein 1989; coordinates in units of the circle radius);
+ *    for path and endpoint sites, whose three or two control points a TPS
+ *    would fit affinely (zero bending), the residual of the least-squares
+ *    similarity (rotation, scale, mirror) fit, which measures how
+ *    differently the two chains bend.  The k best by c_d are warped into
+ *    the output window (bilinear, exemplar nodata respected) and cut in by
+ *    graph cut, with the cells along the sketch's feature forced to the new
+ *    patch; c_g is the mean seam mismatch, c_f the RMS difference of 7-point
+ *    height profiles across the feature at the circle crossings against
+ *    what is already placed.  The lowest alpha_d c_d + alpha_g c_g +
+ *    alpha_f c_f is merged (patch_merge.c), and its feature cells are fixed.
+ * 4. ts_synth_patches fills the rest around the fixed features.
+ * Cost: per site O(candidate sites) for c_d + k warps and graph cuts.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "feature_tree.h"
+#include "patch_merge.h"
+#include "tps.h"
+
+typedef struct ex_site {
+    int ex;                  /* exemplar index */
+    ts_feature_site site;
+} ex_site;
+
+typedef struct candidate {
+    int idx;                 /* into the exemplar site list */
+    double cd;
+    ts_tps inv;              /* output window coordinates -> exemplar cells */
+} candidate;
+
+typedef struct sketcher {
+    ts_ctx *ctx;
+    const ts_sketch_params *sp;
+    const ts_synth_params *p;
+    const ts_raster *sketch;
+    const ts_raster *ex;
+    int n_ex;
+    ts_raster *out;
+    unsigned char *flags;
+    const ts_features *sf;   /* sketch features */
+    int kind;
+    int P;
+    double R;
+    ex_site *es;
+    size_t n_es;
+    ts_merger merger;
+    /* work buffers */
+    float *old, *patch, *best_ring, *ring;
+    unsigned char *constraint, *labels, *best_labels, *core, *best_core;
+    int32_t *src_x, *src_y;
+    int *near;               /* P x P: distance to the sketch's feature */
+    int core_radius;         /* feature cells and flanks within this many cells */
+    candidate *cands;
+    ts_synth_maps *maps;
+} sketcher;
+
+/* ---- transforms ---------------------------------------------------- */
+
+/* Least-squares similarity (optionally mirrored) taking a[i] onto b[i];
+ * returns the residual sum of squares; the map in *t as an affine TPS. */
+static double sk_similarity(int n, const double *ax, const double *ay, const double *bx,
+                            const double *by, int mirror, ts_tps *t)
+{
+    double max = 0, may = 0, mbx = 0, mby = 0, sxx = 0, sxy = 0, saa = 0, c, s, res = 0;
+    int i;
+    for (i = 0; i < n; i++) {
+        max += ax[i];
+        may += mirror ? -ay[i] : ay[i];
+        mbx += bx[i];
+        mby += by[i];
+    }
+    max /= n;
+    may /= n;
+    mbx /= n;
+    mby /= n;
+    for (i = 0; i < n; i++) {
+        double x = ax[i] - max, y = (mirror ? -ay[i] : ay[i]) - may;
+        double u = bx[i] - mbx, v = by[i] - mby;
+        sxx += x * u + y * v;
+        sxy += x * v - y * u;
+        saa += x * x + y * y;
+    }
+    c = saa > 0 ? sxx / saa : 1.0;
+    s = saa > 0 ? sxy / saa : 0.0;
+    memset(t, 0, sizeof *t);
+    t->n = 0;
+    /* b = [c -s; s c] * (a' - ma) + mb, a' = (x, mirror ? -y : y) */
+    t->ax[1] = c;
+    t->ax[2] = mirror ? s : -s;
+    t->ax[0] = mbx - c * max + s * may;
+    t->ay[1] = s;
+    t->ay[2] = mirror ? -c : c;
+    t->ay[0] = mby - s * max - c * may;
+    for (i = 0; i < n; i++) {
+        double ox, oy;
+        ts_tps_map(t, ax[i], ay[i], &ox, &oy);
+        res += (ox - bx[i]) * (ox - bx[i]) + (oy - by[i]) * (oy - by[i]);
+    }
+    return res;
+}
+
+/* Deformation cost of exemplar site e onto sketch site s with arm rotation
+ * `rot` and `mirror` (c_d, on coordinates in units of R so it does not
+ * depend on the patch size), and the inverse map from the output window's
+ * continuous coordinates (window cell (x, y) has its centre at x + 0.5,
+ * y + 0.5; the site's centre cell is at (cx - wx, cy - wy)) to the
+ * exemplar's. */
+static int sk_align(sketcher *k, const ts_feature_site *s, const ts_feature_site *e, int rot,
+                    int mirror, double wcx, double wcy, double *cd, ts_tps *inv)
+{
+    double ex[TS_SITE_MAX_ARMS + 1], ey[TS_SITE_MAX_ARMS + 1];
+    double sx[TS_SITE_MAX_ARMS + 1], sy[TS_SITE_MAX_ARMS + 1];
+    double wx_[TS_SITE_MAX_ARMS + 1], wy_[TS_SITE_MAX_ARMS + 1];
+    double gx[TS_SITE_MAX_ARMS + 1], gy[TS_SITE_MAX_ARMS + 1];
+    int n = s->n_ctrl, i, arms = n - 1;
+    ts_tps fwd;
+    for (i = 0; i < n; i++) {
+        /* arm i of the sketch takes arm j of the exemplar; mirrored
+         * exemplars (y flipped) run their arms the other way round */
+        int j = i == 0 ? 0 : 1 + (mirror ? (2 * arms - (i - 1) - rot) % arms : (i - 1 + rot) % arms);
+        double epx = e->px[j], epy = mirror ? -e->py[j] : e->py[j];
+        ex[i] = epx / k->R;
+        ey[i] = epy / k->R;
+        sx[i] = s->px[i] / k->R;
+        sy[i] = s->py[i] / k->R;
+        wx_[i] = wcx + s->px[i] + 0.5;
+        wy_[i] = wcy + s->py[i] + 0.5;
+        /* the exemplar cell itself (the mirror only pairs the points) */
+        gx[i] = e->cx + e->px[j] + 0.5;
+        gy[i] = e->cy + e->py[j] + 0.5;
+    }
+    if (s->type == TS_SITE_BRANCH) {
+        if (ts_tps_fit(k->ctx, n, ex, ey, sx, sy, 0.0, &fwd) != TS_OK)
+            return -1;
+        *cd = fwd.bending;
+        if (ts_tps_fit(k->ctx, n, wx_, wy_, gx, gy, 0.0, inv) != TS_OK)
+            return -1;
+    } else {
+        *cd = sk_similarity(n, ex, ey, sx, sy, 0, &fwd) / n;
+        /* a mirrored pairing needs a reflecting map */
+        sk_similarity(n, wx_, wy_, gx, gy, mirror, inv);
+    }
+    return 0;
+}
+
+/* ---- helpers ------------------------------------------------------- */
+
+static int sk_cand_cmp(const void *a, const void *b)
+{
+    const candidate *p = a, *q = b;
+    if (p->cd != q->cd)
+        return p->cd < q->cd ? -1 : 1;
+    return (p->idx > q->idx) - (p->idx < q->idx);
+}
+
+/* Bilinear sample of the output (NaN where any corner is empty). */
+static double sk_sample(const ts_raster *r, double x, double y)
+{
+    int x0 = (int)floor(x), y0 = (int)floor(y);
+    double fx = x - x0, fy = y - y0, v;
+    if (x0 < 0 || y0 < 0 || x0 + 1 >= r->width || y0 + 1 >= r->height)
+        return NAN;
+    v = (1 - fy) * ((1 - fx) * TS_PIX(r, x0, y0) + fx * TS_PIX(r, x0 + 1, y0)) +
+        fy * ((1 - fx) * TS_PIX(r, x0, y0 + 1) + fx * TS_PIX(r, x0 + 1, y0 + 1));
+    return v;
+}
+
+/* c_f: RMS difference of 7-point profiles across the feature at the
+ * control points, between the candidate (window values) and the output. */
+static double sk_profile_cost(const sketcher *k, const ts_feature_site *s, int wx, int wy,
+                              const float *ring)
+{
+    int P = k->P, M = P + 2, i, j, n = 0;
+    double sum = 0.0, step = k->R / 4.0;
+    ts_raster win = ts_raster_wrap((float *)ring, M, M, M);
+    for (i = 1; i < s->n_ctrl; i++) {
+        double dx = s->px[i], dy = s->py[i], len = hypot(dx, dy), nx, ny;
+        if (len <= 0)
+            continue;
+        nx = -dy / len;
+        ny = dx / len;
+        for (j = -3; j <= 3; j++) {
+            double x = s->cx + dx + j * step * nx, y = s->cy + dy + j * step * ny;
+            double a = sk_sample(k->out, x, y);
+            double b = sk_sample(&win, x - wx + 1, y - wy + 1);
+            if (isnan(a) || isnan(b))
+                continue;
+            sum += (a - b) * (a - b);
+            n++;
+        }
+    }
+    return n ? sqrt(sum / n) : 0.0;
+}
+
+/* Two-pass chamfer distance (Chebyshev) on a P x P grid, in place. */
+static void sk_chamfer(int *d, int P)
+{
+    int x, y;
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++) {
+            int v = d[y * P + x];
+            if (x > 0) v = TS_MIN(v, d[y * P + x - 1] + 1);
+            if (y > 0) v = TS_MIN(v, d[(y - 1) * P + x] + 1);
+            if (x > 0 && y > 0) v = TS_MIN(v, d[(y - 1) * P + x - 1] + 1);
+            if (x + 1 < P && y > 0) v = TS_MIN(v, d[(y - 1) * P + x + 1] + 1);
+            d[y * P + x] = v;
+        }
+    for (y = P - 1; y >= 0; y--)
+        for (x = P - 1; x >= 0; x--) {
+            int v = d[y * P + x];
+            if (x + 1 < P) v = TS_MIN(v, d[y * P + x + 1] + 1);
+            if (y + 1 < P) v = TS_MIN(v, d[(y + 1) * P + x] + 1);
+            if (x + 1 < P && y + 1 < P) v = TS_MIN(v, d[(y + 1) * P + x + 1] + 1);
+            if (x > 0 && y + 1 < P) v = TS_MIN(v, d[(y + 1) * P + x - 1] + 1);
+            d[y * P + x] = v;
+        }
+}
+
+/* ---- one site ------------------------------------------------------ */
+
+static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index, int *placed)
+{
+    ts_ctx *ctx = k->ctx;
+    int P = k->P, M = P + 2, W = k->out->width, H = k->out->height;
+    int wx = (int)lround(s->cx) - P / 2, wy = (int)lround(s->cy) - P / 2, x, y;
+    int n_c = 0, kmax = k->p->candidates, i, best = -1;
+    double best_cost = INFINITY;
+    size_t e;
+    ts_status st;
+    *placed = 0;
+    wx = TS_MAX(0, TS_MIN(W - P, wx));
+    wy = TS_MAX(0, TS_MIN(H - P, wy));
+    /* candidates by deformation */
+    for (e = 0; e < k->n_es; e++) {
+        const ts_feature_site *es = &k->es[e].site;
+        int rot, mirror, rots, mirrors;
+        if (es->type != s->type || es->n_ctrl != s->n_ctrl)
+            continue;
+        rots = s->type == TS_SITE_BRANCH ? s->degree : s->type == TS_SITE_PATH ? 2 : 1;
+        mirrors = s->type == TS_SITE_BRANCH ? 2 : 1;
+        for (mirror = 0; mirror < mirrors; mirror++)
+            for (rot = 0; rot < rots; rot++) {
+                candidate c;
+                c.idx = (int)e;
+                if (sk_align(k, s, es, rot, mirror, s->cx - wx, s->cy - wy, &c.cd, &c.inv) != 0)
+                    continue;
+                if (n_c < kmax) {
+                    k->cands[n_c++] = c;
+                    qsort(k->cands, (size_t)n_c, sizeof *k->cands, sk_cand_cmp);
+                } else if (c.cd < k->cands[kmax - 1].cd) {
+                    k->cands[kmax - 1] = c;
+                    qsort(k->cands, (size_t)n_c, sizeof *k->cands, sk_cand_cmp);
+                }
+            }
+    }
+    if (n_c == 0)
+        return TS_OK; /* no such feature in the exemplars: left to the fill */
+    /* the old window */
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++)
+            k->old[y * P + x] = TS_PIX(k->out, wx + x, wy + y);
+    /* distance of each window cell to the sketch's feature (the core of a
+     * feature patch is the feature with its flanks) */
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++)
+            k->near[y * P + x] =
+                (k->sf->mask[(size_t)(wy + y) * (size_t)W + (size_t)(wx + x)] & k->kind) ? 0 : 2 * P;
+    sk_chamfer(k->near, P);
+    for (i = 0; i < n_c; i++) {
+        const ts_raster *exr = &k->ex[k->es[k->cands[i].idx].ex];
+        ts_raster ring = ts_raster_wrap(k->ring, M, M, M);
+        ts_raster oldr = ts_raster_wrap(k->old, P, P, P);
+        ts_raster pr = ts_raster_wrap(k->patch, P, P, P);
+        double cg = 0.0, cf, cost;
+        int cuts, core_n = 0;
+        /* the warped window with its ring: window cell (x - 1, y - 1) */
+        if ((st = ts_tps_warp(ctx, &k->cands[i].inv, exr, -1.0, -1.0, &ring)) != TS_OK)
+            return st;
+        for (y = 0; y < P; y++)
+            for (x = 0; x < P; x++)
+                k->patch[y * P + x] = k->ring[(y + 1) * M + x + 1];
+        /* constraints: the sketch's feature cells near the centre come from
+         * the patch; filled border cells next to filled outside cells stay */
+        for (y = 0; y < P; y++)
+            for (x = 0; x < P; x++) {
+                int ox = wx + x, oy = wy + y;
+                unsigned char c = TS_SEAM_FREE;
+                int feature = k->near[y * P + x] <= k->core_radius &&
+                              hypot(ox - s->cx, oy - s->cy) <= k->R;
+                k->core[y * P + x] = 0;
+                if (!isnan(k->old[y * P + x])) {
+                    if ((x == 0 && ox > 0 && !isnan(TS_PIX(k->out, ox - 1, oy))) ||
+                        (y == 0 && oy > 0 && !isnan(TS_PIX(k->out, ox, oy - 1))) ||
+                        (x == P - 1 && ox + 1 < W && !isnan(TS_PIX(k->out, ox + 1, oy))) ||
+                        (y == P - 1 && oy + 1 < H && !isnan(TS_PIX(k->out, ox, oy + 1))))
+                        c = TS_SEAM_OLD;
+                    if (k->flags[(size_t)oy * (size_t)W + (size_t)ox] & TS_CELL_FIXED)
+                        c = TS_SEAM_OLD;
+                }
+                if (feature && c == TS_SEAM_FREE && !isnan(k->patch[y * P + x])) {
+                    c = TS_SEAM_NEW;
+                    k->core[y * P + x] = 1;
+                    core_n++;
+                }
+                if (k->flags[(size_t)oy * (size_t)W + (size_t)ox] & TS_CELL_NODATA)
+                    c = TS_SEAM_FREE;
+                k->constraint[y * P + x] = c;
+            }
+        if (core_n == 0)
+            continue; /* the warp left the feature empty */
+        st = ts_seam_graphcut(ctx, &oldr, &pr, k->constraint, k->labels, &cg);
+        if (st != TS_OK)
+            return st;
+        cuts = ts_label_cut_edges(k->labels, P);
+        cf = sk_profile_cost(k, s, wx, wy, k->ring);
+        cost = k->sp->alpha_d * k->cands[i].cd +
+               k->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf;
+        if (cost < best_cost) {
+            best_cost = cost;
+            best = i;
+            memcpy(k->best_labels, k->labels, (size_t)P * P);
+            memcpy(k->best_ring, k->ring, (size_t)M * M * sizeof(float));
+            memcpy(k->best_core, k->core, (size_t)P * P);
+        }
+    }
+    if (best < 0)
+        return TS_OK;
+    memcpy(k->merger.new_m, k->best_ring, (size_t)M * M * sizeof(float));
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++) {
+            double ex_x, ex_y;
+            ts_tps_map(&k->cands[best].inv, x + 0.5, y + 0.5, &ex_x, &ex_y);
+            k->src_x[y * P + x] = (int32_t)floor(ex_x);
+            k->src_y[y * P + x] = (int32_t)floor(ex_y);
+        }
+    st = ts_merger_apply(ctx, &k->merger, k->out, k->flags, wx, wy, k->old, k->best_labels,
+                         k->maps, k->es[k->cands[best].idx].ex, k->src_x, k->src_y, index);
+    if (st != TS_OK)
+        return st;
+    /* the feature cells stay as placed */
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++)
+            if (k->best_core[y * P + x] && k->best_labels[y * P + x])
+                k->flags[(size_t)(wy + y) * (size_t)W + (size_t)(wx + x)] |= TS_CELL_FIXED;
+    *placed = 1;
+    return TS_OK;
+}
+
+/* ---- the pipeline -------------------------------------------------- */
+
+static int sk_auto_mode(ts_ctx *ctx, const ts_raster *sketch)
+{
+    ts_raster_stats st;
+    size_t bright = 0, n = 0;
+    int x, y;
+    double mid;
+    if (ts_raster_stats_compute(ctx, sketch, &st) != TS_OK)
+        return TS_SKETCH_RIDGES;
+    mid = 0.5 * (st.min + st.max);
+    for (y = 0; y < sketch->height; y++)
+        for (x = 0; x < sketch->width; x++) {
+            float v = TS_PIX(sketch, x, y);
+            if (isnan(v))
+                continue;
+            n++;
+            bright += v > mid;
+        }
+    /* strokes are the minority: bright strokes draw ridges */
+    return 2 * bright <= n ? TS_SKETCH_RIDGES : TS_SKETCH_VALLEYS;
+}
+
+static void sk_free(sketcher *k)
+{
+    ts_merger_free(&k->merger);
+    free(k->es);
+    free(k->old);
+    free(k->patch);
+    free(k->best_ring);
+    free(k->ring);
+    free(k->constraint);
+    free(k->labels);
+    free(k->best_labels);
+    free(k->core);
+    free(k->best_core);
+    free(k->src_x);
+    free(k->src_y);
+    free(k->near);
+    free(k->cands);
+    free(k->flags);
+}
+
+TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_raster *exemplars,
+                                 int n_exemplars, const ts_sketch_params *sp,
+                                 const ts_synth_params *params, ts_raster *out,
+                                 ts_synth_maps *maps, ts_features **sketch_features,
+                                 ts_sketch_info *info)
+{
+    sketcher k;
+    ts_features *sf = NULL;
+    ts_feature_site *sites = NULL;
+    size_t n_sites = 0, i, n_cells, P2, M2;
+    ts_ppa_params pp = ts_ppa_params_default(), epp;
+    ts_progress_saved sv;
+    ts_status st;
+    int e, first_index;
+    ts_clear(ctx);
+    memset(&k, 0, sizeof k);
+    if (sketch_features)
+        *sketch_features = NULL;
+    if (!sketch || !sketch->data || !out || !out->data || !sp || !params || !exemplars ||
+        n_exemplars < 1)
+        return ts_fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
+    if (out->width != sketch->width || out->height != sketch->height)
+        return ts_fail(ctx, TS_ERR_ARG, "sketch", "the output must have the sketch's size");
+    if (ts_params_validate(ctx, "sketch", sp) != TS_OK ||
+        ts_params_validate(ctx, "synth", params) != TS_OK)
+        return ctx->status;
+    if (out->width < params->patch_size || out->height < params->patch_size)
+        return ts_fail(ctx, TS_ERR_SIZE, "sketch", "the sketch (%d x %d) is smaller than a patch",
+                       out->width, out->height);
+    k.ctx = ctx;
+    k.sp = sp;
+    k.p = params;
+    k.sketch = sketch;
+    k.ex = exemplars;
+    k.n_ex = n_exemplars;
+    k.out = out;
+    k.maps = maps;
+    k.P = params->patch_size;
+    k.R = 0.5 * params->patch_size - 1.0;
+    n_cells = (size_t)out->width * (size_t)out->height;
+    P2 = (size_t)k.P * (size_t)k.P;
+    M2 = (size_t)(k.P + 2) * (size_t)(k.P + 2);
+    k.flags = ts_calloc_array(n_cells, 1);
+    k.old = ts_malloc_array(P2, sizeof(float));
+    k.patch = ts_malloc_array(P2, sizeof(float));
+    k.ring = ts_malloc_array(M2, sizeof(float));
+    k.best_ring = ts_malloc_array(M2, sizeof(float));
+    k.constraint = ts_malloc_array(P2, 1);
+    k.labels = ts_malloc_array(P2, 1);
+    k.best_labels = ts_malloc_array(P2, 1);
+    k.core = ts_malloc_array(P2, 1);
+    k.best_core = ts_malloc_array(P2, 1);
+    k.src_x = ts_malloc_array(P2, sizeof(int32_t));
+    k.src_y = ts_malloc_array(P2, sizeof(int32_t));
+    k.cands = ts_malloc_array((size_t)params->candidates, sizeof *k.cands);
+    k.near = ts_malloc_array(P2, sizeof(int));
+    k.core_radius = TS_MAX(1, k.P / 8);
+    if (!k.flags || !k.old || !k.patch || !k.ring || !k.best_ring || !k.constraint ||
+        !k.labels || !k.best_labels || !k.core || !k.best_core || !k.src_x || !k.src_y ||
+        !k.cands || !k.near || ts_merger_init(ctx, &k.merger, k.P, params->overlap) != TS_OK) {
+        sk_free(&k);
+        return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+    }
+    for (i = 0; i < n_cells; i++)
+        if (isnan(sketch->data[(i / (size_t)sketch->width) * (size_t)sketch->stride +
+                               i % (size_t)sketch->width]))
+            k.flags[i] = TS_CELL_NODATA;
+    /* 1. the sketch's features */
+    {
+        int mode = sp->mode == TS_SKETCH_AUTO ? sk_auto_mode(ctx, sketch) : sp->mode;
+        k.kind = mode == TS_SKETCH_VALLEYS ? TS_VALLEY : TS_RIDGE;
+        pp.features = mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS : TS_PPA_RIDGES;
+        pp.min_branch_length.value = TS_MIN(40.0, 0.5 * k.P);
+        if (info) {
+            memset(info, 0, sizeof *info);
+            info->mode = mode;
+        }
+    }
+    sv = ts_progress_push(ctx, 0.0, 0.05);
+    st = ts_ppa_extract(ctx, sketch, NULL, &pp, &sf);
+    ts_progress_pop(ctx, sv);
+    if (st != TS_OK) {
+        ts_fail(ctx, st, "sketch", "PPA on the sketch: %s", ctx->message);
+        goto done;
+    }
+    k.sf = sf;
+    st = ts_feature_sites(ctx, sf, k.kind, k.R, 0.5 * k.P, params->order != TS_ORDER_RASTER,
+                          &sites, &n_sites);
+    if (st != TS_OK)
+        goto done;
+    /* 2. the exemplars' features: only the main ones (a sketch's stroke
+     * stands for a major ridge or valley, not any crease): profiles half a
+     * patch long, a dip of 2 % of the relief, branches of a patch length */
+    epp = pp;
+    epp.profile_length = TS_MAX(11, (k.P / 2) | 1);
+    epp.threshold_fraction = 0.02;
+    epp.min_branch_length.value = k.P;
+    for (e = 0; e < n_exemplars; e++) {
+        ts_features *ef = NULL;
+        ts_feature_site *es = NULL;
+        size_t n_es = 0, j;
+        ex_site *grown;
+        sv = ts_progress_push(ctx, 0.05 + 0.15 * e / n_exemplars,
+                              0.05 + 0.15 * (e + 1) / n_exemplars);
+        st = ts_ppa_extract(ctx, &exemplars[e], NULL, &epp, &ef);
+        ts_progress_pop(ctx, sv);
+        if (st == TS_ERR_CANCELLED || st == TS_ERR_NOMEM)
+            goto done;
+        if (st != TS_OK)
+            continue; /* no features in this exemplar: it still serves the fill */
+        st = ts_feature_sites(ctx, ef, k.kind, k.R, 3.0, 0, &es, &n_es);
+        ts_features_free(ef);
+        if (st != TS_OK)
+            goto done;
+        grown = realloc(k.es, (k.n_es + n_es + 1) * sizeof *grown);
+        if (!grown) {
+            free(es);
+            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+            goto done;
+        }
+        k.es = grown;
+        for (j = 0; j < n_es; j++) {
+            k.es[k.n_es].ex = e;
+            k.es[k.n_es].site = es[j];
+            k.n_es++;
+        }
+        free(es);
+    }
+    /* 3. feature patches */
+    first_index = maps ? maps->n_patches : 0;
+    {
+        int n_placed = 0;
+        for (i = 0; i < n_sites; i++) {
+            int placed;
+            sv = ts_progress_push(ctx, 0.2 + 0.4 * i / (double)n_sites,
+                                  0.2 + 0.4 * i / (double)n_sites);
+            st = sk_place_site(&k, &sites[i], first_index + n_placed, &placed);
+            if (st == TS_OK)
+                st = ts_progress(ctx, 0.0, "feature patches");
+            ts_progress_pop(ctx, sv);
+            if (st != TS_OK)
+                goto done;
+            n_placed += placed;
+        }
+        if (maps)
+            maps->n_patches = first_index + n_placed;
+        if (info) {
+            info->n_sites = n_sites;
+            info->n_feature_patches = (size_t)n_placed;
+            info->n_exemplar_sites = k.n_es;
+        }
+    }
+    /* 4. the non-feature fill around the fixed features */
+    sv = ts_progress_push(ctx, 0.6, 1.0);
+    st = ts_synth_patches(ctx, exemplars, n_exemplars, params, out, k.flags, maps);
+    ts_progress_pop(ctx, sv);
+done:
+    free(sites);
+    sk_free(&k);
+    if (st == TS_OK && sketch_features)
+        *sketch_features = sf;
+    else
+        ts_features_free(sf);
+    return st;
+}
