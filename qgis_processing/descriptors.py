@@ -48,8 +48,9 @@ FALLBACK = {
              "min": 1, "max": 256, "units": "", "choices": None,
              "help": "Best SSD matches examined per patch position (k)."},
             {"name": "order", "flag": "--order", "type": "enum", "default": 0, "min": 0,
-             "max": 1, "units": "", "choices": ["grow", "raster"],
-             "help": "Placement order: grow out from what is filled, or raster scan."},
+             "max": 2, "units": "", "choices": ["grow", "raster", "tree"],
+             "help": "Placement order: grow out from what is filled (with a sketch: its "
+                     "feature tree breadth first), raster scan, or tree (= grow)."},
             {"name": "alpha_g", "flag": "--alpha-g", "type": "double", "default": 1, "min": 0,
              "max": 1000000, "units": "", "choices": None,
              "help": "Weight of the graph-cut seam cost against the SSD when choosing a "

@@ -497,10 +497,10 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     if (st != TS_OK)
         goto done;
     /* 2. the exemplars' features: only the main ones (a sketch's stroke
-     * stands for a major ridge or valley, not any crease): profiles half a
+     * stands for a major ridge or valley, not any crease): profiles a third of a
      * patch long, a dip of 2 % of the relief, branches of a patch length */
     epp = pp;
-    epp.profile_length = TS_MAX(11, (k.P / 2) | 1);
+    epp.profile_length = TS_MAX(11, (k.P / 3) | 1);
     epp.threshold_fraction = 0.02;
     epp.min_branch_length.value = k.P;
     for (e = 0; e < n_exemplars; e++) {
@@ -516,7 +516,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
             goto done;
         if (st != TS_OK)
             continue; /* no features in this exemplar: it still serves the fill */
-        st = ts_feature_sites(ctx, ef, k.kind, k.R, 3.0, 0, &es, &n_es);
+        st = ts_feature_sites(ctx, ef, k.kind, k.R, 6.0, 0, &es, &n_es);
         ts_features_free(ef);
         if (st != TS_OK)
             goto done;

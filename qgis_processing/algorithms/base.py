@@ -64,10 +64,14 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
     HELP = ""             # HTML, condensed from algorithms/docs/<stage>.md
     LABELS = {}           # descriptor name -> dialog label (default: from the name)
     ADVANCED = ()         # descriptor names shown under "Advanced parameters"
+    # descriptor tables whose parameters this algorithm shows (default: STAGE's); e.g.
+    # ("synth", "sketch") once `terrasynth synth --sketch` is exposed
+    DESCRIPTOR_STAGES = None
 
     def __init__(self):
         super().__init__()
-        self._descs = [d for d in descriptors.stage(self.STAGE)
+        self._descs = [d for st in (self.DESCRIPTOR_STAGES or (self.STAGE,))
+                       for d in descriptors.stage(st)
                        if d.get("type") in descriptors.KNOWN_TYPES]
 
     # -- identity -----------------------------------------------------------

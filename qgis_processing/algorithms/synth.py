@@ -36,7 +36,8 @@ Runs <code>terrasynth synth</code>.</p>
 <li><b>Exemplars at the target's scale</b>: each is read in metres and resampled to the target's
 ground resolution when it differs (cubic when finer, averaging when coarser).</li>
 <li><b>Placement</b>: patch positions on a grid of step <i>Patch size - Overlap</i>, visited
-growing out from the centre (<i>grow</i>) or in scan order (<i>raster</i>).</li>
+growing out from the centre (<i>grow</i>; <i>tree</i> is the same without a sketch) or in
+scan order (<i>raster</i>).</li>
 <li><b>Matching</b>: masked SSD by FFT against every exemplar window, on a pyramid (<i>Coarse
 factor</i>; 0 = automatic). Windows with nodata are never candidates.</li>
 <li><b>Seams</b>: each of the <i>Candidates</i> best matches is cut in with a minimum-cost graph
@@ -183,8 +184,10 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         res = self.parameterAsDouble(parameters, self.RESOLUTION, context) if has_res else None
         if res is not None and not res > 0:
             raise QgsProcessingException("RESOLUTION must be a positive number")
-        if is_set(parameters, self.CRS) and not crs.isValid():
-            raise QgsProcessingException("CRS: not a valid coordinate reference system")
+        raw_crs = parameters.get(self.CRS)
+        if isinstance(raw_crs, str) and raw_crs.strip() and not crs.isValid():
+            raise QgsProcessingException("CRS: '%s' is not a valid coordinate reference "
+                                         "system" % raw_crs)
         if crs.isValid() and not (has_x and has_res):
             raise QgsProcessingException("CRS needs ORIGIN_X, ORIGIN_Y and RESOLUTION")
         origin = (self.parameterAsDouble(parameters, self.ORIGIN_X, context),

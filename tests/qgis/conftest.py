@@ -13,6 +13,7 @@ Environment (set by ctest, with defaults for a plain `pytest tests/qgis`):
   TS_QGIS_ZIP             the plugin ZIP built by CMake (tests skip without it)
 """
 import atexit
+import importlib
 import os
 import shutil
 import sys
@@ -55,8 +56,7 @@ atexit.register(shutil.rmtree, PLUGIN_PARENT, True)
 atexit.register(shutil.rmtree, _CONFIG_DIR, True)
 
 try:
-    import qgis.core  # noqa: F401
-
+    importlib.import_module("qgis.core")
     HAVE_QGIS = True
 except ImportError:
     HAVE_QGIS = False
@@ -106,7 +106,12 @@ def cli():
 
 
 @pytest.fixture(scope="session")
-def jacksboro():
+def jacksboro(tmp_path_factory):
+    """A copy of the DEM: QGIS writes .aux.xml statistics next to the rasters it loads, and
+    data/ must stay as committed."""
     if not os.path.isfile(JACKSBORO):
         pytest.skip("data/jacksboro_fault_dem.tif missing")
-    return JACKSBORO
+    import shutil
+    copy = tmp_path_factory.mktemp("data") / "jacksboro_fault_dem.tif"
+    shutil.copy(JACKSBORO, copy)
+    return str(copy)

@@ -1,0 +1,161 @@
+/*
+ * bench_sketch.c - benchmark of sketch-guided synthesis (the lambda sketch).
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ *
+ * Usage: bench_sketch [DEM.tif]
+ *   A. the lambda sketch (data/sketches/lambda_ridges.tif) scaled to
+ *      1000 x 1000, from the 1500 x 1500 exemplar;
+ *   B. scaled to 2000 x 2000, from a 4096 x 4096 exemplar (the DEM
+ *      reflect-tiled).
+ * Prints seconds (features, fill stages) and peak RSS; for B the goal line
+ * "goal: < 15 s and < 2048 MB: PASS/FAIL".  Skipped (exit 0) when the
+ * default DEM is absent.
+ */
+#define _POSIX_C_SOURCE 200809L
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "terrasynth.h"
+#include "tsio.h"
+
+#ifndef TS_SHARED_DEM_DIR
+#define TS_SHARED_DEM_DIR "../shared/data/dem"
+#endif
+#ifndef TS_DATA_DIR
+#define TS_DATA_DIR "data"
+#endif
+#define DEFAULT_DEM "mountains_aiguestortes_pyrenees_20m_nocrs.tif"
+
+static double now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static double peak_rss_mb(void)
+{
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return (double)ru.ru_maxrss / 1024.0;
+}
+
+static int reflect(int i, int n)
+{
+    int t = i / n, r = i % n;
+    return (t % 2) ? n - 1 - r : r;
+}
+
+/* Bilinear resize of the sketch to n x n. */
+static ts_raster scaled(const ts_raster *s, int n)
+{
+    ts_raster r;
+    int x, y;
+    r.width = r.height = n;
+    r.stride = n;
+    r.data = malloc((size_t)n * (size_t)n * sizeof(float));
+    for (y = 0; y < n && r.data; y++)
+        for (x = 0; x < n; x++) {
+            double fx = (x + 0.5) * s->width / n - 0.5, fy = (y + 0.5) * s->height / n - 0.5;
+            int x0 = (int)floor(fx), y0 = (int)floor(fy);
+            double ax = fx - x0, ay = fy - y0;
+            int x1 = x0 + 1, y1 = y0 + 1;
+            if (x0 < 0) x0 = 0;
+            if (y0 < 0) y0 = 0;
+            if (x1 >= s->width) x1 = s->width - 1;
+            if (y1 >= s->height) y1 = s->height - 1;
+            r.data[(size_t)y * n + x] =
+                (float)((1 - ay) * ((1 - ax) * TS_PIX(s, x0, y0) + ax * TS_PIX(s, x1, y0)) +
+                        ay * ((1 - ax) * TS_PIX(s, x0, y1) + ax * TS_PIX(s, x1, y1)));
+        }
+    return r;
+}
+
+static int run_case(const char *name, const ts_raster *sketch, const ts_raster *ex, double goal_s,
+                    double goal_mb)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_synth_params p = ts_synth_params_default();
+    ts_sketch_params sp = ts_sketch_params_default();
+    ts_synth_maps maps;
+    ts_sketch_info info;
+    ts_raster out;
+    double t0, t;
+    int rc = 0;
+    memset(&maps, 0, sizeof maps);
+    ts_ctx_set_seed(ctx, 1);
+    if (ts_raster_alloc(ctx, sketch->width, sketch->height, &out) != TS_OK) {
+        ts_ctx_free(ctx);
+        return 1;
+    }
+    t0 = now_s();
+    if (ts_synth_sketch(ctx, sketch, ex, 1, &sp, &p, &out, &maps, NULL, &info) != TS_OK) {
+        fprintf(stderr, "bench_sketch: %s\n", ts_ctx_message(ctx));
+        rc = 1;
+    }
+    t = now_s() - t0;
+    if (!rc) {
+        printf("sketch %s: lambda at %dx%d from %dx%d: %.2f s total, %zu feature sites, %zu "
+               "feature patches (%zu exemplar sites), %d patches, peak RSS %.0f MB\n",
+               name, sketch->width, sketch->height, ex->width, ex->height, t, info.n_sites,
+               info.n_feature_patches, info.n_exemplar_sites, maps.n_patches, peak_rss_mb());
+        printf("  fill stages: prepare %.2f s, match %.2f s, graph cut %.2f s, Poisson %.2f s; "
+               "features and PPA: %.2f s\n",
+               maps.seconds_prepare, maps.seconds_match, maps.seconds_cut, maps.seconds_poisson,
+               t - maps.seconds_prepare - maps.seconds_match - maps.seconds_cut -
+                   maps.seconds_poisson);
+        if (goal_s > 0)
+            printf("goal: < %.0f s and < %.0f MB: %s\n", goal_s, goal_mb,
+                   (t < goal_s && peak_rss_mb() < goal_mb) ? "PASS" : "FAIL");
+    }
+    ts_raster_free(&out);
+    ts_ctx_free(ctx);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    const char *path = argc > 1 ? argv[1] : TS_SHARED_DEM_DIR "/" DEFAULT_DEM;
+    struct stat st;
+    tsio_raster in, sk;
+    tsio_err err;
+    ts_raster big, s1, s2;
+    int n = 4096, x, y, rc;
+    if (argc == 1 && stat(path, &st) != 0) {
+        printf("bench_sketch: skipped: %s not found\n", path);
+        return 0;
+    }
+    if (tsio_read_raster(path, 1, &in, &err) != 0 ||
+        tsio_read_raster(TS_DATA_DIR "/sketches/lambda_ridges.tif", 1, &sk, &err) != 0) {
+        fprintf(stderr, "bench_sketch: %s\n", err.msg);
+        return 1;
+    }
+    s1 = scaled(&sk.r, 1000);
+    s2 = scaled(&sk.r, 2000);
+    big.data = malloc((size_t)n * (size_t)n * sizeof(float));
+    if (!s1.data || !s2.data || !big.data) {
+        fprintf(stderr, "bench_sketch: out of memory\n");
+        return 1;
+    }
+    rc = run_case("A", &s1, &in.r, 0, 0);
+    big.width = big.height = n;
+    big.stride = n;
+    for (y = 0; y < n; y++)
+        for (x = 0; x < n; x++)
+            big.data[(size_t)y * n + x] =
+                TS_PIX(&in.r, reflect(x, in.r.width), reflect(y, in.r.height));
+    rc |= run_case("B", &s2, &big, 15.0, 2048.0);
+    free(big.data);
+    free(s1.data);
+    free(s2.data);
+    tsio_raster_free(&in);
+    tsio_raster_free(&sk);
+    return rc;
+}
