@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Install, build, and run the main job on the default data in data/:
-# the ridge and valley axes of the Jacksboro fault DEM, as a raster,
-# GeoPackage lines and a preview PNG in out/.
+# Install, build, and run the main job on the default data in data/: a
+# terrain that follows the lambda sketch (Zhou et al. 2007, Fig. 10a) in the
+# style of the Jacksboro fault DEM, with its preview; and the ridge and valley
+# axes of the DEM as a raster, GeoPackage lines and a preview, all in out/.
 # SPDX-License-Identifier: GPL-2.0-or-later
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -11,4 +12,7 @@ cmake --build build -j"$(nproc)"
 mkdir -p out
 build/gdal_driver/terrasynth ppa data/jacksboro_fault_dem.tif out/jacksboro_axes.tif --both \
   --lines out/jacksboro_axes.gpkg --preview out/jacksboro_axes.png
-echo "wrote out/jacksboro_axes.tif, out/jacksboro_axes.gpkg, out/jacksboro_axes.png"
+build/gdal_driver/terrasynth synth --sketch data/sketches/lambda_ridges.tif \
+  --exemplar data/jacksboro_fault_dem.tif --seed 1 out/lambda.tif --preview out/lambda.png
+echo "wrote out/lambda.tif and out/lambda.png (the terrain), out/jacksboro_axes.tif,"
+echo "out/jacksboro_axes.gpkg and out/jacksboro_axes.png (ridges and valleys of the DEM)"
