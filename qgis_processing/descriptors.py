@@ -65,6 +65,18 @@ FALLBACK = {
                      "resolution (1 = exhaustive full-resolution search; 0 = automatic: "
                      "exemplars brought to at most 512 x 512 cells)."},
         ],
+        "sketch": [
+            {"name": "mode", "flag": "--mode", "type": "enum", "default": 2, "min": 0,
+             "max": 2, "units": "", "choices": ["ridges", "valleys", "auto"],
+             "help": "What the sketch draws: ridges (bright strokes), valleys (dark strokes), "
+                     "or auto."},
+            {"name": "alpha_d", "flag": "--alpha-d", "type": "double", "default": 1000,
+             "min": 0, "max": 1000000000, "units": "", "choices": None,
+             "help": "Weight of the warp deformation cost c_d of feature patches."},
+            {"name": "alpha_f", "flag": "--alpha-f", "type": "double", "default": 3,
+             "min": 0, "max": 1000000000, "units": "", "choices": None,
+             "help": "Weight of the feature profile dissimilarity c_f of feature patches."},
+        ],
     },
 }
 

@@ -65,14 +65,18 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
     LABELS = {}           # descriptor name -> dialog label (default: from the name)
     ADVANCED = ()         # descriptor names shown under "Advanced parameters"
     # descriptor tables whose parameters this algorithm shows (default: STAGE's); e.g.
-    # ("synth", "sketch") once `terrasynth synth --sketch` is exposed
+    # ("synth", "sketch") for `terrasynth synth` with its --sketch options
     DESCRIPTOR_STAGES = None
 
     def __init__(self):
         super().__init__()
-        self._descs = [d for st in (self.DESCRIPTOR_STAGES or (self.STAGE,))
-                       for d in descriptors.stage(st)
-                       if d.get("type") in descriptors.KNOWN_TYPES]
+        self._descs = []
+        self._desc_stage = {}  # descriptor name -> the table it comes from
+        for st in (self.DESCRIPTOR_STAGES or (self.STAGE,)):
+            for d in descriptors.stage(st):
+                if d.get("type") in descriptors.KNOWN_TYPES:
+                    self._descs.append(d)
+                    self._desc_stage[d["name"]] = st
 
     # -- identity -----------------------------------------------------------
     def name(self):
@@ -150,10 +154,19 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
             for p in self.descriptorParameters(d):
                 self.addParameter(p)
 
+    def descriptorStages(self, parameters, context):  # noqa: N802
+        """The descriptor tables passed to the program for these parameters (default:
+        all of DESCRIPTOR_STAGES); e.g. synth leaves out "sketch" without a sketch."""
+        return set(self._desc_stage.values())
+
     def descriptorValues(self, parameters, context):  # noqa: N802
-        """{descriptor name: value} in the form runner.format_value takes."""
+        """{descriptor name: value} in the form runner.format_value takes, for the
+        descriptors of descriptorStages()."""
+        stages = self.descriptorStages(parameters, context)
         values = {}
         for d in self._descs:
+            if self._desc_stage[d["name"]] not in stages:
+                continue
             key = descriptors.key(d)
             if d["type"] == "int":
                 values[d["name"]] = self.parameterAsInt(parameters, key, context)

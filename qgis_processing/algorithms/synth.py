@@ -1,10 +1,10 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""terrasynth:synth - a new terrain grown from real DEMs (`terrasynth synth`).
+"""terrasynth:synth - a new terrain grown from real DEMs (`terrasynth synth`),
+optionally following a sketch (`terrasynth synth --sketch`).
 
-The sketch-guided options (sketch, regions, pins, water...) do not exist in the
-CLI yet.  When they do, they get their own algorithm module (or parameters added
-here in initAlgorithm/prepareJob); the core's numeric parameters appear by
-themselves, since they come from `terrasynth describe`.
+The core's parameters come from `terrasynth describe`: the "synth" table, and the
+"sketch" table (MODE, ALPHA_D, ALPHA_F), which is passed only with a SKETCH.
+Further sketch options (regions, pins, water...) do not exist in the CLI yet.
 """
 import os
 
@@ -36,8 +36,8 @@ Runs <code>terrasynth synth</code>.</p>
 <li><b>Exemplars at the target's scale</b>: each is read in metres and resampled to the target's
 ground resolution when it differs (cubic when finer, averaging when coarser).</li>
 <li><b>Placement</b>: patch positions on a grid of step <i>Patch size - Overlap</i>, visited
-growing out from the centre (<i>grow</i>; <i>tree</i> is the same without a sketch) or in
-scan order (<i>raster</i>).</li>
+growing out from the centre (<i>grow</i>; <i>tree</i> is the same without a sketch; with a
+sketch, both follow its feature tree breadth first) or in scan order (<i>raster</i>).</li>
 <li><b>Matching</b>: masked SSD by FFT against every exemplar window, on a pyramid (<i>Coarse
 factor</i>; 0 = automatic). Windows with nodata are never candidates.</li>
 <li><b>Seams</b>: each of the <i>Candidates</i> best matches is cut in with a minimum-cost graph
@@ -46,10 +46,27 @@ random (seeded) among candidates within that fraction of the best.</li>
 <li><b>Seam removal</b>: Poisson re-solve of the heights around each new patch.</li>
 </ol>
 <h3>Target grid</h3>
-<p>Either <b>Target grid like</b> (size, geotransform and CRS of a raster), or <b>Width</b> and
-<b>Height</b> in cells, on the first exemplar's CRS, resolution and origin unless <b>Origin X/Y</b>
-(top-left corner, CRS units), <b>Resolution</b> (CRS units) and <b>CRS</b> are given. A CRS
-needs the origin and the resolution.</p>
+<p>One of: a <b>Sketch</b> (the output is on the sketch's grid, see below); <b>Target grid
+like</b> (size, geotransform and CRS of a raster); or <b>Width</b> and <b>Height</b> in cells,
+on the first exemplar's CRS, resolution and origin unless <b>Origin X/Y</b> (top-left corner,
+CRS units), <b>Resolution</b> (CRS units) and <b>CRS</b> are given. A CRS needs the origin and
+the resolution.</p>
+<h3>Sketch-guided synthesis</h3>
+<p>A <b>Sketch</b> is a grey drawing (any single-band GDAL raster): <b>bright strokes are
+ridges, dark strokes valleys</b> (Zhou et al. 2007, sections 3-4). The ridge or valley axes
+of the sketch and of the exemplars are extracted (PPA); along the sketch's feature tree, the
+exemplar feature patches that fit best are warped onto it (thin-plate spline / similarity
+warps) and cut in, then the rest is filled as above. The output is <b>on the sketch's grid</b>
+(size, geotransform, CRS), <b>nodata where the sketch is nodata</b>; Target grid like, Width,
+Height, Origin X/Y, Resolution and CRS must then be left empty.</p>
+<ul>
+<li><b>Sketch mode</b>: <i>ridges</i> (bright strokes), <i>valleys</i> (dark strokes) or
+<i>auto</i> (default: the strokes are the minority, bright or dark).</li>
+<li><b>Deformation cost weight (alpha_d)</b> (default 1000) and <b>Feature profile cost weight
+(alpha_f)</b> (default 3): weights of the warp's deformation and of the height profiles'
+mismatch across the feature, next to <i>alpha_g</i>, when choosing a feature patch.</li>
+</ul>
+<p>Without a sketch these three are not used.</p>
 <h3>Parameters</h3>
 <ul>
 <li><b>Patch size</b> (8..1024 cells, default 64) and <b>Overlap</b> (2..512, default 16, smaller
@@ -59,7 +76,8 @@ than the patch), in target cells. A patch should hold a few ridge and valley spa
 </ul>
 <h3>Outputs</h3>
 <ul>
-<li><b>Synthesized DEM</b>: Float32 on the target grid with its CRS, nodata -9999.</li>
+<li><b>Synthesized DEM</b>: Float32 on the target grid with its CRS, nodata -9999 (and
+wherever the sketch is nodata).</li>
 <li><b>Preview</b> (optional PNG): hillshade of the result.</li>
 <li><b>Debug folder</b> (optional): seams.tif, source_exemplar.tif, source_x.tif, source_y.tif,
 order.tif on the target grid (where every cell came from).</li>
@@ -77,10 +95,15 @@ class SynthAlgorithm(TerraSynthAlgorithm):
     GROUP_ID = "terrainsynthesis"
     HELP = HELP
     LABELS = {"alpha_g": "Seam cost weight (alpha_g)", "coarse_factor": "Coarse search factor",
-              "candidates": "Candidates per patch", "order": "Placement order"}
-    ADVANCED = ("candidates", "alpha_g", "coarse_factor")
+              "candidates": "Candidates per patch", "order": "Placement order",
+              "mode": "Sketch mode", "alpha_d": "Deformation cost weight (alpha_d)",
+              "alpha_f": "Feature profile cost weight (alpha_f)"}
+    ADVANCED = ("candidates", "alpha_g", "coarse_factor", "alpha_d", "alpha_f")
+    DESCRIPTOR_STAGES = ("synth", "sketch")
+    SKETCH_STAGE = "sketch"  # its parameters are passed only with a SKETCH
 
     EXEMPLARS = "EXEMPLARS"
+    SKETCH = "SKETCH"
     LIKE = "LIKE"
     WIDTH = "WIDTH"
     HEIGHT = "HEIGHT"
@@ -104,10 +127,17 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         ex.setHelp("Real DEMs (any GDAL raster) whose style the new terrain takes "
                    "(--exemplar, 1..64).")
         self.addParameter(ex)
+        sketch = QgsProcessingParameterRasterLayer(self.SKETCH, self.tr("Sketch"),
+                                                   optional=True)
+        sketch.setHelp("A grey drawing (single-band raster): bright strokes = ridges, dark "
+                       "strokes = valleys (--sketch). The output is on the sketch's grid (its "
+                       "size, geotransform and CRS), nodata where the sketch is nodata; give "
+                       "no LIKE, WIDTH/HEIGHT, ORIGIN_X/ORIGIN_Y, RESOLUTION or CRS with it.")
+        self.addParameter(sketch)
         like = QgsProcessingParameterRasterLayer(self.LIKE, self.tr("Target grid like"),
                                                  optional=True)
         like.setHelp("Size, geotransform and CRS of this raster (--like); or give WIDTH and "
-                     "HEIGHT.")
+                     "HEIGHT (or a SKETCH).")
         self.addParameter(like)
         grid = [
             (Number(self.WIDTH, self.tr("Width (cells)"), Number.Integer, optional=True,
@@ -158,6 +188,10 @@ class SynthAlgorithm(TerraSynthAlgorithm):
     # -- the target grid --------------------------------------------------------
     def targetOptions(self, parameters, context):  # noqa: N802
         """[(option, value)] for the target grid; raises on an incomplete grid."""
+        sketch = self.parameterAsRasterLayer(parameters, self.SKETCH, context) \
+            if is_set(parameters, self.SKETCH) else None
+        if is_set(parameters, self.SKETCH) and sketch is None:
+            raise QgsProcessingException(self.invalidRasterError(parameters, self.SKETCH))
         like = self.parameterAsRasterLayer(parameters, self.LIKE, context) \
             if is_set(parameters, self.LIKE) else None
         if is_set(parameters, self.LIKE) and like is None:
@@ -170,6 +204,22 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         has_res = is_set(parameters, self.RESOLUTION)
         crs = self.parameterAsCrs(parameters, self.CRS, context) \
             if is_set(parameters, self.CRS) else QgsCoordinateReferenceSystem()
+        raw_crs = parameters.get(self.CRS)
+        if sketch is not None:
+            given = [k for k, on in (
+                (self.LIKE, is_set(parameters, self.LIKE)),
+                (self.WIDTH, is_set(parameters, self.WIDTH)),
+                (self.HEIGHT, is_set(parameters, self.HEIGHT)),
+                (self.ORIGIN_X, has_x), (self.ORIGIN_Y, has_y),
+                (self.RESOLUTION, has_res),
+                (self.CRS, crs.isValid() or (isinstance(raw_crs, str) and raw_crs.strip())))
+                if on]
+            if given:
+                raise QgsProcessingException(
+                    "SKETCH sets the target grid (the output is on the sketch's grid): give "
+                    "no LIKE, WIDTH, HEIGHT, ORIGIN_X, ORIGIN_Y, RESOLUTION or CRS with it "
+                    "(given: %s)" % ", ".join(given))
+            return [("sketch", gdal_source(sketch, self.SKETCH))]
         if like is not None and (width or height or has_x or has_y or has_res or crs.isValid()):
             raise QgsProcessingException(
                 "give the target grid with LIKE or with WIDTH and HEIGHT (plus ORIGIN_X/"
@@ -178,13 +228,12 @@ class SynthAlgorithm(TerraSynthAlgorithm):
             return [("like", gdal_source(like, self.LIKE))]
         if not (width and height):
             raise QgsProcessingException(
-                "give the target grid: LIKE (a raster), or WIDTH and HEIGHT in cells")
+                "give the target grid: SKETCH or LIKE (a raster), or WIDTH and HEIGHT in cells")
         if has_x != has_y:
             raise QgsProcessingException("give both ORIGIN_X and ORIGIN_Y, or neither")
         res = self.parameterAsDouble(parameters, self.RESOLUTION, context) if has_res else None
         if res is not None and not res > 0:
             raise QgsProcessingException("RESOLUTION must be a positive number")
-        raw_crs = parameters.get(self.CRS)
         if isinstance(raw_crs, str) and raw_crs.strip() and not crs.isValid():
             raise QgsProcessingException("CRS: '%s' is not a valid coordinate reference "
                                          "system" % raw_crs)
@@ -197,6 +246,12 @@ class SynthAlgorithm(TerraSynthAlgorithm):
             crs_text = crs.authid() or crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
         return [("size", (width, height)), ("origin", origin), ("resolution", res),
                 ("crs", crs_text)]
+
+    def descriptorStages(self, parameters, context):  # noqa: N802
+        stages = super().descriptorStages(parameters, context)
+        if not is_set(parameters, self.SKETCH):
+            stages.discard(self.SKETCH_STAGE)  # --mode, --alpha-d, --alpha-f need --sketch
+        return stages
 
     def checkJob(self, parameters, context):  # noqa: N802
         layers = self.parameterAsLayerList(parameters, self.EXEMPLARS, context)

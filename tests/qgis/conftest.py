@@ -8,7 +8,7 @@ what QGIS loads (and no __pycache__ lands in the source tree).
 
 Environment (set by ctest, with defaults for a plain `pytest tests/qgis`):
   TERRASYNTH              the CLI (default build/gdal_driver/terrasynth)
-  TS_DATA_DIR             data/ (jacksboro_fault_dem.tif)
+  TS_DATA_DIR             data/ (jacksboro_fault_dem.tif, sketches/lambda_ridges.tif)
   TS_QGIS_SCREENSHOT_DIR  where the dialog screenshot goes (default: pytest's tmp dir)
   TS_QGIS_ZIP             the plugin ZIP built by CMake (tests skip without it)
 """
@@ -34,6 +34,7 @@ PLUGIN_SOURCE = os.path.join(ROOT, "qgis_processing")
 PLUGIN_NAME = "terrasynth_qgis"
 DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))
 JACKSBORO = os.path.join(DATA, "jacksboro_fault_dem.tif")
+LAMBDA_RIDGES = os.path.join(DATA, "sketches", "lambda_ridges.tif")
 DEFAULT_CLI = os.path.join(ROOT, "build", "gdal_driver", "terrasynth")
 if not os.environ.get("TERRASYNTH") and os.path.isfile(DEFAULT_CLI):
     os.environ["TERRASYNTH"] = DEFAULT_CLI
@@ -114,4 +115,14 @@ def jacksboro(tmp_path_factory):
     import shutil
     copy = tmp_path_factory.mktemp("data") / "jacksboro_fault_dem.tif"
     shutil.copy(JACKSBORO, copy)
+    return str(copy)
+
+
+@pytest.fixture(scope="session")
+def lambda_ridges(tmp_path_factory):
+    """A copy of the ridge sketch data/sketches/lambda_ridges.tif (same reason as jacksboro)."""
+    if not os.path.isfile(LAMBDA_RIDGES):
+        pytest.skip("data/sketches/lambda_ridges.tif missing")
+    copy = tmp_path_factory.mktemp("sketches") / "lambda_ridges.tif"
+    shutil.copy(LAMBDA_RIDGES, copy)
     return str(copy)

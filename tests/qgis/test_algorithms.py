@@ -31,13 +31,16 @@ pytestmark = pytest.mark.usefixtures("qgis_app")
 
 ALGORITHMS = {"ppa": ("Extract ridges and valleys (PPA)", "Terrain analysis"),
               "synth": ("Synthesize terrain", "Terrain synthesis")}
+# the descriptor tables of `terrasynth describe` each algorithm shows
+DESCRIPTOR_STAGES = {"ppa": ("ppa",), "synth": ("synth", "sketch")}
+ALG_STAGES = [(alg, st) for alg in sorted(DESCRIPTOR_STAGES) for st in DESCRIPTOR_STAGES[alg]]
 # parameters that are not the core's descriptors, and the CLI flag each maps to
 # (None: a positional file or an output QGIS reports, not a CLI option)
 OTHER_FLAGS = {
     "ppa": {"INPUT": None, "OUTPUT": None, "NODES": None, "BAND": "--band",
             "CELL_SIZE": "--cell-size", "THREADS": "--threads", "LINES": "--lines",
             "PREVIEW": "--preview"},
-    "synth": {"EXEMPLARS": "--exemplar", "LIKE": "--like", "WIDTH": "--size",
+    "synth": {"EXEMPLARS": "--exemplar", "SKETCH": "--sketch", "LIKE": "--like", "WIDTH": "--size",
               "HEIGHT": "--size", "ORIGIN_X": "--origin", "ORIGIN_Y": "--origin",
               "RESOLUTION": "--resolution", "CRS": "--crs", "SEED": "--seed", "BAND": "--band",
               "CELL_SIZE": "--cell-size", "THREADS": "--threads", "OUTPUT": None,
@@ -90,9 +93,10 @@ def test_provider_read_the_descriptors_from_the_cli(cli):
 
 # --------------------------------------------------------------------------- parameters vs the core
 
-@pytest.mark.parametrize("stage", sorted(ALGORITHMS))
-def test_parameters_match_the_core_descriptors(stage, describe):
-    alg = registry().algorithmById("terrasynth:" + stage)
+@pytest.mark.parametrize("alg_name,stage", ALG_STAGES)
+def test_parameters_match_the_core_descriptors(alg_name, stage, describe):
+    alg = registry().algorithmById("terrasynth:" + alg_name)
+    assert describe["stages"][stage], "describe has no stage %s" % stage
     for d in describe["stages"][stage]:
         key = d["name"].upper()
         assert d["flag"] == "--" + d["name"].replace("_", "-")
@@ -126,7 +130,8 @@ def test_every_other_parameter_is_a_cli_option(stage, cli, describe):
     alg = registry().algorithmById("terrasynth:" + stage)
     help_text = subprocess.run([cli, stage, "--help"], capture_output=True, text=True,
                                check=True).stdout
-    core = {d["name"].upper() for d in describe["stages"][stage]}
+    core = {d["name"].upper() for st in DESCRIPTOR_STAGES[stage]
+            for d in describe["stages"][st]}
     core |= {k + "_UNIT" for k in core}
     names = {p.name() for p in alg.parameterDefinitions()} | \
         {o.name() for o in alg.outputDefinitions()}
@@ -140,7 +145,7 @@ def test_every_other_parameter_is_a_cli_option(stage, cli, describe):
             assert flag == "--" + name.lower().replace("_", "-")
 
 
-@pytest.mark.parametrize("stage", sorted(ALGORITHMS))
+@pytest.mark.parametrize("stage", sorted({st for _, st in ALG_STAGES}))
 def test_fallback_tables_match_describe(stage, describe):
     """The built-in tables (used when no terrasynth is found) equal `describe` for every
     stage an algorithm exposes; the core may have stages QGIS does not show yet."""
@@ -165,6 +170,9 @@ def test_fallback_is_used_without_a_cli(monkeypatch, tmp_path):
         TerraSynthProvider().loadDescriptors()
         assert descriptors.source() == "fallback"
         assert descriptors.stage("ppa") == descriptors.FALLBACK["stages"]["ppa"]
+        synth = registry().algorithmById("terrasynth:synth").create()  # fallback tables
+        for key in ("PATCH_SIZE", "MODE", "ALPHA_D", "ALPHA_F"):
+            assert synth.parameterDefinition(key) is not None, key
     finally:
         monkeypatch.undo()
         TerraSynthProvider().loadDescriptors()
@@ -246,6 +254,56 @@ def test_synth_command_line_like(jacksboro, tmp_path):
                                          "OUTPUT": str(tmp_path / "n.tif")})
     assert pairs(argv)["--like"] == jacksboro
     assert "--size" not in argv and "--origin" not in argv
+    # the sketch table's parameters go to the program only with a sketch
+    assert not {"--sketch", "--mode", "--alpha-d", "--alpha-f"} & set(argv)
+
+
+def test_synth_command_line_with_sketch(jacksboro, lambda_ridges, tmp_path):
+    out = str(tmp_path / "new.tif")
+    argv, job = build("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "SKETCH": lambda_ridges, "MODE": 1, "ALPHA_D": 250.5,
+        "ALPHA_F": 0, "ORDER": 2, "PATCH_SIZE": 32, "OVERLAP": 8, "SEED": 5, "OUTPUT": out})
+    assert argv[:2] == ["/x/terrasynth", "synth"] and argv[-1] == out
+    kv = pairs(argv)
+    assert kv["--sketch"] == lambda_ridges and argv.count("--sketch") == 1
+    assert kv["--exemplar"] == jacksboro
+    assert kv["--mode"] == "valleys" and kv["--alpha-d"] == "250.5" and kv["--alpha-f"] == "0"
+    assert kv["--order"] == "tree" and kv["--patch-size"] == "32" and kv["--seed"] == "5"
+    for grid_flag in ("--like", "--size", "--origin", "--resolution", "--crs"):
+        assert grid_flag not in argv
+    assert job["results"] == {"OUTPUT": out}
+    # defaults are passed explicitly too
+    argv, _ = build("terrasynth:synth", {"EXEMPLARS": [jacksboro], "SKETCH": lambda_ridges,
+                                         "OUTPUT": out})
+    kv = pairs(argv)
+    assert (kv["--mode"], kv["--alpha-d"], kv["--alpha-f"]) == ("auto", "1000", "3")
+    assert "--size" not in argv and "--like" not in argv
+    assert os.listdir(tmp_path) == []  # nothing was run
+
+
+@pytest.mark.parametrize("params,given", [
+    ({"LIKE": "JACKSBORO"}, "LIKE"),
+    ({"WIDTH": 64, "HEIGHT": 64}, "WIDTH, HEIGHT"),
+    ({"WIDTH": 64}, "WIDTH"),
+    ({"ORIGIN_X": 0, "ORIGIN_Y": 0}, "ORIGIN_X, ORIGIN_Y"),
+    ({"RESOLUTION": 30}, "RESOLUTION"),
+    ({"CRS": "EPSG:32616"}, "CRS"),
+    ({"LIKE": "JACKSBORO", "WIDTH": 64, "HEIGHT": 64, "ORIGIN_X": 0, "ORIGIN_Y": 0,
+      "RESOLUTION": 30, "CRS": "EPSG:32616"},
+     "LIKE, WIDTH, HEIGHT, ORIGIN_X, ORIGIN_Y, RESOLUTION, CRS"),
+])
+def test_synth_sketch_excludes_other_grids(jacksboro, lambda_ridges, tmp_path, params, given):
+    params = {k: (jacksboro if v == "JACKSBORO" else v) for k, v in params.items()}
+    params.update(EXEMPLARS=[jacksboro], SKETCH=lambda_ridges, OUTPUT=str(tmp_path / "n.tif"))
+    want = ("SKETCH sets the target grid (the output is on the sketch's grid): give no LIKE, "
+            "WIDTH, HEIGHT, ORIGIN_X, ORIGIN_Y, RESOLUTION or CRS with it (given: %s)" % given)
+    alg = registry().createAlgorithmById("terrasynth:synth")
+    ok, msg = alg.checkParameterValues(params, QgsProcessingContext())  # the dialog's check
+    assert (ok, msg) == (False, want)
+    with pytest.raises(QgsProcessingException) as e:
+        processing_run("terrasynth:synth", params)
+    assert want in str(e.value.args[0])
+    assert os.listdir(tmp_path) == []
 
 
 @pytest.mark.parametrize("params,message", [
@@ -368,6 +426,28 @@ def test_synth_run(jacksboro, cli, tmp_path):
     assert preview.exists()
     assert {"seams.tif", "source_exemplar.tif", "source_x.tif", "source_y.tif",
             "order.tif"} <= set(os.listdir(dbg))
+
+
+def test_synth_sketch_run(jacksboro, lambda_ridges, cli, tmp_path):
+    """Sketch-guided: the output is on the sketch's grid (size, CRS, geotransform)."""
+    out = tmp_path / "sk.tif"
+    res = processing_run("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "SKETCH": lambda_ridges, "MODE": 0, "PATCH_SIZE": 32,
+        "OVERLAP": 8, "SEED": 1, "OUTPUT": str(out)})
+    assert res["OUTPUT"] == str(out)
+    ds, srs = raster_info(out)
+    sk, srs_sk = raster_info(lambda_ridges)
+    assert srs is not None and srs.IsSame(srs_sk)
+    assert (ds.RasterXSize, ds.RasterYSize) == (sk.RasterXSize, sk.RasterYSize)
+    assert ds.GetGeoTransform() == pytest.approx(sk.GetGeoTransform(), rel=1e-12, abs=1e-12)
+    band = ds.GetRasterBand(1)
+    assert band.DataType == gdal.GDT_Float32 and band.GetNoDataValue() == -9999
+    z = band.ReadAsArray()
+    valid = z[z != -9999]
+    assert valid.size > 0.9 * z.size  # the sketch has no nodata
+    # heights near the exemplar's 236..1076 m (Poisson seam removal may overshoot a little)
+    assert 0 < valid.min() < valid.max() < 2000 and valid.std() > 10
+    assert not [n for n in os.listdir(tmp_path) if n.startswith(".")]  # no temporary files
 
 
 def test_synth_like_grid(jacksboro, cli, tmp_path):

@@ -18,8 +18,9 @@ SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "dialog_screen
                         "Minimum branch length unit", "Ridges and valleys"],
      {"INPUT": "DEM", "FEATURES": 2, "MIN_BRANCH_LENGTH": 600, "MIN_BRANCH_LENGTH_UNIT": 1},
      {"--features": "both", "--min-branch-length": "600m", "--band": "1"}),
-    ("terrasynth:synth", ["Exemplar DEMs", "Target grid like [optional]", "Patch size (cells)",
-                          "Overlap (cells)", "Placement order"],
+    ("terrasynth:synth", ["Exemplar DEMs", "Sketch [optional]", "Target grid like [optional]",
+                          "Patch size (cells)", "Overlap (cells)", "Placement order",
+                          "Sketch mode"],
      {"EXEMPLARS": ["DEM"], "WIDTH": 96, "HEIGHT": 80, "PATCH_SIZE": 32, "OVERLAP": 8},
      {"--size": "96x80", "--patch-size": "32", "--overlap": "8", "--exemplar": "DEM"}),
 ])
@@ -55,3 +56,4 @@ def test_dialog_screenshot(alg_id, labels, values, expect, tmp_path, plugin_pare
         assert argv[argv.index(flag) + 1] == (jacksboro if value == "DEM" else value), flag
     assert "--crs" not in argv and "--origin" not in argv and "--like" not in argv
     assert "--preview" not in argv and "--debug-dir" not in argv  # off by default
+    assert "--sketch" not in argv and "--mode" not in argv  # no sketch: no sketch options
