@@ -136,9 +136,20 @@ static int recipe_params(ts_recipe *r, CPLXMLNode *node, const char *stage, void
             return -1;
         }
         if (ts_params_set(ctx, stage, params, name, value) != TS_OK) {
-            rerr(err, r->path, "<Param name=\"%s\">: %s", name, ts_ctx_message(ctx));
-            ts_ctx_free(ctx);
-            return -1;
+            /* synth recipes also take the sketch stage's parameters */
+            size_t nd;
+            const ts_param_desc *d = ts_params_describe("sketch", &nd);
+            size_t j;
+            int is_sketch = 0;
+            for (j = 0; d && j < nd; j++)
+                if (!strcmp(d[j].name, name))
+                    is_sketch = 1;
+            if (!(r->method == RECIPE_SYNTH && is_sketch &&
+                  ts_params_set(ctx, "sketch", &r->synth.sketch_params, name, value) == TS_OK)) {
+                rerr(err, r->path, "<Param name=\"%s\">: %s", name, ts_ctx_message(ctx));
+                ts_ctx_free(ctx);
+                return -1;
+            }
         }
     }
     ts_ctx_free(ctx);
@@ -285,6 +296,61 @@ static int recipe_synth(ts_recipe *r, CPLXMLNode *node, const char *const *oo, t
     if (!r->synth.n_exemplars) {
         rerr(err, r->path, "<Synth> needs at least one <Exemplar>");
         return -1;
+    }
+    r->synth.sketch_params = ts_sketch_params_default();
+    if ((v = CPLGetXMLValue(node, "Sketch", NULL))) {
+        if (!*v) {
+            rerr(err, r->path, "<Sketch> is empty");
+            return -1;
+        }
+        r->synth.sketch = recipe_keep_path(r, v);
+        if (recipe_check_not_self(r, r->synth.sketch, err))
+            return -1;
+    }
+    if ((c = CPLGetXMLNode(node, "Water"))) {
+        v = CPLGetXMLValue(c, NULL, "");
+        if (!*v || recipe_parse_double(CPLGetXMLValue(c, "level", NULL), &r->synth.water_level)) {
+            rerr(err, r->path, "<Water level=\"H\">MASK</Water> needs a mask and a numeric level");
+            return -1;
+        }
+        r->synth.water = recipe_keep_path(r, v);
+    }
+    for (c = node->psChild; c; c = c->psNext) {
+        static const char *const attrs[6] = {"xoff", "yoff", "width", "height", "x", "y"};
+        long vals[6];
+        int a;
+        tsjob_pin *pin;
+        if (c->eType != CXT_Element || !EQUAL(c->pszValue, "Pin"))
+            continue;
+        if (r->synth.n_pins == TSJOB_MAX_PINS) {
+            rerr(err, r->path, "more than %d <Pin> elements", TSJOB_MAX_PINS);
+            return -1;
+        }
+        for (a = 0; a < 6; a++)
+            if (recipe_parse_int(CPLGetXMLValue(c, attrs[a], NULL), a == 2 || a == 3 ? 1 : 0,
+                                 1 << 24, &vals[a]) != 0) {
+                rerr(err, r->path, "<Pin %s=\"%s\">: not a cell number", attrs[a],
+                     CPLGetXMLValue(c, attrs[a], ""));
+                return -1;
+            }
+        pin = &r->synth.pins[r->synth.n_pins++];
+        pin->path = recipe_keep_path(r, CPLGetXMLValue(c, NULL, ""));
+        pin->xoff = (int)vals[0];
+        pin->yoff = (int)vals[1];
+        pin->width = (int)vals[2];
+        pin->height = (int)vals[3];
+        pin->x = (int)vals[4];
+        pin->y = (int)vals[5];
+    }
+    if (r->synth.sketch) {
+        if (grid) {
+            rerr(err, r->path, "a <Sketch> sets the output grid: give no <Grid>");
+            return -1;
+        }
+        if (recipe_params(r, node, "synth", &r->synth.params, err) ||
+            recipe_options(r, oo, "synth", &r->synth.params, err))
+            return -1;
+        return tsjob_synth_prepare(&r->synth, &r->synth_res, err);
     }
     if (!grid) {
         rerr(err, r->path, "<Synth> needs a <Grid like=...> or <Grid width=... height=...>");
@@ -585,8 +651,26 @@ int recipe_write_synth(const char *path, const tsjob_synth *job, uint64_t seed, 
     CPLAddXMLAttributeAndValue(node, "seed", CPLSPrintf("%llu", (unsigned long long)seed));
     for (i = 0; i < job->n_exemplars; i++)
         CPLCreateXMLElementAndValue(node, "Exemplar", recipe_rel(path, job->exemplars[i]));
-    grid = CPLCreateXMLNode(node, CXT_Element, "Grid");
-    if (g->like) {
+    if (job->sketch)
+        CPLCreateXMLElementAndValue(node, "Sketch", recipe_rel(path, job->sketch));
+    for (i = 0; i < job->n_pins; i++) {
+        const tsjob_pin *p = &job->pins[i];
+        CPLXMLNode *pn = CPLCreateXMLElementAndValue(node, "Pin", recipe_rel(path, p->path));
+        CPLAddXMLAttributeAndValue(pn, "xoff", CPLSPrintf("%d", p->xoff));
+        CPLAddXMLAttributeAndValue(pn, "yoff", CPLSPrintf("%d", p->yoff));
+        CPLAddXMLAttributeAndValue(pn, "width", CPLSPrintf("%d", p->width));
+        CPLAddXMLAttributeAndValue(pn, "height", CPLSPrintf("%d", p->height));
+        CPLAddXMLAttributeAndValue(pn, "x", CPLSPrintf("%d", p->x));
+        CPLAddXMLAttributeAndValue(pn, "y", CPLSPrintf("%d", p->y));
+    }
+    if (job->water) {
+        CPLXMLNode *wn = CPLCreateXMLElementAndValue(node, "Water", recipe_rel(path, job->water));
+        CPLAddXMLAttributeAndValue(wn, "level", CPLSPrintf("%.17g", job->water_level));
+    }
+    grid = job->sketch ? NULL : CPLCreateXMLNode(node, CXT_Element, "Grid");
+    if (!grid) {
+        /* the sketch's grid */
+    } else if (g->like) {
         CPLAddXMLAttributeAndValue(grid, "like", recipe_rel(path, g->like));
     } else {
         CPLAddXMLAttributeAndValue(grid, "width", CPLSPrintf("%d", g->width));
@@ -601,6 +685,8 @@ int recipe_write_synth(const char *path, const tsjob_synth *job, uint64_t seed, 
             CPLAddXMLAttributeAndValue(grid, "crs", g->crs);
     }
     recipe_add_params(node, "synth", &job->params);
+    if (job->sketch)
+        recipe_add_params(node, "sketch", &job->sketch_params);
     rc = recipe_save(path, root, err);
     CPLDestroyXMLNode(root);
     return rc;

@@ -187,6 +187,12 @@ static void ppa_help(FILE *out)
             "  --recipe FILE.tsyn               write a recipe for this command instead (no\n"
             "                                   OUTPUT): gdal_translate FILE.tsyn out.tif\n"
             "\n"
+            "Constraints:\n"
+            "  --pin FILE:XOFF,YOFF,W,H@X,Y     keep a window of a DEM (its own cells) unchanged\n"
+            "                                   with its top-left at output cell X,Y (repeatable)\n"
+            "  --water MASK --water-level H     cells where MASK (on the output grid) is non-zero\n"
+            "                                   keep the level H\n"
+            "\n"
             "Common options:\n%s"
             "\n"
             "Example:\n"
@@ -418,6 +424,12 @@ static void synth_help(FILE *out)
             "  --recipe FILE.tsyn               write a recipe for this command instead (no\n"
             "                                   OUTPUT): gdal_translate FILE.tsyn out.tif\n"
             "\n"
+            "Constraints:\n"
+            "  --pin FILE:XOFF,YOFF,W,H@X,Y     keep a window of a DEM (its own cells) unchanged\n"
+            "                                   with its top-left at output cell X,Y (repeatable)\n"
+            "  --water MASK --water-level H     cells where MASK (on the output grid) is non-zero\n"
+            "                                   keep the level H\n"
+            "\n"
             "Common options:\n%s"
             "\n"
             "Example:\n"
@@ -540,6 +552,8 @@ static int cmd_synth(int argc, char **argv)
     tsjob_synth job;
     tsjob_synth_result res;
     tsjob_grid *grid = &job.grid;
+    char pin_paths[TSJOB_MAX_PINS][1024];
+    int has_water_level = 0;
     tsio_err err;
     tsio_write_opts wo;
     ts_synth_maps maps;
@@ -568,7 +582,8 @@ static int cmd_synth(int argc, char **argv)
         if (!strcmp(a, "--exemplar") || !strcmp(a, "--like") || !strcmp(a, "--size") ||
             !strcmp(a, "--origin") || !strcmp(a, "--resolution") || !strcmp(a, "--crs") ||
             !strcmp(a, "--seed") || !strcmp(a, "--preview") || !strcmp(a, "--debug-dir") ||
-            !strcmp(a, "--recipe") || !strcmp(a, "--sketch")) {
+            !strcmp(a, "--recipe") || !strcmp(a, "--sketch") || !strcmp(a, "--pin") ||
+            !strcmp(a, "--water") || !strcmp(a, "--water-level")) {
             if (!v) {
                 usage_error("synth", "%s needs a value", a);
                 rc = EXIT_USAGE;
@@ -625,6 +640,26 @@ static int cmd_synth(int argc, char **argv)
                 recipe_path = v;
             } else if (!strcmp(a, "--sketch")) {
                 job.sketch = v;
+            } else if (!strcmp(a, "--pin")) {
+                if (job.n_pins == TSJOB_MAX_PINS ||
+                    tsjob_parse_pin(v, &job.pins[job.n_pins], pin_paths[job.n_pins],
+                                    sizeof pin_paths[0]) != 0) {
+                    usage_error("synth",
+                                "--pin takes FILE:XOFF,YOFF,W,H@X,Y (at most 16), not '%s'", v);
+                    rc = EXIT_USAGE;
+                    goto done;
+                }
+                job.n_pins++;
+            } else if (!strcmp(a, "--water")) {
+                job.water = v;
+            } else if (!strcmp(a, "--water-level")) {
+                job.water_level = strtod(v, &end);
+                if (*end || !isfinite(job.water_level)) {
+                    usage_error("synth", "--water-level must be a number, not '%s'", v);
+                    rc = EXIT_USAGE;
+                    goto done;
+                }
+                has_water_level = 1;
             } else {
                 debug_dir = v;
             }
@@ -672,6 +707,11 @@ static int cmd_synth(int argc, char **argv)
     }
     if (recipe_path && (output || preview || debug_dir)) {
         usage_error("synth", "%s", "--recipe writes the recipe instead of outputs: give no OUTPUT");
+        rc = EXIT_USAGE;
+        goto done;
+    }
+    if (!job.water != !has_water_level) {
+        usage_error("synth", "%s", "--water and --water-level go together");
         rc = EXIT_USAGE;
         goto done;
     }

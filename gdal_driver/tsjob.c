@@ -152,11 +152,15 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
     return 0;
 }
 
+static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsigned char *flags,
+                           tsio_err *err);
+
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
                         ts_synth_maps *maps, tsio_err *err)
 {
     tsio_raster ex[TSJOB_MAX_EXEMPLARS];
     ts_raster exr[TSJOB_MAX_EXEMPLARS];
+    unsigned char *flags = NULL;
     int i, rc = -1, cy = res->geo.height / 2;
     memset(ex, 0, sizeof ex);
     for (i = 0; i < job->n_exemplars; i++) {
@@ -180,6 +184,13 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         job_err(err, "synth", ts_ctx_message(ctx));
         goto done;
     }
+    flags = calloc((size_t)res->geo.width * (size_t)res->geo.height, 1);
+    if (!flags) {
+        job_err(err, "synth", "out of memory");
+        goto done;
+    }
+    if (job_constraints(job, res, flags, err) != 0)
+        goto done;
     if (job->sketch) {
         tsio_raster sk;
         int bad;
@@ -199,7 +210,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
                 job_err(err, job->sketch, msg);
             goto done;
         }
-    } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &job->params, &res->out, NULL,
+    } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &job->params, &res->out, flags,
                                 maps) != TS_OK) {
         const char *msg = ts_ctx_message(ctx);
         int which = 0;
@@ -213,9 +224,100 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     }
     rc = 0;
 done:
+    free(flags);
     for (i = 0; i < job->n_exemplars; i++)
         tsio_raster_free(&ex[i]);
     return rc;
+}
+
+int tsjob_parse_pin(const char *spec, tsjob_pin *pin, char *path_buf, size_t path_len)
+{
+    const char *at = strrchr(spec, '@'), *colon;
+    size_t n;
+    char tail;
+    if (!at)
+        return -1;
+    for (colon = at; colon > spec && *colon != ':'; colon--)
+        ;
+    if (colon == spec || (n = (size_t)(colon - spec)) >= path_len)
+        return -1;
+    memcpy(path_buf, spec, n);
+    path_buf[n] = '\0';
+    pin->path = path_buf;
+    if (sscanf(colon + 1, "%d,%d,%d,%d@%d,%d%c", &pin->xoff, &pin->yoff, &pin->width,
+               &pin->height, &pin->x, &pin->y, &tail) != 6)
+        return -1;
+    if (pin->xoff < 0 || pin->yoff < 0 || pin->width < 1 || pin->height < 1 || pin->x < 0 ||
+        pin->y < 0)
+        return -1;
+    return 0;
+}
+
+/* Water and pins go into `out` before the synthesis, as fixed cells. */
+static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsigned char *flags,
+                           tsio_err *err)
+{
+    int i, x, y, W = res->geo.width, H = res->geo.height, cy = H / 2;
+    if (job->water) {
+        tsio_raster m;
+        if (tsio_read_raster(job->water, 1, &m, err) != 0)
+            return -1;
+        if (m.geo.width != W || m.geo.height != H) {
+            snprintf(err->msg, sizeof err->msg,
+                     "%s: the water mask is %d x %d cells, the output %d x %d", job->water,
+                     m.geo.width, m.geo.height, W, H);
+            tsio_raster_free(&m);
+            return -1;
+        }
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                float v = TS_PIX(&m.r, x, y);
+                if (!isnan(v) && v != 0) {
+                    TS_PIX(&res->out, x, y) = (float)job->water_level;
+                    flags[(size_t)y * (size_t)W + (size_t)x] |= TS_CELL_FIXED;
+                }
+            }
+        tsio_raster_free(&m);
+    }
+    for (i = 0; i < job->n_pins; i++) {
+        const tsjob_pin *p = &job->pins[i];
+        tsio_raster ex;
+        double f = 1.0;
+        int x0, y0, w, h;
+        if (tsio_read_raster_resampled(p->path, job->band, res->dx_m ? res->dx_m[cy] : 0,
+                                       res->dy_m ? res->dy_m[cy] : 0, &ex, &f, err) != 0)
+            return -1;
+        /* the window in the file's cells, at the output's resolution */
+        x0 = (int)lround(p->xoff * f);
+        y0 = (int)lround(p->yoff * f);
+        w = (int)lround(p->width * f);
+        h = (int)lround(p->height * f);
+        if (w < 1 || h < 1 || x0 + w > ex.r.width || y0 + h > ex.r.height ||
+            p->xoff + p->width > (int)lround(ex.r.width / f) + 1) {
+            snprintf(err->msg, sizeof err->msg, "%s: the pinned window %d,%d,%d,%d is not inside "
+                     "the raster", p->path, p->xoff, p->yoff, p->width, p->height);
+            tsio_raster_free(&ex);
+            return -1;
+        }
+        if (p->x + w > W || p->y + h > H) {
+            snprintf(err->msg, sizeof err->msg,
+                     "%s: the pinned window (%d x %d output cells) at %d,%d leaves the output "
+                     "(%d x %d)",
+                     p->path, w, h, p->x, p->y, W, H);
+            tsio_raster_free(&ex);
+            return -1;
+        }
+        for (y = 0; y < h; y++)
+            for (x = 0; x < w; x++) {
+                float v = TS_PIX(&ex.r, x0 + x, y0 + y);
+                if (isnan(v))
+                    continue; /* exemplar nodata: left to the synthesis */
+                TS_PIX(&res->out, p->x + x, p->y + y) = v;
+                flags[(size_t)(p->y + y) * (size_t)W + (size_t)(p->x + x)] |= TS_CELL_FIXED;
+            }
+        tsio_raster_free(&ex);
+    }
+    return 0;
 }
 
 void tsjob_synth_result_free(tsjob_synth_result *res)

@@ -55,6 +55,16 @@ typedef struct tsjob_grid {
     const char *crs;     /* needs origin and res */
 } tsjob_grid;
 
+#define TSJOB_MAX_PINS 16
+
+/* A window of an exemplar pinned into the output (Zhou et al. section 6.1:
+ * Mount St. Helens as Mount Doom). */
+typedef struct tsjob_pin {
+    const char *path;
+    int xoff, yoff, width, height; /* window in the file's own cells */
+    int x, y;                      /* top-left output cell it goes to */
+} tsjob_pin;
+
 typedef struct tsjob_synth {
     const char *exemplars[TSJOB_MAX_EXEMPLARS];
     int n_exemplars;
@@ -63,7 +73,14 @@ typedef struct tsjob_synth {
     ts_synth_params params;
     const char *sketch;      /* sketch-guided synthesis when not NULL */
     ts_sketch_params sketch_params;
+    tsjob_pin pins[TSJOB_MAX_PINS];
+    int n_pins;
+    const char *water;       /* mask raster on the output grid: non-zero cells are water */
+    double water_level;
 } tsjob_synth;
+
+/** Parse "FILE:XOFF,YOFF,W,H@X,Y" into pin (path points into spec). */
+int tsjob_parse_pin(const char *spec, tsjob_pin *pin, char *path_buf, size_t path_len);
 
 typedef struct tsjob_synth_result {
     tsio_georef geo;         /* the target grid */

@@ -468,7 +468,8 @@ typedef struct ts_sketch_info {
 } ts_sketch_info;
 
 /**
- * Synthesize `out` (caller-allocated, the sketch's size; NaN on entry)
+ * Synthesize `out` (caller-allocated, the sketch's size; cells that are not
+ * NaN on entry, such as pinned windows or water, are kept as they are)
  * following `sketch` (borrowed; a grey drawing, bright = high, NaN =
  * nodata, which stays nodata in the output) in the style of the exemplars
  * (at the output's ground resolution): PPA on the sketch and on the

@@ -469,10 +469,13 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         sk_free(&k);
         return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     }
-    for (i = 0; i < n_cells; i++)
-        if (isnan(sketch->data[(i / (size_t)sketch->width) * (size_t)sketch->stride +
-                               i % (size_t)sketch->width]))
+    for (i = 0; i < n_cells; i++) {
+        size_t r = i / (size_t)sketch->width, c = i % (size_t)sketch->width;
+        if (isnan(sketch->data[r * (size_t)sketch->stride + c]))
             k.flags[i] = TS_CELL_NODATA;
+        else if (!isnan(out->data[r * (size_t)out->stride + c]))
+            k.flags[i] = TS_CELL_FIXED; /* pinned windows, water: kept as they are */
+    }
     /* 1. the sketch's features */
     {
         int mode = sp->mode == TS_SKETCH_AUTO ? sk_auto_mode(ctx, sketch) : sp->mode;

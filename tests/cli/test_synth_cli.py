@@ -248,3 +248,40 @@ def test_real_dems_grow_seamless_terrain(tmp_path, name):
     ex_steps = ex_steps[np.isfinite(ex_steps)]
     if seam_steps.size:
         assert np.percentile(seam_steps, 99.9) <= 1.2 * np.percentile(ex_steps, 99.9)
+
+
+def test_pins_and_water_are_kept(tmp_path):
+    # a projected exemplar on the output grid: pinned cells must come back unchanged
+    utm = tmp_path / "jb_utm.tif"
+    gdal.Warp(str(utm), JACKSBORO, dstSRS="EPSG:32616", xRes=90, yRes=90, resampleAlg="bilinear")
+    mask = np.zeros((200, 220), np.uint8)
+    mask[150:190, 10:90] = 1
+    ds = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "water.tif"), 220, 200, 1, gdal.GDT_Byte)
+    ds.GetRasterBand(1).WriteArray(mask)
+    ds = None
+    run("synth", "--exemplar", utm, "--size", "220x200", "--seed", "2", "--pin", f"{utm}:150,100,70,50@100,30",
+        "--water", tmp_path / "water.tif", "--water-level", "300", tmp_path / "o.tif", "-q")
+    z = load(tmp_path / "o.tif")[1]
+    e = gdal.Open(str(utm)).ReadAsArray().astype(np.float64)
+    assert np.array_equal(z[30:80, 100:170], e[100:150, 150:220])
+    assert (z[150:190, 10:90] == 300).all()
+    assert np.isfinite(z).all()
+
+
+@pytest.mark.parametrize("spec", ["x.tif:1,2,3@4,5", "x.tif:1,2,0,4@5,6", "nocolon@1,2", "x.tif:-1,0,5,5@0,0"])
+def test_bad_pin_specs(tmp_path, spec):
+    p = run("synth", "--exemplar", JACKSBORO, "--size", "100x100", "--pin", spec, tmp_path / "o.tif", check=False)
+    assert p.returncode == 2 and "--pin" in p.stderr
+
+
+def test_pin_outside_the_output(tmp_path):
+    p = run("synth", "--exemplar", JACKSBORO, "--size", "100x100", "--pin", f"{JACKSBORO}:0,0,50,50@80,80",
+            tmp_path / "o.tif", "-q", check=False)
+    assert p.returncode == 1 and "leaves the output" in p.stderr
+    assert not (tmp_path / "o.tif").exists()
+
+
+def test_water_needs_a_level(tmp_path):
+    p = run("synth", "--exemplar", JACKSBORO, "--size", "100x100", "--water", JACKSBORO, tmp_path / "o.tif",
+            check=False)
+    assert p.returncode == 2 and "--water-level" in p.stderr

@@ -291,3 +291,25 @@ def test_pixfun_bad_arguments(rasters, func, args, nsrc, words):
     pixfun_vrt(d / "bad.vrt", func, [d / "t1.tif"] * nsrc, args)
     with pytest.raises(RuntimeError, match=words):
         gdal.Open(str(d / "bad.vrt")).ReadAsArray()
+
+
+def test_sketch_recipe_with_pin_and_water_equals_cli(tmp_path):
+    sketch = os.path.join(DATA, "sketches", "lambda_ridges.tif")
+    mask = np.zeros((512, 512), np.uint8)
+    mask[400:450, 30:120] = 1
+    sk = gdal.Open(sketch)
+    ds = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "water.tif"), 512, 512, 1, gdal.GDT_Byte)
+    ds.SetGeoTransform(sk.GetGeoTransform())
+    ds.SetProjection(sk.GetProjection())
+    ds.GetRasterBand(1).WriteArray(mask)
+    ds = None
+    args = ["--sketch", sketch, "--exemplar", JACKSBORO, "--seed", "3", "--patch-size", "32", "--overlap", "8",
+            "--pin", f"{JACKSBORO}:200,150,60,40@300,20", "--water", tmp_path / "water.tif", "--water-level", "250"]
+    ts("synth", *args, "--recipe", tmp_path / "s.tsyn")
+    ts("synth", *args, tmp_path / "cli.tif", "-q")
+    text = (tmp_path / "s.tsyn").read_text()
+    assert "<Sketch>" in text and "<Pin " in text and "<Water level=" in text
+    tool("gdal_translate", "-q", tmp_path / "s.tsyn", tmp_path / "gdal.tif")
+    a = arr(tmp_path / "gdal.tif")
+    assert a.tobytes() == arr(tmp_path / "cli.tif").tobytes()
+    assert (a[400:450, 30:120] == 250).all()
