@@ -342,6 +342,43 @@ static int recipe_synth(ts_recipe *r, CPLXMLNode *node, const char *const *oo, t
         pin->x = (int)vals[4];
         pin->y = (int)vals[5];
     }
+    if ((c = CPLGetXMLNode(node, "Regions"))) {
+        CPLXMLNode *rule;
+        v = CPLGetXMLValue(c, NULL, "");
+        r->synth.regions = *v ? recipe_keep_path(r, v) : NULL;
+        /* <Regions>map.tif</Regions> with <RegionExemplar id="1">ex.tif</RegionExemplar> rules */
+        for (rule = node->psChild; rule && r->synth.regions; rule = rule->psNext) {
+            long id;
+            int kx;
+            const char *file;
+            if (rule->eType != CXT_Element || !EQUAL(rule->pszValue, "RegionExemplar"))
+                continue;
+            file = CPLGetXMLValue(rule, NULL, "");
+            if (recipe_parse_int(CPLGetXMLValue(rule, "id", NULL), -2147483647L, 2147483647L,
+                                 &id) != 0 || !*file ||
+                r->synth.n_region_rules == TSJOB_MAX_EXEMPLARS) {
+                rerr(err, r->path, "<RegionExemplar id=\"N\">FILE</RegionExemplar> is incomplete");
+                return -1;
+            }
+            file = recipe_keep_path(r, file);
+            for (kx = 0; kx < r->synth.n_exemplars; kx++)
+                if (!strcmp(r->synth.exemplars[kx], file))
+                    break;
+            if (kx == r->synth.n_exemplars) {
+                if (kx == TSJOB_MAX_EXEMPLARS) {
+                    rerr(err, r->path, "more than %d exemplars", TSJOB_MAX_EXEMPLARS);
+                    return -1;
+                }
+                r->synth.exemplars[r->synth.n_exemplars++] = file;
+            }
+            r->synth.region_id[r->synth.n_region_rules] = (int)id;
+            r->synth.region_exemplar[r->synth.n_region_rules++] = kx;
+        }
+        if (!r->synth.regions || !r->synth.n_region_rules) {
+            rerr(err, r->path, "<Regions> needs a map and at least one <RegionExemplar>");
+            return -1;
+        }
+    }
     if (r->synth.sketch) {
         if (grid) {
             rerr(err, r->path, "a <Sketch> sets the output grid: give no <Grid>");
@@ -662,6 +699,14 @@ int recipe_write_synth(const char *path, const tsjob_synth *job, uint64_t seed, 
         CPLAddXMLAttributeAndValue(pn, "height", CPLSPrintf("%d", p->height));
         CPLAddXMLAttributeAndValue(pn, "x", CPLSPrintf("%d", p->x));
         CPLAddXMLAttributeAndValue(pn, "y", CPLSPrintf("%d", p->y));
+    }
+    if (job->regions) {
+        CPLCreateXMLElementAndValue(node, "Regions", recipe_rel(path, job->regions));
+        for (i = 0; i < job->n_region_rules; i++) {
+            CPLXMLNode *rn = CPLCreateXMLElementAndValue(
+                node, "RegionExemplar", recipe_rel(path, job->exemplars[job->region_exemplar[i]]));
+            CPLAddXMLAttributeAndValue(rn, "id", CPLSPrintf("%d", job->region_id[i]));
+        }
     }
     if (job->water) {
         CPLXMLNode *wn = CPLCreateXMLElementAndValue(node, "Water", recipe_rel(path, job->water));

@@ -192,6 +192,11 @@ static void ppa_help(FILE *out)
             "                                   with its top-left at output cell X,Y (repeatable)\n"
             "  --water MASK --water-level H     cells where MASK (on the output grid) is non-zero\n"
             "                                   keep the level H\n"
+            "  --regions R --region-exemplar ID=EX\n"
+            "                                   several styles: R is an integer raster on the\n"
+            "                                   output grid or a polygon layer with an integer\n"
+            "                                   field 'region'; region ID takes exemplar EX\n"
+            "                                   (repeatable; other regions take any exemplar)\n"
             "\n"
             "Common options:\n%s"
             "\n"
@@ -429,6 +434,11 @@ static void synth_help(FILE *out)
             "                                   with its top-left at output cell X,Y (repeatable)\n"
             "  --water MASK --water-level H     cells where MASK (on the output grid) is non-zero\n"
             "                                   keep the level H\n"
+            "  --regions R --region-exemplar ID=EX\n"
+            "                                   several styles: R is an integer raster on the\n"
+            "                                   output grid or a polygon layer with an integer\n"
+            "                                   field 'region'; region ID takes exemplar EX\n"
+            "                                   (repeatable; other regions take any exemplar)\n"
             "\n"
             "Common options:\n%s"
             "\n"
@@ -583,7 +593,8 @@ static int cmd_synth(int argc, char **argv)
             !strcmp(a, "--origin") || !strcmp(a, "--resolution") || !strcmp(a, "--crs") ||
             !strcmp(a, "--seed") || !strcmp(a, "--preview") || !strcmp(a, "--debug-dir") ||
             !strcmp(a, "--recipe") || !strcmp(a, "--sketch") || !strcmp(a, "--pin") ||
-            !strcmp(a, "--water") || !strcmp(a, "--water-level")) {
+            !strcmp(a, "--water") || !strcmp(a, "--water-level") || !strcmp(a, "--regions") ||
+            !strcmp(a, "--region-exemplar")) {
             if (!v) {
                 usage_error("synth", "%s needs a value", a);
                 rc = EXIT_USAGE;
@@ -652,6 +663,31 @@ static int cmd_synth(int argc, char **argv)
                 job.n_pins++;
             } else if (!strcmp(a, "--water")) {
                 job.water = v;
+            } else if (!strcmp(a, "--regions")) {
+                job.regions = v;
+            } else if (!strcmp(a, "--region-exemplar")) {
+                long id = strtol(v, &end, 10);
+                int k;
+                if (end == v || *end != '=' || !end[1] ||
+                    job.n_region_rules == TSJOB_MAX_EXEMPLARS) {
+                    usage_error("synth", "--region-exemplar takes ID=FILE, not '%s'", v);
+                    rc = EXIT_USAGE;
+                    goto done;
+                }
+                /* the region's exemplar joins the exemplars if it is not one yet */
+                for (k = 0; k < job.n_exemplars; k++)
+                    if (!strcmp(job.exemplars[k], end + 1))
+                        break;
+                if (k == job.n_exemplars) {
+                    if (job.n_exemplars == TSJOB_MAX_EXEMPLARS) {
+                        usage_error("synth", "at most %s exemplars", "64");
+                        rc = EXIT_USAGE;
+                        goto done;
+                    }
+                    job.exemplars[job.n_exemplars++] = end + 1;
+                }
+                job.region_id[job.n_region_rules] = (int)id;
+                job.region_exemplar[job.n_region_rules++] = k;
             } else if (!strcmp(a, "--water-level")) {
                 job.water_level = strtod(v, &end);
                 if (*end || !isfinite(job.water_level)) {
@@ -701,12 +737,18 @@ static int cmd_synth(int argc, char **argv)
         output = a;
     }
     if ((!output && !recipe_path) || job.n_exemplars == 0) {
+        /* (--region-exemplar files count as exemplars) */
         usage_error("synth", "%s", "needs --exemplar and OUTPUT (or --recipe)");
         rc = EXIT_USAGE;
         goto done;
     }
     if (recipe_path && (output || preview || debug_dir)) {
         usage_error("synth", "%s", "--recipe writes the recipe instead of outputs: give no OUTPUT");
+        rc = EXIT_USAGE;
+        goto done;
+    }
+    if (!job.regions != !job.n_region_rules) {
+        usage_error("synth", "%s", "--regions and --region-exemplar go together");
         rc = EXIT_USAGE;
         goto done;
     }

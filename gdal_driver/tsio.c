@@ -2087,3 +2087,88 @@ int tsio_georef_make(int width, int height, double origin_x, double origin_y, do
     }
     return 0;
 }
+
+/* ------------------------------------------------------------------ */
+/* Label maps (regions)                                                */
+/* ------------------------------------------------------------------ */
+
+int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *field, int fill,
+                        int32_t *values, tsio_err *err)
+{
+    GDALDatasetH src, mem = NULL;
+    size_t i, n = (size_t)geo->width * (size_t)geo->height;
+    int rc = -1;
+    ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    src = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_VECTOR | GDAL_OF_READONLY, NULL, NULL, NULL);
+    if (!src) {
+        VSIStatBufL st;
+        set_err(err, path, VSIStatL(path, &st) != 0 ? "no such file" : "not a raster or vector GDAL can open");
+        goto done;
+    }
+    if (GDALGetRasterCount(src) > 0) {
+        GDALRasterBandH b = GDALGetRasterBand(src, 1);
+        int has_nd = 0;
+        double nd = GDALGetRasterNoDataValue(b, &has_nd);
+        if (GDALGetRasterXSize(src) != geo->width || GDALGetRasterYSize(src) != geo->height) {
+            set_err(err, path, "the region map is %d x %d cells, the output %d x %d",
+                    GDALGetRasterXSize(src), GDALGetRasterYSize(src), geo->width, geo->height);
+            goto done;
+        }
+        if (GDALRasterIO(b, GF_Read, 0, 0, geo->width, geo->height, values, geo->width,
+                         geo->height, GDT_Int32, 0, 0) != CE_None) {
+            set_err_gdal(err, path, "cannot read the region map");
+            goto done;
+        }
+        if (has_nd)
+            for (i = 0; i < n; i++)
+                if ((double)values[i] == nd)
+                    values[i] = fill;
+        rc = 0;
+    } else if (GDALDatasetGetLayerCount(src) > 0) {
+        OGRLayerH layer = GDALDatasetGetLayer(src, 0);
+        OGRFeatureDefnH defn = OGR_L_GetLayerDefn(layer);
+        char *argv[] = {"-a", (char *)field, NULL};
+        GDALRasterizeOptions *ro;
+        int usage = 0;
+        GDALDatasetH out;
+        if (OGR_FD_GetFieldIndex(defn, field) < 0) {
+            set_err(err, path, "the polygon layer has no integer field \"%s\"", field);
+            goto done;
+        }
+        mem = GDALCreate(GDALGetDriverByName("MEM"), "", geo->width, geo->height, 1, GDT_Int32,
+                         NULL);
+        if (!mem) {
+            set_err(err, path, "out of memory");
+            goto done;
+        }
+        GDALSetGeoTransform(mem, (double *)geo->gt);
+        if (geo->wkt)
+            GDALSetProjection(mem, geo->wkt);
+        GDALFillRaster(GDALGetRasterBand(mem, 1), fill, 0);
+        ro = GDALRasterizeOptionsNew(argv, NULL);
+        out = ro ? GDALRasterize(NULL, mem, src, ro, &usage) : NULL;
+        if (ro)
+            GDALRasterizeOptionsFree(ro);
+        if (!out) {
+            set_err_gdal(err, path, "cannot rasterise the region polygons");
+            goto done;
+        }
+        if (GDALRasterIO(GDALGetRasterBand(mem, 1), GF_Read, 0, 0, geo->width, geo->height,
+                         values, geo->width, geo->height, GDT_Int32, 0, 0) != CE_None) {
+            set_err_gdal(err, path, "cannot read the rasterised regions");
+            goto done;
+        }
+        rc = 0;
+    } else {
+        set_err(err, path, "has neither a raster band nor a layer");
+    }
+done:
+    if (mem)
+        GDALClose(mem);
+    if (src)
+        GDALClose(src);
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    return rc;
+}

@@ -138,6 +138,15 @@ int tsio_georef_make(int width, int height, double origin_x, double origin_y, do
  *  them; *dx = *dy = NULL without CRS.  Caller frees both with free(). */
 int tsio_georef_metrics(const tsio_georef *geo, double **dx, double **dy, tsio_err *err);
 
+/**
+ * An integer map on a grid: a raster (band 1, same size as geo) or a polygon
+ * layer with an integer field `field`, rasterised onto geo (cell centres).
+ * values: caller-allocated geo->width * geo->height ints; nodata and empty
+ * cells get `fill`.
+ */
+int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *field, int fill,
+                        int32_t *values, tsio_err *err);
+
 /** Check that a vector output can be written (format from the extension,
  *  driver present, directory exists) without writing anything. */
 int tsio_check_vector_output(const char *path, tsio_err *err);

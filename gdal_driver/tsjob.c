@@ -4,6 +4,7 @@
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -161,6 +162,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     tsio_raster ex[TSJOB_MAX_EXEMPLARS];
     ts_raster exr[TSJOB_MAX_EXEMPLARS];
     unsigned char *flags = NULL;
+    int32_t *cell_ex = NULL;
+    ts_synth_params params = job->params;
     int i, rc = -1, cy = res->geo.height / 2;
     memset(ex, 0, sizeof ex);
     for (i = 0; i < job->n_exemplars; i++) {
@@ -191,13 +194,32 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     }
     if (job_constraints(job, res, flags, err) != 0)
         goto done;
+    if (job->regions) {
+        size_t n = (size_t)res->geo.width * (size_t)res->geo.height, c;
+        int r;
+        cell_ex = malloc(n * sizeof *cell_ex);
+        if (!cell_ex) {
+            job_err(err, job->regions, "out of memory");
+            goto done;
+        }
+        if (tsio_read_label_map(job->regions, &res->geo, "region", INT32_MIN, cell_ex, err) != 0)
+            goto done;
+        for (c = 0; c < n; c++) {
+            int32_t id = cell_ex[c], ex_i = -1;
+            for (r = 0; r < job->n_region_rules; r++)
+                if (job->region_id[r] == id)
+                    ex_i = job->region_exemplar[r];
+            cell_ex[c] = ex_i;
+        }
+        params.cell_exemplar = cell_ex;
+    }
     if (job->sketch) {
         tsio_raster sk;
         int bad;
         if (tsio_read_raster(job->sketch, 1, &sk, err) != 0)
             goto done;
         bad = ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params,
-                              &job->params, &res->out, maps, &res->sketch_features,
+                              &params, &res->out, maps, &res->sketch_features,
                               &res->sketch_info) != TS_OK;
         tsio_raster_free(&sk);
         if (bad) {
@@ -210,7 +232,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
                 job_err(err, job->sketch, msg);
             goto done;
         }
-    } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &job->params, &res->out, flags,
+    } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &params, &res->out, flags,
                                 maps) != TS_OK) {
         const char *msg = ts_ctx_message(ctx);
         int which = 0;
@@ -225,6 +247,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     rc = 0;
 done:
     free(flags);
+    free(cell_ex);
     for (i = 0; i < job->n_exemplars; i++)
         tsio_raster_free(&ex[i]);
     return rc;

@@ -77,6 +77,12 @@ typedef struct tsjob_synth {
     int n_pins;
     const char *water;       /* mask raster on the output grid: non-zero cells are water */
     double water_level;
+    /* several styles: a region map (integer raster on the output grid, or a
+     * polygon layer with an integer field "region") and, per region id, the
+     * index of its exemplar; other regions take any exemplar */
+    const char *regions;
+    int n_region_rules;
+    int region_id[TSJOB_MAX_EXEMPLARS], region_exemplar[TSJOB_MAX_EXEMPLARS];
 } tsjob_synth;
 
 /** Parse "FILE:XOFF,YOFF,W,H@X,Y" into pin (path points into spec). */

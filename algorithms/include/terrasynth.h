@@ -402,6 +402,13 @@ typedef struct ts_synth_params {
     double variety;    /* pick at random among candidates within (1+variety) of the best */
     int coarse_factor; /* match on exemplars downsampled by this factor, refine at full
                           resolution (1 = exhaustive full-resolution search, 0 = automatic) */
+    /* Several styles in one terrain (Zhou et al. section 6.1): for every
+     * output cell the index of the exemplar its region takes, or -1 for
+     * any; NULL = any exemplar everywhere.  Borrowed, width*height of the
+     * output.  A patch takes the exemplar of its window's centre cell;
+     * graph cuts and Poisson seam removal make the transitions.  (Not a
+     * descriptor parameter: front ends pass a region map.) */
+    const int32_t *cell_exemplar;
 } ts_synth_params;
 
 TS_API ts_synth_params ts_synth_params_default(void);

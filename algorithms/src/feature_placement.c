@@ -248,10 +248,15 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
     wx = TS_MAX(0, TS_MIN(W - P, wx));
     wy = TS_MAX(0, TS_MIN(H - P, wy));
     /* candidates by deformation */
+    int only = -1;
+    if (k->p->cell_exemplar) {
+        int c = k->p->cell_exemplar[(size_t)lround(s->cy) * (size_t)W + (size_t)lround(s->cx)];
+        only = (c >= 0 && c < k->n_ex) ? c : -1;
+    }
     for (e = 0; e < k->n_es; e++) {
         const ts_feature_site *es = &k->es[e].site;
         int rot, mirror, rots, mirrors;
-        if (es->type != s->type || es->n_ctrl != s->n_ctrl)
+        if (es->type != s->type || es->n_ctrl != s->n_ctrl || (only >= 0 && k->es[e].ex != only))
             continue;
         rots = s->type == TS_SITE_BRANCH ? s->degree : s->type == TS_SITE_PATH ? 2 : 1;
         mirrors = s->type == TS_SITE_BRANCH ? 2 : 1;

@@ -399,6 +399,16 @@ static void place_cut_range(void *arg, size_t b, size_t e)
     ts_ctx_free(c);
 }
 
+/* The exemplar the region at the window's centre takes, or -1 for any. */
+static int place_region_exemplar(const placer *pl, const placement *q)
+{
+    int cx = q->x + pl->P / 2, cy = q->y + pl->P / 2, e;
+    if (!pl->p->cell_exemplar)
+        return -1;
+    e = pl->p->cell_exemplar[(size_t)cy * (size_t)pl->out->width + (size_t)cx];
+    return (e >= 0 && e < pl->n_ex) ? e : -1;
+}
+
 /* Place one patch at q: the first ever (nothing to match) is random. */
 static ts_status place_one(placer *pl, placement *q, int index)
 {
@@ -443,9 +453,10 @@ static ts_status place_one(placer *pl, placement *q, int index)
     if (n_known == 0) {
         /* nothing to match: a random valid window of a random exemplar */
         int tries;
+        int only = place_region_exemplar(pl, q);
         for (tries = 0; tries < 100000; tries++) {
             exemplar_data *ed;
-            e = (int)(place_rand(pl) % (uint64_t)pl->n_ex);
+            e = only >= 0 ? only : (int)(place_rand(pl) % (uint64_t)pl->n_ex);
             ed = &pl->ex[e];
             x = (int)(place_rand(pl) % (uint64_t)(ed->full->width - P + 1));
             y = (int)(place_rand(pl) % (uint64_t)(ed->full->height - P + 1));
@@ -465,7 +476,9 @@ static ts_status place_one(placer *pl, placement *q, int index)
     /* k candidates per exemplar, pooled */
     t0 = place_now();
     for (e = 0; e < pl->n_ex; e++) {
-        int n = 0;
+        int n = 0, only = place_region_exemplar(pl, q);
+        if (only >= 0 && e != only)
+            continue;
         st = place_search(pl, e, pl->cands + total, &n);
         if (st != TS_OK)
             goto done;

@@ -157,3 +157,46 @@ def test_errors(tmp_path, extra, words):
     assert p.returncode != 0
     assert p.stderr.strip().count("\n") == 0 and words in p.stderr, p.stderr
     assert not (tmp_path / "o.tif").exists()
+
+
+def test_several_styles_from_a_region_map(tmp_path):
+    # style 2: the same DEM made smooth (down- then up-sampled), so the two regions differ
+    smooth = tmp_path / "smooth.tif"
+    src = gdal.Open(JACKSBORO)
+    gdal.Warp(str(tmp_path / "coarse.tif"), JACKSBORO, width=src.RasterXSize // 6, height=src.RasterYSize // 6,
+              resampleAlg="average")
+    gdal.Warp(str(smooth), str(tmp_path / "coarse.tif"), width=src.RasterXSize, height=src.RasterYSize,
+              resampleAlg="cubicspline")
+    regions = os.path.join(DATA, "sketches", "multistyle_regions.tif")
+    sketch = os.path.join(DATA, "sketches", "multistyle_sketch.tif")
+    run("synth", "--sketch", sketch, "--regions", regions, "--region-exemplar", f"1={JACKSBORO}",
+        "--region-exemplar", f"2={smooth}", "--seed", "1", tmp_path / "o.tif", "--debug-dir", tmp_path / "dbg", "-q")
+    r = gdal.Open(regions).ReadAsArray()
+    z = gdal.Open(str(tmp_path / "o.tif")).ReadAsArray().astype(float)
+    se = gdal.Open(str(tmp_path / "dbg" / "source_exemplar.tif")).ReadAsArray()
+    assert np.isfinite(z).all()
+    assert (se[r == 1] == 0).mean() > 0.85 and (se[r == 2] == 1).mean() > 0.85
+    gy, gx = np.gradient(z)
+    steep = np.hypot(gx, gy)
+    assert steep[r == 1].mean() > 1.5 * steep[r == 2].mean()  # rugged west, smooth east
+
+
+def test_region_polygons(tmp_path):
+    # the same split as polygons with a 'region' field
+    regions = os.path.join(DATA, "sketches", "multistyle_regions.tif")
+    src = gdal.Open(regions)
+    vec = tmp_path / "regions.gpkg"
+    drv = ogr.GetDriverByName("GPKG")
+    ds = drv.CreateDataSource(str(vec))
+    srs = osr.SpatialReference(src.GetProjection())
+    lyr = ds.CreateLayer("regions", srs, ogr.wkbPolygon)
+    lyr.CreateField(ogr.FieldDefn("region", ogr.OFTInteger))
+    gdal.Polygonize(src.GetRasterBand(1), None, lyr, 0)
+    ds = None
+    sketch = os.path.join(DATA, "sketches", "multistyle_sketch.tif")
+    run("synth", "--sketch", sketch, "--regions", vec, "--region-exemplar", f"1={JACKSBORO}",
+        "--region-exemplar", f"2={JACKSBORO}", "--seed", "1", tmp_path / "o.tif", "-q")
+    assert np.isfinite(gdal.Open(str(tmp_path / "o.tif")).ReadAsArray()).all()
+    p = run("synth", "--sketch", sketch, "--regions", JACKSBORO, "--region-exemplar", f"1={JACKSBORO}",
+            tmp_path / "x.tif", "-q", check=False)
+    assert p.returncode == 1 and "region map" in p.stderr

@@ -313,3 +313,15 @@ def test_sketch_recipe_with_pin_and_water_equals_cli(tmp_path):
     a = arr(tmp_path / "gdal.tif")
     assert a.tobytes() == arr(tmp_path / "cli.tif").tobytes()
     assert (a[400:450, 30:120] == 250).all()
+
+
+def test_multistyle_recipe_equals_cli(tmp_path):
+    regions = os.path.join(DATA, "sketches", "multistyle_regions.tif")
+    sketch = os.path.join(DATA, "sketches", "multistyle_sketch.tif")
+    args = ["--sketch", sketch, "--regions", regions, "--region-exemplar", f"1={JACKSBORO}",
+            "--region-exemplar", f"2={JACKSBORO}", "--seed", "2", "--patch-size", "32", "--overlap", "8"]
+    ts("synth", *args, "--recipe", tmp_path / "m.tsyn")
+    ts("synth", *args, tmp_path / "cli.tif", "-q")
+    assert "<RegionExemplar" in (tmp_path / "m.tsyn").read_text()
+    tool("gdal_translate", "-q", tmp_path / "m.tsyn", tmp_path / "gdal.tif")
+    assert arr(tmp_path / "gdal.tif").tobytes() == arr(tmp_path / "cli.tif").tobytes()
