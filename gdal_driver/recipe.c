@@ -342,6 +342,17 @@ static int recipe_synth(ts_recipe *r, CPLXMLNode *node, const char *const *oo, t
         pin->x = (int)vals[4];
         pin->y = (int)vals[5];
     }
+    r->synth.alpha_h = 1.0;
+    if ((c = CPLGetXMLNode(node, "Heights"))) {
+        v = CPLGetXMLValue(c, NULL, "");
+        if (!*v || (CPLGetXMLValue(c, "alpha", NULL) &&
+                    (recipe_parse_double(CPLGetXMLValue(c, "alpha", NULL), &r->synth.alpha_h) ||
+                     r->synth.alpha_h < 0))) {
+            rerr(err, r->path, "<Heights alpha=\"A\">FILE</Heights> needs a file and alpha >= 0");
+            return -1;
+        }
+        r->synth.heights = recipe_keep_path(r, v);
+    }
     if ((c = CPLGetXMLNode(node, "Regions"))) {
         CPLXMLNode *rule;
         v = CPLGetXMLValue(c, NULL, "");
@@ -699,6 +710,10 @@ int recipe_write_synth(const char *path, const tsjob_synth *job, uint64_t seed, 
         CPLAddXMLAttributeAndValue(pn, "height", CPLSPrintf("%d", p->height));
         CPLAddXMLAttributeAndValue(pn, "x", CPLSPrintf("%d", p->x));
         CPLAddXMLAttributeAndValue(pn, "y", CPLSPrintf("%d", p->y));
+    }
+    if (job->heights) {
+        CPLXMLNode *hn = CPLCreateXMLElementAndValue(node, "Heights", recipe_rel(path, job->heights));
+        CPLAddXMLAttributeAndValue(hn, "alpha", CPLSPrintf("%.17g", job->alpha_h));
     }
     if (job->regions) {
         CPLCreateXMLElementAndValue(node, "Regions", recipe_rel(path, job->regions));

@@ -192,6 +192,9 @@ static void ppa_help(FILE *out)
             "                                   with its top-left at output cell X,Y (repeatable)\n"
             "  --water MASK --water-level H     cells where MASK (on the output grid) is non-zero\n"
             "                                   keep the level H\n"
+            "  --heights H [--alpha-h A]        wanted elevations (a raster on the output grid,\n"
+            "                                   nodata = free): each candidate pays A x RMS\n"
+            "                                   difference (default A 1)\n"
             "  --regions R --region-exemplar ID=EX\n"
             "                                   several styles: R is an integer raster on the\n"
             "                                   output grid or a polygon layer with an integer\n"
@@ -434,6 +437,9 @@ static void synth_help(FILE *out)
             "                                   with its top-left at output cell X,Y (repeatable)\n"
             "  --water MASK --water-level H     cells where MASK (on the output grid) is non-zero\n"
             "                                   keep the level H\n"
+            "  --heights H [--alpha-h A]        wanted elevations (a raster on the output grid,\n"
+            "                                   nodata = free): each candidate pays A x RMS\n"
+            "                                   difference (default A 1)\n"
             "  --regions R --region-exemplar ID=EX\n"
             "                                   several styles: R is an integer raster on the\n"
             "                                   output grid or a polygon layer with an integer\n"
@@ -574,6 +580,7 @@ static int cmd_synth(int argc, char **argv)
 
     memset(&job, 0, sizeof job);
     job.sketch_params = ts_sketch_params_default();
+    job.alpha_h = 1.0;
     memset(&res, 0, sizeof res);
     memset(&maps, 0, sizeof maps);
     if (!ctx) {
@@ -594,7 +601,8 @@ static int cmd_synth(int argc, char **argv)
             !strcmp(a, "--seed") || !strcmp(a, "--preview") || !strcmp(a, "--debug-dir") ||
             !strcmp(a, "--recipe") || !strcmp(a, "--sketch") || !strcmp(a, "--pin") ||
             !strcmp(a, "--water") || !strcmp(a, "--water-level") || !strcmp(a, "--regions") ||
-            !strcmp(a, "--region-exemplar")) {
+            !strcmp(a, "--region-exemplar") || !strcmp(a, "--heights") ||
+            !strcmp(a, "--alpha-h")) {
             if (!v) {
                 usage_error("synth", "%s needs a value", a);
                 rc = EXIT_USAGE;
@@ -665,6 +673,15 @@ static int cmd_synth(int argc, char **argv)
                 job.water = v;
             } else if (!strcmp(a, "--regions")) {
                 job.regions = v;
+            } else if (!strcmp(a, "--heights")) {
+                job.heights = v;
+            } else if (!strcmp(a, "--alpha-h")) {
+                job.alpha_h = strtod(v, &end);
+                if (*end || !(job.alpha_h >= 0) || !isfinite(job.alpha_h)) {
+                    usage_error("synth", "--alpha-h must be a non-negative number, not '%s'", v);
+                    rc = EXIT_USAGE;
+                    goto done;
+                }
             } else if (!strcmp(a, "--region-exemplar")) {
                 long id = strtol(v, &end, 10);
                 int k;

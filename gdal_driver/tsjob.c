@@ -163,9 +163,11 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     ts_raster exr[TSJOB_MAX_EXEMPLARS];
     unsigned char *flags = NULL;
     int32_t *cell_ex = NULL;
+    tsio_raster heights;
     ts_synth_params params = job->params;
     int i, rc = -1, cy = res->geo.height / 2;
     memset(ex, 0, sizeof ex);
+    memset(&heights, 0, sizeof heights);
     for (i = 0; i < job->n_exemplars; i++) {
         double factor = 1.0;
         if (tsio_read_raster_resampled(job->exemplars[i], job->band,
@@ -194,6 +196,18 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     }
     if (job_constraints(job, res, flags, err) != 0)
         goto done;
+    if (job->heights) {
+        if (tsio_read_raster(job->heights, 1, &heights, err) != 0)
+            goto done;
+        if (heights.geo.width != res->geo.width || heights.geo.height != res->geo.height) {
+            snprintf(err->msg, sizeof err->msg, "%s: the heights are %d x %d cells, the output %d x %d",
+                     job->heights, heights.geo.width, heights.geo.height, res->geo.width,
+                     res->geo.height);
+            goto done;
+        }
+        params.heights = heights.r.data;
+        params.alpha_h = job->alpha_h;
+    }
     if (job->regions) {
         size_t n = (size_t)res->geo.width * (size_t)res->geo.height, c;
         int r;
@@ -248,6 +262,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
 done:
     free(flags);
     free(cell_ex);
+    tsio_raster_free(&heights);
     for (i = 0; i < job->n_exemplars; i++)
         tsio_raster_free(&ex[i]);
     return rc;

@@ -80,6 +80,8 @@ typedef struct tsjob_synth {
     /* several styles: a region map (integer raster on the output grid, or a
      * polygon layer with an integer field "region") and, per region id, the
      * index of its exemplar; other regions take any exemplar */
+    const char *heights;     /* wanted elevations on the output grid (c_i), or NULL */
+    double alpha_h;          /* their weight */
     const char *regions;
     int n_region_rules;
     int region_id[TSJOB_MAX_EXEMPLARS], region_exemplar[TSJOB_MAX_EXEMPLARS];

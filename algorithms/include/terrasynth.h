@@ -409,6 +409,12 @@ typedef struct ts_synth_params {
      * graph cuts and Poisson seam removal make the transitions.  (Not a
      * descriptor parameter: front ends pass a region map.) */
     const int32_t *cell_exemplar;
+    /* User height constraints (Zhou et al. c_i): wanted elevations per output
+     * cell (NaN = none; borrowed, width*height) or NULL; each candidate's
+     * cost gains alpha_h * RMS(patch - heights) over the constrained cells
+     * of its window.  (Not descriptor parameters.) */
+    const float *heights;
+    double alpha_h;
 } ts_synth_params;
 
 TS_API ts_synth_params ts_synth_params_default(void);

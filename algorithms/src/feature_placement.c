@@ -336,7 +336,8 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
         cuts = ts_label_cut_edges(k->labels, P);
         cf = sk_profile_cost(k, s, wx, wy, k->ring);
         cost = k->sp->alpha_d * k->cands[i].cd +
-               k->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf;
+               k->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf +
+               ts_height_cost(k->p, W, wx, wy, P, k->patch, P);
         if (cost < best_cost) {
             best_cost = cost;
             best = i;

@@ -53,7 +53,8 @@ typedef struct placer {
     float *cand_patch;     /* one P x P window per candidate, for parallel cuts */
     ts_merger merger;
     int32_t *src_x, *src_y; /* P x P: where each cell of the chosen patch comes from */
-    float *tlevel[PLACE_MAX_LEVELS]; /* target pyramid (tlevel[0] = target) */
+    float *mtarget;        /* what is matched: the window, with wanted heights where empty */
+    float *tlevel[PLACE_MAX_LEVELS]; /* matching pyramid (tlevel[0] = mtarget) */
     int *tknown[PLACE_MAX_LEVELS];   /* known cells per level */
     int n_tknown[PLACE_MAX_LEVELS];
     unsigned char *constraint, *labels, *best_labels;
@@ -296,7 +297,7 @@ static ts_status place_search(placer *pl, int e, ts_candidate *out, int *n_out)
     ts_raster tc;
     ts_status st;
     if (K == 0) {
-        ts_raster t = ts_raster_wrap(pl->target, pl->P, pl->P, pl->P);
+        ts_raster t = ts_raster_wrap(pl->mtarget, pl->P, pl->P, pl->P);
         st = ts_matcher_best(pl->ctx, ed->matcher, &t, k, 1, out, &found);
         *n_out = found;
         return st;
@@ -359,6 +360,7 @@ static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int 
 
 typedef struct cut_job {
     placer *pl;
+    int wx, wy; /* the window in the output */
     const int *cand_ex;
     double *cost;
     ts_status *status;
@@ -394,7 +396,8 @@ static void place_cut_range(void *arg, size_t b, size_t e)
             continue;
         cuts = ts_label_cut_edges(lab, P);
         j->cost[i] = sqrt(pl->cands[i].ssd / j->n_known) +
-                     pl->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts));
+                     pl->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) +
+                     ts_height_cost(pl->p, pl->out->width, j->wx, j->wy, P, win, P);
     }
     ts_ctx_free(c);
 }
@@ -426,8 +429,13 @@ static ts_status place_one(placer *pl, placement *q, int index)
             float v = TS_PIX(pl->out, ox, oy);
             unsigned char c = TS_SEAM_FREE;
             pl->target[y * P + x] = v;
-            if (!isnan(v)) {
+            pl->mtarget[y * P + x] = v;
+            /* height constraints take part in the matching where nothing is placed */
+            if (isnan(v) && pl->p->heights && pl->p->alpha_h > 0)
+                pl->mtarget[y * P + x] = pl->p->heights[(size_t)oy * (size_t)W + (size_t)ox];
+            if (!isnan(pl->mtarget[y * P + x]))
                 pl->known[n_known++] = y * P + x;
+            if (!isnan(v)) {
                 /* a filled border cell next to filled cells outside stays old,
                  * so every seam lies inside the window where it is costed */
                 if ((x == 0 && ox > 0 && !isnan(TS_PIX(pl->out, ox - 1, oy))) ||
@@ -501,6 +509,8 @@ static ts_status place_one(placer *pl, placement *q, int index)
         job.cost = cost;
         job.status = status;
         job.n_known = n_known;
+        job.wx = q->x;
+        job.wy = q->y;
         ts_parallel_for(ctx, (size_t)total, place_cut_range, &job);
         for (i = 0; i < total; i++) {
             if (status[i] != TS_OK) {
@@ -580,6 +590,7 @@ static void placer_free(placer *pl)
         }
     free(pl->ex);
     free(pl->target);
+    free(pl->mtarget);
     {
         int k;
         for (k = 1; k < PLACE_MAX_LEVELS; k++) {
@@ -627,7 +638,8 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.n_cands_cap = 2 * (3 * params->candidates * n_exemplars + 8);
     pl.ex = calloc((size_t)n_exemplars, sizeof *pl.ex);
     pl.target = ts_malloc_array(P2, sizeof(float));
-    pl.tlevel[0] = pl.target;
+    pl.mtarget = ts_malloc_array(P2, sizeof(float));
+    pl.tlevel[0] = pl.mtarget;
     pl.tknown[0] = NULL; /* set to pl.known below */
     for (i = 1; i < PLACE_MAX_LEVELS; i++) {
         pl.tlevel[i] = ts_malloc_array(P2, sizeof(float));
@@ -652,9 +664,9 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     step = pl.P - params->overlap;
     xs = ts_malloc_array((size_t)out->width / (size_t)step + 2, sizeof *xs);
     ys = ts_malloc_array((size_t)out->height / (size_t)step + 2, sizeof *ys);
-    pl.tlevel[0] = pl.target;
+    pl.tlevel[0] = pl.mtarget;
     pl.tknown[0] = pl.known;
-    if (alloc_failed || !pl.ex || !pl.target || !pl.patch || !pl.cand_patch || !pl.constraint ||
+    if (alloc_failed || !pl.ex || !pl.target || !pl.mtarget || !pl.patch || !pl.cand_patch || !pl.constraint ||
         !pl.labels || !pl.best_labels || !pl.known || !pl.cands ||
         !xs || !ys) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");

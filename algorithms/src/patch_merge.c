@@ -209,3 +209,22 @@ ts_status ts_merger_apply(ts_ctx *ctx, ts_merger *m, ts_raster *out, const unsig
                 TS_PIX(out, wx + x - 1, wy + y - 1) = m->merged[y * M + x];
     return TS_OK;
 }
+
+double ts_height_cost(const ts_synth_params *p, int width, int wx, int wy, int P,
+                      const float *patch, int stride)
+{
+    double sum = 0.0;
+    int x, y, n = 0;
+    if (!p->heights || !(p->alpha_h > 0))
+        return 0.0;
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++) {
+            float h = p->heights[(size_t)(wy + y) * (size_t)width + (size_t)(wx + x)];
+            float v = patch[(ptrdiff_t)y * stride + x];
+            if (isnan(h) || isnan(v))
+                continue;
+            sum += ((double)v - h) * ((double)v - h);
+            n++;
+        }
+    return n ? p->alpha_h * sqrt(sum / n) : 0.0;
+}

@@ -285,3 +285,28 @@ def test_water_needs_a_level(tmp_path):
     p = run("synth", "--exemplar", JACKSBORO, "--size", "100x100", "--water", JACKSBORO, tmp_path / "o.tif",
             check=False)
     assert p.returncode == 2 and "--water-level" in p.stderr
+
+
+def test_height_constraints_pull_the_terrain(tmp_path):
+    # wanted heights: a high block in the west half, a low one in the east
+    g = gdal.Open(JACKSBORO)
+    h = np.full((180, 200), -9999, np.float32)
+    h[40:140, 20:80] = 1000
+    h[40:140, 120:180] = 300
+    ds = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "h.tif"), 200, 180, 1, gdal.GDT_Float32)
+    ds.SetGeoTransform(g.GetGeoTransform())
+    ds.SetProjection(g.GetProjection())
+    ds.GetRasterBand(1).SetNoDataValue(-9999)
+    ds.GetRasterBand(1).WriteArray(h)
+    ds = None
+    args = ["synth", "--exemplar", JACKSBORO, "--size", "200x180", "--seed", "3", "--patch-size", "32",
+            "--overlap", "8", "-q"]
+    run(*args, tmp_path / "free.tif")
+    run(*args, "--heights", tmp_path / "h.tif", "--alpha-h", "5", tmp_path / "held.tif")
+    free, held = load(tmp_path / "free.tif")[1], load(tmp_path / "held.tif")[1]
+
+    def err(z):
+        return np.sqrt(np.mean(np.concatenate([(z[40:140, 20:80] - 1000).ravel() ** 2,
+                                               (z[40:140, 120:180] - 300).ravel() ** 2])))
+    assert err(held) < 0.8 * err(free), (err(held), err(free))
+    assert held[40:140, 20:80].mean() > held[40:140, 120:180].mean() + 200
