@@ -22,6 +22,7 @@
 #include <sys/stat.h>
 #include <time.h>
 
+#include "bench_common.h"
 #include "terrasynth.h"
 #include "tsio.h"
 
@@ -33,25 +34,6 @@
 #endif
 #define DEFAULT_DEM "mountains_aiguestortes_pyrenees_20m_nocrs.tif"
 
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static double peak_rss_mb(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return (double)ru.ru_maxrss / 1024.0;
-}
-
-static int reflect(int i, int n)
-{
-    int t = i / n, r = i % n;
-    return (t % 2) ? n - 1 - r : r;
-}
 
 /* Bilinear resize of the sketch to n x n. */
 static ts_raster scaled(const ts_raster *s, int n)
@@ -95,17 +77,17 @@ static int run_case(const char *name, const ts_raster *sketch, const ts_raster *
         ts_ctx_free(ctx);
         return 1;
     }
-    t0 = now_s();
+    t0 = bench_now_s();
     if (ts_synth_sketch(ctx, sketch, ex, 1, &sp, &p, &out, &maps, NULL, &info) != TS_OK) {
         fprintf(stderr, "bench_sketch: %s\n", ts_ctx_message(ctx));
         rc = 1;
     }
-    t = now_s() - t0;
+    t = bench_now_s() - t0;
     if (!rc) {
         printf("sketch %s: lambda at %dx%d from %dx%d: %.2f s total, %zu feature sites, %zu "
                "feature patches (%zu exemplar sites), %d patches, peak RSS %.0f MB\n",
                name, sketch->width, sketch->height, ex->width, ex->height, t, info.n_sites,
-               info.n_feature_patches, info.n_exemplar_sites, maps.n_patches, peak_rss_mb());
+               info.n_feature_patches, info.n_exemplar_sites, maps.n_patches, bench_peak_rss_mb());
         printf("  fill stages: prepare %.2f s, match %.2f s, graph cut %.2f s, Poisson %.2f s; "
                "features and PPA: %.2f s\n",
                maps.seconds_prepare, maps.seconds_match, maps.seconds_cut, maps.seconds_poisson,
@@ -113,7 +95,7 @@ static int run_case(const char *name, const ts_raster *sketch, const ts_raster *
                    maps.seconds_poisson);
         if (goal_s > 0)
             printf("goal: < %.0f s and < %.0f MB: %s\n", goal_s, goal_mb,
-                   (t < goal_s && peak_rss_mb() < goal_mb) ? "PASS" : "FAIL");
+                   (t < goal_s && bench_peak_rss_mb() < goal_mb) ? "PASS" : "FAIL");
     }
     ts_raster_free(&out);
     ts_ctx_free(ctx);
@@ -150,7 +132,7 @@ int main(int argc, char **argv)
     for (y = 0; y < n; y++)
         for (x = 0; x < n; x++)
             big.data[(size_t)y * n + x] =
-                TS_PIX(&in.r, reflect(x, in.r.width), reflect(y, in.r.height));
+                TS_PIX(&in.r, bench_reflect(x, in.r.width), bench_reflect(y, in.r.height));
     rc |= run_case("B", &s2, &big, 15.0, 2048.0);
     free(big.data);
     free(s1.data);

@@ -25,6 +25,7 @@
 #include <sys/stat.h>
 #include <time.h>
 
+#include "bench_common.h"
 #include "terrasynth.h"
 #include "tsio.h"
 
@@ -33,25 +34,6 @@
 #endif
 #define DEFAULT_DEM "mountains_aiguestortes_pyrenees_20m_nocrs.tif"
 
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static double peak_rss_mb(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return (double)ru.ru_maxrss / 1024.0;
-}
-
-static int reflect(int i, int n)
-{
-    int t = i / n, r = i % n;
-    return (t % 2) ? n - 1 - r : r;
-}
 
 static int run_case(const char *name, const ts_raster *ex, int size, double goal_s, double goal_mb)
 {
@@ -68,22 +50,22 @@ static int run_case(const char *name, const ts_raster *ex, int size, double goal
         ts_ctx_free(ctx);
         return 1;
     }
-    t0 = now_s();
+    t0 = bench_now_s();
     if (ts_synth_patches(ctx, ex, 1, &p, &out, NULL, &maps) != TS_OK) {
         fprintf(stderr, "bench_synth: %s\n", ts_ctx_message(ctx));
         rc = 1;
     }
-    t = now_s() - t0;
+    t = bench_now_s() - t0;
     if (!rc) {
         printf("synth %s: %dx%d from %dx%d (patch %d, overlap %d, k %d, coarse factor %d): "
                "%.2f s total, %d patches, peak RSS %.0f MB\n",
                name, size, size, ex->width, ex->height, p.patch_size, p.overlap, p.candidates,
-               p.coarse_factor, t, maps.n_patches, peak_rss_mb());
+               p.coarse_factor, t, maps.n_patches, bench_peak_rss_mb());
         printf("  stages: prepare %.2f s, match %.2f s, graph cut %.2f s, Poisson %.2f s\n",
                maps.seconds_prepare, maps.seconds_match, maps.seconds_cut, maps.seconds_poisson);
         if (goal_s > 0)
             printf("goal: < %.0f s and < %.0f MB: %s\n", goal_s, goal_mb,
-                   (t < goal_s && peak_rss_mb() < goal_mb) ? "PASS" : "FAIL");
+                   (t < goal_s && bench_peak_rss_mb() < goal_mb) ? "PASS" : "FAIL");
     }
     ts_raster_free(&out);
     ts_ctx_free(ctx);
@@ -119,7 +101,7 @@ int main(int argc, char **argv)
     for (y = 0; y < n; y++)
         for (x = 0; x < n; x++)
             big.data[(size_t)y * n + x] =
-                TS_PIX(&in.r, reflect(x, in.r.width), reflect(y, in.r.height));
+                TS_PIX(&in.r, bench_reflect(x, in.r.width), bench_reflect(y, in.r.height));
     tsio_raster_free(&in);
     rc |= run_case("B", &big, 2048, 10.0, 1536.0);
     free(big.data);

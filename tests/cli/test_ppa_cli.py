@@ -82,6 +82,7 @@ def test_help_lists_parameters_with_defaults():
                  "--lines", "--preview", "-of", "-co", "--ridges", "--valleys", "--both", "-q"):
         assert flag in p.stdout
     assert "default 11" in p.stdout
+    assert "--pin" not in p.stdout and "--sketch" not in p.stdout  # synth's options only
     top = run("--help")
     assert "ppa" in top.stdout
 
