@@ -12,7 +12,7 @@ cp tests/fuzz/corpus/* "$out/corpus/"
 san="-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined"
 cc="clang -std=c11 -D_GNU_SOURCE -D_POSIX_C_SOURCE=200809L -O1 -g $san -Wall -Wextra -Werror"
 inc="-I algorithms/include -I algorithms/src -I gdal_driver $(pkg-config --cflags gdal proj fftw3f)"
-# the parser and what it calls, instrumented; the core without FFT-free stubs
+# the parser and everything it calls (core included) built instrumented
 $cc $inc -DTS_BUILDING_LIBRARY -o "$out/fuzz_recipe" tests/fuzz/fuzz_recipe.c \
   gdal_driver/recipe.c gdal_driver/tsjob.c gdal_driver/tsio.c algorithms/src/*.c \
   $(pkg-config --libs gdal proj fftw3f) -lm -lpthread

@@ -2,27 +2,14 @@
 """End-to-end tests of `terrasynth ppa`: outputs read back with GDAL/OGR,
 errors, determinism, and real DEMs from ../shared/data/dem when present."""
 import os
-import subprocess
 
 import numpy as np
 import pytest
 from osgeo import gdal, ogr, osr
 
+from tsutil import DATA, JACKSBORO, SHARED, run  # noqa: E402
+
 gdal.UseExceptions()
-
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(os.path.dirname(HERE))
-TERRASYNTH = os.environ.get("TERRASYNTH", os.path.join(ROOT, "build", "gdal_driver", "terrasynth"))
-DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))
-SHARED = os.environ.get("TS_SHARED_DEM_DIR", os.path.join(ROOT, "..", "shared", "data", "dem"))
-JACKSBORO = os.path.join(DATA, "jacksboro_fault_dem.tif")
-
-
-def run(*args, check=True):
-    p = subprocess.run([TERRASYNTH, *map(str, args)], capture_output=True, text=True, timeout=600)
-    if check and p.returncode != 0:
-        raise AssertionError(f"terrasynth failed ({p.returncode}): {p.stderr}")
-    return p
 
 
 def read(path):

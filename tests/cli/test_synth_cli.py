@@ -4,27 +4,14 @@ georeferencing, statistics against the exemplar, seams, determinism, errors,
 and real DEMs from ../shared/data/dem when present."""
 import math
 import os
-import subprocess
 
 import numpy as np
 import pytest
 from osgeo import gdal, osr
 
+from tsutil import DATA, JACKSBORO, SHARED, run  # noqa: E402
+
 gdal.UseExceptions()
-
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(os.path.dirname(HERE))
-TERRASYNTH = os.environ.get("TERRASYNTH", os.path.join(ROOT, "build", "gdal_driver", "terrasynth"))
-DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))
-SHARED = os.environ.get("TS_SHARED_DEM_DIR", os.path.join(ROOT, "..", "shared", "data", "dem"))
-JACKSBORO = os.path.join(DATA, "jacksboro_fault_dem.tif")
-
-
-def run(*args, check=True):
-    p = subprocess.run([TERRASYNTH, *map(str, args)], capture_output=True, text=True, timeout=900)
-    if check and p.returncode != 0:
-        raise AssertionError(f"terrasynth failed ({p.returncode}): {p.stderr}")
-    return p
 
 
 def load(path):
