@@ -468,8 +468,6 @@ typedef struct ts_sketch_params {
     int mode;        /* ridges (bright strokes), valleys (dark strokes), auto */
     double alpha_d;  /* weight of the warp's deformation cost c_d */
     double alpha_f;  /* weight of the feature profile dissimilarity c_f */
-    double alpha_s;  /* weight of the path smoothness constraint: the bend of the
-                        feature's height profile through P1, P0, P2 */
 } ts_sketch_params;
 
 TS_API ts_sketch_params ts_sketch_params_default(void);

@@ -233,25 +233,6 @@ static void sk_chamfer(int *d, int P)
         }
 }
 
-/* Path smoothness (a user constraint c_i of Zhou et al.): along a path the
- * feature's height should not bend much through P1, P0, P2; measured on the
- * candidate window as |z(P1) - 2 z(P0) + z(P2)| / 2 in metres. */
-static double sk_smoothness_cost(const ts_feature_site *s, double wcx, double wcy, int M,
-                                 const float *ring)
-{
-    ts_raster win = ts_raster_wrap((float *)ring, M, M, M);
-    double z[3];
-    int i;
-    if (s->type != TS_SITE_PATH || s->n_ctrl != 3)
-        return 0.0;
-    for (i = 0; i < 3; i++) {
-        z[i] = sk_sample(&win, wcx + s->px[i] + 1.0, wcy + s->py[i] + 1.0);
-        if (isnan(z[i]))
-            return 0.0;
-    }
-    return fabs(z[1] - 2.0 * z[0] + z[2]) / 2.0;
-}
-
 /* ---- one site ------------------------------------------------------ */
 
 static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index, int *placed)
@@ -356,8 +337,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
         cf = sk_profile_cost(k, s, wx, wy, k->ring);
         cost = k->sp->alpha_d * k->cands[i].cd +
                k->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf +
-               ts_height_cost(k->p, W, wx, wy, P, k->patch, P) +
-               k->sp->alpha_s * sk_smoothness_cost(s, s->cx - wx, s->cy - wy, M, k->ring);
+               ts_height_cost(k->p, W, wx, wy, P, k->patch, P);
         if (cost < best_cost) {
             best_cost = cost;
             best = i;

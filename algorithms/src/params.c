@@ -70,10 +70,6 @@ static const ts_param_desc sketch_desc[] = {
     {"alpha_f", TS_PARAM_DOUBLE, 3.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
      "Weight of the feature profile dissimilarity c_f of feature patches.",
      offsetof(ts_sketch_params, alpha_f)},
-    {"alpha_s", TS_PARAM_DOUBLE, 1.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
-     "Weight of the path smoothness constraint: how much a feature's height bends (metres) "
-     "through the control points of a patch.",
-     offsetof(ts_sketch_params, alpha_s)},
 };
 
 static const char *const stage_names[] = {"ppa", "synth", "sketch", NULL};

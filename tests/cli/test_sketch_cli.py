@@ -188,25 +188,3 @@ def test_region_polygons(tmp_path):
     p = run("synth", "--sketch", sketch, "--regions", JACKSBORO, "--region-exemplar", f"1={JACKSBORO}",
             tmp_path / "x.tif", "-q", check=False)
     assert p.returncode == 1 and "region map" in p.stderr
-
-
-def test_path_smoothness_constraint(tmp_path):
-    """alpha_s makes the crest's height profile along the sketch's paths bend less."""
-    bends = {}
-    for a in (0, 30):
-        run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--alpha-s", str(a),
-            tmp_path / f"s{a}.tif", "--debug-dir", tmp_path / f"d{a}", "-q")
-        out = gdal.Open(str(tmp_path / f"s{a}.tif"))
-        z, g = out.ReadAsArray().astype(float), out.GetGeoTransform()
-        ds = ogr.Open(str(tmp_path / f"d{a}" / "sketch_features.gpkg"))
-        vals = []
-        for f in ds.GetLayerByName("paths"):
-            geom = f.GetGeometryRef()
-            pts = [(int((geom.GetX(i) - g[0]) / g[1]), int((geom.GetY(i) - g[3]) / g[5]))
-                   for i in range(geom.GetPointCount())]
-            prof = np.array([z[y, x] for x, y in pts[::16]])
-            if prof.size > 2:
-                vals += list(np.abs(np.diff(prof, 2)))
-        bends[a] = float(np.mean(vals))
-    print(f"crest bend every 16 cells: alpha_s 0 -> {bends[0]:.1f} m, 30 -> {bends[30]:.1f} m")
-    assert bends[30] < 0.85 * bends[0]
