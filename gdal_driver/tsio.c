@@ -1915,7 +1915,11 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
     f = sqrt((gdx * gdy) / (target_dx_m * target_dy_m));
     if (factor)
         *factor = f;
-    if (!geographic && fabs(gdx / target_dx_m - 1.0) < 1e-3 && fabs(gdy / target_dy_m - 1.0) < 1e-3)
+    /* within 1 % the cells are used as they are: no interpolation blur, and
+     * pinned windows stay exact (a geographic grid's cells change by more than
+     * that only far from its centre latitude) */
+    (void)geographic;
+    if (fabs(gdx / target_dx_m - 1.0) < 1e-2 && fabs(gdy / target_dy_m - 1.0) < 1e-2)
         return 0;
     CPLPushErrorHandler(CPLQuietErrorHandler);
     srs = srs_from_wkt(out->geo.wkt);

@@ -116,7 +116,8 @@ int tsio_write_features(const char *path, const tsio_georef *geo, const ts_featu
  * target_dy_m metres on the ground (for exemplars whose resolution differs
  * from the output's): a projected raster is warped in its own CRS; a
  * geographic one stays in its CRS with degrees per cell chosen so that a
- * cell has that ground size at its centre latitude.  Cubic interpolation when the
+ * cell has that ground size at its centre latitude.  Cells within 1 % of
+ * the target size are returned as read.  Cubic interpolation when the
  * target is finer, averaging when it is coarser; nodata stays NaN.  A
  * raster without CRS is returned as read (its ground size is unknown).
  * *factor (may be NULL) = source cell size / target cell size.

@@ -4,9 +4,14 @@ optionally following a sketch (`terrasynth synth --sketch`).
 
 The core's parameters come from `terrasynth describe`: the "synth" table, and the
 "sketch" table (MODE, ALPHA_D, ALPHA_F), which is passed only with a SKETCH.
-Further sketch options (regions, pins, water...) do not exist in the CLI yet.
+The constraints (PINS, WATER_MASK/WATER_LEVEL, REGIONS/REGION_EXEMPLARS, HEIGHTS/ALPHA_H)
+are `terrasynth synth`'s --pin, --water/--water-level, --regions/--region-exemplar and
+--heights/--alpha-h. REGIONS is one map-layer parameter that takes an integer raster or a
+polygon vector layer (with an integer field "region"); PINS and REGION_EXEMPLARS are strings
+(one item per line or separated by ';').
 """
 import os
+import re
 
 from qgis.core import (
     QgsCoordinateReferenceSystem,
@@ -16,15 +21,73 @@ from qgis.core import (
     QgsProcessingParameterDefinition,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterFolderDestination,
+    QgsProcessingParameterMapLayer,
     QgsProcessingParameterMultipleLayers,
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterDestination,
     QgsProcessingParameterRasterLayer,
+    QgsProcessingParameterString,
+    QgsProviderRegistry,
+    QgsRasterLayer,
+    QgsVectorLayer,
+    QgsWkbTypes,
 )
+
+from qgis.PyQt.QtCore import QVariant
 
 from .base import TerraSynthAlgorithm, gdal_source, is_set
 
 MAX_EXEMPLARS = 64  # the CLI's limit
+MAX_PINS = 16       # the CLI's limit
+REGION_FIELD = "region"  # the integer field of a polygon REGIONS layer
+_INT_TYPES = (QVariant.Int, QVariant.LongLong, QVariant.UInt, QVariant.ULongLong)
+
+# FILE:XOFF,YOFF,W,H@X,Y - FILE is everything before the last ':' ahead of the numbers
+_PIN_RE = re.compile(r"^(?P<file>.+?)\s*:\s*(?P<xoff>\d+)\s*,\s*(?P<yoff>\d+)\s*,\s*"
+                     r"(?P<w>\d+)\s*,\s*(?P<h>\d+)\s*@\s*(?P<x>\d+)\s*,\s*(?P<y>\d+)$")
+_RULE_RE = re.compile(r"^(?P<id>[+-]?\d+)\s*=\s*(?P<file>\S.*)$")
+
+
+def _items(text):
+    """Non-empty items of a string, one per line or separated by ';'."""
+    return [t.strip() for t in re.split(r"[;\r\n]+", text or "") if t.strip()]
+
+
+def parse_pins(text):
+    """PINS -> ['FILE:XOFF,YOFF,W,H@X,Y', ...] (normalised); raises on bad syntax."""
+    pins = []
+    for item in _items(text):
+        m = _PIN_RE.match(item)
+        if not m:
+            raise QgsProcessingException(
+                "PINS: '%s' is not FILE:XOFF,YOFF,W,H@X,Y (window XOFF,YOFF,W,H in the file's "
+                "own cells, its top-left at output cell X,Y; whole numbers >= 0)" % item)
+        v = {k: int(m.group(k)) for k in ("xoff", "yoff", "w", "h", "x", "y")}
+        if v["w"] < 1 or v["h"] < 1:
+            raise QgsProcessingException("PINS: '%s': the window's width and height must be "
+                                         "at least 1 cell" % item)
+        pins.append("%s:%d,%d,%d,%d@%d,%d" % (m.group("file").strip(), v["xoff"], v["yoff"],
+                                              v["w"], v["h"], v["x"], v["y"]))
+    if len(pins) > MAX_PINS:
+        raise QgsProcessingException("PINS: at most %d pins (%d given)" % (MAX_PINS, len(pins)))
+    return pins
+
+
+def parse_region_rules(text):
+    """REGION_EXEMPLARS -> ['ID=FILE', ...]; raises on bad syntax or a repeated ID."""
+    rules, seen = [], set()
+    for item in _items(text):
+        m = _RULE_RE.match(item)
+        if not m:
+            raise QgsProcessingException(
+                "REGION_EXEMPLARS: '%s' is not ID=FILE (an integer region ID, '=', an "
+                "exemplar file)" % item)
+        rid = int(m.group("id"))
+        if rid in seen:
+            raise QgsProcessingException("REGION_EXEMPLARS: region %d is given twice" % rid)
+        seen.add(rid)
+        rules.append("%d=%s" % (rid, m.group("file").strip()))
+    return rules
 
 # Condensed from algorithms/docs/synth.md (the manual page).
 HELP = """
@@ -74,6 +137,26 @@ than the patch), in target cells. A patch should hold a few ridge and valley spa
 <li><b>Seed</b>: same inputs and seed give identical bytes.</li>
 <li><b>Band</b>: the band read from every exemplar.</li>
 </ul>
+<h3>Constraints</h3>
+<p>Optional, under <i>Advanced parameters</i>; the rasters are on the output grid.</p>
+<ul>
+<li><b>Pinned windows</b> (<code>--pin</code>, at most 16): one per line or separated by
+<code>;</code>, each <code>FILE:XOFF,YOFF,W,H@X,Y</code>: the window XOFF,YOFF,W,H of the DEM
+FILE (in its own cells, resampled like an exemplar) is copied unchanged with its top-left at
+output cell X,Y; the synthesis grows around it.</li>
+<li><b>Water mask</b> and <b>Water level</b> (<code>--water</code>,
+<code>--water-level</code>, both or neither): cells where the mask is non-zero keep the
+level (metres).</li>
+<li><b>Regions</b> and <b>Region exemplars</b> (<code>--regions</code>,
+<code>--region-exemplar</code>, both or neither): several styles. Regions is an integer raster
+or a polygon layer (a file; its first layer) with an integer field <code>region</code>;
+Region exemplars lists <code>ID=FILE</code> rules, one per line or separated by
+<code>;</code> (e.g. <code>1=a.tif;2=b.tif</code>): region ID takes exemplar FILE (added to
+the exemplars if needed); regions without a rule take any exemplar.</li>
+<li><b>Wanted heights</b> (<code>--heights</code>, nodata = free) and <b>alpha_h</b>
+(<code>--alpha-h</code>, default 1): each candidate patch pays alpha_h x its RMS difference
+to the wanted heights.</li>
+</ul>
 <h3>Outputs</h3>
 <ul>
 <li><b>Synthesized DEM</b>: Float32 on the target grid with its CRS, nodata -9999 (and
@@ -118,6 +201,13 @@ class SynthAlgorithm(TerraSynthAlgorithm):
     OUTPUT = "OUTPUT"
     PREVIEW = "PREVIEW"
     DEBUG_DIR = "DEBUG_DIR"
+    PINS = "PINS"
+    WATER_MASK = "WATER_MASK"
+    WATER_LEVEL = "WATER_LEVEL"
+    REGIONS = "REGIONS"
+    REGION_EXEMPLARS = "REGION_EXEMPLARS"
+    HEIGHTS = "HEIGHTS"
+    ALPHA_H = "ALPHA_H"
 
     def initAlgorithm(self, config=None):  # noqa: N802
         Number = QgsProcessingParameterNumber
@@ -174,6 +264,42 @@ class SynthAlgorithm(TerraSynthAlgorithm):
                          defaultValue=0, minValue=0, maxValue=256)
         threads.setHelp("Worker threads (--threads); results never depend on it.")
         for p in (band, cell, threads):
+            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            self.addParameter(p)
+        # constraints (advanced)
+        pins = QgsProcessingParameterString(self.PINS, self.tr("Pinned windows"),
+                                            multiLine=True, optional=True)
+        pins.setHelp("Windows of DEMs kept unchanged (--pin, at most 16): one per line or "
+                     "separated by ';', each FILE:XOFF,YOFF,W,H@X,Y - the window XOFF,YOFF,W,H "
+                     "in the file's own cells, its top-left at output cell X,Y.")
+        water = QgsProcessingParameterRasterLayer(self.WATER_MASK, self.tr("Water mask"),
+                                                  optional=True)
+        water.setHelp("A raster on the output grid (--water): where it is non-zero the output "
+                      "keeps WATER_LEVEL. Give WATER_LEVEL with it.")
+        level = Number(self.WATER_LEVEL, self.tr("Water level (metres)"), Number.Double,
+                       optional=True)
+        level.setHelp("Height of the water cells (--water-level); needs WATER_MASK.")
+        regions = QgsProcessingParameterMapLayer(
+            self.REGIONS, self.tr("Regions (raster or polygon layer)"), optional=True,
+            types=[QgsProcessing.TypeRaster, QgsProcessing.TypeVectorPolygon])
+        regions.setHelp("Several styles (--regions): an integer raster on the output grid, or "
+                        "a polygon layer (file, first layer) with an integer field 'region'. "
+                        "Give REGION_EXEMPLARS with it.")
+        rules = QgsProcessingParameterString(
+            self.REGION_EXEMPLARS, self.tr("Region exemplars (ID=FILE; ...)"), multiLine=True,
+            optional=True)
+        rules.setHelp("Which exemplar each region takes (--region-exemplar): one rule per line "
+                      "or separated by ';', each ID=FILE, e.g. 1=a.tif;2=b.tif. Regions without "
+                      "a rule take any exemplar. Needs REGIONS.")
+        heights = QgsProcessingParameterRasterLayer(self.HEIGHTS, self.tr("Wanted heights"),
+                                                    optional=True)
+        heights.setHelp("Wanted elevations, a raster on the output grid, nodata = free "
+                        "(--heights).")
+        alpha_h = Number(self.ALPHA_H, self.tr("Height cost weight (alpha_h)"), Number.Double,
+                         defaultValue=1.0, minValue=0.0)
+        alpha_h.setHelp("Each candidate pays alpha_h x the RMS difference to HEIGHTS "
+                        "(--alpha-h); used only with HEIGHTS.")
+        for p in (pins, water, level, regions, rules, heights, alpha_h):
             p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
             self.addParameter(p)
         self.addParameter(QgsProcessingParameterRasterDestination(
@@ -247,6 +373,84 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         return [("size", (width, height)), ("origin", origin), ("resolution", res),
                 ("crs", crs_text)]
 
+    # -- the constraints ----------------------------------------------------------
+    def _raster(self, parameters, key, context):
+        if not is_set(parameters, key):
+            return None
+        layer = self.parameterAsRasterLayer(parameters, key, context)
+        if layer is None:
+            raise QgsProcessingException(self.invalidRasterError(parameters, key))
+        return gdal_source(layer, key)
+
+    def _regions_source(self, parameters, context):
+        layer = self.parameterAsLayer(parameters, self.REGIONS, context)
+        if layer is None:
+            raise QgsProcessingException(
+                "REGIONS: '%s' is not a raster or polygon layer" % parameters.get(self.REGIONS))
+        if isinstance(layer, QgsRasterLayer):
+            return gdal_source(layer, self.REGIONS)
+        if not isinstance(layer, QgsVectorLayer) or \
+                layer.geometryType() != QgsWkbTypes.PolygonGeometry:
+            raise QgsProcessingException("REGIONS: layer '%s' is neither a raster nor a polygon "
+                                         "layer" % layer.name())
+        if layer.providerType() != "ogr":
+            raise QgsProcessingException(
+                "REGIONS: layer '%s' comes from the '%s' provider; terrasynth reads polygon "
+                "files GDAL/OGR opens" % (layer.name(), layer.providerType()))
+        idx = layer.fields().indexFromName(REGION_FIELD)
+        if idx < 0 or not layer.fields().at(idx).isNumeric() or \
+                layer.fields().at(idx).type() not in _INT_TYPES:
+            raise QgsProcessingException("REGIONS: layer '%s' has no integer field '%s'"
+                                         % (layer.name(), REGION_FIELD))
+        parts = QgsProviderRegistry.instance().decodeUri("ogr", layer.source())
+        if layer.subsetString():
+            raise QgsProcessingException("REGIONS: layer '%s' has a filter; terrasynth reads the "
+                                         "whole file" % layer.name())
+        path = parts.get("path") or layer.source().split("|")[0]
+        sub = parts.get("layerName") or parts.get("layerId")
+        if sub not in (None, "", 0):
+            from osgeo import ogr
+            ds = ogr.Open(path)
+            first = ds.GetLayer(0) if ds is not None and ds.GetLayerCount() else None
+            if first is None or (parts.get("layerName") and
+                                 first.GetName() != parts.get("layerName")) or \
+                    (parts.get("layerId") not in (None, "") and int(parts["layerId"]) != 0):
+                raise QgsProcessingException(
+                    "REGIONS: terrasynth reads the first layer of %s; save layer '%s' to a "
+                    "file of its own" % (path, layer.name()))
+        return path
+
+    def constraintOptions(self, parameters, context):  # noqa: N802
+        """[(option, value)] for --pin, --water, --regions, --heights; raises on errors."""
+        options = []
+        pins = parse_pins(self.parameterAsString(parameters, self.PINS, context)
+                          if is_set(parameters, self.PINS) else "")
+        options.append(("pin", pins or None))
+        has_water, has_level = is_set(parameters, self.WATER_MASK), \
+            is_set(parameters, self.WATER_LEVEL)
+        if has_water != has_level:
+            raise QgsProcessingException("give both WATER_MASK and WATER_LEVEL, or neither")
+        if has_water:
+            options += [("water", self._raster(parameters, self.WATER_MASK, context)),
+                        ("water_level",
+                         self.parameterAsDouble(parameters, self.WATER_LEVEL, context))]
+        rules = parse_region_rules(self.parameterAsString(parameters, self.REGION_EXEMPLARS,
+                                                          context)
+                                   if is_set(parameters, self.REGION_EXEMPLARS) else "")
+        if is_set(parameters, self.REGIONS) != bool(rules):
+            raise QgsProcessingException("give both REGIONS and REGION_EXEMPLARS, or neither")
+        if rules:
+            options += [("regions", self._regions_source(parameters, context)),
+                        ("region_exemplar", rules)]
+        if is_set(parameters, self.HEIGHTS):
+            alpha_h = self.parameterAsDouble(parameters, self.ALPHA_H, context) \
+                if is_set(parameters, self.ALPHA_H) else 1.0
+            if not alpha_h >= 0:
+                raise QgsProcessingException("ALPHA_H must be a number >= 0")
+            options += [("heights", self._raster(parameters, self.HEIGHTS, context)),
+                        ("alpha_h", alpha_h)]
+        return options
+
     def descriptorStages(self, parameters, context):  # noqa: N802
         stages = super().descriptorStages(parameters, context)
         if not is_set(parameters, self.SKETCH):
@@ -268,6 +472,7 @@ class SynthAlgorithm(TerraSynthAlgorithm):
                 self.parameterAsDouble(parameters, self.CELL_SIZE, context) <= 0:
             raise QgsProcessingException("CELL_SIZE must be a positive number of metres")
         self.targetOptions(parameters, context)
+        self.constraintOptions(parameters, context)
 
     def prepareJob(self, parameters, context):  # noqa: N802
         layers = self.parameterAsLayerList(parameters, self.EXEMPLARS, context)
@@ -281,6 +486,7 @@ class SynthAlgorithm(TerraSynthAlgorithm):
                 if is_set(parameters, self.CELL_SIZE) else None)
         options = [("exemplar", exemplars)]
         options += self.targetOptions(parameters, context)
+        options += self.constraintOptions(parameters, context)
         options += [("seed", self.parameterAsInt(parameters, self.SEED, context)),
                     ("band", self.parameterAsInt(parameters, self.BAND, context)),
                     ("cell_size", cell),

@@ -44,8 +44,13 @@ OTHER_FLAGS = {
               "HEIGHT": "--size", "ORIGIN_X": "--origin", "ORIGIN_Y": "--origin",
               "RESOLUTION": "--resolution", "CRS": "--crs", "SEED": "--seed", "BAND": "--band",
               "CELL_SIZE": "--cell-size", "THREADS": "--threads", "OUTPUT": None,
-              "PREVIEW": "--preview", "DEBUG_DIR": "--debug-dir"},
+              "PREVIEW": "--preview", "DEBUG_DIR": "--debug-dir", "PINS": "--pin",
+              "WATER_MASK": "--water", "WATER_LEVEL": "--water-level", "REGIONS": "--regions",
+              "REGION_EXEMPLARS": "--region-exemplar", "HEIGHTS": "--heights",
+              "ALPHA_H": "--alpha-h"},
 }
+# parameters whose flag is not --<name in kebab case>
+IRREGULAR_FLAGS = ("--size", "--origin", "--exemplar", "--pin", "--water", "--region-exemplar")
 
 
 def processing_run(alg_id, params, feedback=None):
@@ -141,7 +146,7 @@ def test_every_other_parameter_is_a_cli_option(stage, cli, describe):
         if flag is None:
             continue
         assert flag in help_text, "%s: %s not in 'terrasynth %s --help'" % (name, flag, stage)
-        if flag not in ("--size", "--origin", "--exemplar"):
+        if flag not in IRREGULAR_FLAGS:
             assert flag == "--" + name.lower().replace("_", "-")
 
 
@@ -327,6 +332,171 @@ def test_ppa_both_thresholds_refused(jacksboro, tmp_path):
         processing_run("terrasynth:ppa", {"INPUT": jacksboro, "THRESHOLD": 5,
                                           "THRESHOLD_FRACTION": 0.01,
                                           "OUTPUT": str(tmp_path / "a.tif")})
+
+
+# --------------------------------------------------------------------------- constraints
+
+def values_of(argv, flag):
+    return [argv[i + 1] for i, a in enumerate(argv) if a == flag]
+
+
+def test_synth_constraint_parameters_are_advanced():
+    from qgis.core import QgsProcessingParameterDefinition as Def
+
+    alg = registry().algorithmById("terrasynth:synth")
+    for key in ("PINS", "WATER_MASK", "WATER_LEVEL", "REGIONS", "REGION_EXEMPLARS", "HEIGHTS",
+                "ALPHA_H"):
+        p = alg.parameterDefinition(key)
+        assert p is not None, key
+        assert p.flags() & Def.FlagAdvanced, key
+        assert key == "ALPHA_H" or p.flags() & Def.FlagOptional, key  # ALPHA_H has a default
+    assert alg.parameterDefinition("ALPHA_H").defaultValue() == 1
+    assert alg.parameterDefinition("ALPHA_H").minimum() == 0
+    assert "<h3>Constraints</h3>" in alg.shortHelpString()
+    for flag in ("--pin", "--water", "--regions", "--region-exemplar", "--heights", "--alpha-h"):
+        assert flag in alg.shortHelpString(), flag
+
+
+def test_synth_command_line_pins(jacksboro, tmp_path):
+    out = str(tmp_path / "n.tif")
+    base = {"EXEMPLARS": [jacksboro], "WIDTH": 64, "HEIGHT": 64, "OUTPUT": out}
+    argv, _ = build("terrasynth:synth", dict(base, PINS="%s:1,2,30,40@5,6\n"
+                                             " C:/dem b.tif : 0, 0,8,8 @ 0,0 ;; /x/y.tif:3,4,5,6@7,8"
+                                             % jacksboro))
+    assert values_of(argv, "--pin") == ["%s:1,2,30,40@5,6" % jacksboro,
+                                        "C:/dem b.tif:0,0,8,8@0,0", "/x/y.tif:3,4,5,6@7,8"]
+    assert argv[-1] == out
+    argv, _ = build("terrasynth:synth", dict(base, PINS="  "))
+    assert "--pin" not in argv
+    assert not {"--water", "--water-level", "--regions", "--region-exemplar", "--heights",
+                "--alpha-h"} & set(argv)
+
+
+def test_synth_command_line_water_regions_heights(jacksboro, tmp_path):
+    regions = tmp_path / "regions.tif"
+    gdal.Translate(str(regions), jacksboro, outputType=gdal.GDT_Int16)
+    argv, _ = build("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "WIDTH": 64, "HEIGHT": 64, "OUTPUT": str(tmp_path / "n.tif"),
+        "WATER_MASK": jacksboro, "WATER_LEVEL": 250.5, "REGIONS": str(regions),
+        "REGION_EXEMPLARS": "1=/d/a.tif; 2 = /d/b c.tif\n-3=/d/a.tif", "HEIGHTS": jacksboro,
+        "ALPHA_H": 0.25})
+    kv = pairs(argv)
+    assert kv["--water"] == jacksboro and kv["--water-level"] == "250.5"
+    assert kv["--regions"] == str(regions)
+    assert values_of(argv, "--region-exemplar") == ["1=/d/a.tif", "2=/d/b c.tif", "-3=/d/a.tif"]
+    assert kv["--heights"] == jacksboro and kv["--alpha-h"] == "0.25"
+    # ALPHA_H defaults to 1 and goes only with HEIGHTS; a water level of 0 counts
+    argv, _ = build("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "WIDTH": 64, "HEIGHT": 64, "OUTPUT": str(tmp_path / "n.tif"),
+        "HEIGHTS": jacksboro, "WATER_MASK": jacksboro, "WATER_LEVEL": 0})
+    kv = pairs(argv)
+    assert kv["--alpha-h"] == "1" and kv["--water-level"] == "0"
+    argv, _ = build("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "WIDTH": 64, "HEIGHT": 64, "OUTPUT": str(tmp_path / "n.tif"),
+        "ALPHA_H": 3})
+    assert "--alpha-h" not in argv and "--heights" not in argv
+
+
+def polygon_regions(path, field_type):
+    from osgeo import ogr
+
+    ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(4326)
+    lyr = ds.CreateLayer("zones", srs, ogr.wkbPolygon)
+    lyr.CreateField(ogr.FieldDefn("region", field_type))
+    f = ogr.Feature(lyr.GetLayerDefn())
+    f.SetField("region", 1 if field_type != ogr.OFTString else "one")
+    f.SetGeometry(ogr.CreateGeometryFromWkt(
+        "POLYGON((-84.4 36.4,-84.3 36.4,-84.3 36.3,-84.4 36.3,-84.4 36.4))"))
+    lyr.CreateFeature(f)
+    ds = None
+    return str(path)
+
+
+def test_synth_command_line_polygon_regions(jacksboro, tmp_path):
+    from osgeo import ogr
+
+    gpkg = polygon_regions(tmp_path / "zones.gpkg", ogr.OFTInteger)
+    params = {"EXEMPLARS": [jacksboro], "WIDTH": 64, "HEIGHT": 64,
+              "OUTPUT": str(tmp_path / "n.tif"), "REGION_EXEMPLARS": "1=%s" % jacksboro}
+    argv, _ = build("terrasynth:synth", dict(params, REGIONS=gpkg))
+    assert pairs(argv)["--regions"] == gpkg
+    layer = QgsVectorLayer(gpkg + "|layername=zones", "zones", "ogr")
+    assert layer.isValid()
+    argv, _ = build("terrasynth:synth", dict(params, REGIONS=layer))  # a loaded layer
+    assert pairs(argv)["--regions"] == gpkg
+    bad = polygon_regions(tmp_path / "text.gpkg", ogr.OFTString)
+    alg = registry().createAlgorithmById("terrasynth:synth")
+    ok, msg = alg.checkParameterValues(dict(params, REGIONS=bad), QgsProcessingContext())
+    assert not ok and "integer field 'region'" in msg
+
+
+@pytest.mark.parametrize("params,message", [
+    ({"WATER_MASK": "JACKSBORO"}, "give both WATER_MASK and WATER_LEVEL, or neither"),
+    ({"WATER_LEVEL": 100}, "give both WATER_MASK and WATER_LEVEL, or neither"),
+    ({"REGIONS": "JACKSBORO"}, "give both REGIONS and REGION_EXEMPLARS, or neither"),
+    ({"REGION_EXEMPLARS": "1=a.tif"}, "give both REGIONS and REGION_EXEMPLARS, or neither"),
+    ({"REGIONS": "JACKSBORO", "REGION_EXEMPLARS": "one=a.tif"}, "is not ID=FILE"),
+    ({"REGIONS": "JACKSBORO", "REGION_EXEMPLARS": "1=a.tif;1=b.tif"}, "region 1 is given twice"),
+    ({"PINS": "JACKSBORO:1,2,3@4,5"}, "is not FILE:XOFF,YOFF,W,H@X,Y"),
+    ({"PINS": "JACKSBORO:1,2,3,4"}, "is not FILE:XOFF,YOFF,W,H@X,Y"),
+    ({"PINS": "1,2,3,4@5,6"}, "is not FILE:XOFF,YOFF,W,H@X,Y"),
+    ({"PINS": "JACKSBORO:-1,2,3,4@5,6"}, "is not FILE:XOFF,YOFF,W,H@X,Y"),
+    ({"PINS": "JACKSBORO:1,2,0,4@5,6"}, "at least 1 cell"),
+    ({"PINS": ";".join(["JACKSBORO:0,0,4,4@0,0"] * 17)}, "at most 16 pins"),
+])
+def test_synth_constraint_errors(jacksboro, tmp_path, params, message):
+    params = {k: (v.replace("JACKSBORO", jacksboro) if isinstance(v, str) else v)
+              for k, v in params.items()}
+    params.update(EXEMPLARS=[jacksboro], WIDTH=64, HEIGHT=64, OUTPUT=str(tmp_path / "n.tif"))
+    alg = registry().createAlgorithmById("terrasynth:synth")
+    ok, msg = alg.checkParameterValues(params, QgsProcessingContext())  # the dialog's check
+    assert not ok and message in msg
+    with pytest.raises(QgsProcessingException, match=message.replace("(", r"\(")):
+        processing_run("terrasynth:synth", params)
+    assert os.listdir(tmp_path) == []
+
+
+def test_synth_run_with_water_and_pin(jacksboro, cli, tmp_path):
+    """The water cells keep the level; the pinned window is the exemplar's, unchanged."""
+    import numpy as np
+
+    # A copy of the DEM with square 30 m cells in UTM 16N: on the geographic original the
+    # CLI resamples the pinned window like an exemplar (ground cells are not square there),
+    # so it would not be bit-identical.
+    exemplar = str(tmp_path / "jacksboro_utm.tif")
+    gdal.Translate(exemplar, jacksboro, outputSRS="EPSG:32616",
+                   outputBounds=[500000, 4000000, 500000 + 403 * 30, 4000000 - 344 * 30])
+    # the output grid of --size: the exemplar's CRS, origin and resolution
+    ex = gdal.Open(exemplar)
+    mask_path = tmp_path / "water.tif"
+    mask = gdal.GetDriverByName("GTiff").Create(str(mask_path), 128, 128, 1, gdal.GDT_Byte)
+    mask.SetGeoTransform(ex.GetGeoTransform())
+    mask.SetProjection(ex.GetProjection())
+    water = np.zeros((128, 128), np.uint8)
+    water[100:, :] = 1
+    water[:20, 90:] = 1
+    mask.GetRasterBand(1).WriteArray(water)
+    mask = None
+    level = 300.0
+    xoff, yoff, w, h, x, y = 150, 120, 40, 30, 10, 40
+    out = tmp_path / "constrained.tif"
+    res = processing_run("terrasynth:synth", {
+        "EXEMPLARS": [exemplar], "WIDTH": 128, "HEIGHT": 128, "PATCH_SIZE": 32,
+        "OVERLAP": 8, "SEED": 2, "WATER_MASK": str(mask_path), "WATER_LEVEL": level,
+        "PINS": "%s:%d,%d,%d,%d@%d,%d" % (exemplar, xoff, yoff, w, h, x, y),
+        "OUTPUT": str(out)})
+    assert res["OUTPUT"] == str(out)
+    ds = gdal.Open(str(out))
+    assert (ds.RasterXSize, ds.RasterYSize) == (128, 128)
+    assert ds.GetGeoTransform() == pytest.approx(ex.GetGeoTransform())
+    z = ds.GetRasterBand(1).ReadAsArray()
+    assert (z != -9999).all()
+    assert (z[water != 0] == level).all()
+    window = ex.GetRasterBand(1).ReadAsArray(xoff, yoff, w, h).astype(np.float32)
+    assert np.array_equal(z[y:y + h, x:x + w], window)
+    assert z[water == 0].std() > 10  # the rest was synthesized
 
 
 # --------------------------------------------------------------------------- finding the CLI
