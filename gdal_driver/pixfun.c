@@ -84,6 +84,7 @@ static int pix_common(CSLConstList args, const char *fn, int width, int height, 
     int r;
     b->n = (size_t)width * (size_t)height;
     b->has_nodata = 0;
+    b->nodata = 0.0;
     r = pix_number(args, fn, "nodata", 0, &b->nodata);
     if (r < 0)
         return -1;
