@@ -853,10 +853,10 @@ static int cmd_synth(int argc, char **argv)
     }
     if (job.sketch && co.progress != PROGRESS_QUIET)
         printf("sketch: %s, %zu feature sites, %zu feature patches placed (from %zu exemplar "
-               "sites), %d patches in all\n",
+               "sites)\n",
                res.sketch_info.mode == TS_SKETCH_VALLEYS ? "valleys" : "ridges",
                res.sketch_info.n_sites, res.sketch_info.n_feature_patches,
-               res.sketch_info.n_exemplar_sites, debug_dir ? maps.n_patches : -1);
+               res.sketch_info.n_exemplar_sites);
     ts_ctx_set_progress(ctx, NULL, NULL);
     if (res.exemplar_no_crs && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",
