@@ -993,7 +993,7 @@ static void main_help(FILE *out)
             "\n"
             "Commands:\n"
             "  ppa        map ridge and valley axes of a DEM (raster, vector lines, preview)\n"
-            "  synth      grow a new terrain from real DEMs (patch synthesis)\n"
+            "  synth      grow a new terrain from real DEMs, free or following a sketch\n"
             "  describe   print every stage's parameters as JSON (for front ends)\n"
             "\n"
             "'terrasynth COMMAND --help' lists a command's options with defaults and units.\n"
