@@ -156,6 +156,18 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
 static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsigned char *flags,
                            tsio_err *err);
 
+/* A failed core call as "<file>: <message>": the exemplar's file when the
+ * core names an exemplar by index, else `fallback`. */
+static void job_core_err(ts_ctx *ctx, const tsjob_synth *job, const char *fallback, tsio_err *err)
+{
+    const char *msg = ts_ctx_message(ctx);
+    int which = 0;
+    if (sscanf(msg, "synth: exemplar %d:", &which) == 1 && which >= 1 && which <= job->n_exemplars)
+        job_err(err, job->exemplars[which - 1], msg);
+    else
+        job_err(err, fallback, msg);
+}
+
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
                         ts_synth_maps *maps, tsio_err *err)
 {
@@ -237,25 +249,12 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
                               &res->sketch_info) != TS_OK;
         tsio_raster_free(&sk);
         if (bad) {
-            const char *msg = ts_ctx_message(ctx);
-            int which = 0;
-            if (sscanf(msg, "synth: exemplar %d:", &which) == 1 && which >= 1 &&
-                which <= job->n_exemplars)
-                job_err(err, job->exemplars[which - 1], msg);
-            else
-                job_err(err, job->sketch, msg);
+            job_core_err(ctx, job, job->sketch, err);
             goto done;
         }
     } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &params, &res->out, flags,
                                 maps) != TS_OK) {
-        const char *msg = ts_ctx_message(ctx);
-        int which = 0;
-        /* name the exemplar file when the core names its index */
-        if (sscanf(msg, "synth: exemplar %d:", &which) == 1 && which >= 1 &&
-            which <= job->n_exemplars)
-            job_err(err, job->exemplars[which - 1], msg);
-        else
-            job_err(err, "synth", msg);
+        job_core_err(ctx, job, "synth", err);
         goto done;
     }
     rc = 0;

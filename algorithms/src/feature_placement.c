@@ -209,30 +209,6 @@ static double sk_profile_cost(const sketcher *k, const ts_feature_site *s, int w
     return n ? sqrt(sum / n) : 0.0;
 }
 
-/* Two-pass chamfer distance (Chebyshev) on a P x P grid, in place. */
-static void sk_chamfer(int *d, int P)
-{
-    int x, y;
-    for (y = 0; y < P; y++)
-        for (x = 0; x < P; x++) {
-            int v = d[y * P + x];
-            if (x > 0) v = TS_MIN(v, d[y * P + x - 1] + 1);
-            if (y > 0) v = TS_MIN(v, d[(y - 1) * P + x] + 1);
-            if (x > 0 && y > 0) v = TS_MIN(v, d[(y - 1) * P + x - 1] + 1);
-            if (x + 1 < P && y > 0) v = TS_MIN(v, d[(y - 1) * P + x + 1] + 1);
-            d[y * P + x] = v;
-        }
-    for (y = P - 1; y >= 0; y--)
-        for (x = P - 1; x >= 0; x--) {
-            int v = d[y * P + x];
-            if (x + 1 < P) v = TS_MIN(v, d[y * P + x + 1] + 1);
-            if (y + 1 < P) v = TS_MIN(v, d[(y + 1) * P + x] + 1);
-            if (x + 1 < P && y + 1 < P) v = TS_MIN(v, d[(y + 1) * P + x + 1] + 1);
-            if (x > 0 && y + 1 < P) v = TS_MIN(v, d[(y + 1) * P + x - 1] + 1);
-            d[y * P + x] = v;
-        }
-}
-
 /* ---- one site ------------------------------------------------------ */
 
 static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index, int *placed)
@@ -287,7 +263,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
         for (x = 0; x < P; x++)
             k->near[y * P + x] =
                 (k->sf->mask[(size_t)(wy + y) * (size_t)W + (size_t)(wx + x)] & k->kind) ? 0 : 2 * P;
-    sk_chamfer(k->near, P);
+    ts_chamfer_chebyshev(k->near, P);
     for (i = 0; i < n_c; i++) {
         const ts_raster *exr = &k->ex[k->es[k->cands[i].idx].ex];
         ts_raster ring = ts_raster_wrap(k->ring, M, M, M);
@@ -311,10 +287,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
                               hypot(ox - s->cx, oy - s->cy) <= k->R;
                 k->core[y * P + x] = 0;
                 if (!isnan(k->old[y * P + x])) {
-                    if ((x == 0 && ox > 0 && !isnan(TS_PIX(k->out, ox - 1, oy))) ||
-                        (y == 0 && oy > 0 && !isnan(TS_PIX(k->out, ox, oy - 1))) ||
-                        (x == P - 1 && ox + 1 < W && !isnan(TS_PIX(k->out, ox + 1, oy))) ||
-                        (y == P - 1 && oy + 1 < H && !isnan(TS_PIX(k->out, ox, oy + 1))))
+                    if (ts_border_keeps_old(k->out, wx, wy, P, x, y))
                         c = TS_SEAM_OLD;
                     if (k->flags[(size_t)oy * (size_t)W + (size_t)ox] & TS_CELL_FIXED)
                         c = TS_SEAM_OLD;

@@ -417,7 +417,6 @@ static ts_status place_one(placer *pl, placement *q, int index)
 {
     ts_ctx *ctx = pl->ctx;
     int P = pl->P, x, y, n_known = 0, e, i, total = 0, best = -1, W = pl->out->width;
-    int H = pl->out->height;
     int *cand_ex;
     double *cost, best_cost = INFINITY, t0 = 0;
     ts_status *status;
@@ -436,12 +435,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
             if (!isnan(pl->mtarget[y * P + x]))
                 pl->known[n_known++] = y * P + x;
             if (!isnan(v)) {
-                /* a filled border cell next to filled cells outside stays old,
-                 * so every seam lies inside the window where it is costed */
-                if ((x == 0 && ox > 0 && !isnan(TS_PIX(pl->out, ox - 1, oy))) ||
-                    (y == 0 && oy > 0 && !isnan(TS_PIX(pl->out, ox, oy - 1))) ||
-                    (x == P - 1 && ox + 1 < W && !isnan(TS_PIX(pl->out, ox + 1, oy))) ||
-                    (y == P - 1 && oy + 1 < H && !isnan(TS_PIX(pl->out, ox, oy + 1))))
+                if (ts_border_keeps_old(pl->out, q->x, q->y, P, x, y))
                     c = TS_SEAM_OLD;
             }
             /* keep_nodata cells take the patch in the cut (there is nothing

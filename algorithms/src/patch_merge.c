@@ -67,6 +67,38 @@ int ts_label_cut_edges(const unsigned char *labels, int P)
 /* Keep in the Poisson region only the new cells and the old cells within
  * `overlap` cells (Chebyshev) of new ones: the seam is smoothed in a band,
  * old content farther away stays as it was. */
+void ts_chamfer_chebyshev(int *d, int P)
+{
+    int x, y;
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++) {
+            int v = d[y * P + x];
+            if (x > 0) v = TS_MIN(v, d[y * P + x - 1] + 1);
+            if (y > 0) v = TS_MIN(v, d[(y - 1) * P + x] + 1);
+            if (x > 0 && y > 0) v = TS_MIN(v, d[(y - 1) * P + x - 1] + 1);
+            if (x + 1 < P && y > 0) v = TS_MIN(v, d[(y - 1) * P + x + 1] + 1);
+            d[y * P + x] = v;
+        }
+    for (y = P - 1; y >= 0; y--)
+        for (x = P - 1; x >= 0; x--) {
+            int v = d[y * P + x];
+            if (x + 1 < P) v = TS_MIN(v, d[y * P + x + 1] + 1);
+            if (y + 1 < P) v = TS_MIN(v, d[(y + 1) * P + x] + 1);
+            if (x + 1 < P && y + 1 < P) v = TS_MIN(v, d[(y + 1) * P + x + 1] + 1);
+            if (x > 0 && y + 1 < P) v = TS_MIN(v, d[(y + 1) * P + x - 1] + 1);
+            d[y * P + x] = v;
+        }
+}
+
+int ts_border_keeps_old(const ts_raster *out, int wx, int wy, int P, int x, int y)
+{
+    int ox = wx + x, oy = wy + y;
+    return (x == 0 && ox > 0 && !isnan(TS_PIX(out, ox - 1, oy))) ||
+           (y == 0 && oy > 0 && !isnan(TS_PIX(out, ox, oy - 1))) ||
+           (x == P - 1 && ox + 1 < out->width && !isnan(TS_PIX(out, ox + 1, oy))) ||
+           (y == P - 1 && oy + 1 < out->height && !isnan(TS_PIX(out, ox, oy + 1)));
+}
+
 static void merge_limit_region(ts_merger *m, const unsigned char *labels)
 {
     int P = m->P, M = P + 2, r = m->band, x, y;
@@ -74,25 +106,7 @@ static void merge_limit_region(ts_merger *m, const unsigned char *labels)
     for (y = 0; y < P; y++)
         for (x = 0; x < P; x++)
             dist[y * P + x] = labels[y * P + x] ? 0 : P + r + 1;
-    /* two-pass chamfer (Chebyshev) distance */
-    for (y = 0; y < P; y++)
-        for (x = 0; x < P; x++) {
-            int d = dist[y * P + x];
-            if (x > 0) d = TS_MIN(d, dist[y * P + x - 1] + 1);
-            if (y > 0) d = TS_MIN(d, dist[(y - 1) * P + x] + 1);
-            if (x > 0 && y > 0) d = TS_MIN(d, dist[(y - 1) * P + x - 1] + 1);
-            if (x + 1 < P && y > 0) d = TS_MIN(d, dist[(y - 1) * P + x + 1] + 1);
-            dist[y * P + x] = d;
-        }
-    for (y = P - 1; y >= 0; y--)
-        for (x = P - 1; x >= 0; x--) {
-            int d = dist[y * P + x];
-            if (x + 1 < P) d = TS_MIN(d, dist[y * P + x + 1] + 1);
-            if (y + 1 < P) d = TS_MIN(d, dist[(y + 1) * P + x] + 1);
-            if (x + 1 < P && y + 1 < P) d = TS_MIN(d, dist[(y + 1) * P + x + 1] + 1);
-            if (x > 0 && y + 1 < P) d = TS_MIN(d, dist[(y + 1) * P + x - 1] + 1);
-            dist[y * P + x] = d;
-        }
+    ts_chamfer_chebyshev(dist, P);
     for (y = 0; y < P; y++)
         for (x = 0; x < P; x++)
             if (dist[y * P + x] > r)

@@ -42,6 +42,16 @@ ts_status ts_merger_apply(ts_ctx *ctx, ts_merger *m, ts_raster *out, const unsig
 double ts_height_cost(const ts_synth_params *p, int width, int wx, int wy, int P,
                       const float *patch, int stride);
 
+/* Two-pass chamfer distance (Chebyshev) on a P x P grid, in place: cells
+ * start at 0 (sources) or a large value. */
+void ts_chamfer_chebyshev(int *d, int P);
+
+/* Does window cell (x, y) of the P x P window at (wx, wy) lie on the
+ * window's border next to a filled cell outside it?  Such a cell keeps its
+ * old value in the graph cut, so every seam lies inside the window where it
+ * is costed. */
+int ts_border_keeps_old(const ts_raster *out, int wx, int wy, int P, int x, int y);
+
 /* Number of 4-adjacent label changes inside a P x P window. */
 int ts_label_cut_edges(const unsigned char *labels, int P);
 
