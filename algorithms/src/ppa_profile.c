@@ -8,7 +8,8 @@
  * valley target when it rises above it likewise.  A profile stops at the
  * raster edge and at nodata: nothing is seen across a hole, and nodata
  * cells are never targets.
- * Cost: O(cells x profile_length), rows split over the context's threads.
+ * Cost: O(cells x profile_length) at worst; a scan stops as soon as it has
+ * seen a deep enough dip (rise), rows split over the context's threads.
  * Deterministic: every cell is decided independently.
  */
 #include <string.h>
@@ -25,13 +26,16 @@ typedef struct profile_job {
 
 static const int profile_dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
 
-/* Lowest and highest value within `half` steps from (x, y) along (dx, dy),
- * stopping at the edge or at nodata.  Returns 0 if no step was possible. */
-static int profile_scan_side(const ts_raster *dem, int x, int y, int dx, int dy, int half,
-                             float *lo, float *hi)
+/* Walk `half` steps from (x, y) along (dx, dy), stopping at the edge or at
+ * nodata, and as soon as every kind in `want` is seen: TS_RIDGE when a
+ * value lies more than `threshold` below z (z - v > threshold, the same
+ * float arithmetic as comparing with the lowest value), TS_VALLEY when one
+ * lies more than `threshold` above it.  Returns the kinds seen, or -1 if
+ * no step was possible (the profile does not count). */
+static int profile_side(const ts_raster *dem, int x, int y, int dx, int dy, int half, float z,
+                        float threshold, int want)
 {
-    int i, seen = 0;
-    float mn = INFINITY, mx = -INFINITY;
+    int i, found = 0;
     for (i = 1; i <= half; i++) {
         int xx = x + i * dx, yy = y + i * dy;
         float v;
@@ -40,43 +44,43 @@ static int profile_scan_side(const ts_raster *dem, int x, int y, int dx, int dy,
         v = TS_PIX(dem, xx, yy);
         if (isnan(v))
             break;
-        if (v < mn) mn = v;
-        if (v > mx) mx = v;
-        seen = 1;
+        if (z - v > threshold)
+            found |= TS_RIDGE;
+        if (v - z > threshold)
+            found |= TS_VALLEY;
+        if ((found & want) == want)
+            return found & want;
     }
-    *lo = mn;
-    *hi = mx;
-    return seen;
+    return i == 1 ? -1 : found & want;
 }
 
 static void profile_rows(void *arg, size_t y0, size_t y1)
 {
     const profile_job *job = arg;
     const ts_raster *dem = job->dem;
+    int want = job->kinds & (TS_RIDGE | TS_VALLEY);
     size_t y;
     for (y = y0; y < y1; y++) {
         int x;
         unsigned char *out = job->targets + y * (size_t)dem->width;
         for (x = 0; x < dem->width; x++) {
             float z = TS_PIX(dem, x, (int)y);
-            unsigned char bits = 0;
-            int d;
+            int bits = 0, d;
             if (!isnan(z)) {
-                for (d = 0; d < 4 && bits != (job->kinds & (TS_RIDGE | TS_VALLEY)); d++) {
-                    float lo1, hi1, lo2, hi2;
-                    int dx = profile_dir[d][0], dy = profile_dir[d][1];
-                    if (!profile_scan_side(dem, x, (int)y, dx, dy, job->half, &lo1, &hi1) ||
-                        !profile_scan_side(dem, x, (int)y, -dx, -dy, job->half, &lo2, &hi2))
+                for (d = 0; d < 4 && bits != want; d++) {
+                    int dx = profile_dir[d][0], dy = profile_dir[d][1], s1, s2;
+                    /* only the kinds not yet decided */
+                    s1 = profile_side(dem, x, (int)y, dx, dy, job->half, z, job->threshold,
+                                      want & ~bits);
+                    if (s1 <= 0)
                         continue;
-                    if ((job->kinds & TS_RIDGE) && z - lo1 > job->threshold &&
-                        z - lo2 > job->threshold)
-                        bits |= TS_RIDGE;
-                    if ((job->kinds & TS_VALLEY) && hi1 - z > job->threshold &&
-                        hi2 - z > job->threshold)
-                        bits |= TS_VALLEY;
+                    s2 = profile_side(dem, x, (int)y, -dx, -dy, job->half, z, job->threshold,
+                                      s1);
+                    if (s2 > 0)
+                        bits |= s1 & s2;
                 }
             }
-            out[x] = bits;
+            out[x] = (unsigned char)bits;
         }
     }
 }

@@ -359,6 +359,82 @@ static void test_noise_forest_and_threads(void)
     ts_ctx_free(ctx);
 }
 
+/* ---- profile recognition (early-exit scans) equals the definition ---- */
+/* The textbook rule: along some direction, the lowest (highest) value on
+ * each side within half the profile, stopping at the edge or nodata, lies
+ * more than the threshold below (above) the cell. */
+static unsigned char naive_profile_cell(const ts_raster *dem, int x, int y, int half, float thr,
+                                        int kinds)
+{
+    static const int dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    float z = TS_PIX(dem, x, y);
+    unsigned char bits = 0;
+    int d, side, i;
+    if (isnan(z))
+        return 0;
+    for (d = 0; d < 4; d++) {
+        float lo[2], hi[2];
+        int seen[2];
+        for (side = 0; side < 2; side++) {
+            int sx = side ? -dir[d][0] : dir[d][0], sy = side ? -dir[d][1] : dir[d][1];
+            lo[side] = INFINITY;
+            hi[side] = -INFINITY;
+            seen[side] = 0;
+            for (i = 1; i <= half; i++) {
+                int xx = x + i * sx, yy = y + i * sy;
+                if (xx < 0 || yy < 0 || xx >= dem->width || yy >= dem->height ||
+                    isnan(TS_PIX(dem, xx, yy)))
+                    break;
+                lo[side] = fminf(lo[side], TS_PIX(dem, xx, yy));
+                hi[side] = fmaxf(hi[side], TS_PIX(dem, xx, yy));
+                seen[side] = 1;
+            }
+        }
+        if (!seen[0] || !seen[1])
+            continue;
+        if ((kinds & TS_RIDGE) && z - lo[0] > thr && z - lo[1] > thr)
+            bits |= TS_RIDGE;
+        if ((kinds & TS_VALLEY) && hi[0] - z > thr && hi[1] - z > thr)
+            bits |= TS_VALLEY;
+    }
+    return bits;
+}
+
+static void test_profile_recognition_equals_naive(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t s = 99;
+    int rep;
+    for (rep = 0; rep < 24; rep++) {
+        int w = 20 + (int)(th_uniform(&s) * 60), h = 15 + (int)(th_uniform(&s) * 50);
+        int len = 3 + 2 * (rep % 12), kinds = 1 + rep % 3, x, y, bad = 0;
+        float thr = (float)(th_uniform(&s) * 30.0);
+        ts_raster dem;
+        unsigned char *got = malloc((size_t)w * h);
+        ts_raster_alloc(ctx, w, h, &dem);
+        for (y = 0; y < h; y++)
+            for (x = 0; x < w; x++) {
+                double v = 40.0 * sin(x / (2.0 + rep)) * cos(y / 3.0) + 25.0 * th_uniform(&s);
+                TS_PIX(&dem, x, y) = th_uniform(&s) < 0.05 ? NAN : (float)v;
+            }
+        ts_ctx_set_threads(ctx, 1 + rep % 3);
+        CHECK(ts_ppa_profile_recognition(ctx, &dem, len, thr, kinds, got) == TS_OK);
+        for (y = 0; y < h && !bad; y++)
+            for (x = 0; x < w; x++) {
+                unsigned char want = naive_profile_cell(&dem, x, y, len / 2, thr, kinds);
+                if (got[y * w + x] != want) {
+                    CHECK_MSG(0, "rep %d cell (%d, %d): %u, naive %u", rep, x, y, got[y * w + x],
+                              want);
+                    bad = 1;
+                    break;
+                }
+            }
+        free(got);
+        ts_raster_free(&dem);
+    }
+    ts_ctx_free(ctx);
+}
+
 /* ---- polygon breaking: Kruskal equals naive repeated polygon breaking ---- */
 
 /* Find a cycle among the live segments with DFS; return the index of its
@@ -610,6 +686,7 @@ int main(int argc, char **argv)
         {"nodata_hole", test_nodata_hole},
         {"noise_forest_and_threads", test_noise_forest_and_threads},
         {"kruskal_equals_naive", test_kruskal_equals_naive},
+        {"profile_recognition_equals_naive", test_profile_recognition_equals_naive},
         {"crossing_diagonals", test_crossing_diagonals},
         {"errors_and_cancel", test_errors_and_cancel},
         {"metric_branch_length", test_metric_branch_length},
