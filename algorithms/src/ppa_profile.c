@@ -8,10 +8,14 @@
  * valley target when it rises above it likewise.  A profile stops at the
  * raster edge and at nodata: nothing is seen across a hole, and nodata
  * cells are never targets.
- * Cost: O(cells x profile_length) at worst; a scan stops as soon as it has
- * seen a deep enough dip (rise), rows split over the context's threads.
+ * Cost: O(cells), whatever the profile length: along each direction the
+ * lowest and highest values on either side come from monotonic queues over
+ * each nodata-free run (sliding-window extremes); lines are split over the
+ * context's threads, one direction at a time.
  * Deterministic: every cell is decided independently.
  */
+#include <stdatomic.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "internal.h"
@@ -21,68 +25,146 @@ typedef struct profile_job {
     int half;
     float threshold;
     int kinds;
+    int dir;             /* the direction of this pass, index into profile_dir */
     unsigned char *targets;
+    atomic_int failed;   /* a worker could not get its buffers */
 } profile_job;
 
 static const int profile_dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
 
-/* Walk `half` steps from (x, y) along (dx, dy), stopping at the edge or at
- * nodata, and as soon as every kind in `want` is seen: TS_RIDGE when a
- * value lies more than `threshold` below z (z - v > threshold, the same
- * float arithmetic as comparing with the lowest value), TS_VALLEY when one
- * lies more than `threshold` above it.  Returns the kinds seen, or -1 if
- * no step was possible (the profile does not count). */
-static int profile_side(const ts_raster *dem, int x, int y, int dx, int dy, int half, float z,
-                        float threshold, int want)
+/* Lines of direction d: their count, and the start and length of line l. */
+static size_t profile_lines(const ts_raster *dem, int d)
 {
-    int i, found = 0;
-    for (i = 1; i <= half; i++) {
-        int xx = x + i * dx, yy = y + i * dy;
-        float v;
-        if (xx < 0 || yy < 0 || xx >= dem->width || yy >= dem->height)
-            break;
-        v = TS_PIX(dem, xx, yy);
-        if (isnan(v))
-            break;
-        if (z - v > threshold)
-            found |= TS_RIDGE;
-        if (v - z > threshold)
-            found |= TS_VALLEY;
-        if ((found & want) == want)
-            return found & want;
-    }
-    return i == 1 ? -1 : found & want;
+    size_t w = (size_t)dem->width, h = (size_t)dem->height;
+    return d == 0 ? h : d == 1 ? w : w + h - 1;
 }
 
-static void profile_rows(void *arg, size_t y0, size_t y1)
+static void profile_line(const ts_raster *dem, int d, size_t l, int *x0, int *y0, int *n)
 {
-    const profile_job *job = arg;
-    const ts_raster *dem = job->dem;
-    int want = job->kinds & (TS_RIDGE | TS_VALLEY);
-    size_t y;
-    for (y = y0; y < y1; y++) {
-        int x;
-        unsigned char *out = job->targets + y * (size_t)dem->width;
-        for (x = 0; x < dem->width; x++) {
-            float z = TS_PIX(dem, x, (int)y);
-            int bits = 0, d;
-            if (!isnan(z)) {
-                for (d = 0; d < 4 && bits != want; d++) {
-                    int dx = profile_dir[d][0], dy = profile_dir[d][1], s1, s2;
-                    /* only the kinds not yet decided */
-                    s1 = profile_side(dem, x, (int)y, dx, dy, job->half, z, job->threshold,
-                                      want & ~bits);
-                    if (s1 <= 0)
-                        continue;
-                    s2 = profile_side(dem, x, (int)y, -dx, -dy, job->half, z, job->threshold,
-                                      s1);
-                    if (s2 > 0)
-                        bits |= s1 & s2;
-                }
+    int W = dem->width, H = dem->height, li = (int)l;
+    switch (d) {
+    case 0: *x0 = 0; *y0 = li; *n = W; break;
+    case 1: *x0 = li; *y0 = 0; *n = H; break;
+    case 2:
+        if (li < W) { *x0 = li; *y0 = 0; } else { *x0 = 0; *y0 = li - W + 1; }
+        *n = TS_MIN(W - *x0, H - *y0);
+        break;
+    default:
+        if (li < W) { *x0 = li; *y0 = H - 1; } else { *x0 = 0; *y0 = li - W; }
+        *n = TS_MIN(W - *x0, *y0 + 1);
+        break;
+    }
+}
+
+/* Sliding extremes over one nodata-free run v[s..e]: for each i the lowest
+ * and highest value among v[i+1 .. i+half] (fwd) and v[i-half .. i-1]
+ * (bwd), cut at the run's ends (+-INFINITY where that side is empty).
+ * Monotonic queues q (n ints each): O(run length). */
+static void profile_run(const float *v, int s, int e, int half, int want_min, int want_max,
+                        float *fmin, float *fmax, float *bmin, float *bmax, int *qa, int *qb)
+{
+    int i, ha, ta, hb, tb;
+    /* forward: i from e down to s, the window (i, i + half] */
+    ha = ta = hb = tb = 0;
+    for (i = e; i >= s; i--) {
+        int j = i + 1;
+        if (j <= e) {
+            if (want_min) {
+                while (ta > ha && v[qa[ta - 1]] >= v[j])
+                    ta--;
+                qa[ta++] = j;
             }
-            out[x] = (unsigned char)bits;
+            if (want_max) {
+                while (tb > hb && v[qb[tb - 1]] <= v[j])
+                    tb--;
+                qb[tb++] = j;
+            }
+        }
+        while (ta > ha && qa[ha] > i + half)
+            ha++;
+        while (tb > hb && qb[hb] > i + half)
+            hb++;
+        fmin[i] = ta > ha ? v[qa[ha]] : INFINITY;
+        fmax[i] = tb > hb ? v[qb[hb]] : -INFINITY;
+    }
+    /* backward: i from s up to e, the window [i - half, i) */
+    ha = ta = hb = tb = 0;
+    for (i = s; i <= e; i++) {
+        int j = i - 1;
+        if (j >= s) {
+            if (want_min) {
+                while (ta > ha && v[qa[ta - 1]] >= v[j])
+                    ta--;
+                qa[ta++] = j;
+            }
+            if (want_max) {
+                while (tb > hb && v[qb[tb - 1]] <= v[j])
+                    tb--;
+                qb[tb++] = j;
+            }
+        }
+        while (ta > ha && qa[ha] < i - half)
+            ha++;
+        while (tb > hb && qb[hb] < i - half)
+            hb++;
+        bmin[i] = ta > ha ? v[qa[ha]] : INFINITY;
+        bmax[i] = tb > hb ? v[qb[hb]] : -INFINITY;
+    }
+}
+
+/* Lines [b, e) of the job's direction. */
+static void profile_lines_range(void *arg, size_t b, size_t e)
+{
+    profile_job *job = arg;
+    const ts_raster *dem = job->dem;
+    int n_max = TS_MAX(dem->width, dem->height), dx = profile_dir[job->dir][0],
+        dy = profile_dir[job->dir][1];
+    int want_min = (job->kinds & TS_RIDGE) != 0, want_max = (job->kinds & TS_VALLEY) != 0;
+    float *buf = ts_malloc_array((size_t)n_max * 5, sizeof(float));
+    int *q = ts_malloc_array((size_t)n_max * 2, sizeof(int));
+    size_t l;
+    if (!buf || !q) {
+        atomic_store(&job->failed, 1);
+        free(buf);
+        free(q);
+        return;
+    }
+    for (l = b; l < e; l++) {
+        float *v = buf, *fmin = buf + n_max, *fmax = buf + 2 * n_max, *bmin = buf + 3 * n_max,
+              *bmax = buf + 4 * n_max;
+        int x0, y0, n, i, s;
+        profile_line(dem, job->dir, l, &x0, &y0, &n);
+        for (i = 0; i < n; i++)
+            v[i] = TS_PIX(dem, x0 + i * dx, y0 + i * dy);
+        for (s = 0; s < n;) {
+            int end;
+            if (isnan(v[s])) {
+                s++;
+                continue;
+            }
+            for (end = s; end + 1 < n && !isnan(v[end + 1]); end++)
+                ;
+            profile_run(v, s, end, job->half, want_min, want_max, fmin, fmax, bmin, bmax, q,
+                        q + n_max);
+            for (i = s; i <= end; i++) {
+                float z = v[i];
+                unsigned char bits = 0;
+                /* a profile needs a step on both sides */
+                if (i == s || i == end)
+                    continue;
+                if (want_min && z - fmin[i] > job->threshold && z - bmin[i] > job->threshold)
+                    bits |= TS_RIDGE;
+                if (want_max && fmax[i] - z > job->threshold && bmax[i] - z > job->threshold)
+                    bits |= TS_VALLEY;
+                if (bits)
+                    job->targets[(size_t)(y0 + i * dy) * (size_t)dem->width +
+                                 (size_t)(x0 + i * dx)] |= bits;
+            }
+            s = end + 1;
         }
     }
+    free(buf);
+    free(q);
 }
 
 TS_API ts_status ts_ppa_profile_recognition(ts_ctx *ctx, const ts_raster *dem,
@@ -106,6 +188,13 @@ TS_API ts_status ts_ppa_profile_recognition(ts_ctx *ctx, const ts_raster *dem,
     job.threshold = (float)threshold;
     job.kinds = kinds & (TS_RIDGE | TS_VALLEY);
     job.targets = targets;
-    ts_parallel_for(ctx, (size_t)dem->height, profile_rows, &job);
+    atomic_init(&job.failed, 0);
+    memset(targets, 0, (size_t)dem->width * (size_t)dem->height);
+    /* one direction at a time: its lines are disjoint, so workers never
+     * write the same cell */
+    for (job.dir = 0; job.dir < 4; job.dir++)
+        ts_parallel_for(ctx, profile_lines(dem, job.dir), profile_lines_range, &job);
+    if (atomic_load(&job.failed))
+        return ts_fail(ctx, TS_ERR_NOMEM, "ppa profile recognition", "out of memory");
     return ts_progress(ctx, 1.0, "profile recognition");
 }
