@@ -76,6 +76,18 @@ FALLBACK = {
             {"name": "alpha_f", "flag": "--alpha-f", "type": "double", "default": 3,
              "min": 0, "max": 1000000000, "units": "", "choices": None,
              "help": "Weight of the feature profile dissimilarity c_f of feature patches."},
+            {"name": "alpha_s", "flag": "--alpha-s", "type": "double", "default": 0,
+             "min": 0, "max": 1000000000, "units": "", "choices": None,
+             "help": "Weight of the path smoothness constraint c_s: crest (valleys: thalweg) "
+                     "heights along the sketch's strokes bend less, within a feature patch and "
+                     "where it joins the placed ones; larger gives smoother, gentler crests "
+                     "(0 = off)."},
+            {"name": "alpha_r", "flag": "--alpha-r", "type": "double", "default": 0.5,
+             "min": 0, "max": 1000000000, "units": "", "choices": None,
+             "help": "Weight of the relief guide: sketched ridges stand high and sketched "
+                     "valleys lie low, falling away from the strokes as the exemplars' land "
+                     "falls away from their main features (0 = off: the exemplars alone decide "
+                     "the heights)."},
         ],
     },
 }

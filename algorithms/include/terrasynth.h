@@ -415,6 +415,11 @@ typedef struct ts_synth_params {
      * of its window.  (Not descriptor parameters.) */
     const float *heights;
     double alpha_h;
+    /* The relief a sketch implies (set by ts_synth_sketch from its alpha_r;
+     * NaN = none; borrowed, width*height): candidates gain alpha_r *
+     * RMS(patch - guide) like the height constraints.  NULL = none. */
+    const float *guide;
+    double alpha_r;
 } ts_synth_params;
 
 TS_API ts_synth_params ts_synth_params_default(void);
@@ -468,6 +473,8 @@ typedef struct ts_sketch_params {
     int mode;        /* ridges (bright strokes), valleys (dark strokes), auto */
     double alpha_d;  /* weight of the warp's deformation cost c_d */
     double alpha_f;  /* weight of the feature profile dissimilarity c_f */
+    double alpha_s;  /* weight of the path smoothness constraint c_s */
+    double alpha_r;  /* weight of the relief guide (sketched ridges stand high) */
 } ts_sketch_params;
 
 TS_API ts_sketch_params ts_sketch_params_default(void);
@@ -478,6 +485,9 @@ typedef struct ts_sketch_info {
     size_t n_sites;          /* feature patch sites in the sketch */
     size_t n_feature_patches;/* of which placed */
     size_t n_exemplar_sites; /* candidate feature patches found in the exemplars */
+    /* wall seconds: PPA on the sketch, PPA (and relief profiles) on the
+     * exemplars, feature patch placement, the non-feature fill */
+    double seconds_sketch_ppa, seconds_exemplar_ppa, seconds_features, seconds_fill;
 } ts_sketch_info;
 
 /**

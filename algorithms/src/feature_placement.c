@@ -29,9 +29,11 @@
  */
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "feature_tree.h"
 #include "patch_merge.h"
+#include "relief_guide.h"
 #include "tps.h"
 
 typedef struct ex_site {
@@ -41,14 +43,17 @@ typedef struct ex_site {
 
 typedef struct candidate {
     int idx;                 /* into the exemplar site list */
+    int rot, mirror;         /* the alignment */
     double cd;
+    double pre;              /* alpha_d c_d + the profile costs estimated before warping */
     ts_tps inv;              /* output window coordinates -> exemplar cells */
 } candidate;
 
 typedef struct sketcher {
     ts_ctx *ctx;
     const ts_sketch_params *sp;
-    const ts_synth_params *p;
+    const ts_synth_params *p; /* the caller's, with the relief guide added */
+    ts_synth_params fp;
     const ts_raster *sketch;
     const ts_raster *ex;
     int n_ex;
@@ -67,7 +72,15 @@ typedef struct sketcher {
     int32_t *src_x, *src_y;
     int *near;               /* P x P: distance to the sketch's feature */
     int core_radius;         /* feature cells and flanks within this many cells */
-    candidate *cands;
+    candidate *cands;        /* the k examined in full */
+    candidate *pool;         /* the best by deformation, before the profile costs */
+    double *pool_cost;
+    int pool_max;
+    int n_chunks;            /* the deformation scan's parallel chunks */
+    candidate *chunk_pool;   /* n_chunks x pool_max */
+    int *chunk_n;
+    float *guide;            /* relief guide, or NULL */
+    ts_relief_profile *profs;
     ts_synth_maps *maps;
 } sketcher;
 
@@ -122,7 +135,7 @@ static double sk_similarity(int n, const double *ax, const double *ay, const dou
  * continuous coordinates (window cell (x, y) has its centre at x + 0.5,
  * y + 0.5; the site's centre cell is at (cx - wx, cy - wy)) to the
  * exemplar's. */
-static int sk_align(sketcher *k, const ts_feature_site *s, const ts_feature_site *e, int rot,
+static int sk_align(const sketcher *k, ts_ctx *ctx, const ts_feature_site *s, const ts_feature_site *e, int rot,
                     int mirror, double wcx, double wcy, double *cd, ts_tps *inv)
 {
     double ex[TS_SITE_MAX_ARMS + 1], ey[TS_SITE_MAX_ARMS + 1];
@@ -147,10 +160,10 @@ static int sk_align(sketcher *k, const ts_feature_site *s, const ts_feature_site
         gy[i] = e->cy + e->py[j] + 0.5;
     }
     if (s->type == TS_SITE_BRANCH) {
-        if (ts_tps_fit(k->ctx, n, ex, ey, sx, sy, 0.0, &fwd) != TS_OK)
+        if (ts_tps_fit(ctx, n, ex, ey, sx, sy, 0.0, &fwd) != TS_OK)
             return -1;
         *cd = fwd.bending;
-        if (ts_tps_fit(k->ctx, n, wx_, wy_, gx, gy, 0.0, inv) != TS_OK)
+        if (ts_tps_fit(ctx, n, wx_, wy_, gx, gy, 0.0, inv) != TS_OK)
             return -1;
     } else {
         *cd = sk_similarity(n, ex, ey, sx, sy, 0, &fwd) / n;
@@ -167,7 +180,22 @@ static int sk_cand_cmp(const void *a, const void *b)
     const candidate *p = a, *q = b;
     if (p->cd != q->cd)
         return p->cd < q->cd ? -1 : 1;
-    return (p->idx > q->idx) - (p->idx < q->idx);
+    if (p->idx != q->idx)
+        return p->idx < q->idx ? -1 : 1;
+    if (p->mirror != q->mirror)
+        return p->mirror < q->mirror ? -1 : 1;
+    return (p->rot > q->rot) - (p->rot < q->rot);
+}
+
+/* Same order by the pre-warp cost; ties fall back on the deformation order,
+ * a total order (exemplar site, then alignment), so sorting is
+ * deterministic. */
+static int sk_pre_cmp(const void *a, const void *b)
+{
+    const candidate *p = a, *q = b;
+    if (p->pre != q->pre)
+        return p->pre < q->pre ? -1 : 1;
+    return sk_cand_cmp(a, b);
 }
 
 /* Bilinear sample of the output (NaN where any corner is empty). */
@@ -182,14 +210,118 @@ static double sk_sample(const ts_raster *r, double x, double y)
     return v;
 }
 
-/* c_f: RMS difference of 7-point profiles across the feature at the
- * control points, between the candidate (window values) and the output. */
-static double sk_profile_cost(const sketcher *k, const ts_feature_site *s, int wx, int wy,
-                              const float *ring)
+/* What a candidate (or the output) holds at output cell coordinates
+ * (x, y) (cell centres at integers): the warped window with its ring
+ * (inv NULL: value at (x + ox, y + oy) of r), or the exemplar itself through
+ * the window's inverse warp (before any warping is done). */
+typedef struct sk_view {
+    const ts_raster *r;
+    const ts_tps *inv;
+    double ox, oy; /* ring offsets, or the window's corner for inv */
+} sk_view;
+
+static double sk_value(const sk_view *v, double x, double y)
 {
-    int P = k->P, M = P + 2, i, j, n = 0;
-    double sum = 0.0, step = k->R / 4.0;
-    ts_raster win = ts_raster_wrap((float *)ring, M, M, M);
+    if (v->inv) {
+        double ex, ey;
+        ts_tps_map(v->inv, x - v->ox + 0.5, y - v->oy + 0.5, &ex, &ey);
+        return sk_sample(v->r, ex - 0.5, ey - 0.5);
+    }
+    return sk_sample(v->r, x + v->ox, y + v->oy);
+}
+
+/* The crest (valleys: the thalweg) near (x, y): the extreme of five values
+ * across the feature, a quarter radius either side; NaN if none is known. */
+static double sk_crest(const sketcher *k, const sk_view *v, double x, double y, double nx,
+                       double ny)
+{
+    double best = NAN, step = k->R / 8.0;
+    int j;
+    for (j = -2; j <= 2; j++) {
+        double z = sk_value(v, x + j * step * nx, y + j * step * ny);
+        if (isnan(z))
+            continue;
+        if (isnan(best) || (k->kind == TS_VALLEY ? z < best : z > best))
+            best = z;
+    }
+    return best;
+}
+
+/* RMS of the second differences of a height sequence (NaN = gap). */
+static void sk_bend_add(const double *z, int n, double *sum, int *cnt)
+{
+    int i;
+    for (i = 1; i + 1 < n; i++)
+        if (!isnan(z[i - 1]) && !isnan(z[i]) && !isnan(z[i + 1])) {
+            double b = z[i - 1] - 2.0 * z[i] + z[i + 1];
+            *sum += b * b;
+            (*cnt)++;
+        }
+}
+
+/* c_s, the path smoothness constraint (Zhou et al. name it among the user
+ * constraints c_i without defining it; this is TerraSynth's reading): along
+ * each arm of the site, the crest heights every half radius out to twice
+ * the radius, where the candidate holds the inner three (to the circle) and
+ * the output what is already placed.  Where both are known the output
+ * wins, as in the merge; the candidate elsewhere, raised by the mean
+ * difference to the output where both are known (what the Poisson seam
+ * removal does to it).  c_s is the RMS second difference of that joined
+ * profile (metres): it grows with a crest that bends in height inside the
+ * patch, and with a crest whose trend breaks where it meets the placed
+ * one.  A path site's two arms make one profile through the centre. */
+static double sk_smoothness(const sketcher *k, const ts_feature_site *s, const sk_view *cand)
+{
+    const sk_view outv = {k->out, NULL, 0.0, 0.0};
+    double c[TS_SITE_MAX_ARMS][5], o[TS_SITE_MAX_ARMS][5], delta = 0.0, sum = 0.0;
+    int arms = s->n_ctrl - 1, i, m, nd = 0, cnt = 0;
+    if (arms < 1)
+        return 0.0;
+    for (i = 0; i < arms; i++) {
+        double dx = s->px[i + 1], dy = s->py[i + 1], len = hypot(dx, dy), ux, uy;
+        if (len <= 0)
+            len = 1.0, dx = 1.0, dy = 0.0;
+        ux = dx / len;
+        uy = dy / len;
+        for (m = 0; m < 5; m++) {
+            double t = 0.5 * m * k->R, x = s->cx + t * ux, y = s->cy + t * uy;
+            c[i][m] = m <= 2 ? sk_crest(k, cand, x, y, -uy, ux) : NAN;
+            o[i][m] = sk_crest(k, &outv, x, y, -uy, ux);
+            if (!isnan(c[i][m]) && !isnan(o[i][m])) {
+                delta += o[i][m] - c[i][m];
+                nd++;
+            }
+        }
+    }
+    if (nd)
+        delta /= nd;
+    for (i = 0; i < arms; i++)
+        for (m = 0; m < 5; m++)
+            if (isnan(o[i][m]))
+                o[i][m] = isnan(c[i][m]) ? NAN : c[i][m] + delta;
+    if (s->type == TS_SITE_PATH && arms == 2) {
+        double z[9];
+        for (m = 0; m < 5; m++) {
+            z[4 - m] = o[0][m];
+            z[4 + m] = o[1][m];
+        }
+        sk_bend_add(z, 9, &sum, &cnt);
+    } else {
+        for (i = 0; i < arms; i++)
+            sk_bend_add(o[i], 5, &sum, &cnt);
+    }
+    return cnt ? sqrt(sum / cnt) : 0.0;
+}
+
+/* c_f: RMS difference of 7-point profiles across the feature at the
+ * control points, between the candidate and the output; with `wanted`,
+ * also alpha_h RMS(candidate - heights) + alpha_r RMS(candidate - guide)
+ * at the same points (the estimate used before warping). */
+static double sk_profile_cost(const sketcher *k, const ts_feature_site *s, const sk_view *cand,
+                              double *wanted)
+{
+    int i, j, n = 0, nh = 0, ng = 0, W = k->out->width;
+    double sum = 0.0, sh = 0.0, sg = 0.0, step = k->R / 4.0;
     for (i = 1; i < s->n_ctrl; i++) {
         double dx = s->px[i], dy = s->py[i], len = hypot(dx, dy), nx, ny;
         if (len <= 0)
@@ -199,26 +331,107 @@ static double sk_profile_cost(const sketcher *k, const ts_feature_site *s, int w
         for (j = -3; j <= 3; j++) {
             double x = s->cx + dx + j * step * nx, y = s->cy + dy + j * step * ny;
             double a = sk_sample(k->out, x, y);
-            double b = sk_sample(&win, x - wx + 1, y - wy + 1);
-            if (isnan(a) || isnan(b))
+            double b = sk_value(cand, x, y);
+            if (isnan(b))
                 continue;
-            sum += (a - b) * (a - b);
-            n++;
+            if (!isnan(a)) {
+                sum += (a - b) * (a - b);
+                n++;
+            }
+            if (wanted) {
+                long ix = lround(x), iy = lround(y);
+                if (ix >= 0 && iy >= 0 && ix < W && iy < k->out->height) {
+                    size_t at = (size_t)iy * (size_t)W + (size_t)ix;
+                    if (k->p->heights && k->p->alpha_h > 0 && !isnan(k->p->heights[at])) {
+                        sh += (b - k->p->heights[at]) * (b - k->p->heights[at]);
+                        nh++;
+                    }
+                    if (k->p->guide && k->p->alpha_r > 0 && !isnan(k->p->guide[at])) {
+                        sg += (b - k->p->guide[at]) * (b - k->p->guide[at]);
+                        ng++;
+                    }
+                }
+            }
         }
     }
+    if (wanted)
+        *wanted = (nh ? k->p->alpha_h * sqrt(sh / nh) : 0.0) +
+                  (ng ? k->p->alpha_r * sqrt(sg / ng) : 0.0);
     return n ? sqrt(sum / n) : 0.0;
 }
 
 /* ---- one site ------------------------------------------------------ */
+
+/* Insert c into the sorted pool[0..*n) holding at most max. */
+static void sk_pool_insert(candidate *pool, int *n, int max, const candidate *c)
+{
+    int at;
+    if (*n >= max && sk_cand_cmp(c, &pool[*n - 1]) >= 0)
+        return;
+    at = *n < max ? (*n)++ : max - 1;
+    while (at > 0 && sk_cand_cmp(c, &pool[at - 1]) < 0) {
+        pool[at] = pool[at - 1];
+        at--;
+    }
+    pool[at] = *c;
+}
+
+/* The deformation scan over the exemplar sites, in chunks that run in
+ * parallel, each keeping its own best pool_max. */
+typedef struct scan_job {
+    sketcher *k;
+    const ts_feature_site *s;
+    int only;
+    double wcx, wcy;
+    int n_chunks;
+} scan_job;
+
+static void sk_scan_chunks(void *arg, size_t b, size_t e)
+{
+    scan_job *j = arg;
+    sketcher *k = j->k;
+    const ts_feature_site *s = j->s;
+    ts_ctx *c = ts_ctx_new(); /* private: a failed fit only skips that alignment */
+    size_t t;
+    for (t = b; t < e; t++) {
+        candidate *pool = k->chunk_pool + t * (size_t)k->pool_max;
+        size_t lo = t * k->n_es / (size_t)j->n_chunks, hi = (t + 1) * k->n_es / (size_t)j->n_chunks;
+        size_t i;
+        int n = 0;
+        for (i = lo; c && i < hi; i++) {
+            const ts_feature_site *es = &k->es[i].site;
+            int rot, mirror, rots, mirrors;
+            if (es->type != s->type || es->n_ctrl != s->n_ctrl ||
+                (j->only >= 0 && k->es[i].ex != j->only))
+                continue;
+            rots = s->type == TS_SITE_BRANCH ? s->degree : s->type == TS_SITE_PATH ? 2 : 1;
+            mirrors = s->type == TS_SITE_BRANCH ? 2 : 1;
+            for (mirror = 0; mirror < mirrors; mirror++)
+                for (rot = 0; rot < rots; rot++) {
+                    candidate cand;
+                    cand.idx = (int)i;
+                    cand.rot = rot;
+                    cand.mirror = mirror;
+                    if (sk_align(k, c, s, es, rot, mirror, j->wcx, j->wcy, &cand.cd,
+                                 &cand.inv) != 0)
+                        continue;
+                    cand.pre = cand.cd;
+                    sk_pool_insert(pool, &n, k->pool_max, &cand);
+                }
+        }
+        k->chunk_n[t] = n;
+    }
+    ts_ctx_free(c);
+}
+
 
 static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index, int *placed)
 {
     ts_ctx *ctx = k->ctx;
     int P = k->P, M = P + 2, W = k->out->width, H = k->out->height;
     int wx = (int)lround(s->cx) - P / 2, wy = (int)lround(s->cy) - P / 2, x, y;
-    int n_c = 0, kmax = k->p->candidates, i, best = -1;
+    int n_c = 0, n_pool = 0, kmax = k->p->candidates, i, best = -1;
     double best_cost = INFINITY;
-    size_t e;
     ts_status st;
     *placed = 0;
     wx = TS_MAX(0, TS_MIN(W - P, wx));
@@ -229,30 +442,38 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
         int c = k->p->cell_exemplar[(size_t)lround(s->cy) * (size_t)W + (size_t)lround(s->cx)];
         only = (c >= 0 && c < k->n_ex) ? c : -1;
     }
-    for (e = 0; e < k->n_es; e++) {
-        const ts_feature_site *es = &k->es[e].site;
-        int rot, mirror, rots, mirrors;
-        if (es->type != s->type || es->n_ctrl != s->n_ctrl || (only >= 0 && k->es[e].ex != only))
-            continue;
-        rots = s->type == TS_SITE_BRANCH ? s->degree : s->type == TS_SITE_PATH ? 2 : 1;
-        mirrors = s->type == TS_SITE_BRANCH ? 2 : 1;
-        for (mirror = 0; mirror < mirrors; mirror++)
-            for (rot = 0; rot < rots; rot++) {
-                candidate c;
-                c.idx = (int)e;
-                if (sk_align(k, s, es, rot, mirror, s->cx - wx, s->cy - wy, &c.cd, &c.inv) != 0)
-                    continue;
-                if (n_c < kmax) {
-                    k->cands[n_c++] = c;
-                    qsort(k->cands, (size_t)n_c, sizeof *k->cands, sk_cand_cmp);
-                } else if (c.cd < k->cands[kmax - 1].cd) {
-                    k->cands[kmax - 1] = c;
-                    qsort(k->cands, (size_t)n_c, sizeof *k->cands, sk_cand_cmp);
-                }
-            }
+    {
+        scan_job j;
+        int t;
+        j.k = k;
+        j.s = s;
+        j.only = only;
+        j.wcx = s->cx - wx;
+        j.wcy = s->cy - wy;
+        j.n_chunks = k->n_chunks;
+        ts_parallel_for(ctx, (size_t)j.n_chunks, sk_scan_chunks, &j);
+        /* merge the chunks' pools: the best pool_max overall, in a total
+         * order, so the result does not depend on the split */
+        for (t = 0; t < j.n_chunks; t++) {
+            const candidate *cp = k->chunk_pool + (size_t)t * (size_t)k->pool_max;
+            for (i = 0; i < k->chunk_n[t]; i++)
+                sk_pool_insert(k->pool, &n_pool, k->pool_max, &cp[i]);
+        }
     }
-    if (n_c == 0)
+    if (n_pool == 0)
         return TS_OK; /* no such feature in the exemplars: left to the fill */
+    /* the profile costs, estimated on the exemplar through each warp, pick
+     * the k that are warped and cut */
+    for (i = 0; i < n_pool; i++) {
+        candidate *c = &k->pool[i];
+        sk_view v = {&k->ex[k->es[c->idx].ex], &c->inv, wx, wy};
+        double want = 0.0, cf = sk_profile_cost(k, s, &v, &want);
+        double cs = k->sp->alpha_s > 0 ? sk_smoothness(k, s, &v) : 0.0;
+        c->pre = k->sp->alpha_d * c->cd + k->sp->alpha_f * cf + k->sp->alpha_s * cs + want;
+    }
+    qsort(k->pool, (size_t)n_pool, sizeof *k->pool, sk_pre_cmp);
+    n_c = TS_MIN(n_pool, kmax);
+    memcpy(k->cands, k->pool, (size_t)n_c * sizeof *k->cands);
     /* the old window */
     for (y = 0; y < P; y++)
         for (x = 0; x < P; x++)
@@ -269,7 +490,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
         ts_raster ring = ts_raster_wrap(k->ring, M, M, M);
         ts_raster oldr = ts_raster_wrap(k->old, P, P, P);
         ts_raster pr = ts_raster_wrap(k->patch, P, P, P);
-        double cg = 0.0, cf, cost;
+        double cg = 0.0, cf, cs, cost;
         int cuts, core_n = 0;
         /* the warped window with its ring: window cell (x - 1, y - 1) */
         if ((st = ts_tps_warp(ctx, &k->cands[i].inv, exr, -1.0, -1.0, &ring)) != TS_OK)
@@ -307,10 +528,14 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
         if (st != TS_OK)
             return st;
         cuts = ts_label_cut_edges(k->labels, P);
-        cf = sk_profile_cost(k, s, wx, wy, k->ring);
+        {
+            sk_view v = {&ring, NULL, 1.0 - wx, 1.0 - wy};
+            cf = sk_profile_cost(k, s, &v, NULL);
+            cs = k->sp->alpha_s > 0 ? sk_smoothness(k, s, &v) : 0.0;
+        }
         cost = k->sp->alpha_d * k->cands[i].cd +
                k->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf +
-               ts_height_cost(k->p, W, wx, wy, P, k->patch, P);
+               k->sp->alpha_s * cs + ts_height_cost(k->p, W, wx, wy, P, k->patch, P);
         if (cost < best_cost) {
             best_cost = cost;
             best = i;
@@ -343,6 +568,13 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
 }
 
 /* ---- the pipeline -------------------------------------------------- */
+
+static double sk_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
 
 static int sk_auto_mode(ts_ctx *ctx, const ts_raster *sketch)
 {
@@ -382,7 +614,17 @@ static void sk_free(sketcher *k)
     free(k->src_y);
     free(k->near);
     free(k->cands);
+    free(k->pool);
+    free(k->chunk_pool);
+    free(k->chunk_n);
     free(k->flags);
+    free(k->guide);
+    if (k->profs) {
+        int e;
+        for (e = 0; e < k->n_ex; e++)
+            ts_relief_profile_free(&k->profs[e]);
+        free(k->profs);
+    }
 }
 
 TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_raster *exemplars,
@@ -399,6 +641,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     ts_progress_saved sv;
     ts_status st;
     int e, first_index;
+    double t0 = sk_now(), times[4] = {0, 0, 0, 0};
     ts_clear(ctx);
     memset(&k, 0, sizeof k);
     if (sketch_features)
@@ -416,7 +659,10 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
                        out->width, out->height);
     k.ctx = ctx;
     k.sp = sp;
-    k.p = params;
+    k.fp = *params;
+    k.fp.guide = NULL;
+    k.fp.alpha_r = 0.0;
+    k.p = &k.fp;
     k.sketch = sketch;
     k.ex = exemplars;
     k.n_ex = n_exemplars;
@@ -440,11 +686,17 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     k.src_x = ts_malloc_array(P2, sizeof(int32_t));
     k.src_y = ts_malloc_array(P2, sizeof(int32_t));
     k.cands = ts_malloc_array((size_t)params->candidates, sizeof *k.cands);
+    k.pool_max = TS_MAX(64, 8 * params->candidates);
+    k.pool = ts_malloc_array((size_t)k.pool_max, sizeof *k.pool);
+    k.profs = ts_calloc_array((size_t)n_exemplars, sizeof *k.profs);
+    k.n_chunks = 4 * ts_thread_count(ctx, 1u << 20);
+    k.chunk_pool = ts_malloc_array((size_t)k.n_chunks * (size_t)k.pool_max, sizeof *k.chunk_pool);
+    k.chunk_n = ts_calloc_array((size_t)k.n_chunks, sizeof *k.chunk_n);
     k.near = ts_malloc_array(P2, sizeof(int));
     k.core_radius = TS_MAX(1, k.P / 8);
     if (!k.flags || !k.old || !k.patch || !k.ring || !k.best_ring || !k.constraint ||
         !k.labels || !k.best_labels || !k.core || !k.best_core || !k.src_x || !k.src_y ||
-        !k.cands || !k.near || ts_merger_init(ctx, &k.merger, k.P, params->overlap) != TS_OK) {
+        !k.cands || !k.pool || !k.profs || !k.chunk_pool || !k.chunk_n || !k.near || ts_merger_init(ctx, &k.merger, k.P, params->overlap) != TS_OK) {
         sk_free(&k);
         return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     }
@@ -469,6 +721,8 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     sv = ts_progress_push(ctx, 0.0, 0.05);
     st = ts_ppa_extract(ctx, sketch, NULL, &pp, &sf);
     ts_progress_pop(ctx, sv);
+    times[0] = sk_now() - t0;
+    t0 = sk_now();
     if (st != TS_OK) {
         ts_fail(ctx, st, "sketch", "PPA on the sketch: %s", ctx->message);
         goto done;
@@ -499,6 +753,9 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         if (st != TS_OK)
             continue; /* no features in this exemplar: it still serves the fill */
         st = ts_feature_sites(ctx, ef, k.kind, k.R, 6.0, 0, &es, &n_es);
+        if (st == TS_OK && sp->alpha_r > 0)
+            st = ts_relief_profile_measure(ctx, &exemplars[e], ef->mask, k.kind, k.P,
+                                           &k.profs[e]);
         ts_features_free(ef);
         if (st != TS_OK)
             goto done;
@@ -515,6 +772,22 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
             k.n_es++;
         }
         free(es);
+    }
+    times[1] = sk_now() - t0;
+    t0 = sk_now();
+    /* the relief the sketch implies, learnt from the exemplars */
+    if (sp->alpha_r > 0) {
+        k.guide = ts_malloc_array(n_cells, sizeof(float));
+        if (!k.guide) {
+            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+            goto done;
+        }
+        st = ts_relief_guide(ctx, sf->mask, k.kind, out->width, out->height, k.profs,
+                             n_exemplars, params->cell_exemplar, NULL, k.guide);
+        if (st != TS_OK)
+            goto done;
+        k.fp.guide = k.guide;
+        k.fp.alpha_r = sp->alpha_r;
     }
     /* 3. feature patches */
     first_index = maps ? maps->n_patches : 0;
@@ -534,6 +807,8 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         }
         if (maps)
             maps->n_patches = first_index + n_placed;
+        times[2] = sk_now() - t0;
+        t0 = sk_now();
         if (info) {
             info->n_sites = n_sites;
             info->n_feature_patches = (size_t)n_placed;
@@ -542,8 +817,15 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     }
     /* 4. the non-feature fill around the fixed features */
     sv = ts_progress_push(ctx, 0.6, 1.0);
-    st = ts_synth_patches(ctx, exemplars, n_exemplars, params, out, k.flags, maps);
+    st = ts_synth_patches(ctx, exemplars, n_exemplars, &k.fp, out, k.flags, maps);
     ts_progress_pop(ctx, sv);
+    times[3] = sk_now() - t0;
+    if (info) {
+        info->seconds_sketch_ppa = times[0];
+        info->seconds_exemplar_ppa = times[1];
+        info->seconds_features = times[2];
+        info->seconds_fill = times[3];
+    }
 done:
     free(sites);
     sk_free(&k);

@@ -432,6 +432,8 @@ static ts_status place_one(placer *pl, placement *q, int index)
             /* height constraints take part in the matching where nothing is placed */
             if (isnan(v) && pl->p->heights && pl->p->alpha_h > 0)
                 pl->mtarget[y * P + x] = pl->p->heights[(size_t)oy * (size_t)W + (size_t)ox];
+            if (isnan(pl->mtarget[y * P + x]) && pl->p->guide && pl->p->alpha_r > 0)
+                pl->mtarget[y * P + x] = pl->p->guide[(size_t)oy * (size_t)W + (size_t)ox];
             if (!isnan(pl->mtarget[y * P + x]))
                 pl->known[n_known++] = y * P + x;
             if (!isnan(v)) {

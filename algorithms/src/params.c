@@ -70,6 +70,16 @@ static const ts_param_desc sketch_desc[] = {
     {"alpha_f", TS_PARAM_DOUBLE, 3.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
      "Weight of the feature profile dissimilarity c_f of feature patches.",
      offsetof(ts_sketch_params, alpha_f)},
+    {"alpha_s", TS_PARAM_DOUBLE, 0.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the path smoothness constraint c_s: crest (valleys: thalweg) heights along "
+     "the sketch's strokes bend less, within a feature patch and where it joins the placed "
+     "ones; larger gives smoother, gentler crests (0 = off).",
+     offsetof(ts_sketch_params, alpha_s)},
+    {"alpha_r", TS_PARAM_DOUBLE, 0.5, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the relief guide: sketched ridges stand high and sketched valleys lie low, "
+     "falling away from the strokes as the exemplars' land falls away from their main "
+     "features (0 = off: the exemplars alone decide the heights).",
+     offsetof(ts_sketch_params, alpha_r)},
 };
 
 static const char *const stage_names[] = {"ppa", "synth", "sketch", NULL};

@@ -224,21 +224,29 @@ ts_status ts_merger_apply(ts_ctx *ctx, ts_merger *m, ts_raster *out, const unsig
     return TS_OK;
 }
 
-double ts_height_cost(const ts_synth_params *p, int width, int wx, int wy, int P,
-                      const float *patch, int stride)
+/* alpha * RMS(patch - want) over the window cells where both are set. */
+static double rms_to(const float *want, double alpha, int width, int wx, int wy, int P,
+                     const float *patch, int stride)
 {
     double sum = 0.0;
     int x, y, n = 0;
-    if (!p->heights || !(p->alpha_h > 0))
+    if (!want || !(alpha > 0))
         return 0.0;
     for (y = 0; y < P; y++)
         for (x = 0; x < P; x++) {
-            float h = p->heights[(size_t)(wy + y) * (size_t)width + (size_t)(wx + x)];
+            float h = want[(size_t)(wy + y) * (size_t)width + (size_t)(wx + x)];
             float v = patch[(ptrdiff_t)y * stride + x];
             if (isnan(h) || isnan(v))
                 continue;
             sum += ((double)v - h) * ((double)v - h);
             n++;
         }
-    return n ? p->alpha_h * sqrt(sum / n) : 0.0;
+    return n ? alpha * sqrt(sum / n) : 0.0;
+}
+
+double ts_height_cost(const ts_synth_params *p, int width, int wx, int wy, int P,
+                      const float *patch, int stride)
+{
+    return rms_to(p->heights, p->alpha_h, width, wx, wy, P, patch, stride) +
+           rms_to(p->guide, p->alpha_r, width, wx, wy, P, patch, stride);
 }

@@ -36,9 +36,10 @@ ts_status ts_merger_apply(ts_ctx *ctx, ts_merger *m, ts_raster *out, const unsig
                           ts_synth_maps *maps, int ex_index, const int32_t *src_x,
                           const int32_t *src_y, int patch_index);
 
-/* The height-constraint cost c_i of a P x P candidate window at (wx, wy)
- * of an output `width` cells wide: alpha_h * RMS(patch - heights) over the
- * constrained cells where the patch has a value; 0 without constraints. */
+/* The height-constraint costs c_i of a P x P candidate window at (wx, wy)
+ * of an output `width` cells wide: alpha_h * RMS(patch - heights) plus
+ * alpha_r * RMS(patch - guide), each over the cells where both have a
+ * value; 0 without constraints. */
 double ts_height_cost(const ts_synth_params *p, int width, int wx, int wy, int P,
                       const float *patch, int stride);
 

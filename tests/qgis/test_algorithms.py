@@ -267,12 +267,13 @@ def test_synth_command_line_with_sketch(jacksboro, lambda_ridges, tmp_path):
     out = str(tmp_path / "new.tif")
     argv, job = build("terrasynth:synth", {
         "EXEMPLARS": [jacksboro], "SKETCH": lambda_ridges, "MODE": 1, "ALPHA_D": 250.5,
-        "ALPHA_F": 0, "ORDER": 2, "PATCH_SIZE": 32, "OVERLAP": 8, "SEED": 5, "OUTPUT": out})
+        "ALPHA_F": 0, "ALPHA_S": 2, "ALPHA_R": 0, "ORDER": 2, "PATCH_SIZE": 32, "OVERLAP": 8, "SEED": 5, "OUTPUT": out})
     assert argv[:2] == ["/x/terrasynth", "synth"] and argv[-1] == out
     kv = pairs(argv)
     assert kv["--sketch"] == lambda_ridges and argv.count("--sketch") == 1
     assert kv["--exemplar"] == jacksboro
     assert kv["--mode"] == "valleys" and kv["--alpha-d"] == "250.5" and kv["--alpha-f"] == "0"
+    assert kv["--alpha-s"] == "2" and kv["--alpha-r"] == "0"
     assert kv["--order"] == "tree" and kv["--patch-size"] == "32" and kv["--seed"] == "5"
     for grid_flag in ("--like", "--size", "--origin", "--resolution", "--crs"):
         assert grid_flag not in argv
@@ -282,6 +283,7 @@ def test_synth_command_line_with_sketch(jacksboro, lambda_ridges, tmp_path):
                                          "OUTPUT": out})
     kv = pairs(argv)
     assert (kv["--mode"], kv["--alpha-d"], kv["--alpha-f"]) == ("auto", "1000", "3")
+    assert (kv["--alpha-s"], kv["--alpha-r"]) == ("0", "0.5")
     assert "--size" not in argv and "--like" not in argv
     assert os.listdir(tmp_path) == []  # nothing was run
 

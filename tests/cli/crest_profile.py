@@ -1,0 +1,155 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Crest (or thalweg) height profile along a sketch's feature lines.
+
+    crest_profile.py OUTPUT.tif SKETCH_FEATURES.gpkg [--valleys] [--spacing S]
+
+For every path of the sketch's feature lines (the `paths` layer written by
+`terrasynth synth --sketch ... --debug-dir`), the output is sampled every cell
+along the line; at each sample the crest height is the highest (valleys: the
+lowest) cell within 3 cells across the line.  Printed figures:
+
+  bend S   RMS of z(i-S) - 2 z(i) + z(i+S) along the lines (m): how much the
+           crest's height trend bends at the scale of S cells
+  step     RMS of z(i+1) - z(i) (m): cell-to-cell roughness
+  relief   range of the crest heights (m)
+  stand    mean height of the crest above the land --flank cells off the
+           line on both sides (m; valleys: below): how much the sketched
+           feature stands out
+  held     fraction of the line where the crest is higher than the land
+           --flank/2 cells off on both sides (valleys: lower): how much of the
+           sketch is drawn as a ridge (valley) at that scale
+
+Used by the sketch tests (tests/cli/test_sketch_cli.py) and the figures in
+algorithms/docs/sketch.md.
+"""
+import argparse
+import math
+
+import numpy as np
+from osgeo import gdal, ogr
+
+gdal.UseExceptions()
+
+
+def lines_in_cells(gpkg, gt):
+    ds = ogr.Open(str(gpkg))
+    layer = ds.GetLayerByName("paths")
+    inv = gdal.InvGeoTransform(gt)
+    out = []
+    for f in layer:
+        g = f.GetGeometryRef()
+        pts = []
+        for i in range(g.GetPointCount()):
+            x, y = g.GetX(i), g.GetY(i)
+            px = inv[0] + inv[1] * x + inv[2] * y
+            py = inv[3] + inv[4] * x + inv[5] * y
+            pts.append((px, py))
+        if len(pts) >= 2:
+            out.append(np.array(pts))
+    ds = None
+    return out
+
+
+def resample(pts, step=1.0):
+    d = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
+    s = np.concatenate([[0.0], np.cumsum(d)])
+    if s[-1] < 2 * step:
+        return None
+    t = np.arange(0.0, s[-1], step)
+    return np.stack([np.interp(t, s, pts[:, 0]), np.interp(t, s, pts[:, 1])], axis=1)
+
+
+def crest_heights(z, line, valleys, half=3):
+    h, w = z.shape
+    tang = np.gradient(line, axis=0)
+    n = np.linalg.norm(tang, axis=1, keepdims=True)
+    n[n == 0] = 1
+    tang /= n
+    normal = np.stack([-tang[:, 1], tang[:, 0]], axis=1)
+    vals = []
+    for (x, y), (nx, ny) in zip(line, normal):
+        best = math.nan
+        for j in range(-half, half + 1):
+            cx, cy = int(math.floor(x + j * nx)), int(math.floor(y + j * ny))
+            if 0 <= cx < w and 0 <= cy < h and math.isfinite(z[cy, cx]):
+                v = z[cy, cx]
+                if math.isnan(best) or (v < best if valleys else v > best):
+                    best = v
+        vals.append(best)
+    return np.array(vals)
+
+
+def flank_heights(z, line, off, both=False):
+    h, w = z.shape
+    tang = np.gradient(line, axis=0)
+    n = np.linalg.norm(tang, axis=1, keepdims=True)
+    n[n == 0] = 1
+    tang /= n
+    vals = []
+    for (x, y), (tx, ty) in zip(line, tang):
+        s = []
+        for side in (-1, 1):
+            cx, cy = int(math.floor(x - side * off * ty)), int(math.floor(y + side * off * tx))
+            if 0 <= cx < w and 0 <= cy < h and math.isfinite(z[cy, cx]):
+                s.append(z[cy, cx])
+        if both:
+            vals.append(max(s) if len(s) == 2 else math.nan)
+        else:
+            vals.append(np.mean(s) if s else math.nan)
+    return np.array(vals)
+
+
+def measure(output, gpkg, valleys=False, spacing=16, flank=31):
+    ds = gdal.Open(str(output))
+    band = ds.GetRasterBand(1)
+    z = band.ReadAsArray().astype(float)
+    nd = band.GetNoDataValue()
+    if nd is not None:
+        z[z == nd] = np.nan
+    bends, steps, allz, stands, helds = [], [], [], [], []
+    for pts in lines_in_cells(gpkg, ds.GetGeoTransform()):
+        line = resample(pts)
+        if line is None:
+            continue
+        c = crest_heights(z, line, valleys)
+        f = flank_heights(z, line, flank)
+        sgn = -1 if valleys else 1
+        hi = flank_heights(sgn * z, line, flank // 2, both=True)
+        okh = np.isfinite(c) & np.isfinite(hi)
+        helds.append(sgn * c[okh] > hi[okh])
+        both = np.isfinite(c) & np.isfinite(f)
+        stands.append((c[both] - f[both]) * (-1 if valleys else 1))
+        ok = np.isfinite(c)
+        c = c[ok]
+        allz.append(c)
+        if c.size > 2 * spacing:
+            bends.append(c[:-2 * spacing] - 2 * c[spacing:-spacing] + c[2 * spacing:])
+        if c.size > 1:
+            steps.append(np.diff(c))
+    b = np.concatenate(bends) if bends else np.array([np.nan])
+    s = np.concatenate(steps) if steps else np.array([np.nan])
+    a = np.concatenate(allz) if allz else np.array([np.nan])
+    return {
+        "bend": float(np.sqrt(np.mean(b * b))),
+        "step": float(np.sqrt(np.mean(s * s))),
+        "relief": float(np.ptp(a)),
+        "stand": float(np.mean(np.concatenate(stands))) if stands else math.nan,
+        "held": float(np.mean(np.concatenate(helds))) if helds else math.nan,
+    }
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("output")
+    ap.add_argument("features")
+    ap.add_argument("--valleys", action="store_true")
+    ap.add_argument("--spacing", type=int, default=16)
+    ap.add_argument("--flank", type=int, default=31)
+    a = ap.parse_args()
+    m = measure(a.output, a.features, a.valleys, a.spacing, a.flank)
+    print(f"bend {a.spacing} {m['bend']:.1f} m  step {m['step']:.2f} m  relief {m['relief']:.0f} m  "
+          f"stand {a.flank} {m['stand']:.0f} m  held {m['held']:.2f}")
+
+
+if __name__ == "__main__":
+    main()
