@@ -15,15 +15,23 @@
  *    for path and endpoint sites, whose three or two control points a TPS
  *    would fit affinely (zero bending), the residual of the least-squares
  *    similarity (rotation, scale, mirror) fit, which measures how
- *    differently the two chains bend.  The k best by c_d are warped into
- *    the output window (bilinear, exemplar nodata respected) and cut in by
- *    graph cut, with the cells along the sketch's feature forced to the new
- *    patch; c_g is the mean seam mismatch, c_f the RMS difference of 7-point
- *    height profiles across the feature at the circle crossings against
- *    what is already placed.  The lowest alpha_d c_d + alpha_g c_g +
- *    alpha_f c_f is merged (patch_merge.c), and its feature cells are fixed.
- * 4. ts_synth_patches fills the rest around the fixed features.
- * Cost: per site O(candidate sites) for c_d + k warps and graph cuts.
+ *    differently the two chains bend.  Three rounds: (a) c_d of every
+ *    alignment (in parallel chunks), the best pool_max kept; (b) for
+ *    those, c_f, the path smoothness c_s, the height constraints and the
+ *    relief guide estimated on the exemplar through each warp at the
+ *    control points, the k best by alpha_d c_d + these going on; (c) the k
+ *    are warped into the output window (bilinear, exemplar nodata
+ *    respected) and cut in by graph cut, with the cells along the sketch's
+ *    feature forced to the new patch; c_g is the mean seam mismatch, c_f
+ *    the RMS difference of 7-point height profiles across the feature at
+ *    the circle crossings against what is already placed, c_s the bend of
+ *    the joined crest profile (sk_smoothness).  The lowest alpha_d c_d +
+ *    alpha_g c_g + alpha_f c_f + alpha_s c_s + height and guide costs is
+ *    merged (patch_merge.c), and its feature cells are fixed.
+ * 4. ts_synth_patches fills the rest around the fixed features, with the
+ *    relief guide (relief_guide.c) as a soft height constraint.
+ * Cost: per site O(exemplar sites) for c_d, O(pool_max) profile estimates,
+ *    k warps and graph cuts.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
