@@ -75,8 +75,12 @@ typedef struct sketcher {
     size_t n_es;
     ts_merger merger;
     /* work buffers */
-    float *old, *patch, *best_ring, *ring;
-    unsigned char *constraint, *labels, *best_labels, *core, *best_core;
+    float *old;
+    /* one slot per examined candidate (k of them) */
+    float *c_ring, *c_patch;
+    unsigned char *c_cons, *c_labels, *c_core;
+    double *c_cost;
+    ts_status *c_status;
     int32_t *src_x, *src_y;
     int *near;               /* P x P: distance to the sketch's feature */
     int core_radius;         /* feature cells and flanks within this many cells */
@@ -139,12 +143,13 @@ static double sk_similarity(int n, const double *ax, const double *ay, const dou
 
 /* Deformation cost of exemplar site e onto sketch site s with arm rotation
  * `rot` and `mirror` (c_d, on coordinates in units of R so it does not
- * depend on the patch size), and the inverse map from the output window's
- * continuous coordinates (window cell (x, y) has its centre at x + 0.5,
- * y + 0.5; the site's centre cell is at (cx - wx, cy - wy)) to the
- * exemplar's. */
-static int sk_align(const sketcher *k, ts_ctx *ctx, const ts_feature_site *s, const ts_feature_site *e, int rot,
-                    int mirror, double wcx, double wcy, double *cd, ts_tps *inv)
+ * depend on the patch size; skipped when cd is NULL), and the inverse map
+ * (skipped when inv is NULL) from the output window's continuous
+ * coordinates (window cell (x, y) has its centre at x + 0.5, y + 0.5; the
+ * site's centre cell is at (cx - wx, cy - wy)) to the exemplar's. */
+static int sk_align(const sketcher *k, ts_ctx *ctx, const ts_feature_site *s,
+                    const ts_feature_site *e, int rot, int mirror, double wcx, double wcy,
+                    double *cd, ts_tps *inv)
 {
     double ex[TS_SITE_MAX_ARMS + 1], ey[TS_SITE_MAX_ARMS + 1];
     double sx[TS_SITE_MAX_ARMS + 1], sy[TS_SITE_MAX_ARMS + 1];
@@ -168,15 +173,18 @@ static int sk_align(const sketcher *k, ts_ctx *ctx, const ts_feature_site *s, co
         gy[i] = e->cy + e->py[j] + 0.5;
     }
     if (s->type == TS_SITE_BRANCH) {
-        if (ts_tps_fit(ctx, n, ex, ey, sx, sy, 0.0, &fwd) != TS_OK)
+        if (cd && ts_tps_fit(ctx, n, ex, ey, sx, sy, 0.0, &fwd) != TS_OK)
             return -1;
-        *cd = fwd.bending;
-        if (ts_tps_fit(ctx, n, wx_, wy_, gx, gy, 0.0, inv) != TS_OK)
+        if (cd)
+            *cd = fwd.bending;
+        if (inv && ts_tps_fit(ctx, n, wx_, wy_, gx, gy, 0.0, inv) != TS_OK)
             return -1;
     } else {
-        *cd = sk_similarity(n, ex, ey, sx, sy, 0, &fwd) / n;
+        if (cd)
+            *cd = sk_similarity(n, ex, ey, sx, sy, 0, &fwd) / n;
         /* a mirrored pairing needs a reflecting map */
-        sk_similarity(n, wx_, wy_, gx, gy, mirror, inv);
+        if (inv)
+            sk_similarity(n, wx_, wy_, gx, gy, mirror, inv);
     }
     return 0;
 }
@@ -420,8 +428,12 @@ static void sk_scan_chunks(void *arg, size_t b, size_t e)
                     cand.idx = (int)i;
                     cand.rot = rot;
                     cand.mirror = mirror;
-                    if (sk_align(k, c, s, es, rot, mirror, j->wcx, j->wcy, &cand.cd,
-                                 &cand.inv) != 0)
+                    /* the deformation first; the inverse map only for a pool member */
+                    if (sk_align(k, c, s, es, rot, mirror, j->wcx, j->wcy, &cand.cd, NULL) != 0)
+                        continue;
+                    if (n >= k->pool_max && sk_cand_cmp(&cand, &pool[n - 1]) >= 0)
+                        continue;
+                    if (sk_align(k, c, s, es, rot, mirror, j->wcx, j->wcy, NULL, &cand.inv) != 0)
                         continue;
                     cand.pre = cand.cd;
                     sk_pool_insert(pool, &n, k->pool_max, &cand);
@@ -433,10 +445,96 @@ static void sk_scan_chunks(void *arg, size_t b, size_t e)
 }
 
 
+/* Round (c) for candidates [b, e): the warp, the graph cut and the costs,
+ * each in its own slot with a private context, so they run in parallel
+ * (the output is only read). */
+typedef struct eval_job {
+    sketcher *k;
+    const ts_feature_site *s;
+    int wx, wy;
+} eval_job;
+
+static void sk_eval_range(void *arg, size_t b, size_t e)
+{
+    eval_job *j = arg;
+    sketcher *k = j->k;
+    const ts_feature_site *s = j->s;
+    int P = k->P, M = P + 2, W = k->out->width, wx = j->wx, wy = j->wy, x, y;
+    size_t P2 = (size_t)P * (size_t)P, M2 = (size_t)M * (size_t)M, i;
+    ts_ctx *c = ts_ctx_new();
+    for (i = b; i < e; i++) {
+        const ts_raster *exr = &k->ex[k->es[k->cands[i].idx].ex];
+        float *rd = k->c_ring + i * M2, *patch = k->c_patch + i * P2;
+        unsigned char *cons = k->c_cons + i * P2, *lab = k->c_labels + i * P2;
+        unsigned char *core = k->c_core + i * P2;
+        ts_raster ring = ts_raster_wrap(rd, M, M, M);
+        ts_raster oldr = ts_raster_wrap(k->old, P, P, P);
+        ts_raster pr = ts_raster_wrap(patch, P, P, P);
+        double cg = 0.0, cf, cs;
+        int cuts, core_n = 0;
+        ts_status st;
+        k->c_cost[i] = INFINITY;
+        k->c_status[i] = TS_OK;
+        if (!c) {
+            k->c_status[i] = TS_ERR_NOMEM;
+            continue;
+        }
+        /* the warped window with its ring: window cell (x - 1, y - 1) */
+        if ((st = ts_tps_warp(c, &k->cands[i].inv, exr, -1.0, -1.0, &ring)) != TS_OK) {
+            k->c_status[i] = st;
+            continue;
+        }
+        for (y = 0; y < P; y++)
+            for (x = 0; x < P; x++)
+                patch[y * P + x] = rd[(y + 1) * M + x + 1];
+        /* constraints: the sketch's feature cells near the centre come from
+         * the patch; filled border cells next to filled outside cells stay */
+        for (y = 0; y < P; y++)
+            for (x = 0; x < P; x++) {
+                int ox = wx + x, oy = wy + y;
+                unsigned char cc = TS_SEAM_FREE;
+                int feature = k->near[y * P + x] <= k->core_radius &&
+                              hypot(ox - s->cx, oy - s->cy) <= k->R;
+                core[y * P + x] = 0;
+                if (!isnan(k->old[y * P + x])) {
+                    if (ts_border_keeps_old(k->out, wx, wy, P, x, y))
+                        cc = TS_SEAM_OLD;
+                    if (k->flags[(size_t)oy * (size_t)W + (size_t)ox] & TS_CELL_FIXED)
+                        cc = TS_SEAM_OLD;
+                }
+                if (feature && cc == TS_SEAM_FREE && !isnan(patch[y * P + x])) {
+                    cc = TS_SEAM_NEW;
+                    core[y * P + x] = 1;
+                    core_n++;
+                }
+                if (k->flags[(size_t)oy * (size_t)W + (size_t)ox] & TS_CELL_NODATA)
+                    cc = TS_SEAM_FREE;
+                cons[y * P + x] = cc;
+            }
+        if (core_n == 0)
+            continue; /* the warp left the feature empty */
+        if ((st = ts_seam_graphcut(c, &oldr, &pr, cons, lab, &cg)) != TS_OK) {
+            k->c_status[i] = st;
+            continue;
+        }
+        cuts = ts_label_cut_edges(lab, P);
+        {
+            sk_view v = {&ring, NULL, 1.0 - wx, 1.0 - wy};
+            cf = sk_profile_cost(k, s, &v, NULL);
+            cs = k->sp->alpha_s > 0 ? sk_smoothness(k, s, &v) : 0.0;
+        }
+        k->c_cost[i] = k->sp->alpha_d * k->cands[i].cd +
+                       k->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf +
+                       k->sp->alpha_s * cs + ts_height_cost(k->p, W, wx, wy, P, patch, P);
+    }
+    ts_ctx_free(c);
+}
+
 static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index, int *placed)
 {
     ts_ctx *ctx = k->ctx;
-    int P = k->P, M = P + 2, W = k->out->width, H = k->out->height;
+    int P = k->P, W = k->out->width, H = k->out->height;
+    size_t P2 = (size_t)P * (size_t)P, M2 = (size_t)(P + 2) * (size_t)(P + 2);
     int wx = (int)lround(s->cx) - P / 2, wy = (int)lround(s->cy) - P / 2, x, y;
     int n_c = 0, n_pool = 0, kmax = k->p->candidates, i, best = -1;
     double best_cost = INFINITY;
@@ -493,68 +591,28 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
             k->near[y * P + x] =
                 (k->sf->mask[(size_t)(wy + y) * (size_t)W + (size_t)(wx + x)] & k->kind) ? 0 : 2 * P;
     ts_chamfer_chebyshev(k->near, P);
-    for (i = 0; i < n_c; i++) {
-        const ts_raster *exr = &k->ex[k->es[k->cands[i].idx].ex];
-        ts_raster ring = ts_raster_wrap(k->ring, M, M, M);
-        ts_raster oldr = ts_raster_wrap(k->old, P, P, P);
-        ts_raster pr = ts_raster_wrap(k->patch, P, P, P);
-        double cg = 0.0, cf, cs, cost;
-        int cuts, core_n = 0;
-        /* the warped window with its ring: window cell (x - 1, y - 1) */
-        if ((st = ts_tps_warp(ctx, &k->cands[i].inv, exr, -1.0, -1.0, &ring)) != TS_OK)
-            return st;
-        for (y = 0; y < P; y++)
-            for (x = 0; x < P; x++)
-                k->patch[y * P + x] = k->ring[(y + 1) * M + x + 1];
-        /* constraints: the sketch's feature cells near the centre come from
-         * the patch; filled border cells next to filled outside cells stay */
-        for (y = 0; y < P; y++)
-            for (x = 0; x < P; x++) {
-                int ox = wx + x, oy = wy + y;
-                unsigned char c = TS_SEAM_FREE;
-                int feature = k->near[y * P + x] <= k->core_radius &&
-                              hypot(ox - s->cx, oy - s->cy) <= k->R;
-                k->core[y * P + x] = 0;
-                if (!isnan(k->old[y * P + x])) {
-                    if (ts_border_keeps_old(k->out, wx, wy, P, x, y))
-                        c = TS_SEAM_OLD;
-                    if (k->flags[(size_t)oy * (size_t)W + (size_t)ox] & TS_CELL_FIXED)
-                        c = TS_SEAM_OLD;
-                }
-                if (feature && c == TS_SEAM_FREE && !isnan(k->patch[y * P + x])) {
-                    c = TS_SEAM_NEW;
-                    k->core[y * P + x] = 1;
-                    core_n++;
-                }
-                if (k->flags[(size_t)oy * (size_t)W + (size_t)ox] & TS_CELL_NODATA)
-                    c = TS_SEAM_FREE;
-                k->constraint[y * P + x] = c;
+    /* round (c): warps and graph cuts, in parallel */
+    {
+        eval_job j;
+        j.k = k;
+        j.s = s;
+        j.wx = wx;
+        j.wy = wy;
+        ts_parallel_for(ctx, (size_t)n_c, sk_eval_range, &j);
+        for (i = 0; i < n_c; i++) {
+            if (k->c_status[i] != TS_OK)
+                return ts_fail(ctx, k->c_status[i], "sketch",
+                               "a feature patch candidate failed: %s",
+                               ts_status_str(k->c_status[i]));
+            if (k->c_cost[i] < best_cost) {
+                best_cost = k->c_cost[i];
+                best = i;
             }
-        if (core_n == 0)
-            continue; /* the warp left the feature empty */
-        st = ts_seam_graphcut(ctx, &oldr, &pr, k->constraint, k->labels, &cg);
-        if (st != TS_OK)
-            return st;
-        cuts = ts_label_cut_edges(k->labels, P);
-        {
-            sk_view v = {&ring, NULL, 1.0 - wx, 1.0 - wy};
-            cf = sk_profile_cost(k, s, &v, NULL);
-            cs = k->sp->alpha_s > 0 ? sk_smoothness(k, s, &v) : 0.0;
-        }
-        cost = k->sp->alpha_d * k->cands[i].cd +
-               k->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf +
-               k->sp->alpha_s * cs + ts_height_cost(k->p, W, wx, wy, P, k->patch, P);
-        if (cost < best_cost) {
-            best_cost = cost;
-            best = i;
-            memcpy(k->best_labels, k->labels, (size_t)P * P);
-            memcpy(k->best_ring, k->ring, (size_t)M * M * sizeof(float));
-            memcpy(k->best_core, k->core, (size_t)P * P);
         }
     }
     if (best < 0)
         return TS_OK;
-    memcpy(k->merger.new_m, k->best_ring, (size_t)M * M * sizeof(float));
+    memcpy(k->merger.new_m, k->c_ring + (size_t)best * M2, M2 * sizeof(float));
     for (y = 0; y < P; y++)
         for (x = 0; x < P; x++) {
             double ex_x, ex_y;
@@ -562,14 +620,16 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
             k->src_x[y * P + x] = (int32_t)floor(ex_x);
             k->src_y[y * P + x] = (int32_t)floor(ex_y);
         }
-    st = ts_merger_apply(ctx, &k->merger, k->out, k->flags, wx, wy, k->old, k->best_labels,
-                         k->maps, k->es[k->cands[best].idx].ex, k->src_x, k->src_y, index);
+    st = ts_merger_apply(ctx, &k->merger, k->out, k->flags, wx, wy, k->old,
+                         k->c_labels + (size_t)best * P2, k->maps, k->es[k->cands[best].idx].ex,
+                         k->src_x, k->src_y, index);
     if (st != TS_OK)
         return st;
     /* the feature cells stay as placed */
     for (y = 0; y < P; y++)
         for (x = 0; x < P; x++)
-            if (k->best_core[y * P + x] && k->best_labels[y * P + x])
+            if (k->c_core[(size_t)best * P2 + (size_t)(y * P + x)] &&
+                k->c_labels[(size_t)best * P2 + (size_t)(y * P + x)])
                 k->flags[(size_t)(wy + y) * (size_t)W + (size_t)(wx + x)] |= TS_CELL_FIXED;
     *placed = 1;
     return TS_OK;
@@ -610,14 +670,13 @@ static void sk_free(sketcher *k)
     ts_merger_free(&k->merger);
     free(k->es);
     free(k->old);
-    free(k->patch);
-    free(k->best_ring);
-    free(k->ring);
-    free(k->constraint);
-    free(k->labels);
-    free(k->best_labels);
-    free(k->core);
-    free(k->best_core);
+    free(k->c_ring);
+    free(k->c_patch);
+    free(k->c_cons);
+    free(k->c_labels);
+    free(k->c_core);
+    free(k->c_cost);
+    free(k->c_status);
     free(k->src_x);
     free(k->src_y);
     free(k->near);
@@ -683,14 +742,16 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     M2 = (size_t)(k.P + 2) * (size_t)(k.P + 2);
     k.flags = ts_calloc_array(n_cells, 1);
     k.old = ts_malloc_array(P2, sizeof(float));
-    k.patch = ts_malloc_array(P2, sizeof(float));
-    k.ring = ts_malloc_array(M2, sizeof(float));
-    k.best_ring = ts_malloc_array(M2, sizeof(float));
-    k.constraint = ts_malloc_array(P2, 1);
-    k.labels = ts_malloc_array(P2, 1);
-    k.best_labels = ts_malloc_array(P2, 1);
-    k.core = ts_malloc_array(P2, 1);
-    k.best_core = ts_malloc_array(P2, 1);
+    {
+        size_t kc = (size_t)params->candidates;
+        k.c_ring = ts_malloc_array(kc * M2, sizeof(float));
+        k.c_patch = ts_malloc_array(kc * P2, sizeof(float));
+        k.c_cons = ts_malloc_array(kc * P2, 1);
+        k.c_labels = ts_malloc_array(kc * P2, 1);
+        k.c_core = ts_malloc_array(kc * P2, 1);
+        k.c_cost = ts_malloc_array(kc, sizeof(double));
+        k.c_status = ts_malloc_array(kc, sizeof(ts_status));
+    }
     k.src_x = ts_malloc_array(P2, sizeof(int32_t));
     k.src_y = ts_malloc_array(P2, sizeof(int32_t));
     k.cands = ts_malloc_array((size_t)params->candidates, sizeof *k.cands);
@@ -702,9 +763,10 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     k.chunk_n = ts_calloc_array((size_t)k.n_chunks, sizeof *k.chunk_n);
     k.near = ts_malloc_array(P2, sizeof(int));
     k.core_radius = TS_MAX(1, k.P / 8);
-    if (!k.flags || !k.old || !k.patch || !k.ring || !k.best_ring || !k.constraint ||
-        !k.labels || !k.best_labels || !k.core || !k.best_core || !k.src_x || !k.src_y ||
-        !k.cands || !k.pool || !k.profs || !k.chunk_pool || !k.chunk_n || !k.near || ts_merger_init(ctx, &k.merger, k.P, params->overlap) != TS_OK) {
+    if (!k.flags || !k.old || !k.c_ring || !k.c_patch || !k.c_cons || !k.c_labels ||
+        !k.c_core || !k.c_cost || !k.c_status || !k.src_x || !k.src_y ||
+        !k.cands || !k.pool || !k.profs || !k.chunk_pool || !k.chunk_n || !k.near ||
+        ts_merger_init(ctx, &k.merger, k.P, params->overlap) != TS_OK) {
         sk_free(&k);
         return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     }
