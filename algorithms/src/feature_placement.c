@@ -411,10 +411,15 @@ static void sk_scan_chunks(void *arg, size_t b, size_t e)
     size_t t;
     for (t = b; t < e; t++) {
         candidate *pool = k->chunk_pool + t * (size_t)k->pool_max;
-        size_t lo = t * k->n_es / (size_t)j->n_chunks, hi = (t + 1) * k->n_es / (size_t)j->n_chunks;
+        size_t lo = t * k->n_es / (size_t)j->n_chunks;
+        size_t hi = (t + 1) * k->n_es / (size_t)j->n_chunks;
         size_t i;
         int n = 0;
-        for (i = lo; c && i < hi; i++) {
+        if (!c) {
+            k->chunk_n[t] = -1; /* out of memory, reported by the caller */
+            continue;
+        }
+        for (i = lo; i < hi; i++) {
             const ts_feature_site *es = &k->es[i].site;
             int rot, mirror, rots, mirrors;
             if (es->type != s->type || es->n_ctrl != s->n_ctrl ||
@@ -443,7 +448,6 @@ static void sk_scan_chunks(void *arg, size_t b, size_t e)
     }
     ts_ctx_free(c);
 }
-
 
 /* Round (c) for candidates [b, e): the warp, the graph cut and the costs,
  * each in its own slot with a private context, so they run in parallel
@@ -562,6 +566,8 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
          * order, so the result does not depend on the split */
         for (t = 0; t < j.n_chunks; t++) {
             const candidate *cp = k->chunk_pool + (size_t)t * (size_t)k->pool_max;
+            if (k->chunk_n[t] < 0)
+                return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
             for (i = 0; i < k->chunk_n[t]; i++)
                 sk_pool_insert(k->pool, &n_pool, k->pool_max, &cp[i]);
         }
