@@ -775,7 +775,8 @@ static int cmd_synth(int argc, char **argv)
         rc = EXIT_USAGE;
         goto done;
     }
-    if (p.overlap >= p.patch_size) {
+    /* in metres they are compared once the grid is known */
+    if (p.overlap.unit == p.patch_size.unit && p.overlap.value >= p.patch_size.value) {
         usage_error("synth", "%s", "--overlap must be smaller than --patch-size");
         rc = EXIT_USAGE;
         goto done;

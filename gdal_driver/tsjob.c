@@ -99,10 +99,6 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         return -1;
     }
     ts_ctx_free(ctx);
-    if (job->params.overlap >= job->params.patch_size) {
-        job_err(err, "synth", "the overlap must be smaller than the patch size");
-        return -1;
-    }
     if (job->sketch) {
         if (g->like || g->width || g->crs || g->has_origin || g->has_res) {
             job_err(err, job->sketch, "a sketch sets the output grid: give no other grid");
@@ -110,12 +106,6 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         }
         if (tsio_read_georef(job->sketch, &res->geo, err) != 0)
             return -1;
-        if (res->geo.width < job->params.patch_size || res->geo.height < job->params.patch_size) {
-            snprintf(err->msg, sizeof err->msg, "%s: %d x %d cells is smaller than a patch (%d)",
-                     job->sketch, res->geo.width, res->geo.height, job->params.patch_size);
-            tsjob_synth_result_free(res);
-            return -1;
-        }
     } else if (g->like) {
         if (tsio_read_georef(g->like, &res->geo, err) != 0)
             return -1;
@@ -150,6 +140,31 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         res->mstore.dy = res->dy_m;
         res->metrics = &res->mstore;
     }
+    /* lengths in metres become cells of the target grid (its ground cell
+     * size on the middle row: the exemplars are resampled to it too) */
+    res->params = job->params;
+    ctx = ts_ctx_new();
+    {
+        int cy = res->geo.height / 2;
+        double cell_m = res->dx_m ? sqrt(res->dx_m[cy] * res->dy_m[cy]) : 0.0;
+        bad = !ctx || ts_synth_params_resolve(ctx, &res->params, cell_m) != TS_OK;
+    }
+    if (bad) {
+        /* the grid's source: the sketch, --like, or the first exemplar */
+        job_err(err, job->sketch ? job->sketch : g->like ? g->like : job->exemplars[0],
+                ctx ? ts_ctx_message(ctx) : "out of memory");
+        ts_ctx_free(ctx);
+        tsjob_synth_result_free(res);
+        return -1;
+    }
+    ts_ctx_free(ctx);
+    if (job->sketch && (res->geo.width < (int)res->params.patch_size.value ||
+                        res->geo.height < (int)res->params.patch_size.value)) {
+        snprintf(err->msg, sizeof err->msg, "%s: %d x %d cells is smaller than a patch (%d)",
+                 job->sketch, res->geo.width, res->geo.height, (int)res->params.patch_size.value);
+        tsjob_synth_result_free(res);
+        return -1;
+    }
     return 0;
 }
 
@@ -176,8 +191,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     unsigned char *flags = NULL;
     int32_t *cell_ex = NULL;
     tsio_raster heights;
-    ts_synth_params params = job->params;
-    int i, rc = -1, cy = res->geo.height / 2;
+    ts_synth_params params = res->params; /* lengths in cells */
+    int i, rc = -1, cy = res->geo.height / 2, P = (int)res->params.patch_size.value;
     memset(ex, 0, sizeof ex);
     memset(&heights, 0, sizeof heights);
     for (i = 0; i < job->n_exemplars; i++) {
@@ -188,11 +203,11 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
             goto done;
         if (res->dx_m && !ex[i].dx_m && !res->exemplar_no_crs)
             res->exemplar_no_crs = i + 1;
-        if (ex[i].r.width < job->params.patch_size || ex[i].r.height < job->params.patch_size) {
+        if (ex[i].r.width < P || ex[i].r.height < P) {
             snprintf(err->msg, sizeof err->msg,
                      "%s: %d x %d cells at the target resolution is smaller than a patch (%d "
                      "cells)",
-                     job->exemplars[i], ex[i].r.width, ex[i].r.height, job->params.patch_size);
+                     job->exemplars[i], ex[i].r.width, ex[i].r.height, P);
             goto done;
         }
         exr[i] = ex[i].r;

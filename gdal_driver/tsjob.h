@@ -97,6 +97,7 @@ typedef struct tsjob_synth_result {
     const ts_grid_metrics *metrics;
     ts_raster out;           /* the terrain (owned) */
     int exemplar_no_crs;     /* index+1 of an exemplar without CRS used cell for cell, or 0 */
+    ts_synth_params params;  /* the job's, lengths turned into cells of this grid */
     ts_features *sketch_features; /* the sketch's PPA graph (sketch-guided only) */
     ts_sketch_info sketch_info;
 } tsjob_synth_result;

@@ -38,12 +38,16 @@ FALLBACK = {
                      "number is cells, a number with suffix m is metres."},
         ],
         "synth": [
-            {"name": "patch_size", "flag": "--patch-size", "type": "int", "default": 64,
-             "min": 8, "max": 1024, "units": "cells", "choices": None,
-             "help": "Side of the square patches copied from the exemplars."},
-            {"name": "overlap", "flag": "--overlap", "type": "int", "default": 16, "min": 2,
-             "max": 512, "units": "cells", "choices": None,
-             "help": "Cells shared by neighbouring patches, where seams are cut and smoothed."},
+            {"name": "patch_size", "flag": "--patch-size", "type": "length", "default": 64,
+             "min": 8, "max": 1024, "default_unit": "cells", "units": "cells or m",
+             "choices": None,
+             "help": "Side of the square patches copied from the exemplars: a whole number of "
+                     "cells, or a number with suffix m for metres (turned into cells at the "
+                     "output grid's ground resolution; 8..1024 cells either way)."},
+            {"name": "overlap", "flag": "--overlap", "type": "length", "default": 16, "min": 2,
+             "max": 512, "default_unit": "cells", "units": "cells or m", "choices": None,
+             "help": "Width shared by neighbouring patches, where seams are cut and smoothed: "
+                     "cells, or metres with suffix m; smaller than the patch."},
             {"name": "candidates", "flag": "--candidates", "type": "int", "default": 6,
              "min": 1, "max": 256, "units": "", "choices": None,
              "help": "Best SSD matches examined per patch position (k)."},

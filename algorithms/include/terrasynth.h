@@ -394,8 +394,9 @@ TS_API ts_status ts_poisson_seam_remove_guided(ts_ctx *ctx, ts_raster *merged,
 enum { TS_ORDER_GROW = 0, TS_ORDER_RASTER = 1, TS_ORDER_TREE = 2 };
 
 typedef struct ts_synth_params {
-    int patch_size;    /* cells, square patches */
-    int overlap;       /* cells shared by neighbouring patch positions */
+    ts_length patch_size; /* side of the square patches: cells (metres must be
+                             turned into cells first: ts_synth_params_resolve) */
+    ts_length overlap;    /* shared by neighbouring patch positions, likewise */
     int candidates;    /* k best SSD matches examined per position */
     int order;         /* TS_ORDER_GROW or TS_ORDER_RASTER */
     double alpha_g;    /* weight of the graph-cut seam cost against the SSD */
@@ -423,6 +424,15 @@ typedef struct ts_synth_params {
 } ts_synth_params;
 
 TS_API ts_synth_params ts_synth_params_default(void);
+
+/**
+ * Turn patch_size and overlap given in metres into whole cells of a grid
+ * whose cells are `cell_m` metres on the ground (<= 0: the grid has no
+ * ground size, and metres are an error), then check them: patch_size
+ * 8..1024 cells, overlap 2..512 and smaller than the patch.  The synthesis
+ * calls need cells.
+ */
+TS_API ts_status ts_synth_params_resolve(ts_ctx *ctx, ts_synth_params *params, double cell_m);
 
 /**
  * Optional per-cell records of a synthesis (each array caller-allocated,

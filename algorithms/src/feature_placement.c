@@ -713,7 +713,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     ts_ppa_params pp = ts_ppa_params_default(), epp;
     ts_progress_saved sv;
     ts_status st;
-    int e, first_index;
+    int e, first_index, P_cells = 0, ov_cells = 0;
     double t0 = sk_now(), times[4] = {0, 0, 0, 0};
     ts_clear(ctx);
     memset(&k, 0, sizeof k);
@@ -725,9 +725,10 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     if (out->width != sketch->width || out->height != sketch->height)
         return ts_fail(ctx, TS_ERR_ARG, "sketch", "the output must have the sketch's size");
     if (ts_params_validate(ctx, "sketch", sp) != TS_OK ||
-        ts_params_validate(ctx, "synth", params) != TS_OK)
+        ts_params_validate(ctx, "synth", params) != TS_OK ||
+        ts_synth_cells(ctx, params, &P_cells, &ov_cells) != TS_OK)
         return ctx->status;
-    if (out->width < params->patch_size || out->height < params->patch_size)
+    if (out->width < P_cells || out->height < P_cells)
         return ts_fail(ctx, TS_ERR_SIZE, "sketch", "the sketch (%d x %d) is smaller than a patch",
                        out->width, out->height);
     k.ctx = ctx;
@@ -741,8 +742,8 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     k.n_ex = n_exemplars;
     k.out = out;
     k.maps = maps;
-    k.P = params->patch_size;
-    k.R = 0.5 * params->patch_size - 1.0;
+    k.P = P_cells;
+    k.R = 0.5 * P_cells - 1.0;
     n_cells = (size_t)out->width * (size_t)out->height;
     P2 = (size_t)k.P * (size_t)k.P;
     M2 = (size_t)(k.P + 2) * (size_t)(k.P + 2);
@@ -772,7 +773,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     if (!k.flags || !k.old || !k.c_ring || !k.c_patch || !k.c_cons || !k.c_labels ||
         !k.c_core || !k.c_cost || !k.c_status || !k.src_x || !k.src_y ||
         !k.cands || !k.pool || !k.profs || !k.chunk_pool || !k.chunk_n || !k.near ||
-        ts_merger_init(ctx, &k.merger, k.P, params->overlap) != TS_OK) {
+        ts_merger_init(ctx, &k.merger, k.P, ov_cells) != TS_OK) {
         sk_free(&k);
         return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     }

@@ -55,6 +55,10 @@ int ts_thread_count(const ts_ctx *ctx, size_t work_items);
 typedef void (*ts_range_fn)(void *arg, size_t begin, size_t end);
 void ts_parallel_for(const ts_ctx *ctx, size_t n, ts_range_fn fn, void *arg);
 
+/* The synthesis lengths in whole cells, checked (patch 8..1024, overlap
+ * 2..512 and smaller); fails for lengths still in metres. */
+ts_status ts_synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int *overlap);
+
 /* Overflow-checked allocation helpers (NULL on overflow or failure). */
 void *ts_malloc_array(size_t n, size_t size);
 void *ts_calloc_array(size_t n, size_t size);

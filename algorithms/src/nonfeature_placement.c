@@ -551,22 +551,20 @@ done:
 static ts_status place_validate(ts_ctx *ctx, const ts_raster *ex, int n_ex,
                                 const ts_synth_params *p, const ts_raster *out)
 {
-    int i;
+    int i, P, ov;
     if (!ex || n_ex < 1 || !p || !out || !out->data)
         return ts_fail(ctx, TS_ERR_ARG, "synth", "missing exemplars, parameters or output");
-    if (ts_params_validate(ctx, "synth", p) != TS_OK)
+    if (ts_params_validate(ctx, "synth", p) != TS_OK ||
+        ts_synth_cells(ctx, p, &P, &ov) != TS_OK)
         return ctx->status;
-    if (p->overlap >= p->patch_size)
-        return ts_fail(ctx, TS_ERR_ARG, "synth", "overlap %d must be smaller than patch_size %d",
-                       p->overlap, p->patch_size);
-    if (p->coarse_factor > 1 && p->patch_size / p->coarse_factor < 4)
+    if (p->coarse_factor > 1 && P / p->coarse_factor < 4)
         return ts_fail(ctx, TS_ERR_ARG, "synth",
-                       "patch_size %d / coarse_factor %d leaves fewer than 4 coarse cells",
-                       p->patch_size, p->coarse_factor);
-    if (out->width < p->patch_size || out->height < p->patch_size)
+                       "patch_size %d / coarse_factor %d leaves fewer than 4 coarse cells", P,
+                       p->coarse_factor);
+    if (out->width < P || out->height < P)
         return ts_fail(ctx, TS_ERR_SIZE, "synth",
                        "the output (%d x %d) is smaller than a patch (%d x %d)", out->width,
-                       out->height, p->patch_size, p->patch_size);
+                       out->height, P, P);
     for (i = 0; i < n_ex; i++)
         if (!ex[i].data || ex[i].width <= 0 || ex[i].height <= 0)
             return ts_fail(ctx, TS_ERR_ARG, "synth", "exemplar %d is empty", i);
@@ -628,7 +626,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.flags = cell_flags;
     pl.maps = maps;
     pl.n_ex = n_exemplars;
-    pl.P = params->patch_size;
+    pl.P = (int)params->patch_size.value; /* whole cells: checked by place_validate */
     pl.rng = ts_ctx_seed(ctx) ^ 0x5eed5eed5eedull;
     P2 = (size_t)pl.P * (size_t)pl.P;
     pl.n_cands_cap = 2 * (3 * params->candidates * n_exemplars + 8);
@@ -646,7 +644,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.patch = ts_malloc_array(P2, sizeof(float));
     pl.cand_patch = ts_malloc_array(P2 * (size_t)params->candidates * (size_t)n_exemplars,
                                     sizeof(float));
-    if (ts_merger_init(ctx, &pl.merger, pl.P, params->overlap) != TS_OK)
+    if (ts_merger_init(ctx, &pl.merger, pl.P, (int)params->overlap.value) != TS_OK)
         alloc_failed = 1;
     pl.src_x = ts_malloc_array(P2, sizeof(int32_t));
     pl.src_y = ts_malloc_array(P2, sizeof(int32_t));
@@ -657,7 +655,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.best_labels = ts_malloc_array(P2, 1);
     pl.known = ts_malloc_array(P2, sizeof(int));
     pl.cands = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cands);
-    step = pl.P - params->overlap;
+    step = pl.P - (int)params->overlap.value;
     xs = ts_malloc_array((size_t)out->width / (size_t)step + 2, sizeof *xs);
     ys = ts_malloc_array((size_t)out->height / (size_t)step + 2, sizeof *ys);
     pl.tlevel[0] = pl.mtarget;

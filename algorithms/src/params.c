@@ -34,11 +34,14 @@ static const ts_param_desc ppa_desc[] = {
 };
 
 static const ts_param_desc synth_desc[] = {
-    {"patch_size", TS_PARAM_INT, 64, 8, 1024, TS_UNIT_CELLS, "cells", NULL,
-     "Side of the square patches copied from the exemplars.",
+    {"patch_size", TS_PARAM_LENGTH, 64, 8, 1024, TS_UNIT_CELLS, "cells or m", NULL,
+     "Side of the square patches copied from the exemplars: a whole number of cells, or a "
+     "number with suffix m for metres (turned into cells at the output grid's ground "
+     "resolution; 8..1024 cells either way).",
      offsetof(ts_synth_params, patch_size)},
-    {"overlap", TS_PARAM_INT, 16, 2, 512, TS_UNIT_CELLS, "cells", NULL,
-     "Cells shared by neighbouring patches, where seams are cut and smoothed.",
+    {"overlap", TS_PARAM_LENGTH, 16, 2, 512, TS_UNIT_CELLS, "cells or m", NULL,
+     "Width shared by neighbouring patches, where seams are cut and smoothed: cells, or "
+     "metres with suffix m; smaller than the patch.",
      offsetof(ts_synth_params, overlap)},
     {"candidates", TS_PARAM_INT, 6, 1, 256, TS_UNIT_CELLS, "", NULL,
      "Best SSD matches examined per patch position (k).",
@@ -175,6 +178,19 @@ static ts_status check_range(ts_ctx *ctx, const char *stage, const ts_param_desc
     return TS_OK;
 }
 
+/* A length's range is in cells; metres are checked once they are turned into
+ * cells against a grid (ts_synth_params_resolve), here only for sign. */
+static ts_status check_length(ts_ctx *ctx, const char *stage, const ts_param_desc *d, double v,
+                              ts_length_unit unit)
+{
+    if (unit == TS_UNIT_CELLS)
+        return check_range(ctx, stage, d, v);
+    if (!(v >= 0.0) || !isfinite(v) || (d->min > 0 && !(v > 0.0)))
+        return ts_fail(ctx, TS_ERR_ARG, stage, "%s = %gm must be %s", d->name, v,
+                       d->min > 0 ? "positive" : "zero or more");
+    return TS_OK;
+}
+
 TS_API ts_status ts_params_set(ts_ctx *ctx, const char *stage, void *params, const char *name,
                                const char *value)
 {
@@ -210,7 +226,7 @@ TS_API ts_status ts_params_set(ts_ctx *ctx, const char *stage, void *params, con
         else
             return ts_fail(ctx, TS_ERR_ARG, stage,
                            "%s = '%s': unit must be cells (no suffix) or m", d->name, value);
-        if (check_range(ctx, stage, d, v) != TS_OK)
+        if (check_length(ctx, stage, d, v, unit) != TS_OK)
             return ctx->status;
         L->value = v;
         L->unit = unit;
@@ -282,8 +298,9 @@ TS_API ts_status ts_params_validate(ts_ctx *ctx, const char *stage, const void *
             const ts_length *L = (const ts_length *)(p + d[i].offset);
             if (L->unit != TS_UNIT_CELLS && L->unit != TS_UNIT_METRES)
                 return ts_fail(ctx, TS_ERR_ARG, stage, "%s has an invalid unit", d[i].name);
-            v = L->value;
-            break;
+            if (check_length(ctx, stage, &d[i], L->value, L->unit) != TS_OK)
+                return ctx->status;
+            continue;
         }
         }
         if (check_range(ctx, stage, &d[i], v) != TS_OK)
@@ -332,4 +349,60 @@ TS_API ts_synth_params ts_synth_params_default(void)
     ts_synth_params p;
     params_fill_defaults("synth", &p, sizeof p);
     return p;
+}
+
+/* A length that must come to a whole number of cells in [lo, hi]. */
+static ts_status synth_cells_of(ts_ctx *ctx, const char *name, const ts_length *L, int lo,
+                                int hi, int *cells)
+{
+    if (L->unit != TS_UNIT_CELLS)
+        return ts_fail(ctx, TS_ERR_ARG, "synth",
+                       "%s is %gm: resolve it against the grid first (ts_synth_params_resolve)",
+                       name, L->value);
+    if (!(L->value >= lo && L->value <= hi) || L->value != floor(L->value))
+        return ts_fail(ctx, TS_ERR_ARG, "synth", "%s = %g cells must be a whole number in [%d, %d]",
+                       name, L->value, lo, hi);
+    *cells = (int)L->value;
+    return TS_OK;
+}
+
+ts_status ts_synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int *overlap)
+{
+    if (synth_cells_of(ctx, "patch_size", &p->patch_size, 8, 1024, patch) != TS_OK ||
+        synth_cells_of(ctx, "overlap", &p->overlap, 2, 512, overlap) != TS_OK)
+        return ctx->status;
+    if (*overlap >= *patch)
+        return ts_fail(ctx, TS_ERR_ARG, "synth", "overlap %d must be smaller than patch_size %d",
+                       *overlap, *patch);
+    return TS_OK;
+}
+
+TS_API ts_status ts_synth_params_resolve(ts_ctx *ctx, ts_synth_params *params, double cell_m)
+{
+    ts_length *L[2];
+    const char *names[2] = {"patch_size", "overlap"};
+    int i, P, ov;
+    ts_clear(ctx);
+    if (!params)
+        return ts_fail(ctx, TS_ERR_ARG, "synth", "missing parameters");
+    L[0] = &params->patch_size;
+    L[1] = &params->overlap;
+    for (i = 0; i < 2; i++) {
+        double cells;
+        if (L[i]->unit != TS_UNIT_METRES)
+            continue;
+        if (!(cell_m > 0) || !isfinite(cell_m))
+            return ts_fail(ctx, TS_ERR_ARG, "synth",
+                           "%s is given in metres (%gm) but the output grid has no ground size "
+                           "(no CRS): give it in cells",
+                           names[i], L[i]->value);
+        cells = floor(L[i]->value / cell_m + 0.5);
+        if (!(cells >= (i ? 2 : 8) && cells <= (i ? 512 : 1024)))
+            return ts_fail(ctx, TS_ERR_ARG, "synth",
+                           "%s = %gm is %.0f cells of %.4g m: must be %d..%d cells", names[i],
+                           L[i]->value, cells, cell_m, i ? 2 : 8, i ? 512 : 1024);
+        L[i]->value = cells;
+        L[i]->unit = TS_UNIT_CELLS;
+    }
+    return ts_synth_cells(ctx, params, &P, &ov);
 }

@@ -131,10 +131,12 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
             params = [QgsProcessingParameterEnum(key, label, options=list(d["choices"]),
                                                  defaultValue=int(d["default"]))]
         else:  # length: a number and its unit
+            # the range is in cells; a length in metres is checked by the program once it
+            # is turned into cells of the grid, so the widget only keeps it positive
             p = QgsProcessingParameterNumber(
                 key, label, QgsProcessingParameterNumber.Double,
                 defaultValue=float(d["default"]), minValue=float(d["min"]),
-                maxValue=float(d["max"]))
+                maxValue=max(float(d["max"]), 1e9))
             p.setMetadata({"widget_wrapper": {"decimals": _decimals(d)}})
             unit_default = 1 if d.get("default_unit") in ("m", "metres") else 0
             u = QgsProcessingParameterEnum(descriptors.unit_key(d), label + " unit",

@@ -133,7 +133,9 @@ mismatch across the feature, next to <i>alpha_g</i>, when choosing a feature pat
 <h3>Parameters</h3>
 <ul>
 <li><b>Patch size</b> (8..1024 cells, default 64) and <b>Overlap</b> (2..512, default 16, smaller
-than the patch), in target cells. A patch should hold a few ridge and valley spacings.</li>
+than the patch), in target cells, or in metres on the ground with their <b>unit</b> set to metres
+(turned into cells at the target grid's resolution). A patch should hold a few ridge and valley
+spacings.</li>
 <li><b>Seed</b>: same inputs and seed give identical bytes.</li>
 <li><b>Band</b>: the band read from every exemplar.</li>
 </ul>
@@ -464,9 +466,13 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         if len(layers) > MAX_EXEMPLARS:
             raise QgsProcessingException("EXEMPLARS: at most %d rasters" % MAX_EXEMPLARS)
         names = {d["name"] for d in self._descs}
+        # in the same unit they compare here; cells against metres only once the grid
+        # is known (the program checks them then)
         if {"patch_size", "overlap"} <= names and \
-                self.parameterAsInt(parameters, "OVERLAP", context) >= \
-                self.parameterAsInt(parameters, "PATCH_SIZE", context):
+                self.parameterAsEnum(parameters, "OVERLAP_UNIT", context) == \
+                self.parameterAsEnum(parameters, "PATCH_SIZE_UNIT", context) and \
+                self.parameterAsDouble(parameters, "OVERLAP", context) >= \
+                self.parameterAsDouble(parameters, "PATCH_SIZE", context):
             raise QgsProcessingException("OVERLAP must be smaller than PATCH_SIZE")
         if is_set(parameters, self.CELL_SIZE) and \
                 self.parameterAsDouble(parameters, self.CELL_SIZE, context) <= 0:

@@ -34,8 +34,8 @@ static ts_raster make_exemplar(ts_ctx *ctx, int w, int h, uint64_t seed, int hol
 static ts_synth_params small_params(void)
 {
     ts_synth_params p = ts_synth_params_default();
-    p.patch_size = 32;
-    p.overlap = 8;
+    p.patch_size.value = 32;
+    p.overlap.value = 8;
     p.candidates = 4;
     p.coarse_factor = 2;
     return p;
@@ -189,6 +189,39 @@ static int cancel_soon(double done, const char *msg, void *user)
     return done < 0.4;
 }
 
+/* Lengths in metres become whole cells of the grid, then are checked. */
+static void test_resolve_metres(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_synth_params p = ts_synth_params_default();
+    CHECK(ts_params_set(ctx, "synth", &p, "patch_size", "3000m") == TS_OK);
+    CHECK(ts_params_set(ctx, "synth", &p, "overlap", "700m") == TS_OK);
+    CHECK(p.patch_size.unit == TS_UNIT_METRES && p.patch_size.value == 3000.0);
+    CHECK(ts_synth_params_resolve(ctx, &p, 30.0) == TS_OK);
+    CHECK(p.patch_size.unit == TS_UNIT_CELLS && p.patch_size.value == 100.0);
+    CHECK(p.overlap.unit == TS_UNIT_CELLS && p.overlap.value == 23.0); /* 23.3 rounds down */
+    /* cells stay as they are */
+    CHECK(ts_synth_params_resolve(ctx, &p, 10.0) == TS_OK && p.patch_size.value == 100.0);
+    /* no ground size: metres cannot be turned into cells */
+    p = ts_synth_params_default();
+    CHECK(ts_params_set(ctx, "synth", &p, "patch_size", "3000m") == TS_OK);
+    CHECK(ts_synth_params_resolve(ctx, &p, 0.0) == TS_ERR_ARG);
+    CHECK(strstr(ts_ctx_message(ctx), "no ground size") != NULL);
+    /* too many or too few cells, and an overlap as wide as the patch */
+    CHECK(ts_synth_params_resolve(ctx, &p, 1.0) == TS_ERR_ARG);
+    CHECK(strstr(ts_ctx_message(ctx), "3000 cells") != NULL);
+    CHECK(ts_synth_params_resolve(ctx, &p, 1000.0) == TS_ERR_ARG);
+    p = ts_synth_params_default();
+    CHECK(ts_params_set(ctx, "synth", &p, "overlap", "2000m") == TS_OK);
+    CHECK(ts_synth_params_resolve(ctx, &p, 30.0) == TS_ERR_ARG); /* 67 cells >= 64 */
+    CHECK(strstr(ts_ctx_message(ctx), "smaller than patch_size") != NULL);
+    /* negative or unknown units are refused when set */
+    CHECK(ts_params_set(ctx, "synth", &p, "patch_size", "-5m") == TS_ERR_ARG);
+    CHECK(ts_params_set(ctx, "synth", &p, "patch_size", "5km") == TS_ERR_ARG);
+    CHECK(ts_params_set(ctx, "synth", &p, "patch_size", "2000") == TS_ERR_ARG);
+    ts_ctx_free(ctx);
+}
+
 static void test_errors_and_cancel(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -197,11 +230,19 @@ static void test_errors_and_cancel(void)
     ts_raster_alloc(ctx, 100, 100, &out);
     CHECK(ts_synth_patches(ctx, &small, 1, &p, &out, NULL, NULL) == TS_ERR_SIZE);
     CHECK(strstr(ts_ctx_message(ctx), "smaller than a patch") != NULL);
-    p.overlap = 40;
+    p.overlap.value = 40;
     CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
     p = small_params();
-    p.patch_size = 5000;
+    p.patch_size.value = 5000;
     CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
+    /* lengths in cells must be whole; metres must be resolved first */
+    p = small_params();
+    p.patch_size.value = 32.5;
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
+    p = small_params();
+    p.patch_size.unit = TS_UNIT_METRES;
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
+    CHECK(strstr(ts_ctx_message(ctx), "ts_synth_params_resolve") != NULL);
     p = small_params();
     {
         ts_raster tiny;
@@ -230,6 +271,7 @@ int main(int argc, char **argv)
         {"deterministic_and_seeded", test_deterministic_and_seeded},
         {"keep_nodata_and_prefilled", test_keep_nodata_and_prefilled},
         {"several_exemplars", test_several_exemplars},
+        {"resolve_metres", test_resolve_metres},
         {"errors_and_cancel", test_errors_and_cancel},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);

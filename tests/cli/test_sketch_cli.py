@@ -175,6 +175,9 @@ def test_valley_sketch_with_a_canyon(tmp_path):
         (["--mode", "hills"], "hills"),
         (["--alpha-d", "-1"], "out of range"),
         (["--patch-size", "1024"], "smaller than a patch"),
+        (["--patch-size", "200000m"], "2403 cells of 83.23 m: must be 8..1024 cells"),
+        (["--patch-size", "5km"], "unit must be cells (no suffix) or m"),
+        (["--patch-size", "3000m", "--overlap", "40"], "overlap 40 must be smaller than patch_size 36"),
     ],
 )
 def test_errors(tmp_path, extra, words):
@@ -182,6 +185,26 @@ def test_errors(tmp_path, extra, words):
     assert p.returncode != 0
     assert p.stderr.strip().count("\n") == 0 and words in p.stderr, p.stderr
     assert not (tmp_path / "o.tif").exists()
+
+
+def test_patch_size_in_metres(tmp_path):
+    # the lambda's grid is 3" at 36 N: 83.23 m per cell (geometric mean of 74.9 x 92.5 m on
+    # its middle row), so 5000 m is 60 cells and 1200 m is 14
+    run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "2", "--patch-size", "5000m",
+        "--overlap", "1200m", tmp_path / "m.tif", "-q")
+    run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "2", "--patch-size", "60",
+        "--overlap", "14", tmp_path / "c.tif", "-q")
+    assert (tmp_path / "m.tif").read_bytes() == (tmp_path / "c.tif").read_bytes()
+    # without a CRS there is no ground size to turn metres into cells
+    nocrs = tmp_path / "nocrs.tif"
+    z = gdal.Open(JACKSBORO).ReadAsArray()
+    ds = gdal.GetDriverByName("GTiff").Create(str(nocrs), z.shape[1], z.shape[0], 1, gdal.GDT_Float32)
+    ds.GetRasterBand(1).WriteArray(z)
+    ds = None
+    p = run("synth", "--exemplar", nocrs, "--size", "100x100", "--patch-size", "3000m",
+            tmp_path / "n.tif", "-q", check=False)
+    assert p.returncode != 0 and "no ground size" in p.stderr and str(nocrs) in p.stderr, p.stderr
+    assert not (tmp_path / "n.tif").exists()
 
 
 def test_several_styles_from_a_region_map(tmp_path):

@@ -115,7 +115,8 @@ def test_parameters_match_the_core_descriptors(alg_name, stage, describe):
             assert p.dataType() == want, key
             assert p.defaultValue() == d["default"], key
             assert p.minimum() == d["min"], key
-            assert p.maximum() == d["max"], key
+            # a length's range is in cells: the widget also takes metres beyond it
+            assert p.maximum() == (max(d["max"], 1e9) if d["type"] == "length" else d["max"]), key
         if d["type"] == "enum":
             assert isinstance(p, QgsProcessingParameterEnum), key
             assert p.options() == d["choices"], key
@@ -284,6 +285,12 @@ def test_synth_command_line_with_sketch(jacksboro, lambda_ridges, tmp_path):
     kv = pairs(argv)
     assert (kv["--mode"], kv["--alpha-d"], kv["--alpha-f"]) == ("auto", "1000", "3")
     assert (kv["--alpha-s"], kv["--alpha-r"]) == ("0", "0.5")
+    # patch size and overlap in metres on the ground
+    argv, _ = build("terrasynth:synth", {"EXEMPLARS": [jacksboro], "SKETCH": lambda_ridges,
+                                         "PATCH_SIZE": 5000, "PATCH_SIZE_UNIT": 1,
+                                         "OVERLAP": 1200, "OVERLAP_UNIT": 1, "OUTPUT": out})
+    kv = pairs(argv)
+    assert (kv["--patch-size"], kv["--overlap"]) == ("5000m", "1200m")
     assert "--size" not in argv and "--like" not in argv
     assert os.listdir(tmp_path) == []  # nothing was run
 

@@ -19,7 +19,7 @@ SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "dialog_screen
      {"INPUT": "DEM", "FEATURES": 2, "MIN_BRANCH_LENGTH": 600, "MIN_BRANCH_LENGTH_UNIT": 1},
      {"--features": "both", "--min-branch-length": "600m", "--band": "1"}),
     ("terrasynth:synth", ["Exemplar DEMs", "Sketch [optional]", "Target grid like [optional]",
-                          "Patch size (cells)", "Overlap (cells)", "Placement order",
+                          "Patch size", "Patch size unit", "Overlap", "Placement order",
                           "Sketch mode"],
      {"EXEMPLARS": ["DEM"], "WIDTH": 96, "HEIGHT": 80, "PATCH_SIZE": 32, "OVERLAP": 8},
      {"--size": "96x80", "--patch-size": "32", "--overlap": "8", "--exemplar": "DEM"}),
