@@ -117,6 +117,27 @@ def test_on_the_sketch_grid_and_in_the_exemplar_style(lambda_runs):
     assert ks < 0.25, ks
 
 
+def test_no_seams(lambda_runs):
+    """Height steps across the seams of feature patches and fill stay within the exemplar's."""
+    z = gdal.Open(str(lambda_runs / "dbg.tif")).ReadAsArray().astype(float)
+    ex = gdal.Open(JACKSBORO).ReadAsArray().astype(float)
+    seams = gdal.Open(str(lambda_runs / "debug" / "seams.tif")).ReadAsArray().astype(bool)
+    assert seams.sum() > 100
+
+    def steps(a):
+        return np.concatenate([np.abs(np.diff(a, axis=1)).ravel(), np.abs(np.diff(a, axis=0)).ravel()])
+
+    sx = seams[:, 1:] | seams[:, :-1]
+    sy = seams[1:, :] | seams[:-1, :]
+    seam_steps = np.concatenate([np.abs(np.diff(z, axis=1))[sx], np.abs(np.diff(z, axis=0))[sy]])
+    limit = np.percentile(steps(ex), 99.9)
+    print(f"seam steps 99 % {np.percentile(seam_steps, 99):.1f} m, 99.9 % "
+          f"{np.percentile(seam_steps, 99.9):.1f} m; exemplar 99.9 % {limit:.1f} m")
+    assert np.percentile(seam_steps, 99) <= limit
+    assert np.percentile(seam_steps, 99.9) <= 1.1 * limit
+    assert np.percentile(seam_steps, 99) <= 1.1 * np.percentile(steps(z), 99)
+
+
 def test_debug_outputs(lambda_runs):
     d = lambda_runs / "debug"
     for name in ("sketch_features.gpkg", "output_features.gpkg"):
