@@ -61,6 +61,8 @@ typedef struct placer {
     int *known;            /* indices of known target cells */
     ts_candidate *cands;
     int n_cands_cap;
+    double *cand_lb;       /* per candidate: a lower bound of its cost */
+    int *todo;             /* candidates to cut, in order */
 } placer;
 
 static double place_now(void)
@@ -361,6 +363,7 @@ static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int 
 typedef struct cut_job {
     placer *pl;
     int wx, wy; /* the window in the output */
+    const int *todo; /* the candidates to cut: todo[b..e) */
     const int *cand_ex;
     double *cost;
     ts_status *status;
@@ -375,8 +378,9 @@ static void place_cut_range(void *arg, size_t b, size_t e)
     placer *pl = j->pl;
     int P = pl->P;
     ts_ctx *c = ts_ctx_new();
-    size_t i;
-    for (i = b; i < e; i++) {
+    size_t t;
+    for (t = b; t < e; t++) {
+        size_t i = (size_t)j->todo[t];
         float *win = pl->cand_patch + i * (size_t)P * P;
         unsigned char *lab = pl->labels + i * (size_t)P * P;
         const ts_raster *ex = pl->ex[j->cand_ex[i]].full;
@@ -497,9 +501,16 @@ static ts_status place_one(placer *pl, placement *q, int index)
     if (pl->maps)
         place_tick(pl, &pl->maps->seconds_match, &t0);
     /* graph cut each (in parallel); cost = RMS of the SSD + alpha_g * mean
-     * mismatch across the seam */
+     * mismatch across the seam + height costs.  The RMS of the SSD alone is
+     * a lower bound of the cost, so after the most promising candidates
+     * (one per thread) the others are cut only if that bound is within
+     * (1 + variety) of the best cost so far: a candidate left out could be
+     * neither the best nor in the variety pick, so the choice is the same as
+     * cutting them all. */
     {
         cut_job job;
+        int n_first = TS_MIN(total, ts_thread_count(ctx, (size_t)total)), n_todo = 0, w;
+        double *lb = pl->cand_lb;
         job.pl = pl;
         job.cand_ex = cand_ex;
         job.cost = cost;
@@ -507,15 +518,49 @@ static ts_status place_one(placer *pl, placement *q, int index)
         job.n_known = n_known;
         job.wx = q->x;
         job.wy = q->y;
-        ts_parallel_for(ctx, (size_t)total, place_cut_range, &job);
+        job.todo = pl->todo;
         for (i = 0; i < total; i++) {
-            if (status[i] != TS_OK) {
-                st = ts_fail(ctx, status[i], "synth", "graph cut failed for a candidate");
-                goto done;
+            lb[i] = sqrt(pl->cands[i].ssd / n_known);
+            cost[i] = INFINITY;
+            status[i] = TS_OK;
+            pl->todo[i] = i;
+        }
+        /* the n_first lowest bounds first (a partial selection sort: ties
+         * by index, so the order is deterministic) */
+        for (w = 0; w < n_first; w++) {
+            int m = w, u;
+            for (u = w + 1; u < total; u++)
+                if (lb[pl->todo[u]] < lb[pl->todo[m]] ||
+                    (lb[pl->todo[u]] == lb[pl->todo[m]] && pl->todo[u] < pl->todo[m]))
+                    m = u;
+            u = pl->todo[w];
+            pl->todo[w] = pl->todo[m];
+            pl->todo[m] = u;
+        }
+        for (w = 0; w < 2; w++) {
+            int from = w == 0 ? 0 : n_first, to = w == 0 ? n_first : total;
+            if (w == 1) {
+                /* keep only those that could still matter */
+                for (i = n_first, n_todo = n_first; i < total; i++)
+                    if (lb[pl->todo[i]] <= best_cost * (1.0 + pl->p->variety))
+                        pl->todo[n_todo++] = pl->todo[i];
+                to = n_todo;
             }
-            if (cost[i] < best_cost) {
-                best_cost = cost[i];
-                best = i;
+            if (to <= from)
+                continue;
+            job.todo = pl->todo + from;
+            ts_parallel_for(ctx, (size_t)(to - from), place_cut_range, &job);
+            /* the best so far, lowest index on ties as when all are cut */
+            best_cost = INFINITY;
+            for (i = 0; i < total; i++) {
+                if (status[i] != TS_OK) {
+                    st = ts_fail(ctx, status[i], "synth", "graph cut failed for a candidate");
+                    goto done;
+                }
+                if (cost[i] < best_cost) {
+                    best_cost = cost[i];
+                    best = i;
+                }
             }
         }
     }
@@ -602,6 +647,8 @@ static void placer_free(placer *pl)
     free(pl->best_labels);
     free(pl->known);
     free(pl->cands);
+    free(pl->cand_lb);
+    free(pl->todo);
 }
 
 TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
@@ -655,13 +702,15 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.best_labels = ts_malloc_array(P2, 1);
     pl.known = ts_malloc_array(P2, sizeof(int));
     pl.cands = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cands);
+    pl.cand_lb = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cand_lb);
+    pl.todo = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.todo);
     step = pl.P - (int)params->overlap.value;
     xs = ts_malloc_array((size_t)out->width / (size_t)step + 2, sizeof *xs);
     ys = ts_malloc_array((size_t)out->height / (size_t)step + 2, sizeof *ys);
     pl.tlevel[0] = pl.mtarget;
     pl.tknown[0] = pl.known;
     if (alloc_failed || !pl.ex || !pl.target || !pl.mtarget || !pl.patch || !pl.cand_patch || !pl.constraint ||
-        !pl.labels || !pl.best_labels || !pl.known || !pl.cands ||
+        !pl.labels || !pl.best_labels || !pl.known || !pl.cands || !pl.cand_lb || !pl.todo ||
         !xs || !ys) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
         goto done;
