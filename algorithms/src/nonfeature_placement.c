@@ -62,6 +62,7 @@ typedef struct placer {
     ts_candidate *cands;
     int n_cands_cap;
     double *cand_lb;       /* per candidate: a lower bound of its cost */
+    double *cand_h;        /* per candidate: its height costs */
     int *todo;             /* candidates to cut, in order */
 } placer;
 
@@ -383,25 +384,21 @@ static void place_cut_range(void *arg, size_t b, size_t e)
         size_t i = (size_t)j->todo[t];
         float *win = pl->cand_patch + i * (size_t)P * P;
         unsigned char *lab = pl->labels + i * (size_t)P * P;
-        const ts_raster *ex = pl->ex[j->cand_ex[i]].full;
         ts_raster old = ts_raster_wrap(pl->target, P, P, P);
         ts_raster patch = ts_raster_wrap(win, P, P, P);
         double cg = 0.0;
-        int x, y, cuts;
+        int cuts;
         if (!c) {
             j->status[i] = TS_ERR_NOMEM;
             continue;
         }
-        for (y = 0; y < P; y++)
-            for (x = 0; x < P; x++)
-                win[y * P + x] = TS_PIX(ex, pl->cands[i].x + x, pl->cands[i].y + y);
+        /* win holds the candidate's window already (place_one) */
         j->status[i] = ts_seam_graphcut(c, &old, &patch, pl->constraint, lab, &cg);
         if (j->status[i] != TS_OK)
             continue;
         cuts = ts_label_cut_edges(lab, P);
         j->cost[i] = sqrt(pl->cands[i].ssd / j->n_known) +
-                     pl->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) +
-                     ts_height_cost(pl->p, pl->out->width, j->wx, j->wy, P, win, P);
+                     pl->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + pl->cand_h[i];
     }
     ts_ctx_free(c);
 }
@@ -501,8 +498,8 @@ static ts_status place_one(placer *pl, placement *q, int index)
     if (pl->maps)
         place_tick(pl, &pl->maps->seconds_match, &t0);
     /* graph cut each (in parallel); cost = RMS of the SSD + alpha_g * mean
-     * mismatch across the seam + height costs.  The RMS of the SSD alone is
-     * a lower bound of the cost, so after the most promising candidates
+     * mismatch across the seam + height costs.  The RMS of the SSD plus the
+     * height costs is a lower bound of the cost, so after the most promising candidates
      * (one per thread) the others are cut only if that bound is within
      * (1 + variety) of the best cost so far: a candidate left out could be
      * neither the best nor in the variety pick, so the choice is the same as
@@ -520,7 +517,13 @@ static ts_status place_one(placer *pl, placement *q, int index)
         job.wy = q->y;
         job.todo = pl->todo;
         for (i = 0; i < total; i++) {
-            lb[i] = sqrt(pl->cands[i].ssd / n_known);
+            const ts_raster *exr = pl->ex[cand_ex[i]].full;
+            float *win = pl->cand_patch + (size_t)i * (size_t)P * P;
+            for (y = 0; y < P; y++)
+                for (x = 0; x < P; x++)
+                    win[y * P + x] = TS_PIX(exr, pl->cands[i].x + x, pl->cands[i].y + y);
+            pl->cand_h[i] = ts_height_cost(pl->p, W, q->x, q->y, P, win, P);
+            lb[i] = sqrt(pl->cands[i].ssd / n_known) + pl->cand_h[i];
             cost[i] = INFINITY;
             status[i] = TS_OK;
             pl->todo[i] = i;
@@ -648,6 +651,7 @@ static void placer_free(placer *pl)
     free(pl->known);
     free(pl->cands);
     free(pl->cand_lb);
+    free(pl->cand_h);
     free(pl->todo);
 }
 
@@ -703,6 +707,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.known = ts_malloc_array(P2, sizeof(int));
     pl.cands = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cands);
     pl.cand_lb = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cand_lb);
+    pl.cand_h = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cand_h);
     pl.todo = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.todo);
     step = pl.P - (int)params->overlap.value;
     xs = ts_malloc_array((size_t)out->width / (size_t)step + 2, sizeof *xs);
@@ -710,7 +715,8 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.tlevel[0] = pl.mtarget;
     pl.tknown[0] = pl.known;
     if (alloc_failed || !pl.ex || !pl.target || !pl.mtarget || !pl.patch || !pl.cand_patch || !pl.constraint ||
-        !pl.labels || !pl.best_labels || !pl.known || !pl.cands || !pl.cand_lb || !pl.todo ||
+        !pl.labels || !pl.best_labels || !pl.known || !pl.cands || !pl.cand_lb || !pl.cand_h ||
+        !pl.todo ||
         !xs || !ys) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
         goto done;
