@@ -9,9 +9,9 @@
  * raster edge and at nodata: nothing is seen across a hole, and nodata
  * cells are never targets.
  * Cost: O(cells), whatever the profile length: along each direction the
- * lowest and highest values on either side come from monotonic queues over
- * each nodata-free run (sliding-window extremes); lines are split over the
- * context's threads, one direction at a time.
+ * lowest and highest values on either side are sliding-window extremes
+ * over each nodata-free run (van Herk / Gil-Werman); lines are split over
+ * the context's threads, one direction at a time.
  * Deterministic: every cell is decided independently.
  */
 #include <stdatomic.h>
@@ -25,146 +25,200 @@ typedef struct profile_job {
     int half;
     float threshold;
     int kinds;
-    int dir;             /* the direction of this pass, index into profile_dir */
+    int dir;             /* the direction of this pass (see profile_lines) */
     unsigned char *targets;
     atomic_int failed;   /* a worker could not get its buffers */
 } profile_job;
 
-static const int profile_dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
-
-/* Lines of direction d: their count, and the start and length of line l. */
+/* Lines of direction d (0 rows, 1 columns, 2 diagonals x - y = const,
+ * 3 anti-diagonals x + y = const), all walked by increasing row: line t
+ * has its cell of row y at x = line_x(d, t, y), for rows ya..yb.  (A line
+ * walked backwards gives the same targets: both sides are tested.)  Lines
+ * t and t + 1 of directions 1-3 sit side by side on every row, so a block
+ * of them is gathered and scattered row by row, along memory. */
 static size_t profile_lines(const ts_raster *dem, int d)
 {
     size_t w = (size_t)dem->width, h = (size_t)dem->height;
     return d == 0 ? h : d == 1 ? w : w + h - 1;
 }
 
-static void profile_line(const ts_raster *dem, int d, size_t l, int *x0, int *y0, int *n)
+static int line_x(int d, int t, int y, int H)
 {
-    int W = dem->width, H = dem->height, li = (int)l;
-    switch (d) {
-    case 0: *x0 = 0; *y0 = li; *n = W; break;
-    case 1: *x0 = li; *y0 = 0; *n = H; break;
-    case 2:
-        if (li < W) { *x0 = li; *y0 = 0; } else { *x0 = 0; *y0 = li - W + 1; }
-        *n = TS_MIN(W - *x0, H - *y0);
-        break;
-    default:
-        if (li < W) { *x0 = li; *y0 = H - 1; } else { *x0 = 0; *y0 = li - W; }
-        *n = TS_MIN(W - *x0, *y0 + 1);
-        break;
+    return d == 1 ? t : d == 2 ? y + t - (H - 1) : t - y;
+}
+
+static void line_rows(int d, int t, int W, int H, int *ya, int *yb)
+{
+    if (d == 1) {
+        *ya = 0;
+        *yb = H - 1;
+    } else if (d == 2) { /* x = y + c, c = t - (H - 1) */
+        int c = t - (H - 1);
+        *ya = TS_MAX(0, -c);
+        *yb = TS_MIN(H - 1, W - 1 - c);
+    } else { /* x = t - y */
+        *ya = TS_MAX(0, t - W + 1);
+        *yb = TS_MIN(H - 1, t);
     }
 }
 
-/* Sliding extremes over one nodata-free run v[s..e]: for each i the lowest
- * and highest value among v[i+1 .. i+half] (fwd) and v[i-half .. i-1]
- * (bwd), cut at the run's ends (+-INFINITY where that side is empty).
- * Monotonic queues q (n ints each): O(run length). */
-static void profile_run(const float *v, int s, int e, int half, int want_min, int want_max,
-                        float *fmin, float *fmax, float *bmin, float *bmax, int *qa, int *qb)
+/* Window extremes of one nodata-free run by van Herk / Gil-Werman: the run
+ * padded with `half` cells of `pad` (+INFINITY for minima, -INFINITY for
+ * maxima) at each end is cut into blocks of `half`; pre[j] is the extreme
+ * from the start of j's block to j, suf[j] from j to the end of its block;
+ * the extreme of the window p[a .. a + half - 1] is then
+ * ext(suf[a], pre[a + half - 1]).  Branch-free, O(run length) whatever the
+ * profile length; the same multiset of values as a direct scan, so the
+ * same extreme.  No NaN reaches PPA_MIN/MAX (runs are nodata-free, pads
+ * infinite): plain comparisons compile to min/max instructions, fminf to
+ * library calls. */
+#define PPA_MIN(a, b) ((a) < (b) ? (a) : (b))
+#define PPA_MAX(a, b) ((a) > (b) ? (a) : (b))
+
+static void vhgw(const float *v, int n, int half, int is_max, float *p, float *pre, float *suf)
 {
-    int i, ha, ta, hb, tb;
-    /* forward: i from e down to s, the window (i, i + half] */
-    ha = ta = hb = tb = 0;
-    for (i = e; i >= s; i--) {
-        int j = i + 1;
-        if (j <= e) {
-            if (want_min) {
-                while (ta > ha && v[qa[ta - 1]] >= v[j])
-                    ta--;
-                qa[ta++] = j;
-            }
-            if (want_max) {
-                while (tb > hb && v[qb[tb - 1]] <= v[j])
-                    tb--;
-                qb[tb++] = j;
-            }
-        }
-        while (ta > ha && qa[ha] > i + half)
-            ha++;
-        while (tb > hb && qb[hb] > i + half)
-            hb++;
-        fmin[i] = ta > ha ? v[qa[ha]] : INFINITY;
-        fmax[i] = tb > hb ? v[qb[hb]] : -INFINITY;
+    float pad = is_max ? -INFINITY : INFINITY;
+    int m = n + 2 * half, j, j0;
+    for (j = 0; j < half; j++) {
+        p[j] = pad;
+        p[half + n + j] = pad;
     }
-    /* backward: i from s up to e, the window [i - half, i) */
-    ha = ta = hb = tb = 0;
-    for (i = s; i <= e; i++) {
-        int j = i - 1;
-        if (j >= s) {
-            if (want_min) {
-                while (ta > ha && v[qa[ta - 1]] >= v[j])
-                    ta--;
-                qa[ta++] = j;
-            }
-            if (want_max) {
-                while (tb > hb && v[qb[tb - 1]] <= v[j])
-                    tb--;
-                qb[tb++] = j;
-            }
+    memcpy(p + half, v, (size_t)n * sizeof(float));
+    for (j0 = 0; j0 < m; j0 += half) {
+        int j1 = TS_MIN(m, j0 + half);
+        pre[j0] = p[j0];
+        suf[j1 - 1] = p[j1 - 1];
+        if (is_max) {
+            for (j = j0 + 1; j < j1; j++)
+                pre[j] = PPA_MAX(pre[j - 1], p[j]);
+            for (j = j1 - 2; j >= j0; j--)
+                suf[j] = PPA_MAX(suf[j + 1], p[j]);
+        } else {
+            for (j = j0 + 1; j < j1; j++)
+                pre[j] = PPA_MIN(pre[j - 1], p[j]);
+            for (j = j1 - 2; j >= j0; j--)
+                suf[j] = PPA_MIN(suf[j + 1], p[j]);
         }
-        while (ta > ha && qa[ha] < i - half)
-            ha++;
-        while (tb > hb && qb[hb] < i - half)
-            hb++;
-        bmin[i] = ta > ha ? v[qa[ha]] : INFINITY;
-        bmax[i] = tb > hb ? v[qb[hb]] : -INFINITY;
     }
 }
 
-/* Lines [b, e) of the job's direction. */
+#define PROFILE_BLOCK 16
+
+/* Work buffers of one worker. */
+typedef struct profile_work {
+    float *v;               /* PROFILE_BLOCK lines of n_max values */
+    unsigned char *bits;    /* PROFILE_BLOCK lines of n_max target bits */
+    float *pad, *pre, *suf; /* n_max + 2 half each: vhgw's arrays */
+    int n_max;
+} profile_work;
+
+/* The target bits of one line of n values (NaN = nodata). */
+static void profile_line_bits(const profile_job *job, profile_work *w, const float *v, int n,
+                              unsigned char *bits)
+{
+    int h = job->half, s, i, kind;
+    memset(bits, 0, (size_t)n);
+    for (s = 0; s < n;) {
+        int end, len;
+        if (isnan(v[s])) {
+            s++;
+            continue;
+        }
+        for (end = s; end + 1 < n && !isnan(v[end + 1]); end++)
+            ;
+        len = end - s + 1;
+        for (kind = TS_RIDGE; kind <= TS_VALLEY; kind <<= 1) {
+            int is_max = kind == TS_VALLEY;
+            if (!(job->kinds & kind) || len < 3)
+                continue;
+            vhgw(v + s, len, h, is_max, w->pad, w->pre, w->suf);
+            /* run cell i is padded cell i + h; its backward window starts
+             * at padded i, its forward window at padded i + h + 1; a
+             * profile needs a step on both sides: not the run's ends */
+            for (i = 1; i + 1 < len; i++) {
+                float z = v[s + i];
+                int a = i, f = i + h + 1;
+                if (is_max) {
+                    float bw = PPA_MAX(w->suf[a], w->pre[a + h - 1]);
+                    float fw = PPA_MAX(w->suf[f], w->pre[f + h - 1]);
+                    if (fw - z > job->threshold && bw - z > job->threshold)
+                        bits[s + i] |= TS_VALLEY;
+                } else {
+                    float bw = PPA_MIN(w->suf[a], w->pre[a + h - 1]);
+                    float fw = PPA_MIN(w->suf[f], w->pre[f + h - 1]);
+                    if (z - fw > job->threshold && z - bw > job->threshold)
+                        bits[s + i] |= TS_RIDGE;
+                }
+            }
+        }
+        s = end + 1;
+    }
+}
+
+/* Items [b, e) of the job's direction: rows for direction 0, blocks of
+ * PROFILE_BLOCK lines for the others. */
 static void profile_lines_range(void *arg, size_t b, size_t e)
 {
     profile_job *job = arg;
     const ts_raster *dem = job->dem;
-    int n_max = TS_MAX(dem->width, dem->height), dx = profile_dir[job->dir][0],
-        dy = profile_dir[job->dir][1];
-    int want_min = (job->kinds & TS_RIDGE) != 0, want_max = (job->kinds & TS_VALLEY) != 0;
-    float *buf = ts_malloc_array((size_t)n_max * 5, sizeof(float));
-    int *q = ts_malloc_array((size_t)n_max * 2, sizeof(int));
-    size_t l;
-    if (!buf || !q) {
+    int W = dem->width, H = dem->height, d = job->dir;
+    profile_work w;
+    size_t item;
+    w.n_max = TS_MAX(W, H);
+    w.v = ts_malloc_array((size_t)w.n_max * PROFILE_BLOCK, sizeof(float));
+    w.bits = ts_malloc_array((size_t)w.n_max * PROFILE_BLOCK, 1);
+    w.pad = ts_malloc_array((size_t)w.n_max + 2 * (size_t)job->half, sizeof(float));
+    w.pre = ts_malloc_array((size_t)w.n_max + 2 * (size_t)job->half, sizeof(float));
+    w.suf = ts_malloc_array((size_t)w.n_max + 2 * (size_t)job->half, sizeof(float));
+    if (!w.v || !w.bits || !w.pad || !w.pre || !w.suf) {
         atomic_store(&job->failed, 1);
-        free(buf);
-        free(q);
-        return;
+        goto done;
     }
-    for (l = b; l < e; l++) {
-        float *v = buf, *fmin = buf + n_max, *fmax = buf + 2 * n_max, *bmin = buf + 3 * n_max,
-              *bmax = buf + 4 * n_max;
-        int x0, y0, n, i, s;
-        profile_line(dem, job->dir, l, &x0, &y0, &n);
-        for (i = 0; i < n; i++)
-            v[i] = TS_PIX(dem, x0 + i * dx, y0 + i * dy);
-        for (s = 0; s < n;) {
-            int end;
-            if (isnan(v[s])) {
-                s++;
-                continue;
+    for (item = b; item < e; item++) {
+        if (d == 0) {
+            int y = (int)item, x;
+            unsigned char *out = job->targets + (size_t)y * (size_t)W;
+            for (x = 0; x < W; x++)
+                w.v[x] = TS_PIX(dem, x, y);
+            profile_line_bits(job, &w, w.v, W, w.bits);
+            for (x = 0; x < W; x++)
+                out[x] |= w.bits[x];
+        } else {
+            int t0 = (int)item * PROFILE_BLOCK, nl, k, y, ylo = H, yhi = -1;
+            int ya[PROFILE_BLOCK], yb[PROFILE_BLOCK];
+            nl = (int)TS_MIN((size_t)PROFILE_BLOCK, profile_lines(dem, d) - (size_t)t0);
+            for (k = 0; k < nl; k++) {
+                line_rows(d, t0 + k, W, H, &ya[k], &yb[k]);
+                ylo = TS_MIN(ylo, ya[k]);
+                yhi = TS_MAX(yhi, yb[k]);
             }
-            for (end = s; end + 1 < n && !isnan(v[end + 1]); end++)
-                ;
-            profile_run(v, s, end, job->half, want_min, want_max, fmin, fmax, bmin, bmax, q,
-                        q + n_max);
-            for (i = s; i <= end; i++) {
-                float z = v[i];
-                unsigned char bits = 0;
-                /* a profile needs a step on both sides */
-                if (i == s || i == end)
-                    continue;
-                if (want_min && z - fmin[i] > job->threshold && z - bmin[i] > job->threshold)
-                    bits |= TS_RIDGE;
-                if (want_max && fmax[i] - z > job->threshold && bmax[i] - z > job->threshold)
-                    bits |= TS_VALLEY;
-                if (bits)
-                    job->targets[(size_t)(y0 + i * dy) * (size_t)dem->width +
-                                 (size_t)(x0 + i * dx)] |= bits;
+            /* gather row by row: line t0 + k has its cell of row y at x0 + k,
+             * so the block's cells of a row are side by side */
+            for (y = ylo; y <= yhi; y++) {
+                int x0 = line_x(d, t0, y, H), k0 = TS_MAX(0, -x0), k1 = TS_MIN(nl, W - x0);
+                const float *row = &TS_PIX(dem, 0, y);
+                for (k = k0; k < k1; k++)
+                    w.v[(size_t)k * (size_t)w.n_max + (size_t)(y - ya[k])] = row[x0 + k];
             }
-            s = end + 1;
+            for (k = 0; k < nl; k++)
+                if (yb[k] >= ya[k])
+                    profile_line_bits(job, &w, w.v + (size_t)k * (size_t)w.n_max,
+                                      yb[k] - ya[k] + 1,
+                                      w.bits + (size_t)k * (size_t)w.n_max);
+            for (y = ylo; y <= yhi; y++) {
+                int x0 = line_x(d, t0, y, H), k0 = TS_MAX(0, -x0), k1 = TS_MIN(nl, W - x0);
+                unsigned char *out = job->targets + (size_t)y * (size_t)W;
+                for (k = k0; k < k1; k++)
+                    out[x0 + k] |= w.bits[(size_t)k * (size_t)w.n_max + (size_t)(y - ya[k])];
+            }
         }
     }
-    free(buf);
-    free(q);
+done:
+    free(w.v);
+    free(w.bits);
+    free(w.pad);
+    free(w.pre);
+    free(w.suf);
 }
 
 TS_API ts_status ts_ppa_profile_recognition(ts_ctx *ctx, const ts_raster *dem,
@@ -192,8 +246,11 @@ TS_API ts_status ts_ppa_profile_recognition(ts_ctx *ctx, const ts_raster *dem,
     memset(targets, 0, (size_t)dem->width * (size_t)dem->height);
     /* one direction at a time: its lines are disjoint, so workers never
      * write the same cell */
-    for (job.dir = 0; job.dir < 4; job.dir++)
-        ts_parallel_for(ctx, profile_lines(dem, job.dir), profile_lines_range, &job);
+    for (job.dir = 0; job.dir < 4; job.dir++) {
+        size_t n = profile_lines(dem, job.dir);
+        ts_parallel_for(ctx, job.dir == 0 ? n : (n + PROFILE_BLOCK - 1) / PROFILE_BLOCK,
+                        profile_lines_range, &job);
+    }
     if (atomic_load(&job.failed))
         return ts_fail(ctx, TS_ERR_NOMEM, "ppa profile recognition", "out of memory");
     return ts_progress(ctx, 1.0, "profile recognition");
