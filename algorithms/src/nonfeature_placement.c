@@ -57,6 +57,9 @@ typedef struct placer {
     float *tlevel[PLACE_MAX_LEVELS]; /* matching pyramid (tlevel[0] = mtarget) */
     int *tknown[PLACE_MAX_LEVELS];   /* known cells per level */
     int n_tknown[PLACE_MAX_LEVELS];
+    /* per level, the known cells' offsets in the current exemplar's level
+     * (row * stride + column): no division in the SSD loop */
+    ptrdiff_t *toff[PLACE_MAX_LEVELS];
     unsigned char *constraint, *labels, *best_labels;
     int *known;            /* indices of known target cells */
     ts_candidate *cands;
@@ -213,13 +216,13 @@ static void place_target_pyramid(placer *pl, int K)
 static double place_ssd_level(const placer *pl, const ts_raster *ex, int k, int x, int y,
                               double bound)
 {
-    int Pk = pl->P >> k, i, n = pl->n_tknown[k];
-    const float *t = pl->tlevel[k];
+    int i, n = pl->n_tknown[k];
+    const float *t = pl->tlevel[k], *base = &TS_PIX(ex, x, y);
     const int *idx = pl->tknown[k];
+    const ptrdiff_t *off = pl->toff[k];
     double s = 0.0;
     for (i = 0; i < n; i++) {
-        int c = idx[i];
-        double d = (double)t[c] - (double)TS_PIX(ex, x + c % Pk, y + c / Pk);
+        double d = (double)t[idx[i]] - (double)base[off[i]];
         s += d * d;
         if (!(s <= bound)) /* also catches NaN */
             return isnan(s) ? INFINITY : s;
@@ -306,6 +309,12 @@ static ts_status place_search(placer *pl, int e, ts_candidate *out, int *n_out)
         return st;
     }
     place_target_pyramid(pl, K);
+    for (i = 0; i < K; i++) {
+        int Pk = pl->P >> i, c;
+        for (c = 0; c < pl->n_tknown[i]; c++)
+            pl->toff[i][c] = (ptrdiff_t)(pl->tknown[i][c] / Pk) * ed->level[i].stride +
+                             pl->tknown[i][c] % Pk;
+    }
     tc = ts_raster_wrap(pl->tlevel[K], pl->P >> K, pl->P >> K, pl->P >> K);
     st = ts_matcher_best(pl->ctx, ed->matcher, &tc, 2 * k, 2, coarse, &nc);
     if (st != TS_OK)
@@ -639,6 +648,8 @@ static void placer_free(placer *pl)
             free(pl->tlevel[k]);
             free(pl->tknown[k]);
         }
+        for (k = 0; k < PLACE_MAX_LEVELS; k++)
+            free(pl->toff[k]);
     }
     free(pl->patch);
     free(pl->cand_patch);
@@ -692,6 +703,9 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
         if (!pl.tlevel[i] || !pl.tknown[i])
             alloc_failed = 1;
     }
+    for (i = 0; i < PLACE_MAX_LEVELS; i++)
+        if (!(pl.toff[i] = ts_malloc_array(P2, sizeof(ptrdiff_t))))
+            alloc_failed = 1;
     pl.patch = ts_malloc_array(P2, sizeof(float));
     pl.cand_patch = ts_malloc_array(P2 * (size_t)params->candidates * (size_t)n_exemplars,
                                     sizeof(float));
