@@ -62,6 +62,7 @@ typedef struct placer {
     ptrdiff_t *toff[PLACE_MAX_LEVELS];
     unsigned char *constraint, *labels, *best_labels;
     int *known;            /* indices of known target cells */
+    int *near;             /* P x P: distance to the cells this patch fills */
     ts_candidate *cands;
     int n_cands_cap;
     double *cand_lb;       /* per candidate: a lower bound of its cost */
@@ -456,6 +457,23 @@ static ts_status place_one(placer *pl, placement *q, int index)
                 c = TS_SEAM_OLD;
             pl->constraint[y * P + x] = c;
         }
+    /* the seam is sought in a band of `overlap` cells around what this
+     * patch fills: placed cells farther away keep what they have (where
+     * feature patches cover most of the window, the cut and the Poisson
+     * seam removal stay near the gap instead of reworking the features'
+     * flanks) */
+    {
+        int ov = (int)pl->p->overlap.value;
+        for (y = 0; y < P; y++)
+            for (x = 0; x < P; x++)
+                pl->near[y * P + x] =
+                    (isnan(pl->target[y * P + x]) &&
+                     !place_flag(pl, q->x + x, q->y + y, TS_CELL_NODATA)) ? 0 : 2 * P;
+        ts_chamfer_chebyshev(pl->near, P);
+        for (i = 0; i < P * P; i++)
+            if (!isnan(pl->target[i]) && pl->near[i] > ov)
+                pl->constraint[i] = TS_SEAM_OLD;
+    }
     pl->n_tknown[0] = n_known;
     cand_ex = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *cand_ex);
     cost = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *cost);
@@ -660,6 +678,7 @@ static void placer_free(placer *pl)
     free(pl->labels);
     free(pl->best_labels);
     free(pl->known);
+    free(pl->near);
     free(pl->cands);
     free(pl->cand_lb);
     free(pl->cand_h);
@@ -719,6 +738,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.labels = ts_malloc_array(P2, (size_t)params->candidates * (size_t)n_exemplars);
     pl.best_labels = ts_malloc_array(P2, 1);
     pl.known = ts_malloc_array(P2, sizeof(int));
+    pl.near = ts_malloc_array(P2, sizeof(int));
     pl.cands = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cands);
     pl.cand_lb = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cand_lb);
     pl.cand_h = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cand_h);
@@ -728,10 +748,9 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     ys = ts_malloc_array((size_t)out->height / (size_t)step + 2, sizeof *ys);
     pl.tlevel[0] = pl.mtarget;
     pl.tknown[0] = pl.known;
-    if (alloc_failed || !pl.ex || !pl.target || !pl.mtarget || !pl.patch || !pl.cand_patch || !pl.constraint ||
-        !pl.labels || !pl.best_labels || !pl.known || !pl.cands || !pl.cand_lb || !pl.cand_h ||
-        !pl.todo ||
-        !xs || !ys) {
+    if (alloc_failed || !pl.ex || !pl.target || !pl.mtarget || !pl.patch || !pl.cand_patch ||
+        !pl.constraint || !pl.labels || !pl.best_labels || !pl.known || !pl.near || !pl.cands ||
+        !pl.cand_lb || !pl.cand_h || !pl.todo || !xs || !ys) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
         goto done;
     }
