@@ -47,7 +47,10 @@ typedef struct placer {
     exemplar_data *ex;
     int n_ex;
     int P;                 /* patch size */
+    uint64_t rng0;         /* from the seed; each placement draws from its own stream */
     uint64_t rng;
+    int shares_ex;         /* a second slot: ex[] levels and tables belong to the first */
+    double sec[3];         /* seconds matching, cutting, merging (for maps) */
     /* work buffers */
     float *target, *patch;
     float *cand_patch;     /* one P x P window per candidate, for parallel cuts */
@@ -423,6 +426,35 @@ static int place_region_exemplar(const placer *pl, const placement *q)
     return (e >= 0 && e < pl->n_ex) ? e : -1;
 }
 
+/* Candidate windows for the first patch. */
+#define PLACE_START 15
+typedef struct place_start {
+    int e, x, y, order;
+    float relief;
+} place_start;
+
+static int place_start_cmp(const void *a, const void *b)
+{
+    const place_start *p = a, *q = b;
+    if (p->relief != q->relief)
+        return p->relief < q->relief ? -1 : 1;
+    return (p->order > q->order) - (p->order < q->order);
+}
+
+/* Highest minus lowest cell of a nodata-free P x P window. */
+static float place_relief(const ts_raster *r, int x0, int y0, int P)
+{
+    float lo = INFINITY, hi = -INFINITY;
+    int x, y;
+    for (y = y0; y < y0 + P; y++)
+        for (x = x0; x < x0 + P; x++) {
+            float v = TS_PIX(r, x, y);
+            lo = v < lo ? v : lo;
+            hi = v > hi ? v : hi;
+        }
+    return hi - lo;
+}
+
 /* Place one patch at q: the first ever (nothing to match) is random. */
 static ts_status place_one(placer *pl, placement *q, int index)
 {
@@ -432,6 +464,9 @@ static ts_status place_one(placer *pl, placement *q, int index)
     double *cost, best_cost = INFINITY, t0 = 0;
     ts_status *status;
     ts_status st = TS_OK;
+    /* each placement's random stream depends only on the seed and its
+     * index, so placements running side by side draw what they would alone */
+    pl->rng = pl->rng0 ^ (0xd1b54a32d192ed03ull * (uint64_t)(index + 1));
     /* target window and the graph-cut constraints */
     for (y = 0; y < P; y++)
         for (x = 0; x < P; x++) {
@@ -483,22 +518,35 @@ static ts_status place_one(placer *pl, placement *q, int index)
         goto done;
     }
     if (n_known == 0) {
-        /* nothing to match: a random valid window of a random exemplar */
-        int tries;
-        int only = place_region_exemplar(pl, q);
-        for (tries = 0; tries < 100000; tries++) {
+        /* nothing to match: a typical window to start from, the one of
+         * median relief among PLACE_START random nodata-free windows, so a
+         * rare corner (a flat valley floor in a mountain DEM) does not seed
+         * the whole terrain */
+        int tries, n_ok = 0, only = place_region_exemplar(pl, q);
+        place_start found[PLACE_START];
+        for (tries = 0; tries < 100000 && n_ok < PLACE_START; tries++) {
             exemplar_data *ed;
             e = only >= 0 ? only : (int)(place_rand(pl) % (uint64_t)pl->n_ex);
             ed = &pl->ex[e];
             x = (int)(place_rand(pl) % (uint64_t)(ed->full->width - P + 1));
             y = (int)(place_rand(pl) % (uint64_t)(ed->full->height - P + 1));
-            if (sat_sum(ed->nodata_sat, ed->full->width, x, y, x + P, y + P) == 0)
-                break;
+            if (sat_sum(ed->nodata_sat, ed->full->width, x, y, x + P, y + P) == 0) {
+                found[n_ok].e = e;
+                found[n_ok].x = x;
+                found[n_ok].y = y;
+                found[n_ok].relief = place_relief(ed->full, x, y, P);
+                found[n_ok].order = n_ok;
+                n_ok++;
+            }
         }
-        if (tries == 100000) {
+        if (n_ok == 0) {
             st = ts_fail(ctx, TS_ERR_NUMERIC, "synth", "no exemplar window free of nodata");
             goto done;
         }
+        qsort(found, (size_t)n_ok, sizeof *found, place_start_cmp);
+        e = found[n_ok / 2].e;
+        x = found[n_ok / 2].x;
+        y = found[n_ok / 2].y;
         place_copy_patch(pl, pl->ex[e].full, x, y);
         for (i = 0; i < P * P; i++)
             pl->best_labels[i] = isnan(pl->target[i]);
@@ -523,7 +571,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
         goto done;
     }
     if (pl->maps)
-        place_tick(pl, &pl->maps->seconds_match, &t0);
+        place_tick(pl, &pl->sec[0], &t0);
     /* graph cut each (in parallel); cost = RMS of the SSD + alpha_g * mean
      * mismatch across the seam + height costs.  The RMS of the SSD plus the
      * height costs is a lower bound of the cost, so after the most promising candidates
@@ -610,11 +658,11 @@ static ts_status place_one(placer *pl, placement *q, int index)
         memcpy(pl->patch, pl->cand_patch + (size_t)best * P * P, (size_t)P * P * sizeof(float));
         memcpy(pl->best_labels, pl->labels + (size_t)best * P * P, (size_t)P * P);
         if (pl->maps)
-            place_tick(pl, &pl->maps->seconds_cut, &t0);
+            place_tick(pl, &pl->sec[1], &t0);
         if (st == TS_OK)
             st = place_merge(pl, q, cand_ex[best], pl->cands[best].x, pl->cands[best].y, index);
         if (pl->maps)
-            place_tick(pl, &pl->maps->seconds_poisson, &t0);
+            place_tick(pl, &pl->sec[2], &t0);
     }
 done:
     free(cand_ex);
@@ -653,6 +701,8 @@ static void placer_free(placer *pl)
         for (e = 0; e < pl->n_ex; e++) {
             int k;
             ts_matcher_free(pl->ex[e].matcher);
+            if (pl->shares_ex)
+                continue;
             for (k = 1; k < PLACE_MAX_LEVELS; k++)
                 ts_raster_free(&pl->ex[e].level[k]);
             free(pl->ex[e].nodata_sat);
@@ -685,14 +735,125 @@ static void placer_free(placer *pl)
     free(pl->todo);
 }
 
+/* Grow order: the needed position with the most filled cells, ties to the
+ * one nearest the centre; with `apart` >= 0 only those whose windows (with
+ * their rings and the cells ts_border_keeps_old reads) stay clear of
+ * position apart's. */
+static int place_pick(const placer *pl, const placement *pos, int n_pos, int apart)
+{
+    int pick = -1, j, gap = pl->P + 4;
+    long best_d = 0;
+    for (j = 0; j < n_pos; j++) {
+        long d;
+        if (!pos[j].needed || j == apart)
+            continue;
+        if (apart >= 0 && abs(pos[j].x - pos[apart].x) < gap &&
+            abs(pos[j].y - pos[apart].y) < gap)
+            continue;
+        d = labs((long)pos[j].x - (pl->out->width - pl->P) / 2) +
+            labs((long)pos[j].y - (pl->out->height - pl->P) / 2);
+        if (pick < 0 || pos[j].overlap > pos[pick].overlap ||
+            (pos[j].overlap == pos[pick].overlap && d < best_d)) {
+            pick = j;
+            best_d = d;
+        }
+    }
+    return pick;
+}
+
+/* Two placements side by side: slot i places q[i] as patch index + i. */
+typedef struct pair_job {
+    placer *slot[2];
+    placement *q[2];
+    int index;
+    ts_status status[2];
+} pair_job;
+
+static void place_pair_run(void *arg, size_t b, size_t e)
+{
+    pair_job *j = arg;
+    size_t i;
+    for (i = b; i < e; i++)
+        j->status[i] = place_one(j->slot[i], j->q[i], j->index + (int)i);
+}
+
+/* The work buffers of one placement slot (pl->P, p, n_ex, n_cands_cap set);
+ * returns non-zero when out of memory (placer_free frees what was got). */
+static int placer_alloc_work(placer *pl)
+{
+    size_t P2 = (size_t)pl->P * (size_t)pl->P;
+    size_t nk = (size_t)pl->p->candidates * (size_t)pl->n_ex;
+    int i, failed = 0;
+    pl->target = ts_malloc_array(P2, sizeof(float));
+    pl->mtarget = ts_malloc_array(P2, sizeof(float));
+    for (i = 1; i < PLACE_MAX_LEVELS; i++) {
+        pl->tlevel[i] = ts_malloc_array(P2, sizeof(float));
+        pl->tknown[i] = ts_malloc_array(P2, sizeof(int));
+        failed |= !pl->tlevel[i] || !pl->tknown[i];
+    }
+    for (i = 0; i < PLACE_MAX_LEVELS; i++)
+        failed |= !(pl->toff[i] = ts_malloc_array(P2, sizeof(ptrdiff_t)));
+    pl->patch = ts_malloc_array(P2, sizeof(float));
+    pl->cand_patch = ts_malloc_array(P2 * nk, sizeof(float));
+    failed |= ts_merger_init(pl->ctx, &pl->merger, pl->P, (int)pl->p->overlap.value) != TS_OK;
+    pl->src_x = ts_malloc_array(P2, sizeof(int32_t));
+    pl->src_y = ts_malloc_array(P2, sizeof(int32_t));
+    pl->constraint = ts_malloc_array(P2, 1);
+    pl->labels = ts_malloc_array(P2, nk);
+    pl->best_labels = ts_malloc_array(P2, 1);
+    pl->known = ts_malloc_array(P2, sizeof(int));
+    pl->near = ts_malloc_array(P2, sizeof(int));
+    pl->cands = ts_malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cands);
+    pl->cand_lb = ts_malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cand_lb);
+    pl->cand_h = ts_malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cand_h);
+    pl->todo = ts_malloc_array((size_t)pl->n_cands_cap, sizeof *pl->todo);
+    pl->tlevel[0] = pl->mtarget;
+    pl->tknown[0] = pl->known;
+    return failed || !pl->target || !pl->mtarget || !pl->patch || !pl->cand_patch ||
+           !pl->src_x || !pl->src_y || !pl->constraint || !pl->labels || !pl->best_labels ||
+           !pl->known || !pl->near || !pl->cands || !pl->cand_lb || !pl->cand_h || !pl->todo;
+}
+
+/* A second slot for placements side by side: its own work buffers and
+ * matchers (a matcher serves one thread at a time), the first slot's
+ * exemplar levels and nodata tables. */
+static ts_status placer_second(const placer *a, placer *b)
+{
+    int e;
+    memset(b, 0, sizeof *b);
+    b->ctx = a->ctx;
+    b->p = a->p;
+    b->out = a->out;
+    b->flags = a->flags;
+    b->maps = a->maps;
+    b->n_ex = a->n_ex;
+    b->P = a->P;
+    b->rng0 = a->rng0;
+    b->n_cands_cap = a->n_cands_cap;
+    b->shares_ex = 1;
+    b->ex = calloc((size_t)a->n_ex, sizeof *b->ex);
+    if (!b->ex || placer_alloc_work(b))
+        return ts_fail(a->ctx, TS_ERR_NOMEM, "synth", "out of memory");
+    for (e = 0; e < a->n_ex; e++) {
+        const exemplar_data *ed = &a->ex[e];
+        b->ex[e] = *ed;
+        b->ex[e].matcher = NULL;
+        if (ts_matcher_new(a->ctx, &ed->level[ed->K], a->P >> ed->K, a->P >> ed->K,
+                           &b->ex[e].matcher) != TS_OK)
+            return a->ctx->status;
+    }
+    return TS_OK;
+}
+
 TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
                                   const ts_synth_params *params, ts_raster *out,
                                   const unsigned char *cell_flags, ts_synth_maps *maps)
 {
-    placer pl;
+    placer pl, pl2;
+    ts_ctx *ca = NULL, *cb = NULL;
     placement *pos = NULL;
     int *xs = NULL, *ys = NULL, nx, ny, n_pos, i, e, placed = 0, step, alloc_failed = 0;
-    size_t P2, n_out;
+    size_t n_out;
     double t_start = place_now();
     int first_index = maps ? maps->n_patches : 0;
     ts_status st;
@@ -701,6 +862,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     if ((st = place_validate(ctx, exemplars, n_exemplars, params, out)) != TS_OK)
         return st;
     memset(&pl, 0, sizeof pl);
+    memset(&pl2, 0, sizeof pl2);
     pl.ctx = ctx;
     pl.p = params;
     pl.out = out;
@@ -708,49 +870,14 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     pl.maps = maps;
     pl.n_ex = n_exemplars;
     pl.P = (int)params->patch_size.value; /* whole cells: checked by place_validate */
-    pl.rng = ts_ctx_seed(ctx) ^ 0x5eed5eed5eedull;
-    P2 = (size_t)pl.P * (size_t)pl.P;
+    pl.rng0 = ts_ctx_seed(ctx) ^ 0x5eed5eed5eedull;
     pl.n_cands_cap = 2 * (3 * params->candidates * n_exemplars + 8);
     pl.ex = calloc((size_t)n_exemplars, sizeof *pl.ex);
-    pl.target = ts_malloc_array(P2, sizeof(float));
-    pl.mtarget = ts_malloc_array(P2, sizeof(float));
-    pl.tlevel[0] = pl.mtarget;
-    pl.tknown[0] = NULL; /* set to pl.known below */
-    for (i = 1; i < PLACE_MAX_LEVELS; i++) {
-        pl.tlevel[i] = ts_malloc_array(P2, sizeof(float));
-        pl.tknown[i] = ts_malloc_array(P2, sizeof(int));
-        if (!pl.tlevel[i] || !pl.tknown[i])
-            alloc_failed = 1;
-    }
-    for (i = 0; i < PLACE_MAX_LEVELS; i++)
-        if (!(pl.toff[i] = ts_malloc_array(P2, sizeof(ptrdiff_t))))
-            alloc_failed = 1;
-    pl.patch = ts_malloc_array(P2, sizeof(float));
-    pl.cand_patch = ts_malloc_array(P2 * (size_t)params->candidates * (size_t)n_exemplars,
-                                    sizeof(float));
-    if (ts_merger_init(ctx, &pl.merger, pl.P, (int)params->overlap.value) != TS_OK)
-        alloc_failed = 1;
-    pl.src_x = ts_malloc_array(P2, sizeof(int32_t));
-    pl.src_y = ts_malloc_array(P2, sizeof(int32_t));
-    if (!pl.src_x || !pl.src_y)
-        alloc_failed = 1;
-    pl.constraint = ts_malloc_array(P2, 1);
-    pl.labels = ts_malloc_array(P2, (size_t)params->candidates * (size_t)n_exemplars);
-    pl.best_labels = ts_malloc_array(P2, 1);
-    pl.known = ts_malloc_array(P2, sizeof(int));
-    pl.near = ts_malloc_array(P2, sizeof(int));
-    pl.cands = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cands);
-    pl.cand_lb = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cand_lb);
-    pl.cand_h = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.cand_h);
-    pl.todo = ts_malloc_array((size_t)pl.n_cands_cap, sizeof *pl.todo);
+    alloc_failed = placer_alloc_work(&pl);
     step = pl.P - (int)params->overlap.value;
     xs = ts_malloc_array((size_t)out->width / (size_t)step + 2, sizeof *xs);
     ys = ts_malloc_array((size_t)out->height / (size_t)step + 2, sizeof *ys);
-    pl.tlevel[0] = pl.mtarget;
-    pl.tknown[0] = pl.known;
-    if (alloc_failed || !pl.ex || !pl.target || !pl.mtarget || !pl.patch || !pl.cand_patch ||
-        !pl.constraint || !pl.labels || !pl.best_labels || !pl.known || !pl.near || !pl.cands ||
-        !pl.cand_lb || !pl.cand_h || !pl.todo || !xs || !ys) {
+    if (alloc_failed || !pl.ex || !xs || !ys) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
         goto done;
     }
@@ -796,8 +923,27 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
         pos[i].y = ys[i / nx];
         place_count(&pl, &pos[i]);
     }
+    /* grow order places two patches at once when the best position has a
+     * second one far enough away (their windows and rings disjoint): the
+     * pairing depends only on the positions, so the result does not depend
+     * on the thread count; two threads run a pair side by side */
+    if (params->order != TS_ORDER_RASTER) {
+        ts_progress_saved sv = ts_progress_push(ctx, 0.1, 0.1);
+        st = placer_second(&pl, &pl2);
+        ts_progress_pop(ctx, sv);
+        if (st != TS_OK)
+            goto done;
+        ca = ts_ctx_new();
+        cb = ts_ctx_new();
+        if (!ca || !cb) {
+            st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
+            goto done;
+        }
+        ts_ctx_set_threads(ca, 1);
+        ts_ctx_set_threads(cb, 1);
+    }
     for (;;) {
-        int pick = -1, j;
+        int pick = -1, pick2 = -1, j, n_run;
         if (params->order == TS_ORDER_RASTER) { /* grow and tree: the same here */
             for (j = 0; j < n_pos; j++)
                 if (pos[j].needed) {
@@ -805,19 +951,12 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
                     break;
                 }
         } else {
-            /* most overlap first; nothing filled yet: the centre */
-            long best_d = 0;
-            for (j = 0; j < n_pos; j++) {
-                long d;
-                if (!pos[j].needed)
-                    continue;
-                d = labs((long)pos[j].x - (out->width - pl.P) / 2) +
-                    labs((long)pos[j].y - (out->height - pl.P) / 2);
-                if (pick < 0 || pos[j].overlap > pos[pick].overlap ||
-                    (pos[j].overlap == pos[pick].overlap && d < best_d)) {
-                    pick = j;
-                    best_d = d;
-                }
+            pick = place_pick(&pl, pos, n_pos, -1);
+            /* a second that grows from what is placed, nearly as well */
+            if (pick >= 0 && pos[pick].overlap > 0) {
+                pick2 = place_pick(&pl, pos, n_pos, pick);
+                if (pick2 >= 0 && 2 * pos[pick2].overlap < pos[pick].overlap)
+                    pick2 = -1;
             }
         }
         if (pick < 0)
@@ -831,19 +970,65 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
                 remaining += pos[j].needed;
             frac = 0.1 + 0.9 * (double)placed / (double)(placed + remaining);
             sv = ts_progress_push(ctx, frac, frac);
-            st = place_one(&pl, &pos[pick], placed + first_index);
+            if (pick2 < 0) {
+                st = place_one(&pl, &pos[pick], placed + first_index);
+            } else {
+                pair_job pj;
+                pj.slot[0] = &pl;
+                pj.slot[1] = &pl2;
+                pj.q[0] = &pos[pick];
+                pj.q[1] = &pos[pick2];
+                pj.index = placed + first_index;
+                {
+                    int side_by_side = ts_thread_count(ctx, 2) >= 2;
+                    ts_ctx *used[2];
+                    used[0] = side_by_side ? ca : ctx;
+                    used[1] = side_by_side ? cb : ctx;
+                    pl.ctx = used[0];
+                    pl2.ctx = used[1];
+                    if (side_by_side)
+                        ts_parallel_for(ctx, 2, place_pair_run, &pj);
+                    else
+                        place_pair_run(&pj, 0, 2);
+                    pl.ctx = ctx;
+                    pl2.ctx = ctx;
+                    st = TS_OK;
+                    for (j = 0; j < 2 && st == TS_OK; j++) {
+                        const char *msg = ts_ctx_message(used[j]);
+                        if (pj.status[j] == TS_OK)
+                            continue;
+                        /* a private context's message moves to the caller's */
+                        st = used[j] == ctx
+                                 ? pj.status[j]
+                                 : ts_fail(ctx, pj.status[j], "synth", "%s",
+                                           strchr(msg, ':') ? strchr(msg, ':') + 2 : msg);
+                    }
+                }
+            }
             ts_progress_pop(ctx, sv);
             if (st != TS_OK)
                 goto done;
         }
-        placed++;
-        if (maps)
+        n_run = pick2 < 0 ? 1 : 2;
+        placed += n_run;
+        if (maps) {
             maps->n_patches = first_index + placed;
-        /* windows that intersect the new patch changed */
-        for (j = 0; j < n_pos; j++)
-            if (abs(pos[j].x - pos[pick].x) < pl.P && abs(pos[j].y - pos[pick].y) < pl.P)
-                place_count(&pl, &pos[j]);
+            maps->seconds_match += pl.sec[0] + pl2.sec[0];
+            maps->seconds_cut += pl.sec[1] + pl2.sec[1];
+            maps->seconds_poisson += pl.sec[2] + pl2.sec[2];
+        }
+        memset(pl.sec, 0, sizeof pl.sec);
+        memset(pl2.sec, 0, sizeof pl2.sec);
+        /* windows that intersect the new patches changed */
+        for (i = 0; i < n_run; i++) {
+            int w = i ? pick2 : pick;
+            for (j = 0; j < n_pos; j++)
+                if (abs(pos[j].x - pos[w].x) < pl.P && abs(pos[j].y - pos[w].y) < pl.P)
+                    place_count(&pl, &pos[j]);
+        }
         pos[pick].needed = 0;
+        if (pick2 >= 0)
+            pos[pick2].needed = 0;
         {
             int remaining = 0;
             for (j = 0; j < n_pos; j++)
@@ -860,5 +1045,8 @@ done:
     free(xs);
     free(ys);
     placer_free(&pl);
+    placer_free(&pl2);
+    ts_ctx_free(ca);
+    ts_ctx_free(cb);
     return st;
 }

@@ -71,29 +71,41 @@ def test_output_grid_and_nodata(jb_synth):
     assert np.isfinite(z).all()
 
 
-def test_statistics_follow_the_exemplar(jb_synth):
+def test_statistics_follow_the_exemplar(jb_synth, tmp_path):
     _, out = jb_synth
-    ds, z = load(out)
     sds, sz = load(JACKSBORO)
-    s_out = slopes_deg(z, *cell_size_m(ds))
     s_ex = slopes_deg(sz, *cell_size_m(sds))
-    # the slope distribution stays close to the exemplar's: Kolmogorov-Smirnov distance
-    # (the exemplar mixes flat lowland and steep mountains, so a 320 x 288 sample varies:
-    # about 0.13 over seeds) and mean slope within 20 %
     grid = np.linspace(0, 60, 601)
-    ks = np.max(np.abs(np.searchsorted(np.sort(s_ex), grid) / s_ex.size
-                       - np.searchsorted(np.sort(s_out), grid) / s_out.size))
-    assert ks < 0.2, ks
-    assert abs(s_out.mean() - s_ex.mean()) < 0.2 * s_ex.mean()
-    # a terrain that is not the exemplar's slope distribution fails: a smoothed copy
-    smooth = (z[:-2, :-2] + z[1:-1, 1:-1] + z[2:, 2:] + z[:-2, 2:] + z[2:, :-2]) / 5
-    s_smooth = slopes_deg(smooth[::3, ::3], *(3 * c for c in cell_size_m(ds)))
-    ks_smooth = np.max(np.abs(np.searchsorted(np.sort(s_ex), grid) / s_ex.size
-                              - np.searchsorted(np.sort(s_smooth), grid) / s_smooth.size))
-    assert ks_smooth > ks
-    # heights in the exemplar's range (the seam remover may shift them a little)
-    span = np.nanmax(sz) - np.nanmin(sz)
-    assert np.nanmin(z) > np.nanmin(sz) - 0.25 * span and np.nanmax(z) < np.nanmax(sz) + 0.25 * span
+
+    def ks_of(s):
+        return np.max(np.abs(np.searchsorted(np.sort(s_ex), grid) / s_ex.size
+                             - np.searchsorted(np.sort(s), grid) / s.size))
+
+    # the slope distribution stays close to the exemplar's (Kolmogorov-Smirnov distance) over
+    # seeds; the exemplar mixes flat lowland and steep mountains, so a 320 x 288 sample varies
+    # (measured over seeds 1-8: 0.012-0.169, six of eight under 0.07)
+    outs = [out]
+    for seed in (1, 2, 3):
+        run("synth", "--exemplar", JACKSBORO, "--size", "320x288", "--seed", str(seed),
+            tmp_path / f"s{seed}.tif", "-q")
+        outs.append(tmp_path / f"s{seed}.tif")
+    kss, means = [], []
+    for o in outs:
+        ds, z = load(o)
+        s_out = slopes_deg(z, *cell_size_m(ds))
+        kss.append(ks_of(s_out))
+        means.append(s_out.mean())
+        # heights in the exemplar's range (the seam remover may shift them a little)
+        span = np.nanmax(sz) - np.nanmin(sz)
+        assert np.nanmin(z) > np.nanmin(sz) - 0.25 * span and np.nanmax(z) < np.nanmax(sz) + 0.25 * span
+    print("KS distances", [round(k, 3) for k in kss], "mean slopes", [round(m, 1) for m in means],
+          "exemplar", round(s_ex.mean(), 1))
+    assert max(kss) < 0.2 and np.median(kss) < 0.1, kss
+    assert abs(np.mean(means) - s_ex.mean()) < 0.2 * s_ex.mean()
+    # the measure can fail: a smoothed exemplar is far from the exemplar's slopes
+    smooth = (sz[:-2, :-2] + sz[1:-1, 1:-1] + sz[2:, 2:] + sz[:-2, 2:] + sz[2:, :-2]) / 5
+    s_smooth = slopes_deg(smooth[::3, ::3], *(3 * c for c in cell_size_m(sds)))
+    assert ks_of(s_smooth) > 0.2, ks_of(s_smooth)
 
 
 def test_no_seams(jb_synth):
@@ -231,10 +243,15 @@ def test_real_dems_grow_seamless_terrain(tmp_path, name):
     sx = seams[:, 1:] | seams[:, :-1]
     sy = seams[1:, :] | seams[:-1, :]
     seam_steps = np.concatenate([np.abs(np.diff(z, axis=1))[sx], np.abs(np.diff(z, axis=0))[sy]])
+    other_steps = np.concatenate([np.abs(np.diff(z, axis=1))[~sx], np.abs(np.diff(z, axis=0))[~sy]])
     ex_steps = steps(sz)
     ex_steps = ex_steps[np.isfinite(ex_steps)]
     if seam_steps.size:
-        assert np.percentile(seam_steps, 99.9) <= 1.2 * np.percentile(ex_steps, 99.9)
+        # a 256 x 256 output may come from the exemplar's steepest part (Pyrenees seed 1: its
+        # own 99.9th percentile step 51 m against the whole exemplar's 40 m), so seams are
+        # held to the steeper of the exemplar and the output away from seams
+        limit = max(np.percentile(ex_steps, 99.9), np.percentile(other_steps, 99.9))
+        assert np.percentile(seam_steps, 99.9) <= 1.2 * limit, (np.percentile(seam_steps, 99.9), limit)
 
 
 def test_pins_and_water_are_kept(tmp_path):
