@@ -70,7 +70,7 @@ typedef struct placer {
     int n_cands_cap;
     double *cand_lb;       /* per candidate: a lower bound of its cost */
     double *cand_h;        /* per candidate: its height costs */
-    int *todo;             /* candidates to cut, in order */
+    int *to_cut;             /* candidates to cut, in order */
 } placer;
 
 static double place_now(void)
@@ -377,7 +377,7 @@ static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int 
 typedef struct cut_job {
     placer *pl;
     int wx, wy; /* the window in the output */
-    const int *todo; /* the candidates to cut: todo[b..e) */
+    const int *to_cut; /* the candidates to cut: to_cut[b..e) */
     const int *cand_ex;
     double *cost;
     ts_status *status;
@@ -394,7 +394,7 @@ static void place_cut_range(void *arg, size_t b, size_t e)
     ts_ctx *c = ts_ctx_new();
     size_t t;
     for (t = b; t < e; t++) {
-        size_t i = (size_t)j->todo[t];
+        size_t i = (size_t)j->to_cut[t];
         float *win = pl->cand_patch + i * (size_t)P * P;
         unsigned char *lab = pl->labels + i * (size_t)P * P;
         ts_raster old = ts_raster_wrap(pl->target, P, P, P);
@@ -581,7 +581,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
      * cutting them all. */
     {
         cut_job job;
-        int n_first = TS_MIN(total, ts_thread_count(ctx, (size_t)total)), n_todo = 0, w;
+        int n_first = TS_MIN(total, ts_thread_count(ctx, (size_t)total)), n_to_cut = 0, w;
         double *lb = pl->cand_lb;
         job.pl = pl;
         job.cand_ex = cand_ex;
@@ -590,7 +590,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
         job.n_known = n_known;
         job.wx = q->x;
         job.wy = q->y;
-        job.todo = pl->todo;
+        job.to_cut = pl->to_cut;
         for (i = 0; i < total; i++) {
             const ts_raster *exr = pl->ex[cand_ex[i]].full;
             float *win = pl->cand_patch + (size_t)i * (size_t)P * P;
@@ -601,32 +601,32 @@ static ts_status place_one(placer *pl, placement *q, int index)
             lb[i] = sqrt(pl->cands[i].ssd / n_known) + pl->cand_h[i];
             cost[i] = INFINITY;
             status[i] = TS_OK;
-            pl->todo[i] = i;
+            pl->to_cut[i] = i;
         }
         /* the n_first lowest bounds first (a partial selection sort: ties
          * by index, so the order is deterministic) */
         for (w = 0; w < n_first; w++) {
             int m = w, u;
             for (u = w + 1; u < total; u++)
-                if (lb[pl->todo[u]] < lb[pl->todo[m]] ||
-                    (lb[pl->todo[u]] == lb[pl->todo[m]] && pl->todo[u] < pl->todo[m]))
+                if (lb[pl->to_cut[u]] < lb[pl->to_cut[m]] ||
+                    (lb[pl->to_cut[u]] == lb[pl->to_cut[m]] && pl->to_cut[u] < pl->to_cut[m]))
                     m = u;
-            u = pl->todo[w];
-            pl->todo[w] = pl->todo[m];
-            pl->todo[m] = u;
+            u = pl->to_cut[w];
+            pl->to_cut[w] = pl->to_cut[m];
+            pl->to_cut[m] = u;
         }
         for (w = 0; w < 2; w++) {
             int from = w == 0 ? 0 : n_first, to = w == 0 ? n_first : total;
             if (w == 1) {
                 /* keep only those that could still matter */
-                for (i = n_first, n_todo = n_first; i < total; i++)
-                    if (lb[pl->todo[i]] <= best_cost * (1.0 + pl->p->variety))
-                        pl->todo[n_todo++] = pl->todo[i];
-                to = n_todo;
+                for (i = n_first, n_to_cut = n_first; i < total; i++)
+                    if (lb[pl->to_cut[i]] <= best_cost * (1.0 + pl->p->variety))
+                        pl->to_cut[n_to_cut++] = pl->to_cut[i];
+                to = n_to_cut;
             }
             if (to <= from)
                 continue;
-            job.todo = pl->todo + from;
+            job.to_cut = pl->to_cut + from;
             ts_parallel_for(ctx, (size_t)(to - from), place_cut_range, &job);
             /* the best so far, lowest index on ties as when all are cut */
             best_cost = INFINITY;
@@ -732,7 +732,7 @@ static void placer_free(placer *pl)
     free(pl->cands);
     free(pl->cand_lb);
     free(pl->cand_h);
-    free(pl->todo);
+    free(pl->to_cut);
 }
 
 /* Grow order: the needed position with the most filled cells, ties to the
@@ -806,12 +806,12 @@ static int placer_alloc_work(placer *pl)
     pl->cands = ts_malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cands);
     pl->cand_lb = ts_malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cand_lb);
     pl->cand_h = ts_malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cand_h);
-    pl->todo = ts_malloc_array((size_t)pl->n_cands_cap, sizeof *pl->todo);
+    pl->to_cut = ts_malloc_array((size_t)pl->n_cands_cap, sizeof *pl->to_cut);
     pl->tlevel[0] = pl->mtarget;
     pl->tknown[0] = pl->known;
     return failed || !pl->target || !pl->mtarget || !pl->patch || !pl->cand_patch ||
            !pl->src_x || !pl->src_y || !pl->constraint || !pl->labels || !pl->best_labels ||
-           !pl->known || !pl->near || !pl->cands || !pl->cand_lb || !pl->cand_h || !pl->todo;
+           !pl->known || !pl->near || !pl->cands || !pl->cand_lb || !pl->cand_h || !pl->to_cut;
 }
 
 /* A second slot for placements side by side: its own work buffers and
