@@ -70,7 +70,7 @@ typedef struct placer {
     int n_cands_cap;
     double *cand_lb;       /* per candidate: a lower bound of its cost */
     double *cand_h;        /* per candidate: its height costs */
-    int *to_cut;             /* candidates to cut, in order */
+    int *to_cut;           /* candidates to cut, in order */
 } placer;
 
 static double place_now(void)
