@@ -444,7 +444,9 @@ typedef struct ts_synth_maps {
     int32_t *order;           /* index of the placed patch the cell came from, -1 if none */
     unsigned char *seams;     /* 1 on cells next to a graph-cut seam */
     /* added to by the call: patches placed (also the index the next patch
-     * gets in `order`) and seconds spent per stage */
+     * gets in `order`) and seconds spent per stage (match, cut and Poisson
+     * summed over placements that run side by side, so together they can
+     * exceed the wall time) */
     int n_patches;
     double seconds_prepare, seconds_match, seconds_cut, seconds_poisson;
 } ts_synth_maps;
