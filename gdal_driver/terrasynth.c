@@ -858,6 +858,10 @@ static int cmd_synth(int argc, char **argv)
                res.sketch_info.mode == TS_SKETCH_VALLEYS ? "valleys" : "ridges",
                res.sketch_info.n_sites, res.sketch_info.n_feature_patches,
                res.sketch_info.n_exemplar_sites);
+    if (job.sketch && res.sketch_info.n_sites > 0 && res.sketch_info.n_exemplar_sites == 0)
+        fprintf(stderr, "terrasynth: warning: the exemplars have no main %s to draw the sketch "
+                        "with: the output does not follow it\n",
+                res.sketch_info.mode == TS_SKETCH_VALLEYS ? "valleys" : "ridges");
     ts_ctx_set_progress(ctx, NULL, NULL);
     if (res.exemplar_no_crs && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",

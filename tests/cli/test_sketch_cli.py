@@ -208,6 +208,21 @@ def test_errors(tmp_path, extra, words):
     assert not (tmp_path / "o.tif").exists()
 
 
+def test_exemplar_without_ridges_warns(tmp_path):
+    src = gdal.Open(JACKSBORO)
+    plane = np.fromfunction(lambda y, x: 300 + 0.5 * x + 0.2 * y,
+                            (src.RasterYSize, src.RasterXSize)).astype(np.float32)
+    ds = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "plane.tif"), src.RasterXSize,
+                                              src.RasterYSize, 1, gdal.GDT_Float32)
+    ds.SetGeoTransform(src.GetGeoTransform())
+    ds.SetProjection(src.GetProjection())
+    ds.GetRasterBand(1).WriteArray(plane)
+    ds = None
+    p = run("synth", "--sketch", LAMBDA, "--exemplar", tmp_path / "plane.tif", tmp_path / "o.tif", "-q")
+    assert "no main ridges to draw the sketch with" in p.stderr
+    assert (tmp_path / "o.tif").exists()
+
+
 def test_patch_size_in_metres(tmp_path):
     # the lambda's grid is 3" at 36 N: 83.23 m per cell (geometric mean of 74.9 x 92.5 m on
     # its middle row), so 5000 m is 60 cells and 1200 m is 14
