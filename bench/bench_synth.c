@@ -60,7 +60,8 @@ static int run_case(const char *name, const ts_raster *ex, int size, double goal
         printf("synth %s: %dx%d from %dx%d (patch %d, overlap %d, k %d, coarse factor %d): "
                "%.2f s total, %d patches, peak RSS %.0f MB\n",
                name, size, size, ex->width, ex->height, (int)p.patch_size.value,
-               (int)p.overlap.value, p.candidates, p.coarse_factor, t, maps.n_patches, bench_peak_rss_mb());
+               (int)p.overlap.value, p.candidates, p.coarse_factor, t, maps.n_patches,
+               bench_peak_rss_mb());
         printf("  stages: prepare %.2f s, match %.2f s, graph cut %.2f s, Poisson %.2f s\n",
                maps.seconds_prepare, maps.seconds_match, maps.seconds_cut, maps.seconds_poisson);
         if (goal_s > 0)

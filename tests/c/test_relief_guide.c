@@ -32,7 +32,9 @@ static void test_edt_brute_force(void)
                     for (u = 0; u < w; u++)
                         if (m[v * w + u])
                             best = fmin(best, hypot(u - x, v - y));
-                if (!(isinf(best) ? isinf(d[y * w + x]) : fabs(d[y * w + x] - best) <= 1e-4 * (1 + best))) {
+                int ok = isinf(best) ? isinf(d[y * w + x])
+                                     : fabs(d[y * w + x] - best) <= 1e-4 * (1 + best);
+                if (!ok) {
                     CHECK_MSG(0, "rep %d (%d x %d) cell (%d, %d): %g, brute force %g", rep, w, h, x,
                               y, d[y * w + x], best);
                     bad = 1;
