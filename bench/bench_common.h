@@ -7,6 +7,7 @@
 #ifndef TS_BENCH_COMMON_H
 #define TS_BENCH_COMMON_H
 
+#include <stdio.h>
 #include <sys/resource.h>
 #include <time.h>
 
@@ -31,6 +32,13 @@ static inline int bench_reflect(int i, int n)
 {
     int t = i / n, r = i % n;
     return (t % 2) ? n - 1 - r : r;
+}
+
+/* The goal line every benchmark ends with (missing it is a figure, not an error). */
+static inline void bench_goal_line(double seconds, double goal_s, double goal_mb)
+{
+    printf("goal: < %.0f s and < %.0f MB: %s\n", goal_s, goal_mb,
+           (seconds < goal_s && bench_peak_rss_mb() < goal_mb) ? "PASS" : "FAIL");
 }
 
 #endif

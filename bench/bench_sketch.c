@@ -95,8 +95,7 @@ static int run_case(const char *name, const ts_raster *sketch, const ts_raster *
         printf("  fill stages: prepare %.2f s, match %.2f s, graph cut %.2f s, Poisson %.2f s\n",
                maps.seconds_prepare, maps.seconds_match, maps.seconds_cut, maps.seconds_poisson);
         if (goal_s > 0)
-            printf("goal: < %.0f s and < %.0f MB: %s\n", goal_s, goal_mb,
-                   (t < goal_s && bench_peak_rss_mb() < goal_mb) ? "PASS" : "FAIL");
+            bench_goal_line(t, goal_s, goal_mb);
     }
     ts_raster_free(&out);
     ts_ctx_free(ctx);

@@ -9,6 +9,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include <time.h>
+
 #include "internal.h"
 
 TS_API const char *ts_version(void)
@@ -173,4 +175,11 @@ void *ts_calloc_array(size_t n, size_t size)
     if (size && n > SIZE_MAX / size)
         return NULL;
     return calloc(n ? n : 1, size ? size : 1);
+}
+
+double ts_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }

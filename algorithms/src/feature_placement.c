@@ -37,7 +37,6 @@
  */
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "feature_tree.h"
 #include "patch_merge.h"
@@ -643,13 +642,6 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
 
 /* ---- the pipeline -------------------------------------------------- */
 
-static double sk_now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
 static int sk_auto_mode(ts_ctx *ctx, const ts_raster *sketch)
 {
     ts_raster_stats st;
@@ -714,7 +706,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     ts_progress_saved sv;
     ts_status st;
     int e, first_index, P_cells = 0, ov_cells = 0;
-    double t0 = sk_now(), times[4] = {0, 0, 0, 0};
+    double t0 = ts_now(), times[4] = {0, 0, 0, 0};
     ts_clear(ctx);
     memset(&k, 0, sizeof k);
     if (sketch_features)
@@ -798,8 +790,8 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     sv = ts_progress_push(ctx, 0.0, 0.05);
     st = ts_ppa_extract(ctx, sketch, NULL, &pp, &sf);
     ts_progress_pop(ctx, sv);
-    times[0] = sk_now() - t0;
-    t0 = sk_now();
+    times[0] = ts_now() - t0;
+    t0 = ts_now();
     if (st != TS_OK) {
         ts_fail(ctx, st, "sketch", "PPA on the sketch: %s", ctx->message);
         goto done;
@@ -850,8 +842,8 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         }
         free(es);
     }
-    times[1] = sk_now() - t0;
-    t0 = sk_now();
+    times[1] = ts_now() - t0;
+    t0 = ts_now();
     /* the relief the sketch implies, learnt from the exemplars */
     if (sp->alpha_r > 0) {
         k.guide = ts_malloc_array(n_cells, sizeof(float));
@@ -884,8 +876,8 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         }
         if (maps)
             maps->n_patches = first_index + n_placed;
-        times[2] = sk_now() - t0;
-        t0 = sk_now();
+        times[2] = ts_now() - t0;
+        t0 = ts_now();
         if (info) {
             info->n_sites = n_sites;
             info->n_feature_patches = (size_t)n_placed;
@@ -896,7 +888,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     sv = ts_progress_push(ctx, 0.6, 1.0);
     st = ts_synth_patches(ctx, exemplars, n_exemplars, &k.fp, out, k.flags, maps);
     ts_progress_pop(ctx, sv);
-    times[3] = sk_now() - t0;
+    times[3] = ts_now() - t0;
     if (info) {
         info->seconds_sketch_ppa = times[0];
         info->seconds_exemplar_ppa = times[1];

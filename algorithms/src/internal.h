@@ -59,6 +59,9 @@ void ts_parallel_for(const ts_ctx *ctx, size_t n, ts_range_fn fn, void *arg);
  * 2..512 and smaller); fails for lengths still in metres. */
 ts_status ts_synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int *overlap);
 
+/* Seconds on a monotonic clock (for stage timings). */
+double ts_now(void);
+
 /* Overflow-checked allocation helpers (NULL on overflow or failure). */
 void *ts_malloc_array(size_t n, size_t size);
 void *ts_calloc_array(size_t n, size_t size);

@@ -17,7 +17,6 @@
  */
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "patch_merge.h"
 
@@ -73,17 +72,10 @@ typedef struct placer {
     int *to_cut;           /* candidates to cut, in order */
 } placer;
 
-static double place_now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
 /* Add the time since *t0 to a stage counter (when stats are wanted). */
 static void place_tick(placer *pl, double *counter, double *t0)
 {
-    double t = place_now();
+    double t = ts_now();
     if (pl->maps)
         *counter += t - *t0;
     *t0 = t;
@@ -554,7 +546,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
         goto done;
     }
     /* k candidates per exemplar, pooled */
-    t0 = place_now();
+    t0 = ts_now();
     for (e = 0; e < pl->n_ex; e++) {
         int n = 0, only = place_region_exemplar(pl, q);
         if (only >= 0 && e != only)
@@ -854,7 +846,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     placement *pos = NULL;
     int *xs = NULL, *ys = NULL, nx, ny, n_pos, i, e, placed = 0, step, alloc_failed = 0;
     size_t n_out;
-    double t_start = place_now();
+    double t_start = ts_now();
     int first_index = maps ? maps->n_patches : 0;
     ts_status st;
 
@@ -909,7 +901,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
         }
     }
     if (maps)
-        maps->seconds_prepare += place_now() - t_start;
+        maps->seconds_prepare += ts_now() - t_start;
     nx = place_axis(out->width, pl.P, step, xs);
     ny = place_axis(out->height, pl.P, step, ys);
     n_pos = nx * ny;
