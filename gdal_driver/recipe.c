@@ -297,6 +297,11 @@ static int recipe_synth(ts_recipe *r, CPLXMLNode *node, const char *const *oo, t
         rerr(err, r->path, "<Synth> needs at least one <Exemplar>");
         return -1;
     }
+    if ((v = CPLGetXMLValue(node, "CellSize", NULL)) &&
+        (recipe_parse_double(v, &r->synth.cell_size) != 0 || !(r->synth.cell_size > 0))) {
+        rerr(err, r->path, "<CellSize>%s</CellSize>: not a positive number", v);
+        return -1;
+    }
     r->synth.sketch_params = ts_sketch_params_default();
     if ((v = CPLGetXMLValue(node, "Sketch", NULL))) {
         if (!*v) {
@@ -701,6 +706,8 @@ int recipe_write_synth(const char *path, const tsjob_synth *job, uint64_t seed, 
         CPLCreateXMLElementAndValue(node, "Exemplar", recipe_rel(path, job->exemplars[i]));
     if (job->sketch)
         CPLCreateXMLElementAndValue(node, "Sketch", recipe_rel(path, job->sketch));
+    if (job->cell_size > 0)
+        CPLCreateXMLElementAndValue(node, "CellSize", CPLSPrintf("%.17g", job->cell_size));
     for (i = 0; i < job->n_pins; i++) {
         const tsjob_pin *p = &job->pins[i];
         CPLXMLNode *pn = CPLCreateXMLElementAndValue(node, "Pin", recipe_rel(path, p->path));

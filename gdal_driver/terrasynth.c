@@ -782,6 +782,7 @@ static int cmd_synth(int argc, char **argv)
         goto done;
     }
 
+    job.cell_size = co.cell_size;
     job.band = co.band;
     job.params = p;
     if (recipe_path) {

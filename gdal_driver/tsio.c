@@ -1892,9 +1892,101 @@ fail:
     return -1;
 }
 
+/* A raster without CRS whose cells are cell_m metres: its metrics set to
+ * that and, when the target's cells differ by more than 1 %, resampled to
+ * them in its own pixel space (cubic when finer, average when coarser). */
+static int resample_no_crs(const char *path, double cell_m, double target_dx_m,
+                           double target_dy_m, tsio_raster *out, double *factor, tsio_err *err)
+{
+    int w = out->geo.width, h = out->geo.height, nw, nh, y, rc = -1, usage = 0;
+    double f = sqrt((cell_m * cell_m) / (target_dx_m * target_dy_m));
+    GDALDatasetH src = NULL, dst = NULL;
+    GDALTranslateOptions *to = NULL;
+    char sw[32], sh[32];
+    float *data = NULL;
+    double *dx = NULL, *dy = NULL;
+    if (factor)
+        *factor = f;
+    if (fabs(cell_m / target_dx_m - 1.0) < 1e-2 && fabs(cell_m / target_dy_m - 1.0) < 1e-2) {
+        nw = w;
+        nh = h;
+    } else {
+        char *argv[] = {"-of", "MEM", "-outsize", sw, sh, "-r", NULL, "-ot", "Float32", NULL};
+        nw = (int)lround(w * cell_m / target_dx_m);
+        nh = (int)lround(h * cell_m / target_dy_m);
+        if (nw < 1 || nh < 1 || (double)nw * (double)nh > 4e9) {
+            set_err(err, path, "cannot be resampled to %.6g m cells", target_dx_m);
+            return -1;
+        }
+        snprintf(sw, sizeof sw, "%d", nw);
+        snprintf(sh, sizeof sh, "%d", nh);
+        argv[6] = f > 1.0 ? "cubic" : "average";
+        CPLPushErrorHandler(CPLQuietErrorHandler);
+        src = mem_from_raster(out);
+        to = src ? GDALTranslateOptionsNew(argv, NULL) : NULL;
+        dst = to ? GDALTranslate("", src, to, &usage) : NULL;
+        data = dst && (size_t)nw <= SIZE_MAX / sizeof(float) / (size_t)nh
+                   ? malloc((size_t)nw * (size_t)nh * sizeof *data)
+                   : NULL;
+        if (!data || GDALRasterIO(GDALGetRasterBand(dst, 1), GF_Read, 0, 0, nw, nh, data, nw, nh,
+                                  GDT_Float32, 0, 0) != CE_None) {
+            set_err(err, path, "resampling failed");
+            goto done;
+        }
+        {
+            size_t i;
+            for (i = 0; i < (size_t)nw * (size_t)nh; i++)
+                if (!isfinite(data[i]))
+                    data[i] = NAN;
+        }
+    }
+    dx = malloc((size_t)nh * sizeof *dx);
+    dy = malloc((size_t)nh * sizeof *dy);
+    if (!dx || !dy) {
+        set_err(err, path, "out of memory");
+        goto done;
+    }
+    for (y = 0; y < nh; y++) {
+        dx[y] = data ? target_dx_m : cell_m;
+        dy[y] = data ? target_dy_m : cell_m;
+    }
+    if (data) {
+        free(out->r.data);
+        out->r = ts_raster_wrap(data, nw, nh, nw);
+        data = NULL;
+        out->geo.width = nw;
+        out->geo.height = nh;
+        out->geo.gt[1] *= (double)w / nw;
+        out->geo.gt[5] *= (double)h / nh;
+    }
+    free(out->dx_m);
+    free(out->dy_m);
+    out->dx_m = dx;
+    out->dy_m = dy;
+    dx = dy = NULL;
+    rc = 0;
+done:
+    if (src || to) {
+        CPLErrorReset();
+        CPLPopErrorHandler();
+    }
+    if (to)
+        GDALTranslateOptionsFree(to);
+    if (dst)
+        GDALClose(dst);
+    if (src)
+        GDALClose(src);
+    free(data);
+    free(dx);
+    free(dy);
+    if (rc != 0)
+        tsio_raster_free(out);
+    return rc;
+}
+
 int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
-                               double target_dy_m, tsio_raster *out, double *factor,
-                               tsio_err *err)
+                               double target_dy_m, double no_crs_cell_m, tsio_raster *out,
+                               double *factor, tsio_err *err)
 {
     GDALDatasetH src = NULL, dst = NULL;
     GDALWarpAppOptions *wo = NULL;
@@ -1907,8 +1999,12 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
         *factor = 1.0;
     if (tsio_read_raster(path, band, out, err) != 0)
         return -1;
-    if (!(target_dx_m > 0) || !(target_dy_m > 0) || !out->dx_m)
-        return 0; /* no CRS, or nothing asked: cells as they are */
+    if (!(target_dx_m > 0) || !(target_dy_m > 0))
+        return 0; /* nothing asked: cells as they are */
+    if (!out->dx_m)
+        return no_crs_cell_m > 0 ? resample_no_crs(path, no_crs_cell_m, target_dx_m, target_dy_m,
+                                                     out, factor, err)
+                                 : 0; /* no CRS and no cell size: cells as they are */
     gdx = out->dx_m[out->geo.height / 2];
     gdy = out->dy_m[out->geo.height / 2];
     geographic = out->geo.is_geographic;

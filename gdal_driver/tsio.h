@@ -119,12 +119,14 @@ int tsio_write_features(const char *path, const tsio_georef *geo, const ts_featu
  * cell has that ground size at its centre latitude.  Cells within 1 % of
  * the target size are returned as read.  Cubic interpolation when the
  * target is finer, averaging when it is coarser; nodata stays NaN.  A
- * raster without CRS is returned as read (its ground size is unknown).
+ * raster without CRS has cells of no_crs_cell_m metres when that is > 0
+ * (resampled in its own pixel space, metrics set); without it, it is
+ * returned as read (its ground size is unknown, dx_m stays NULL).
  * *factor (may be NULL) = source cell size / target cell size.
  */
 int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
-                               double target_dy_m, tsio_raster *out, double *factor,
-                               tsio_err *err);
+                               double target_dy_m, double no_crs_cell_m, tsio_raster *out,
+                               double *factor, tsio_err *err);
 
 /** Georeferencing of a raster without reading its cells. */
 int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err);

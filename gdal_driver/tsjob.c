@@ -135,6 +135,19 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         tsjob_synth_result_free(res);
         return -1;
     }
+    if (!res->dx_m && job->cell_size > 0) {
+        /* a target grid without CRS: its cells are cell_size metres */
+        int y;
+        res->dx_m = malloc((size_t)res->geo.height * sizeof *res->dx_m);
+        res->dy_m = malloc((size_t)res->geo.height * sizeof *res->dy_m);
+        if (!res->dx_m || !res->dy_m) {
+            job_err(err, "synth", "out of memory");
+            tsjob_synth_result_free(res);
+            return -1;
+        }
+        for (y = 0; y < res->geo.height; y++)
+            res->dx_m[y] = res->dy_m[y] = job->cell_size;
+    }
     if (res->dx_m) {
         res->mstore.dx = res->dx_m;
         res->mstore.dy = res->dy_m;
@@ -199,7 +212,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         double factor = 1.0;
         if (tsio_read_raster_resampled(job->exemplars[i], job->band,
                                        res->dx_m ? res->dx_m[cy] : 0, res->dy_m ? res->dy_m[cy] : 0,
-                                       &ex[i], &factor, err) != 0)
+                                       job->cell_size, &ex[i], &factor, err) != 0)
             goto done;
         if (res->dx_m && !ex[i].dx_m && !res->exemplar_no_crs)
             res->exemplar_no_crs = i + 1;
@@ -337,7 +350,8 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
         double f = 1.0;
         int x0, y0, w, h;
         if (tsio_read_raster_resampled(p->path, job->band, res->dx_m ? res->dx_m[cy] : 0,
-                                       res->dy_m ? res->dy_m[cy] : 0, &ex, &f, err) != 0)
+                                       res->dy_m ? res->dy_m[cy] : 0, job->cell_size, &ex, &f,
+                                       err) != 0)
             return -1;
         /* the window in the file's cells, at the output's resolution */
         x0 = (int)lround(p->xoff * f);

@@ -69,6 +69,7 @@ typedef struct tsjob_synth {
     const char *exemplars[TSJOB_MAX_EXEMPLARS];
     int n_exemplars;
     int band;
+    double cell_size;        /* > 0: metres per cell of every input (and a target grid) without CRS */
     tsjob_grid grid;         /* unused with a sketch: the output is on its grid */
     ts_synth_params params;
     const char *sketch;      /* sketch-guided synthesis when not NULL */

@@ -92,6 +92,12 @@ FALLBACK = {
                      "valleys lie low, falling away from the strokes as the exemplars' land "
                      "falls away from their main features (0 = off: the exemplars alone decide "
                      "the heights)."},
+            {"name": "layout", "flag": "--layout", "type": "double", "default": 1,
+             "min": 0, "max": 1, "units": "fraction", "choices": None,
+             "help": "How far the sketch sets the large-scale relief (scales above a third of "
+                     "a patch): the land rises to sketched ridges and falls to sketched valleys "
+                     "as steeply, at that scale, as the exemplars' land; smaller scales keep the "
+                     "patches' detail (0 = off)."},
         ],
     },
 }

@@ -487,6 +487,7 @@ typedef struct ts_sketch_params {
     double alpha_f;  /* weight of the feature profile dissimilarity c_f */
     double alpha_s;  /* weight of the path smoothness constraint c_s */
     double alpha_r;  /* weight of the relief guide (sketched ridges stand high) */
+    double layout;   /* 0..1: how far the sketch sets the relief above a third of a patch */
 } ts_sketch_params;
 
 TS_API ts_sketch_params ts_sketch_params_default(void);

@@ -40,6 +40,7 @@
 
 #include "feature_tree.h"
 #include "patch_merge.h"
+#include "layout.h"
 #include "relief_guide.h"
 #include "tps.h"
 
@@ -822,7 +823,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         if (st != TS_OK)
             continue; /* no features in this exemplar: it still serves the fill */
         st = ts_feature_sites(ctx, ef, k.kind, k.R, 6.0, 0, &es, &n_es);
-        if (st == TS_OK && sp->alpha_r > 0)
+        if (st == TS_OK && (sp->alpha_r > 0 || sp->layout > 0))
             st = ts_relief_profile_measure(ctx, &exemplars[e], ef->mask, k.kind, k.P,
                                            &k.profs[e]);
         ts_features_free(ef);
@@ -884,10 +885,41 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
             info->n_exemplar_sites = k.n_es;
         }
     }
-    /* 4. the non-feature fill around the fixed features */
-    sv = ts_progress_push(ctx, 0.6, 1.0);
+    /* 4. the non-feature fill around the fixed features (the order
+     * parameter reorders the feature sites only: the fill always grows
+     * out from them) */
+    k.fp.order = TS_ORDER_GROW;
+    sv = ts_progress_push(ctx, 0.6, 0.95);
     st = ts_synth_patches(ctx, exemplars, n_exemplars, &k.fp, out, k.flags, maps);
     ts_progress_pop(ctx, sv);
+    if (st != TS_OK)
+        goto done;
+    /* 5. the large-scale relief from the sketch */
+    if (sp->layout > 0) {
+        ts_layout_spec ls;
+        float *lg = ts_malloc_array(n_cells, sizeof(float));
+        if (!lg) {
+            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+            goto done;
+        }
+        memset(&ls, 0, sizeof ls);
+        ls.sketch_mask = sf->mask;
+        ls.kind = k.kind;
+        ls.width = out->width;
+        ls.height = out->height;
+        ls.exemplars = exemplars;
+        ls.n_exemplars = n_exemplars;
+        ls.profs = k.profs;
+        ls.cell_exemplar = params->cell_exemplar;
+        ls.sigma = k.P / 3.0;
+        ls.reach = k.P;
+        st = ts_layout_guide(ctx, &ls, lg);
+        if (st == TS_OK)
+            st = ts_layout_apply(ctx, out, lg, k.flags, ls.sigma, sp->layout);
+        free(lg);
+        if (st == TS_OK)
+            st = ts_progress(ctx, 1.0, "layout");
+    }
     times[3] = ts_now() - t0;
     if (info) {
         info->seconds_sketch_ppa = times[0];

@@ -83,6 +83,11 @@ static const ts_param_desc sketch_desc[] = {
      "falling away from the strokes as the exemplars' land falls away from their main "
      "features (0 = off: the exemplars alone decide the heights).",
      offsetof(ts_sketch_params, alpha_r)},
+    {"layout", TS_PARAM_DOUBLE, 1.0, 0.0, 1.0, TS_UNIT_CELLS, "fraction", NULL,
+     "How far the sketch sets the large-scale relief (scales above a third of a patch): "
+     "the land rises to sketched ridges and falls to sketched valleys as steeply, at that "
+     "scale, as the exemplars' land; smaller scales keep the patches' detail (0 = off).",
+     offsetof(ts_sketch_params, layout)},
 };
 
 static const char *const stage_names[] = {"ppa", "synth", "sketch", NULL};
