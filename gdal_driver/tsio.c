@@ -1920,7 +1920,7 @@ static int resample_no_crs(const char *path, double cell_m, double target_dx_m,
         }
         snprintf(sw, sizeof sw, "%d", nw);
         snprintf(sh, sizeof sh, "%d", nh);
-        argv[6] = f > 1.0 ? "cubic" : "average";
+        argv[6] = f > 1.0 ? "cubicspline" : "average";
         CPLPushErrorHandler(CPLQuietErrorHandler);
         src = mem_from_raster(out);
         to = src ? GDALTranslateOptionsNew(argv, NULL) : NULL;
@@ -2045,7 +2045,7 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
         snprintf(trx, sizeof trx, "%.17g", target_dx_m / unit);
         snprintf(try_, sizeof try_, "%.17g", target_dy_m / unit);
     }
-    alg = f > 1.0 ? "cubic" : "average"; /* finer target: interpolate; coarser: average */
+    alg = f > 1.0 ? "cubicspline" : "average"; /* finer target: interpolate; coarser: average */
     {
         char *argv[] = {"-of", "MEM", "-t_srs", t_srs, "-tr", trx, try_, "-r", (char *)alg,
                         "-dstnodata", "nan", "-ot", "Float32", NULL};

@@ -421,6 +421,14 @@ typedef struct ts_synth_params {
      * RMS(patch - guide) like the height constraints.  NULL = none. */
     const float *guide;
     double alpha_r;
+    /* Non-feature patches from featureless windows (Zhou et al. section
+     * 4.2): per exemplar a mask of its main feature cells (non-zero; the
+     * exemplar's size, row-major, stride its width; an entry or the array
+     * NULL = none).  Away from cells flagged TS_CELL_FEATURE, the fill takes
+     * only windows with no such cell in their middle half (unless that would
+     * leave less than a quarter of the exemplar's windows).  Set by
+     * ts_synth_sketch; borrowed. */
+    const unsigned char *const *exemplar_features;
 } ts_synth_params;
 
 TS_API ts_synth_params ts_synth_params_default(void);
@@ -452,7 +460,7 @@ typedef struct ts_synth_maps {
 } ts_synth_maps;
 
 /** Bits of the cell_flags of ts_synth_patches. */
-enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2 };
+enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2, TS_CELL_FEATURE = 4 };
 
 /**
  * Fill the NaN cells of `out` (caller-allocated, borrowed) with patches of
@@ -465,7 +473,9 @@ enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2 };
  * and may be replaced by the graph cut or smoothed by the seam remover
  * (within `overlap` cells of new content), unless fixed.
  * `cell_flags` (may be NULL; width*height bytes): TS_CELL_NODATA cells stay
- * NaN; TS_CELL_FIXED cells (filled on entry) never change.
+ * NaN; TS_CELL_FIXED cells (filled on entry) never change; a window whose
+ * centre is a TS_CELL_FEATURE cell may take exemplar windows with main
+ * features (see exemplar_features).
  * The seed of ctx picks the first patch and breaks near-ties.
  * Returns TS_ERR_SIZE when an exemplar or the output is smaller than a
  * patch, TS_ERR_ARG for bad parameters, TS_ERR_CANCELLED, TS_ERR_NOMEM.
@@ -486,6 +496,7 @@ typedef struct ts_sketch_params {
     double alpha_d;  /* weight of the warp's deformation cost c_d */
     double alpha_f;  /* weight of the feature profile dissimilarity c_f */
     double alpha_s;  /* weight of the path smoothness constraint c_s */
+    double alpha_p;  /* weight of the crest prominence c_p (sketched strokes read as main features) */
     double alpha_r;  /* weight of the relief guide (sketched ridges stand high) */
     double layout;   /* 0..1: how far the sketch sets the relief above a third of a patch */
 } ts_sketch_params;

@@ -83,6 +83,7 @@ typedef struct sketcher {
     ts_status *c_status;
     int32_t *src_x, *src_y;
     int *near;               /* P x P: distance to the sketch's feature */
+    int *fixnear;            /* P x P: distance to fixed cells (earlier feature cores, pins) */
     int core_radius;         /* feature cells and flanks within this many cells */
     candidate *cands;        /* the k examined in full */
     candidate *pool;         /* the best by deformation, before the profile costs */
@@ -93,6 +94,7 @@ typedef struct sketcher {
     int *chunk_n;
     float *guide;            /* relief guide, or NULL */
     ts_relief_profile *profs;
+    unsigned char **ex_features; /* per exemplar: its main features of the kind (or NULL) */
     ts_synth_maps *maps;
 } sketcher;
 
@@ -376,6 +378,37 @@ static double sk_profile_cost(const sketcher *k, const ts_feature_site *s, const
     return n ? sqrt(sum / n) : 0.0;
 }
 
+/* c_p, crest prominence (a TerraSynth addition): how far the candidate's
+ * crest (valleys: thalweg) stands out across the feature at a scale of an
+ * eighth of a patch, at the control points and half-way to them: the
+ * extreme near the point against the mean of the land P/8 cells off on
+ * both sides, in metres, negated (the more prominent, the cheaper).  A
+ * stroke stands for a main ridge: among candidates that fit, the sharpest
+ * make it read as one. */
+static double sk_prominence(const sketcher *k, const ts_feature_site *s, const sk_view *cand)
+{
+    double sum = 0.0, off = k->P / 8.0;
+    int i, m, n = 0;
+    for (i = 1; i < s->n_ctrl; i++) {
+        double dx = s->px[i], dy = s->py[i], len = hypot(dx, dy), nx, ny;
+        if (len <= 0)
+            continue;
+        nx = -dy / len;
+        ny = dx / len;
+        for (m = 1; m <= 2; m++) {
+            double x = s->cx + 0.5 * m * dx, y = s->cy + 0.5 * m * dy;
+            double c = sk_crest(k, cand, x, y, nx, ny);
+            double a = sk_value(cand, x + off * nx, y + off * ny);
+            double b = sk_value(cand, x - off * nx, y - off * ny);
+            if (isnan(c) || isnan(a) || isnan(b))
+                continue;
+            sum += k->kind == TS_VALLEY ? 0.5 * (a + b) - c : c - 0.5 * (a + b);
+            n++;
+        }
+    }
+    return n ? -sum / n : 0.0;
+}
+
 /* ---- one site ------------------------------------------------------ */
 
 /* Insert c into the sorted pool[0..*n) holding at most max. */
@@ -449,6 +482,22 @@ static void sk_scan_chunks(void *arg, size_t b, size_t e)
     ts_ctx_free(c);
 }
 
+/* Distance from (x, y) (relative to the site's centre) to the site's arms,
+ * the segments from the centre to each control point. */
+static double sk_arms_distance(const ts_feature_site *s, double x, double y)
+{
+    double best = INFINITY;
+    int i;
+    for (i = 1; i < s->n_ctrl; i++) {
+        double ax = s->px[i], ay = s->py[i], l2 = ax * ax + ay * ay, t, d;
+        t = l2 > 0 ? (x * ax + y * ay) / l2 : 0.0;
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        d = hypot(x - t * ax, y - t * ay);
+        best = d < best ? d : best;
+    }
+    return best;
+}
+
 /* Round (c) for candidates [b, e): the warp, the graph cut and the costs,
  * each in its own slot with a private context, so they run in parallel
  * (the output is only read). */
@@ -474,7 +523,7 @@ static void sk_eval_range(void *arg, size_t b, size_t e)
         ts_raster ring = ts_raster_wrap(rd, M, M, M);
         ts_raster oldr = ts_raster_wrap(k->old, P, P, P);
         ts_raster pr = ts_raster_wrap(patch, P, P, P);
-        double cg = 0.0, cf, cs;
+        double cg = 0.0, cf, cs, cp;
         int cuts, core_n = 0;
         ts_status st;
         k->c_cost[i] = INFINITY;
@@ -498,7 +547,10 @@ static void sk_eval_range(void *arg, size_t b, size_t e)
                 int ox = wx + x, oy = wy + y;
                 unsigned char cc = TS_SEAM_FREE;
                 int feature = k->near[y * P + x] <= k->core_radius &&
-                              hypot(ox - s->cx, oy - s->cy) <= k->R;
+                              k->fixnear[y * P + x] > k->core_radius &&
+                              hypot(ox - s->cx, oy - s->cy) <= k->R &&
+                              (s->type != TS_SITE_PATH ||
+                               sk_arms_distance(s, ox - s->cx, oy - s->cy) <= 2 * k->core_radius);
                 core[y * P + x] = 0;
                 if (!isnan(k->old[y * P + x])) {
                     if (ts_border_keeps_old(k->out, wx, wy, P, x, y))
@@ -526,13 +578,49 @@ static void sk_eval_range(void *arg, size_t b, size_t e)
             sk_view v = {&ring, NULL, 1.0 - wx, 1.0 - wy};
             cf = sk_profile_cost(k, s, &v, NULL);
             cs = k->sp->alpha_s > 0 ? sk_smoothness(k, s, &v) : 0.0;
+            cp = k->sp->alpha_p > 0 ? sk_prominence(k, s, &v) : 0.0;
         }
         k->c_cost[i] = k->sp->alpha_d * k->cands[i].cd +
                        k->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf +
-                       k->sp->alpha_s * cs + ts_height_cost(k->p, W, wx, wy, P, patch, P);
+                       k->sp->alpha_s * cs + k->sp->alpha_p * cp +
+                       ts_height_cost(k->p, W, wx, wy, P, patch, P);
     }
     ts_ctx_free(c);
 }
+
+/* A path site through the two arms of branch site s that make the
+ * straightest line (the pair whose directions are most nearly opposite);
+ * 0 when s has fewer than two arms. */
+static int sk_straightest_path(const ts_feature_site *s, ts_feature_site *ps)
+{
+    int a, b, ba = -1, bb = -1, arms = s->n_ctrl - 1;
+    double best = INFINITY;
+    for (a = 1; a <= arms; a++)
+        for (b = a + 1; b <= arms; b++) {
+            double la = hypot(s->px[a], s->py[a]), lb = hypot(s->px[b], s->py[b]), c;
+            if (la <= 0 || lb <= 0)
+                continue;
+            c = (s->px[a] * s->px[b] + s->py[a] * s->py[b]) / (la * lb); /* -1: opposite */
+            if (c < best) {
+                best = c;
+                ba = a;
+                bb = b;
+            }
+        }
+    if (ba < 0)
+        return 0;
+    *ps = *s;
+    ps->type = TS_SITE_PATH;
+    ps->degree = 2;
+    ps->n_ctrl = 3;
+    ps->px[1] = s->px[ba];
+    ps->py[1] = s->py[ba];
+    ps->px[2] = s->px[bb];
+    ps->py[2] = s->py[bb];
+    return 1;
+}
+
+static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index, int *placed);
 
 static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index, int *placed)
 {
@@ -572,18 +660,36 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
                 sk_pool_insert(k->pool, &n_pool, k->pool_max, &cp[i]);
         }
     }
-    if (n_pool == 0)
-        return TS_OK; /* no such feature in the exemplars: left to the fill */
     /* the profile costs, estimated on the exemplar through each warp, pick
-     * the k that are warped and cut */
+     * the k that are warped and cut; a junction warp that folds over the
+     * patch (or squeezes it more than 8 times) is never used */
     for (i = 0; i < n_pool; i++) {
         candidate *c = &k->pool[i];
         sk_view v = {&k->ex[k->es[c->idx].ex], &c->inv, wx, wy};
-        double want = 0.0, cf = sk_profile_cost(k, s, &v, &want);
-        double cs = k->sp->alpha_s > 0 ? sk_smoothness(k, s, &v) : 0.0;
-        c->pre = k->sp->alpha_d * c->cd + k->sp->alpha_f * cf + k->sp->alpha_s * cs + want;
+        double want = 0.0, cf, cs, cp;
+        if (s->type == TS_SITE_BRANCH &&
+            ts_tps_folds(&c->inv, s->cx - wx + 0.5, s->cy - wy + 0.5, k->R, 9, 2.5)) {
+            c->pre = INFINITY;
+            continue;
+        }
+        cf = sk_profile_cost(k, s, &v, &want);
+        cs = k->sp->alpha_s > 0 ? sk_smoothness(k, s, &v) : 0.0;
+        cp = k->sp->alpha_p > 0 ? sk_prominence(k, s, &v) : 0.0;
+        c->pre = k->sp->alpha_d * c->cd + k->sp->alpha_f * cf + k->sp->alpha_s * cs +
+                 k->sp->alpha_p * cp + want;
     }
     qsort(k->pool, (size_t)n_pool, sizeof *k->pool, sk_pre_cmp);
+    while (n_pool > 0 && !isfinite(k->pool[n_pool - 1].pre))
+        n_pool--;
+    if (n_pool == 0) {
+        /* no exemplar junction of this degree, or every one folds: compose
+         * it, a path patch through its two straightest-joined arms (the
+         * other arms get their own path patches along their chains) */
+        ts_feature_site ps;
+        if (s->type != TS_SITE_BRANCH || !sk_straightest_path(s, &ps))
+            return TS_OK; /* no such feature in the exemplars: left to the fill */
+        return sk_place_site(k, &ps, index, placed);
+    }
     n_c = TS_MIN(n_pool, kmax);
     memcpy(k->cands, k->pool, (size_t)n_c * sizeof *k->cands);
     /* the old window */
@@ -597,6 +703,14 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
             k->near[y * P + x] =
                 (k->sf->mask[(size_t)(wy + y) * (size_t)W + (size_t)(wx + x)] & k->kind) ? 0 : 2 * P;
     ts_chamfer_chebyshev(k->near, P);
+    /* and to the cells fixed before: a new core keeps its distance, so the
+     * cut finds a seam between two cores that the seam removal can smooth */
+    for (y = 0; y < P; y++)
+        for (x = 0; x < P; x++)
+            k->fixnear[y * P + x] =
+                (k->flags[(size_t)(wy + y) * (size_t)W + (size_t)(wx + x)] & TS_CELL_FIXED) ? 0
+                                                                                         : 2 * P;
+    ts_chamfer_chebyshev(k->fixnear, P);
     /* round (c): warps and graph cuts, in parallel */
     {
         eval_job j;
@@ -679,6 +793,7 @@ static void sk_free(sketcher *k)
     free(k->src_x);
     free(k->src_y);
     free(k->near);
+    free(k->fixnear);
     free(k->cands);
     free(k->pool);
     free(k->chunk_pool);
@@ -690,6 +805,12 @@ static void sk_free(sketcher *k)
         for (e = 0; e < k->n_ex; e++)
             ts_relief_profile_free(&k->profs[e]);
         free(k->profs);
+    }
+    if (k->ex_features) {
+        int e;
+        for (e = 0; e < k->n_ex; e++)
+            free(k->ex_features[e]);
+        free(k->ex_features);
     }
 }
 
@@ -758,14 +879,16 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     k.pool_max = TS_MAX(64, 8 * params->candidates);
     k.pool = ts_malloc_array((size_t)k.pool_max, sizeof *k.pool);
     k.profs = ts_calloc_array((size_t)n_exemplars, sizeof *k.profs);
+    k.ex_features = ts_calloc_array((size_t)n_exemplars, sizeof *k.ex_features);
     k.n_chunks = 4 * ts_thread_count(ctx, 1u << 20);
     k.chunk_pool = ts_malloc_array((size_t)k.n_chunks * (size_t)k.pool_max, sizeof *k.chunk_pool);
     k.chunk_n = ts_calloc_array((size_t)k.n_chunks, sizeof *k.chunk_n);
     k.near = ts_malloc_array(P2, sizeof(int));
+    k.fixnear = ts_malloc_array(P2, sizeof(int));
     k.core_radius = TS_MAX(1, k.P / 8);
     if (!k.flags || !k.old || !k.c_ring || !k.c_patch || !k.c_cons || !k.c_labels ||
         !k.c_core || !k.c_cost || !k.c_status || !k.src_x || !k.src_y ||
-        !k.cands || !k.pool || !k.profs || !k.chunk_pool || !k.chunk_n || !k.near ||
+        !k.cands || !k.pool || !k.profs || !k.ex_features || !k.chunk_pool || !k.chunk_n || !k.near || !k.fixnear ||
         ts_merger_init(ctx, &k.merger, k.P, ov_cells) != TS_OK) {
         sk_free(&k);
         return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
@@ -826,6 +949,14 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         if (st == TS_OK && (sp->alpha_r > 0 || sp->layout > 0))
             st = ts_relief_profile_measure(ctx, &exemplars[e], ef->mask, k.kind, k.P,
                                            &k.profs[e]);
+        if (st == TS_OK) {
+            /* the fill keeps away from these (section 4.2) */
+            size_t ne = (size_t)ef->width * (size_t)ef->height, c;
+            if (!(k.ex_features[e] = ts_malloc_array(ne, 1)))
+                st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+            for (c = 0; st == TS_OK && c < ne; c++)
+                k.ex_features[e][c] = (ef->mask[c] & k.kind) != 0;
+        }
         ts_features_free(ef);
         if (st != TS_OK)
             goto done;
@@ -889,19 +1020,37 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
      * parameter reorders the feature sites only: the fill always grows
      * out from them) */
     k.fp.order = TS_ORDER_GROW;
+    k.fp.exemplar_features = (const unsigned char *const *)k.ex_features;
+    {
+        /* windows within a patch of the sketch's features may take any
+         * exemplar window; farther away only featureless ones */
+        float *d = ts_malloc_array(n_cells, sizeof(float));
+        unsigned char *m = ts_malloc_array(n_cells, 1);
+        if (!d || !m) {
+            free(d);
+            free(m);
+            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+            goto done;
+        }
+        for (i = 0; i < n_cells; i++)
+            m[i] = (sf->mask[i] & k.kind) != 0;
+        st = ts_distance_transform(ctx, m, out->width, out->height, d);
+        for (i = 0; st == TS_OK && i < n_cells; i++)
+            if (d[i] <= k.P)
+                k.flags[i] |= TS_CELL_FEATURE;
+        free(d);
+        free(m);
+        if (st != TS_OK)
+            goto done;
+    }
     sv = ts_progress_push(ctx, 0.6, 0.95);
     st = ts_synth_patches(ctx, exemplars, n_exemplars, &k.fp, out, k.flags, maps);
     ts_progress_pop(ctx, sv);
     if (st != TS_OK)
         goto done;
-    /* 5. the large-scale relief from the sketch */
+    /* 5. the relief the sketch lays out */
     if (sp->layout > 0) {
         ts_layout_spec ls;
-        float *lg = ts_malloc_array(n_cells, sizeof(float));
-        if (!lg) {
-            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
-            goto done;
-        }
         memset(&ls, 0, sizeof ls);
         ls.sketch_mask = sf->mask;
         ls.kind = k.kind;
@@ -911,12 +1060,8 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         ls.n_exemplars = n_exemplars;
         ls.profs = k.profs;
         ls.cell_exemplar = params->cell_exemplar;
-        ls.sigma = k.P / 3.0;
-        ls.reach = k.P;
-        st = ts_layout_guide(ctx, &ls, lg);
-        if (st == TS_OK)
-            st = ts_layout_apply(ctx, out, lg, k.flags, ls.sigma, sp->layout);
-        free(lg);
+        ls.patch = k.P;
+        st = ts_layout_apply(ctx, &ls, out, k.flags, sp->layout);
         if (st == TS_OK)
             st = ts_progress(ctx, 1.0, "layout");
     }

@@ -209,8 +209,18 @@ ts_status ts_feature_sites(ts_ctx *ctx, const ts_features *f, int kind, double r
                 if (path_done[k] || p->kind != kind || (p->node_a != nd && p->node_b != nd))
                     continue;
                 path_done[k] = 1;
-                if ((st = tree_path_sites(f, k, radius, path_step, &b)) != TS_OK)
-                    goto done;
+                {
+                    /* chains are laid outward from the node already placed */
+                    size_t first = b.n, lo, hi;
+                    if ((st = tree_path_sites(f, k, radius, path_step, &b)) != TS_OK)
+                        goto done;
+                    if (p->node_b == nd && p->node_a != nd)
+                        for (lo = first, hi = b.n; lo + 1 < hi; lo++, hi--) {
+                            ts_feature_site t = b.s[lo];
+                            b.s[lo] = b.s[hi - 1];
+                            b.s[hi - 1] = t;
+                        }
+                }
                 other = p->node_a == nd ? p->node_b : p->node_a;
                 if (!node_done[other]) {
                     node_done[other] = 1;

@@ -59,6 +59,14 @@ void ts_parallel_for(const ts_ctx *ctx, size_t n, ts_range_fn fn, void *arg);
  * 2..512 and smaller); fails for lengths still in metres. */
 ts_status ts_synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int *overlap);
 
+/* Matcher restriction (match_ssd.c): `allowed` (nx * ny positions of the
+ * matcher, copied; NULL clears) marks the windows a restricted query may
+ * return; ts__matcher_restrict(m, 1) makes the following queries see only
+ * those (when any is allowed), (m, 0) all of them again; it returns whether
+ * the matcher was restricted before. */
+ts_status ts__matcher_set_allowed(ts_ctx *ctx, ts_matcher *m, const unsigned char *allowed);
+int ts__matcher_restrict(ts_matcher *m, int on);
+
 /* Seconds on a monotonic clock (for stage timings). */
 double ts_now(void);
 

@@ -1,31 +1,36 @@
 /*
- * layout.c - the large-scale relief a sketch lays out (a TerraSynth
- * addition to Zhou et al. 2007, in the spirit of the guide of Cruz et al.,
- * whose coarse pyramid levels come from a guide and fine ones from the
- * exemplars).
+ * layout.c - the relief a sketch lays out (a TerraSynth addition to Zhou et
+ * al. 2007, in the spirit of the guide of Cruz et al., whose coarse pyramid
+ * levels come from a guide and the fine ones from the exemplars).
  *
  * Feature patches put an exemplar ridge (valley) along every stroke, but
  * patch merging keeps only gradients, so the level of every patch drifts
  * with its neighbours, and the fill grows relief of its own between the
- * strokes: on a valley network drawn over rugged mountains the network
- * drowned in mountains as big as its valleys.  The layout stage fixes the
- * scales above a third of a patch after the synthesis:
+ * strokes: a valley network drawn over rugged mountains drowned in
+ * mountains as big as its valleys, and a sketched crest was one crest among
+ * many.  After the synthesis, two corrections, each the blur of a guide
+ * minus the output, added to the output:
  *
- *   d(x)     Euclidean distance from output cell x to the sketch's features
- *   f(d)     c (1 - exp(-d / c)), c = one patch: the land keeps rising (for
- *            valleys; falling for ridges) away from the strokes, ever more
- *            gently, over about two patches
- *   T(x)     level - s G f(d(x)), s = +1 for ridges, -1 for valleys;
- *            level the mean height of the exemplar's main features of that
- *            kind, G chosen so that T, blurred at the layout scale, is as
- *            steep on average as the exemplar blurred at that scale: the
- *            guide carries the exemplar's large-scale steepness, no more
- *   out     out + strength * w * B(T - out), B a Gaussian blur of sigma a
- *            third of a patch (three box passes, NaN-aware), w fading to 0
- *            at fixed cells (pinned windows, water), which never change.
+ *   layout   at sigma_l = P/3 (P the patch), everywhere:
+ *            T(x) = level - s G f_P(d(x)), d the distance to the sketch's
+ *            features, s = +1 for ridges, -1 for valleys, f_c(d) =
+ *            c (1 - exp(-d / c)) (the land keeps falling away from a ridge,
+ *            ever more gently, over about 2c), level the mean height of the
+ *            exemplar's main features of that kind;
+ *   crest    at sigma_c = P/8, after the layout, fading out as
+ *            exp(-(2d/P)^2):
+ *            T_c(x) = crest(p(x)) - s G_c f_{P/4}(d(x)), p(x) the nearest
+ *            feature cell, crest() the output along the features smoothed
+ *            over sigma_c: the crest keeps its own rises and saddles along
+ *            the stroke, and stands out across it.
  *
- * So the output keeps every detail the patches gave below the layout scale
- * (seams, crests, roughness) and takes its coarse shape from the sketch.
+ * G is chosen so that the guide, blurred at its scale, is on average as
+ * steep as the exemplar blurred at that scale: the layout carries the
+ * exemplar's steepness, no more.  G_c likewise (measured within P/2 of the
+ * features), times LAYOUT_CREST_GAIN: sketched crests are main features,
+ * sharper than most of the land.  The
+ * output keeps every detail of the patches below each scale.  Both fade to
+ * nothing at fixed cells (pinned windows, water), which never change.
  * Cost: O(cells) per blur, whatever sigma.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -162,143 +167,111 @@ double ts_mean_gradient(const float *a, int w, int h)
     return cnt ? sum / (double)cnt : 0.0;
 }
 
-/* ---- the guide ------------------------------------------------------ */
+/* ---- the two corrections ------------------------------------------ */
 
-/* f(d): rises like d near the strokes, levels off over about 2c */
+/* The crest stands out 1.5 times as steeply as the exemplar's land falls on
+ * average at its scale: sketched strokes are the main features, so they
+ * are sharper than most of the land (measured over the quality matrix of
+ * bench/quality: 1 left a quarter of the sketched crests as soft as the
+ * land around, 2 dug trenches in steep exemplars). */
+#define LAYOUT_CREST_GAIN 1.5
+
+/* f_c(d): rises like d near the features, levels off over about 2c */
 static double layout_reach(double d, double c)
 {
     return c * (1.0 - exp(-d / c));
 }
 
-ts_status ts_layout_guide(ts_ctx *ctx, const ts_layout_spec *s, float *guide)
+/* Mean gradient of f_c(dist) blurred at sigma, over the cells within dmax
+ * of the features (all when dmax is infinite). */
+static ts_status layout_reach_gradient(ts_ctx *ctx, const float *dist, const unsigned char *nodata,
+                                       int W, int H, double c, double sigma, double dmax,
+                                       double *g)
 {
-    int W = s->width, H = s->height, e, n_valid = 0;
     size_t n = (size_t)W * (size_t)H, i;
-    double sign = s->kind == TS_VALLEY ? -1.0 : 1.0, m1, c = s->reach;
-    double *G = ts_calloc_array((size_t)s->n_exemplars, sizeof *G);
-    double *level = ts_calloc_array((size_t)s->n_exemplars, sizeof *level);
-    int *ok = ts_calloc_array((size_t)s->n_exemplars, sizeof *ok);
-    unsigned char *m = ts_malloc_array(n, 1);
-    float *dist = ts_malloc_array(n, sizeof(float));
-    float *tmp = NULL, *blurred = NULL;
-    double G_all = 0.0, level_all = 0.0;
+    float *t = ts_malloc_array(n, sizeof(float)), *b = ts_malloc_array(n, sizeof(float));
     ts_status st = TS_OK;
-    if (!G || !level || !ok || !m || !dist) {
+    if (!t || !b) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
         goto done;
     }
     for (i = 0; i < n; i++)
-        m[i] = (s->sketch_mask[i] & s->kind) != 0;
-    if ((st = ts_distance_transform(ctx, m, W, H, dist)) != TS_OK)
+        t[i] = (nodata && nodata[i]) || !isfinite(dist[i]) ? NAN : (float)layout_reach(dist[i], c);
+    if ((st = ts_blur_nan(ctx, t, W, W, H, sigma, b)) != TS_OK)
         goto done;
-    /* how steep f is at the layout scale on this grid */
-    tmp = ts_malloc_array(n, sizeof(float));
-    blurred = ts_malloc_array(n, sizeof(float));
-    if (!tmp || !blurred) {
-        st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-        goto done;
-    }
     for (i = 0; i < n; i++)
-        tmp[i] = (s->nodata && s->nodata[i]) || !isfinite(dist[i])
-                     ? NAN
-                     : (float)layout_reach(dist[i], c);
-    if ((st = ts_blur_nan(ctx, tmp, W, W, H, s->sigma, blurred)) != TS_OK)
-        goto done;
-    m1 = ts_mean_gradient(blurred, W, H);
-    /* how steep each exemplar is at that scale, and its features' level */
-    for (e = 0; e < s->n_exemplars && m1 > 0; e++) {
-        const ts_raster *ex = &s->exemplars[e];
-        size_t ne = (size_t)ex->width * (size_t)ex->height;
-        float *eb = ts_malloc_array(ne, sizeof(float));
-        double mE;
-        if (!eb) {
-            st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-            goto done;
-        }
-        st = ts_blur_nan(ctx, ex->data, ex->stride, ex->width, ex->height, s->sigma, eb);
-        mE = st == TS_OK ? ts_mean_gradient(eb, ex->width, ex->height) : 0.0;
-        free(eb);
-        if (st != TS_OK)
-            goto done;
-        if (!(mE > 0) || !s->profs || !s->profs[e].valid)
-            continue;
-        G[e] = mE / m1;
-        level[e] = s->profs[e].level;
-        ok[e] = 1;
-        G_all += G[e];
-        level_all += level[e];
-        n_valid++;
-    }
-    if (!n_valid) {
-        for (i = 0; i < n; i++)
-            guide[i] = NAN;
-        goto done;
-    }
-    G_all /= n_valid;
-    level_all /= n_valid;
-    for (i = 0; i < n; i++) {
-        int ce = s->cell_exemplar ? s->cell_exemplar[i] : -1;
-        double g = G_all, l = level_all;
-        if ((s->nodata && s->nodata[i]) || !isfinite(dist[i])) {
-            guide[i] = NAN;
-            continue;
-        }
-        if (ce >= 0 && ce < s->n_exemplars && ok[ce]) {
-            g = G[ce];
-            l = level[ce];
-        }
-        guide[i] = (float)(l - sign * g * layout_reach(dist[i], c));
-    }
+        if (!(dist[i] <= dmax))
+            b[i] = NAN; /* gradients next to these are left out */
+    *g = ts_mean_gradient(b, W, H);
 done:
-    free(G);
-    free(level);
-    free(ok);
-    free(m);
-    free(dist);
-    free(tmp);
-    free(blurred);
+    free(t);
+    free(b);
     return st;
 }
 
-ts_status ts_layout_apply(ts_ctx *ctx, ts_raster *out, const float *guide,
-                          const unsigned char *flags, double sigma, double strength)
+/* Mean gradient of every exemplar blurred at sigma (0 where unknown). */
+static ts_status layout_exemplar_gradients(ts_ctx *ctx, const ts_layout_spec *s, double sigma,
+                                           double *g)
+{
+    int e;
+    for (e = 0; e < s->n_exemplars; e++) {
+        const ts_raster *ex = &s->exemplars[e];
+        float *eb = ts_malloc_array((size_t)ex->width * (size_t)ex->height, sizeof(float));
+        ts_status st;
+        if (!eb)
+            return ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        st = ts_blur_nan(ctx, ex->data, ex->stride, ex->width, ex->height, sigma, eb);
+        g[e] = st == TS_OK ? ts_mean_gradient(eb, ex->width, ex->height) : 0.0;
+        free(eb);
+        if (st != TS_OK)
+            return st;
+    }
+    return TS_OK;
+}
+
+/* The steepness and level that cell i takes: its region's exemplar, or the
+ * mean over the exemplars (those with a steepness). */
+static void layout_pick(const ts_layout_spec *s, const double *gain, const double *levels,
+                        size_t i, double *g, double *level)
+{
+    int e, n = 0, ce = s->cell_exemplar ? s->cell_exemplar[i] : -1;
+    if (ce >= 0 && ce < s->n_exemplars && gain[ce] > 0) {
+        *g = gain[ce];
+        *level = levels[ce];
+        return;
+    }
+    *g = *level = 0.0;
+    for (e = 0; e < s->n_exemplars; e++)
+        if (gain[e] > 0) {
+            *g += gain[e];
+            *level += levels[e];
+            n++;
+        }
+    if (n) {
+        *g /= n;
+        *level /= n;
+    }
+}
+
+/* out += weight * blur_sigma(guide - out), weight = strength *
+ * fade(fixed) * (near > 0 ? exp(-(d / near)^2) : 1). */
+static ts_status layout_correct(ts_ctx *ctx, ts_raster *out, const float *guide, double sigma,
+                                double strength, const float *fixd, const float *dist,
+                                double near, float *work, float *corr)
 {
     int W = out->width, H = out->height, x, y;
-    size_t n = (size_t)W * (size_t)H, i;
-    float *res = ts_malloc_array(n, sizeof(float));
-    float *corr = ts_malloc_array(n, sizeof(float));
-    float *fixd = NULL;
-    unsigned char *fm = NULL;
-    int any_fixed = 0;
+    size_t i;
     ts_status st;
-    if (!res || !corr) {
-        st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-        goto done;
-    }
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
             i = (size_t)y * (size_t)W + (size_t)x;
-            res[i] = guide[i] - TS_PIX(out, x, y); /* NaN where either is */
-            any_fixed |= flags && (flags[i] & TS_CELL_FIXED);
+            work[i] = guide[i] - TS_PIX(out, x, y); /* NaN where either is */
         }
-    if ((st = ts_blur_nan(ctx, res, W, W, H, sigma, corr)) != TS_OK)
-        goto done;
-    /* the correction fades out towards fixed cells, which keep their values */
-    if (any_fixed) {
-        fixd = ts_malloc_array(n, sizeof(float));
-        fm = ts_malloc_array(n, 1);
-        if (!fixd || !fm) {
-            st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-            goto done;
-        }
-        for (i = 0; i < n; i++)
-            fm[i] = (flags[i] & TS_CELL_FIXED) != 0;
-        if ((st = ts_distance_transform(ctx, fm, W, H, fixd)) != TS_OK)
-            goto done;
-    }
+    if ((st = ts_blur_nan(ctx, work, W, W, H, sigma, corr)) != TS_OK)
+        return st;
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
-            double wgt = strength, c;
+            double w = strength, c;
             i = (size_t)y * (size_t)W + (size_t)x;
             c = corr[i];
             if (isnan(TS_PIX(out, x, y)) || isnan(c))
@@ -306,14 +279,117 @@ ts_status ts_layout_apply(ts_ctx *ctx, ts_raster *out, const float *guide,
             if (fixd) {
                 double t = fixd[i] / (2.0 * sigma);
                 t = t > 1.0 ? 1.0 : t;
-                wgt *= t * t * (3.0 - 2.0 * t);
+                w *= t * t * (3.0 - 2.0 * t);
             }
-            TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + wgt * c);
+            if (near > 0)
+                w *= exp(-(dist[i] / near) * (dist[i] / near));
+            TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * c);
         }
+    return TS_OK;
+}
+
+ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
+                          const unsigned char *flags, double strength)
+{
+    int W = s->width, H = s->height, any_fixed = 0, e;
+    size_t n = (size_t)W * (size_t)H, i;
+    double P = s->patch, sig_l = P / 3.0, sig_c = P / 8.0, c_l = P, c_c = P / 4.0, g1, gc1;
+    double sign = s->kind == TS_VALLEY ? -1.0 : 1.0;
+    unsigned char *m = ts_malloc_array(n, 1);
+    float *dist = ts_malloc_array(n, sizeof(float));
+    int32_t *nearest = ts_malloc_array(n, sizeof(int32_t));
+    float *guide = ts_malloc_array(n, sizeof(float));
+    float *work = ts_malloc_array(n, sizeof(float));
+    float *corr = ts_malloc_array(n, sizeof(float));
+    double *gl = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
+    double *gc = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
+    double *levels = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
+    float *fixd = NULL;
+    ts_status st = TS_OK;
+    if (!m || !dist || !nearest || !guide || !work || !corr || !gl || !gc || !levels) {
+        st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        goto done;
+    }
+    /* the level of the features: the exemplar's main features of the kind,
+     * or, when it has none, its mean height */
+    for (e = 0; e < s->n_exemplars; e++) {
+        ts_raster_stats rs;
+        if (s->profs && s->profs[e].valid)
+            levels[e] = s->profs[e].level;
+        else if (ts_raster_stats_compute(ctx, &s->exemplars[e], &rs) == TS_OK)
+            levels[e] = rs.mean;
+    }
+    ts_clear(ctx);
+    for (i = 0; i < n; i++) {
+        m[i] = (s->sketch_mask[i] & s->kind) != 0;
+        any_fixed |= flags && (flags[i] & TS_CELL_FIXED);
+    }
+    if (!(strength > 0))
+        goto done;
+    if ((st = ts_distance_transform_nearest(ctx, m, W, H, dist, nearest)) != TS_OK)
+        goto done;
+    if (any_fixed) {
+        /* the corrections fade out towards fixed cells, which keep their values */
+        if (!(fixd = ts_malloc_array(n, sizeof(float)))) {
+            st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+            goto done;
+        }
+        for (i = 0; i < n; i++)
+            m[i] = (flags[i] & TS_CELL_FIXED) != 0;
+        if ((st = ts_distance_transform(ctx, m, W, H, fixd)) != TS_OK)
+            goto done;
+    }
+    /* steepness of the guides and of the exemplars at both scales */
+    if ((st = layout_reach_gradient(ctx, dist, s->nodata, W, H, c_l, sig_l, INFINITY, &g1)) !=
+            TS_OK ||
+        (st = layout_reach_gradient(ctx, dist, s->nodata, W, H, c_c, sig_c, 2.0 * c_c, &gc1)) !=
+            TS_OK ||
+        (st = layout_exemplar_gradients(ctx, s, sig_l, gl)) != TS_OK ||
+        (st = layout_exemplar_gradients(ctx, s, sig_c, gc)) != TS_OK)
+        goto done;
+    if (!(g1 > 0) || !(gc1 > 0))
+        goto done; /* no feature on the grid */
+    for (e = 0; e < s->n_exemplars; e++) {
+        gl[e] /= g1;
+        gc[e] /= gc1;
+        gc[e] *= LAYOUT_CREST_GAIN;
+    }
+    /* the layout */
+    for (i = 0; i < n; i++) {
+        double g, level;
+        layout_pick(s, gl, levels, i, &g, &level);
+        guide[i] = (s->nodata && s->nodata[i]) || !isfinite(dist[i])
+                       ? NAN
+                       : (float)(level - sign * g * layout_reach(dist[i], c_l));
+    }
+    if ((st = layout_correct(ctx, out, guide, sig_l, strength, fixd, dist, 0.0, work, corr)) !=
+        TS_OK)
+        goto done;
+    /* the crest: the output along the features, smoothed along them */
+    for (i = 0; i < n; i++)
+        work[i] = (s->sketch_mask[i] & s->kind)
+                      ? out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W]
+                      : NAN;
+    if ((st = ts_blur_nan(ctx, work, W, W, H, sig_c, corr)) != TS_OK)
+        goto done;
+    for (i = 0; i < n; i++) {
+        double g, level;
+        layout_pick(s, gc, levels, i, &g, &level);
+        guide[i] = (s->nodata && s->nodata[i]) || nearest[i] < 0
+                       ? NAN
+                       : (float)(corr[nearest[i]] - sign * g * layout_reach(dist[i], c_c));
+    }
+    st = layout_correct(ctx, out, guide, sig_c, strength, fixd, dist, 0.5 * P, work, corr);
 done:
-    free(res);
+    free(m);
+    free(dist);
+    free(nearest);
+    free(guide);
+    free(work);
     free(corr);
+    free(gl);
+    free(gc);
+    free(levels);
     free(fixd);
-    free(fm);
     return st;
 }

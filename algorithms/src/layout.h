@@ -33,19 +33,16 @@ typedef struct ts_layout_spec {
     const unsigned char *nodata;      /* width*height or NULL: non-zero = no guide there */
     const ts_raster *exemplars;       /* at the output's ground resolution */
     int n_exemplars;
-    const ts_relief_profile *profs;   /* per exemplar: the level of its main features */
+    const ts_relief_profile *profs;   /* per exemplar: the level of its main features (an
+                                         exemplar without a valid one: its mean height) */
     const int32_t *cell_exemplar;     /* per output cell, or NULL */
-    double sigma;                     /* the layout scale, cells */
-    double reach;                     /* c of f(d), cells */
+    int patch;                        /* the patch size, cells: sets both scales */
 } ts_layout_spec;
 
-/* The layout guide T (layout.c) into guide (width*height floats; NaN on
- * nodata, everywhere when no exemplar has the feature kind). */
-ts_status ts_layout_guide(ts_ctx *ctx, const ts_layout_spec *spec, float *guide);
-
-/* out += strength * w * blur_sigma(guide - out); w fades from 0 on
- * TS_CELL_FIXED cells (flags may be NULL) to 1 at 2 sigma from them. */
-ts_status ts_layout_apply(ts_ctx *ctx, ts_raster *out, const float *guide,
-                          const unsigned char *flags, double sigma, double strength);
+/* The layout and crest corrections of layout.c, applied to out (the
+ * sketch's size) with `strength` (0..1); flags (may be NULL): TS_CELL_FIXED
+ * cells never change and the corrections fade out near them. */
+ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *spec, ts_raster *out,
+                          const unsigned char *flags, double strength);
 
 #endif

@@ -42,8 +42,11 @@ struct ts_matcher {
     int nblk;             /* column blocks */
     double mean;          /* mean of the exemplar's valid cells */
     double max_dev2;      /* max (E - mean)^2 over valid cells */
-    size_t n_valid;       /* windows free of nodata */
-    unsigned char *valid; /* nx * ny: 1 where the window is free of nodata */
+    size_t n_valid;       /* windows free of nodata (and allowed, when restricted) */
+    unsigned char *valid; /* nx * ny: 1 where the window is free of nodata; points at
+                             all_valid or, when restricted, at allowed */
+    unsigned char *all_valid, *allowed; /* the two maps (allowed may be NULL) */
+    size_t n_all_valid, n_allowed;
     /* Half spectra of E' and E'^2, pre-scaled by -2/F and 1/F, stored by
      * column (transposed): element (row j, column c) at [c * fh + j],
      * for stride columns (those past cols are zero). */
@@ -146,7 +149,7 @@ static ts_status match_validity(ts_ctx *ctx, ts_matcher *m)
     }
     m->max_dev2 = max_dev2;
 
-    m->valid = ts_malloc_array((size_t)m->nx * (size_t)m->ny, 1);
+    m->valid = m->all_valid = ts_malloc_array((size_t)m->nx * (size_t)m->ny, 1);
     colcnt = ts_calloc_array((size_t)w, sizeof *colcnt);
     if (!m->valid || !colcnt) {
         free(colcnt);
@@ -174,7 +177,7 @@ static ts_status match_validity(ts_ctx *ctx, ts_matcher *m)
         }
     }
     free(colcnt);
-    m->n_valid = n_valid;
+    m->n_valid = m->n_all_valid = n_valid;
     if (n_valid == 0)
         return ts_fail(ctx, TS_ERR_NUMERIC, MATCH_STAGE,
                        "no %d x %d window of the exemplar is free of nodata", m->pw, m->ph);
@@ -834,6 +837,44 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const match
 
 /* ---- public API -------------------------------------------------------- */
 
+ts_status ts__matcher_set_allowed(ts_ctx *ctx, ts_matcher *m, const unsigned char *allowed)
+{
+    size_t n = (size_t)m->nx * (size_t)m->ny, i, k = 0;
+    unsigned char *a;
+    ts__matcher_restrict(m, 0);
+    free(m->allowed);
+    m->allowed = NULL;
+    m->n_allowed = 0;
+    if (!allowed)
+        return TS_OK;
+    if (!(a = ts_malloc_array(n, 1)))
+        return ts_fail(ctx, TS_ERR_NOMEM, MATCH_STAGE, "out of memory");
+    for (i = 0; i < n; i++) {
+        a[i] = m->all_valid[i] && allowed[i];
+        k += a[i];
+    }
+    if (k == 0) {
+        free(a); /* nothing would be left: no restriction */
+        return TS_OK;
+    }
+    m->allowed = a;
+    m->n_allowed = k;
+    return TS_OK;
+}
+
+int ts__matcher_restrict(ts_matcher *m, int on)
+{
+    int was = m->valid != m->all_valid;
+    if (on && m->allowed) {
+        m->valid = m->allowed;
+        m->n_valid = m->n_allowed;
+    } else {
+        m->valid = m->all_valid;
+        m->n_valid = m->n_all_valid;
+    }
+    return was;
+}
+
 TS_API void ts_matcher_free(ts_matcher *m)
 {
     int i;
@@ -849,7 +890,8 @@ TS_API void ts_matcher_free(ts_matcher *m)
     ts_fft_free(m->spec2);
     ts_fft_free(m->rows1);
     ts_fft_free(m->rows2);
-    free(m->valid);
+    free(m->all_valid);
+    free(m->allowed);
     free(m);
 }
 

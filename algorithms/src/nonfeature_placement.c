@@ -35,6 +35,8 @@ typedef struct exemplar_data {
     int K;                 /* coarsest level: the coarse factor is 2^K */
     ts_matcher *matcher;   /* on level[K] */
     int32_t *nodata_sat;   /* summed-area table of full-resolution nodata, (w+1)*(h+1) */
+    int32_t *feature_sat;  /* likewise of its main feature cells, or NULL */
+    unsigned char *allowed; /* level-K window positions without main features, or NULL */
 } exemplar_data;
 
 typedef struct placer {
@@ -126,7 +128,64 @@ static int32_t sat_sum(const int32_t *sat, int w, int x0, int y0, int x1, int y1
            sat[(size_t)y0 * W + x0];
 }
 
-static ts_status place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_raster *full)
+/* Does the full-resolution window at (x, y) have a main feature cell in
+ * its middle half? */
+static int place_featured(const placer *pl, const exemplar_data *e, int x, int y)
+{
+    int q = pl->P / 4;
+    return e->feature_sat &&
+           sat_sum(e->feature_sat, e->full->width, x + q, y + q, x + pl->P - q, y + pl->P - q) > 0;
+}
+
+/* The windows the fill takes away from the sketch's features (Zhou et al.
+ * section 4.2: non-feature patches come from regions without strong
+ * features): level-K positions whose full-resolution window has no main
+ * feature cell in its middle half.  Nothing is restricted when that would
+ * leave less than a quarter of the windows. */
+static ts_status place_feature_windows(placer *pl, exemplar_data *e, int index)
+{
+    const unsigned char *mask =
+        pl->p->exemplar_features ? pl->p->exemplar_features[index] : NULL;
+    int w = e->full->width, h = e->full->height, nx, ny, x, y;
+    size_t W = (size_t)w + 1, n_ok = 0, n_valid = 0;
+    if (!mask)
+        return TS_OK;
+    e->feature_sat = ts_calloc_array(W * ((size_t)h + 1), sizeof *e->feature_sat);
+    if (!e->feature_sat)
+        return ts_fail(pl->ctx, TS_ERR_NOMEM, "synth", "out of memory");
+    for (y = 0; y < h; y++) {
+        int32_t row = 0;
+        for (x = 0; x < w; x++) {
+            row += mask[(size_t)y * (size_t)w + (size_t)x] != 0;
+            e->feature_sat[(size_t)(y + 1) * W + (size_t)(x + 1)] =
+                e->feature_sat[(size_t)y * W + (size_t)(x + 1)] + row;
+        }
+    }
+    ts_matcher_positions(e->matcher, &nx, &ny);
+    e->allowed = ts_malloc_array((size_t)nx * (size_t)ny, 1);
+    if (!e->allowed)
+        return ts_fail(pl->ctx, TS_ERR_NOMEM, "synth", "out of memory");
+    for (y = 0; y < ny; y++)
+        for (x = 0; x < nx; x++) {
+            int fx = x << e->K, fy = y << e->K, ok = 0;
+            if (fx + pl->P <= w && fy + pl->P <= h &&
+                sat_sum(e->nodata_sat, w, fx, fy, fx + pl->P, fy + pl->P) == 0) {
+                n_valid++;
+                ok = !place_featured(pl, e, fx, fy);
+            }
+            e->allowed[(size_t)y * (size_t)nx + (size_t)x] = (unsigned char)ok;
+            n_ok += (size_t)ok;
+        }
+    if (4 * n_ok < n_valid) {
+        free(e->allowed); /* too few featureless windows: take any */
+        e->allowed = NULL;
+        return TS_OK;
+    }
+    return ts__matcher_set_allowed(pl->ctx, e->matcher, e->allowed);
+}
+
+static ts_status place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_raster *full,
+                                        int index)
 {
     ts_ctx *ctx = pl->ctx;
     int w = full->width, h = full->height, x, y, cw, ch, k;
@@ -173,7 +232,10 @@ static ts_status place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_r
                     0.25f * (TS_PIX(src, 2 * x, 2 * y) + TS_PIX(src, 2 * x + 1, 2 * y) +
                              TS_PIX(src, 2 * x, 2 * y + 1) + TS_PIX(src, 2 * x + 1, 2 * y + 1));
     }
-    return ts_matcher_new(ctx, &e->level[e->K], pl->P >> e->K, pl->P >> e->K, &e->matcher);
+    if ((st = ts_matcher_new(ctx, &e->level[e->K], pl->P >> e->K, pl->P >> e->K,
+                             &e->matcher)) != TS_OK)
+        return st;
+    return place_feature_windows(pl, e, index);
 }
 
 /* The target pyramid: a coarse cell is known (the mean of its known
@@ -456,6 +518,9 @@ static ts_status place_one(placer *pl, placement *q, int index)
     double *cost, best_cost = INFINITY, t0 = 0;
     ts_status *status;
     ts_status st = TS_OK;
+    /* away from the sketch's features, windows without main features */
+    int restrict_features =
+        pl->p->exemplar_features && !place_flag(pl, q->x + P / 2, q->y + P / 2, TS_CELL_FEATURE);
     /* each placement's random stream depends only on the seed and its
      * index, so placements running side by side draw what they would alone */
     pl->rng = pl->rng0 ^ (0xd1b54a32d192ed03ull * (uint64_t)(index + 1));
@@ -522,7 +587,8 @@ static ts_status place_one(placer *pl, placement *q, int index)
             ed = &pl->ex[e];
             x = (int)(place_rand(pl) % (uint64_t)(ed->full->width - P + 1));
             y = (int)(place_rand(pl) % (uint64_t)(ed->full->height - P + 1));
-            if (sat_sum(ed->nodata_sat, ed->full->width, x, y, x + P, y + P) == 0) {
+            if (sat_sum(ed->nodata_sat, ed->full->width, x, y, x + P, y + P) == 0 &&
+                !(restrict_features && ed->allowed && place_featured(pl, ed, x, y))) {
                 found[n_ok].e = e;
                 found[n_ok].x = x;
                 found[n_ok].y = y;
@@ -551,6 +617,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
         int n = 0, only = place_region_exemplar(pl, q);
         if (only >= 0 && e != only)
             continue;
+        ts__matcher_restrict(pl->ex[e].matcher, restrict_features);
         st = place_search(pl, e, pl->cands + total, &n);
         if (st != TS_OK)
             goto done;
@@ -698,6 +765,8 @@ static void placer_free(placer *pl)
             for (k = 1; k < PLACE_MAX_LEVELS; k++)
                 ts_raster_free(&pl->ex[e].level[k]);
             free(pl->ex[e].nodata_sat);
+            free(pl->ex[e].feature_sat);
+            free(pl->ex[e].allowed);
         }
     free(pl->ex);
     free(pl->target);
@@ -831,7 +900,9 @@ static ts_status placer_second(const placer *a, placer *b)
         b->ex[e] = *ed;
         b->ex[e].matcher = NULL;
         if (ts_matcher_new(a->ctx, &ed->level[ed->K], a->P >> ed->K, a->P >> ed->K,
-                           &b->ex[e].matcher) != TS_OK)
+                           &b->ex[e].matcher) != TS_OK ||
+            (ed->allowed && ts__matcher_set_allowed(a->ctx, b->ex[e].matcher, ed->allowed) !=
+                                TS_OK))
             return a->ctx->status;
     }
     return TS_OK;
@@ -891,7 +962,7 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     for (e = 0; e < n_exemplars; e++) {
         ts_progress_saved sv = ts_progress_push(ctx, 0.1 * e / n_exemplars,
                                                 0.1 * (e + 1) / n_exemplars);
-        st = place_prepare_exemplar(&pl, &pl.ex[e], &exemplars[e]);
+        st = place_prepare_exemplar(&pl, &pl.ex[e], &exemplars[e], e);
         ts_progress_pop(ctx, sv);
         if (st != TS_OK) {
             if (st == TS_ERR_SIZE || st == TS_ERR_NUMERIC)

@@ -78,6 +78,11 @@ static const ts_param_desc sketch_desc[] = {
      "the sketch's strokes bend less, within a feature patch and where it joins the placed "
      "ones; larger gives smoother, gentler crests (0 = off).",
      offsetof(ts_sketch_params, alpha_s)},
+    {"alpha_p", TS_PARAM_DOUBLE, 1.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the crest prominence c_p of feature patches: among the candidates that fit, "
+     "those whose crest (valleys: thalweg) stands out most across the stroke, an eighth of a "
+     "patch either side, so that sketched strokes read as main features (0 = off).",
+     offsetof(ts_sketch_params, alpha_p)},
     {"alpha_r", TS_PARAM_DOUBLE, 0.5, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
      "Weight of the relief guide: sketched ridges stand high and sketched valleys lie low, "
      "falling away from the strokes as the exemplars' land falls away from their main "

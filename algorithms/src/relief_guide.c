@@ -28,8 +28,9 @@
 #include "relief_guide.h"
 
 /* 1-D squared distance transform of f[0..n) (Felzenszwalb and Huttenlocher
- * 2012): d[q] = min_p (q - p)^2 + f[p].  v, z: work of n and n + 1. */
-static void edt_1d(const double *f, int n, double *d, int *v, double *z)
+ * 2012): d[q] = min_p (q - p)^2 + f[p], arg[q] that p (may be NULL; -1
+ * when every f is infinite).  v, z: work of n and n + 1. */
+static void edt_1d(const double *f, int n, double *d, int *arg, int *v, double *z)
 {
     int k = -1, q;
     for (q = 0; q < n; q++) {
@@ -52,8 +53,11 @@ static void edt_1d(const double *f, int n, double *d, int *v, double *z)
         z[k + 1] = INFINITY;
     }
     if (k < 0) {
-        for (q = 0; q < n; q++)
+        for (q = 0; q < n; q++) {
             d[q] = INFINITY;
+            if (arg)
+                arg[q] = -1;
+        }
         return;
     }
     {
@@ -62,6 +66,8 @@ static void edt_1d(const double *f, int n, double *d, int *v, double *z)
             while (z[j + 1] < q)
                 j++;
             d[q] = (double)(q - v[j]) * (q - v[j]) + f[v[j]];
+            if (arg)
+                arg[q] = v[j];
         }
     }
 }
@@ -70,7 +76,9 @@ typedef struct edt_job {
     const unsigned char *mask;
     int width, height;
     double *rows; /* squared distances along the rows */
+    int32_t *row_arg; /* their nearest column, or NULL */
     float *dist;
+    int32_t *nearest; /* index of the nearest mask cell, or NULL */
     atomic_int failed; /* a worker could not get its buffers */
 } edt_job;
 
@@ -83,28 +91,41 @@ static void edt_range(edt_job *j, size_t b, size_t e, int pass)
     double *d = ts_malloc_array((size_t)n, sizeof(double));
     double *z = ts_malloc_array((size_t)n + 1, sizeof(double));
     int *v = ts_malloc_array((size_t)n, sizeof(int));
-    if (!f || !d || !z || !v) {
+    int *arg = ts_malloc_array((size_t)n, sizeof(int));
+    if (!f || !d || !z || !v || !arg) {
         atomic_store(&j->failed, 1);
     } else if (pass == 0) {
         for (k = b; k < e; k++) {
             const unsigned char *m = j->mask + k * (size_t)j->width;
             for (i = 0; i < j->width; i++)
                 f[i] = m[i] ? 0.0 : INFINITY;
-            edt_1d(f, j->width, j->rows + k * (size_t)j->width, v, z);
+            edt_1d(f, j->width, j->rows + k * (size_t)j->width, j->row_arg ? arg : NULL, v, z);
+            if (j->row_arg)
+                for (i = 0; i < j->width; i++)
+                    j->row_arg[k * (size_t)j->width + (size_t)i] = arg[i];
         }
     } else {
         for (k = b; k < e; k++) {
             for (i = 0; i < j->height; i++)
                 f[i] = j->rows[(size_t)i * (size_t)j->width + k];
-            edt_1d(f, j->height, d, v, z);
+            edt_1d(f, j->height, d, j->nearest ? arg : NULL, v, z);
             for (i = 0; i < j->height; i++)
                 j->dist[(size_t)i * (size_t)j->width + k] = (float)sqrt(d[i]);
+            if (j->nearest)
+                for (i = 0; i < j->height; i++) {
+                    /* the nearest row, then that row's nearest column */
+                    int r = arg[i];
+                    int32_t c = r < 0 ? -1 : j->row_arg[(size_t)r * (size_t)j->width + k];
+                    j->nearest[(size_t)i * (size_t)j->width + k] =
+                        c < 0 ? -1 : (int32_t)((size_t)r * (size_t)j->width + (size_t)c);
+                }
         }
     }
     free(f);
     free(d);
     free(z);
     free(v);
+    free(arg);
 }
 
 static void edt_rows(void *arg, size_t b, size_t e)
@@ -117,25 +138,38 @@ static void edt_cols(void *arg, size_t b, size_t e)
     edt_range(arg, b, e, 1);
 }
 
-ts_status ts_distance_transform(ts_ctx *ctx, const unsigned char *mask, int width, int height,
-                                float *dist)
+ts_status ts_distance_transform_nearest(ts_ctx *ctx, const unsigned char *mask, int width,
+                                        int height, float *dist, int32_t *nearest)
 {
     edt_job j;
+    size_t n = (size_t)width * (size_t)height;
     j.mask = mask;
     j.width = width;
     j.height = height;
     j.dist = dist;
+    j.nearest = nearest;
     atomic_init(&j.failed, 0);
-    j.rows = ts_malloc_array((size_t)width * (size_t)height, sizeof(double));
-    if (!j.rows)
+    j.rows = ts_malloc_array(n, sizeof(double));
+    j.row_arg = nearest ? ts_malloc_array(n, sizeof(int32_t)) : NULL;
+    if (!j.rows || (nearest && !j.row_arg)) {
+        free(j.rows);
+        free(j.row_arg);
         return ts_fail(ctx, TS_ERR_NOMEM, "relief guide", "out of memory");
+    }
     ts_parallel_for(ctx, (size_t)height, edt_rows, &j);
     if (!atomic_load(&j.failed))
         ts_parallel_for(ctx, (size_t)width, edt_cols, &j);
     free(j.rows);
+    free(j.row_arg);
     if (atomic_load(&j.failed))
         return ts_fail(ctx, TS_ERR_NOMEM, "relief guide", "out of memory");
     return TS_OK;
+}
+
+ts_status ts_distance_transform(ts_ctx *ctx, const unsigned char *mask, int width, int height,
+                                float *dist)
+{
+    return ts_distance_transform_nearest(ctx, mask, width, height, dist, NULL);
 }
 
 ts_status ts_relief_profile_measure(ts_ctx *ctx, const ts_raster *dem, const unsigned char *mask,

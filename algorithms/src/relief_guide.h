@@ -17,6 +17,10 @@
  */
 ts_status ts_distance_transform(ts_ctx *ctx, const unsigned char *mask, int width, int height,
                                 float *dist);
+/* The same, and nearest[i] = the index (y * width + x) of a nearest mask
+ * cell (-1 when there is none); any one of them on ties. */
+ts_status ts_distance_transform_nearest(ts_ctx *ctx, const unsigned char *mask, int width,
+                                        int height, float *dist, int32_t *nearest);
 
 /*
  * How the land falls away from the main features of one exemplar.

@@ -278,6 +278,48 @@ void ts_tps_map(const ts_tps *t, double x, double y, double *ox, double *oy)
     *oy = fy;
 }
 
+void ts_tps_jacobian(const ts_tps *t, double x, double y, double j[4])
+{
+    int i;
+    j[0] = t->ax[1];
+    j[1] = t->ax[2];
+    j[2] = t->ay[1];
+    j[3] = t->ay[2];
+    for (i = 0; i < t->n; i++) {
+        double ex = x - t->cx[i], ey = y - t->cy[i], r2 = ex * ex + ey * ey, g;
+        if (r2 <= 0.0)
+            continue; /* d(r^2 log r^2) = 2 (log r^2 + 1) (ex, ey), 0 at r = 0 */
+        g = 2.0 * (log(r2) + 1.0);
+        j[0] += t->wx[i] * g * ex;
+        j[1] += t->wx[i] * g * ey;
+        j[2] += t->wy[i] * g * ex;
+        j[3] += t->wy[i] * g * ey;
+    }
+}
+
+int ts_tps_folds(const ts_tps *t, double cx, double cy, double r, int n, double max_ratio)
+{
+    double j[4], d0;
+    int a, b;
+    ts_tps_jacobian(t, cx, cy, j);
+    d0 = j[0] * j[3] - j[1] * j[2];
+    if (!(fabs(d0) > 0.0))
+        return 1;
+    for (b = 0; b < n; b++)
+        for (a = 0; a < n; a++) {
+            double x = cx + r * (2.0 * a / (n - 1) - 1.0), y = cy + r * (2.0 * b / (n - 1) - 1.0);
+            double d, q;
+            if ((x - cx) * (x - cx) + (y - cy) * (y - cy) > r * r)
+                continue;
+            ts_tps_jacobian(t, x, y, j);
+            d = j[0] * j[3] - j[1] * j[2];
+            q = d / d0;
+            if (!(q >= 1.0 / max_ratio && q <= max_ratio))
+                return 1; /* orientation flips (a fold), or squeezed or stretched too far */
+        }
+    return 0;
+}
+
 typedef struct tps_warp_job {
     const ts_tps *t;
     const ts_raster *src;

@@ -62,6 +62,21 @@ ts_status ts_tps_fit(ts_ctx *ctx, int n, const double *src_x, const double *src_
 /* Evaluate the spline at (x, y) into (*ox, *oy).  O(n); no allocation. */
 void ts_tps_map(const ts_tps *t, double x, double y, double *ox, double *oy);
 
+/* Jacobian of the spline at (x, y): j = {dout_x/dx, dout_x/dy, dout_y/dx,
+ * dout_y/dy} (analytic). */
+void ts_tps_jacobian(const ts_tps *t, double x, double y, double j[4]);
+
+/*
+ * Does the spline fold over the disc of radius r around (cx, cy)?  The
+ * Jacobian determinant is sampled on an n x n lattice (n >= 2) over the
+ * disc and compared with its value at the centre: 1 when the ratio is
+ * negative anywhere (the map turns over: a fold) or leaves [1/max_ratio,
+ * max_ratio] (a squeeze or stretch that far smears the terrain), or when
+ * the centre's determinant is 0; 0 otherwise.  A mirrored map has a
+ * negative determinant everywhere and does not fold.
+ */
+int ts_tps_folds(const ts_tps *t, double cx, double cy, double r, int n, double max_ratio);
+
 /*
  * Warp: out(x, y) = src(T(x + 0.5 + ox, y + 0.5 + oy)) for every cell of
  * `out` (caller-allocated, its width x height defines the output; must not
