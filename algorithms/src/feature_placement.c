@@ -67,6 +67,7 @@ typedef struct sketcher {
     int n_ex;
     ts_raster *out;
     unsigned char *flags;
+    unsigned char *user_flags; /* the flags the caller's fixed cells gave, before any feature */
     const ts_features *sf;   /* sketch features */
     int kind;
     int P;
@@ -661,14 +662,14 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
         }
     }
     /* the profile costs, estimated on the exemplar through each warp, pick
-     * the k that are warped and cut; a junction warp that folds over the
-     * patch (or squeezes it more than 8 times) is never used */
+     * the k that are warped and cut; a warp that folds anywhere over the
+     * window with its ring, or squeezes or stretches areas more than 2.5
+     * times, is never used */
     for (i = 0; i < n_pool; i++) {
         candidate *c = &k->pool[i];
         sk_view v = {&k->ex[k->es[c->idx].ex], &c->inv, wx, wy};
         double want = 0.0, cf, cs, cp;
-        if (s->type == TS_SITE_BRANCH &&
-            ts_tps_folds(&c->inv, s->cx - wx + 0.5, s->cy - wy + 0.5, k->R, 9, 2.5)) {
+        if (ts_tps_folds(&c->inv, s->cx - wx + 0.5, s->cy - wy + 0.5, 0.5 * k->P + 1.0, 13, 2.5)) {
             c->pre = INFINITY;
             continue;
         }
@@ -682,7 +683,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
     while (n_pool > 0 && !isfinite(k->pool[n_pool - 1].pre))
         n_pool--;
     if (n_pool == 0) {
-        /* no exemplar junction of this degree, or every one folds: compose
+        /* no exemplar junction of this degree, or every warp folds: compose
          * it, a path patch through its two straightest-joined arms (the
          * other arms get their own path patches along their chains) */
         ts_feature_site ps;
@@ -799,6 +800,7 @@ static void sk_free(sketcher *k)
     free(k->chunk_pool);
     free(k->chunk_n);
     free(k->flags);
+    free(k->user_flags);
     free(k->guide);
     if (k->profs) {
         int e;
@@ -900,6 +902,14 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         else if (!isnan(out->data[r * (size_t)out->stride + c]))
             k.flags[i] = TS_CELL_FIXED; /* pinned windows, water: kept as they are */
     }
+    /* what the caller fixed (pins, water): the layout keeps away from these,
+     * not from the feature cores fixed below */
+    k.user_flags = ts_malloc_array(n_cells, 1);
+    if (!k.user_flags) {
+        st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+        goto done;
+    }
+    memcpy(k.user_flags, k.flags, n_cells);
     /* 1. the sketch's features */
     {
         int mode = sp->mode == TS_SKETCH_AUTO ? sk_auto_mode(ctx, sketch) : sp->mode;
@@ -1061,7 +1071,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         ls.profs = k.profs;
         ls.cell_exemplar = params->cell_exemplar;
         ls.patch = k.P;
-        st = ts_layout_apply(ctx, &ls, out, k.flags, sp->layout);
+        st = ts_layout_apply(ctx, &ls, out, k.user_flags, sp->layout);
         if (st == TS_OK)
             st = ts_progress(ctx, 1.0, "layout");
     }

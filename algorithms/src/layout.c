@@ -26,9 +26,13 @@
  *
  * G is chosen so that the guide, blurred at its scale, is on average as
  * steep as the exemplar blurred at that scale: the layout carries the
- * exemplar's steepness, no more.  G_c likewise (measured within P/2 of the
- * features), times LAYOUT_CREST_GAIN: sketched crests are main features,
- * sharper than most of the land.  The
+ * exemplar's steepness, no more; G_c likewise, measured within P/2 of the
+ * features.  Both are then scaled together by the factor (0.35..2.5) that
+ * brings the output's distribution of slopes closest to the exemplars'
+ * (patch merging flattens a little; a steep exemplar's guide adds to its
+ * own slopes).  For valleys, the layout's level along the features is the
+ * output's own floor made to descend to each network's outlet, and after
+ * both corrections the floor is made to descend cell by cell.  The
  * output keeps every detail of the patches below each scale.  Both fade to
  * nothing at fixed cells (pinned windows, water), which never change.
  * Cost: O(cells) per blur, whatever sigma.
@@ -169,12 +173,6 @@ double ts_mean_gradient(const float *a, int w, int h)
 
 /* ---- the two corrections ------------------------------------------ */
 
-/* The crest stands out 1.5 times as steeply as the exemplar's land falls on
- * average at its scale: sketched strokes are the main features, so they
- * are sharper than most of the land (measured over the quality matrix of
- * bench/quality: 1 left a quarter of the sketched crests as soft as the
- * land around, 2 dug trenches in steep exemplars). */
-#define LAYOUT_CREST_GAIN 1.5
 
 /* f_c(d): rises like d near the features, levels off over about 2c */
 static double layout_reach(double d, double c)
@@ -288,25 +286,258 @@ static ts_status layout_correct(ts_ctx *ctx, ts_raster *out, const float *guide,
     return TS_OK;
 }
 
+/*
+ * Valley floors that descend (no valley climbs over a saddle): on every
+ * 8-connected network of feature cells, the outlet is the cell nearest the
+ * grid's edge (ties: the lowest); breadth first from it, each cell's
+ * downstream neighbour is the one it was reached from.  `fill` raises every
+ * cell to its downstream neighbour's filled level, `carve` lowers it to the
+ * carved levels of all its upstream ones; both are non-increasing
+ * downstream, and so is their mean, which replaces level[] on the feature
+ * cells (other cells are left as they are).  O(feature cells).
+ */
+ts_status layout_descend(ts_ctx *ctx, const ts_layout_spec *s, float *level)
+{
+    int W = s->width, H = s->height;
+    size_t n = (size_t)W * (size_t)H, i, head, tail, n_order = 0;
+    int32_t *parent = ts_malloc_array(n, sizeof(int32_t));
+    int32_t *queue = ts_malloc_array(n, sizeof(int32_t));
+    double *fill = ts_malloc_array(n, sizeof(double)), *carve = ts_malloc_array(n, sizeof(double));
+    unsigned char *seen = ts_calloc_array(n, 1);
+    ts_status st = TS_OK;
+    if (!parent || !queue || !fill || !carve || !seen) {
+        st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        goto done;
+    }
+#define LD_FEATURE(k) ((s->sketch_mask[k] & s->kind) && !isnan(level[k]))
+    for (i = 0; i < n; i++) {
+        size_t first = n_order, best = i, k;
+        int bx = (int)(i % (size_t)W), by = (int)(i / (size_t)W);
+        int bd = TS_MIN(TS_MIN(bx, W - 1 - bx), TS_MIN(by, H - 1 - by));
+        if (seen[i] || !LD_FEATURE(i))
+            continue;
+        /* the network: collect it, find its outlet */
+        queue[n_order++] = (int32_t)i;
+        seen[i] = 1;
+        for (head = first; head < n_order; head++) {
+            size_t c = (size_t)queue[head];
+            int cx = (int)(c % (size_t)W), cy = (int)(c / (size_t)W), dx, dy;
+            int cd = TS_MIN(TS_MIN(cx, W - 1 - cx), TS_MIN(cy, H - 1 - cy));
+            if (cd < bd || (cd == bd && level[c] < level[best]) ||
+                (cd == bd && level[c] == level[best] && c < best)) {
+                best = c;
+                bd = cd;
+            }
+            for (dy = -1; dy <= 1; dy++)
+                for (dx = -1; dx <= 1; dx++) {
+                    int x = cx + dx, y = cy + dy;
+                    if (x < 0 || y < 0 || x >= W || y >= H)
+                        continue;
+                    k = (size_t)y * (size_t)W + (size_t)x;
+                    if (!seen[k] && LD_FEATURE(k)) {
+                        seen[k] = 2;
+                        queue[n_order++] = (int32_t)k;
+                    }
+                }
+        }
+        /* breadth first from the outlet: parents point downstream */
+        for (head = first; head < n_order; head++)
+            seen[queue[head]] = 1; /* 1: in the network, not yet reached */
+        tail = first;
+        queue[tail++] = (int32_t)best;
+        seen[best] = 3;
+        parent[best] = -1;
+        for (head = first; head < tail; head++) {
+            size_t c = (size_t)queue[head];
+            int cx = (int)(c % (size_t)W), cy = (int)(c / (size_t)W), dx, dy;
+            for (dy = -1; dy <= 1; dy++)
+                for (dx = -1; dx <= 1; dx++) {
+                    int x = cx + dx, y = cy + dy;
+                    if (x < 0 || y < 0 || x >= W || y >= H)
+                        continue;
+                    k = (size_t)y * (size_t)W + (size_t)x;
+                    if (seen[k] == 1) {
+                        seen[k] = 3;
+                        parent[k] = (int32_t)c;
+                        queue[tail++] = (int32_t)k;
+                    }
+                }
+        }
+        /* fill downstream first, carve upstream first */
+        for (head = first; head < tail; head++) {
+            size_t c = (size_t)queue[head];
+            fill[c] = level[c];
+            carve[c] = level[c];
+            if (parent[c] >= 0 && fill[parent[c]] > fill[c])
+                fill[c] = fill[parent[c]];
+        }
+        for (head = tail; head-- > first;) {
+            size_t c = (size_t)queue[head];
+            if (parent[c] >= 0 && carve[c] < carve[parent[c]])
+                carve[parent[c]] = carve[c];
+        }
+        for (head = first; head < tail; head++) {
+            size_t c = (size_t)queue[head];
+            level[c] = (float)(0.5 * (fill[c] + carve[c]));
+        }
+        n_order = tail;
+    }
+#undef LD_FEATURE
+done:
+    free(parent);
+    free(queue);
+    free(fill);
+    free(carve);
+    free(seen);
+    return st;
+}
+
+/* What both corrections need, computed once. */
+typedef struct layout_run_data {
+    const ts_layout_spec *s;
+    double strength, sig_l, sig_c, c_l, c_c, sign;
+    const float *dist, *fixd;
+    const int32_t *nearest;
+    const double *gl, *gc, *levels;
+    float *guide, *work, *corr;
+} layout_run_data;
+
+/* Both corrections on r (the output's size), the guides' steepness times
+ * lam: the layout everywhere, then the crest near the features. */
+static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r, double lam)
+{
+    const ts_layout_spec *s = d->s;
+    int W = s->width, H = s->height;
+    size_t n = (size_t)W * (size_t)H, i;
+    ts_status st;
+    if (s->kind == TS_VALLEY) {
+        /* valley floors at the output's own level, smoothed along them over
+         * a patch, made to descend to their outlets, smoothed again over
+         * half a patch (filling and carving leave steps) */
+        for (i = 0; i < n; i++)
+            d->work[i] = (s->sketch_mask[i] & s->kind)
+                             ? r->data[(i / (size_t)W) * (size_t)r->stride + i % (size_t)W]
+                             : NAN;
+        if ((st = ts_blur_nan(ctx, d->work, W, W, H, s->patch, d->corr)) != TS_OK ||
+            (st = layout_descend(ctx, s, d->corr)) != TS_OK)
+            return st;
+        for (i = 0; i < n; i++)
+            d->work[i] = (s->sketch_mask[i] & s->kind) ? d->corr[i] : NAN;
+        if ((st = ts_blur_nan(ctx, d->work, W, W, H, 0.5 * s->patch, d->corr)) != TS_OK)
+            return st;
+    }
+    for (i = 0; i < n; i++) {
+        double g, level;
+        layout_pick(s, d->gl, d->levels, i, &g, &level);
+        if (s->kind == TS_VALLEY && d->nearest[i] >= 0)
+            level = d->corr[d->nearest[i]];
+        d->guide[i] = (s->nodata && s->nodata[i]) || !isfinite(d->dist[i])
+                          ? NAN
+                          : (float)(level - d->sign * lam * g * layout_reach(d->dist[i], d->c_l));
+    }
+    if ((st = layout_correct(ctx, r, d->guide, d->sig_l, d->strength, d->fixd, d->dist, 0.0,
+                             d->work, d->corr)) != TS_OK)
+        return st;
+    /* the crest: the output along the features, smoothed along them over a
+     * quarter patch; valley floors then made to descend to their outlets */
+    for (i = 0; i < n; i++)
+        d->work[i] = (s->sketch_mask[i] & s->kind)
+                         ? r->data[(i / (size_t)W) * (size_t)r->stride + i % (size_t)W]
+                         : NAN;
+    if ((st = ts_blur_nan(ctx, d->work, W, W, H, 2.0 * d->sig_c, d->corr)) != TS_OK)
+        return st;
+    for (i = 0; i < n; i++) {
+        double g, level;
+        layout_pick(s, d->gc, d->levels, i, &g, &level);
+        d->guide[i] = (s->nodata && s->nodata[i]) || d->nearest[i] < 0
+                          ? NAN
+                          : (float)(d->corr[d->nearest[i]] -
+                                    d->sign * lam * g * layout_reach(d->dist[i], d->c_c));
+    }
+    return layout_correct(ctx, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
+                          0.5 * s->patch, d->work, d->corr);
+}
+
+#define LAYOUT_QUANTILES 199
+#define LAYOUT_SAMPLES 65536
+
+static int layout_float_cmp(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* Quantiles 0.5 %, 1 %, ..., 99.5 % of the gradient magnitude (central
+ * differences, cells with four valid neighbours) of a + lam * b (b may be
+ * NULL), over at most about LAYOUT_SAMPLES cells on a regular lattice;
+ * returns 0 when no cell has a gradient.  work: w * h floats. */
+static int layout_gradient_quantiles(const float *a, const float *b, ptrdiff_t stride, int w,
+                                     int h, double lam, float *work, double *q)
+{
+    size_t n = 0, k;
+    double cells = (double)(w - 2) * (double)(h - 2);
+    int step = cells > LAYOUT_SAMPLES ? (int)ceil(sqrt(cells / LAYOUT_SAMPLES)) : 1, x, y;
+    for (y = 1; y + 1 < h; y += step)
+        for (x = 1; x + 1 < w; x += step) {
+            size_t i = (size_t)y * (size_t)stride + (size_t)x;
+            double gx = 0.5 * ((double)a[i + 1] - a[i - 1]);
+            double gy = 0.5 * ((double)a[i + (size_t)stride] - a[i - (size_t)stride]);
+            double g;
+            if (b) {
+                gx += lam * 0.5 * ((double)b[i + 1] - b[i - 1]);
+                gy += lam * 0.5 * ((double)b[i + (size_t)stride] - b[i - (size_t)stride]);
+            }
+            g = sqrt(gx * gx + gy * gy);
+            if (!isnan(g))
+                work[n++] = (float)g;
+        }
+    if (!n)
+        return 0;
+    qsort(work, n, sizeof *work, layout_float_cmp);
+    for (k = 0; k < LAYOUT_QUANTILES; k++) {
+        double pos = (0.5 + 0.5 * (double)k) / 100.0 * (double)(n - 1);
+        size_t i0 = (size_t)pos;
+        double f = pos - (double)i0;
+        q[k] = i0 + 1 < n ? (1.0 - f) * work[i0] + f * work[i0 + 1] : work[n - 1];
+    }
+    return 1;
+}
+
+/* Mean distance between the output's gradient quantiles at lam and the
+ * exemplars' (the Wasserstein-1 distance of the two distributions). */
+static double layout_misfit(const float *r0, const float *diff, int W, int H, double lam,
+                            const double *target, float *work)
+{
+    double q[LAYOUT_QUANTILES], sum = 0.0;
+    int k;
+    if (!layout_gradient_quantiles(r0, diff, W, W, H, lam, work, q))
+        return 0.0;
+    for (k = 0; k < LAYOUT_QUANTILES; k++)
+        sum += fabs(q[k] - target[k]);
+    return sum / LAYOUT_QUANTILES;
+}
+
 ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
                           const unsigned char *flags, double strength)
 {
-    int W = s->width, H = s->height, any_fixed = 0, e;
+    int W = s->width, H = s->height, any_fixed = 0, e, x, y;
     size_t n = (size_t)W * (size_t)H, i;
-    double P = s->patch, sig_l = P / 3.0, sig_c = P / 8.0, c_l = P, c_c = P / 4.0, g1, gc1;
-    double sign = s->kind == TS_VALLEY ? -1.0 : 1.0;
+    double P = s->patch, g1, gc1, lam = 1.0;
     unsigned char *m = ts_malloc_array(n, 1);
     float *dist = ts_malloc_array(n, sizeof(float));
     int32_t *nearest = ts_malloc_array(n, sizeof(int32_t));
     float *guide = ts_malloc_array(n, sizeof(float));
     float *work = ts_malloc_array(n, sizeof(float));
     float *corr = ts_malloc_array(n, sizeof(float));
+    float *r0 = ts_malloc_array(n, sizeof(float));
     double *gl = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *gc = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *levels = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
     float *fixd = NULL;
+    layout_run_data d;
+    ts_raster r0r;
     ts_status st = TS_OK;
-    if (!m || !dist || !nearest || !guide || !work || !corr || !gl || !gc || !levels) {
+    if (!m || !dist || !nearest || !guide || !work || !corr || !r0 || !gl || !gc || !levels) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
         goto done;
     }
@@ -339,47 +570,134 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         if ((st = ts_distance_transform(ctx, m, W, H, fixd)) != TS_OK)
             goto done;
     }
+    d.s = s;
+    d.strength = strength;
+    d.sig_l = P / 3.0;
+    d.sig_c = P / 8.0;
+    d.c_l = P;
+    d.c_c = P / 4.0;
+    d.sign = s->kind == TS_VALLEY ? -1.0 : 1.0;
+    d.dist = dist;
+    d.fixd = fixd;
+    d.nearest = nearest;
+    d.gl = gl;
+    d.gc = gc;
+    d.levels = levels;
+    d.guide = guide;
+    d.work = work;
+    d.corr = corr;
     /* steepness of the guides and of the exemplars at both scales */
-    if ((st = layout_reach_gradient(ctx, dist, s->nodata, W, H, c_l, sig_l, INFINITY, &g1)) !=
-            TS_OK ||
-        (st = layout_reach_gradient(ctx, dist, s->nodata, W, H, c_c, sig_c, 2.0 * c_c, &gc1)) !=
-            TS_OK ||
-        (st = layout_exemplar_gradients(ctx, s, sig_l, gl)) != TS_OK ||
-        (st = layout_exemplar_gradients(ctx, s, sig_c, gc)) != TS_OK)
+    if ((st = layout_reach_gradient(ctx, dist, s->nodata, W, H, d.c_l, d.sig_l, INFINITY,
+                                    &g1)) != TS_OK ||
+        (st = layout_reach_gradient(ctx, dist, s->nodata, W, H, d.c_c, d.sig_c, 2.0 * d.c_c,
+                                    &gc1)) != TS_OK ||
+        (st = layout_exemplar_gradients(ctx, s, d.sig_l, gl)) != TS_OK ||
+        (st = layout_exemplar_gradients(ctx, s, d.sig_c, gc)) != TS_OK)
         goto done;
     if (!(g1 > 0) || !(gc1 > 0))
         goto done; /* no feature on the grid */
     for (e = 0; e < s->n_exemplars; e++) {
         gl[e] /= g1;
         gc[e] /= gc1;
-        gc[e] *= LAYOUT_CREST_GAIN;
     }
-    /* the layout */
-    for (i = 0; i < n; i++) {
-        double g, level;
-        layout_pick(s, gl, levels, i, &g, &level);
-        guide[i] = (s->nodata && s->nodata[i]) || !isfinite(dist[i])
-                       ? NAN
-                       : (float)(level - sign * g * layout_reach(dist[i], c_l));
-    }
-    if ((st = layout_correct(ctx, out, guide, sig_l, strength, fixd, dist, 0.0, work, corr)) !=
-        TS_OK)
+    /* the corrections are linear in the guides' steepness: with it (out)
+     * and without it (r0) */
+    for (y = 0; y < H; y++)
+        memcpy(r0 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+               (size_t)W * sizeof(float));
+    r0r = ts_raster_wrap(r0, W, H, W);
+    if ((st = layout_run(ctx, &d, out, 1.0)) != TS_OK ||
+        (st = layout_run(ctx, &d, &r0r, 0.0)) != TS_OK)
         goto done;
-    /* the crest: the output along the features, smoothed along them */
-    for (i = 0; i < n; i++)
-        work[i] = (s->sketch_mask[i] & s->kind)
-                      ? out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W]
-                      : NAN;
-    if ((st = ts_blur_nan(ctx, work, W, W, H, sig_c, corr)) != TS_OK)
-        goto done;
-    for (i = 0; i < n; i++) {
-        double g, level;
-        layout_pick(s, gc, levels, i, &g, &level);
-        guide[i] = (s->nodata && s->nodata[i]) || nearest[i] < 0
-                       ? NAN
-                       : (float)(corr[nearest[i]] - sign * g * layout_reach(dist[i], c_c));
+    /* the steepness that gives the output the exemplars' distribution of
+     * slopes (the patches' merging flattens a little; a steep exemplar's
+     * guide adds to its own slopes): the least Wasserstein distance of the
+     * gradient distributions, golden-section search over 0.35..2.5 times
+     * the calibrated steepness */
+    {
+        double target[LAYOUT_QUANTILES], q[LAYOUT_QUANTILES];
+        int k, n_t = 0, it;
+        double lo = log(0.35), hi = log(2.5), g = 0.5 * (sqrt(5.0) - 1.0), x1, x2, f1, f2;
+        memset(target, 0, sizeof target);
+        for (e = 0; e < s->n_exemplars; e++) {
+            const ts_raster *ex = &s->exemplars[e];
+            float *wk = ts_malloc_array((size_t)ex->width * (size_t)ex->height, sizeof(float));
+            if (!wk) {
+                st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+                goto done;
+            }
+            if (layout_gradient_quantiles(ex->data, NULL, ex->stride, ex->width, ex->height,
+                                          0.0, wk, q)) {
+                for (k = 0; k < LAYOUT_QUANTILES; k++)
+                    target[k] += q[k];
+                n_t++;
+            }
+            free(wk);
+        }
+        for (i = 0; i < n; i++) /* out - r0: the part the steepness scales */
+            corr[i] = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W] - r0[i];
+        if (n_t) {
+            for (k = 0; k < LAYOUT_QUANTILES; k++)
+                target[k] /= n_t;
+            x1 = hi - g * (hi - lo);
+            x2 = lo + g * (hi - lo);
+            f1 = layout_misfit(r0, corr, W, H, exp(x1), target, work);
+            f2 = layout_misfit(r0, corr, W, H, exp(x2), target, work);
+            for (it = 0; it < 16; it++) {
+                if (f1 <= f2) {
+                    hi = x2;
+                    x2 = x1;
+                    f2 = f1;
+                    x1 = hi - g * (hi - lo);
+                    f1 = layout_misfit(r0, corr, W, H, exp(x1), target, work);
+                } else {
+                    lo = x1;
+                    x1 = x2;
+                    f1 = f2;
+                    x2 = lo + g * (hi - lo);
+                    f2 = layout_misfit(r0, corr, W, H, exp(x2), target, work);
+                }
+            }
+            lam = exp(0.5 * (lo + hi));
+        }
     }
-    st = layout_correct(ctx, out, guide, sig_c, strength, fixd, dist, 0.5 * P, work, corr);
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            i = (size_t)y * (size_t)W + (size_t)x;
+            if (!isnan(TS_PIX(out, x, y)))
+                TS_PIX(out, x, y) = (float)(r0[i] + lam * corr[i]);
+        }
+    /* valleys: the floor along the sketch's features descends to the
+     * outlet cell by cell, the change fading out across the valley over an
+     * eighth of a patch (as a river would cut or fill its bed) */
+    if (s->kind == TS_VALLEY) {
+        double rr = P / 8.0;
+        for (i = 0; i < n; i++) {
+            float v = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
+            work[i] = (s->sketch_mask[i] & s->kind) && !(fixd && fixd[i] < 1.0f) ? v : NAN;
+            corr[i] = work[i];
+        }
+        if ((st = layout_descend(ctx, s, corr)) != TS_OK)
+            goto done;
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                double w, delta;
+                int32_t p;
+                i = (size_t)y * (size_t)W + (size_t)x;
+                p = nearest[i];
+                if (p < 0 || isnan(TS_PIX(out, x, y)) || isnan(work[p]) || isnan(corr[p]) ||
+                    !(dist[i] < 3.0 * rr))
+                    continue;
+                delta = (double)corr[p] - (double)work[p];
+                w = strength * exp(-(dist[i] / rr) * (dist[i] / rr));
+                if (fixd) {
+                    double t = fixd[i] / (2.0 * rr);
+                    t = t > 1.0 ? 1.0 : t;
+                    w *= t * t * (3.0 - 2.0 * t);
+                }
+                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * delta);
+            }
+    }
 done:
     free(m);
     free(dist);
@@ -387,6 +705,7 @@ done:
     free(guide);
     free(work);
     free(corr);
+    free(r0);
     free(gl);
     free(gc);
     free(levels);

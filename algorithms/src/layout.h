@@ -39,6 +39,12 @@ typedef struct ts_layout_spec {
     int patch;                        /* the patch size, cells: sets both scales */
 } ts_layout_spec;
 
+/* On the feature cells of spec (mask bit kind, level not NaN; level:
+ * width*height), levels made non-increasing from every network's sources
+ * to its outlet (the cell nearest the grid's edge): the mean of filling and
+ * carving (layout.c).  Exposed for the tests. */
+ts_status layout_descend(ts_ctx *ctx, const ts_layout_spec *spec, float *level);
+
 /* The layout and crest corrections of layout.c, applied to out (the
  * sketch's size) with `strength` (0..1); flags (may be NULL): TS_CELL_FIXED
  * cells never change and the corrections fade out near them. */

@@ -309,13 +309,18 @@ int ts_tps_folds(const ts_tps *t, double cx, double cy, double r, int n, double 
         for (a = 0; a < n; a++) {
             double x = cx + r * (2.0 * a / (n - 1) - 1.0), y = cy + r * (2.0 * b / (n - 1) - 1.0);
             double d, q;
-            if ((x - cx) * (x - cx) + (y - cy) * (y - cy) > r * r)
-                continue;
             ts_tps_jacobian(t, x, y, j);
             d = j[0] * j[3] - j[1] * j[2];
-            q = d / d0;
-            if (!(q >= 1.0 / max_ratio && q <= max_ratio))
+            double f2 = 0.5 * (j[0] * j[0] + j[1] * j[1] + j[2] * j[2] + j[3] * j[3]);
+            double disc = sqrt(fmax(f2 * f2 - d * d, 0.0)), s1, s2;
+            q = fabs(d);
+            if (!(d * d0 > 0.0) || !(q >= 1.0 / max_ratio && q <= max_ratio))
                 return 1; /* orientation flips (a fold), or squeezed or stretched too far */
+            /* singular values: one direction stretched, the other squeezed */
+            s1 = sqrt(f2 + disc);
+            s2 = sqrt(fmax(f2 - disc, 0.0));
+            if (!(s1 <= max_ratio * s2))
+                return 1;
         }
     return 0;
 }

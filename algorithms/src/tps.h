@@ -67,12 +67,14 @@ void ts_tps_map(const ts_tps *t, double x, double y, double *ox, double *oy);
 void ts_tps_jacobian(const ts_tps *t, double x, double y, double j[4]);
 
 /*
- * Does the spline fold over the disc of radius r around (cx, cy)?  The
- * Jacobian determinant is sampled on an n x n lattice (n >= 2) over the
- * disc and compared with its value at the centre: 1 when the ratio is
- * negative anywhere (the map turns over: a fold) or leaves [1/max_ratio,
- * max_ratio] (a squeeze or stretch that far smears the terrain), or when
- * the centre's determinant is 0; 0 otherwise.  A mirrored map has a
+ * Does the spline fold over the square of half-side r around (cx, cy)?
+ * The Jacobian determinant is sampled on an n x n lattice (n >= 2) over
+ * the square: 1 when its sign differs anywhere from the centre's (the map turns
+ * over: a fold), when its magnitude leaves [1/max_ratio, max_ratio] (areas
+ * squeezed or stretched that far: the terrain's slopes would change as
+ * much), when one direction is stretched more than max_ratio times the
+ * other (the ratio of the Jacobian's singular values), or when the centre's
+ * determinant is 0; 0 otherwise.  A mirrored map has a
  * negative determinant everywhere and does not fold.
  */
 int ts_tps_folds(const ts_tps *t, double cx, double cy, double r, int n, double max_ratio);
