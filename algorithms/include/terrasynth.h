@@ -424,10 +424,9 @@ typedef struct ts_synth_params {
     /* Non-feature patches from featureless windows (Zhou et al. section
      * 4.2): per exemplar a mask of its main feature cells (non-zero; the
      * exemplar's size, row-major, stride its width; an entry or the array
-     * NULL = none).  Away from cells flagged TS_CELL_FEATURE, the fill takes
-     * only windows with no such cell in their middle half (unless that would
-     * leave less than a quarter of the exemplar's windows).  Set by
-     * ts_synth_sketch; borrowed. */
+     * NULL = none).  Away from cells flagged TS_CELL_FEATURE, the fill leaves
+     * out the quarter of the exemplar's windows with the most such cells in
+     * their middle half.  Set by ts_synth_sketch; borrowed. */
     const unsigned char *const *exemplar_features;
 } ts_synth_params;
 

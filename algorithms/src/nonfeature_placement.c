@@ -36,7 +36,8 @@ typedef struct exemplar_data {
     ts_matcher *matcher;   /* on level[K] */
     int32_t *nodata_sat;   /* summed-area table of full-resolution nodata, (w+1)*(h+1) */
     int32_t *feature_sat;  /* likewise of its main feature cells, or NULL */
-    unsigned char *allowed; /* level-K window positions without main features, or NULL */
+    unsigned char *allowed; /* level-K window positions not rich in main features, or NULL */
+    int32_t feature_limit; /* the most main feature cells an allowed window has */
 } exemplar_data;
 
 typedef struct placer {
@@ -128,26 +129,37 @@ static int32_t sat_sum(const int32_t *sat, int w, int x0, int y0, int x1, int y1
            sat[(size_t)y0 * W + x0];
 }
 
-/* Does the full-resolution window at (x, y) have a main feature cell in
- * its middle half? */
-static int place_featured(const placer *pl, const exemplar_data *e, int x, int y)
+/* Main feature cells in the middle half of the full-resolution window at
+ * (x, y) (0 without a feature mask). */
+static int32_t place_feature_count(const placer *pl, const exemplar_data *e, int x, int y)
 {
     int q = pl->P / 4;
-    return e->feature_sat &&
-           sat_sum(e->feature_sat, e->full->width, x + q, y + q, x + pl->P - q, y + pl->P - q) > 0;
+    return e->feature_sat
+               ? sat_sum(e->feature_sat, e->full->width, x + q, y + q, x + pl->P - q,
+                         y + pl->P - q)
+               : 0;
+}
+
+static int place_int32_cmp(const void *a, const void *b)
+{
+    int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+    return (x > y) - (x < y);
 }
 
 /* The windows the fill takes away from the sketch's features (Zhou et al.
  * section 4.2: non-feature patches come from regions without strong
- * features): level-K positions whose full-resolution window has no main
- * feature cell in its middle half.  Nothing is restricted when that would
- * leave less than a quarter of the windows. */
+ * features): level-K positions whose full-resolution window has no more
+ * main feature cells in its middle half than three quarters of the
+ * windows (the richest quarter is left out; where more than three quarters
+ * have none, only those).  Leaving out every window that touches a feature
+ * would leave a range-and-basin exemplar only its flat basin. */
 static ts_status place_feature_windows(placer *pl, exemplar_data *e, int index)
 {
     const unsigned char *mask =
         pl->p->exemplar_features ? pl->p->exemplar_features[index] : NULL;
     int w = e->full->width, h = e->full->height, nx, ny, x, y;
-    size_t W = (size_t)w + 1, n_ok = 0, n_valid = 0;
+    size_t W = (size_t)w + 1, n_valid = 0;
+    int32_t *counts, limit;
     if (!mask)
         return TS_OK;
     e->feature_sat = ts_calloc_array(W * ((size_t)h + 1), sizeof *e->feature_sat);
@@ -163,24 +175,35 @@ static ts_status place_feature_windows(placer *pl, exemplar_data *e, int index)
     }
     ts_matcher_positions(e->matcher, &nx, &ny);
     e->allowed = ts_malloc_array((size_t)nx * (size_t)ny, 1);
-    if (!e->allowed)
+    counts = ts_malloc_array((size_t)nx * (size_t)ny, sizeof *counts);
+    if (!e->allowed || !counts) {
+        free(counts);
         return ts_fail(pl->ctx, TS_ERR_NOMEM, "synth", "out of memory");
+    }
     for (y = 0; y < ny; y++)
         for (x = 0; x < nx; x++) {
-            int fx = x << e->K, fy = y << e->K, ok = 0;
+            int fx = x << e->K, fy = y << e->K;
             if (fx + pl->P <= w && fy + pl->P <= h &&
-                sat_sum(e->nodata_sat, w, fx, fy, fx + pl->P, fy + pl->P) == 0) {
-                n_valid++;
-                ok = !place_featured(pl, e, fx, fy);
-            }
-            e->allowed[(size_t)y * (size_t)nx + (size_t)x] = (unsigned char)ok;
-            n_ok += (size_t)ok;
+                sat_sum(e->nodata_sat, w, fx, fy, fx + pl->P, fy + pl->P) == 0)
+                counts[n_valid++] = place_feature_count(pl, e, fx, fy);
         }
-    if (4 * n_ok < n_valid) {
-        free(e->allowed); /* too few featureless windows: take any */
+    if (!n_valid) {
+        free(counts);
+        free(e->allowed);
         e->allowed = NULL;
         return TS_OK;
     }
+    qsort(counts, n_valid, sizeof *counts, place_int32_cmp);
+    limit = counts[(3 * n_valid) / 4];
+    free(counts);
+    e->feature_limit = limit;
+    for (y = 0; y < ny; y++)
+        for (x = 0; x < nx; x++) {
+            int fx = x << e->K, fy = y << e->K;
+            e->allowed[(size_t)y * (size_t)nx + (size_t)x] =
+                fx + pl->P <= w && fy + pl->P <= h &&
+                place_feature_count(pl, e, fx, fy) <= limit;
+        }
     return ts__matcher_set_allowed(pl->ctx, e->matcher, e->allowed);
 }
 
@@ -588,7 +611,8 @@ static ts_status place_one(placer *pl, placement *q, int index)
             x = (int)(place_rand(pl) % (uint64_t)(ed->full->width - P + 1));
             y = (int)(place_rand(pl) % (uint64_t)(ed->full->height - P + 1));
             if (sat_sum(ed->nodata_sat, ed->full->width, x, y, x + P, y + P) == 0 &&
-                !(restrict_features && ed->allowed && place_featured(pl, ed, x, y))) {
+                !(restrict_features && ed->allowed &&
+                  place_feature_count(pl, ed, x, y) > ed->feature_limit)) {
                 found[n_ok].e = e;
                 found[n_ok].x = x;
                 found[n_ok].y = y;

@@ -46,13 +46,13 @@ JB, ZI, SH, SH10 = "hills_jacksboro_tn_3arcsec.tif", "canyon_zion_ut_srtm90m.tif
 MATRIX = [
     ("fork_valleys_800.tif", "shared", [BT, AI, SH10], None),
     ("star_ridges_720.tif", "shared", [MK, BT, AI], None),
-    ("meander_valley_900.tif", "shared", [BT, SH, MK], 30.0),
+    ("meander_valley_900.tif", "shared", [BT, ZI, MK], 30.0),
     ("arcs_ridges_geo1s.tif", "shared", [MK, BT, AI], None),
     ("comb_valleys_640.tif", "shared", [AI, BT, SH10], None),
     ("dendritic_valleys_768.tif", "own", [BT, AI, SH10], None),
     ("junction4_ridges_640.tif", "own", [MK, BT, AI], None),
     ("spiral_ridge_geo3s_560.tif", "own", [JB, BT, MK], None),
-    ("radial5_valleys_600.tif", "own", [SH, BT, AI], None),
+    ("radial5_valleys_600.tif", "own", [SH10, BT, AI], None),
     ("fishbone_ridges_geo1s_640.tif", "own", [BT, MK, AI], None),
 ]
 NOCRS_CELL = {AI: 20.0, SH10: 10.0}
