@@ -503,6 +503,25 @@ static int layout_gradient_quantiles(const float *a, const float *b, ptrdiff_t s
     return 1;
 }
 
+/* The p-th percentile (0..100) of the valid cells of r, over at most about
+ * LAYOUT_SAMPLES cells on a regular lattice (NAN when none is valid). */
+static double layout_percentile(const ts_raster *r, double p, float *work)
+{
+    double cells = (double)r->width * (double)r->height, pos;
+    int step = cells > LAYOUT_SAMPLES ? (int)ceil(sqrt(cells / LAYOUT_SAMPLES)) : 1, x, y;
+    size_t n = 0, i0;
+    for (y = 0; y < r->height; y += step)
+        for (x = 0; x < r->width; x += step)
+            if (!isnan(TS_PIX(r, x, y)))
+                work[n++] = TS_PIX(r, x, y);
+    if (!n)
+        return NAN;
+    qsort(work, n, sizeof *work, layout_float_cmp);
+    pos = p / 100.0 * (double)(n - 1);
+    i0 = (size_t)pos;
+    return i0 + 1 < n ? work[i0] + (pos - (double)i0) * (work[i0 + 1] - work[i0]) : work[n - 1];
+}
+
 /* Mean distance between the output's gradient quantiles at lam and the
  * exemplars' (the Wasserstein-1 distance of the two distributions). */
 static double layout_misfit(const float *r0, const float *diff, int W, int H, double lam,
@@ -522,7 +541,7 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
 {
     int W = s->width, H = s->height, any_fixed = 0, e, x, y;
     size_t n = (size_t)W * (size_t)H, i;
-    double P = s->patch, g1, gc1, lam = 1.0;
+    double P = s->patch, g1, gc1, lam = 1.0, mean_before = 0.0;
     unsigned char *m = ts_malloc_array(n, 1);
     float *dist = ts_malloc_array(n, sizeof(float));
     int32_t *nearest = ts_malloc_array(n, sizeof(int32_t));
@@ -606,6 +625,15 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         memcpy(r0 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
                (size_t)W * sizeof(float));
     r0r = ts_raster_wrap(r0, W, H, W);
+    {
+        size_t cnt = 0;
+        for (i = 0; i < n; i++)
+            if (!isnan(r0[i]) && !(fixd && fixd[i] < 2.0 * d.sig_l)) {
+                mean_before += r0[i];
+                cnt++;
+            }
+        mean_before = cnt ? mean_before / (double)cnt : 0.0;
+    }
     if ((st = layout_run(ctx, &d, out, 1.0)) != TS_OK ||
         (st = layout_run(ctx, &d, &r0r, 0.0)) != TS_OK)
         goto done;
@@ -667,6 +695,75 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
             if (!isnan(TS_PIX(out, x, y)))
                 TS_PIX(out, x, y) = (float)(r0[i] + lam * corr[i]);
         }
+    /* the layout moves heights about, not the land's mean height: the mean
+     * is put back where the patches had it (fading out near fixed cells) */
+    {
+        double after = 0.0, shift;
+        size_t cnt = 0;
+        for (i = 0; i < n; i++) {
+            double z = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
+            if (isnan(z) || isnan(r0[i]) || (fixd && fixd[i] < 2.0 * d.sig_l))
+                continue;
+            after += z;
+            cnt++;
+        }
+        shift = cnt ? (mean_before - after / (double)cnt) : 0.0;
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                double w = 1.0;
+                i = (size_t)y * (size_t)W + (size_t)x;
+                if (isnan(TS_PIX(out, x, y)))
+                    continue;
+                if (fixd) {
+                    double t = fixd[i] / (2.0 * d.sig_l);
+                    t = t > 1.0 ? 1.0 : t;
+                    w = t * t * (3.0 - 2.0 * t);
+                }
+                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * shift);
+            }
+    }
+    /* the land's large-scale heights (blurred at the layout scale) stay
+     * within the exemplars' 1st to 99th percentile: beyond, they are pressed
+     * smoothly into a margin of a tenth of that range, as a far lowland
+     * levels out; the detail above them is kept */
+    {
+        double lo = INFINITY, hi = -INFINITY, margin;
+        for (e = 0; e < s->n_exemplars; e++) {
+            const ts_raster *ex = &s->exemplars[e];
+            float *wk = ts_malloc_array((size_t)ex->width * (size_t)ex->height, sizeof(float));
+            if (!wk) {
+                st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+                goto done;
+            }
+            lo = fmin(lo, layout_percentile(ex, 1.0, wk));
+            hi = fmax(hi, layout_percentile(ex, 99.0, wk));
+            free(wk);
+        }
+        margin = 0.1 * (hi - lo);
+        for (y = 0; y < H; y++)
+            memcpy(work + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+                   (size_t)W * sizeof(float));
+        if (isfinite(lo) && isfinite(hi) && margin > 0 &&
+            (st = ts_blur_nan(ctx, work, W, W, H, d.sig_l, corr)) == TS_OK)
+            for (y = 0; y < H; y++)
+                for (x = 0; x < W; x++) {
+                    double L, w = 1.0, want;
+                    i = (size_t)y * (size_t)W + (size_t)x;
+                    L = corr[i];
+                    if (isnan(TS_PIX(out, x, y)) || isnan(L) || (L >= lo && L <= hi))
+                        continue;
+                    want = L < lo ? lo - margin * (1.0 - exp((L - lo) / margin))
+                                  : hi + margin * (1.0 - exp((hi - L) / margin));
+                    if (fixd) {
+                        double t = fixd[i] / (2.0 * d.sig_l);
+                        t = t > 1.0 ? 1.0 : t;
+                        w = t * t * (3.0 - 2.0 * t);
+                    }
+                    TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * (want - L));
+                }
+        if (st != TS_OK)
+            goto done;
+    }
     /* valleys: the floor along the sketch's features descends to the
      * outlet cell by cell, the change fading out across the valley over an
      * eighth of a patch (as a river would cut or fill its bed) */

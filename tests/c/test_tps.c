@@ -568,6 +568,97 @@ static void test_warp_curved_parallel(void)
     ts_ctx_free(ctx);
 }
 
+/* The analytic Jacobian against central differences of ts_tps_map. */
+static void test_jacobian_finite_differences(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t rng = 23;
+    int rep, k;
+    for (rep = 0; rep < 30; rep++) {
+        double sx[NMAX], sy[NMAX], dx[NMAX], dy[NMAX], j[4];
+        int n = 3 + rep % 8;
+        ts_tps t;
+        random_config(&rng, n, 40.0, 2.0, 4.0, sx, sy, dx, dy);
+        CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+        for (k = 0; k < 20; k++) {
+            double x = -5.0 + 50.0 * th_uniform(&rng), y = -5.0 + 50.0 * th_uniform(&rng);
+            double h = 1e-5, ax, ay, bx, by, cx, cy, ex, ey;
+            ts_tps_jacobian(&t, x, y, j);
+            ts_tps_map(&t, x + h, y, &ax, &ay);
+            ts_tps_map(&t, x - h, y, &bx, &by);
+            ts_tps_map(&t, x, y + h, &cx, &cy);
+            ts_tps_map(&t, x, y - h, &ex, &ey);
+            CHECK_NEAR(j[0], (ax - bx) / (2 * h), 1e-5 * (1 + fabs(j[0])));
+            CHECK_NEAR(j[2], (ay - by) / (2 * h), 1e-5 * (1 + fabs(j[2])));
+            CHECK_NEAR(j[1], (cx - ex) / (2 * h), 1e-5 * (1 + fabs(j[1])));
+            CHECK_NEAR(j[3], (cy - ey) / (2 * h), 1e-5 * (1 + fabs(j[3])));
+        }
+    }
+    ts_ctx_free(ctx);
+}
+
+/* Folds: a rigid map and a mild bend do not fold; swapping two neighbouring
+ * arms of a junction turns the map over between them; a mirror does not
+ * fold; a uniform scale of 2 (area 4) is a stretch beyond 2.5; a map that
+ * stretches one axis 3 times and squeezes the other 3 times keeps areas
+ * but is refused. */
+static void test_folds(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    /* a centre and four arms at radius 10 */
+    double sx[5] = {0, 10, 0, -10, 0}, sy[5] = {0, 0, 10, 0, -10};
+    double dx[5], dy[5];
+    ts_tps t;
+    int i;
+    /* rotation by 30 degrees */
+    for (i = 0; i < 5; i++) {
+        double c = cos(0.5236), s = sin(0.5236);
+        dx[i] = c * sx[i] - s * sy[i] + 3;
+        dy[i] = s * sx[i] + c * sy[i] - 2;
+    }
+    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    /* a mild bend of one arm */
+    memcpy(dx, sx, sizeof dx);
+    memcpy(dy, sy, sizeof dy);
+    dy[1] = 2.0;
+    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    /* arms 1 and 2 swapped: the map turns over */
+    memcpy(dx, sx, sizeof dx);
+    memcpy(dy, sy, sizeof dy);
+    dx[1] = 0;
+    dy[1] = 10;
+    dx[2] = 10;
+    dy[2] = 0;
+    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    /* a mirror (y flipped) is orientation-reversing everywhere: no fold */
+    for (i = 0; i < 5; i++) {
+        dx[i] = sx[i];
+        dy[i] = -sy[i];
+    }
+    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    /* uniform scale 2: areas times 4 */
+    for (i = 0; i < 5; i++) {
+        dx[i] = 2 * sx[i];
+        dy[i] = 2 * sy[i];
+    }
+    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 4.5));
+    /* 3 times along x, a third along y: the same area, too anisotropic */
+    for (i = 0; i < 5; i++) {
+        dx[i] = 3 * sx[i];
+        dy[i] = sy[i] / 3;
+    }
+    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 9.5));
+    ts_ctx_free(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -584,6 +675,8 @@ int main(int argc, char **argv)
         {"warp_integer_shift", test_warp_integer_shift},
         {"warp_half_cells_and_nodata", test_warp_half_cells_and_nodata},
         {"warp_curved_parallel", test_warp_curved_parallel},
+        {"jacobian_finite_differences", test_jacobian_finite_differences},
+        {"folds", test_folds},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

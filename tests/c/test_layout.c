@@ -1,0 +1,302 @@
+/*
+ * test_layout.c - the layout stage of sketch-guided synthesis
+ * (algorithms/src/layout.c) and what it stands on: the nearest feature cell
+ * of the distance transform against brute force, the three-box blur
+ * against a direct NaN-aware convolution with the same kernel (and its
+ * spread against the Gaussian it stands for), valley floors made to
+ * descend on a branching network, and the corrections themselves: a flat
+ * land takes the sketch's ridge, fixed cells never change, strength 0
+ * changes nothing, valley floors descend cell by cell.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include "harness.h"
+#include "layout.h"
+#include "relief_guide.h"
+#include "terrasynth.h"
+
+/* ---- the nearest feature cell == brute force ---- */
+static void test_nearest_brute_force(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t s = 17;
+    int rep;
+    for (rep = 0; rep < 30; rep++) {
+        int w = 1 + (int)(th_uniform(&s) * 60), h = 1 + (int)(th_uniform(&s) * 45), i, bad = 0;
+        double density = rep == 0 ? 0.0 : th_uniform(&s) * 0.08;
+        unsigned char *m = malloc((size_t)w * h);
+        float *d = malloc((size_t)w * h * sizeof(float));
+        int32_t *nr = malloc((size_t)w * h * sizeof(int32_t));
+        for (i = 0; i < w * h; i++)
+            m[i] = th_uniform(&s) < density;
+        ts_ctx_set_threads(ctx, 1 + rep % 3);
+        CHECK(ts_distance_transform_nearest(ctx, m, w, h, d, nr) == TS_OK);
+        for (i = 0; i < w * h && !bad; i++) {
+            int x = i % w, y = i / w, u, v;
+            double best = INFINITY;
+            for (v = 0; v < h; v++)
+                for (u = 0; u < w; u++)
+                    if (m[v * w + u])
+                        best = fmin(best, hypot(u - x, v - y));
+            if (isinf(best)) {
+                CHECK(nr[i] == -1);
+                bad |= nr[i] != -1;
+                continue;
+            }
+            /* a feature cell, at the brute-force distance */
+            if (!(nr[i] >= 0 && nr[i] < w * h && m[nr[i]] &&
+                  fabs(hypot(nr[i] % w - x, nr[i] / w - y) - best) <= 1e-9 &&
+                  fabs(d[i] - best) <= 1e-4 * (1 + best))) {
+                CHECK_MSG(0, "rep %d cell (%d, %d): nearest %d, distance %g, brute force %g", rep,
+                          x, y, nr[i], d[i], best);
+                bad = 1;
+            }
+        }
+        free(m);
+        free(d);
+        free(nr);
+    }
+    ts_ctx_free(ctx);
+}
+
+/* ---- blur == direct convolution with the three-box kernel ---- */
+
+/* The 1-D kernel of three boxes of radius r (length 6r + 1). */
+static void three_box_kernel(int r, double *k)
+{
+    int n = 2 * r + 1, i, j, len = 6 * r + 1;
+    double a[1024], b[1024];
+    for (i = 0; i < len; i++)
+        a[i] = b[i] = 0.0;
+    for (i = 0; i < n; i++)
+        a[i] = 1.0;
+    for (i = 0; i < len; i++) /* box * box */
+        for (j = 0; j < n && j <= i; j++)
+            b[i] += a[i - j];
+    for (i = 0; i < len; i++) {
+        k[i] = 0.0;
+        for (j = 0; j < n && j <= i; j++)
+            k[i] += b[i - j];
+    }
+}
+
+static void test_blur_direct(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t s = 3;
+    int rep;
+    for (rep = 0; rep < 12; rep++) {
+        int w = 40 + (int)(th_uniform(&s) * 40), h = 40 + (int)(th_uniform(&s) * 30), x, y, u, v;
+        double sigma = 0.6 + th_uniform(&s) * 5.0, k[1024], var = 0.0, sum = 0.0;
+        int r = ts_blur_radius(sigma), half = 3 * r;
+        float *in = malloc((size_t)w * h * sizeof(float)), *out = malloc((size_t)w * h * sizeof(float));
+        for (x = 0; x < w * h; x++)
+            in[x] = th_uniform(&s) < 0.15 ? NAN : (float)(100.0 * th_uniform(&s));
+        ts_ctx_set_threads(ctx, 1 + rep % 2);
+        CHECK(ts_blur_nan(ctx, in, w, w, h, sigma, out) == TS_OK);
+        three_box_kernel(r, k);
+        for (x = -half; x <= half; x++) {
+            sum += k[x + half];
+            var += k[x + half] * x * x;
+        }
+        /* three boxes stand for a Gaussian of sigma (rounded to whole boxes) */
+        CHECK_NEAR(sqrt(var / sum), sigma, 0.6);
+        for (y = 0; y < h; y++)
+            for (x = 0; x < w; x++) {
+                double num = 0.0, den = 0.0, want;
+                for (v = -half; v <= half; v++)
+                    for (u = -half; u <= half; u++) {
+                        int xx = x + u, yy = y + v;
+                        double wt;
+                        if (xx < 0 || yy < 0 || xx >= w || yy >= h || isnan(in[yy * w + xx]))
+                            continue;
+                        wt = k[u + half] * k[v + half];
+                        num += wt * in[yy * w + xx];
+                        den += wt;
+                    }
+                want = den > 0 ? num / den : NAN;
+                if (x < half || y < half || x >= w - half || y >= h - half) {
+                    /* near the edges the passes are clipped one by one: a
+                     * weighted mean of the valid input all the same */
+                    CHECK(!(out[y * w + x] < -1e-3) && !(out[y * w + x] > 100.001));
+                    continue;
+                }
+                if (isnan(want))
+                    CHECK(isnan(out[y * w + x]));
+                else
+                    CHECK_NEAR(out[y * w + x], want, 1e-3);
+            }
+        free(in);
+        free(out);
+    }
+    ts_ctx_free(ctx);
+}
+
+/* ---- a network of valleys made to descend ---- */
+
+/* A trunk along row 20 from x = 0 (the outlet, on the edge) to x = 60, a
+ * tributary down column 40 from y = 2, with bumpy levels. */
+static void y_network(int W, int H, unsigned char *mask, float *level, uint64_t *s)
+{
+    int x, y;
+    memset(mask, 0, (size_t)W * H);
+    for (x = 0; x < W * H; x++)
+        level[x] = NAN;
+    for (x = 0; x <= 60; x++) {
+        mask[20 * W + x] = TS_VALLEY;
+        level[20 * W + x] = (float)(100.0 + 2.0 * x + 30.0 * th_uniform(s));
+    }
+    for (y = 2; y < 20; y++) {
+        mask[y * W + 40] = TS_VALLEY;
+        level[y * W + 40] = (float)(250.0 + 3.0 * (20 - y) + 40.0 * th_uniform(s));
+    }
+}
+
+static void test_descend(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int W = 70, H = 30, x, y, rep;
+    unsigned char *mask = malloc((size_t)W * H);
+    float *level = malloc((size_t)W * H * sizeof(float));
+    float *orig = malloc((size_t)W * H * sizeof(float));
+    ts_layout_spec sp;
+    uint64_t s = 9;
+    memset(&sp, 0, sizeof sp);
+    sp.sketch_mask = mask;
+    sp.kind = TS_VALLEY;
+    sp.width = W;
+    sp.height = H;
+    for (rep = 0; rep < 10; rep++) {
+        y_network(W, H, mask, level, &s);
+        memcpy(orig, level, (size_t)W * H * sizeof(float));
+        CHECK(layout_descend(ctx, &sp, level) == TS_OK);
+        /* downstream (towards x = 0 on the trunk, towards row 20 on the
+         * tributary, then the trunk) never climbs */
+        for (x = 1; x <= 60; x++)
+            CHECK(level[20 * W + x - 1] <= level[20 * W + x]);
+        for (y = 3; y < 20; y++)
+            CHECK(level[y * W + 40] <= level[(y - 1) * W + 40]);
+        CHECK(level[19 * W + 40] >= level[20 * W + 40] || level[19 * W + 40] >= level[20 * W + 39]);
+        /* between the lowest and the highest of the old levels */
+        for (x = 0; x < W * H; x++)
+            if (mask[x]) {
+                CHECK(level[x] >= 99.0f && level[x] <= 400.0f);
+            } else {
+                CHECK(isnan(level[x]));
+            }
+    }
+    /* levels that already descend stay as they are */
+    y_network(W, H, mask, level, &s);
+    for (x = 0; x <= 60; x++)
+        level[20 * W + x] = (float)(100 + x);
+    for (y = 2; y < 20; y++)
+        level[y * W + 40] = (float)(140 + 20 - y);
+    memcpy(orig, level, (size_t)W * H * sizeof(float));
+    CHECK(layout_descend(ctx, &sp, level) == TS_OK);
+    for (x = 0; x < W * H; x++)
+        if (mask[x])
+            CHECK(level[x] == orig[x]);
+    free(mask);
+    free(level);
+    free(orig);
+    ts_ctx_free(ctx);
+}
+
+/* ---- the corrections ---- */
+
+/* An exemplar with ridges: rows of a sine, 60 cells a period. */
+static void make_exemplar(ts_raster *ex)
+{
+    int x, y;
+    for (y = 0; y < ex->height; y++)
+        for (x = 0; x < ex->width; x++)
+            TS_PIX(ex, x, y) = (float)(500.0 + 200.0 * sin(2.0 * 3.14159265358979323846 * x / 60.0) +
+                                       20.0 * sin(0.7 * y + 0.3 * x));
+}
+
+static void test_corrections(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int W = 160, H = 120, x, y, P = 32;
+    size_t n = (size_t)W * H;
+    unsigned char *mask = calloc(n, 1), *flags = calloc(n, 1);
+    ts_raster ex, out, keep;
+    ts_relief_profile prof;
+    ts_layout_spec sp;
+    uint64_t s = 4;
+    CHECK(ts_raster_alloc(ctx, 200, 200, &ex) == TS_OK);
+    CHECK(ts_raster_alloc(ctx, W, H, &out) == TS_OK);
+    CHECK(ts_raster_alloc(ctx, W, H, &keep) == TS_OK);
+    make_exemplar(&ex);
+    memset(&prof, 0, sizeof prof);
+    prof.valid = 1;
+    prof.level = 700.0;
+    /* a ridge stroke across the middle row */
+    for (x = 10; x < W - 10; x++)
+        mask[60 * W + x] = TS_RIDGE;
+    memset(&sp, 0, sizeof sp);
+    sp.sketch_mask = mask;
+    sp.kind = TS_RIDGE;
+    sp.width = W;
+    sp.height = H;
+    sp.exemplars = &ex;
+    sp.n_exemplars = 1;
+    sp.profs = &prof;
+    sp.patch = P;
+    /* a rough flat land */
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++)
+            TS_PIX(&out, x, y) = TS_PIX(&keep, x, y) = (float)(400.0 + 5.0 * th_uniform(&s));
+    /* strength 0: nothing changes */
+    CHECK(ts_layout_apply(ctx, &sp, &out, NULL, 0.0) == TS_OK);
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++)
+            CHECK(TS_PIX(&out, x, y) == TS_PIX(&keep, x, y));
+    /* a fixed window (a pin) in the corner never changes */
+    for (y = 5; y < 25; y++)
+        for (x = 5; x < 25; x++)
+            flags[y * W + x] = TS_CELL_FIXED;
+    CHECK(ts_layout_apply(ctx, &sp, &out, flags, 1.0) == TS_OK);
+    for (y = 5; y < 25; y++)
+        for (x = 5; x < 25; x++)
+            CHECK(TS_PIX(&out, x, y) == TS_PIX(&keep, x, y));
+    /* the land now rises to the stroke: higher on it than 20 and 40 cells
+     * away on both sides, all along it */
+    for (x = 50; x < W - 30; x += 10) {
+        double on = TS_PIX(&out, x, 60);
+        CHECK(on > TS_PIX(&out, x, 40) + 20.0 && on > TS_PIX(&out, x, 80) + 20.0);
+        CHECK(TS_PIX(&out, x, 40) > TS_PIX(&out, x, 20) && TS_PIX(&out, x, 80) > TS_PIX(&out, x, 100));
+    }
+    /* valleys: a flat land with a bumpy floor along a valley stroke from
+     * the west edge: after the corrections the floor descends to the edge */
+    memset(mask, 0, n);
+    for (x = 0; x < W - 10; x++)
+        mask[60 * W + x] = TS_VALLEY;
+    sp.kind = TS_VALLEY;
+    prof.level = 300.0;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++)
+            TS_PIX(&out, x, y) =
+                (float)(400.0 + 5.0 * th_uniform(&s) + (y == 60 ? 30.0 * sin(0.3 * x) : 0.0));
+    CHECK(ts_layout_apply(ctx, &sp, &out, NULL, 1.0) == TS_OK);
+    for (x = 1; x < W - 10; x++)
+        CHECK(TS_PIX(&out, x - 1, 60) <= TS_PIX(&out, x, 60));
+    CHECK(TS_PIX(&out, 80, 60) < TS_PIX(&out, 80, 30) - 20.0);
+    ts_raster_free(&ex);
+    ts_raster_free(&out);
+    ts_raster_free(&keep);
+    free(mask);
+    free(flags);
+    ts_ctx_free(ctx);
+}
+
+int main(int argc, char **argv)
+{
+    static const th_case cases[] = {
+        {"nearest_brute_force", test_nearest_brute_force},
+        {"blur_direct", test_blur_direct},
+        {"descend", test_descend},
+        {"corrections", test_corrections},
+    };
+    return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
+}

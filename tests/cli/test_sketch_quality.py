@@ -1,0 +1,85 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""Sketch fidelity judged by an independent yardstick.
+
+../shared/eval/terrain_metrics.py (none of our code) scores terrains synthesised on the
+sketches ../shared/eval/make_sketches.py draws, with real DEMs of ../shared/data/dem, over
+several seeds: a valley network (degree-3 forks), a five-way and a four-way ridge junction, a
+long meandering valley on a grid without CRS, concentric ridges on a geographic grid and a comb
+of valleys.  Every case must meet the goal of the sketch-fidelity issue: structure_r >= 0.6,
+feature_recall >= 0.7, seam_lap and seam_grad <= 1.2, slope_w1 <= 3 degrees.  The whole matrix
+(more sketches, more DEMs) is bench/quality.  Skips when ../shared or scipy is absent.
+"""
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tsutil import SHARED, run  # noqa: E402
+
+EVAL = os.path.normpath(os.path.join(SHARED, "..", "..", "eval"))
+METRICS = os.path.join(EVAL, "terrain_metrics.py")
+SKETCHER = os.path.join(EVAL, "make_sketches.py")
+SEEDS = [int(s) for s in os.environ.get("TS_QUALITY_SEEDS", "1,2").split(",")]
+
+try:
+    import scipy  # noqa: F401  (the yardstick needs it)
+    HAVE_SCIPY = True
+except ImportError:
+    HAVE_SCIPY = False
+
+pytestmark = pytest.mark.skipif(
+    not (os.path.exists(METRICS) and os.path.exists(SKETCHER) and HAVE_SCIPY),
+    reason="needs ../shared/eval and scipy")
+
+GOAL = {"structure_r": (">=", 0.6), "feature_recall": (">=", 0.7), "seam_lap": ("<=", 1.2),
+        "seam_grad": ("<=", 1.2), "slope_w1_deg": ("<=", 3.0)}
+
+CASES = [  # class, sketch, exemplar, cell size of CRS-less rasters
+    ("valley network", "fork_valleys_800.tif", "mountains_bigtujunga_ca_30m.tif", None),
+    ("many-way junctions", "star_ridges_720.tif", "mountains_mackay_id_30m.tif", None),
+    ("long path, no CRS", "meander_valley_900.tif", "mountains_bigtujunga_ca_30m.tif", 30),
+    ("geographic grid", "arcs_ridges_geo1s.tif", "mountains_mackay_id_30m.tif", None),
+    ("parallel valleys", "comb_valleys_640.tif", "mountains_aiguestortes_pyrenees_20m_nocrs.tif",
+     20),
+]
+
+
+@pytest.fixture(scope="module")
+def sketches(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sketches")
+    subprocess.run([sys.executable, SKETCHER, str(d)], check=True, capture_output=True)
+    return d
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("cls,sketch,exemplar,cell", CASES, ids=[c[0] for c in CASES])
+def test_meets_the_goal(sketches, tmp_path, cls, sketch, exemplar, cell, seed):
+    ex = os.path.join(SHARED, exemplar)
+    if not os.path.exists(ex):
+        pytest.skip(f"{ex} absent")
+    out = tmp_path / "out.tif"
+    extra = ["--cell-size", cell] if cell else []
+    run("synth", "-q", "--sketch", sketches / sketch, "--exemplar", ex, "--seed", seed, out,
+        *extra)
+    p = subprocess.run([sys.executable, METRICS, "--out", str(out), "--exemplar", ex, "--sketch",
+                        str(sketches / sketch), "--patch", "64", *map(str, extra)],
+                       capture_output=True, text=True, check=True)
+    m = json.loads(p.stdout)
+    misses = [f"{k} {m[k]:.3f} (goal {op} {lim})" for k, (op, lim) in GOAL.items()
+              if not (m[k] >= lim if op == ">=" else m[k] <= lim)]
+    assert not misses, f"{cls}, {sketch} x {exemplar}, seed {seed}: " + ", ".join(misses)
+
+
+def test_layout_off_does_not_follow(sketches, tmp_path):
+    """The oracle can fail: without the layout the valley network is not there."""
+    ex = os.path.join(SHARED, "mountains_bigtujunga_ca_30m.tif")
+    out = tmp_path / "out.tif"
+    run("synth", "-q", "--sketch", sketches / "fork_valleys_800.tif", "--exemplar", ex,
+        "--seed", 1, "--layout", 0, out)
+    p = subprocess.run([sys.executable, METRICS, "--out", str(out), "--exemplar", ex, "--sketch",
+                        str(sketches / "fork_valleys_800.tif"), "--patch", "64"],
+                       capture_output=True, text=True, check=True)
+    assert json.loads(p.stdout)["structure_r"] < 0.6
