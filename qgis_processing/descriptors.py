@@ -86,6 +86,12 @@ FALLBACK = {
                      "heights along the sketch's strokes bend less, within a feature patch and "
                      "where it joins the placed ones; larger gives smoother, gentler crests "
                      "(0 = off)."},
+            {"name": "alpha_p", "flag": "--alpha-p", "type": "double", "default": 1,
+             "min": 0, "max": 1000000000, "units": "", "choices": None,
+             "help": "Weight of the crest prominence c_p of feature patches: among the "
+                     "candidates that fit, those whose crest (valleys: thalweg) stands out most "
+                     "across the stroke, an eighth of a patch either side, so that sketched "
+                     "strokes read as main features (0 = off)."},
             {"name": "alpha_r", "flag": "--alpha-r", "type": "double", "default": 0.5,
              "min": 0, "max": 1000000000, "units": "", "choices": None,
              "help": "Weight of the relief guide: sketched ridges stand high and sketched "
