@@ -83,3 +83,33 @@ def test_layout_off_does_not_follow(sketches, tmp_path):
                         str(sketches / "fork_valleys_800.tif"), "--patch", "64"],
                        capture_output=True, text=True, check=True)
     assert json.loads(p.stdout)["structure_r"] < 0.6
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_valleys_descend(sketches, tmp_path, seed):
+    """No sketched valley climbs over a saddle: along every valley path of the sketch (as
+    --debug-dir writes them), the output's floor runs one way, within 15 m over 16 cells."""
+    from osgeo import gdal, ogr
+    ex = os.path.join(SHARED, "mountains_bigtujunga_ca_30m.tif")
+    if not os.path.exists(ex):
+        pytest.skip(f"{ex} absent")
+    out, dbg = tmp_path / "out.tif", tmp_path / "dbg"
+    run("synth", "-q", "--sketch", sketches / "fork_valleys_800.tif", "--exemplar", ex,
+        "--seed", seed, out, "--debug-dir", dbg)
+    ds = gdal.Open(str(out))
+    z, gt = ds.ReadAsArray(), ds.GetGeoTransform()
+    vec = ogr.Open(str(dbg / "sketch_features.gpkg"))  # kept open: the layer lives in it
+    paths = vec.GetLayerByName("paths")
+    n_paths = 0
+    for f in paths:
+        g = f.GetGeometryRef()
+        prof = [float(z[int((g.GetY(i) - gt[3]) / gt[5]), int((g.GetX(i) - gt[0]) / gt[1])])
+                for i in range(g.GetPointCount())]
+        if len(prof) < 48:
+            continue
+        if prof[0] < prof[-1]:
+            prof = prof[::-1]
+        steps = [prof[i + 16] - prof[i] for i in range(0, len(prof) - 16, 16)]
+        assert max(steps) < 15.0, f"a valley climbs {max(steps):.0f} m over 16 cells"
+        n_paths += 1
+    assert n_paths >= 5
