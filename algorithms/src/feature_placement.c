@@ -1071,6 +1071,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         ls.profs = k.profs;
         ls.cell_exemplar = params->cell_exemplar;
         ls.patch = k.P;
+        ls.features = sf;
         st = ts_layout_apply(ctx, &ls, out, k.user_flags, sp->layout);
         if (st == TS_OK)
             st = ts_progress(ctx, 1.0, "layout");

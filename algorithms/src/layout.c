@@ -287,107 +287,172 @@ static ts_status layout_correct(ts_ctx *ctx, ts_raster *out, const float *guide,
 }
 
 /*
- * Valley floors that descend (no valley climbs over a saddle): on every
- * 8-connected network of feature cells, the outlet is the cell nearest the
- * grid's edge (ties: the lowest); breadth first from it, each cell's
- * downstream neighbour is the one it was reached from.  `fill` raises every
- * cell to its downstream neighbour's filled level, `carve` lowers it to the
- * carved levels of all its upstream ones; both are non-increasing
- * downstream, and so is their mean, which replaces level[] on the feature
- * cells (other cells are left as they are).  O(feature cells).
+ * Valley floors that descend (no valley climbs over a saddle), on the
+ * sketch's feature graph: in every connected network, the outlet is the
+ * endpoint nearest the grid's edge (ties: the lowest; a network without
+ * endpoints takes its node nearest the edge); breadth first from it over
+ * the nodes, every path runs from the node reached first (downstream) to
+ * the other.  `fill` walks each path upstream raising every vertex to the
+ * level below it, `carve` walks it downstream lowering every vertex to the
+ * level above it (a node takes the lowest of the paths that reach it from
+ * upstream); both never rise downstream, and neither does their mean,
+ * which replaces level[] on the paths' cells.  Other cells are left as
+ * they are.  O(vertices).
  */
 ts_status layout_descend(ts_ctx *ctx, const ts_layout_spec *s, float *level)
 {
+    const ts_features *f = s->features;
     int W = s->width, H = s->height;
-    size_t n = (size_t)W * (size_t)H, i, head, tail, n_order = 0;
-    int32_t *parent = ts_malloc_array(n, sizeof(int32_t));
-    int32_t *queue = ts_malloc_array(n, sizeof(int32_t));
-    double *fill = ts_malloc_array(n, sizeof(double)), *carve = ts_malloc_array(n, sizeof(double));
-    unsigned char *seen = ts_calloc_array(n, 1);
+    size_t nn, np, i, k, head, tail;
+    size_t *order = NULL, *qpath = NULL;
+    long *down = NULL;             /* per path: its downstream node, -1 unused */
+    double *nfill = NULL, *ncarve = NULL, *vfill = NULL, *vcarve = NULL;
+    unsigned char *seen = NULL;
     ts_status st = TS_OK;
-    if (!parent || !queue || !fill || !carve || !seen) {
+    if (!f || !f->n_paths)
+        return TS_OK;
+    nn = f->n_nodes;
+    np = f->n_paths;
+    order = ts_malloc_array(nn + 1, sizeof *order);
+    qpath = ts_malloc_array(np + 1, sizeof *qpath);
+    down = ts_malloc_array(np + 1, sizeof *down);
+    nfill = ts_malloc_array(nn + 1, sizeof *nfill);
+    ncarve = ts_malloc_array(nn + 1, sizeof *ncarve);
+    vfill = ts_malloc_array(f->n_verts + 1, sizeof *vfill);
+    vcarve = ts_malloc_array(f->n_verts + 1, sizeof *vcarve);
+    seen = ts_calloc_array(nn + 1, 1);
+    if (!order || !qpath || !down || !nfill || !ncarve || !vfill || !vcarve || !seen) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
         goto done;
     }
-#define LD_FEATURE(k) ((s->sketch_mask[k] & s->kind) && !isnan(level[k]))
-    for (i = 0; i < n; i++) {
-        size_t first = n_order, best = i, k;
-        int bx = (int)(i % (size_t)W), by = (int)(i / (size_t)W);
-        int bd = TS_MIN(TS_MIN(bx, W - 1 - bx), TS_MIN(by, H - 1 - by));
-        if (seen[i] || !LD_FEATURE(i))
+#define LD_CELL(v) ((size_t)(v)->y * (size_t)W + (size_t)(v)->x)
+#define LD_USED(p) ((p)->kind == s->kind && (p)->count >= 2 && (p)->node_a < nn && (p)->node_b < nn)
+#define LD_BORDER(nd) TS_MIN(TS_MIN((nd)->x, W - 1 - (nd)->x), TS_MIN((nd)->y, H - 1 - (nd)->y))
+    for (k = 0; k < np; k++)
+        down[k] = -1;
+    for (i = 0; i < nn; i++) {
+        size_t first, best = nn, comp_end;
+        int bd = 0, best_end = 0;
+        if (seen[i])
             continue;
-        /* the network: collect it, find its outlet */
-        queue[n_order++] = (int32_t)i;
+        /* the network of node i (nodes only through used paths) */
+        tail = 0;
+        order[tail++] = i;
         seen[i] = 1;
-        for (head = first; head < n_order; head++) {
-            size_t c = (size_t)queue[head];
-            int cx = (int)(c % (size_t)W), cy = (int)(c / (size_t)W), dx, dy;
-            int cd = TS_MIN(TS_MIN(cx, W - 1 - cx), TS_MIN(cy, H - 1 - cy));
-            if (cd < bd || (cd == bd && level[c] < level[best]) ||
-                (cd == bd && level[c] == level[best] && c < best)) {
-                best = c;
-                bd = cd;
+        for (head = 0; head < tail; head++)
+            for (k = 0; k < np; k++) {
+                const ts_feature_path *p = &f->paths[k];
+                size_t o;
+                if (!LD_USED(p) || (p->node_a != order[head] && p->node_b != order[head]))
+                    continue;
+                o = p->node_a == order[head] ? p->node_b : p->node_a;
+                if (!seen[o]) {
+                    seen[o] = 1;
+                    order[tail++] = o;
+                }
             }
-            for (dy = -1; dy <= 1; dy++)
-                for (dx = -1; dx <= 1; dx++) {
-                    int x = cx + dx, y = cy + dy;
-                    if (x < 0 || y < 0 || x >= W || y >= H)
-                        continue;
-                    k = (size_t)y * (size_t)W + (size_t)x;
-                    if (!seen[k] && LD_FEATURE(k)) {
-                        seen[k] = 2;
-                        queue[n_order++] = (int32_t)k;
-                    }
-                }
+        comp_end = tail;
+        for (head = 0; head < comp_end; head++) {
+            const ts_feature_node *nd = &f->nodes[order[head]];
+            int d = LD_BORDER(nd), end = nd->degree == 1;
+            float lv = level[(size_t)nd->y * (size_t)W + (size_t)nd->x];
+            if (best == nn || end > best_end ||
+                (end == best_end &&
+                 (d < bd || (d == bd && lv < level[(size_t)f->nodes[best].y * (size_t)W +
+                                                   (size_t)f->nodes[best].x])))) {
+                best = order[head];
+                bd = d;
+                best_end = end;
+            }
         }
-        /* breadth first from the outlet: parents point downstream */
-        for (head = first; head < n_order; head++)
-            seen[queue[head]] = 1; /* 1: in the network, not yet reached */
-        tail = first;
-        queue[tail++] = (int32_t)best;
+        /* breadth first from the outlet: paths point downstream */
+        for (head = 0; head < comp_end; head++)
+            seen[order[head]] = 2;
+        first = 0;
+        tail = 0;
+        order[tail++] = best;
         seen[best] = 3;
-        parent[best] = -1;
-        for (head = first; head < tail; head++) {
-            size_t c = (size_t)queue[head];
-            int cx = (int)(c % (size_t)W), cy = (int)(c / (size_t)W), dx, dy;
-            for (dy = -1; dy <= 1; dy++)
-                for (dx = -1; dx <= 1; dx++) {
-                    int x = cx + dx, y = cy + dy;
-                    if (x < 0 || y < 0 || x >= W || y >= H)
+        {
+            size_t n_q = 0;
+            for (head = first; head < tail; head++)
+                for (k = 0; k < np; k++) {
+                    const ts_feature_path *p = &f->paths[k];
+                    size_t o;
+                    if (!LD_USED(p) || down[k] >= 0 ||
+                        (p->node_a != order[head] && p->node_b != order[head]))
                         continue;
-                    k = (size_t)y * (size_t)W + (size_t)x;
-                    if (seen[k] == 1) {
-                        seen[k] = 3;
-                        parent[k] = (int32_t)c;
-                        queue[tail++] = (int32_t)k;
+                    down[k] = (long)order[head];
+                    qpath[n_q++] = k;
+                    o = p->node_a == order[head] ? p->node_b : p->node_a;
+                    if (seen[o] != 3) {
+                        seen[o] = 3;
+                        order[tail++] = o;
                     }
                 }
+            /* fill: paths in the order reached, each walked upstream */
+            for (head = 0; head < tail; head++) {
+                const ts_feature_node *nd = &f->nodes[order[head]];
+                nfill[order[head]] = -INFINITY;
+                ncarve[order[head]] = level[(size_t)nd->y * (size_t)W + (size_t)nd->x];
+            }
+            nfill[best] = level[(size_t)f->nodes[best].y * (size_t)W + (size_t)f->nodes[best].x];
+            for (k = 0; k < n_q; k++) {
+                const ts_feature_path *p = &f->paths[qpath[k]];
+                int from_b = (size_t)down[qpath[k]] == p->node_b;
+                size_t up = from_b ? p->node_a : p->node_b, j;
+                double prev = nfill[down[qpath[k]]];
+                for (j = 0; j < p->count; j++) {
+                    size_t vi = p->first + (from_b ? p->count - 1 - j : j);
+                    double lv = level[LD_CELL(&f->verts[vi])];
+                    prev = isnan(lv) ? prev : fmax(prev, lv);
+                    vfill[vi] = prev;
+                }
+                nfill[up] = fmax(nfill[up], prev);
+            }
+            /* carve: paths in the reverse order, each walked downstream */
+            for (k = n_q; k-- > 0;) {
+                const ts_feature_path *p = &f->paths[qpath[k]];
+                int from_b = (size_t)down[qpath[k]] == p->node_b;
+                size_t up = from_b ? p->node_a : p->node_b, j;
+                double prev = ncarve[up];
+                for (j = 0; j < p->count; j++) {
+                    size_t vi = p->first + (from_b ? j : p->count - 1 - j);
+                    double lv = level[LD_CELL(&f->verts[vi])];
+                    prev = isnan(lv) ? prev : fmin(prev, lv);
+                    vcarve[vi] = prev;
+                }
+                ncarve[down[qpath[k]]] = fmin(ncarve[down[qpath[k]]], prev);
+            }
+            /* the paths' cells take the mean; a node's cell its own */
+            for (k = 0; k < n_q; k++) {
+                const ts_feature_path *p = &f->paths[qpath[k]];
+                size_t j;
+                for (j = 1; j + 1 < p->count; j++) {
+                    size_t vi = p->first + j;
+                    size_t c = LD_CELL(&f->verts[vi]);
+                    if (!isnan(level[c]))
+                        level[c] = (float)(0.5 * (vfill[vi] + vcarve[vi]));
+                }
+            }
+            for (head = 0; head < tail; head++) {
+                const ts_feature_node *nd = &f->nodes[order[head]];
+                size_t c = (size_t)nd->y * (size_t)W + (size_t)nd->x;
+                if (!isnan(level[c]) && isfinite(nfill[order[head]]))
+                    level[c] = (float)(0.5 * (nfill[order[head]] + ncarve[order[head]]));
+            }
         }
-        /* fill downstream first, carve upstream first */
-        for (head = first; head < tail; head++) {
-            size_t c = (size_t)queue[head];
-            fill[c] = level[c];
-            carve[c] = level[c];
-            if (parent[c] >= 0 && fill[parent[c]] > fill[c])
-                fill[c] = fill[parent[c]];
-        }
-        for (head = tail; head-- > first;) {
-            size_t c = (size_t)queue[head];
-            if (parent[c] >= 0 && carve[c] < carve[parent[c]])
-                carve[parent[c]] = carve[c];
-        }
-        for (head = first; head < tail; head++) {
-            size_t c = (size_t)queue[head];
-            level[c] = (float)(0.5 * (fill[c] + carve[c]));
-        }
-        n_order = tail;
     }
-#undef LD_FEATURE
+#undef LD_CELL
+#undef LD_USED
+#undef LD_BORDER
 done:
-    free(parent);
-    free(queue);
-    free(fill);
-    free(carve);
+    free(order);
+    free(qpath);
+    free(down);
+    free(nfill);
+    free(ncarve);
+    free(vfill);
+    free(vcarve);
     free(seen);
     return st;
 }

@@ -37,12 +37,14 @@ typedef struct ts_layout_spec {
                                          exemplar without a valid one: its mean height) */
     const int32_t *cell_exemplar;     /* per output cell, or NULL */
     int patch;                        /* the patch size, cells: sets both scales */
+    const ts_features *features;      /* the sketch's feature graph (valleys descend along
+                                         its paths), or NULL */
 } ts_layout_spec;
 
-/* On the feature cells of spec (mask bit kind, level not NaN; level:
- * width*height), levels made non-increasing from every network's sources
- * to its outlet (the cell nearest the grid's edge): the mean of filling and
- * carving (layout.c).  Exposed for the tests. */
+/* Along the paths of spec->features of spec->kind (level: width*height,
+ * NaN = no level), levels made non-increasing from every network's sources
+ * to its outlet (the endpoint nearest the grid's edge): the mean of filling
+ * and carving (layout.c).  Exposed for the tests. */
 ts_status layout_descend(ts_ctx *ctx, const ts_layout_spec *spec, float *level);
 
 /* The layout and crest corrections of layout.c, applied to out (the

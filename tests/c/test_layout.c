@@ -134,59 +134,89 @@ static void test_blur_direct(void)
 
 /* ---- a network of valleys made to descend ---- */
 
-/* A trunk along row 20 from x = 0 (the outlet, on the edge) to x = 60, a
- * tributary down column 40 from y = 2, with bumpy levels. */
-static void y_network(int W, int H, unsigned char *mask, float *level, uint64_t *s)
+/* A trunk along row 20 from x = 0 (the outlet, on the edge) through a
+ * junction at x = 40 to x = 60, and a tributary down column 40 from y = 2;
+ * paths stored in both directions; bumpy levels on their cells. */
+typedef struct y_net {
+    ts_feature_vertex v[200];
+    ts_feature_node nodes[4];
+    ts_feature_path paths[3];
+    ts_features f;
+} y_net;
+
+static void y_network(y_net *g, int W, int H, float *level, uint64_t *s)
 {
-    int x, y;
-    memset(mask, 0, (size_t)W * H);
-    for (x = 0; x < W * H; x++)
-        level[x] = NAN;
-    for (x = 0; x <= 60; x++) {
-        mask[20 * W + x] = TS_VALLEY;
-        level[20 * W + x] = (float)(100.0 + 2.0 * x + 30.0 * th_uniform(s));
-    }
-    for (y = 2; y < 20; y++) {
-        mask[y * W + 40] = TS_VALLEY;
-        level[y * W + 40] = (float)(250.0 + 3.0 * (20 - y) + 40.0 * th_uniform(s));
-    }
+    size_t at = 0;
+    int i;
+    memset(g, 0, sizeof *g);
+    for (i = 0; i < W * H; i++)
+        level[i] = NAN;
+    g->nodes[0] = (ts_feature_node){0, 20, 0, 1, TS_VALLEY};  /* outlet */
+    g->nodes[1] = (ts_feature_node){40, 20, 0, 3, TS_VALLEY}; /* junction */
+    g->nodes[2] = (ts_feature_node){60, 20, 0, 1, TS_VALLEY};
+    g->nodes[3] = (ts_feature_node){40, 2, 0, 1, TS_VALLEY};
+    /* trunk below the junction, stored from the junction down to the outlet */
+    g->paths[0] = (ts_feature_path){TS_VALLEY, 1, 0, at, 41, 0, 0, 0, 0};
+    for (i = 40; i >= 0; i--)
+        g->v[at++] = (ts_feature_vertex){i, 20, 0};
+    /* trunk above, from the junction up */
+    g->paths[1] = (ts_feature_path){TS_VALLEY, 1, 2, at, 21, 0, 0, 0, 0};
+    for (i = 40; i <= 60; i++)
+        g->v[at++] = (ts_feature_vertex){i, 20, 0};
+    /* tributary, from its source down to the junction */
+    g->paths[2] = (ts_feature_path){TS_VALLEY, 3, 1, at, 19, 0, 0, 0, 0};
+    for (i = 2; i <= 20; i++)
+        g->v[at++] = (ts_feature_vertex){40, i, 0};
+    for (i = 0; i <= 60; i++)
+        level[20 * W + i] = (float)(100.0 + 2.0 * i + 30.0 * th_uniform(s));
+    for (i = 2; i < 20; i++)
+        level[i * W + 40] = (float)(250.0 + 3.0 * (20 - i) + 40.0 * th_uniform(s));
+    g->f.width = W;
+    g->f.height = H;
+    g->f.nodes = g->nodes;
+    g->f.n_nodes = 4;
+    g->f.paths = g->paths;
+    g->f.n_paths = 3;
+    g->f.verts = g->v;
+    g->f.n_verts = at;
 }
 
 static void test_descend(void)
 {
     ts_ctx *ctx = ts_ctx_new();
     int W = 70, H = 30, x, y, rep;
-    unsigned char *mask = malloc((size_t)W * H);
     float *level = malloc((size_t)W * H * sizeof(float));
     float *orig = malloc((size_t)W * H * sizeof(float));
     ts_layout_spec sp;
+    y_net *g = malloc(sizeof *g);
     uint64_t s = 9;
     memset(&sp, 0, sizeof sp);
-    sp.sketch_mask = mask;
     sp.kind = TS_VALLEY;
     sp.width = W;
     sp.height = H;
     for (rep = 0; rep < 10; rep++) {
-        y_network(W, H, mask, level, &s);
+        y_network(g, W, H, level, &s);
+        sp.features = &g->f;
         memcpy(orig, level, (size_t)W * H * sizeof(float));
         CHECK(layout_descend(ctx, &sp, level) == TS_OK);
         /* downstream (towards x = 0 on the trunk, towards row 20 on the
          * tributary, then the trunk) never climbs */
         for (x = 1; x <= 60; x++)
-            CHECK(level[20 * W + x - 1] <= level[20 * W + x]);
-        for (y = 3; y < 20; y++)
-            CHECK(level[y * W + 40] <= level[(y - 1) * W + 40]);
-        CHECK(level[19 * W + 40] >= level[20 * W + 40] || level[19 * W + 40] >= level[20 * W + 39]);
-        /* between the lowest and the highest of the old levels */
+            CHECK_MSG(level[20 * W + x - 1] <= level[20 * W + x], "trunk %d: %g > %g", x,
+                      level[20 * W + x - 1], level[20 * W + x]);
+        for (y = 3; y <= 20; y++)
+            CHECK_MSG(level[y * W + 40] <= level[(y - 1) * W + 40], "tributary %d", y);
+        /* between the lowest and the highest of the old levels; other
+         * cells untouched */
         for (x = 0; x < W * H; x++)
-            if (mask[x]) {
+            if (!isnan(orig[x])) {
                 CHECK(level[x] >= 99.0f && level[x] <= 400.0f);
             } else {
                 CHECK(isnan(level[x]));
             }
     }
     /* levels that already descend stay as they are */
-    y_network(W, H, mask, level, &s);
+    y_network(g, W, H, level, &s);
     for (x = 0; x <= 60; x++)
         level[20 * W + x] = (float)(100 + x);
     for (y = 2; y < 20; y++)
@@ -194,9 +224,12 @@ static void test_descend(void)
     memcpy(orig, level, (size_t)W * H * sizeof(float));
     CHECK(layout_descend(ctx, &sp, level) == TS_OK);
     for (x = 0; x < W * H; x++)
-        if (mask[x])
+        if (!isnan(orig[x]))
             CHECK(level[x] == orig[x]);
-    free(mask);
+    /* no graph: nothing changes */
+    sp.features = NULL;
+    CHECK(layout_descend(ctx, &sp, level) == TS_OK);
+    free(g);
     free(level);
     free(orig);
     ts_ctx_free(ctx);
@@ -272,6 +305,26 @@ static void test_corrections(void)
     memset(mask, 0, n);
     for (x = 0; x < W - 10; x++)
         mask[60 * W + x] = TS_VALLEY;
+    {
+        /* the valley as a one-path graph, outlet on the west edge */
+        static ts_feature_vertex vv[200];
+        static ts_feature_node nn[2] = {{0, 60, 0, 1, TS_VALLEY}, {0, 60, 0, 1, TS_VALLEY}};
+        static ts_feature_path pp[1];
+        static ts_features ff;
+        nn[1].x = W - 11;
+        for (x = 0; x < W - 10; x++)
+            vv[x] = (ts_feature_vertex){x, 60, 0};
+        pp[0] = (ts_feature_path){TS_VALLEY, 0, 1, 0, (size_t)(W - 10), 0, 0, 0, 0};
+        ff.width = W;
+        ff.height = H;
+        ff.nodes = nn;
+        ff.n_nodes = 2;
+        ff.paths = pp;
+        ff.n_paths = 1;
+        ff.verts = vv;
+        ff.n_verts = (size_t)(W - 10);
+        sp.features = &ff;
+    }
     sp.kind = TS_VALLEY;
     prof.level = 300.0;
     for (y = 0; y < H; y++)
