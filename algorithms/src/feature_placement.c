@@ -163,7 +163,7 @@ static int sk_align(const sketcher *k, ts_ctx *ctx, const ts_feature_site *s,
     for (i = 0; i < n; i++) {
         /* arm i of the sketch takes arm j of the exemplar; mirrored
          * exemplars (y flipped) run their arms the other way round */
-        int j = i == 0 ? 0 : 1 + (mirror ? (2 * arms - (i - 1) - rot) % arms : (i - 1 + rot) % arms);
+        int j = ts_feature_arm(arms, i, rot, mirror);
         double epx = e->px[j], epy = mirror ? -e->py[j] : e->py[j];
         ex[i] = epx / k->R;
         ey[i] = epy / k->R;

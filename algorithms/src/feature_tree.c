@@ -243,3 +243,11 @@ done:
     *n_sites = b.n;
     return TS_OK;
 }
+
+int ts_feature_arm(int arms, int i, int rot, int mirror)
+{
+    if (i == 0)
+        return 0;
+    /* mirrored exemplars (y flipped) run their arms the other way round */
+    return 1 + (mirror ? (2 * arms - (i - 1) - rot) % arms : (i - 1 + rot) % arms);
+}

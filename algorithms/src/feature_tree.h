@@ -33,4 +33,13 @@ ts_status ts_feature_sites(ts_ctx *ctx, const ts_features *f, int kind, double r
                            double path_step, int breadth_first, ts_feature_site **sites,
                            size_t *n_sites);
 
+/*
+ * Alignment of an exemplar site onto a sketch site with `arms` arms: the
+ * control point of the exemplar that the sketch's control point i takes
+ * (0, the centre, takes 0) in cyclic alignment `rot` (0..arms-1), mirrored
+ * (the exemplar's y flipped, so its arms run the other way round) or not.
+ * For every rot and mirror, a one-to-one map of the arms.
+ */
+int ts_feature_arm(int arms, int i, int rot, int mirror);
+
 #endif

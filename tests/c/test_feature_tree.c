@@ -11,6 +11,7 @@
  */
 #include "feature_tree.h"
 #include "harness.h"
+#include "tps.h"
 
 /* Chain from (x0, y0) to (x1, y1) (both included, 4-step straight lines). */
 static size_t add_chain(ts_feature_vertex *v, size_t at, int x0, int y0, int x1, int y1)
@@ -114,10 +115,82 @@ static void test_tree_order(void)
     ts_ctx_free(ctx);
 }
 
+/* Alignments: every (rot, mirror) maps the arms one to one; and the
+ * geometry: an exemplar junction that is the sketch's rotated (its arms
+ * listed by angle from another start) or mirrored is recovered with zero
+ * bending by exactly the alignment that undoes it, against a
+ * thin-plate-spline fit made here. */
+static void test_junction_alignments(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t rng = 31;
+    int arms, rot, mirror, i, rep;
+    for (arms = 3; arms <= 6; arms++)
+        for (rot = 0; rot < arms; rot++)
+            for (mirror = 0; mirror < 2; mirror++) {
+                int hit[8] = {0};
+                CHECK(ts_feature_arm(arms, 0, rot, mirror) == 0);
+                for (i = 1; i <= arms; i++) {
+                    int j = ts_feature_arm(arms, i, rot, mirror);
+                    CHECK(j >= 1 && j <= arms);
+                    if (j >= 1 && j <= arms)
+                        hit[j]++;
+                }
+                for (i = 1; i <= arms; i++)
+                    CHECK(hit[i] == 1);
+            }
+    for (rep = 0; rep < 40; rep++) {
+        /* a sketch junction: arms at sorted random angles on a circle of 10 */
+        int n = 3 + rep % 4, shift = (int)(th_uniform(&rng) * n) % n, flip = rep % 2;
+        double ang[8], sx[8], sy[8], ex[8], ey[8], base = 6.28 * th_uniform(&rng);
+        double best = INFINITY;
+        int best_rot = -1, best_mirror = -1;
+        for (i = 0; i < n; i++)
+            ang[i] = 6.283185307 * (i + 0.4 * th_uniform(&rng)) / n;
+        sx[0] = sy[0] = 0.0;
+        for (i = 0; i < n; i++) {
+            sx[i + 1] = 10 * cos(ang[i]);
+            sy[i + 1] = 10 * sin(ang[i]);
+        }
+        /* the exemplar: the same junction turned by `base`, its arms listed
+         * from arm `shift` on (sorted by angle as feature_tree does), and
+         * mirrored (y flipped, arms then listed the other way) when flip */
+        ex[0] = ey[0] = 0.0;
+        for (i = 0; i < n; i++) {
+            int src = flip ? (shift - i + n) % n : (shift + i) % n;
+            double a = ang[src] + base, x = 10 * cos(a), y = 10 * sin(a);
+            ex[i + 1] = x;
+            ey[i + 1] = flip ? -y : y;
+        }
+        for (mirror = 0; mirror < 2; mirror++)
+            for (rot = 0; rot < n; rot++) {
+                double ax[9], ay[9];
+                ts_tps t;
+                for (i = 0; i <= n; i++) {
+                    int j = ts_feature_arm(n, i, rot, mirror);
+                    ax[i] = ex[j];
+                    ay[i] = mirror ? -ey[j] : ey[j];
+                }
+                if (ts_tps_fit(ctx, n + 1, ax, ay, sx, sy, 0.0, &t) != TS_OK)
+                    continue;
+                if (t.bending < best) {
+                    best = t.bending;
+                    best_rot = rot;
+                    best_mirror = mirror;
+                }
+            }
+        CHECK_MSG(best < 1e-9, "rep %d: best bending %g", rep, best);
+        CHECK(best_mirror == flip);
+        CHECK(best_rot >= 0);
+    }
+    ts_ctx_free(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
         {"tree_order", test_tree_order},
+        {"junction_alignments", test_junction_alignments},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }
