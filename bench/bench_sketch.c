@@ -89,9 +89,9 @@ static int run_case(const char *name, const ts_raster *sketch, const ts_raster *
                name, sketch->width, sketch->height, ex->width, ex->height, t, info.n_sites,
                info.n_feature_patches, info.n_exemplar_sites, maps.n_patches, bench_peak_rss_mb());
         printf("  stages: sketch PPA %.2f s, exemplar PPA and relief profiles %.2f s, feature "
-               "patches (guide, matching, warps, cuts) %.2f s, fill %.2f s\n",
+               "patches (guide, matching, warps, cuts) %.2f s, fill %.2f s, layout %.2f s\n",
                info.seconds_sketch_ppa, info.seconds_exemplar_ppa, info.seconds_features,
-               info.seconds_fill);
+               info.seconds_fill, info.seconds_layout);
         printf("  fill stages: prepare %.2f s, match %.2f s, graph cut %.2f s, Poisson %.2f s\n",
                maps.seconds_prepare, maps.seconds_match, maps.seconds_cut, maps.seconds_poisson);
         if (goal_s > 0)

@@ -509,8 +509,9 @@ typedef struct ts_sketch_info {
     size_t n_feature_patches;/* of which placed */
     size_t n_exemplar_sites; /* candidate feature patches found in the exemplars */
     /* wall seconds: PPA on the sketch, PPA (and relief profiles) on the
-     * exemplars, feature patch placement, the non-feature fill */
+     * exemplars, feature patch placement, the non-feature fill, the layout */
     double seconds_sketch_ppa, seconds_exemplar_ppa, seconds_features, seconds_fill;
+    double seconds_layout;
 } ts_sketch_info;
 
 /**

@@ -830,7 +830,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     ts_progress_saved sv;
     ts_status st;
     int e, first_index, P_cells = 0, ov_cells = 0;
-    double t0 = ts_now(), times[4] = {0, 0, 0, 0};
+    double t0 = ts_now(), times[5] = {0, 0, 0, 0, 0};
     ts_clear(ctx);
     memset(&k, 0, sizeof k);
     if (sketch_features)
@@ -1056,6 +1056,8 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     sv = ts_progress_push(ctx, 0.6, 0.95);
     st = ts_synth_patches(ctx, exemplars, n_exemplars, &k.fp, out, k.flags, maps);
     ts_progress_pop(ctx, sv);
+    times[3] = ts_now() - t0;
+    t0 = ts_now();
     if (st != TS_OK)
         goto done;
     /* 5. the relief the sketch lays out */
@@ -1076,12 +1078,13 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         if (st == TS_OK)
             st = ts_progress(ctx, 1.0, "layout");
     }
-    times[3] = ts_now() - t0;
+    times[4] = ts_now() - t0;
     if (info) {
         info->seconds_sketch_ppa = times[0];
         info->seconds_exemplar_ppa = times[1];
         info->seconds_features = times[2];
         info->seconds_fill = times[3];
+        info->seconds_layout = times[4];
     }
 done:
     free(sites);

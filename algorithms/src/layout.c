@@ -91,21 +91,47 @@ static void blur_rows(void *arg, size_t b, size_t e)
     free(tmp);
 }
 
+#define BLUR_BLOCK 32 /* columns a vertical pass runs through together */
+
+/* The vertical passes, over blocks of adjacent columns so that every step
+ * runs along memory: for each block a copy of its columns, then running
+ * sums over the rows for all its columns at once. */
 static void blur_cols(void *arg, size_t b, size_t e)
 {
     blur_job *j = arg;
-    double *tmp = ts_malloc_array((size_t)j->h, sizeof *tmp);
-    size_t x;
-    int p;
+    size_t h = (size_t)j->h, w = (size_t)j->w, R = (size_t)j->r, x0;
+    double *tmp = ts_malloc_array(h * BLUR_BLOCK, sizeof *tmp);
+    double acc[BLUR_BLOCK];
     if (!tmp) {
         atomic_store(&j->failed, 1);
         return;
     }
-    for (x = b; x < e; x++)
-        for (p = 0; p < 3; p++) {
-            box_line(j->v + x, (size_t)j->h, (size_t)j->w, j->r, tmp);
-            box_line(j->m + x, (size_t)j->h, (size_t)j->w, j->r, tmp);
+    for (x0 = b; x0 < e; x0 += BLUR_BLOCK) {
+        size_t bw = TS_MIN((size_t)BLUR_BLOCK, e - x0), y, c;
+        int arr, p;
+        for (arr = 0; arr < 2; arr++) {
+            double *a = arr ? j->m : j->v;
+            for (p = 0; p < 3; p++) {
+                for (y = 0; y < h; y++)
+                    memcpy(tmp + y * bw, a + y * w + x0, bw * sizeof *tmp);
+                for (c = 0; c < bw; c++)
+                    acc[c] = 0.0;
+                for (y = 0; y < R && y < h; y++)
+                    for (c = 0; c < bw; c++)
+                        acc[c] += tmp[y * bw + c];
+                for (y = 0; y < h; y++) {
+                    double *row = a + y * w + x0;
+                    if (y + R < h)
+                        for (c = 0; c < bw; c++)
+                            acc[c] += tmp[(y + R) * bw + c];
+                    if (y > R)
+                        for (c = 0; c < bw; c++)
+                            acc[c] -= tmp[(y - R - 1) * bw + c];
+                    memcpy(row, acc, bw * sizeof *acc);
+                }
+            }
         }
+    }
     free(tmp);
 }
 
@@ -117,39 +143,72 @@ int ts_blur_radius(double sigma)
     return r < 0 ? 0 : r;
 }
 
-ts_status ts_blur_nan(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h,
-                      double sigma, float *out)
+/* ts_blur_nan with caller buffers v and m (w * h doubles each). */
+static void blur_nan_ws(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h,
+                        double sigma, float *out, double *v, double *m, atomic_int *failed)
 {
-    size_t n = (size_t)w * (size_t)h, i;
     blur_job j;
+    int x, y;
     j.w = w;
     j.h = h;
     j.r = ts_blur_radius(sigma);
+    j.v = v;
+    j.m = m;
     atomic_init(&j.failed, 0);
-    j.v = ts_malloc_array(n, sizeof(double));
-    j.m = ts_malloc_array(n, sizeof(double));
-    if (!j.v || !j.m) {
-        free(j.v);
-        free(j.m);
-        return ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-    }
-    for (i = 0; i < n; i++) {
-        float v = in[(i / (size_t)w) * (size_t)stride + i % (size_t)w];
-        j.v[i] = isnan(v) ? 0.0 : v;
-        j.m[i] = isnan(v) ? 0.0 : 1.0;
+    for (y = 0; y < h; y++) {
+        const float *row = in + (ptrdiff_t)y * stride;
+        double *vr = v + (size_t)y * (size_t)w, *mr = m + (size_t)y * (size_t)w;
+        for (x = 0; x < w; x++) {
+            int bad = isnan(row[x]);
+            vr[x] = bad ? 0.0 : row[x];
+            mr[x] = bad ? 0.0 : 1.0;
+        }
     }
     if (j.r > 0) {
         ts_parallel_for(ctx, (size_t)h, blur_rows, &j);
         if (!atomic_load(&j.failed))
             ts_parallel_for(ctx, (size_t)w, blur_cols, &j);
     }
-    for (i = 0; i < n; i++)
-        out[i] = j.m[i] > 1e-9 ? (float)(j.v[i] / j.m[i]) : NAN;
-    free(j.v);
-    free(j.m);
+    {
+        size_t i, n = (size_t)w * (size_t)h;
+        for (i = 0; i < n; i++)
+            out[i] = m[i] > 1e-9 ? (float)(v[i] / m[i]) : NAN;
+    }
     if (atomic_load(&j.failed))
+        atomic_store(failed, 1);
+}
+
+ts_status ts_blur_nan(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h,
+                      double sigma, float *out)
+{
+    size_t n = (size_t)w * (size_t)h;
+    double *v = ts_malloc_array(n, sizeof(double)), *m = ts_malloc_array(n, sizeof(double));
+    atomic_int failed;
+    atomic_init(&failed, 0);
+    if (v && m)
+        blur_nan_ws(ctx, in, stride, w, h, sigma, out, v, m, &failed);
+    free(v);
+    free(m);
+    if (!v || !m || atomic_load(&failed))
         return ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
     return TS_OK;
+}
+
+/* Blur buffers reused by the layout's many blurs of the output's size. */
+typedef struct layout_ws {
+    double *v, *m;
+    size_t cap;
+} layout_ws;
+
+static ts_status lblur(ts_ctx *ctx, const layout_ws *ws, const float *in, ptrdiff_t stride,
+                       int w, int h, double sigma, float *out)
+{
+    atomic_int failed;
+    if (!ws || (size_t)w * (size_t)h > ws->cap)
+        return ts_blur_nan(ctx, in, stride, w, h, sigma, out);
+    atomic_init(&failed, 0);
+    blur_nan_ws(ctx, in, stride, w, h, sigma, out, ws->v, ws->m, &failed);
+    return atomic_load(&failed) ? ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory") : TS_OK;
 }
 
 double ts_mean_gradient(const float *a, int w, int h)
@@ -182,9 +241,9 @@ static double layout_reach(double d, double c)
 
 /* Mean gradient of f_c(dist) blurred at sigma, over the cells within dmax
  * of the features (all when dmax is infinite). */
-static ts_status layout_reach_gradient(ts_ctx *ctx, const float *dist, const unsigned char *nodata,
-                                       int W, int H, double c, double sigma, double dmax,
-                                       double *g)
+static ts_status layout_reach_gradient(ts_ctx *ctx, const layout_ws *ws, const float *dist,
+                                       const unsigned char *nodata, int W, int H, double c,
+                                       double sigma, double dmax, double *g)
 {
     size_t n = (size_t)W * (size_t)H, i;
     float *t = ts_malloc_array(n, sizeof(float)), *b = ts_malloc_array(n, sizeof(float));
@@ -195,7 +254,7 @@ static ts_status layout_reach_gradient(ts_ctx *ctx, const float *dist, const uns
     }
     for (i = 0; i < n; i++)
         t[i] = (nodata && nodata[i]) || !isfinite(dist[i]) ? NAN : (float)layout_reach(dist[i], c);
-    if ((st = ts_blur_nan(ctx, t, W, W, H, sigma, b)) != TS_OK)
+    if ((st = lblur(ctx, ws, t, W, W, H, sigma, b)) != TS_OK)
         goto done;
     for (i = 0; i < n; i++)
         if (!(dist[i] <= dmax))
@@ -207,19 +266,49 @@ done:
     return st;
 }
 
-/* Mean gradient of every exemplar blurred at sigma (0 where unknown). */
+/* Mean gradient (per cell) of every exemplar blurred at sigma (0 where
+ * unknown), measured on the exemplar averaged over f x f cells first, f the
+ * largest power of two up to sigma / 3 (a blur that wide hardly sees the
+ * difference; a 4096 x 4096 exemplar would otherwise be blurred whole). */
 static ts_status layout_exemplar_gradients(ts_ctx *ctx, const ts_layout_spec *s, double sigma,
                                            double *g)
 {
-    int e;
+    int e, f = 1;
+    while (2 * f <= sigma / 3.0)
+        f *= 2;
     for (e = 0; e < s->n_exemplars; e++) {
         const ts_raster *ex = &s->exemplars[e];
-        float *eb = ts_malloc_array((size_t)ex->width * (size_t)ex->height, sizeof(float));
+        int cw = ex->width / f, ch = ex->height / f, x, y, u, v;
+        float *small = cw > 2 && ch > 2 ? ts_malloc_array((size_t)cw * (size_t)ch, sizeof(float))
+                                        : NULL;
+        float *eb = small ? ts_malloc_array((size_t)cw * (size_t)ch, sizeof(float)) : NULL;
         ts_status st;
-        if (!eb)
+        g[e] = 0.0;
+        if (cw <= 2 || ch <= 2)
+            continue;
+        if (!small || !eb) {
+            free(small);
+            free(eb);
             return ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-        st = ts_blur_nan(ctx, ex->data, ex->stride, ex->width, ex->height, sigma, eb);
-        g[e] = st == TS_OK ? ts_mean_gradient(eb, ex->width, ex->height) : 0.0;
+        }
+        for (y = 0; y < ch; y++)
+            for (x = 0; x < cw; x++) {
+                double sum = 0.0;
+                int cnt = 0;
+                for (v = 0; v < f; v++)
+                    for (u = 0; u < f; u++) {
+                        float z = TS_PIX(ex, x * f + u, y * f + v);
+                        if (!isnan(z)) {
+                            sum += z;
+                            cnt++;
+                        }
+                    }
+                small[(size_t)y * (size_t)cw + (size_t)x] = cnt ? (float)(sum / cnt) : NAN;
+            }
+        st = ts_blur_nan(ctx, small, cw, cw, ch, sigma / f, eb);
+        if (st == TS_OK)
+            g[e] = ts_mean_gradient(eb, cw, ch) / f;
+        free(small);
         free(eb);
         if (st != TS_OK)
             return st;
@@ -253,9 +342,10 @@ static void layout_pick(const ts_layout_spec *s, const double *gain, const doubl
 
 /* out += weight * blur_sigma(guide - out), weight = strength *
  * fade(fixed) * (near > 0 ? exp(-(d / near)^2) : 1). */
-static ts_status layout_correct(ts_ctx *ctx, ts_raster *out, const float *guide, double sigma,
-                                double strength, const float *fixd, const float *dist,
-                                double near, float *work, float *corr)
+static ts_status layout_correct(ts_ctx *ctx, const layout_ws *ws, ts_raster *out,
+                                const float *guide, double sigma, double strength,
+                                const float *fixd, const float *dist, double near, float *work,
+                                float *corr)
 {
     int W = out->width, H = out->height, x, y;
     size_t i;
@@ -265,7 +355,7 @@ static ts_status layout_correct(ts_ctx *ctx, ts_raster *out, const float *guide,
             i = (size_t)y * (size_t)W + (size_t)x;
             work[i] = guide[i] - TS_PIX(out, x, y); /* NaN where either is */
         }
-    if ((st = ts_blur_nan(ctx, work, W, W, H, sigma, corr)) != TS_OK)
+    if ((st = lblur(ctx, ws, work, W, W, H, sigma, corr)) != TS_OK)
         return st;
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
@@ -465,6 +555,7 @@ typedef struct layout_run_data {
     const int32_t *nearest;
     const double *gl, *gc, *levels;
     float *guide, *work, *corr;
+    const layout_ws *ws;
 } layout_run_data;
 
 /* Both corrections on r (the output's size), the guides' steepness times
@@ -483,12 +574,12 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
             d->work[i] = (s->sketch_mask[i] & s->kind)
                              ? r->data[(i / (size_t)W) * (size_t)r->stride + i % (size_t)W]
                              : NAN;
-        if ((st = ts_blur_nan(ctx, d->work, W, W, H, s->patch, d->corr)) != TS_OK ||
+        if ((st = lblur(ctx, d->ws, d->work, W, W, H, s->patch, d->corr)) != TS_OK ||
             (st = layout_descend(ctx, s, d->corr)) != TS_OK)
             return st;
         for (i = 0; i < n; i++)
             d->work[i] = (s->sketch_mask[i] & s->kind) ? d->corr[i] : NAN;
-        if ((st = ts_blur_nan(ctx, d->work, W, W, H, 0.5 * s->patch, d->corr)) != TS_OK)
+        if ((st = lblur(ctx, d->ws, d->work, W, W, H, 0.5 * s->patch, d->corr)) != TS_OK)
             return st;
     }
     for (i = 0; i < n; i++) {
@@ -500,8 +591,8 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
                           ? NAN
                           : (float)(level - d->sign * lam * g * layout_reach(d->dist[i], d->c_l));
     }
-    if ((st = layout_correct(ctx, r, d->guide, d->sig_l, d->strength, d->fixd, d->dist, 0.0,
-                             d->work, d->corr)) != TS_OK)
+    if ((st = layout_correct(ctx, d->ws, r, d->guide, d->sig_l, d->strength, d->fixd, d->dist,
+                             0.0, d->work, d->corr)) != TS_OK)
         return st;
     /* the crest: the output along the features, smoothed along them over a
      * quarter patch; valley floors then made to descend to their outlets */
@@ -509,7 +600,7 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
         d->work[i] = (s->sketch_mask[i] & s->kind)
                          ? r->data[(i / (size_t)W) * (size_t)r->stride + i % (size_t)W]
                          : NAN;
-    if ((st = ts_blur_nan(ctx, d->work, W, W, H, 2.0 * d->sig_c, d->corr)) != TS_OK)
+    if ((st = lblur(ctx, d->ws, d->work, W, W, H, 2.0 * d->sig_c, d->corr)) != TS_OK)
         return st;
     for (i = 0; i < n; i++) {
         double g, level;
@@ -519,12 +610,26 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
                           : (float)(d->corr[d->nearest[i]] -
                                     d->sign * lam * g * layout_reach(d->dist[i], d->c_c));
     }
-    return layout_correct(ctx, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
+    return layout_correct(ctx, d->ws, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
                           0.5 * s->patch, d->work, d->corr);
 }
 
 #define LAYOUT_QUANTILES 199
 #define LAYOUT_SAMPLES 65536
+
+/* The lattice step that samples a w x h grid with at most about
+ * LAYOUT_SAMPLES cells, and how many cells it samples at most. */
+static int layout_step(int w, int h)
+{
+    double cells = (double)w * (double)h;
+    return cells > LAYOUT_SAMPLES ? (int)ceil(sqrt(cells / LAYOUT_SAMPLES)) : 1;
+}
+
+static size_t layout_samples(int w, int h)
+{
+    int st = layout_step(w, h);
+    return ((size_t)w / (size_t)st + 1) * ((size_t)h / (size_t)st + 1);
+}
 
 static int layout_float_cmp(const void *a, const void *b)
 {
@@ -540,8 +645,7 @@ static int layout_gradient_quantiles(const float *a, const float *b, ptrdiff_t s
                                      int h, double lam, float *work, double *q)
 {
     size_t n = 0, k;
-    double cells = (double)(w - 2) * (double)(h - 2);
-    int step = cells > LAYOUT_SAMPLES ? (int)ceil(sqrt(cells / LAYOUT_SAMPLES)) : 1, x, y;
+    int step = layout_step(w, h), x, y;
     for (y = 1; y + 1 < h; y += step)
         for (x = 1; x + 1 < w; x += step) {
             size_t i = (size_t)y * (size_t)stride + (size_t)x;
@@ -572,8 +676,8 @@ static int layout_gradient_quantiles(const float *a, const float *b, ptrdiff_t s
  * LAYOUT_SAMPLES cells on a regular lattice (NAN when none is valid). */
 static double layout_percentile(const ts_raster *r, double p, float *work)
 {
-    double cells = (double)r->width * (double)r->height, pos;
-    int step = cells > LAYOUT_SAMPLES ? (int)ceil(sqrt(cells / LAYOUT_SAMPLES)) : 1, x, y;
+    double pos;
+    int step = layout_step(r->width, r->height), x, y;
     size_t n = 0, i0;
     for (y = 0; y < r->height; y += step)
         for (x = 0; x < r->width; x += step)
@@ -619,9 +723,14 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     double *levels = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
     float *fixd = NULL;
     layout_run_data d;
+    layout_ws ws;
     ts_raster r0r;
     ts_status st = TS_OK;
-    if (!m || !dist || !nearest || !guide || !work || !corr || !r0 || !gl || !gc || !levels) {
+    ws.cap = n;
+    ws.v = ts_malloc_array(n, sizeof(double));
+    ws.m = ts_malloc_array(n, sizeof(double));
+    if (!m || !dist || !nearest || !guide || !work || !corr || !r0 || !gl || !gc || !levels ||
+        !ws.v || !ws.m) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
         goto done;
     }
@@ -670,11 +779,12 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     d.guide = guide;
     d.work = work;
     d.corr = corr;
+    d.ws = &ws;
     /* steepness of the guides and of the exemplars at both scales */
-    if ((st = layout_reach_gradient(ctx, dist, s->nodata, W, H, d.c_l, d.sig_l, INFINITY,
+    if ((st = layout_reach_gradient(ctx, &ws, dist, s->nodata, W, H, d.c_l, d.sig_l, INFINITY,
                                     &g1)) != TS_OK ||
-        (st = layout_reach_gradient(ctx, dist, s->nodata, W, H, d.c_c, d.sig_c, 2.0 * d.c_c,
-                                    &gc1)) != TS_OK ||
+        (st = layout_reach_gradient(ctx, &ws, dist, s->nodata, W, H, d.c_c, d.sig_c,
+                                    2.0 * d.c_c, &gc1)) != TS_OK ||
         (st = layout_exemplar_gradients(ctx, s, d.sig_l, gl)) != TS_OK ||
         (st = layout_exemplar_gradients(ctx, s, d.sig_c, gc)) != TS_OK)
         goto done;
@@ -714,7 +824,7 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         memset(target, 0, sizeof target);
         for (e = 0; e < s->n_exemplars; e++) {
             const ts_raster *ex = &s->exemplars[e];
-            float *wk = ts_malloc_array((size_t)ex->width * (size_t)ex->height, sizeof(float));
+            float *wk = ts_malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
             if (!wk) {
                 st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
                 goto done;
@@ -795,7 +905,7 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         double lo = INFINITY, hi = -INFINITY, margin;
         for (e = 0; e < s->n_exemplars; e++) {
             const ts_raster *ex = &s->exemplars[e];
-            float *wk = ts_malloc_array((size_t)ex->width * (size_t)ex->height, sizeof(float));
+            float *wk = ts_malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
             if (!wk) {
                 st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
                 goto done;
@@ -809,7 +919,7 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
             memcpy(work + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
                    (size_t)W * sizeof(float));
         if (isfinite(lo) && isfinite(hi) && margin > 0 &&
-            (st = ts_blur_nan(ctx, work, W, W, H, d.sig_l, corr)) == TS_OK)
+            (st = lblur(ctx, &ws, work, W, W, H, d.sig_l, corr)) == TS_OK)
             for (y = 0; y < H; y++)
                 for (x = 0; x < W; x++) {
                     double L, w = 1.0, want;
@@ -872,5 +982,7 @@ done:
     free(gc);
     free(levels);
     free(fixd);
+    free(ws.v);
+    free(ws.m);
     return st;
 }
