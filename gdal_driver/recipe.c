@@ -115,6 +115,23 @@ static int recipe_check_not_self(const ts_recipe *r, const char *input, tsio_err
 }
 
 /* <Param name="x">value</Param> children of node into params of stage. */
+/* Set a parameter of `stage` (a synth recipe also takes the sketch stage's
+ * parameters, whether it has a sketch or not); ctx holds the message of a
+ * failure. */
+static ts_status recipe_set_param(ts_recipe *r, ts_ctx *ctx, const char *stage, void *params,
+                                  const char *name, const char *value)
+{
+    size_t nd, j;
+    const ts_param_desc *d;
+    if (r->method == RECIPE_SYNTH) {
+        d = ts_params_describe("sketch", &nd);
+        for (j = 0; d && j < nd; j++)
+            if (!strcmp(d[j].name, name))
+                return ts_params_set(ctx, "sketch", &r->synth.sketch_params, name, value);
+    }
+    return ts_params_set(ctx, stage, params, name, value);
+}
+
 static int recipe_params(ts_recipe *r, CPLXMLNode *node, const char *stage, void *params,
                          tsio_err *err)
 {
@@ -135,28 +152,16 @@ static int recipe_params(ts_recipe *r, CPLXMLNode *node, const char *stage, void
             ts_ctx_free(ctx);
             return -1;
         }
-        if (ts_params_set(ctx, stage, params, name, value) != TS_OK) {
-            /* synth recipes also take the sketch stage's parameters */
-            size_t nd;
-            const ts_param_desc *d = ts_params_describe("sketch", &nd);
-            size_t j;
-            int is_sketch = 0;
-            for (j = 0; d && j < nd; j++)
-                if (!strcmp(d[j].name, name))
-                    is_sketch = 1;
-            if (!(r->method == RECIPE_SYNTH && is_sketch &&
-                  ts_params_set(ctx, "sketch", &r->synth.sketch_params, name, value) == TS_OK)) {
-                rerr(err, r->path, "<Param name=\"%s\">: %s", name, ts_ctx_message(ctx));
-                ts_ctx_free(ctx);
-                return -1;
-            }
+        if (recipe_set_param(r, ctx, stage, params, name, value) != TS_OK) {
+            rerr(err, r->path, "<Param name=\"%s\">: %s", name, ts_ctx_message(ctx));
+            ts_ctx_free(ctx);
+            return -1;
         }
     }
     ts_ctx_free(ctx);
     return 0;
 }
 
-/* Open options: parameter names in any case, and SEED. */
 static int recipe_options(ts_recipe *r, const char *const *oo, const char *stage, void *params,
                           tsio_err *err)
 {
@@ -189,7 +194,7 @@ static int recipe_options(ts_recipe *r, const char *const *oo, const char *stage
                 return -1;
             }
             r->seed = s;
-        } else if (ts_params_set(ctx, stage, params, key, value) != TS_OK) {
+        } else if (recipe_set_param(r, ctx, stage, params, key, value) != TS_OK) {
             rerr(err, r->path, "open option %s: %s", oo[i], ts_ctx_message(ctx));
             CPLFree(key);
             ts_ctx_free(ctx);

@@ -185,15 +185,12 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
                            tsio_err *err);
 
 /* A failed core call as "<file>: <message>": the exemplar's file when the
- * core names an exemplar by index, else `fallback`. */
+ * core names an exemplar (ts_ctx_failed_input), else `fallback`. */
 static void job_core_err(ts_ctx *ctx, const tsjob_synth *job, const char *fallback, tsio_err *err)
 {
-    const char *msg = ts_ctx_message(ctx);
-    int which = 0;
-    if (sscanf(msg, "synth: exemplar %d:", &which) == 1 && which >= 1 && which <= job->n_exemplars)
-        job_err(err, job->exemplars[which - 1], msg);
-    else
-        job_err(err, fallback, msg);
+    int which = ts_ctx_failed_input(ctx);
+    job_err(err, which >= 0 && which < job->n_exemplars ? job->exemplars[which] : fallback,
+            ts_ctx_message(ctx));
 }
 
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,

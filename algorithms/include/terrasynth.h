@@ -79,6 +79,9 @@ TS_API int ts_ctx_threads(const ts_ctx *ctx);
  *  until the next call on ctx; "" when the last call succeeded). */
 TS_API ts_status ts_ctx_status(const ts_ctx *ctx);
 TS_API const char *ts_ctx_message(const ts_ctx *ctx);
+/** The input the last failure is about, when it is one: the 0-based index
+ *  of an exemplar (in the array the failing call was given); -1 otherwise. */
+TS_API int ts_ctx_failed_input(const ts_ctx *ctx);
 
 /* ------------------------------------------------------------------ */
 /* Rasters                                                            */

@@ -39,6 +39,7 @@ TS_API ts_ctx *ts_ctx_new(void)
         return NULL;
     ctx->prog_lo = 0.0;
     ctx->prog_hi = 1.0;
+    ctx->input = -1;
     return ctx;
 }
 
@@ -59,23 +60,46 @@ TS_API void ts_ctx_set_threads(ts_ctx *ctx, int threads) { ctx->threads = thread
 TS_API int ts_ctx_threads(const ts_ctx *ctx) { return ctx->threads; }
 TS_API ts_status ts_ctx_status(const ts_ctx *ctx) { return ctx->status; }
 TS_API const char *ts_ctx_message(const ts_ctx *ctx) { return ctx->message; }
+TS_API int ts_ctx_failed_input(const ts_ctx *ctx) { return ctx->status == TS_OK ? -1 : ctx->input; }
 
 void ts_clear(ts_ctx *ctx)
 {
     ctx->status = TS_OK;
     ctx->message[0] = '\0';
+    ctx->input = -1;
+}
+
+/* The message is formatted into a buffer of its own first: the arguments
+ * may be the context's current message (a stage wrapping what a deeper one
+ * said). */
+static ts_status ctx_fail_v(ts_ctx *ctx, ts_status status, int input, const char *stage,
+                            const char *fmt, va_list ap)
+{
+    char buf[sizeof ctx->message];
+    int n = snprintf(buf, sizeof buf, "%s: ", stage);
+    if (n >= 0 && (size_t)n < sizeof buf)
+        vsnprintf(buf + n, sizeof buf - (size_t)n, fmt, ap);
+    memcpy(ctx->message, buf, sizeof buf);
+    ctx->status = status;
+    ctx->input = input;
+    return status;
 }
 
 ts_status ts_fail(ts_ctx *ctx, ts_status status, const char *stage, const char *fmt, ...)
 {
     va_list ap;
-    int n;
-    ctx->status = status;
-    n = snprintf(ctx->message, sizeof ctx->message, "%s: ", stage);
-    if (n < 0 || (size_t)n >= sizeof ctx->message)
-        return status;
     va_start(ap, fmt);
-    vsnprintf(ctx->message + n, sizeof ctx->message - (size_t)n, fmt, ap);
+    ctx_fail_v(ctx, status, ctx->status != TS_OK ? ctx->input : -1, stage, fmt, ap);
+    va_end(ap);
+    return status;
+}
+
+ts_status ts_fail_input(ts_ctx *ctx, ts_status status, int input, const char *stage,
+                        const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    ctx_fail_v(ctx, status, input, stage, fmt, ap);
     va_end(ap);
     return status;
 }

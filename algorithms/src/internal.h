@@ -17,6 +17,7 @@
 struct ts_ctx {
     ts_status status;
     char message[1024];
+    int input; /* the failing input (e.g. exemplar index), or -1 */
     ts_progress_fn progress;
     void *progress_user;
     double prog_lo, prog_hi; /* current sub-range of the overall progress */
@@ -28,6 +29,15 @@ struct ts_ctx {
 ts_status ts_fail(ts_ctx *ctx, ts_status status, const char *stage, const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+/* The same, naming the failing input (an exemplar index, 0-based) that
+ * ts_ctx_failed_input reports.  A plain ts_fail that wraps a failure keeps
+ * the input it named. */
+ts_status ts_fail_input(ts_ctx *ctx, ts_status status, int input, const char *stage,
+                        const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 5, 6)))
 #endif
     ;
 /* Clear the status at the start of a public call. */

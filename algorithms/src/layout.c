@@ -560,7 +560,8 @@ typedef struct layout_run_data {
 
 /* Both corrections on r (the output's size), the guides' steepness times
  * lam: the layout everywhere, then the crest near the features. */
-static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r, double lam)
+static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r, double lam,
+                            double lam_c)
 {
     const ts_layout_spec *s = d->s;
     int W = s->width, H = s->height;
@@ -608,7 +609,7 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
         d->guide[i] = (s->nodata && s->nodata[i]) || d->nearest[i] < 0
                           ? NAN
                           : (float)(d->corr[d->nearest[i]] -
-                                    d->sign * lam * g * layout_reach(d->dist[i], d->c_c));
+                                    d->sign * lam_c * g * layout_reach(d->dist[i], d->c_c));
     }
     return layout_correct(ctx, d->ws, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
                           0.5 * s->patch, d->work, d->corr);
@@ -717,19 +718,21 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     float *guide = ts_malloc_array(n, sizeof(float));
     float *work = ts_malloc_array(n, sizeof(float));
     float *corr = ts_malloc_array(n, sizeof(float));
-    float *r0 = ts_malloc_array(n, sizeof(float));
+    float *r0 = ts_malloc_array(n, sizeof(float)), *r01 = ts_malloc_array(n, sizeof(float));
+    float *d01 = ts_malloc_array(n, sizeof(float));
     double *gl = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *gc = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *levels = ts_calloc_array((size_t)s->n_exemplars, sizeof(double));
     float *fixd = NULL;
     layout_run_data d;
     layout_ws ws;
-    ts_raster r0r;
+    ts_raster r0r, r01r;
     ts_status st = TS_OK;
     ws.cap = n;
     ws.v = ts_malloc_array(n, sizeof(double));
     ws.m = ts_malloc_array(n, sizeof(double));
-    if (!m || !dist || !nearest || !guide || !work || !corr || !r0 || !gl || !gc || !levels ||
+    if (!m || !dist || !nearest || !guide || !work || !corr || !r0 || !r01 || !d01 || !gl ||
+        !gc || !levels ||
         !ws.v || !ws.m) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
         goto done;
@@ -794,12 +797,17 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         gl[e] /= g1;
         gc[e] /= gc1;
     }
-    /* the corrections are linear in the guides' steepness: with it (out)
-     * and without it (r0) */
-    for (y = 0; y < H; y++)
+    /* the corrections are linear in the guides' steepness: the layout's
+     * and the crest's together (out: both at 1, r0: both at 0), or the
+     * layout's alone under the crest's at 1 (r01: layout at 0) */
+    for (y = 0; y < H; y++) {
         memcpy(r0 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
                (size_t)W * sizeof(float));
+        memcpy(r01 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+               (size_t)W * sizeof(float));
+    }
     r0r = ts_raster_wrap(r0, W, H, W);
+    r01r = ts_raster_wrap(r01, W, H, W);
     {
         size_t cnt = 0;
         for (i = 0; i < n; i++)
@@ -809,14 +817,22 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
             }
         mean_before = cnt ? mean_before / (double)cnt : 0.0;
     }
-    if ((st = layout_run(ctx, &d, out, 1.0)) != TS_OK ||
-        (st = layout_run(ctx, &d, &r0r, 0.0)) != TS_OK)
+    if ((st = layout_run(ctx, &d, out, 1.0, 1.0)) != TS_OK ||
+        (st = layout_run(ctx, &d, &r0r, 0.0, 0.0)) != TS_OK ||
+        (st = layout_run(ctx, &d, &r01r, 0.0, 1.0)) != TS_OK)
         goto done;
     /* the steepness that gives the output the exemplars' distribution of
      * slopes (the patches' merging flattens a little; a steep exemplar's
      * guide adds to its own slopes): the least Wasserstein distance of the
      * gradient distributions, golden-section search over 0.35..2.5 times
-     * the calibrated steepness */
+     * the calibrated steepness.  Above 1 the layout and the crest steepen
+     * together; below 1 only the layout gentles: the sketched features keep
+     * standing out over an exemplar whose land is mostly flat */
+    for (i = 0; i < n; i++) { /* the parts the steepness scales */
+        float o = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
+        corr[i] = o - r0[i];
+        d01[i] = o - r01[i];
+    }
     {
         double target[LAYOUT_QUANTILES], q[LAYOUT_QUANTILES];
         int k, n_t = 0, it;
@@ -837,38 +853,41 @@ ts_status ts_layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
             }
             free(wk);
         }
-        for (i = 0; i < n; i++) /* out - r0: the part the steepness scales */
-            corr[i] = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W] - r0[i];
+#define LAYOUT_MISFIT(lm)                                                                    \
+    ((lm) >= 1.0 ? layout_misfit(r0, corr, W, H, (lm), target, work)                         \
+                 : layout_misfit(r01, d01, W, H, (lm), target, work))
         if (n_t) {
             for (k = 0; k < LAYOUT_QUANTILES; k++)
                 target[k] /= n_t;
             x1 = hi - g * (hi - lo);
             x2 = lo + g * (hi - lo);
-            f1 = layout_misfit(r0, corr, W, H, exp(x1), target, work);
-            f2 = layout_misfit(r0, corr, W, H, exp(x2), target, work);
+            f1 = LAYOUT_MISFIT(exp(x1));
+            f2 = LAYOUT_MISFIT(exp(x2));
             for (it = 0; it < 16; it++) {
                 if (f1 <= f2) {
                     hi = x2;
                     x2 = x1;
                     f2 = f1;
                     x1 = hi - g * (hi - lo);
-                    f1 = layout_misfit(r0, corr, W, H, exp(x1), target, work);
+                    f1 = LAYOUT_MISFIT(exp(x1));
                 } else {
                     lo = x1;
                     x1 = x2;
                     f1 = f2;
                     x2 = lo + g * (hi - lo);
-                    f2 = layout_misfit(r0, corr, W, H, exp(x2), target, work);
+                    f2 = LAYOUT_MISFIT(exp(x2));
                 }
             }
             lam = exp(0.5 * (lo + hi));
         }
+#undef LAYOUT_MISFIT
     }
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
             i = (size_t)y * (size_t)W + (size_t)x;
             if (!isnan(TS_PIX(out, x, y)))
-                TS_PIX(out, x, y) = (float)(r0[i] + lam * corr[i]);
+                TS_PIX(out, x, y) =
+                    (float)(lam >= 1.0 ? r0[i] + lam * corr[i] : r01[i] + lam * d01[i]);
         }
     /* the layout moves heights about, not the land's mean height: the mean
      * is put back where the patches had it (fading out near fixed cells) */
@@ -978,6 +997,8 @@ done:
     free(work);
     free(corr);
     free(r0);
+    free(r01);
+    free(d01);
     free(gl);
     free(gc);
     free(levels);

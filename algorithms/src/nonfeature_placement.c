@@ -773,7 +773,7 @@ static ts_status place_validate(ts_ctx *ctx, const ts_raster *ex, int n_ex,
                        out->height, P, P);
     for (i = 0; i < n_ex; i++)
         if (!ex[i].data || ex[i].width <= 0 || ex[i].height <= 0)
-            return ts_fail(ctx, TS_ERR_ARG, "synth", "exemplar %d is empty", i);
+            return ts_fail_input(ctx, TS_ERR_ARG, i, "synth", "exemplar %d is empty", i + 1);
     return TS_OK;
 }
 
@@ -990,8 +990,9 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
         ts_progress_pop(ctx, sv);
         if (st != TS_OK) {
             if (st == TS_ERR_SIZE || st == TS_ERR_NUMERIC)
-                ts_fail(ctx, st, "synth", "exemplar %d: %s", e + 1,
-                        strchr(ctx->message, ':') ? strchr(ctx->message, ':') + 2 : ctx->message);
+                ts_fail_input(ctx, st, e, "synth", "exemplar %d: %s", e + 1,
+                              strchr(ctx->message, ':') ? strchr(ctx->message, ':') + 2
+                                                        : ctx->message);
             goto done;
         }
     }

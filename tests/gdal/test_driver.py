@@ -315,6 +315,23 @@ def test_sketch_recipe_with_pin_and_water_equals_cli(tmp_path):
     assert (a[400:450, 30:120] == 250).all()
 
 
+def test_open_options_take_the_sketch_parameters(tmp_path):
+    """-oo ALPHA_R=... and the other sketch parameters on a synth recipe with a sketch give
+    what the command line gives with the same flags (issue 11: they were refused)."""
+    sketch = os.path.join(DATA, "sketches", "lambda_ridges.tif")
+    args = ["--sketch", sketch, "--exemplar", JACKSBORO, "--seed", "3", "--patch-size", "32",
+            "--overlap", "8"]
+    ts("synth", *args, "--recipe", tmp_path / "s.tsyn")
+    ts("synth", *args, "--alpha-r", "0", "--layout", "0.5", tmp_path / "cli.tif", "-q")
+    ds = gdal.OpenEx(str(tmp_path / "s.tsyn"), open_options=["ALPHA_R=0", "LAYOUT=0.5"])
+    assert ds.ReadAsArray().tobytes() == arr(tmp_path / "cli.tif").tobytes()
+    ds = None
+    base = gdal.Open(str(tmp_path / "s.tsyn")).ReadAsArray()
+    assert base.tobytes() != arr(tmp_path / "cli.tif").tobytes()
+    with pytest.raises(RuntimeError, match="layout"):
+        gdal.OpenEx(str(tmp_path / "s.tsyn"), open_options=["LAYOUT=3"])
+
+
 def test_multistyle_recipe_equals_cli(tmp_path):
     regions = os.path.join(DATA, "sketches", "multistyle_regions.tif")
     sketch = os.path.join(DATA, "sketches", "multistyle_sketch.tif")
