@@ -46,6 +46,27 @@ int cli_params_parse(ts_ctx *ctx, const char *stage, void *params, int argc, cha
     return 0;
 }
 
+void cli_help_line(FILE *out, const char *left, const char *text)
+{
+    const char *p = text;
+    int first = 1;
+    while (*p || first) {
+        size_t n = strlen(p), cut = n;
+        if (n > 50) {
+            cut = 50;
+            while (cut > 0 && p[cut] != ' ')
+                cut--;
+            if (cut == 0)
+                cut = 50;
+        }
+        fprintf(out, "  %-32s %.*s\n", first ? left : "", (int)cut, p);
+        p += cut;
+        while (*p == ' ')
+            p++;
+        first = 0;
+    }
+}
+
 void cli_params_help(FILE *out, const char *stage, const char *const *skip)
 {
     size_t n, k;
@@ -70,7 +91,7 @@ void cli_params_help(FILE *out, const char *stage, const char *const *skip)
         default:
             snprintf(left, sizeof left, "%s %s", flag, d[k].type == TS_PARAM_INT ? "N" : "X");
         }
-        fprintf(out, "  %-32s %s\n", left, d[k].help);
+        cli_help_line(out, left, d[k].help);
         if (d[k].type == TS_PARAM_ENUM) {
             const char *w = d[k].choices, *bar;
             int idx;

@@ -17,6 +17,10 @@
  * (message in ctx) on a bad value or a missing one. */
 int cli_params_parse(ts_ctx *ctx, const char *stage, void *params, int argc, char **argv, int *i);
 
+/* One option's help: `left` (flag and value), then `text` wrapped at 50
+ * columns beside it. */
+void cli_help_line(FILE *out, const char *left, const char *text);
+
 /* Print the stage's parameters as help lines: flag, units, default, help. */
 void cli_params_help(FILE *out, const char *stage, const char *const *skip);
 

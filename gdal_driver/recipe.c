@@ -29,6 +29,7 @@
 #include <cpl_vsi.h>
 #include <gdal.h>
 
+#include "jobspec.h"
 #include "recipe.h"
 
 #define RECIPE_MAX_BYTES (1 << 20)
@@ -45,6 +46,7 @@ struct ts_recipe {
     tsjob_ppa ppa;
     tsjob_synth synth;
     uint64_t seed;
+    tsj_values values;   /* what the recipe (and the open options) give: the jobs point in */
     char **strings;      /* CSL list owning every path string the jobs point to */
     tsio_georef geo;     /* ppa: the input's grid */
     tsjob_ppa_result ppa_res;
@@ -114,69 +116,31 @@ static int recipe_check_not_self(const ts_recipe *r, const char *input, tsio_err
     return same ? -1 : 0;
 }
 
-/* <Param name="x">value</Param> children of node into params of stage. */
-/* Set a parameter of `stage` (a synth recipe also takes the sketch stage's
- * parameters, whether it has a sketch or not); ctx holds the message of a
- * failure. */
-static ts_status recipe_set_param(ts_recipe *r, ts_ctx *ctx, const char *stage, void *params,
-                                  const char *name, const char *value)
+/* A file name of the recipe as GDAL should open it, refused when it is the
+ * recipe itself or one that is opening it (tsj_from_xml's resolver). */
+static const char *recipe_resolve(void *user, const char *name, char *msg, size_t len)
 {
-    size_t nd, j;
-    const ts_param_desc *d;
-    if (r->method == RECIPE_SYNTH) {
-        d = ts_params_describe("sketch", &nd);
-        for (j = 0; d && j < nd; j++)
-            if (!strcmp(d[j].name, name))
-                return ts_params_set(ctx, "sketch", &r->synth.sketch_params, name, value);
+    ts_recipe *r = user;
+    const char *path = recipe_keep_path(r, name);
+    tsio_err e;
+    if (recipe_check_not_self(r, path, &e) != 0) {
+        /* without the recipe's own name: the caller adds it */
+        const char *colon = strstr(e.msg, ": ");
+        snprintf(msg, len, "%s", colon ? colon + 2 : e.msg);
+        return NULL;
     }
-    return ts_params_set(ctx, stage, params, name, value);
+    return path;
 }
 
-static int recipe_params(ts_recipe *r, CPLXMLNode *node, const char *stage, void *params,
-                         tsio_err *err)
+/* Open options: SEED, the stage parameters and the job's options that are
+ * not files (a recipe reads only the rasters it names), any case. */
+static int recipe_options(ts_recipe *r, const char *const *oo, tsio_err *err)
 {
-    CPLXMLNode *c;
-    ts_ctx *ctx = ts_ctx_new();
-    if (!ctx) {
-        rerr(err, r->path, "out of memory");
-        return -1;
-    }
-    for (c = node->psChild; c; c = c->psNext) {
-        const char *name, *value;
-        if (c->eType != CXT_Element || !EQUAL(c->pszValue, "Param"))
-            continue;
-        name = CPLGetXMLValue(c, "name", NULL);
-        value = CPLGetXMLValue(c, NULL, "");
-        if (!name) {
-            rerr(err, r->path, "<Param> without a name attribute");
-            ts_ctx_free(ctx);
-            return -1;
-        }
-        if (recipe_set_param(r, ctx, stage, params, name, value) != TS_OK) {
-            rerr(err, r->path, "<Param name=\"%s\">: %s", name, ts_ctx_message(ctx));
-            ts_ctx_free(ctx);
-            return -1;
-        }
-    }
-    ts_ctx_free(ctx);
-    return 0;
-}
-
-static int recipe_options(ts_recipe *r, const char *const *oo, const char *stage, void *params,
-                          tsio_err *err)
-{
-    ts_ctx *ctx;
     int i;
-    if (!oo)
-        return 0;
-    ctx = ts_ctx_new();
-    if (!ctx) {
-        rerr(err, r->path, "out of memory");
-        return -1;
-    }
-    for (i = 0; oo[i]; i++) {
+    for (i = 0; oo && oo[i]; i++) {
         char *key = NULL;
         const char *value = CPLParseNameValue(oo[i], &key);
+        const tsj_option *o;
         char *p;
         if (!key || !value) {
             CPLFree(key);
@@ -184,276 +148,44 @@ static int recipe_options(ts_recipe *r, const char *const *oo, const char *stage
         }
         for (p = key; *p; p++)
             *p = (char)tolower((unsigned char)*p);
-        if (!strcmp(key, "seed")) {
-            char *end;
-            unsigned long long s = strtoull(value, &end, 10);
-            if (*end || value[0] == '-' || !value[0]) {
-                rerr(err, r->path, "open option SEED=%s is not a non-negative integer", value);
-                CPLFree(key);
-                ts_ctx_free(ctx);
-                return -1;
-            }
-            r->seed = s;
-        } else if (recipe_set_param(r, ctx, stage, params, key, value) != TS_OK) {
-            rerr(err, r->path, "open option %s: %s", oo[i], ts_ctx_message(ctx));
+        o = tsj_option_find(r->values.job, key);
+        if (o ? (!o->xml || o->kind == TSJ_FILE || o->kind == TSJ_PIN || o->kind == TSJ_RULE)
+              : !tsj_param_stage(r->values.job, key)) {
+            rerr(err, r->path, "open option %s: not an option of %s recipes", oo[i],
+                 r->values.job->name);
             CPLFree(key);
-            ts_ctx_free(ctx);
             return -1;
         }
+        tsj_set(&r->values, key, value);
         CPLFree(key);
     }
-    ts_ctx_free(ctx);
     return 0;
 }
 
-static int recipe_parse_int(const char *text, long lo, long hi, long *out)
+/* The job of the recipe: its element read into values, the open options
+ * over them, then the one check and conversion every front end shares. */
+static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsio_err *err)
 {
-    char *end;
-    long v;
-    if (!text || !*text)
-        return -1;
-    v = strtol(text, &end, 10);
-    if (*end || v < lo || v > hi)
-        return -1;
-    *out = v;
-    return 0;
-}
-
-static int recipe_parse_double(const char *text, double *out)
-{
-    char *end;
-    double v;
-    if (!text || !*text)
-        return -1;
-    v = strtod(text, &end);
-    if (*end || !isfinite(v))
-        return -1;
-    *out = v;
-    return 0;
-}
-
-static int recipe_ppa(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsio_err *err)
-{
-    CPLXMLNode *in = CPLGetXMLNode(node, "Input");
-    const char *v;
-    long band = 1;
-    r->method = RECIPE_PPA;
-    r->ppa.params = ts_ppa_params_default();
-    r->ppa.band = 1;
-    if (!in || !CPLGetXMLValue(in, NULL, NULL) || !*CPLGetXMLValue(in, NULL, "")) {
-        rerr(err, r->path, "<PPA> needs an <Input> dataset");
+    char msg[1024];
+    tsj_values_init(&r->values, tsj_find(r->method == RECIPE_PPA ? "ppa" : "synth"));
+    if (tsj_from_xml(&r->values, node, recipe_resolve, r, msg, sizeof msg) != 0) {
+        rerr(err, r->path, "%s", msg);
         return -1;
     }
-    r->ppa.input = recipe_keep_path(r, CPLGetXMLValue(in, NULL, ""));
-    if ((v = CPLGetXMLValue(in, "band", NULL)) && recipe_parse_int(v, 1, 65535, &band) != 0) {
-        rerr(err, r->path, "<Input band=\"%s\">: not a band number", v);
+    if (recipe_options(r, oo, err) != 0)
+        return -1;
+    if (r->method == RECIPE_PPA) {
+        if (tsj_build_ppa(&r->values, &r->ppa, msg, sizeof msg) != 0) {
+            rerr(err, r->path, "%s", msg);
+            return -1;
+        }
+        /* the grid without reading the cells */
+        return tsio_read_georef(r->ppa.input, &r->geo, err);
+    }
+    if (tsj_build_synth(&r->values, &r->synth, &r->seed, msg, sizeof msg) != 0) {
+        rerr(err, r->path, "%s", msg);
         return -1;
     }
-    r->ppa.band = (int)band;
-    if ((v = CPLGetXMLValue(node, "CellSize", NULL)) &&
-        (recipe_parse_double(v, &r->ppa.cell_size) != 0 || !(r->ppa.cell_size > 0))) {
-        rerr(err, r->path, "<CellSize>%s</CellSize>: not a positive number", v);
-        return -1;
-    }
-    if (recipe_params(r, node, "ppa", &r->ppa.params, err) ||
-        recipe_options(r, oo, "ppa", &r->ppa.params, err))
-        return -1;
-    if (recipe_check_not_self(r, r->ppa.input, err))
-        return -1;
-    /* the grid without reading the cells */
-    return tsio_read_georef(r->ppa.input, &r->geo, err);
-}
-
-static int recipe_synth(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsio_err *err)
-{
-    CPLXMLNode *c, *grid = CPLGetXMLNode(node, "Grid");
-    tsjob_grid *g = &r->synth.grid;
-    const char *v;
-    long n;
-    r->method = RECIPE_SYNTH;
-    r->synth.params = ts_synth_params_default();
-    r->synth.band = 1;
-    if ((v = CPLGetXMLValue(node, "seed", NULL))) {
-        char *end;
-        r->seed = strtoull(v, &end, 10);
-        if (*end || v[0] == '-' || !v[0]) {
-            rerr(err, r->path, "<Synth seed=\"%s\">: not a non-negative integer", v);
-            return -1;
-        }
-    }
-    for (c = node->psChild; c; c = c->psNext) {
-        if (c->eType != CXT_Element || !EQUAL(c->pszValue, "Exemplar"))
-            continue;
-        v = CPLGetXMLValue(c, NULL, "");
-        if (!*v) {
-            rerr(err, r->path, "an <Exemplar> is empty");
-            return -1;
-        }
-        if (r->synth.n_exemplars == TSJOB_MAX_EXEMPLARS) {
-            rerr(err, r->path, "more than %d <Exemplar> elements", TSJOB_MAX_EXEMPLARS);
-            return -1;
-        }
-        r->synth.exemplars[r->synth.n_exemplars] = recipe_keep_path(r, v);
-        if (recipe_check_not_self(r, r->synth.exemplars[r->synth.n_exemplars], err))
-            return -1;
-        r->synth.n_exemplars++;
-    }
-    if (!r->synth.n_exemplars) {
-        rerr(err, r->path, "<Synth> needs at least one <Exemplar>");
-        return -1;
-    }
-    if ((v = CPLGetXMLValue(node, "CellSize", NULL)) &&
-        (recipe_parse_double(v, &r->synth.cell_size) != 0 || !(r->synth.cell_size > 0))) {
-        rerr(err, r->path, "<CellSize>%s</CellSize>: not a positive number", v);
-        return -1;
-    }
-    r->synth.sketch_params = ts_sketch_params_default();
-    if ((v = CPLGetXMLValue(node, "Sketch", NULL))) {
-        if (!*v) {
-            rerr(err, r->path, "<Sketch> is empty");
-            return -1;
-        }
-        r->synth.sketch = recipe_keep_path(r, v);
-        if (recipe_check_not_self(r, r->synth.sketch, err))
-            return -1;
-    }
-    if ((c = CPLGetXMLNode(node, "Water"))) {
-        v = CPLGetXMLValue(c, NULL, "");
-        if (!*v || recipe_parse_double(CPLGetXMLValue(c, "level", NULL), &r->synth.water_level)) {
-            rerr(err, r->path, "<Water level=\"H\">MASK</Water> needs a mask and a numeric level");
-            return -1;
-        }
-        r->synth.water = recipe_keep_path(r, v);
-    }
-    for (c = node->psChild; c; c = c->psNext) {
-        static const char *const attrs[6] = {"xoff", "yoff", "width", "height", "x", "y"};
-        long vals[6];
-        int a;
-        tsjob_pin *pin;
-        if (c->eType != CXT_Element || !EQUAL(c->pszValue, "Pin"))
-            continue;
-        if (r->synth.n_pins == TSJOB_MAX_PINS) {
-            rerr(err, r->path, "more than %d <Pin> elements", TSJOB_MAX_PINS);
-            return -1;
-        }
-        for (a = 0; a < 6; a++)
-            if (recipe_parse_int(CPLGetXMLValue(c, attrs[a], NULL), a == 2 || a == 3 ? 1 : 0,
-                                 1 << 24, &vals[a]) != 0) {
-                rerr(err, r->path, "<Pin %s=\"%s\">: not a cell number", attrs[a],
-                     CPLGetXMLValue(c, attrs[a], ""));
-                return -1;
-            }
-        pin = &r->synth.pins[r->synth.n_pins++];
-        pin->path = recipe_keep_path(r, CPLGetXMLValue(c, NULL, ""));
-        pin->xoff = (int)vals[0];
-        pin->yoff = (int)vals[1];
-        pin->width = (int)vals[2];
-        pin->height = (int)vals[3];
-        pin->x = (int)vals[4];
-        pin->y = (int)vals[5];
-    }
-    r->synth.alpha_h = 1.0;
-    if ((c = CPLGetXMLNode(node, "Heights"))) {
-        v = CPLGetXMLValue(c, NULL, "");
-        if (!*v || (CPLGetXMLValue(c, "alpha", NULL) &&
-                    (recipe_parse_double(CPLGetXMLValue(c, "alpha", NULL), &r->synth.alpha_h) ||
-                     r->synth.alpha_h < 0))) {
-            rerr(err, r->path, "<Heights alpha=\"A\">FILE</Heights> needs a file and alpha >= 0");
-            return -1;
-        }
-        r->synth.heights = recipe_keep_path(r, v);
-    }
-    if ((c = CPLGetXMLNode(node, "Regions"))) {
-        CPLXMLNode *rule;
-        v = CPLGetXMLValue(c, NULL, "");
-        r->synth.regions = *v ? recipe_keep_path(r, v) : NULL;
-        /* <Regions>map.tif</Regions> with <RegionExemplar id="1">ex.tif</RegionExemplar> rules */
-        for (rule = node->psChild; rule && r->synth.regions; rule = rule->psNext) {
-            long id;
-            int kx;
-            const char *file;
-            if (rule->eType != CXT_Element || !EQUAL(rule->pszValue, "RegionExemplar"))
-                continue;
-            file = CPLGetXMLValue(rule, NULL, "");
-            if (recipe_parse_int(CPLGetXMLValue(rule, "id", NULL), -2147483647L, 2147483647L,
-                                 &id) != 0 || !*file ||
-                r->synth.n_region_rules == TSJOB_MAX_EXEMPLARS) {
-                rerr(err, r->path, "<RegionExemplar id=\"N\">FILE</RegionExemplar> is incomplete");
-                return -1;
-            }
-            file = recipe_keep_path(r, file);
-            for (kx = 0; kx < r->synth.n_exemplars; kx++)
-                if (!strcmp(r->synth.exemplars[kx], file))
-                    break;
-            if (kx == r->synth.n_exemplars) {
-                if (kx == TSJOB_MAX_EXEMPLARS) {
-                    rerr(err, r->path, "more than %d exemplars", TSJOB_MAX_EXEMPLARS);
-                    return -1;
-                }
-                r->synth.exemplars[r->synth.n_exemplars++] = file;
-            }
-            r->synth.region_id[r->synth.n_region_rules] = (int)id;
-            r->synth.region_exemplar[r->synth.n_region_rules++] = kx;
-        }
-        if (!r->synth.regions || !r->synth.n_region_rules) {
-            rerr(err, r->path, "<Regions> needs a map and at least one <RegionExemplar>");
-            return -1;
-        }
-    }
-    if (r->synth.sketch) {
-        if (grid) {
-            rerr(err, r->path, "a <Sketch> sets the output grid: give no <Grid>");
-            return -1;
-        }
-        if (recipe_params(r, node, "synth", &r->synth.params, err) ||
-            recipe_options(r, oo, "synth", &r->synth.params, err))
-            return -1;
-        return tsjob_synth_prepare(&r->synth, &r->synth_res, err);
-    }
-    if (!grid) {
-        rerr(err, r->path, "<Synth> needs a <Grid like=...> or <Grid width=... height=...>");
-        return -1;
-    }
-    if ((v = CPLGetXMLValue(grid, "like", NULL))) {
-        g->like = recipe_keep_path(r, v);
-        if (recipe_check_not_self(r, g->like, err))
-            return -1;
-    } else {
-        if (recipe_parse_int(CPLGetXMLValue(grid, "width", NULL), 1, 65536, &n) != 0) {
-            rerr(err, r->path, "<Grid width=\"%s\">: not a size in 1..65536",
-                 CPLGetXMLValue(grid, "width", ""));
-            return -1;
-        }
-        g->width = (int)n;
-        if (recipe_parse_int(CPLGetXMLValue(grid, "height", NULL), 1, 65536, &n) != 0) {
-            rerr(err, r->path, "<Grid height=\"%s\">: not a size in 1..65536",
-                 CPLGetXMLValue(grid, "height", ""));
-            return -1;
-        }
-        g->height = (int)n;
-        if (CPLGetXMLValue(grid, "originX", NULL) || CPLGetXMLValue(grid, "originY", NULL)) {
-            if (recipe_parse_double(CPLGetXMLValue(grid, "originX", NULL), &g->origin_x) ||
-                recipe_parse_double(CPLGetXMLValue(grid, "originY", NULL), &g->origin_y)) {
-                rerr(err, r->path, "<Grid originX/originY>: not numbers");
-                return -1;
-            }
-            g->has_origin = 1;
-        }
-        if ((v = CPLGetXMLValue(grid, "resolution", NULL))) {
-            if (recipe_parse_double(v, &g->res) || !(g->res > 0)) {
-                rerr(err, r->path, "<Grid resolution=\"%s\">: not a positive number", v);
-                return -1;
-            }
-            g->has_res = 1;
-        }
-        if ((v = CPLGetXMLValue(grid, "crs", NULL))) {
-            r->strings = CSLAddString(r->strings, v);
-            g->crs = r->strings[CSLCount(r->strings) - 1];
-        }
-    }
-    if (recipe_params(r, node, "synth", &r->synth.params, err) ||
-        recipe_options(r, oo, "synth", &r->synth.params, err))
-        return -1;
     return tsjob_synth_prepare(&r->synth, &r->synth_res, err);
 }
 
@@ -519,12 +251,15 @@ int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_e
         goto done;
     }
     recipe_stack[recipe_depth++] = r->path;
-    if ((node = CPLGetXMLNode(top, "PPA")))
-        rc = recipe_ppa(r, node, oo, err);
-    else if ((node = CPLGetXMLNode(top, "Synth")))
-        rc = recipe_synth(r, node, oo, err);
-    else
+    if ((node = CPLGetXMLNode(top, "PPA"))) {
+        r->method = RECIPE_PPA;
+        rc = recipe_job(r, node, oo, err);
+    } else if ((node = CPLGetXMLNode(top, "Synth"))) {
+        r->method = RECIPE_SYNTH;
+        rc = recipe_job(r, node, oo, err);
+    } else {
         rerr(err, path, "<TerraSynth> needs a <PPA> or a <Synth> element");
+    }
     recipe_depth--;
 done:
     CPLDestroyXMLNode(root);
@@ -544,6 +279,7 @@ void recipe_free(ts_recipe *r)
     tsjob_ppa_result_free(&r->ppa_res);
     tsjob_synth_result_free(&r->synth_res);
     tsio_georef_free(&r->geo);
+    tsj_values_free(&r->values);
     CSLDestroy(r->strings);
     CPLFree(r->path);
     free(r);
@@ -643,22 +379,6 @@ static const char *recipe_rel(const char *recipe, const char *input)
     return buf;
 }
 
-static void recipe_add_params(CPLXMLNode *node, const char *stage, const void *params)
-{
-    size_t n, k;
-    const ts_param_desc *d = ts_params_describe(stage, &n);
-    ts_ctx *ctx = ts_ctx_new();
-    for (k = 0; k < n && ctx; k++) {
-        char value[128];
-        CPLXMLNode *p;
-        if (ts_params_get(ctx, stage, params, d[k].name, value, sizeof value) != TS_OK)
-            continue;
-        p = CPLCreateXMLElementAndValue(node, "Param", value);
-        CPLAddXMLAttributeAndValue(p, "name", d[k].name);
-    }
-    ts_ctx_free(ctx);
-}
-
 static int recipe_save(const char *path, CPLXMLNode *root, tsio_err *err)
 {
     char *xml = CPLSerializeXMLTree(root);
@@ -683,82 +403,18 @@ static int recipe_save(const char *path, CPLXMLNode *root, tsio_err *err)
     return rc;
 }
 
-int recipe_write_ppa(const char *path, const tsjob_ppa *job, tsio_err *err)
+/* tsj_to_xml's file names: relative to the recipe's folder */
+static const char *recipe_rel_cb(void *user, const char *name)
 {
-    CPLXMLNode *root = CPLCreateXMLNode(NULL, CXT_Element, "TerraSynth"), *node, *in;
-    int rc;
-    CPLAddXMLAttributeAndValue(root, "version", "1");
-    node = CPLCreateXMLNode(root, CXT_Element, "PPA");
-    in = CPLCreateXMLElementAndValue(node, "Input", recipe_rel(path, job->input));
-    CPLAddXMLAttributeAndValue(in, "band", CPLSPrintf("%d", job->band));
-    if (job->cell_size > 0)
-        CPLCreateXMLElementAndValue(node, "CellSize", CPLSPrintf("%.17g", job->cell_size));
-    recipe_add_params(node, "ppa", &job->params);
-    rc = recipe_save(path, root, err);
-    CPLDestroyXMLNode(root);
-    return rc;
+    return recipe_rel(user, name);
 }
 
-int recipe_write_synth(const char *path, const tsjob_synth *job, uint64_t seed, tsio_err *err)
+int recipe_write(const char *path, const tsj_values *values, tsio_err *err)
 {
-    CPLXMLNode *root = CPLCreateXMLNode(NULL, CXT_Element, "TerraSynth"), *node, *grid;
-    const tsjob_grid *g = &job->grid;
-    int i, rc;
+    CPLXMLNode *root = CPLCreateXMLNode(NULL, CXT_Element, "TerraSynth");
+    int rc;
     CPLAddXMLAttributeAndValue(root, "version", "1");
-    node = CPLCreateXMLNode(root, CXT_Element, "Synth");
-    CPLAddXMLAttributeAndValue(node, "seed", CPLSPrintf("%llu", (unsigned long long)seed));
-    for (i = 0; i < job->n_exemplars; i++)
-        CPLCreateXMLElementAndValue(node, "Exemplar", recipe_rel(path, job->exemplars[i]));
-    if (job->sketch)
-        CPLCreateXMLElementAndValue(node, "Sketch", recipe_rel(path, job->sketch));
-    if (job->cell_size > 0)
-        CPLCreateXMLElementAndValue(node, "CellSize", CPLSPrintf("%.17g", job->cell_size));
-    for (i = 0; i < job->n_pins; i++) {
-        const tsjob_pin *p = &job->pins[i];
-        CPLXMLNode *pn = CPLCreateXMLElementAndValue(node, "Pin", recipe_rel(path, p->path));
-        CPLAddXMLAttributeAndValue(pn, "xoff", CPLSPrintf("%d", p->xoff));
-        CPLAddXMLAttributeAndValue(pn, "yoff", CPLSPrintf("%d", p->yoff));
-        CPLAddXMLAttributeAndValue(pn, "width", CPLSPrintf("%d", p->width));
-        CPLAddXMLAttributeAndValue(pn, "height", CPLSPrintf("%d", p->height));
-        CPLAddXMLAttributeAndValue(pn, "x", CPLSPrintf("%d", p->x));
-        CPLAddXMLAttributeAndValue(pn, "y", CPLSPrintf("%d", p->y));
-    }
-    if (job->heights) {
-        CPLXMLNode *hn = CPLCreateXMLElementAndValue(node, "Heights", recipe_rel(path, job->heights));
-        CPLAddXMLAttributeAndValue(hn, "alpha", CPLSPrintf("%.17g", job->alpha_h));
-    }
-    if (job->regions) {
-        CPLCreateXMLElementAndValue(node, "Regions", recipe_rel(path, job->regions));
-        for (i = 0; i < job->n_region_rules; i++) {
-            CPLXMLNode *rn = CPLCreateXMLElementAndValue(
-                node, "RegionExemplar", recipe_rel(path, job->exemplars[job->region_exemplar[i]]));
-            CPLAddXMLAttributeAndValue(rn, "id", CPLSPrintf("%d", job->region_id[i]));
-        }
-    }
-    if (job->water) {
-        CPLXMLNode *wn = CPLCreateXMLElementAndValue(node, "Water", recipe_rel(path, job->water));
-        CPLAddXMLAttributeAndValue(wn, "level", CPLSPrintf("%.17g", job->water_level));
-    }
-    grid = job->sketch ? NULL : CPLCreateXMLNode(node, CXT_Element, "Grid");
-    if (!grid) {
-        /* the sketch's grid */
-    } else if (g->like) {
-        CPLAddXMLAttributeAndValue(grid, "like", recipe_rel(path, g->like));
-    } else {
-        CPLAddXMLAttributeAndValue(grid, "width", CPLSPrintf("%d", g->width));
-        CPLAddXMLAttributeAndValue(grid, "height", CPLSPrintf("%d", g->height));
-        if (g->has_origin) {
-            CPLAddXMLAttributeAndValue(grid, "originX", CPLSPrintf("%.17g", g->origin_x));
-            CPLAddXMLAttributeAndValue(grid, "originY", CPLSPrintf("%.17g", g->origin_y));
-        }
-        if (g->has_res)
-            CPLAddXMLAttributeAndValue(grid, "resolution", CPLSPrintf("%.17g", g->res));
-        if (g->crs)
-            CPLAddXMLAttributeAndValue(grid, "crs", g->crs);
-    }
-    recipe_add_params(node, "synth", &job->params);
-    if (job->sketch)
-        recipe_add_params(node, "sketch", &job->sketch_params);
+    tsj_to_xml(values, root, recipe_rel_cb, (void *)path);
     rc = recipe_save(path, root, err);
     CPLDestroyXMLNode(root);
     return rc;

@@ -43,11 +43,11 @@ double recipe_nodata(const ts_recipe *r);
 int recipe_compute(ts_recipe *r, tsio_err *err);
 const void *recipe_data(const ts_recipe *r);
 
-/** Write a recipe for a job (temporary file + rename).  Input paths are
- *  stored relative to the recipe's folder when they lie under it, else
- *  absolute. */
-int recipe_write_ppa(const char *path, const tsjob_ppa *job, tsio_err *err);
-int recipe_write_synth(const char *path, const tsjob_synth *job, uint64_t seed, tsio_err *err);
+/** Write a recipe for a job from what a front end was given (jobspec.h;
+ *  temporary file + rename).  Input paths are stored relative to the
+ *  recipe's folder when they lie under it, else absolute. */
+struct tsj_values;
+int recipe_write(const char *path, const struct tsj_values *values, tsio_err *err);
 
 /** Open-option list XML for the driver metadata, from the descriptor
  *  tables (caller frees with free()). */

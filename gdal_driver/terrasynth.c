@@ -21,6 +21,7 @@
 #include <gdal.h>
 
 #include "cli_params.h"
+#include "jobspec.h"
 #include "recipe.h"
 #include "tsjob.h"
 #include "terrasynth.h"
@@ -67,12 +68,11 @@ static void set_progress(ts_ctx *ctx, progress_mode mode, int *state)
 /* ------------------------------------------------------------------ */
 
 typedef struct common_opts {
+    const char *cmd;
     const char *format;
     char **create_options; /* CSL list */
     progress_mode progress;
     int threads;
-    double cell_size; /* > 0: ground size of a cell of a CRS-less raster, metres */
-    int band;
 } common_opts;
 
 static void usage_error(const char *cmd, const char *fmt, const char *arg)
@@ -97,8 +97,7 @@ static int parse_common(const char *cmd, common_opts *o, int argc, char **argv, 
         o->progress = PROGRESS_LINES;
         return 1;
     }
-    if (!strcmp(a, "-of") || !strcmp(a, "-co") || !strcmp(a, "--threads") ||
-        !strcmp(a, "--cell-size") || !strcmp(a, "--band")) {
+    if (!strcmp(a, "-of") || !strcmp(a, "-co") || !strcmp(a, "--threads")) {
         if (!value) {
             usage_error(cmd, "%s needs a value", a);
             return -1;
@@ -112,38 +111,28 @@ static int parse_common(const char *cmd, common_opts *o, int argc, char **argv, 
                 return -1;
             }
             o->create_options = CSLAddString(o->create_options, value);
-        } else if (!strcmp(a, "--threads")) {
+        } else {
             long t = strtol(value, &end, 10);
             if (*end || t < 0 || t > 256) {
                 usage_error(cmd, "--threads must be 0..256, not '%s'", value);
                 return -1;
             }
             o->threads = (int)t;
-        } else if (!strcmp(a, "--band")) {
-            long b = strtol(value, &end, 10);
-            if (*end || b < 1 || b > 65535) {
-                usage_error(cmd, "--band must be a band number, not '%s'", value);
-                return -1;
-            }
-            o->band = (int)b;
-        } else {
-            double c = strtod(value, &end);
-            if (*end || !(c > 0) || c > 1e7) {
-                usage_error(cmd, "--cell-size must be a positive number of metres, not '%s'",
-                            value);
-                return -1;
-            }
-            o->cell_size = c;
         }
         return 1;
     }
     return 0;
 }
 
+/* tsj_parse_argv's hook for the options every command shares (they are the
+ * command line's own: formats, threads, progress) */
+static int skip_common(int argc, char **argv, int *i, void *user)
+{
+    common_opts *co = user;
+    return parse_common(co->cmd, co, argc, argv, i);
+}
+
 static const char common_help[] =
-    "  --band N                         input band (default 1)\n"
-    "  --cell-size M                    ground size of a cell in metres, for a raster with\n"
-    "                                   no CRS (otherwise lengths are in cells)\n"
     "  -of FORMAT                       GDAL output format (default: from the extension,\n"
     "                                   else GTiff)\n"
     "  -co KEY=VALUE                    creation option (repeatable)\n"
@@ -161,31 +150,17 @@ static ts_status write_preview(ts_ctx *ctx, const char *path, const ts_raster *d
 
 static void ppa_help(FILE *out)
 {
-    static const char *const skip[] = {"features", NULL};
     fprintf(out,
             "Usage: terrasynth ppa INPUT (OUTPUT | --recipe FILE.tsyn) [options]\n"
             "\n"
             "Map the ridge and valley axes of a DEM with the Profile recognition and Polygon\n"
             "breaking Algorithm (Chang, Song & Hsu 1998). OUTPUT is a Byte raster on the\n"
             "input's grid: 1 ridge, 2 valley, 3 both (a saddle on both axes), 0 none,\n"
-            "255 where the input is nodata.\n"
-            "\n"
-            "Features:\n"
-            "  --ridges | --valleys | --both    which axes to map (default --ridges)\n"
-            "\n"
-            "PPA parameters:\n");
-    cli_params_help(out, "ppa", skip);
+            "255 where the input is nodata. Giving threshold sets threshold_fraction to 0\n"
+            "and the other way round.\n"
+            "\n");
+    tsj_help(out, tsj_find("ppa"));
     fprintf(out,
-            "  (--threshold and --threshold-fraction exclude each other; giving one sets the\n"
-            "   other to 0)\n"
-            "\n"
-            "Outputs:\n"
-            "  --lines FILE                     vector axes: layer 'paths' (LineString per path)\n"
-            "                                   and layer 'nodes' (endpoints, branch points);\n"
-            "                                   format from the extension (.gpkg, .shp, .geojson)\n"
-            "  --preview FILE.png               hillshade with ridges (red) and valleys (blue)\n"
-            "  --recipe FILE.tsyn               write a recipe for this command instead (no\n"
-            "                                   OUTPUT): gdal_translate FILE.tsyn out.tif\n"
             "\n"
             "Common options:\n%s"
             "\n"
@@ -196,11 +171,10 @@ static void ppa_help(FILE *out)
 
 static int cmd_ppa(int argc, char **argv)
 {
-    ts_ppa_params p = ts_ppa_params_default();
-    common_opts co = {NULL, NULL, PROGRESS_BAR, 0, 0.0, 1};
+    common_opts co = {"ppa", NULL, NULL, PROGRESS_BAR, 0};
     const char *input = NULL, *output = NULL, *lines = NULL, *preview = NULL;
     const char *recipe_path = NULL;
-    int i, rc = EXIT_RUN, seen_threshold = 0, seen_fraction = 0, progress_state = -1;
+    int i, rc = EXIT_RUN, progress_state = -1;
     ts_ctx *ctx = ts_ctx_new();
     tsjob_ppa job;
     tsjob_ppa_result res;
@@ -208,101 +182,44 @@ static int cmd_ppa(int argc, char **argv)
     ts_features *f = NULL;
     tsio_write_opts wo;
     size_t k;
+    tsj_values v;
+    char msg[1024] = "";
 
     memset(&res, 0, sizeof res);
+    tsj_values_init(&v, tsj_find("ppa"));
     if (!ctx) {
         fprintf(stderr, "terrasynth: out of memory\n");
         return EXIT_RUN;
     }
-    for (i = 2; i < argc; i++) {
-        const char *a = argv[i];
-        int r;
-        if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
+    for (i = 2; i < argc; i++)
+        if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
             ppa_help(stdout);
             rc = 0;
             goto done;
         }
-        if (!strcmp(a, "--ridges")) { p.features = TS_PPA_RIDGES; continue; }
-        if (!strcmp(a, "--valleys")) { p.features = TS_PPA_VALLEYS; continue; }
-        if (!strcmp(a, "--both")) { p.features = TS_PPA_BOTH; continue; }
-        if (!strcmp(a, "--lines") || !strcmp(a, "--preview") || !strcmp(a, "--recipe")) {
-            if (i + 1 >= argc) {
-                usage_error("ppa", "%s needs a file name", a);
-                rc = EXIT_USAGE;
-                goto done;
-            }
-            if (!strcmp(a, "--lines"))
-                lines = argv[++i];
-            else if (!strcmp(a, "--preview"))
-                preview = argv[++i];
-            else
-                recipe_path = argv[++i];
-            continue;
-        }
-        if ((r = parse_common("ppa", &co, argc, argv, &i)) != 0) {
-            if (r < 0) {
-                rc = EXIT_USAGE;
-                goto done;
-            }
-            continue;
-        }
-        if (!strncmp(a, "--threshold-fraction", 20))
-            seen_fraction = 1;
-        else if (!strncmp(a, "--threshold", 11))
-            seen_threshold = 1;
-        if ((r = cli_params_parse(ctx, "ppa", &p, argc, argv, &i)) != 0) {
-            if (r < 0) {
-                fprintf(stderr, "terrasynth ppa: %s\n", ts_ctx_message(ctx));
-                rc = EXIT_USAGE;
-                goto done;
-            }
-            continue;
-        }
-        if (a[0] == '-' && a[1] != '\0') {
-            usage_error("ppa", "unknown option '%s'", a);
-            rc = EXIT_USAGE;
-            goto done;
-        }
-        if (!input)
-            input = a;
-        else if (!output)
-            output = a;
-        else {
-            usage_error("ppa", "unexpected argument '%s'", a);
-            rc = EXIT_USAGE;
-            goto done;
-        }
-    }
-    if (!input || (!output && !recipe_path)) {
-        usage_error("ppa", "%s", "needs INPUT and OUTPUT (or --recipe)");
+    if (tsj_parse_argv(&v, argc, argv, 2, skip_common, &co, msg, sizeof msg) != 0) {
+        if (msg[0])
+            usage_error("ppa", "%s", msg);
         rc = EXIT_USAGE;
         goto done;
     }
-    if (recipe_path && (output || lines || preview)) {
-        usage_error("ppa", "%s", "--recipe writes the recipe instead of outputs: give no OUTPUT");
+    if (tsj_build_ppa(&v, &job, msg, sizeof msg) != 0) {
+        usage_error("ppa", "%s", msg);
         rc = EXIT_USAGE;
         goto done;
     }
-    if (seen_threshold && seen_fraction) {
-        usage_error("ppa", "%s", "give --threshold or --threshold-fraction, not both");
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    if (seen_threshold)
-        p.threshold_fraction = 0.0;
-    if (seen_fraction)
-        p.threshold = 0.0;
+    input = job.input;
+    output = tsj_get(&v, "output", 0);
+    lines = tsj_get(&v, "lines", 0);
+    preview = tsj_get(&v, "preview", 0);
+    recipe_path = tsj_get(&v, "recipe", 0);
     if ((output && !strcmp(input, output)) || (lines && !strcmp(lines, input)) ||
         (preview && !strcmp(preview, input))) {
         fprintf(stderr, "terrasynth: %s: an output would overwrite the input\n", input);
         goto done;
     }
-    job.input = input;
-    job.band = co.band;
-    job.cell_size = co.cell_size;
-    job.params = p;
     if (recipe_path) {
-        if (recipe_write_ppa(recipe_path, &job, &err) != 0) {
+        if (recipe_write(recipe_path, &v, &err) != 0) {
             fprintf(stderr, "terrasynth: %s\n", err.msg);
             goto done;
         }
@@ -365,6 +282,7 @@ static int cmd_ppa(int argc, char **argv)
     rc = 0;
 done:
     tsjob_ppa_result_free(&res);
+    tsj_values_free(&v);
     CSLDestroy(co.create_options);
     ts_ctx_free(ctx);
     return rc;
@@ -386,51 +304,15 @@ static void synth_help(FILE *out)
             "(Zhou et al. 2007 section 4.2 and 5): patches matched by FFT masked SSD, cut in\n"
             "with graph-cut seams and smoothed with Poisson seam removal. OUTPUT is a Float32\n"
             "DEM on the target grid with its CRS, geotransform and nodata (-9999).\n"
+            "Exemplars are resampled to the target's ground resolution when it differs.\n"
             "\n"
             "With --sketch, the terrain follows a drawing: bright strokes are ridges, dark\n"
             "strokes valleys (Zhou et al. 2007 sections 3-4: feature patches matched along the\n"
-            "sketch's feature tree with thin-plate-spline warps, then the fill above).\n"
-            "\n"
-            "Target grid:\n"
-            "  --sketch SK                      a sketch (any single-band raster); the output is\n"
-            "                                   on its grid, nodata where it is nodata\n"
-            "  --like GRID                      size, geotransform and CRS of a raster\n"
-            "  --size WxH                       size in cells; the grid defaults to the first\n"
-            "                                   exemplar's CRS, resolution and origin\n"
-            "  --origin X,Y                     top-left corner in CRS units\n"
-            "  --resolution R                   cell size in CRS units\n"
-            "  --crs CRS                        EPSG:code, WKT or PROJ string (needs --origin\n"
-            "                                   and --resolution)\n"
-            "Exemplars are resampled to the target's ground resolution when it differs.\n"
-            "\n"
-            "Synthesis parameters:\n");
-    cli_params_help(out, "synth", NULL);
-    fprintf(out, "\nSketch parameters (with --sketch):\n");
-    cli_params_help(out, "sketch", NULL);
+            "sketch's feature tree with thin-plate-spline warps, then the fill above, then\n"
+            "the layout stage, a TerraSynth addition).\n"
+            "\n");
+    tsj_help(out, tsj_find("synth"));
     fprintf(out,
-            "  --seed S                         random seed (default 0); same inputs and seed\n"
-            "                                   give the same bytes\n"
-            "\n"
-            "Outputs:\n"
-            "  --preview FILE.png               hillshade of the result\n"
-            "  --debug-dir DIR                  seams.tif, source_exemplar.tif, source_x.tif,\n"
-            "                                   source_y.tif, order.tif (georeferenced)\n"
-            "  --recipe FILE.tsyn               write a recipe for this command instead (no\n"
-            "                                   OUTPUT): gdal_translate FILE.tsyn out.tif\n"
-            "\n"
-            "Constraints:\n"
-            "  --pin FILE:XOFF,YOFF,W,H@X,Y     keep a window of a DEM (its own cells) unchanged\n"
-            "                                   with its top-left at output cell X,Y (repeatable)\n"
-            "  --water MASK --water-level H     cells where MASK (on the output grid) is non-zero\n"
-            "                                   keep the level H\n"
-            "  --heights H [--alpha-h A]        wanted elevations (a raster on the output grid,\n"
-            "                                   nodata = free): each candidate pays A x RMS\n"
-            "                                   difference (default A 1)\n"
-            "  --regions R --region-exemplar ID=EX\n"
-            "                                   several styles: R is an integer raster on the\n"
-            "                                   output grid or a polygon layer with an integer\n"
-            "                                   field 'region'; region ID takes exemplar EX\n"
-            "                                   (repeatable; other regions take any exemplar)\n"
             "\n"
             "Common options:\n%s"
             "\n"
@@ -482,16 +364,6 @@ static ts_status write_preview(ts_ctx *ctx, const char *path, const ts_raster *d
     return TS_OK;
 }
 
-static int parse_pair(const char *s, char sep, double *a, double *b)
-{
-    char *end;
-    *a = strtod(s, &end);
-    if (end == s || *end != sep)
-        return -1;
-    s = end + 1;
-    *b = strtod(s, &end);
-    return (end == s || *end || !isfinite(*a) || !isfinite(*b)) ? -1 : 0;
-}
 
 /* Write one int map as Float32 with nodata -1. */
 static int write_int_map(const char *dir, const char *name, const tsio_georef *geo,
@@ -546,16 +418,12 @@ out:
 
 static int cmd_synth(int argc, char **argv)
 {
-    ts_synth_params p = ts_synth_params_default();
-    common_opts co = {NULL, NULL, PROGRESS_BAR, 0, 0.0, 1};
+    common_opts co = {"synth", NULL, NULL, PROGRESS_BAR, 0};
     const char *output = NULL, *preview = NULL, *debug_dir = NULL, *recipe_path = NULL;
     int i, rc = EXIT_RUN, progress_state = -1;
     uint64_t seed = 0;
     tsjob_synth job;
     tsjob_synth_result res;
-    tsjob_grid *grid = &job.grid;
-    char pin_paths[TSJOB_MAX_PINS][1024];
-    int has_water_level = 0;
     tsio_err err;
     tsio_write_opts wo;
     ts_synth_maps maps;
@@ -563,230 +431,40 @@ static int cmd_synth(int argc, char **argv)
     unsigned char *m_seams = NULL;
     float *tmp = NULL;
     ts_ctx *ctx = ts_ctx_new();
+    tsj_values v;
+    char msg[1024] = "";
 
+    tsj_values_init(&v, tsj_find("synth"));
     memset(&job, 0, sizeof job);
-    job.sketch_params = ts_sketch_params_default();
-    job.alpha_h = 1.0;
     memset(&res, 0, sizeof res);
     memset(&maps, 0, sizeof maps);
     if (!ctx) {
         fprintf(stderr, "terrasynth: out of memory\n");
         return EXIT_RUN;
     }
-    for (i = 2; i < argc; i++) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        int r;
-        char *end;
-        if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
+    for (i = 2; i < argc; i++)
+        if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
             synth_help(stdout);
             rc = 0;
             goto done;
         }
-        if (!strcmp(a, "--exemplar") || !strcmp(a, "--like") || !strcmp(a, "--size") ||
-            !strcmp(a, "--origin") || !strcmp(a, "--resolution") || !strcmp(a, "--crs") ||
-            !strcmp(a, "--seed") || !strcmp(a, "--preview") || !strcmp(a, "--debug-dir") ||
-            !strcmp(a, "--recipe") || !strcmp(a, "--sketch") || !strcmp(a, "--pin") ||
-            !strcmp(a, "--water") || !strcmp(a, "--water-level") || !strcmp(a, "--regions") ||
-            !strcmp(a, "--region-exemplar") || !strcmp(a, "--heights") ||
-            !strcmp(a, "--alpha-h")) {
-            if (!v) {
-                usage_error("synth", "%s needs a value", a);
-                rc = EXIT_USAGE;
-                goto done;
-            }
-            i++;
-            if (!strcmp(a, "--exemplar")) {
-                if (job.n_exemplars == TSJOB_MAX_EXEMPLARS) {
-                    usage_error("synth", "at most %s exemplars", "64");
-                    rc = EXIT_USAGE;
-                    goto done;
-                }
-                job.exemplars[job.n_exemplars++] = v;
-            } else if (!strcmp(a, "--like")) {
-                grid->like = v;
-            } else if (!strcmp(a, "--size")) {
-                double w, h;
-                if (parse_pair(v, 'x', &w, &h) || w < 1 || h < 1 || w > 65536 || h > 65536 ||
-                    w != floor(w) || h != floor(h)) {
-                    usage_error("synth", "--size takes WxH in cells (1..65536), not '%s'", v);
-                    rc = EXIT_USAGE;
-                    goto done;
-                }
-                grid->width = (int)w;
-                grid->height = (int)h;
-            } else if (!strcmp(a, "--origin")) {
-                if (parse_pair(v, ',', &grid->origin_x, &grid->origin_y)) {
-                    usage_error("synth", "--origin takes X,Y, not '%s'", v);
-                    rc = EXIT_USAGE;
-                    goto done;
-                }
-                grid->has_origin = 1;
-            } else if (!strcmp(a, "--resolution")) {
-                grid->res = strtod(v, &end);
-                if (*end || !(grid->res > 0) || !isfinite(grid->res)) {
-                    usage_error("synth", "--resolution must be a positive number, not '%s'", v);
-                    rc = EXIT_USAGE;
-                    goto done;
-                }
-                grid->has_res = 1;
-            } else if (!strcmp(a, "--crs")) {
-                grid->crs = v;
-            } else if (!strcmp(a, "--seed")) {
-                unsigned long long s = strtoull(v, &end, 10);
-                if (*end || v[0] == '-') {
-                    usage_error("synth", "--seed must be a non-negative integer, not '%s'", v);
-                    rc = EXIT_USAGE;
-                    goto done;
-                }
-                seed = (uint64_t)s;
-            } else if (!strcmp(a, "--preview")) {
-                preview = v;
-            } else if (!strcmp(a, "--recipe")) {
-                recipe_path = v;
-            } else if (!strcmp(a, "--sketch")) {
-                job.sketch = v;
-            } else if (!strcmp(a, "--pin")) {
-                if (job.n_pins == TSJOB_MAX_PINS ||
-                    tsjob_parse_pin(v, &job.pins[job.n_pins], pin_paths[job.n_pins],
-                                    sizeof pin_paths[0]) != 0) {
-                    usage_error("synth",
-                                "--pin takes FILE:XOFF,YOFF,W,H@X,Y (at most 16), not '%s'", v);
-                    rc = EXIT_USAGE;
-                    goto done;
-                }
-                job.n_pins++;
-            } else if (!strcmp(a, "--water")) {
-                job.water = v;
-            } else if (!strcmp(a, "--regions")) {
-                job.regions = v;
-            } else if (!strcmp(a, "--heights")) {
-                job.heights = v;
-            } else if (!strcmp(a, "--alpha-h")) {
-                job.alpha_h = strtod(v, &end);
-                if (*end || !(job.alpha_h >= 0) || !isfinite(job.alpha_h)) {
-                    usage_error("synth", "--alpha-h must be a non-negative number, not '%s'", v);
-                    rc = EXIT_USAGE;
-                    goto done;
-                }
-            } else if (!strcmp(a, "--region-exemplar")) {
-                long id = strtol(v, &end, 10);
-                int k;
-                if (end == v || *end != '=' || !end[1] ||
-                    job.n_region_rules == TSJOB_MAX_EXEMPLARS) {
-                    usage_error("synth", "--region-exemplar takes ID=FILE, not '%s'", v);
-                    rc = EXIT_USAGE;
-                    goto done;
-                }
-                /* the region's exemplar joins the exemplars if it is not one yet */
-                for (k = 0; k < job.n_exemplars; k++)
-                    if (!strcmp(job.exemplars[k], end + 1))
-                        break;
-                if (k == job.n_exemplars) {
-                    if (job.n_exemplars == TSJOB_MAX_EXEMPLARS) {
-                        usage_error("synth", "at most %s exemplars", "64");
-                        rc = EXIT_USAGE;
-                        goto done;
-                    }
-                    job.exemplars[job.n_exemplars++] = end + 1;
-                }
-                job.region_id[job.n_region_rules] = (int)id;
-                job.region_exemplar[job.n_region_rules++] = k;
-            } else if (!strcmp(a, "--water-level")) {
-                job.water_level = strtod(v, &end);
-                if (*end || !isfinite(job.water_level)) {
-                    usage_error("synth", "--water-level must be a number, not '%s'", v);
-                    rc = EXIT_USAGE;
-                    goto done;
-                }
-                has_water_level = 1;
-            } else {
-                debug_dir = v;
-            }
-            continue;
-        }
-        if ((r = parse_common("synth", &co, argc, argv, &i)) != 0) {
-            if (r < 0) {
-                rc = EXIT_USAGE;
-                goto done;
-            }
-            continue;
-        }
-        if ((r = cli_params_parse(ctx, "synth", &p, argc, argv, &i)) != 0) {
-            if (r < 0) {
-                fprintf(stderr, "terrasynth synth: %s\n", ts_ctx_message(ctx));
-                rc = EXIT_USAGE;
-                goto done;
-            }
-            continue;
-        }
-        if ((r = cli_params_parse(ctx, "sketch", &job.sketch_params, argc, argv, &i)) != 0) {
-            if (r < 0) {
-                fprintf(stderr, "terrasynth synth: %s\n", ts_ctx_message(ctx));
-                rc = EXIT_USAGE;
-                goto done;
-            }
-            continue;
-        }
-        if (a[0] == '-' && a[1] != '\0') {
-            usage_error("synth", "unknown option '%s'", a);
-            rc = EXIT_USAGE;
-            goto done;
-        }
-        if (output) {
-            usage_error("synth", "unexpected argument '%s'", a);
-            rc = EXIT_USAGE;
-            goto done;
-        }
-        output = a;
-    }
-    if ((!output && !recipe_path) || job.n_exemplars == 0) {
-        /* (--region-exemplar files count as exemplars) */
-        usage_error("synth", "%s", "needs --exemplar and OUTPUT (or --recipe)");
+    if (tsj_parse_argv(&v, argc, argv, 2, skip_common, &co, msg, sizeof msg) != 0) {
+        if (msg[0])
+            usage_error("synth", "%s", msg);
         rc = EXIT_USAGE;
         goto done;
     }
-    if (recipe_path && (output || preview || debug_dir)) {
-        usage_error("synth", "%s", "--recipe writes the recipe instead of outputs: give no OUTPUT");
+    if (tsj_build_synth(&v, &job, &seed, msg, sizeof msg) != 0) {
+        usage_error("synth", "%s", msg);
         rc = EXIT_USAGE;
         goto done;
     }
-    if (!job.regions != !job.n_region_rules) {
-        usage_error("synth", "%s", "--regions and --region-exemplar go together");
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    if (!job.water != !has_water_level) {
-        usage_error("synth", "%s", "--water and --water-level go together");
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    if (!job.sketch && !grid->like == !grid->width) {
-        usage_error("synth", "%s", "give the target grid with --like or with --size");
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    if (grid->crs && !(grid->has_origin && grid->has_res)) {
-        usage_error("synth", "%s", "--crs needs --origin and --resolution");
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    if (ts_params_validate(ctx, "synth", &p) != TS_OK) {
-        fprintf(stderr, "terrasynth synth: %s\n", ts_ctx_message(ctx));
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    /* in metres they are compared once the grid is known */
-    if (p.overlap.unit == p.patch_size.unit && p.overlap.value >= p.patch_size.value) {
-        usage_error("synth", "%s", "--overlap must be smaller than --patch-size");
-        rc = EXIT_USAGE;
-        goto done;
-    }
-
-    job.cell_size = co.cell_size;
-    job.band = co.band;
-    job.params = p;
+    output = tsj_get(&v, "output", 0);
+    preview = tsj_get(&v, "preview", 0);
+    debug_dir = tsj_get(&v, "debug_dir", 0);
+    recipe_path = tsj_get(&v, "recipe", 0);
     if (recipe_path) {
-        if (recipe_write_synth(recipe_path, &job, seed, &err) != 0) {
+        if (recipe_write(recipe_path, &v, &err) != 0) {
             fprintf(stderr, "terrasynth: %s\n", err.msg);
             goto done;
         }
@@ -896,6 +574,7 @@ done:
     free(m_order);
     free(m_seams);
     free(tmp);
+    tsj_values_free(&v);
     CSLDestroy(co.create_options);
     ts_ctx_free(ctx);
     return rc;
@@ -927,7 +606,9 @@ static int cmd_describe(int argc, char **argv)
     if (argc > 2 && (!strcmp(argv[2], "-h") || !strcmp(argv[2], "--help"))) {
         printf("Usage: terrasynth describe [STAGE]\n\n"
                "Print the parameters of every stage (or one) as JSON: name, CLI flag, type,\n"
-               "default, range, units, choices and help. Front ends (QGIS) read it.\n");
+               "default, range, units, choices and help; and every job's options (inputs,\n"
+               "target grid, constraints, outputs) and the rules between them. Front ends\n"
+               "(QGIS) read it.\n");
         return 0;
     }
     if (argc > 2) {
@@ -984,7 +665,9 @@ static int cmd_describe(int argc, char **argv)
         }
         printf("\n    ]");
     }
-    printf("\n  }\n}\n");
+    printf("\n  },\n");
+    tsj_describe(stdout);
+    printf("\n}\n");
     return 0;
 }
 
