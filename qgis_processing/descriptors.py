@@ -3,110 +3,33 @@
 
 The provider reads them from the executable when it loads (runner.describe) so
 the QGIS parameters always carry the core's names, defaults and ranges; FALLBACK
-is used when no executable is found.  tests/qgis compares FALLBACK with
-`terrasynth describe`, so it cannot drift unnoticed.
+(describe.json, written by the build) is used when no executable is found.
+tests/qgis compares it with `terrasynth describe`, so it cannot drift unnoticed.
+The "jobs" member gives each job's options (their limits) and rules.
 
 A descriptor is a dict: name, flag, type (int | double | enum | length),
 default, min, max, units, choices (list or None), help, and for a length
 default_unit ("cells" or "m").  The QGIS parameter key is name.upper().
 """
 import copy
+import json
+import os
 
-FALLBACK = {
-    "version": "0.1.0",
-    "stages": {
-        "ppa": [
-            {"name": "features", "flag": "--features", "type": "enum", "default": 0,
-             "min": 0, "max": 2, "units": "", "choices": ["ridges", "valleys", "both"],
-             "help": "Which axes to extract."},
-            {"name": "profile_length", "flag": "--profile-length", "type": "int",
-             "default": 11, "min": 3, "max": 1001, "units": "cells", "choices": None,
-             "help": "Length of the four profiles through each cell (odd); a target must "
-                     "dip on both sides within half of it."},
-            {"name": "threshold", "flag": "--threshold", "type": "double", "default": 0,
-             "min": 0, "max": 1000000, "units": "elevation units", "choices": None,
-             "help": "Minimum dip on both sides of a profile, in elevation units (metres "
-                     "after unit conversion)."},
-            {"name": "threshold_fraction", "flag": "--threshold-fraction", "type": "double",
-             "default": 0.0025, "min": 0, "max": 1, "units": "fraction", "choices": None,
-             "help": "Minimum dip as a fraction of the DEM's elevation range; the larger of "
-                     "the two thresholds applies."},
-            {"name": "min_branch_length", "flag": "--min-branch-length", "type": "length",
-             "default": 40, "min": 0, "max": 10000000, "default_unit": "cells",
-             "units": "cells or m", "choices": None,
-             "help": "Branches shorter than this are removed (branch reduction); a plain "
-                     "number is cells, a number with suffix m is metres."},
-        ],
-        "synth": [
-            {"name": "patch_size", "flag": "--patch-size", "type": "length", "default": 64,
-             "min": 8, "max": 1024, "default_unit": "cells", "units": "cells or m",
-             "choices": None,
-             "help": "Side of the square patches copied from the exemplars: a whole number of "
-                     "cells, or a number with suffix m for metres (turned into cells at the "
-                     "output grid's ground resolution; 8..1024 cells either way)."},
-            {"name": "overlap", "flag": "--overlap", "type": "length", "default": 16, "min": 2,
-             "max": 512, "default_unit": "cells", "units": "cells or m", "choices": None,
-             "help": "Width shared by neighbouring patches, where seams are cut and smoothed: "
-                     "cells, or metres with suffix m; smaller than the patch."},
-            {"name": "candidates", "flag": "--candidates", "type": "int", "default": 6,
-             "min": 1, "max": 256, "units": "", "choices": None,
-             "help": "Best SSD matches examined per patch position (k)."},
-            {"name": "order", "flag": "--order", "type": "enum", "default": 0, "min": 0,
-             "max": 2, "units": "", "choices": ["grow", "raster", "tree"],
-             "help": "Placement order: grow out from what is filled (with a sketch: its "
-                     "feature tree breadth first), raster scan, or tree (= grow)."},
-            {"name": "alpha_g", "flag": "--alpha-g", "type": "double", "default": 1, "min": 0,
-             "max": 1000000, "units": "", "choices": None,
-             "help": "Weight of the graph-cut seam cost against the SSD when choosing a "
-                     "candidate."},
-            {"name": "variety", "flag": "--variety", "type": "double", "default": 0.1,
-             "min": 0, "max": 10, "units": "fraction", "choices": None,
-             "help": "Pick at random (seeded) among candidates whose cost is within this "
-                     "fraction of the best."},
-            {"name": "coarse_factor", "flag": "--coarse-factor", "type": "int", "default": 0,
-             "min": 0, "max": 16, "units": "", "choices": None,
-             "help": "Search on exemplars downsampled by this factor, then refine at full "
-                     "resolution (1 = exhaustive full-resolution search; 0 = automatic: "
-                     "exemplars brought to at most 512 x 512 cells)."},
-        ],
-        "sketch": [
-            {"name": "mode", "flag": "--mode", "type": "enum", "default": 2, "min": 0,
-             "max": 2, "units": "", "choices": ["ridges", "valleys", "auto"],
-             "help": "What the sketch draws: ridges (bright strokes), valleys (dark strokes), "
-                     "or auto."},
-            {"name": "alpha_d", "flag": "--alpha-d", "type": "double", "default": 1000,
-             "min": 0, "max": 1000000000, "units": "", "choices": None,
-             "help": "Weight of the warp deformation cost c_d of feature patches."},
-            {"name": "alpha_f", "flag": "--alpha-f", "type": "double", "default": 3,
-             "min": 0, "max": 1000000000, "units": "", "choices": None,
-             "help": "Weight of the feature profile dissimilarity c_f of feature patches."},
-            {"name": "alpha_s", "flag": "--alpha-s", "type": "double", "default": 0,
-             "min": 0, "max": 1000000000, "units": "", "choices": None,
-             "help": "Weight of the path smoothness constraint c_s: crest (valleys: thalweg) "
-                     "heights along the sketch's strokes bend less, within a feature patch and "
-                     "where it joins the placed ones; larger gives smoother, gentler crests "
-                     "(0 = off)."},
-            {"name": "alpha_p", "flag": "--alpha-p", "type": "double", "default": 1,
-             "min": 0, "max": 1000000000, "units": "", "choices": None,
-             "help": "Weight of the crest prominence c_p of feature patches: among the "
-                     "candidates that fit, those whose crest (valleys: thalweg) stands out most "
-                     "across the stroke, an eighth of a patch either side, so that sketched "
-                     "strokes read as main features (0 = off)."},
-            {"name": "alpha_r", "flag": "--alpha-r", "type": "double", "default": 0.5,
-             "min": 0, "max": 1000000000, "units": "", "choices": None,
-             "help": "Weight of the relief guide: sketched ridges stand high and sketched "
-                     "valleys lie low, falling away from the strokes as the exemplars' land "
-                     "falls away from their main features (0 = off: the exemplars alone decide "
-                     "the heights)."},
-            {"name": "layout", "flag": "--layout", "type": "double", "default": 1,
-             "min": 0, "max": 1, "units": "fraction", "choices": None,
-             "help": "How far the sketch sets the large-scale relief (scales above a third of "
-                     "a patch): the land rises to sketched ridges and falls to sketched valleys "
-                     "as steeply, at that scale, as the exemplars' land; smaller scales keep the "
-                     "patches' detail (0 = off)."},
-        ],
-    },
-}
+# `terrasynth describe` as the build wrote it (describe.json, next to this file): used when no
+# executable is found.  Never edited by hand: `cmake --build build --target qgis_describe_json`
+# writes it, and tests/qgis checks that it equals what the executable prints.
+DESCRIBE_JSON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "describe.json")
+
+
+def _load_fallback():
+    try:
+        with open(DESCRIBE_JSON, encoding="utf-8") as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return {"version": "", "stages": {}, "jobs": {}}
+
+
+FALLBACK = _load_fallback()
 
 # Descriptor types the plugin knows how to show; others are skipped (and logged).
 KNOWN_TYPES = ("int", "double", "enum", "length")
@@ -163,3 +86,48 @@ def validate(tables):
 def current_version():
     """Version of the core the current tables describe."""
     return _current["tables"].get("version", "")
+
+
+def job(name):
+    """A job's options and rules ({} when the tables have none)."""
+    return copy.deepcopy(_current["tables"].get("jobs", {}).get(name, {}))
+
+
+def max_count(job_name, option, default):
+    """How often an option of a job may be given (e.g. 64 exemplars)."""
+    for o in job(job_name).get("options", []):
+        if o.get("name") == option:
+            return int(o.get("max_count", default))
+    return default
+
+
+def check_rules(job_name, given):
+    """The message of the first rule of a job (from `terrasynth describe`) that the set of
+    given option and parameter names breaks, else None: the same rules, in the same order and
+    with the same messages, as the program's (gdal_driver/jobspec.c)."""
+    j = job(job_name)
+    stages = {st: {d["name"] for d in stage(st)} for st in j.get("stages", [])}
+
+    def is_given(name):
+        if name.startswith("@"):
+            return next((n for n in sorted(stages.get(name[1:], ()), key=str) if n in given),
+                        None)
+        return name if name in given else None
+
+    for r in j.get("rules", []):
+        a = is_given(r["a"])
+        bs = [is_given(b) for b in r["b"]]
+        bad = None
+        if r["kind"] == "requires" and a:
+            bad = a if any(b is None for b in bs) else None
+        elif r["kind"] == "excludes" and a:
+            bad = next((b for b in bs if b), None)
+        elif r["kind"] == "together":
+            n = (a is not None) + sum(b is not None for b in bs)
+            bad = r["a"] if 0 < n < 1 + len(bs) else None
+        elif r["kind"] == "one_of":
+            n = (a is not None) + sum(b is not None for b in bs)
+            bad = r["a"] if n != 1 else None
+        if bad:
+            return r["message"].replace("%s", bad, 1)
+    return None

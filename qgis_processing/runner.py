@@ -40,8 +40,20 @@ SETTINGS_KEY = "Processing/Configuration/" + SETTING_NAME
 PLUGIN_DIR = os.path.dirname(os.path.abspath(__file__))
 BUNDLED = os.path.join(PLUGIN_DIR, "bin", EXECUTABLE)
 
-# Parameters of which the CLI accepts only one: giving one sets the others to 0.
-EXCLUSIVE = {"ppa": [("threshold", "threshold_fraction")]}
+
+def exclusive_groups(stage):
+    """Parameters of a job of which the CLI accepts only one (giving one sets the others to
+    0): its "excludes" rules between core parameters, from `terrasynth describe`."""
+    from . import descriptors
+    params = {d["name"] for st in descriptors.job(stage).get("stages", [stage])
+              for d in descriptors.stage(st)}
+    groups = []
+    for r in descriptors.job(stage).get("rules", []):
+        names = [r["a"]] + list(r["b"])
+        if r["kind"] == "excludes" and all(n in params for n in names):
+            groups.append(tuple(names))
+    return groups
+
 # Options whose value is a pair, and the separator the CLI expects.
 PAIR_SEPARATORS = {"size": "x", "origin": ","}
 
@@ -184,31 +196,15 @@ def _same(desc, value):
         return False
 
 
-def exclusive_conflict(stage, descs, values):
-    """An error message if two mutually exclusive parameters both differ from their
-    defaults, else None."""
-    by_name = {d["name"]: d for d in descs}
-    for group in EXCLUSIVE.get(stage, ()):
-        given = [n for n in group if n in values and n in by_name
-                 and not _same(by_name[n], values[n])]
-        if len(given) > 1:
-            return ("give %s, not several: setting one replaces the other (as with %s)"
-                    % (" or ".join(n.upper() for n in given),
-                       " / ".join(flag(n) for n in given)))
-    return None
-
-
 def descriptor_args(stage, descs, values):
     """argv items for the core's parameters, in descriptor-table order.
 
-    Every value is passed explicitly, except inside an EXCLUSIVE group, where only
-    the member changed from its default is passed (the CLI then zeroes the others)."""
-    msg = exclusive_conflict(stage, descs, values)
-    if msg:
-        raise QgsProcessingException("terrasynth %s: %s" % (stage, msg))
+    Every value is passed explicitly, except inside an exclusive group, where only
+    the members changed from their defaults are passed (the CLI then zeroes the others,
+    or refuses two with the job's message)."""
     by_name = {d["name"]: d for d in descs}
     skip = set()
-    for group in EXCLUSIVE.get(stage, ()):
+    for group in exclusive_groups(stage):
         for n in group:
             if n in values and n in by_name and _same(by_name[n], values[n]):
                 skip.add(n)

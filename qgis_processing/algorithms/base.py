@@ -67,6 +67,7 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
     # descriptor tables whose parameters this algorithm shows (default: STAGE's); e.g.
     # ("synth", "sketch") for `terrasynth synth` with its --sketch options
     DESCRIPTOR_STAGES = None
+    POSITIONAL = ("output",)  # the job's options the program takes as plain arguments
 
     def __init__(self):
         super().__init__()
@@ -192,10 +193,14 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
             return ok, msg
         try:
             self.checkJob(parameters, context)
+            argv, _ = self.buildCommand(parameters, context, cli=runner.EXECUTABLE)
         except QgsProcessingException as e:
             return False, exception_text(e)
-        msg = runner.exclusive_conflict(self.STAGE, self._descs,
-                                        self.descriptorValues(parameters, context))
+        # the job's rules, from `terrasynth describe`, on what the program would be given:
+        # the program's own messages, before anything runs
+        given = {a[2:].replace("-", "_") for a in argv[2:] if a.startswith("--")}
+        given |= set(self.POSITIONAL)
+        msg = descriptors.check_rules(self.STAGE, given - {"progress_lines", "threads"})
         if msg:
             return False, msg
         return True, ""

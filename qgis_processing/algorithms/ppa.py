@@ -68,6 +68,7 @@ leaves no file. Same input and parameters give the same bytes.</p>
 
 class PpaAlgorithm(TerraSynthAlgorithm):
     STAGE = "ppa"
+    POSITIONAL = ("input", "output")
     NAME = "ppa"
     DISPLAY_NAME = "Extract ridges and valleys (PPA)"
     GROUP = "Terrain analysis"

@@ -35,10 +35,9 @@ from qgis.core import (
 
 from qgis.PyQt.QtCore import QVariant
 
+from .. import descriptors
 from .base import TerraSynthAlgorithm, gdal_source, is_set
 
-MAX_EXEMPLARS = 64  # the CLI's limit
-MAX_PINS = 16       # the CLI's limit
 REGION_FIELD = "region"  # the integer field of a polygon REGIONS layer
 _INT_TYPES = (QVariant.Int, QVariant.LongLong, QVariant.UInt, QVariant.ULongLong)
 
@@ -68,8 +67,9 @@ def parse_pins(text):
                                          "at least 1 cell" % item)
         pins.append("%s:%d,%d,%d,%d@%d,%d" % (m.group("file").strip(), v["xoff"], v["yoff"],
                                               v["w"], v["h"], v["x"], v["y"]))
-    if len(pins) > MAX_PINS:
-        raise QgsProcessingException("PINS: at most %d pins (%d given)" % (MAX_PINS, len(pins)))
+    limit = descriptors.max_count("synth", "pin", 16)
+    if len(pins) > limit:
+        raise QgsProcessingException("PINS: at most %d pins (%d given)" % (limit, len(pins)))
     return pins
 
 
@@ -122,14 +122,7 @@ exemplar feature patches that fit best are warped onto it (thin-plate spline / s
 warps) and cut in, then the rest is filled as above. The output is <b>on the sketch's grid</b>
 (size, geotransform, CRS), <b>nodata where the sketch is nodata</b>; Target grid like, Width,
 Height, Origin X/Y, Resolution and CRS must then be left empty.</p>
-<ul>
-<li><b>Sketch mode</b>: <i>ridges</i> (bright strokes), <i>valleys</i> (dark strokes) or
-<i>auto</i> (default: the strokes are the minority, bright or dark).</li>
-<li><b>Deformation cost weight (alpha_d)</b> (default 1000) and <b>Feature profile cost weight
-(alpha_f)</b> (default 3): weights of the warp's deformation and of the height profiles'
-mismatch across the feature, next to <i>alpha_g</i>, when choosing a feature patch.</li>
-</ul>
-<p>Without a sketch these three are not used.</p>
+{SKETCH_PARAMETERS}
 <h3>Parameters</h3>
 <ul>
 <li><b>Patch size</b> (8..1024 cells, default 64) and <b>Overlap</b> (2..512, default 16, smaller
@@ -313,6 +306,17 @@ class SynthAlgorithm(TerraSynthAlgorithm):
             self.DEBUG_DIR, self.tr("Debug maps folder"), optional=True,
             createByDefault=False))
 
+    def shortHelpString(self):  # noqa: N802
+        """The manual's summary, with the sketch parameters listed from the descriptor
+        tables (every one of them, with its default: never out of date)."""
+        items = "".join("<li><b>%s</b> (default %s): %s</li>" % (
+            d["name"].upper(), d["choices"][int(d["default"])] if d.get("choices")
+            else ("%g" % d["default"]), d["help"]) for d in descriptors.stage(self.SKETCH_STAGE))
+        text = HELP.replace("{SKETCH_PARAMETERS}",
+                            "<ul>%s</ul><p>They are passed only with a sketch (the program "
+                            "refuses them without one).</p>" % items)
+        return " ".join(text.split())
+
     # -- the target grid --------------------------------------------------------
     def targetOptions(self, parameters, context):  # noqa: N802
         """[(option, value)] for the target grid; raises on an incomplete grid."""
@@ -333,47 +337,25 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         crs = self.parameterAsCrs(parameters, self.CRS, context) \
             if is_set(parameters, self.CRS) else QgsCoordinateReferenceSystem()
         raw_crs = parameters.get(self.CRS)
-        if sketch is not None:
-            given = [k for k, on in (
-                (self.LIKE, is_set(parameters, self.LIKE)),
-                (self.WIDTH, is_set(parameters, self.WIDTH)),
-                (self.HEIGHT, is_set(parameters, self.HEIGHT)),
-                (self.ORIGIN_X, has_x), (self.ORIGIN_Y, has_y),
-                (self.RESOLUTION, has_res),
-                (self.CRS, crs.isValid() or (isinstance(raw_crs, str) and raw_crs.strip())))
-                if on]
-            if given:
-                raise QgsProcessingException(
-                    "SKETCH sets the target grid (the output is on the sketch's grid): give "
-                    "no LIKE, WIDTH, HEIGHT, ORIGIN_X, ORIGIN_Y, RESOLUTION or CRS with it "
-                    "(given: %s)" % ", ".join(given))
-            return [("sketch", gdal_source(sketch, self.SKETCH))]
-        if like is not None and (width or height or has_x or has_y or has_res or crs.isValid()):
-            raise QgsProcessingException(
-                "give the target grid with LIKE or with WIDTH and HEIGHT (plus ORIGIN_X/"
-                "ORIGIN_Y, RESOLUTION, CRS), not both")
-        if like is not None:
-            return [("like", gdal_source(like, self.LIKE))]
-        if not (width and height):
-            raise QgsProcessingException(
-                "give the target grid: SKETCH or LIKE (a raster), or WIDTH and HEIGHT in cells")
+        # which of these go together is the job's rule (the program checks it, with the
+        # same message as on the command line); here only what QGIS splits in two
+        if (width > 0) != (height > 0):
+            raise QgsProcessingException("give both WIDTH and HEIGHT, or neither")
         if has_x != has_y:
             raise QgsProcessingException("give both ORIGIN_X and ORIGIN_Y, or neither")
-        res = self.parameterAsDouble(parameters, self.RESOLUTION, context) if has_res else None
-        if res is not None and not res > 0:
-            raise QgsProcessingException("RESOLUTION must be a positive number")
         if isinstance(raw_crs, str) and raw_crs.strip() and not crs.isValid():
             raise QgsProcessingException("CRS: '%s' is not a valid coordinate reference "
                                          "system" % raw_crs)
-        if crs.isValid() and not (has_x and has_res):
-            raise QgsProcessingException("CRS needs ORIGIN_X, ORIGIN_Y and RESOLUTION")
+        res = self.parameterAsDouble(parameters, self.RESOLUTION, context) if has_res else None
         origin = (self.parameterAsDouble(parameters, self.ORIGIN_X, context),
                   self.parameterAsDouble(parameters, self.ORIGIN_Y, context)) if has_x else None
         crs_text = None
         if crs.isValid():
             crs_text = crs.authid() or crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
-        return [("size", (width, height)), ("origin", origin), ("resolution", res),
-                ("crs", crs_text)]
+        return [("sketch", gdal_source(sketch, self.SKETCH) if sketch is not None else None),
+                ("like", gdal_source(like, self.LIKE) if like is not None else None),
+                ("size", (width, height) if width else None), ("origin", origin),
+                ("resolution", res), ("crs", crs_text)]
 
     # -- the constraints ----------------------------------------------------------
     def _raster(self, parameters, key, context):
@@ -428,22 +410,16 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         pins = parse_pins(self.parameterAsString(parameters, self.PINS, context)
                           if is_set(parameters, self.PINS) else "")
         options.append(("pin", pins or None))
-        has_water, has_level = is_set(parameters, self.WATER_MASK), \
-            is_set(parameters, self.WATER_LEVEL)
-        if has_water != has_level:
-            raise QgsProcessingException("give both WATER_MASK and WATER_LEVEL, or neither")
-        if has_water:
-            options += [("water", self._raster(parameters, self.WATER_MASK, context)),
-                        ("water_level",
-                         self.parameterAsDouble(parameters, self.WATER_LEVEL, context))]
+        # WATER_MASK with WATER_LEVEL, REGIONS with REGION_EXEMPLARS: the job's rules
+        options += [("water", self._raster(parameters, self.WATER_MASK, context)),
+                    ("water_level", self.parameterAsDouble(parameters, self.WATER_LEVEL, context)
+                     if is_set(parameters, self.WATER_LEVEL) else None)]
         rules = parse_region_rules(self.parameterAsString(parameters, self.REGION_EXEMPLARS,
                                                           context)
                                    if is_set(parameters, self.REGION_EXEMPLARS) else "")
-        if is_set(parameters, self.REGIONS) != bool(rules):
-            raise QgsProcessingException("give both REGIONS and REGION_EXEMPLARS, or neither")
-        if rules:
-            options += [("regions", self._regions_source(parameters, context)),
-                        ("region_exemplar", rules)]
+        options += [("regions", self._regions_source(parameters, context)
+                     if is_set(parameters, self.REGIONS) else None),
+                    ("region_exemplar", rules or None)]
         if is_set(parameters, self.HEIGHTS):
             alpha_h = self.parameterAsDouble(parameters, self.ALPHA_H, context) \
                 if is_set(parameters, self.ALPHA_H) else 1.0
@@ -460,23 +436,9 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         return stages
 
     def checkJob(self, parameters, context):  # noqa: N802
-        layers = self.parameterAsLayerList(parameters, self.EXEMPLARS, context)
-        if not layers:
-            raise QgsProcessingException("EXEMPLARS: give at least one raster")
-        if len(layers) > MAX_EXEMPLARS:
-            raise QgsProcessingException("EXEMPLARS: at most %d rasters" % MAX_EXEMPLARS)
-        names = {d["name"] for d in self._descs}
-        # in the same unit they compare here; cells against metres only once the grid
-        # is known (the program checks them then)
-        if {"patch_size", "overlap"} <= names and \
-                self.parameterAsEnum(parameters, "OVERLAP_UNIT", context) == \
-                self.parameterAsEnum(parameters, "PATCH_SIZE_UNIT", context) and \
-                self.parameterAsDouble(parameters, "OVERLAP", context) >= \
-                self.parameterAsDouble(parameters, "PATCH_SIZE", context):
-            raise QgsProcessingException("OVERLAP must be smaller than PATCH_SIZE")
-        if is_set(parameters, self.CELL_SIZE) and \
-                self.parameterAsDouble(parameters, self.CELL_SIZE, context) <= 0:
-            raise QgsProcessingException("CELL_SIZE must be a positive number of metres")
+        # the job's rules (exemplar count, overlap under the patch, cell size, which options
+        # go together) are the program's: it checks them with the command line's messages;
+        # here only what the dialog's form adds
         self.targetOptions(parameters, context)
         self.constraintOptions(parameters, context)
 

@@ -162,8 +162,16 @@ def test_fallback_tables_match_describe(stage, describe):
     descs = describe["stages"][stage]
     assert [d["name"] for d in fallback["stages"][stage]] == [d["name"] for d in descs]
     for want, got in zip(descs, fallback["stages"][stage]):
-        assert got == want, "update FALLBACK: %s.%s differs from describe" % (
-            stage, want["name"])
+        assert got == want, ("qgis_processing/describe.json is stale (%s.%s): cmake --build build "
+                             "--target qgis_describe_json" % (stage, want["name"]))
+
+
+def test_fallback_jobs_match_describe(describe):
+    """The jobs' options and rules in describe.json are the executable's too."""
+    from terrasynth_qgis import descriptors
+
+    assert descriptors.FALLBACK["jobs"] == describe["jobs"], (
+        "qgis_processing/describe.json is stale: cmake --build build --target qgis_describe_json")
 
 
 def test_fallback_is_used_without_a_cli(monkeypatch, tmp_path):
@@ -295,22 +303,20 @@ def test_synth_command_line_with_sketch(jacksboro, lambda_ridges, tmp_path):
     assert os.listdir(tmp_path) == []  # nothing was run
 
 
-@pytest.mark.parametrize("params,given", [
-    ({"LIKE": "JACKSBORO"}, "LIKE"),
-    ({"WIDTH": 64, "HEIGHT": 64}, "WIDTH, HEIGHT"),
-    ({"WIDTH": 64}, "WIDTH"),
-    ({"ORIGIN_X": 0, "ORIGIN_Y": 0}, "ORIGIN_X, ORIGIN_Y"),
-    ({"RESOLUTION": 30}, "RESOLUTION"),
-    ({"CRS": "EPSG:32616"}, "CRS"),
+@pytest.mark.parametrize("params,want", [
+    ({"LIKE": "JACKSBORO"}, "a sketch sets the output grid: give no like"),
+    ({"WIDTH": 64, "HEIGHT": 64}, "a sketch sets the output grid: give no size"),
+    ({"WIDTH": 64}, "give both WIDTH and HEIGHT, or neither"),
+    ({"ORIGIN_X": 0, "ORIGIN_Y": 0}, "a sketch sets the output grid: give no origin"),
+    ({"RESOLUTION": 30}, "a sketch sets the output grid: give no resolution"),
+    ({"CRS": "EPSG:32616"}, "a sketch sets the output grid: give no crs"),
     ({"LIKE": "JACKSBORO", "WIDTH": 64, "HEIGHT": 64, "ORIGIN_X": 0, "ORIGIN_Y": 0,
-      "RESOLUTION": 30, "CRS": "EPSG:32616"},
-     "LIKE, WIDTH, HEIGHT, ORIGIN_X, ORIGIN_Y, RESOLUTION, CRS"),
+      "RESOLUTION": 30, "CRS": "EPSG:32616"}, "a sketch sets the output grid: give no like"),
 ])
-def test_synth_sketch_excludes_other_grids(jacksboro, lambda_ridges, tmp_path, params, given):
+def test_synth_sketch_excludes_other_grids(jacksboro, lambda_ridges, tmp_path, params, want):
+    """The dialog checks the job's rules (from describe) with the program's own messages."""
     params = {k: (jacksboro if v == "JACKSBORO" else v) for k, v in params.items()}
     params.update(EXEMPLARS=[jacksboro], SKETCH=lambda_ridges, OUTPUT=str(tmp_path / "n.tif"))
-    want = ("SKETCH sets the target grid (the output is on the sketch's grid): give no LIKE, "
-            "WIDTH, HEIGHT, ORIGIN_X, ORIGIN_Y, RESOLUTION or CRS with it (given: %s)" % given)
     alg = registry().createAlgorithmById("terrasynth:synth")
     ok, msg = alg.checkParameterValues(params, QgsProcessingContext())  # the dialog's check
     assert (ok, msg) == (False, want)
@@ -321,12 +327,12 @@ def test_synth_sketch_excludes_other_grids(jacksboro, lambda_ridges, tmp_path, p
 
 
 @pytest.mark.parametrize("params,message", [
-    ({}, "LIKE"),
+    ({}, "give the target grid: a sketch, like or size"),
     ({"WIDTH": 64}, "WIDTH and HEIGHT"),
-    ({"LIKE": "JACKSBORO", "WIDTH": 64, "HEIGHT": 64}, "not both"),
+    ({"LIKE": "JACKSBORO", "WIDTH": 64, "HEIGHT": 64}, "like sets the output grid: give no size"),
     ({"WIDTH": 64, "HEIGHT": 64, "ORIGIN_X": 0}, "ORIGIN_Y"),
-    ({"WIDTH": 64, "HEIGHT": 64, "CRS": "EPSG:32616"}, "CRS needs"),
-    ({"WIDTH": 64, "HEIGHT": 64, "PATCH_SIZE": 32, "OVERLAP": 32}, "OVERLAP"),
+    ({"WIDTH": 64, "HEIGHT": 64, "CRS": "EPSG:32616"}, "a CRS needs an origin and a resolution"),
+    ({"WIDTH": 64, "HEIGHT": 64, "PATCH_SIZE": 32, "OVERLAP": 32}, "overlap"),
 ])
 def test_synth_bad_parameter_combinations(jacksboro, tmp_path, params, message):
     params = {k: (jacksboro if v == "JACKSBORO" else v) for k, v in params.items()}
@@ -337,7 +343,8 @@ def test_synth_bad_parameter_combinations(jacksboro, tmp_path, params, message):
 
 
 def test_ppa_both_thresholds_refused(jacksboro, tmp_path):
-    with pytest.raises(QgsProcessingException, match="THRESHOLD"):
+    with pytest.raises(QgsProcessingException,
+                       match="give threshold or threshold_fraction, not both"):
         processing_run("terrasynth:ppa", {"INPUT": jacksboro, "THRESHOLD": 5,
                                           "THRESHOLD_FRACTION": 0.01,
                                           "OUTPUT": str(tmp_path / "a.tif")})
@@ -442,10 +449,10 @@ def test_synth_command_line_polygon_regions(jacksboro, tmp_path):
 
 
 @pytest.mark.parametrize("params,message", [
-    ({"WATER_MASK": "JACKSBORO"}, "give both WATER_MASK and WATER_LEVEL, or neither"),
-    ({"WATER_LEVEL": 100}, "give both WATER_MASK and WATER_LEVEL, or neither"),
-    ({"REGIONS": "JACKSBORO"}, "give both REGIONS and REGION_EXEMPLARS, or neither"),
-    ({"REGION_EXEMPLARS": "1=a.tif"}, "give both REGIONS and REGION_EXEMPLARS, or neither"),
+    ({"WATER_MASK": "JACKSBORO"}, "water and water_level go together"),
+    ({"WATER_LEVEL": 100}, "water and water_level go together"),
+    ({"REGIONS": "JACKSBORO"}, "regions and region_exemplar go together"),
+    ({"REGION_EXEMPLARS": "1=a.tif"}, "regions and region_exemplar go together"),
     ({"REGIONS": "JACKSBORO", "REGION_EXEMPLARS": "one=a.tif"}, "is not ID=FILE"),
     ({"REGIONS": "JACKSBORO", "REGION_EXEMPLARS": "1=a.tif;1=b.tif"}, "region 1 is given twice"),
     ({"PINS": "JACKSBORO:1,2,3@4,5"}, "is not FILE:XOFF,YOFF,W,H@X,Y"),
@@ -733,3 +740,12 @@ def test_missing_input_file(cli, tmp_path):
         processing_run("terrasynth:ppa", {"INPUT": str(tmp_path / "missing.tif"),
                                           "OUTPUT": str(tmp_path / "a.tif")})
     assert os.listdir(tmp_path) == []
+
+
+def test_synth_help_lists_every_sketch_parameter():
+    """The help names every sketch parameter the core declares (issue 11: it named three)."""
+    from terrasynth_qgis import descriptors
+
+    text = registry().algorithmById("terrasynth:synth").shortHelpString()
+    for d in descriptors.stage("sketch"):
+        assert "<b>%s</b>" % d["name"].upper() in text, d["name"]
