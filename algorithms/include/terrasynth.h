@@ -29,11 +29,8 @@ extern "C" {
 #define TS_API
 #endif
 
-#define TS_VERSION_MAJOR 0
-#define TS_VERSION_MINOR 1
-#define TS_VERSION_PATCH 0
-
-/** Version string "MAJOR.MINOR.PATCH" (static storage). */
+/** Version string "MAJOR.MINOR.PATCH" (static storage): the project's
+ *  version, set once in CMakeLists.txt. */
 TS_API const char *ts_version(void);
 
 /* ------------------------------------------------------------------ */

@@ -15,7 +15,7 @@
 
 TS_API const char *ts_version(void)
 {
-    return "0.1.0";
+    return TS_VERSION_STRING; /* the project's version, from CMakeLists.txt */
 }
 
 TS_API const char *ts_status_str(ts_status status)

@@ -46,7 +46,13 @@ def stage_plugin(parent):
     """Copy qgis_processing/ to <parent>/terrasynth_qgis; return the plugin folder."""
     dest = os.path.join(parent, PLUGIN_NAME)
     shutil.copytree(PLUGIN_SOURCE, dest,
-                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "CMakeLists.txt"))
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "CMakeLists.txt",
+                                                  "metadata.txt.in"))
+    # metadata.txt is made by the build (the version comes from CMakeLists.txt)
+    meta = os.environ.get("TS_QGIS_METADATA") or os.path.join(
+        ROOT, "build", "qgis_processing", "metadata.txt")
+    if os.path.isfile(meta):
+        shutil.copy(meta, os.path.join(dest, "metadata.txt"))
     return dest
 
 
