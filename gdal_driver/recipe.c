@@ -420,71 +420,88 @@ int recipe_write(const char *path, const tsj_values *values, tsio_err *err)
     return rc;
 }
 
+/* One <Option> of the list, unless one of that name is there already. */
+static CPLXMLNode *option_add(CPLXMLNode *list, const char *name, const char *type,
+                              const char *description)
+{
+    CPLXMLNode *c, *o;
+    char upper[64];
+    size_t i;
+    for (i = 0; name[i] && i + 1 < sizeof upper; i++)
+        upper[i] = (char)toupper((unsigned char)name[i]);
+    upper[i] = '\0';
+    for (c = list->psChild; c; c = c->psNext)
+        if (c->eType == CXT_Element && EQUAL(CPLGetXMLValue(c, "name", ""), upper))
+            return NULL; /* shared by two jobs or stages */
+    o = CPLCreateXMLNode(list, CXT_Element, "Option");
+    CPLAddXMLAttributeAndValue(o, "name", upper);
+    CPLAddXMLAttributeAndValue(o, "type", type);
+    CPLAddXMLAttributeAndValue(o, "description", description);
+    return o;
+}
+
 char *recipe_open_option_list(void)
 {
-    const char *const *stages = ts_params_stages();
-    size_t cap = 8192, len = 0;
-    char *s = malloc(cap);
-    int i;
-    if (!s)
-        return NULL;
-    len += (size_t)snprintf(s + len, cap - len,
-                            "<OpenOptionList>"
-                            "<Option name='SEED' type='int' description='random seed'/>");
-    for (i = 0; stages[i]; i++) {
-        size_t n, k;
-        const ts_param_desc *d = ts_params_describe(stages[i], &n);
-        for (k = 0; k < n; k++) {
-            char name[64];
-            size_t j;
-            int w;
-            for (j = 0; d[k].name[j] && j + 1 < sizeof name; j++)
-                name[j] = (char)toupper((unsigned char)d[k].name[j]);
-            name[j] = '\0';
-            char *help;
-            if (strstr(s, CPLSPrintf("name='%s'", name)))
-                continue; /* shared by two stages */
-            help = CPLEscapeString(d[k].help, -1, CPLES_XML);
-            {
-                /* the list quotes attributes with ' */
-                char *q = help, *e;
-                while ((e = strchr(q, '\''))) {
-                    char *nh = CPLStrdup(CPLSPrintf("%.*s&apos;%s", (int)(e - help), help, e + 1));
-                    q = nh + (e - help) + 6;
-                    CPLFree(help);
-                    help = nh;
+    CPLXMLNode *list = CPLCreateXMLNode(NULL, CXT_Element, "OpenOptionList");
+    const char *jobs[2] = {"ppa", "synth"};
+    char *out, *xml;
+    int j, s;
+    for (j = 0; j < 2; j++) {
+        const tsj_job *job = tsj_find(jobs[j]);
+        size_t k;
+        /* the stages' parameters, as GDAL drivers declare them */
+        for (s = 0; job->stages[s]; s++) {
+            size_t n;
+            const ts_param_desc *d = ts_params_describe(job->stages[s], &n);
+            for (k = 0; k < n; k++) {
+                const char *type = d[k].type == TS_PARAM_INT      ? "int"
+                                   : d[k].type == TS_PARAM_DOUBLE ? "float"
+                                   : d[k].type == TS_PARAM_ENUM   ? "string-select"
+                                                                  : "string";
+                CPLXMLNode *o = option_add(list, d[k].name, type,
+                                           CPLSPrintf("%s (%s)", d[k].help, job->stages[s]));
+                if (!o)
+                    continue;
+                if (d[k].type == TS_PARAM_ENUM) {
+                    char **choices = CSLTokenizeString2(d[k].choices, "|", 0);
+                    int c;
+                    for (c = 0; choices && choices[c]; c++)
+                        CPLCreateXMLElementAndValue(o, "Value", choices[c]);
+                    CPLAddXMLAttributeAndValue(o, "default",
+                                               choices && (int)d[k].def < CSLCount(choices)
+                                                   ? choices[(int)d[k].def]
+                                                   : "");
+                    CSLDestroy(choices);
+                } else {
+                    CPLAddXMLAttributeAndValue(o, "default", CPLSPrintf("%.15g", d[k].def));
+                    if (d[k].type != TS_PARAM_LENGTH) {
+                        CPLAddXMLAttributeAndValue(o, "min", CPLSPrintf("%.15g", d[k].min));
+                        CPLAddXMLAttributeAndValue(o, "max", CPLSPrintf("%.15g", d[k].max));
+                    }
                 }
             }
-            w = snprintf(s + len, cap - len,
-                         "<Option name='%s' type='%s' description='%s (%s)'/>", name,
-                         d[k].type == TS_PARAM_INT      ? "int"
-                         : d[k].type == TS_PARAM_DOUBLE ? "float"
-                                                        : "string",
-                         help, stages[i]);
-            CPLFree(help);
-            if (w < 0 || (size_t)w >= cap - len) {
-                char *ns;
-                cap *= 2;
-                ns = realloc(s, cap);
-                if (!ns) {
-                    free(s);
-                    return NULL;
-                }
-                s = ns;
-                k--;
+        }
+        /* the job's options that name no file */
+        for (k = 0; k < job->n_opts; k++) {
+            const tsj_option *op = &job->opts[k];
+            CPLXMLNode *o;
+            if (!op->xml || op->kind == TSJ_FILE || op->kind == TSJ_PIN || op->kind == TSJ_RULE)
                 continue;
+            o = option_add(list, op->name,
+                           op->kind == TSJ_INT                             ? "int"
+                           : op->kind == TSJ_NUMBER                        ? "float"
+                           : op->kind == TSJ_SEED                          ? "unsignedint"
+                                                                           : "string",
+                           CPLSPrintf("%s (%s)", op->help, job->name));
+            if (o && (op->kind == TSJ_INT || op->kind == TSJ_NUMBER)) {
+                CPLAddXMLAttributeAndValue(o, "min", CPLSPrintf("%.15g", op->min));
+                CPLAddXMLAttributeAndValue(o, "max", CPLSPrintf("%.15g", op->max));
             }
-            len += (size_t)w;
         }
     }
-    if (len + 32 >= cap) {
-        char *ns = realloc(s, cap + 64);
-        if (!ns) {
-            free(s);
-            return NULL;
-        }
-        s = ns;
-    }
-    snprintf(s + len, 32, "</OpenOptionList>");
-    return s;
+    xml = CPLSerializeXMLTree(list);
+    CPLDestroyXMLNode(list);
+    out = xml ? strdup(xml) : NULL;
+    CPLFree(xml);
+    return out;
 }

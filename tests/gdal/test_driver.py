@@ -61,6 +61,36 @@ def test_formats_lists_tsyn():
     assert "TSYN -raster- (rov)" in out
 
 
+def test_open_option_list_declares_every_parameter():
+    """The driver's option list comes from the declarations: every stage parameter with its
+    type, default and range (choices as string-select values), every job option that names
+    no file; none that names one."""
+    import json
+    import xml.etree.ElementTree as ET
+
+    d = json.loads(ts("describe").stdout)
+    opts = {o.get("name"): o for o in ET.fromstring(
+        gdal.GetDriverByName("TSYN").GetMetadataItem("DMD_OPENOPTIONLIST"))}
+    for job in d["jobs"].values():
+        for st in job["stages"]:
+            for p in d["stages"][st]:
+                o = opts[p["name"].upper()]
+                if p["type"] == "enum":
+                    assert o.get("type") == "string-select"
+                    assert [v.text for v in o] == p["choices"]
+                    assert o.get("default") == p["choices"][int(p["default"])]
+                elif p["type"] in ("int", "double"):
+                    assert o.get("type") == ("int" if p["type"] == "int" else "float")
+                    assert float(o.get("min")) == p["min"] and float(o.get("max")) == p["max"]
+                    assert float(o.get("default")) == pytest.approx(p["default"])
+        for op in job["options"]:
+            named = op["name"].upper() in opts
+            if op["recipe"] and op["kind"] not in ("file", "pin", "rule"):
+                assert named, op["name"]
+            elif op["kind"] in ("file", "pin", "rule", "output"):
+                assert not named or op["name"] in ("band", "cell_size"), op["name"]
+
+
 @pytest.fixture(scope="module")
 def ppa_recipe(tmp_path_factory):
     d = tmp_path_factory.mktemp("ppa")
