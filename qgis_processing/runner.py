@@ -188,7 +188,7 @@ def format_value(desc, value):
     raise ValueError("%s: unknown descriptor type '%s'" % (desc["name"], t))
 
 
-def _same(desc, value):
+def is_default(desc, value):
     """Is `value` the descriptor's default?"""
     try:
         return format_value(desc, value) == format_value(desc, desc["default"])
@@ -206,7 +206,7 @@ def descriptor_args(stage, descs, values):
     skip = set()
     for group in exclusive_groups(stage):
         for n in group:
-            if n in values and n in by_name and _same(by_name[n], values[n]):
+            if n in values and n in by_name and is_default(by_name[n], values[n]):
                 skip.add(n)
     unknown = set(values) - set(by_name)
     if unknown:

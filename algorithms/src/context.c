@@ -40,7 +40,37 @@ TS_API ts_ctx *ts_ctx_new(void)
     ctx->prog_lo = 0.0;
     ctx->prog_hi = 1.0;
     ctx->input = -1;
+    atomic_init(&ctx->cancel_own, 0);
+    ctx->cancel = &ctx->cancel_own;
     return ctx;
+}
+
+ts_ctx *ts__ctx_child(ts_ctx *parent)
+{
+    ts_ctx *c = ts_ctx_new();
+    if (!c)
+        return NULL;
+    c->seed = parent->seed;
+    c->threads = parent->threads;
+    c->cancel = parent->cancel;
+    return c;
+}
+
+int ts__cancelled(const ts_ctx *ctx)
+{
+    return atomic_load(ctx->cancel) != 0;
+}
+
+void ts__cancel(ts_ctx *ctx)
+{
+    atomic_store(ctx->cancel, 1);
+}
+
+ts_status ts__check_cancel(ts_ctx *ctx)
+{
+    if (!atomic_load(ctx->cancel))
+        return TS_OK;
+    return ts_fail(ctx, TS_ERR_CANCELLED, "terrasynth", "cancelled by the caller");
 }
 
 TS_API void ts_ctx_free(ts_ctx *ctx)
@@ -67,6 +97,10 @@ void ts_clear(ts_ctx *ctx)
     ctx->status = TS_OK;
     ctx->message[0] = '\0';
     ctx->input = -1;
+    /* a new call on a context of its own starts uncancelled; a worker's
+     * context keeps obeying its parent */
+    if (ctx->cancel == &ctx->cancel_own)
+        atomic_store(&ctx->cancel_own, 0);
 }
 
 /* The message is formatted into a buffer of its own first: the arguments
@@ -107,13 +141,17 @@ ts_status ts_fail_input(ts_ctx *ctx, ts_status status, int input, const char *st
 ts_status ts_progress(ts_ctx *ctx, double frac, const char *msg)
 {
     double done;
+    if (atomic_load(ctx->cancel))
+        return ts__check_cancel(ctx);
     if (!ctx->progress)
         return TS_OK;
     if (frac < 0.0) frac = 0.0;
     if (frac > 1.0) frac = 1.0;
     done = ctx->prog_lo + frac * (ctx->prog_hi - ctx->prog_lo);
-    if (!ctx->progress(done, msg, ctx->progress_user))
+    if (!ctx->progress(done, msg, ctx->progress_user)) {
+        atomic_store(ctx->cancel, 1); /* the workers stop too */
         return ts_fail(ctx, TS_ERR_CANCELLED, "terrasynth", "cancelled by the caller");
+    }
     return TS_OK;
 }
 

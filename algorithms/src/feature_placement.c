@@ -441,7 +441,7 @@ static void sk_scan_chunks(void *arg, size_t b, size_t e)
     scan_job *j = arg;
     sketcher *k = j->k;
     const ts_feature_site *s = j->s;
-    ts_ctx *c = ts_ctx_new(); /* private: a failed fit only skips that alignment */
+    ts_ctx *c = ts__ctx_child(k->ctx); /* a failed fit only skips that alignment */
     size_t t;
     for (t = b; t < e; t++) {
         candidate *pool = k->chunk_pool + t * (size_t)k->pool_max;
@@ -451,6 +451,10 @@ static void sk_scan_chunks(void *arg, size_t b, size_t e)
         int n = 0;
         if (!c) {
             k->chunk_n[t] = -1; /* out of memory, reported by the caller */
+            continue;
+        }
+        if (ts__cancelled(c)) {
+            k->chunk_n[t] = 0; /* the caller reports it */
             continue;
         }
         for (i = lo; i < hi; i++) {
@@ -515,7 +519,7 @@ static void sk_eval_range(void *arg, size_t b, size_t e)
     const ts_feature_site *s = j->s;
     int P = k->P, M = P + 2, W = k->out->width, wx = j->wx, wy = j->wy, x, y;
     size_t P2 = (size_t)P * (size_t)P, M2 = (size_t)M * (size_t)M, i;
-    ts_ctx *c = ts_ctx_new();
+    ts_ctx *c = ts__ctx_child(k->ctx);
     for (i = b; i < e; i++) {
         const ts_raster *exr = &k->ex[k->es[k->cands[i].idx].ex];
         float *rd = k->c_ring + i * M2, *patch = k->c_patch + i * P2;
@@ -533,6 +537,8 @@ static void sk_eval_range(void *arg, size_t b, size_t e)
             k->c_status[i] = TS_ERR_NOMEM;
             continue;
         }
+        if (ts__cancelled(c))
+            continue; /* the caller reports it */
         /* the warped window with its ring: window cell (x - 1, y - 1) */
         if ((st = ts_tps_warp(c, &k->cands[i].inv, exr, -1.0, -1.0, &ring)) != TS_OK) {
             k->c_status[i] = st;
@@ -651,6 +657,8 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
         j.wcy = s->cy - wy;
         j.n_chunks = k->n_chunks;
         ts_parallel_for(ctx, (size_t)j.n_chunks, sk_scan_chunks, &j);
+        if (ts__check_cancel(ctx) != TS_OK)
+            return ctx->status;
         /* merge the chunks' pools: the best pool_max overall, in a total
          * order, so the result does not depend on the split */
         for (t = 0; t < j.n_chunks; t++) {
@@ -720,6 +728,8 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
         j.wx = wx;
         j.wy = wy;
         ts_parallel_for(ctx, (size_t)n_c, sk_eval_range, &j);
+        if (ts__check_cancel(ctx) != TS_OK)
+            return ctx->status;
         for (i = 0; i < n_c; i++) {
             if (k->c_status[i] != TS_OK)
                 return ts_fail(ctx, k->c_status[i], "sketch",

@@ -9,6 +9,7 @@
 
 #include <math.h>
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -23,7 +24,23 @@ struct ts_ctx {
     double prog_lo, prog_hi; /* current sub-range of the overall progress */
     uint64_t seed;
     int threads;
+    atomic_int cancel_own; /* set when the progress callback asked to stop */
+    atomic_int *cancel;    /* the flag this context obeys: its own, or its parent's */
 };
+
+/* A context for a worker of `parent`'s call (caller frees with
+ * ts_ctx_free): the parent's seed and threads, no progress callback, and
+ * the parent's cancel flag, so a cancel reaches the worker at its next
+ * ts_progress or ts__cancelled, and ts__cancel from the worker stops the
+ * others.  NULL if out of memory. */
+ts_ctx *ts__ctx_child(ts_ctx *parent);
+/* Has the call been cancelled (by the callback, or by ts__cancel)? */
+int ts__cancelled(const ts_ctx *ctx);
+/* Ask every context sharing ctx's flag to stop (e.g. a worker failed). */
+void ts__cancel(ts_ctx *ctx);
+/* TS_OK, or the cancelled failure recorded on ctx when the call has been
+ * cancelled (after parallel work whose workers stopped early). */
+ts_status ts__check_cancel(ts_ctx *ctx);
 
 /* Record a failure: "<stage>: <formatted text>"; returns status. */
 ts_status ts_fail(ts_ctx *ctx, ts_status status, const char *stage, const char *fmt, ...)

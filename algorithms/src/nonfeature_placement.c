@@ -468,7 +468,7 @@ static void place_cut_range(void *arg, size_t b, size_t e)
     cut_job *j = arg;
     placer *pl = j->pl;
     int P = pl->P;
-    ts_ctx *c = ts_ctx_new();
+    ts_ctx *c = ts__ctx_child(pl->ctx);
     size_t t;
     for (t = b; t < e; t++) {
         size_t i = (size_t)j->to_cut[t];
@@ -480,6 +480,10 @@ static void place_cut_range(void *arg, size_t b, size_t e)
         int cuts;
         if (!c) {
             j->status[i] = TS_ERR_NOMEM;
+            continue;
+        }
+        if (ts__cancelled(c)) {
+            j->status[i] = TS_ERR_CANCELLED; /* the caller reports it */
             continue;
         }
         /* win holds the candidate's window already (place_one) */
@@ -711,6 +715,8 @@ static ts_status place_one(placer *pl, placement *q, int index)
                 continue;
             job.to_cut = pl->to_cut + from;
             ts_parallel_for(ctx, (size_t)(to - from), place_cut_range, &job);
+            if ((st = ts__check_cancel(ctx)) != TS_OK)
+                goto done;
             /* the best so far, lowest index on ties as when all are cut */
             best_cost = INFINITY;
             for (i = 0; i < total; i++) {
@@ -1021,8 +1027,8 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
         ts_progress_pop(ctx, sv);
         if (st != TS_OK)
             goto done;
-        ca = ts_ctx_new();
-        cb = ts_ctx_new();
+        ca = ts__ctx_child(ctx);
+        cb = ts__ctx_child(ctx);
         if (!ca || !cb) {
             st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
             goto done;

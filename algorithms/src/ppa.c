@@ -100,7 +100,7 @@ done:
 
 /* Valleys on a second thread while the calling thread does ridges: the two
  * kinds share nothing but the read-only DEM and targets.  The worker has a
- * private context whose progress callback only watches the cancel flag. */
+ * child context: no progress of its own, the caller's cancel flag. */
 typedef struct valley_job {
     const ts_raster *dem;
     const ts_grid_metrics *m;
@@ -108,16 +108,8 @@ typedef struct valley_job {
     double min_length;
     ts_ctx *ctx;
     ts_features *f;
-    atomic_int *cancel;
     ts_status status;
 } valley_job;
-
-static int valley_progress(double done, const char *msg, void *user)
-{
-    (void)done;
-    (void)msg;
-    return !atomic_load((atomic_int *)user);
-}
 
 static void *valley_run(void *p)
 {
@@ -169,13 +161,11 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem, const ts_g
                                    ts_features *f)
 {
     valley_job job;
-    atomic_int cancel;
     pthread_t tid;
     ts_features *fv = calloc(1, sizeof *fv);
-    ts_ctx *wctx = ts_ctx_new();
+    ts_ctx *wctx = ts__ctx_child(ctx);
     ts_status st;
     size_t n = (size_t)dem->width * (size_t)dem->height;
-    atomic_init(&cancel, 0);
     if (!fv || !wctx || !(fv->mask = ts_calloc_array(n, 1))) {
         ts_features_free(fv);
         ts_ctx_free(wctx);
@@ -183,14 +173,12 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem, const ts_g
     }
     fv->width = dem->width;
     fv->height = dem->height;
-    ts_ctx_set_progress(wctx, valley_progress, &cancel);
     job.dem = dem;
     job.m = m;
     job.targets = targets;
     job.min_length = min_length;
     job.ctx = wctx;
     job.f = fv;
-    job.cancel = &cancel;
     job.status = TS_ERR_INTERNAL;
     if (pthread_create(&tid, NULL, valley_run, &job) != 0) {
         /* no thread: do it in sequence */
@@ -199,7 +187,7 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem, const ts_g
     } else {
         st = ppa_one_kind(ctx, dem, m, targets, TS_RIDGE, min_length, f);
         if (st != TS_OK)
-            atomic_store(&cancel, 1);
+            ts__cancel(ctx); /* the valleys need not finish */
         pthread_join(tid, NULL);
     }
     if (st == TS_OK && job.status != TS_OK)

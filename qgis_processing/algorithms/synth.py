@@ -35,7 +35,7 @@ from qgis.core import (
 
 from qgis.PyQt.QtCore import QVariant
 
-from .. import descriptors
+from .. import descriptors, runner
 from .base import TerraSynthAlgorithm, gdal_source, is_set
 
 REGION_FIELD = "region"  # the integer field of a polygon REGIONS layer
@@ -420,20 +420,28 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         options += [("regions", self._regions_source(parameters, context)
                      if is_set(parameters, self.REGIONS) else None),
                     ("region_exemplar", rules or None)]
-        if is_set(parameters, self.HEIGHTS):
-            alpha_h = self.parameterAsDouble(parameters, self.ALPHA_H, context) \
-                if is_set(parameters, self.ALPHA_H) else 1.0
-            if not alpha_h >= 0:
-                raise QgsProcessingException("ALPHA_H must be a number >= 0")
-            options += [("heights", self._raster(parameters, self.HEIGHTS, context)),
+        # ALPHA_H changed from its default without HEIGHTS is passed: the job's rule refuses it
+        alpha_h = self.parameterAsDouble(parameters, self.ALPHA_H, context) \
+            if is_set(parameters, self.ALPHA_H) else 1.0
+        if not alpha_h >= 0:
+            raise QgsProcessingException("ALPHA_H must be a number >= 0")
+        if is_set(parameters, self.HEIGHTS) or alpha_h != 1.0:
+            options += [("heights", self._raster(parameters, self.HEIGHTS, context)
+                         if is_set(parameters, self.HEIGHTS) else None),
                         ("alpha_h", alpha_h)]
         return options
 
-    def descriptorStages(self, parameters, context):  # noqa: N802
-        stages = super().descriptorStages(parameters, context)
+    def descriptorValues(self, parameters, context):  # noqa: N802
+        values = super().descriptorValues(parameters, context)
         if not is_set(parameters, self.SKETCH):
-            stages.discard(self.SKETCH_STAGE)  # --mode, --alpha-d, --alpha-f need --sketch
-        return stages
+            # a dialog always holds the sketch parameters: without a sketch only those
+            # changed from their defaults are passed, and the job's rule refuses them
+            # ("alpha_r applies to a sketch: give sketch"), as on the command line
+            for d in self._descs:
+                if self._desc_stage[d["name"]] == self.SKETCH_STAGE and \
+                        runner.is_default(d, values.get(d["name"])):
+                    values.pop(d["name"], None)
+        return values
 
     def checkJob(self, parameters, context):  # noqa: N802
         # the job's rules (exemplar count, overlap under the patch, cell size, which options

@@ -407,10 +407,17 @@ def test_synth_command_line_water_regions_heights(jacksboro, tmp_path):
         "HEIGHTS": jacksboro, "WATER_MASK": jacksboro, "WATER_LEVEL": 0})
     kv = pairs(argv)
     assert kv["--alpha-h"] == "1" and kv["--water-level"] == "0"
+    # ALPHA_H at its default without HEIGHTS is not passed; changed, it is refused as on
+    # the command line (a weight that weighs nothing)
     argv, _ = build("terrasynth:synth", {
         "EXEMPLARS": [jacksboro], "WIDTH": 64, "HEIGHT": 64, "OUTPUT": str(tmp_path / "n.tif"),
-        "ALPHA_H": 3})
+        "ALPHA_H": 1})
     assert "--alpha-h" not in argv and "--heights" not in argv
+    alg = registry().createAlgorithmById("terrasynth:synth")
+    ok, msg = alg.checkParameterValues({
+        "EXEMPLARS": [jacksboro], "WIDTH": 64, "HEIGHT": 64, "OUTPUT": str(tmp_path / "n.tif"),
+        "ALPHA_H": 3}, QgsProcessingContext())
+    assert not ok and msg == "alpha_h weighs heights: give heights"
 
 
 def polygon_regions(path, field_type):

@@ -9,6 +9,7 @@ import json
 import os
 import shutil
 import stat
+import sys
 import subprocess
 import zipfile
 
@@ -138,3 +139,26 @@ def test_zip_installed_like_qgis_runs_its_own_binary(plugin_zip, jacksboro, tmp_
     assert str(exe) in p.stdout  # the command line echoed in the log
     assert os.stat(exe).st_mode & stat.S_IXUSR
     assert gdal.Open(str(out)).RasterXSize == gdal.Open(jacksboro).RasterXSize
+
+
+# --------------------------------------------------------------------------- the job's rules
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import job_cases  # noqa: E402
+
+QGIS_CASES = [(c[0], c[3], c[4]) for c in job_cases.CASES if c[3] is not None]
+
+
+@pytest.mark.parametrize("alg,params,message", QGIS_CASES, ids=[c[2][:40] for c in QGIS_CASES])
+def test_rules_say_what_the_cli_says(env, jacksboro, lambda_ridges, tmp_path, alg, params,
+                                     message):
+    """The bad combinations of tests/job_cases.py through qgis_process: refused before
+    anything runs, with the command line's message."""
+    names = {"EX": jacksboro, "SK": lambda_ridges}
+    args = ["%s=%s" % (k, names.get(v, v) if isinstance(v, str) else v)
+            for k, v in params.items()]
+    out = tmp_path / "out.tif"
+    p = qgis_process(env, "run", "terrasynth:" + alg, "--", *args, "OUTPUT=%s" % out)
+    assert p.returncode != 0
+    assert message in p.stdout + p.stderr, p.stdout + p.stderr
+    assert os.listdir(tmp_path) == []
