@@ -42,6 +42,8 @@ TS_API ts_ctx *ts_ctx_new(void)
     ctx->input = -1;
     atomic_init(&ctx->cancel_own, 0);
     ctx->cancel = &ctx->cancel_own;
+    ts__pool_slot_init(&ctx->pool_own);
+    ctx->pool = &ctx->pool_own;
     return ctx;
 }
 
@@ -53,6 +55,7 @@ ts_ctx *ts__ctx_child(ts_ctx *parent)
     c->seed = parent->seed;
     c->threads = parent->threads;
     c->cancel = parent->cancel;
+    c->pool = parent->pool;
     return c;
 }
 
@@ -75,6 +78,9 @@ ts_status ts__check_cancel(ts_ctx *ctx)
 
 TS_API void ts_ctx_free(ts_ctx *ctx)
 {
+    if (!ctx)
+        return;
+    ts__pool_slot_destroy(&ctx->pool_own);
     free(ctx);
 }
 
@@ -182,47 +188,11 @@ int ts_thread_count(const ts_ctx *ctx, size_t work_items)
     return (int)n;
 }
 
-typedef struct par_job {
-    ts_range_fn fn;
-    void *arg;
-    size_t begin, end;
-} par_job;
-
-static void *par_run(void *p)
-{
-    par_job *j = p;
-    j->fn(j->arg, j->begin, j->end);
-    return NULL;
-}
-
 void ts_parallel_for(const ts_ctx *ctx, size_t n, ts_range_fn fn, void *arg)
 {
-    int t, nt = ts_thread_count(ctx, n);
-    par_job jobs[64];
-    pthread_t tid[64];
-    int started[64] = {0};
     if (n == 0)
         return;
-    if (nt <= 1) {
-        fn(arg, 0, n);
-        return;
-    }
-    for (t = 0; t < nt; t++) {
-        jobs[t].fn = fn;
-        jobs[t].arg = arg;
-        jobs[t].begin = n * (size_t)t / (size_t)nt;
-        jobs[t].end = n * (size_t)(t + 1) / (size_t)nt;
-    }
-    /* thread 0's share runs on the calling thread */
-    for (t = 1; t < nt; t++)
-        started[t] = pthread_create(&tid[t], NULL, par_run, &jobs[t]) == 0;
-    par_run(&jobs[0]);
-    for (t = 1; t < nt; t++) {
-        if (started[t])
-            pthread_join(tid[t], NULL);
-        else
-            par_run(&jobs[t]); /* could not start: do it here */
-    }
+    ts__pool_for(ctx->pool, ts_thread_count(ctx, n), n, fn, arg);
 }
 
 void *ts_malloc_array(size_t n, size_t size)

@@ -8,12 +8,21 @@
 #define TS_INTERNAL_H
 
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 
 #include "terrasynth.h"
+
+/* The worker threads of a context (thread_pool.c), started on first use;
+ * the slot's mutex guards that start. */
+typedef struct ts__pool ts__pool;
+typedef struct ts__pool_slot {
+    pthread_mutex_t mu;
+    ts__pool *pool;
+} ts__pool_slot;
 
 struct ts_ctx {
     ts_status status;
@@ -26,11 +35,13 @@ struct ts_ctx {
     int threads;
     atomic_int cancel_own; /* set when the progress callback asked to stop */
     atomic_int *cancel;    /* the flag this context obeys: its own, or its parent's */
+    ts__pool_slot pool_own; /* the threads of a context of its own */
+    ts__pool_slot *pool;    /* the threads it uses: its own, or its parent's */
 };
 
 /* A context for a worker of `parent`'s call (caller frees with
- * ts_ctx_free): the parent's seed and threads, no progress callback, and
- * the parent's cancel flag, so a cancel reaches the worker at its next
+ * ts_ctx_free, before the parent): the parent's seed, threads and thread
+ * pool, no progress callback, and the parent's cancel flag, so a cancel reaches the worker at its next
  * ts_progress or ts__cancelled, and ts__cancel from the worker stops the
  * others.  NULL if out of memory. */
 ts_ctx *ts__ctx_child(ts_ctx *parent);
@@ -81,6 +92,15 @@ int ts_thread_count(const ts_ctx *ctx, size_t work_items);
  * on the calling thread, so this cannot fail. */
 typedef void (*ts_range_fn)(void *arg, size_t begin, size_t end);
 void ts_parallel_for(const ts_ctx *ctx, size_t n, ts_range_fn fn, void *arg);
+
+/* thread_pool.c: fn over [0, n) in nt chunks on the slot's pool (started,
+ * or grown to nt - 1 workers, as needed); the caller runs the first chunk
+ * and helps with queued ones until its own are done.  Cannot fail: without
+ * threads or memory the chunks run on the caller. */
+void ts__pool_slot_init(ts__pool_slot *slot);
+void ts__pool_slot_destroy(ts__pool_slot *slot); /* joins the workers */
+void ts__pool_for(ts__pool_slot *slot, int nt, size_t n, ts_range_fn fn, void *arg);
+int ts__pool_workers(ts__pool_slot *slot); /* workers started so far */
 
 /* The synthesis lengths in whole cells, checked (patch 8..1024, overlap
  * 2..512 and smaller); fails for lengths still in metres. */

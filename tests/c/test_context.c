@@ -7,10 +7,15 @@
  * worker can raise it for all), a new call on the parent starts
  * uncancelled, and a PPA cancelled while its valley worker runs returns
  * "cancelled" with no leak or hang.
+ * Thread pool: every index is run exactly once, nested loops and loops
+ * from several threads sharing one pool finish, and the workers are
+ * started once, not per loop.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
 
 #include "harness.h"
 #include "internal.h"
@@ -132,6 +137,109 @@ static void test_ppa_cancel_with_worker(void)
     ts_ctx_free(ctx);
 }
 
+typedef struct count_job {
+    atomic_int *hits;
+    const ts_ctx *ctx; /* for a nested loop, or NULL */
+} count_job;
+
+static void count_range(void *arg, size_t b, size_t e)
+{
+    count_job *j = arg;
+    size_t i;
+    for (i = b; i < e; i++)
+        atomic_fetch_add(&j->hits[i], 1);
+}
+
+/* each index runs a nested loop over 50 indices of its own row */
+static void nested_range(void *arg, size_t b, size_t e)
+{
+    count_job *j = arg;
+    size_t i;
+    for (i = b; i < e; i++) {
+        count_job inner = {j->hits + 50 * i, NULL};
+        ts_parallel_for(j->ctx, 50, count_range, &inner);
+    }
+}
+
+typedef struct caller_job {
+    ts_ctx *ctx;
+    atomic_int *hits;
+    int ok;
+} caller_job;
+
+static void *caller_run(void *arg)
+{
+    caller_job *c = arg;
+    int round, i;
+    c->ok = 1;
+    for (round = 0; round < 200; round++) {
+        count_job j = {c->hits, NULL};
+        for (i = 0; i < 1000; i++)
+            atomic_store(&c->hits[i], 0);
+        ts_parallel_for(c->ctx, 1000, count_range, &j);
+        for (i = 0; i < 1000; i++)
+            c->ok &= atomic_load(&c->hits[i]) == 1;
+    }
+    return NULL;
+}
+
+static void test_thread_pool(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    static atomic_int hits[40 * 50];
+    size_t i;
+    int round, ok = 1, workers;
+    ts_ctx_set_threads(ctx, 4);
+    CHECK(ts__pool_workers(ctx->pool) == 0); /* started on first use */
+    for (round = 0; round < 300; round++) {
+        count_job j = {hits, NULL};
+        size_t n = 1 + (size_t)round % 37;
+        for (i = 0; i < n; i++)
+            atomic_store(&hits[i], 0);
+        ts_parallel_for(ctx, n, count_range, &j);
+        for (i = 0; i < n; i++)
+            ok &= atomic_load(&hits[i]) == 1;
+    }
+    CHECK(ok);
+    workers = ts__pool_workers(ctx->pool);
+    CHECK(workers == 3); /* the caller is the fourth; none started per loop */
+    /* nested loops, 40 x 50 */
+    {
+        count_job j = {hits, ctx};
+        for (i = 0; i < 40 * 50; i++)
+            atomic_store(&hits[i], 0);
+        ts_parallel_for(ctx, 40, nested_range, &j);
+        ok = 1;
+        for (i = 0; i < 40 * 50; i++)
+            ok &= atomic_load(&hits[i]) == 1;
+        CHECK(ok);
+    }
+    /* two threads with child contexts share the parent's pool */
+    {
+        static atomic_int ha[1000], hb[1000];
+        caller_job a = {ts__ctx_child(ctx), ha, 0}, b = {ts__ctx_child(ctx), hb, 0};
+        pthread_t ta, tb;
+        CHECK(pthread_create(&ta, NULL, caller_run, &a) == 0);
+        CHECK(pthread_create(&tb, NULL, caller_run, &b) == 0);
+        pthread_join(ta, NULL);
+        pthread_join(tb, NULL);
+        CHECK(a.ok && b.ok);
+        CHECK(ts__pool_workers(a.ctx->pool) == workers);
+        ts_ctx_free(a.ctx);
+        ts_ctx_free(b.ctx);
+    }
+    /* more threads grow the pool; one thread runs on the caller */
+    ts_ctx_set_threads(ctx, 6);
+    {
+        count_job j = {hits, NULL};
+        for (i = 0; i < 100; i++)
+            atomic_store(&hits[i], 0);
+        ts_parallel_for(ctx, 100, count_range, &j);
+        CHECK(ts__pool_workers(ctx->pool) == 5);
+    }
+    ts_ctx_free(ctx); /* joins the workers (ASan/TSan would see them leak) */
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -139,6 +247,7 @@ int main(int argc, char **argv)
         {"failed_input", test_failed_input},
         {"child_cancel", test_child_cancel},
         {"ppa_cancel_with_worker", test_ppa_cancel_with_worker},
+        {"thread_pool", test_thread_pool},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }
