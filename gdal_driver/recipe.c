@@ -54,19 +54,6 @@ struct ts_recipe {
     int computed;
 };
 
-static void rerr(tsio_err *err, const char *path, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-static void rerr(tsio_err *err, const char *path, const char *fmt, ...)
-{
-    va_list ap;
-    int n = snprintf(err->msg, sizeof err->msg, "%s: ", path);
-    if (n < 0 || (size_t)n >= sizeof err->msg)
-        return;
-    va_start(ap, fmt);
-    vsnprintf(err->msg + n, sizeof err->msg - (size_t)n, fmt, ap);
-    va_end(ap);
-}
-
 int recipe_identify(const char *filename, const unsigned char *header, int n_header)
 {
     const char *ext = CPLGetExtension(filename);
@@ -112,7 +99,7 @@ static int recipe_check_not_self(const ts_recipe *r, const char *input, tsio_err
         if (realpath(input, ra) && realpath(recipe_stack[i], rb))
             same = strcmp(ra, rb) == 0;
     if (same)
-        rerr(err, r->path, "the recipe refers to itself through %s (recursion)", input);
+        tsio_errf(err, r->path, "the recipe refers to itself through %s (recursion)", input);
     return same ? -1 : 0;
 }
 
@@ -151,8 +138,8 @@ static int recipe_options(ts_recipe *r, const char *const *oo, tsio_err *err)
         o = tsj_option_find(r->values.job, key);
         if (o ? (!o->xml || o->kind == TSJ_FILE || o->kind == TSJ_PIN || o->kind == TSJ_RULE)
               : !tsj_param_stage(r->values.job, key)) {
-            rerr(err, r->path, "open option %s: not an option of %s recipes", oo[i],
-                 r->values.job->name);
+            tsio_errf(err, r->path, "open option %s: not an option of %s recipes", oo[i],
+                      r->values.job->name);
             CPLFree(key);
             return -1;
         }
@@ -169,21 +156,21 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
     char msg[1024];
     tsj_values_init(&r->values, tsj_find(r->method == RECIPE_PPA ? "ppa" : "synth"));
     if (tsj_from_xml(&r->values, node, recipe_resolve, r, msg, sizeof msg) != 0) {
-        rerr(err, r->path, "%s", msg);
+        tsio_errf(err, r->path, "%s", msg);
         return -1;
     }
     if (recipe_options(r, oo, err) != 0)
         return -1;
     if (r->method == RECIPE_PPA) {
         if (tsj_build_ppa(&r->values, &r->ppa, msg, sizeof msg) != 0) {
-            rerr(err, r->path, "%s", msg);
+            tsio_errf(err, r->path, "%s", msg);
             return -1;
         }
         /* the grid without reading the cells */
         return tsio_read_georef(r->ppa.input, &r->geo, err);
     }
     if (tsj_build_synth(&r->values, &r->synth, &r->seed, msg, sizeof msg) != 0) {
-        rerr(err, r->path, "%s", msg);
+        tsio_errf(err, r->path, "%s", msg);
         return -1;
     }
     return tsjob_synth_prepare(&r->synth, &r->synth_res, err);
@@ -199,32 +186,32 @@ int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_e
     int rc = -1;
     *out = NULL;
     if (recipe_depth >= RECIPE_MAX_DEPTH) {
-        rerr(err, path, "recipes nested more than %d deep (recursion?)", RECIPE_MAX_DEPTH);
+        tsio_errf(err, path, "recipes nested more than %d deep (recursion?)", RECIPE_MAX_DEPTH);
         return -1;
     }
     r = calloc(1, sizeof *r);
     if (!r) {
-        rerr(err, path, "out of memory");
+        tsio_errf(err, path, "out of memory");
         return -1;
     }
     r->path = CPLStrdup(path);
     fp = VSIFOpenL(path, "rb");
     if (!fp) {
-        rerr(err, path, "cannot open the recipe");
+        tsio_errf(err, path, "cannot open the recipe");
         goto done;
     }
     VSIFSeekL(fp, 0, SEEK_END);
     size = VSIFTellL(fp);
     VSIFSeekL(fp, 0, SEEK_SET);
     if (size == 0 || size > RECIPE_MAX_BYTES) {
-        rerr(err, path, "a recipe must be 1 byte to 1 MB, not %llu bytes",
-             (unsigned long long)size);
+        tsio_errf(err, path, "a recipe must be 1 byte to 1 MB, not %llu bytes",
+                  (unsigned long long)size);
         VSIFCloseL(fp);
         goto done;
     }
     text = CPLMalloc((size_t)size + 1);
     if (VSIFReadL(text, 1, (size_t)size, fp) != (size_t)size) {
-        rerr(err, path, "cannot read the recipe");
+        tsio_errf(err, path, "cannot read the recipe");
         VSIFCloseL(fp);
         goto done;
     }
@@ -236,18 +223,18 @@ int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_e
         char msg[512];
         snprintf(msg, sizeof msg, "%s", CPLGetLastErrorMsg());
         CPLPopErrorHandler();
-        rerr(err, path, "not well-formed XML (%s)", msg[0] ? msg : "parse error");
+        tsio_errf(err, path, "not well-formed XML (%s)", msg[0] ? msg : "parse error");
         goto done;
     }
     CPLPopErrorHandler();
     top = CPLGetXMLNode(root, "=TerraSynth");
     if (!top) {
-        rerr(err, path, "the root element must be <TerraSynth>");
+        tsio_errf(err, path, "the root element must be <TerraSynth>");
         goto done;
     }
     if (strcmp(CPLGetXMLValue(top, "version", "1"), "1") != 0) {
-        rerr(err, path, "<TerraSynth version=\"%s\"> is not supported (only 1)",
-             CPLGetXMLValue(top, "version", ""));
+        tsio_errf(err, path, "<TerraSynth version=\"%s\"> is not supported (only 1)",
+                  CPLGetXMLValue(top, "version", ""));
         goto done;
     }
     recipe_stack[recipe_depth++] = r->path;
@@ -258,7 +245,7 @@ int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_e
         r->method = RECIPE_SYNTH;
         rc = recipe_job(r, node, oo, err);
     } else {
-        rerr(err, path, "<TerraSynth> needs a <PPA> or a <Synth> element");
+        tsio_errf(err, path, "<TerraSynth> needs a <PPA> or a <Synth> element");
     }
     recipe_depth--;
 done:
@@ -308,12 +295,12 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
     if (r->computed)
         return 0;
     if (recipe_depth >= RECIPE_MAX_DEPTH) {
-        rerr(err, r->path, "recipes nested more than %d deep (recursion?)", RECIPE_MAX_DEPTH);
+        tsio_errf(err, r->path, "recipes nested more than %d deep (recursion?)", RECIPE_MAX_DEPTH);
         return -1;
     }
     ctx = ts_ctx_new();
     if (!ctx) {
-        rerr(err, r->path, "out of memory");
+        tsio_errf(err, r->path, "out of memory");
         return -1;
     }
     ts_ctx_set_seed(ctx, r->seed);
@@ -322,7 +309,7 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
         rc = tsjob_ppa_prepare(&r->ppa, &r->ppa_res, err);
         if (rc == 0 && (r->ppa_res.in.geo.width != r->geo.width ||
                         r->ppa_res.in.geo.height != r->geo.height)) {
-            rerr(err, r->path, "the input changed size since the recipe was opened");
+            tsio_errf(err, r->path, "the input changed size since the recipe was opened");
             rc = -1;
         }
         if (rc == 0)
@@ -386,7 +373,7 @@ static int recipe_save(const char *path, CPLXMLNode *root, tsio_err *err)
     VSILFILE *fp = VSIFOpenL(tmp, "wb");
     int rc = -1;
     if (!fp) {
-        rerr(err, path, "cannot create the recipe (does the folder exist?)");
+        tsio_errf(err, path, "cannot create the recipe (does the folder exist?)");
     } else {
         size_t len = strlen(xml);
         int ok = VSIFWriteL(xml, 1, len, fp) == len;
@@ -395,7 +382,7 @@ static int recipe_save(const char *path, CPLXMLNode *root, tsio_err *err)
             rc = 0;
         else {
             VSIUnlink(tmp);
-            rerr(err, path, "cannot write the recipe");
+            tsio_errf(err, path, "cannot write the recipe");
         }
     }
     CPLFree(tmp);

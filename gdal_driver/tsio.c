@@ -98,22 +98,25 @@ static void one_line(char *s)
             *s = ' ';
 }
 
-/* err->msg = "<path>: <formatted problem>" on one line. */
-static void set_err(tsio_err *err, const char *path, const char *fmt, ...)
+/* err->msg = "<path>: <formatted problem>" on one line; the arguments may
+ * point into err->msg (a message wrapped in a new one): formatted aside first. */
+void tsio_errf(tsio_err *err, const char *path, const char *fmt, ...)
 {
+    char buf[sizeof err->msg];
     va_list ap;
     size_t used;
     int n;
     if (!err)
         return;
-    n = snprintf(err->msg, sizeof err->msg, "%s: ", path ? path : "(null)");
+    n = snprintf(buf, sizeof buf, "%s: ", path ? path : "(null)");
     used = (n < 0) ? 0 : (size_t)n;
-    if (used >= sizeof err->msg)
-        used = sizeof err->msg - 1;
+    if (used >= sizeof buf)
+        used = sizeof buf - 1;
     va_start(ap, fmt);
-    vsnprintf(err->msg + used, sizeof err->msg - used, fmt, ap);
+    vsnprintf(buf + used, sizeof buf - used, fmt, ap);
     va_end(ap);
-    one_line(err->msg);
+    one_line(buf);
+    memcpy(err->msg, buf, sizeof buf);
 }
 
 /* Copy GDAL's last error message (one line, maybe empty). */
@@ -130,9 +133,9 @@ static void set_err_gdal(tsio_err *err, const char *path, const char *what)
     char g[768];
     gdal_last_msg(g, sizeof g);
     if (g[0])
-        set_err(err, path, "%s: %s", what, g);
+        tsio_errf(err, path, "%s: %s", what, g);
     else
-        set_err(err, path, "%s", what);
+        tsio_errf(err, path, "%s", what);
 }
 
 static void ensure_registered(void)
@@ -371,10 +374,10 @@ static int rename_temp_files(const out_name *o, const char *path, tsio_err *err)
         from = join_dir(o->dir, entries[i]);
         to = newname ? join_dir(o->dir, newname) : NULL;
         if (!from || !to) {
-            set_err(err, path, "out of memory");
+            tsio_errf(err, path, "out of memory");
             rc = -1;
         } else if (VSIRename(from, to) != 0) {
-            set_err(err, path, "cannot rename %s to %s", from, to);
+            tsio_errf(err, path, "cannot rename %s to %s", from, to);
             rc = -1;
         }
         free(newname);
@@ -383,7 +386,7 @@ static int rename_temp_files(const out_name *o, const char *path, tsio_err *err)
     }
     CSLDestroy(entries);
     if (rc == 0 && !found) {
-        set_err(err, path, "the temporary file %s disappeared", o->temp);
+        tsio_errf(err, path, "the temporary file %s disappeared", o->temp);
         rc = -1;
     }
     return rc;
@@ -395,17 +398,17 @@ static int check_output_location(const out_name *o, const char *path, tsio_err *
     int is_dir = 0;
     const char *dir = o->dir[0] ? o->dir : ".";
     if (path_exists(o->final, &is_dir) && is_dir) {
-        set_err(err, path, "is a directory");
+        tsio_errf(err, path, "is a directory");
         return -1;
     }
     if (starts_with(o->final, "/vsi"))
         return 0; /* virtual file systems may have implicit directories */
     if (!path_exists(dir, &is_dir)) {
-        set_err(err, path, "directory %s does not exist", dir);
+        tsio_errf(err, path, "directory %s does not exist", dir);
         return -1;
     }
     if (!is_dir) {
-        set_err(err, path, "%s is not a directory", dir);
+        tsio_errf(err, path, "%s is not a directory", dir);
         return -1;
     }
     return 0;
@@ -420,7 +423,7 @@ static int remove_existing(const char *final, const char *path, tsio_err *err)
     if (!path_exists(final, &is_dir))
         return 0;
     if (is_dir) {
-        set_err(err, path, "is a directory");
+        tsio_errf(err, path, "is a directory");
         return -1;
     }
     drv = GDALIdentifyDriver(final, NULL);
@@ -429,7 +432,7 @@ static int remove_existing(const char *final, const char *path, tsio_err *err)
     if (path_exists(final, NULL))
         VSIUnlink(final);
     if (path_exists(final, NULL)) {
-        set_err(err, path, "cannot replace the existing file %s", final);
+        tsio_errf(err, path, "cannot replace the existing file %s", final);
         return -1;
     }
     CPLErrorReset();
@@ -596,33 +599,33 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
         gdal_last_msg(g, sizeof g);
         /* connection strings ("NETCDF:f.nc:z") are not files: keep GDAL's verdict */
         if (!path_exists(path, NULL) && (!strchr(path, ':') || starts_with(path, "/vsi")))
-            set_err(err, path, "no such file");
+            tsio_errf(err, path, "no such file");
         else if (g[0] && !strstr(g, "not recognized as a supported file format"))
-            set_err(err, path, "not a raster GDAL can open (%s)", g);
+            tsio_errf(err, path, "not a raster GDAL can open (%s)", g);
         else
-            set_err(err, path, "not a raster GDAL can open");
+            tsio_errf(err, path, "not a raster GDAL can open");
         return -1;
     }
 
     nbands = GDALGetRasterCount(ds);
     if (nbands < 1) {
-        set_err(err, path, "the file has no raster bands");
+        tsio_errf(err, path, "the file has no raster bands");
         goto done;
     }
     if (band_no < 1 || band_no > nbands) {
-        set_err(err, path, "band %d does not exist (the file has %d band%s)", band_no, nbands,
-                nbands == 1 ? "" : "s");
+        tsio_errf(err, path, "band %d does not exist (the file has %d band%s)", band_no, nbands,
+                  nbands == 1 ? "" : "s");
         goto done;
     }
     w = GDALGetRasterXSize(ds);
     h = GDALGetRasterYSize(ds);
     if (w <= 0 || h <= 0) {
-        set_err(err, path, "empty raster (%d x %d cells)", w, h);
+        tsio_errf(err, path, "empty raster (%d x %d cells)", w, h);
         goto done;
     }
     if ((size_t)w > SIZE_MAX / (size_t)h
         || (size_t)w * (size_t)h > (size_t)PTRDIFF_MAX / sizeof(double)) {
-        set_err(err, path, "raster too large (%d x %d cells)", w, h);
+        tsio_errf(err, path, "raster too large (%d x %d cells)", w, h);
         goto done;
     }
     ncells = (size_t)w * (size_t)h;
@@ -634,16 +637,16 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
         int i;
         out->geo.has_gt = 1;
         if (out->geo.gt[2] != 0.0 || out->geo.gt[4] != 0.0) {
-            set_err(err, path, "rotated geotransforms are not supported");
+            tsio_errf(err, path, "rotated geotransforms are not supported");
             goto done;
         }
         for (i = 0; i < 6; i++)
             if (!isfinite(out->geo.gt[i])) {
-                set_err(err, path, "the geotransform is not finite");
+                tsio_errf(err, path, "the geotransform is not finite");
                 goto done;
             }
         if (out->geo.gt[1] == 0.0 || out->geo.gt[5] == 0.0) {
-            set_err(err, path, "the geotransform has a zero cell size");
+            tsio_errf(err, path, "the geotransform has a zero cell size");
             goto done;
         }
     } else {
@@ -659,7 +662,7 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
         if (s) {
             srs = OSRClone(s);
             if (!srs) {
-                set_err(err, path, "out of memory");
+                tsio_errf(err, path, "out of memory");
                 goto done;
             }
             OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
@@ -732,7 +735,7 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
             mask = malloc(chunk_rows * (size_t)w);
     }
     if (!out->r.data || !buf || (mask_band && !mask)) {
-        set_err(err, path, "out of memory (%d x %d cells)", w, h);
+        tsio_errf(err, path, "out of memory (%d x %d cells)", w, h);
         goto done;
     }
     out->r.width = w;
@@ -783,7 +786,7 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
         }
     }
     if (n_valid == 0) {
-        set_err(err, path, "every cell is nodata");
+        tsio_errf(err, path, "every cell is nodata");
         goto done;
     }
 
@@ -793,11 +796,11 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
         out->dx_m = malloc((size_t)h * sizeof(double));
         out->dy_m = malloc((size_t)h * sizeof(double));
         if (!out->dx_m || !out->dy_m) {
-            set_err(err, path, "out of memory");
+            tsio_errf(err, path, "out of memory");
             goto done;
         }
         if (compute_metrics(srs, out->geo.gt, h, out->dx_m, out->dy_m, why, sizeof why) != 0) {
-            set_err(err, path, "%s", why);
+            tsio_errf(err, path, "%s", why);
             goto done;
         }
     }
@@ -819,14 +822,14 @@ int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err
     if (err)
         err->msg[0] = '\0';
     if (!out) {
-        set_err(err, path, "no output raster given");
+        tsio_errf(err, path, "no output raster given");
         return -1;
     }
     memset(out, 0, sizeof *out);
     out->vertical_scale = 1.0;
     out->geo.gt[1] = out->geo.gt[5] = 1.0;
     if (!path || !path[0]) {
-        set_err(err, "(empty path)", "no input file given");
+        tsio_errf(err, "(empty path)", "no input file given");
         return -1;
     }
     ensure_registered();
@@ -944,7 +947,7 @@ static int apply_georef(GDALDatasetH ds, const tsio_georef *geo, int nbands, int
         OGRSpatialReferenceH srs = srs_from_wkt(geo->wkt);
         CPLErr e;
         if (!srs) {
-            set_err(err, path, "the CRS (WKT) is invalid");
+            tsio_errf(err, path, "the CRS (WKT) is invalid");
             return -1;
         }
         CPLErrorReset();
@@ -979,7 +982,7 @@ static int settle_nodata(raster_src *src, int has_nodata, int nodata_stored, con
         src->nodata_f = NAN;
         return 0;
     }
-    set_err(err, path, "format %s cannot store the nodata value", drv_name);
+    tsio_errf(err, path, "format %s cannot store the nodata value", drv_name);
     return -1;
 }
 
@@ -996,7 +999,7 @@ static int fill_dataset(GDALDatasetH ds, const raster_src *src, const char *path
     if (src->type == GDT_Float32) {
         fbuf = malloc(chunk_rows * (size_t)w * sizeof(float));
         if (!fbuf) {
-            set_err(err, path, "out of memory");
+            tsio_errf(err, path, "out of memory");
             return -1;
         }
     }
@@ -1068,27 +1071,27 @@ static int write_raster_impl(const char *path, const tsio_write_opts *opts,
 
     memset(&on, 0, sizeof on);
     if (!path || !path[0]) {
-        set_err(err, "(empty path)", "no output file given");
+        tsio_errf(err, "(empty path)", "no output file given");
         return -1;
     }
     if (src->width <= 0 || src->height <= 0) {
-        set_err(err, path, "empty raster (%d x %d cells)", src->width, src->height);
+        tsio_errf(err, path, "empty raster (%d x %d cells)", src->width, src->height);
         return -1;
     }
     if (geo && geo->width > 0 && geo->height > 0
         && (geo->width != src->width || geo->height != src->height)) {
-        set_err(err, path, "the georeferencing is for %d x %d cells but the data has %d x %d",
-                geo->width, geo->height, src->width, src->height);
+        tsio_errf(err, path, "the georeferencing is for %d x %d cells but the data has %d x %d",
+                  geo->width, geo->height, src->width, src->height);
         return -1;
     }
     if (geo && geo->has_gt)
         for (i = 0; i < 6; i++)
             if (!isfinite(geo->gt[i])) {
-                set_err(err, path, "the geotransform is not finite");
+                tsio_errf(err, path, "the geotransform is not finite");
                 return -1;
             }
     if (out_name_for(path, &on) != 0) {
-        set_err(err, path, "out of memory");
+        tsio_errf(err, path, "out of memory");
         return -1;
     }
 
@@ -1096,46 +1099,46 @@ static int write_raster_impl(const char *path, const tsio_write_opts *opts,
     if (forced_format) {
         drv = GDALGetDriverByName(forced_format);
         if (!drv) {
-            set_err(err, path, "the %s driver is not available", forced_format);
+            tsio_errf(err, path, "the %s driver is not available", forced_format);
             goto done;
         }
     } else if (opts && opts->format && opts->format[0]) {
         drv = GDALGetDriverByName(opts->format);
         if (!drv) {
-            set_err(err, path, "unknown output format %s", opts->format);
+            tsio_errf(err, path, "unknown output format %s", opts->format);
             goto done;
         }
     } else {
         int refused = 0;
         drv = raster_driver_for_ext(on.ext, &refused);
         if (refused) {
-            set_err(err, path, "cannot write VRT: choose a format that stores the cells");
+            tsio_errf(err, path, "cannot write VRT: choose a format that stores the cells");
             goto done;
         }
         if (!drv) {
-            set_err(err, path, "the GTiff driver is not available");
+            tsio_errf(err, path, "the GTiff driver is not available");
             goto done;
         }
     }
     drv_name = GDALGetDriverShortName(drv);
     if (!driver_has(drv, GDAL_DCAP_RASTER)) {
-        set_err(err, path, "format %s cannot write rasters", drv_name);
+        tsio_errf(err, path, "format %s cannot write rasters", drv_name);
         goto done;
     }
     if (str_ieq(drv_name, "MEM") || str_ieq(drv_name, "VRT")) {
-        set_err(err, path, "format %s cannot write files", drv_name);
+        tsio_errf(err, path, "format %s cannot write files", drv_name);
         goto done;
     }
     can_create = driver_has(drv, GDAL_DCAP_CREATE);
     can_copy = driver_has(drv, GDAL_DCAP_CREATECOPY);
     if (!can_create && !can_copy) {
-        set_err(err, path, "format %s cannot write files", drv_name);
+        tsio_errf(err, path, "format %s cannot write files", drv_name);
         goto done;
     }
     types = GDALGetMetadataItem(drv, GDAL_DMD_CREATIONDATATYPES, NULL);
     if (types && types[0] && !list_has_word(types, type_name(src->type))) {
-        set_err(err, path, "format %s cannot store %s data (it takes %s)", drv_name,
-                type_name(src->type), types);
+        tsio_errf(err, path, "format %s cannot store %s data (it takes %s)", drv_name,
+                  type_name(src->type), types);
         goto done;
     }
 
@@ -1145,7 +1148,7 @@ static int write_raster_impl(const char *path, const tsio_write_opts *opts,
             const char *o = opts->create_options[i];
             const char *eq = strchr(o, '=');
             if (!eq || eq == o) {
-                set_err(err, path, "invalid creation option \"%s\" (expected KEY=VALUE)", o);
+                tsio_errf(err, path, "invalid creation option \"%s\" (expected KEY=VALUE)", o);
                 goto done;
             }
             copts = CSLAddString(copts, o);
@@ -1188,7 +1191,7 @@ static int write_raster_impl(const char *path, const tsio_write_opts *opts,
     } else {
         mem_drv = GDALGetDriverByName("MEM");
         if (!mem_drv) {
-            set_err(err, path, "the MEM driver is not available");
+            tsio_errf(err, path, "the MEM driver is not available");
             goto done;
         }
         mem = GDALCreate(mem_drv, "", src->width, src->height, src->nbands, src->type, NULL);
@@ -1269,18 +1272,18 @@ int tsio_write_float(const char *path, const tsio_write_opts *opts, const tsio_g
     raster_src src;
     if (!data || !data->data) {
         if (err)
-            set_err(err, path, "no raster data given");
+            tsio_errf(err, path, "no raster data given");
         return -1;
     }
     if (data->width <= 0 || data->height <= 0 || data->stride < data->width) {
         if (err)
-            set_err(err, path, "invalid raster view (%d x %d, stride %td)", data->width,
-                    data->height, data->stride);
+            tsio_errf(err, path, "invalid raster view (%d x %d, stride %td)", data->width,
+                      data->height, data->stride);
         return -1;
     }
     if (!isnan(nodata_value) && !(fabs(nodata_value) <= FLT_MAX)) {
         if (err)
-            set_err(err, path, "the nodata value %g does not fit in Float32", nodata_value);
+            tsio_errf(err, path, "the nodata value %g does not fit in Float32", nodata_value);
         return -1;
     }
     memset(&src, 0, sizeof src);
@@ -1299,17 +1302,17 @@ int tsio_write_byte(const char *path, const tsio_write_opts *opts, const tsio_ge
     raster_src src;
     if (!data) {
         if (err)
-            set_err(err, path, "no raster data given");
+            tsio_errf(err, path, "no raster data given");
         return -1;
     }
     if (!geo) {
         if (err)
-            set_err(err, path, "no georeferencing given (the size comes from it)");
+            tsio_errf(err, path, "no georeferencing given (the size comes from it)");
         return -1;
     }
     if (nodata < -1 || nodata > 255) {
         if (err)
-            set_err(err, path, "the nodata value %d does not fit in a byte", nodata);
+            tsio_errf(err, path, "the nodata value %d does not fit in a byte", nodata);
         return -1;
     }
     memset(&src, 0, sizeof src);
@@ -1327,12 +1330,12 @@ int tsio_write_png_rgb(const char *path, int width, int height, const unsigned c
     raster_src src;
     if (!rgb) {
         if (err)
-            set_err(err, path, "no image data given");
+            tsio_errf(err, path, "no image data given");
         return -1;
     }
     if (width <= 0 || height <= 0 || width > INT_MAX / 3) {
         if (err)
-            set_err(err, path, "invalid image size %d x %d", width, height);
+            tsio_errf(err, path, "invalid image size %d x %d", width, height);
         return -1;
     }
     memset(&src, 0, sizeof src);
@@ -1384,25 +1387,25 @@ static int check_features(const ts_features *f, const char *path, tsio_err *err)
 {
     size_t i;
     if ((f->n_nodes && !f->nodes) || (f->n_paths && !f->paths) || (f->n_verts && !f->verts)) {
-        set_err(err, path, "the feature graph is missing arrays");
+        tsio_errf(err, path, "the feature graph is missing arrays");
         return -1;
     }
     for (i = 0; i < f->n_paths; i++) {
         const ts_feature_path *p = &f->paths[i];
         size_t k;
         if (p->count < 1 || p->count > f->n_verts || p->first > f->n_verts - p->count) {
-            set_err(err, path, "path %zu has invalid vertex indices", i);
+            tsio_errf(err, path, "path %zu has invalid vertex indices", i);
             return -1;
         }
         if (p->node_a >= f->n_nodes || p->node_b >= f->n_nodes) {
-            set_err(err, path, "path %zu refers to a missing node", i);
+            tsio_errf(err, path, "path %zu refers to a missing node", i);
             return -1;
         }
         for (k = p->first; k < p->first + p->count; k++) {
             const ts_feature_vertex *v = &f->verts[k];
             if (v->x < 0 || v->y < 0 || v->x >= f->width || v->y >= f->height) {
-                set_err(err, path, "path %zu has a vertex outside the %d x %d grid", i,
-                        f->width, f->height);
+                tsio_errf(err, path, "path %zu has a vertex outside the %d x %d grid", i, f->width,
+                          f->height);
                 return -1;
             }
         }
@@ -1410,7 +1413,7 @@ static int check_features(const ts_features *f, const char *path, tsio_err *err)
     for (i = 0; i < f->n_nodes; i++) {
         const ts_feature_node *n = &f->nodes[i];
         if (n->x < 0 || n->y < 0 || n->x >= f->width || n->y >= f->height) {
-            set_err(err, path, "node %zu lies outside the %d x %d grid", i, f->width, f->height);
+            tsio_errf(err, path, "node %zu lies outside the %d x %d grid", i, f->width, f->height);
             return -1;
         }
     }
@@ -1487,7 +1490,7 @@ static int write_paths_layer(GDALDatasetH ds, const vec_ctx *c)
     tx = GDALDatasetStartTransaction(ds, FALSE) == OGRERR_NONE;
     feat = OGR_F_Create(OGR_L_GetLayerDefn(layer));
     if (!feat) {
-        set_err(c->err, c->path, "out of memory");
+        tsio_errf(c->err, c->path, "out of memory");
         goto done;
     }
     for (i = 0; i < f->n_paths; i++) {
@@ -1499,7 +1502,7 @@ static int write_paths_layer(GDALDatasetH ds, const vec_ctx *c)
         if (!line || npts > INT_MAX) {
             if (line)
                 OGR_G_DestroyGeometry(line);
-            set_err(c->err, c->path, "cannot build the line of path %zu", i);
+            tsio_errf(c->err, c->path, "cannot build the line of path %zu", i);
             goto done;
         }
         OGR_G_SetPointCount(line, (int)npts);
@@ -1575,14 +1578,14 @@ static int write_nodes_layer(GDALDatasetH ds, const vec_ctx *c, const char *show
     tx = GDALDatasetStartTransaction(ds, FALSE) == OGRERR_NONE;
     feat = OGR_F_Create(OGR_L_GetLayerDefn(layer));
     if (!feat) {
-        set_err(c->err, shown_path, "out of memory");
+        tsio_errf(c->err, shown_path, "out of memory");
         goto done;
     }
     for (i = 0; i < f->n_nodes; i++) {
         const ts_feature_node *n = &f->nodes[i];
         OGRGeometryH pt = OGR_G_CreateGeometry(wkbPoint);
         if (!pt) {
-            set_err(c->err, shown_path, "out of memory");
+            tsio_errf(c->err, shown_path, "out of memory");
             goto done;
         }
         OGR_G_SetPoint_2D(pt, 0, cx(c, n->x, n->y), cy(c, n->x, n->y));
@@ -1630,33 +1633,33 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
     memset(&nodes_n, 0, sizeof nodes_n);
     memset(&c, 0, sizeof c);
     if (!path || !path[0]) {
-        set_err(err, "(empty path)", "no output file given");
+        tsio_errf(err, "(empty path)", "no output file given");
         return -1;
     }
     if (!f) {
-        set_err(err, path, "no features given");
+        tsio_errf(err, path, "no features given");
         return -1;
     }
     if (geo && geo->width > 0 && geo->height > 0 && f->width > 0 && f->height > 0
         && (geo->width != f->width || geo->height != f->height)) {
-        set_err(err, path, "the georeferencing is for %d x %d cells but the features for %d x %d",
-                geo->width, geo->height, f->width, f->height);
+        tsio_errf(err, path, "the georeferencing is for %d x %d cells but the features for %d x %d",
+                  geo->width, geo->height, f->width, f->height);
         return -1;
     }
     if (check_features(f, path, err) != 0)
         return -1;
     if (out_name_for(path, &main_n) != 0) {
-        set_err(err, path, "out of memory");
+        tsio_errf(err, path, "out of memory");
         return -1;
     }
     drv_name = vector_driver_for_ext(main_n.ext);
     if (!drv_name) {
-        set_err(err, path, "cannot tell the vector format from the extension");
+        tsio_errf(err, path, "cannot tell the vector format from the extension");
         goto done;
     }
     drv = GDALGetDriverByName(drv_name);
     if (!drv || !driver_has(drv, GDAL_DCAP_VECTOR) || !driver_has(drv, GDAL_DCAP_CREATE)) {
-        set_err(err, path, "the %s driver is not available for writing", drv_name);
+        tsio_errf(err, path, "the %s driver is not available for writing", drv_name);
         goto done;
     }
     if (check_output_location(&main_n, path, err) != 0)
@@ -1670,7 +1673,7 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
         memcpy(c.gt, geo->gt, sizeof c.gt);
         for (i = 0; i < 6; i++)
             if (!isfinite(c.gt[i])) {
-                set_err(err, path, "the geotransform is not finite");
+                tsio_errf(err, path, "the geotransform is not finite");
                 goto done;
             }
     } else {
@@ -1680,7 +1683,7 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
     if (geo && geo->wkt && geo->wkt[0]) {
         c.srs = srs_from_wkt(geo->wkt);
         if (!c.srs) {
-            set_err(err, path, "the CRS (WKT) is invalid");
+            tsio_errf(err, path, "the CRS (WKT) is invalid");
             goto done;
         }
     }
@@ -1707,7 +1710,7 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
     if (sibling) {
         nodes_stem = str_fmt("%s_nodes", main_n.stem);
         if (!nodes_stem || out_name_make(main_n.dir, nodes_stem, main_n.ext, &nodes_n) != 0) {
-            set_err(err, path, "out of memory");
+            tsio_errf(err, path, "out of memory");
             goto done;
         }
         CPLErrorReset();
@@ -1773,20 +1776,20 @@ int tsio_check_vector_output(const char *path, tsio_err *err)
     int rc = -1;
     memset(&on, 0, sizeof on);
     if (!path || !path[0]) {
-        set_err(err, "(empty path)", "no output file given");
+        tsio_errf(err, "(empty path)", "no output file given");
         return -1;
     }
     ensure_registered();
     if (out_name_for(path, &on) != 0) {
-        set_err(err, path, "out of memory");
+        tsio_errf(err, path, "out of memory");
         return -1;
     }
     drv_name = vector_driver_for_ext(on.ext);
     if (!drv_name)
-        set_err(err, path, "cannot tell the vector format from the extension");
+        tsio_errf(err, path, "cannot tell the vector format from the extension");
     else if (!(drv = GDALGetDriverByName(drv_name)) || !driver_has(drv, GDAL_DCAP_VECTOR) ||
              !driver_has(drv, GDAL_DCAP_CREATE))
-        set_err(err, path, "the %s driver is not available for writing", drv_name);
+        tsio_errf(err, path, "the %s driver is not available for writing", drv_name);
     else
         rc = check_output_location(&on, path, err);
     out_name_free(&on);
@@ -1851,7 +1854,7 @@ static int raster_from_mem(GDALDatasetH ds, tsio_raster *out, const char *path, 
     double *dy = h > 0 ? malloc((size_t)h * sizeof *dy) : NULL;
     char why[256];
     if (!data || !dx || !dy) {
-        set_err(err, path, "out of memory");
+        tsio_errf(err, path, "out of memory");
         goto fail;
     }
     GDALGetGeoTransform(ds, gt);
@@ -1862,7 +1865,7 @@ static int raster_from_mem(GDALDatasetH ds, tsio_raster *out, const char *path, 
     }
     srs = wkt && wkt[0] ? srs_from_wkt(wkt) : NULL;
     if (!srs || compute_metrics(srs, gt, h, dx, dy, why, sizeof why) != 0) {
-        set_err(err, path, "cannot measure the resampled grid");
+        tsio_errf(err, path, "cannot measure the resampled grid");
         goto fail;
     }
     for (i = 0; i < (size_t)w * (size_t)h; i++)
@@ -1915,7 +1918,7 @@ static int resample_no_crs(const char *path, double cell_m, double target_dx_m,
         nw = (int)lround(w * cell_m / target_dx_m);
         nh = (int)lround(h * cell_m / target_dy_m);
         if (nw < 1 || nh < 1 || (double)nw * (double)nh > 4e9) {
-            set_err(err, path, "cannot be resampled to %.6g m cells", target_dx_m);
+            tsio_errf(err, path, "cannot be resampled to %.6g m cells", target_dx_m);
             return -1;
         }
         snprintf(sw, sizeof sw, "%d", nw);
@@ -1930,7 +1933,7 @@ static int resample_no_crs(const char *path, double cell_m, double target_dx_m,
                    : NULL;
         if (!data || GDALRasterIO(GDALGetRasterBand(dst, 1), GF_Read, 0, 0, nw, nh, data, nw, nh,
                                   GDT_Float32, 0, 0) != CE_None) {
-            set_err(err, path, "resampling failed");
+            tsio_errf(err, path, "resampling failed");
             goto done;
         }
         {
@@ -1943,7 +1946,7 @@ static int resample_no_crs(const char *path, double cell_m, double target_dx_m,
     dx = malloc((size_t)nh * sizeof *dx);
     dy = malloc((size_t)nh * sizeof *dy);
     if (!dx || !dy) {
-        set_err(err, path, "out of memory");
+        tsio_errf(err, path, "out of memory");
         goto done;
     }
     for (y = 0; y < nh; y++) {
@@ -2020,7 +2023,7 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
     CPLPushErrorHandler(CPLQuietErrorHandler);
     srs = srs_from_wkt(out->geo.wkt);
     if (!srs) {
-        set_err(err, path, "cannot read its CRS");
+        tsio_errf(err, path, "cannot read its CRS");
         goto done;
     }
     if (geographic) {
@@ -2031,7 +2034,7 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
         double mdeg_x = out->dx_m[c] / fabs(out->geo.gt[1]);
         double mdeg_y = out->dy_m[c] / fabs(out->geo.gt[5]);
         if (!(mdeg_x > 0) || !(mdeg_y > 0)) {
-            set_err(err, path, "cannot measure its cells on the ground");
+            tsio_errf(err, path, "cannot measure its cells on the ground");
             goto done;
         }
         snprintf(trx, sizeof trx, "%.17g", target_dx_m / mdeg_x);
@@ -2052,7 +2055,7 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
         src = mem_from_raster(out);
         wo = GDALWarpAppOptionsNew(argv, NULL);
         if (!src || !wo) {
-            set_err(err, path, "cannot prepare the resampling");
+            tsio_errf(err, path, "cannot prepare the resampling");
             goto done;
         }
         dst = GDALWarp("", NULL, 1, &src, wo, &usage);
@@ -2091,13 +2094,13 @@ int tsio_georef_metrics(const tsio_georef *geo, double **dx, double **dy, tsio_e
         return 0;
     srs = srs_from_wkt(geo->wkt);
     if (!srs) {
-        set_err(err, "output grid", "cannot read the CRS");
+        tsio_errf(err, "output grid", "cannot read the CRS");
         return -1;
     }
     *dx = malloc((size_t)geo->height * sizeof **dx);
     *dy = malloc((size_t)geo->height * sizeof **dy);
     if (!*dx || !*dy || compute_metrics(srs, geo->gt, geo->height, *dx, *dy, why, sizeof why)) {
-        set_err(err, "output grid", "%s", (*dx && *dy) ? why : "out of memory");
+        tsio_errf(err, "output grid", "%s", (*dx && *dy) ? why : "out of memory");
         free(*dx);
         free(*dy);
         *dx = *dy = NULL;
@@ -2120,9 +2123,9 @@ int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err)
     if (!ds) {
         VSIStatBufL st;
         if (VSIStatL(path, &st) != 0)
-            set_err(err, path, "no such file");
+            tsio_errf(err, path, "no such file");
         else
-            set_err(err, path, "not a raster GDAL can open");
+            tsio_errf(err, path, "not a raster GDAL can open");
         return -1;
     }
     geo->width = GDALGetRasterXSize(ds);
@@ -2133,7 +2136,7 @@ int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err)
         memcpy(geo->gt, id, sizeof id);
     }
     if (geo->gt[2] != 0.0 || geo->gt[4] != 0.0) {
-        set_err(err, path, "rotated geotransforms are not supported");
+        tsio_errf(err, path, "rotated geotransforms are not supported");
         GDALClose(ds);
         return -1;
     }
@@ -2156,7 +2159,7 @@ int tsio_georef_make(int width, int height, double origin_x, double origin_y, do
     memset(geo, 0, sizeof *geo);
     if (width <= 0 || height <= 0 || !(res_x > 0) || !(res_y > 0) || !isfinite(origin_x) ||
         !isfinite(origin_y)) {
-        set_err(err, "output grid", "invalid size, origin or resolution");
+        tsio_errf(err, "output grid", "invalid size, origin or resolution");
         return -1;
     }
     geo->width = width;
@@ -2177,7 +2180,7 @@ int tsio_georef_make(int width, int height, double origin_x, double origin_y, do
         if (e != OGRERR_NONE) {
             if (srs)
                 OSRDestroySpatialReference(srs);
-            set_err(err, crs, "not a CRS PROJ knows");
+            tsio_errf(err, crs, "not a CRS PROJ knows");
             return -1;
         }
         OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
@@ -2203,7 +2206,9 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
     src = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_VECTOR | GDAL_OF_READONLY, NULL, NULL, NULL);
     if (!src) {
         VSIStatBufL st;
-        set_err(err, path, VSIStatL(path, &st) != 0 ? "no such file" : "not a raster or vector GDAL can open");
+        tsio_errf(err, path,
+                  VSIStatL(path, &st) != 0 ? "no such file"
+                                           : "not a raster or vector GDAL can open");
         goto done;
     }
     if (GDALGetRasterCount(src) > 0) {
@@ -2211,8 +2216,8 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
         int has_nd = 0;
         double nd = GDALGetRasterNoDataValue(b, &has_nd);
         if (GDALGetRasterXSize(src) != geo->width || GDALGetRasterYSize(src) != geo->height) {
-            set_err(err, path, "the region map is %d x %d cells, the output %d x %d",
-                    GDALGetRasterXSize(src), GDALGetRasterYSize(src), geo->width, geo->height);
+            tsio_errf(err, path, "the region map is %d x %d cells, the output %d x %d",
+                      GDALGetRasterXSize(src), GDALGetRasterYSize(src), geo->width, geo->height);
             goto done;
         }
         if (GDALRasterIO(b, GF_Read, 0, 0, geo->width, geo->height, values, geo->width,
@@ -2233,13 +2238,13 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
         int usage = 0;
         GDALDatasetH out;
         if (OGR_FD_GetFieldIndex(defn, field) < 0) {
-            set_err(err, path, "the polygon layer has no integer field \"%s\"", field);
+            tsio_errf(err, path, "the polygon layer has no integer field \"%s\"", field);
             goto done;
         }
         mem = GDALCreate(GDALGetDriverByName("MEM"), "", geo->width, geo->height, 1, GDT_Int32,
                          NULL);
         if (!mem) {
-            set_err(err, path, "out of memory");
+            tsio_errf(err, path, "out of memory");
             goto done;
         }
         GDALSetGeoTransform(mem, (double *)geo->gt);
@@ -2261,7 +2266,7 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
         }
         rc = 0;
     } else {
-        set_err(err, path, "has neither a raster band nor a layer");
+        tsio_errf(err, path, "has neither a raster band nor a layer");
     }
 done:
     if (mem)

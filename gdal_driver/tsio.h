@@ -28,6 +28,14 @@ typedef struct tsio_err {
     char msg[1024];
 } tsio_err;
 
+/** err->msg = "<path>: <formatted problem>" on one line (the one way every
+ *  wrapper file reports a problem; arguments may point into err->msg). */
+void tsio_errf(tsio_err *err, const char *path, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
 /** Georeferencing of a grid. */
 typedef struct tsio_georef {
     int width, height;

@@ -11,11 +11,6 @@
 
 #include "tsjob.h"
 
-static void job_err(tsio_err *err, const char *path, const char *msg)
-{
-    snprintf(err->msg, sizeof err->msg, "%s: %s", path, msg);
-}
-
 /* ------------------------------------------------------------------ */
 /* ppa                                                                 */
 /* ------------------------------------------------------------------ */
@@ -30,7 +25,7 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
         res->in.dx_m = malloc((size_t)res->in.geo.height * sizeof *res->in.dx_m);
         res->in.dy_m = malloc((size_t)res->in.geo.height * sizeof *res->in.dy_m);
         if (!res->in.dx_m || !res->in.dy_m) {
-            job_err(err, job->input, "out of memory");
+            tsio_errf(err, job->input, "out of memory");
             tsjob_ppa_result_free(res);
             return -1;
         }
@@ -39,8 +34,9 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
     }
     res->no_crs = res->in.dx_m == NULL;
     if (res->no_crs && job->params.min_branch_length.unit == TS_UNIT_METRES) {
-        job_err(err, job->input,
-                "has no CRS, so the minimum branch length must be in cells (or give a cell size)");
+        tsio_errf(
+            err, job->input,
+            "has no CRS, so the minimum branch length must be in cells (or give a cell size)");
         tsjob_ppa_result_free(res);
         return -1;
     }
@@ -52,16 +48,16 @@ int tsjob_ppa_compute(ts_ctx *ctx, const tsjob_ppa *job, tsjob_ppa_result *res, 
 {
     size_t n = (size_t)res->in.geo.width * (size_t)res->in.geo.height;
     if (ts_ppa_extract(ctx, &res->in.r, res->metrics, &job->params, &res->features) != TS_OK) {
-        job_err(err, job->input, ts_ctx_message(ctx));
+        tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
         return -1;
     }
     res->codes = malloc(n);
     if (!res->codes) {
-        job_err(err, job->input, "out of memory");
+        tsio_errf(err, job->input, "out of memory");
         return -1;
     }
     if (ts_features_codes(ctx, res->features, &res->in.r, res->codes) != TS_OK) {
-        job_err(err, job->input, ts_ctx_message(ctx));
+        tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
         return -1;
     }
     return 0;
@@ -88,20 +84,20 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
     int bad;
     memset(res, 0, sizeof *res);
     if (job->n_exemplars < 1 || job->n_exemplars > TSJOB_MAX_EXEMPLARS) {
-        job_err(err, "synth", "needs 1 to 64 exemplars");
+        tsio_errf(err, "synth", "needs 1 to 64 exemplars");
         return -1;
     }
     ctx = ts_ctx_new();
     bad = !ctx || ts_params_validate(ctx, "synth", &job->params) != TS_OK;
     if (bad) {
-        job_err(err, "synth", ctx ? ts_ctx_message(ctx) : "out of memory");
+        tsio_errf(err, "synth", "%s", ctx ? ts_ctx_message(ctx) : "out of memory");
         ts_ctx_free(ctx);
         return -1;
     }
     ts_ctx_free(ctx);
     if (job->sketch) {
         if (g->like || g->width || g->crs || g->has_origin || g->has_res) {
-            job_err(err, job->sketch, "a sketch sets the output grid: give no other grid");
+            tsio_errf(err, job->sketch, "a sketch sets the output grid: give no other grid");
             return -1;
         }
         if (tsio_read_georef(job->sketch, &res->geo, err) != 0)
@@ -111,7 +107,7 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
             return -1;
     } else if (g->crs) {
         if (!g->has_origin || !g->has_res) {
-            job_err(err, "synth", "a target CRS needs an origin and a resolution");
+            tsio_errf(err, "synth", "a target CRS needs an origin and a resolution");
             return -1;
         }
         if (tsio_georef_make(g->width, g->height, g->origin_x, g->origin_y, g->res, g->res, g->crs,
@@ -141,7 +137,7 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         res->dx_m = malloc((size_t)res->geo.height * sizeof *res->dx_m);
         res->dy_m = malloc((size_t)res->geo.height * sizeof *res->dy_m);
         if (!res->dx_m || !res->dy_m) {
-            job_err(err, "synth", "out of memory");
+            tsio_errf(err, "synth", "out of memory");
             tsjob_synth_result_free(res);
             return -1;
         }
@@ -164,8 +160,11 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
     }
     if (bad) {
         /* the grid's source: the sketch, --like, or the first exemplar */
-        job_err(err, job->sketch ? job->sketch : g->like ? g->like : job->exemplars[0],
-                ctx ? ts_ctx_message(ctx) : "out of memory");
+        tsio_errf(err,
+                  job->sketch ? job->sketch
+                  : g->like   ? g->like
+                              : job->exemplars[0],
+                  "%s", ctx ? ts_ctx_message(ctx) : "out of memory");
         ts_ctx_free(ctx);
         tsjob_synth_result_free(res);
         return -1;
@@ -173,8 +172,8 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
     ts_ctx_free(ctx);
     if (job->sketch && (res->geo.width < (int)res->params.patch_size.value ||
                         res->geo.height < (int)res->params.patch_size.value)) {
-        snprintf(err->msg, sizeof err->msg, "%s: %d x %d cells is smaller than a patch (%d)",
-                 job->sketch, res->geo.width, res->geo.height, (int)res->params.patch_size.value);
+        tsio_errf(err, job->sketch, "%d x %d cells is smaller than a patch (%d)", res->geo.width,
+                  res->geo.height, (int)res->params.patch_size.value);
         tsjob_synth_result_free(res);
         return -1;
     }
@@ -189,8 +188,8 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
 static void job_core_err(ts_ctx *ctx, const tsjob_synth *job, const char *fallback, tsio_err *err)
 {
     int which = ts_ctx_failed_input(ctx);
-    job_err(err, which >= 0 && which < job->n_exemplars ? job->exemplars[which] : fallback,
-            ts_ctx_message(ctx));
+    tsio_errf(err, which >= 0 && which < job->n_exemplars ? job->exemplars[which] : fallback, "%s",
+              ts_ctx_message(ctx));
 }
 
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
@@ -214,21 +213,21 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         if (res->dx_m && !ex[i].dx_m && !res->exemplar_no_crs)
             res->exemplar_no_crs = i + 1;
         if (ex[i].r.width < P || ex[i].r.height < P) {
-            snprintf(err->msg, sizeof err->msg,
-                     "%s: %d x %d cells at the target resolution is smaller than a patch (%d "
-                     "cells)",
-                     job->exemplars[i], ex[i].r.width, ex[i].r.height, P);
+            tsio_errf(err, job->exemplars[i],
+                      "%d x %d cells at the target resolution is smaller than a patch (%d "
+                      "cells)",
+                      ex[i].r.width, ex[i].r.height, P);
             goto done;
         }
         exr[i] = ex[i].r;
     }
     if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
-        job_err(err, "synth", ts_ctx_message(ctx));
+        tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
         goto done;
     }
     flags = calloc((size_t)res->geo.width * (size_t)res->geo.height, 1);
     if (!flags) {
-        job_err(err, "synth", "out of memory");
+        tsio_errf(err, "synth", "out of memory");
         goto done;
     }
     if (job_constraints(job, res, flags, err) != 0)
@@ -237,9 +236,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         if (tsio_read_raster(job->heights, 1, &heights, err) != 0)
             goto done;
         if (heights.geo.width != res->geo.width || heights.geo.height != res->geo.height) {
-            snprintf(err->msg, sizeof err->msg, "%s: the heights are %d x %d cells, the output %d x %d",
-                     job->heights, heights.geo.width, heights.geo.height, res->geo.width,
-                     res->geo.height);
+            tsio_errf(err, job->heights, "the heights are %d x %d cells, the output %d x %d",
+                      heights.geo.width, heights.geo.height, res->geo.width, res->geo.height);
             goto done;
         }
         params.heights = heights.r.data;
@@ -250,7 +248,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         int r;
         cell_ex = malloc(n * sizeof *cell_ex);
         if (!cell_ex) {
-            job_err(err, job->regions, "out of memory");
+            tsio_errf(err, job->regions, "out of memory");
             goto done;
         }
         if (tsio_read_label_map(job->regions, &res->geo, "region", INT32_MIN, cell_ex, err) != 0)
@@ -325,9 +323,8 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
         if (tsio_read_raster(job->water, 1, &m, err) != 0)
             return -1;
         if (m.geo.width != W || m.geo.height != H) {
-            snprintf(err->msg, sizeof err->msg,
-                     "%s: the water mask is %d x %d cells, the output %d x %d", job->water,
-                     m.geo.width, m.geo.height, W, H);
+            tsio_errf(err, job->water, "the water mask is %d x %d cells, the output %d x %d",
+                      m.geo.width, m.geo.height, W, H);
             tsio_raster_free(&m);
             return -1;
         }
@@ -357,16 +354,18 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
         h = (int)lround(p->height * f);
         if (w < 1 || h < 1 || x0 + w > ex.r.width || y0 + h > ex.r.height ||
             p->xoff + p->width > (int)lround(ex.r.width / f) + 1) {
-            snprintf(err->msg, sizeof err->msg, "%s: the pinned window %d,%d,%d,%d is not inside "
-                     "the raster", p->path, p->xoff, p->yoff, p->width, p->height);
+            tsio_errf(err, p->path,
+                      "the pinned window %d,%d,%d,%d is not inside "
+                      "the raster",
+                      p->xoff, p->yoff, p->width, p->height);
             tsio_raster_free(&ex);
             return -1;
         }
         if (p->x + w > W || p->y + h > H) {
-            snprintf(err->msg, sizeof err->msg,
-                     "%s: the pinned window (%d x %d output cells) at %d,%d leaves the output "
-                     "(%d x %d)",
-                     p->path, w, h, p->x, p->y, W, H);
+            tsio_errf(err, p->path,
+                      "the pinned window (%d x %d output cells) at %d,%d leaves the output "
+                      "(%d x %d)",
+                      w, h, p->x, p->y, W, H);
             tsio_raster_free(&ex);
             return -1;
         }
