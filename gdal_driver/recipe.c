@@ -315,7 +315,7 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
         if (rc == 0)
             rc = tsjob_ppa_compute(ctx, &r->ppa, &r->ppa_res, err);
     } else {
-        rc = tsjob_synth_compute(ctx, &r->synth, &r->synth_res, NULL, err);
+        rc = tsjob_synth_compute(ctx, &r->synth, &r->synth_res, 0, err);
         if (rc == 0) {
             /* nodata as the driver declares it */
             n = (size_t)r->synth_res.out.width * (size_t)r->synth_res.out.height;

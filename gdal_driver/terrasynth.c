@@ -140,10 +140,6 @@ static const char common_help[] =
     "  --progress-lines                 print 'PROGRESS <percent> <stage>' lines\n"
     "  -q, --quiet                      no progress bar or summary\n";
 
-static ts_status write_preview(ts_ctx *ctx, const char *path, const ts_raster *dem,
-                               const tsio_georef *geo, const ts_grid_metrics *metrics,
-                               const ts_features *f);
-
 /* ------------------------------------------------------------------ */
 /* terrasynth ppa                                                     */
 /* ------------------------------------------------------------------ */
@@ -172,15 +168,14 @@ static void ppa_help(FILE *out)
 static int cmd_ppa(int argc, char **argv)
 {
     common_opts co = {"ppa", NULL, NULL, PROGRESS_BAR, 0};
-    const char *input = NULL, *output = NULL, *lines = NULL, *preview = NULL;
-    const char *recipe_path = NULL;
+    const char *input = NULL, *recipe_path = NULL;
+    tsjob_outputs outs = {NULL, NULL, NULL, NULL, NULL, NULL};
     int i, rc = EXIT_RUN, progress_state = -1;
     ts_ctx *ctx = ts_ctx_new();
     tsjob_ppa job;
     tsjob_ppa_result res;
     tsio_err err;
     ts_features *f = NULL;
-    tsio_write_opts wo;
     size_t k;
     tsj_values v;
     char msg[1024] = "";
@@ -209,15 +204,12 @@ static int cmd_ppa(int argc, char **argv)
         goto done;
     }
     input = job.input;
-    output = tsj_get(&v, "output", 0);
-    lines = tsj_get(&v, "lines", 0);
-    preview = tsj_get(&v, "preview", 0);
+    outs.output = tsj_get(&v, "output", 0);
+    outs.lines = tsj_get(&v, "lines", 0);
+    outs.preview = tsj_get(&v, "preview", 0);
+    outs.format = co.format;
+    outs.create_options = (const char *const *)co.create_options;
     recipe_path = tsj_get(&v, "recipe", 0);
-    if ((output && !strcmp(input, output)) || (lines && !strcmp(lines, input)) ||
-        (preview && !strcmp(preview, input))) {
-        fprintf(stderr, "terrasynth: %s: an output would overwrite the input\n", input);
-        goto done;
-    }
     if (recipe_path) {
         if (recipe_write(recipe_path, &v, &err) != 0) {
             fprintf(stderr, "terrasynth: %s\n", err.msg);
@@ -226,47 +218,22 @@ static int cmd_ppa(int argc, char **argv)
         rc = 0;
         goto done;
     }
-    if (tsjob_ppa_prepare(&job, &res, &err) != 0) {
+    /* the input is read and every output checked before the work starts */
+    if (tsjob_ppa_prepare(&job, &res, &err) != 0 ||
+        tsjob_ppa_check_outputs(&job, &res, &outs, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
     if (res.no_crs && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: lengths are in cells\n", input);
-
-    /* every output is checked before the work starts */
-    memset(&wo, 0, sizeof wo);
-    wo.format = co.format;
-    wo.create_options = (const char *const *)co.create_options;
-    wo.check_only = 1;
-    {
-        unsigned char probe = 0;
-        tsio_write_opts png = {"PNG", NULL, 1};
-        if (tsio_write_byte(output, &wo, &res.in.geo, &probe, 255, &err) != 0 ||
-            (lines && tsio_check_vector_output(lines, &err) != 0) ||
-            (preview && tsio_write_byte(preview, &png, &res.in.geo, &probe, -1, &err) != 0)) {
-            fprintf(stderr, "terrasynth: %s\n", err.msg);
-            goto done;
-        }
-    }
-    wo.check_only = 0;
-
     ts_ctx_set_threads(ctx, co.threads);
     set_progress(ctx, co.progress, &progress_state);
-    if (tsjob_ppa_compute(ctx, &job, &res, &err) != 0) {
+    if (tsjob_ppa_compute(ctx, &job, &res, &err) != 0 ||
+        tsjob_ppa_write(ctx, &res, &outs, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
     f = res.features;
-    if (tsio_write_byte(output, &wo, &res.in.geo, res.codes, 255, &err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        goto done;
-    }
-    if (lines && tsio_write_features(lines, &res.in.geo, f, res.metrics, &err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        goto done;
-    }
-    if (preview && write_preview(ctx, preview, &res.in.r, &res.in.geo, res.metrics, f) != TS_OK)
-        goto done;
     if (co.progress != PROGRESS_QUIET) {
         size_t nb = 0, ne = 0, np[3] = {0, 0, 0};
         for (k = 0; k < f->n_nodes; k++) {
@@ -322,114 +289,16 @@ static void synth_help(FILE *out)
             common_help);
 }
 
-/* Preview metrics: the grid's, or for a CRS-less grid its pixel size. */
-static ts_status write_preview(ts_ctx *ctx, const char *path, const ts_raster *dem,
-                               const tsio_georef *geo, const ts_grid_metrics *metrics,
-                               const ts_features *f)
-{
-    size_t n = (size_t)dem->width * (size_t)dem->height;
-    unsigned char *rgb = malloc(3 * n);
-    double *rowdx = NULL, *rowdy = NULL;
-    ts_grid_metrics pm;
-    tsio_err err;
-    ts_status st;
-    int y;
-    if (!metrics && geo->has_gt) {
-        rowdx = malloc((size_t)dem->height * sizeof *rowdx);
-        rowdy = malloc((size_t)dem->height * sizeof *rowdy);
-        if (rowdx && rowdy) {
-            for (y = 0; y < dem->height; y++) {
-                rowdx[y] = fabs(geo->gt[1]);
-                rowdy[y] = fabs(geo->gt[5]);
-            }
-            pm.dx = rowdx;
-            pm.dy = rowdy;
-            metrics = &pm;
-        }
-    }
-    st = rgb ? ts_render_preview(ctx, dem, metrics, f, rgb) : TS_ERR_NOMEM;
-    free(rowdx);
-    free(rowdy);
-    if (st != TS_OK) {
-        fprintf(stderr, "terrasynth: %s: %s\n", path, rgb ? ts_ctx_message(ctx) : "out of memory");
-        free(rgb);
-        return st;
-    }
-    if (tsio_write_png_rgb(path, dem->width, dem->height, rgb, &err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        free(rgb);
-        return TS_ERR_ARG;
-    }
-    free(rgb);
-    return TS_OK;
-}
-
-
-/* Write one int map as Float32 with nodata -1. */
-static int write_int_map(const char *dir, const char *name, const tsio_georef *geo,
-                         const int32_t *v, float *tmp)
-{
-    char *path = CPLStrdup(CPLFormFilename(dir, name, "tif"));
-    size_t i, n = (size_t)geo->width * (size_t)geo->height;
-    ts_raster r = ts_raster_wrap(tmp, geo->width, geo->height, geo->width);
-    tsio_err err;
-    int rc;
-    for (i = 0; i < n; i++)
-        tmp[i] = v[i] < 0 ? NAN : (float)v[i];
-    rc = tsio_write_float(path, NULL, geo, &r, -1.0, &err);
-    if (rc != 0)
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-    CPLFree(path);
-    return rc;
-}
-
-/* With a sketch: its feature tree and the output's PPA features as lines. */
-static int write_debug_features(ts_ctx *ctx, const char *dir, const tsjob_synth *job,
-                                tsjob_synth_result *res)
-{
-    ts_ppa_params pp = ts_ppa_params_default();
-    ts_features *of = NULL;
-    tsio_err err;
-    char *a = CPLStrdup(CPLFormFilename(dir, "sketch_features", "gpkg"));
-    char *b = CPLStrdup(CPLFormFilename(dir, "output_features", "gpkg"));
-    int rc = -1;
-    (void)job;
-    pp.features = res->sketch_info.mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS : TS_PPA_RIDGES;
-    if (res->sketch_features &&
-        tsio_write_features(a, &res->geo, res->sketch_features, NULL, &err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        goto out;
-    }
-    if (ts_ppa_extract(ctx, &res->out, res->metrics, &pp, &of) != TS_OK) {
-        fprintf(stderr, "terrasynth: %s: %s\n", b, ts_ctx_message(ctx));
-        goto out;
-    }
-    if (tsio_write_features(b, &res->geo, of, res->metrics, &err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        goto out;
-    }
-    rc = 0;
-out:
-    ts_features_free(of);
-    CPLFree(a);
-    CPLFree(b);
-    return rc;
-}
-
 static int cmd_synth(int argc, char **argv)
 {
     common_opts co = {"synth", NULL, NULL, PROGRESS_BAR, 0};
-    const char *output = NULL, *preview = NULL, *debug_dir = NULL, *recipe_path = NULL;
+    const char *recipe_path = NULL;
+    tsjob_outputs outs = {NULL, NULL, NULL, NULL, NULL, NULL};
     int i, rc = EXIT_RUN, progress_state = -1;
     uint64_t seed = 0;
     tsjob_synth job;
     tsjob_synth_result res;
     tsio_err err;
-    tsio_write_opts wo;
-    ts_synth_maps maps;
-    int32_t *m_ex = NULL, *m_x = NULL, *m_y = NULL, *m_order = NULL;
-    unsigned char *m_seams = NULL;
-    float *tmp = NULL;
     ts_ctx *ctx = ts_ctx_new();
     tsj_values v;
     char msg[1024] = "";
@@ -437,7 +306,6 @@ static int cmd_synth(int argc, char **argv)
     tsj_values_init(&v, tsj_find("synth"));
     memset(&job, 0, sizeof job);
     memset(&res, 0, sizeof res);
-    memset(&maps, 0, sizeof maps);
     if (!ctx) {
         fprintf(stderr, "terrasynth: out of memory\n");
         return EXIT_RUN;
@@ -459,9 +327,11 @@ static int cmd_synth(int argc, char **argv)
         rc = EXIT_USAGE;
         goto done;
     }
-    output = tsj_get(&v, "output", 0);
-    preview = tsj_get(&v, "preview", 0);
-    debug_dir = tsj_get(&v, "debug_dir", 0);
+    outs.output = tsj_get(&v, "output", 0);
+    outs.preview = tsj_get(&v, "preview", 0);
+    outs.debug_dir = tsj_get(&v, "debug_dir", 0);
+    outs.format = co.format;
+    outs.create_options = (const char *const *)co.create_options;
     recipe_path = tsj_get(&v, "recipe", 0);
     if (recipe_path) {
         if (recipe_write(recipe_path, &v, &err) != 0) {
@@ -471,63 +341,19 @@ static int cmd_synth(int argc, char **argv)
         rc = 0;
         goto done;
     }
-    if (tsjob_synth_prepare(&job, &res, &err) != 0) {
+    /* the grid is resolved and every output checked before the work */
+    if (tsjob_synth_prepare(&job, &res, &err) != 0 ||
+        tsjob_synth_check_outputs(&job, &res, &outs, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
     if (!res.dx_m && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: the target grid has no CRS: exemplars are used "
                         "cell for cell\n");
-
-    /* outputs are checked before the work */
-    memset(&wo, 0, sizeof wo);
-    wo.format = co.format;
-    wo.create_options = (const char *const *)co.create_options;
-    wo.check_only = 1;
-    {
-        float probe = 0;
-        ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
-        unsigned char bp = 0;
-        tsio_write_opts png = {"PNG", NULL, 1};
-        tsio_georef g1 = res.geo;
-        g1.width = g1.height = 1;
-        if (tsio_write_float(output, &wo, &g1, &pr, -9999.0, &err) != 0 ||
-            (preview && tsio_write_byte(preview, &png, &g1, &bp, -1, &err) != 0)) {
-            fprintf(stderr, "terrasynth: %s\n", err.msg);
-            goto done;
-        }
-    }
-    if (debug_dir) {
-        VSIStatBufL sb;
-        if (VSIStatL(debug_dir, &sb) != 0 && VSIMkdir(debug_dir, 0755) != 0) {
-            fprintf(stderr, "terrasynth: %s: cannot create the directory\n", debug_dir);
-            goto done;
-        }
-    }
-    wo.check_only = 0;
-
-    if (debug_dir) {
-        size_t n = (size_t)res.geo.width * (size_t)res.geo.height;
-        m_ex = malloc(n * sizeof *m_ex);
-        m_x = malloc(n * sizeof *m_x);
-        m_y = malloc(n * sizeof *m_y);
-        m_order = malloc(n * sizeof *m_order);
-        m_seams = malloc(n);
-        tmp = malloc(n * sizeof *tmp);
-        if (!m_ex || !m_x || !m_y || !m_order || !m_seams || !tmp) {
-            fprintf(stderr, "terrasynth: out of memory\n");
-            goto done;
-        }
-        maps.source_exemplar = m_ex;
-        maps.source_x = m_x;
-        maps.source_y = m_y;
-        maps.order = m_order;
-        maps.seams = m_seams;
-    }
     ts_ctx_set_seed(ctx, seed);
     ts_ctx_set_threads(ctx, co.threads);
     set_progress(ctx, co.progress, &progress_state);
-    if (tsjob_synth_compute(ctx, &job, &res, debug_dir ? &maps : NULL, &err) != 0) {
+    if (tsjob_synth_compute(ctx, &job, &res, outs.debug_dir != NULL, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
@@ -545,35 +371,13 @@ static int cmd_synth(int argc, char **argv)
     if (res.exemplar_no_crs && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",
                 job.exemplars[res.exemplar_no_crs - 1]);
-    if (tsio_write_float(output, &wo, &res.geo, &res.out, -9999.0, &err) != 0) {
+    if (tsjob_synth_write(ctx, &job, &res, &outs, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
-    }
-    if (preview && write_preview(ctx, preview, &res.out, &res.geo, res.metrics, NULL) != TS_OK)
-        goto done;
-    if (debug_dir) {
-        char *sp = CPLStrdup(CPLFormFilename(debug_dir, "seams", "tif"));
-        int bad = tsio_write_byte(sp, NULL, &res.geo, m_seams, -1, &err);
-        if (bad)
-            fprintf(stderr, "terrasynth: %s\n", err.msg);
-        CPLFree(sp);
-        if (bad || write_int_map(debug_dir, "source_exemplar", &res.geo, m_ex, tmp) ||
-            write_int_map(debug_dir, "source_x", &res.geo, m_x, tmp) ||
-            write_int_map(debug_dir, "source_y", &res.geo, m_y, tmp) ||
-            write_int_map(debug_dir, "order", &res.geo, m_order, tmp))
-            goto done;
-        if (job.sketch && write_debug_features(ctx, debug_dir, &job, &res) != 0)
-            goto done;
     }
     rc = 0;
 done:
     tsjob_synth_result_free(&res);
-    free(m_ex);
-    free(m_x);
-    free(m_y);
-    free(m_order);
-    free(m_seams);
-    free(tmp);
     tsj_values_free(&v);
     CSLDestroy(co.create_options);
     ts_ctx_free(ctx);

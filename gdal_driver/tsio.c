@@ -23,6 +23,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cpl_conv.h>
@@ -2276,4 +2277,41 @@ done:
     CPLErrorReset();
     CPLPopErrorHandler();
     return rc;
+}
+
+int tsio_same_file(const char *a, const char *b)
+{
+    struct stat sa, sb;
+    if (!a || !b)
+        return 0;
+    if (stat(a, &sa) != 0 || stat(b, &sb) != 0)
+        return 0;
+    return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+int tsio_make_dir(const char *dir, tsio_err *err)
+{
+    VSIStatBufL sb;
+    if (VSIStatL(dir, &sb) == 0) {
+        if (VSI_ISDIR(sb.st_mode))
+            return 0;
+        tsio_errf(err, dir, "exists and is not a folder");
+        return -1;
+    }
+    if (VSIMkdir(dir, 0755) != 0) {
+        tsio_errf(err, dir, "cannot create the folder");
+        return -1;
+    }
+    return 0;
+}
+
+int tsio_path(char *buf, size_t n, const char *dir, const char *name, const char *ext,
+              tsio_err *err)
+{
+    int k = snprintf(buf, n, "%s/%s.%s", dir, name, ext);
+    if (k < 0 || (size_t)k >= n) {
+        tsio_errf(err, dir, "the path is too long");
+        return -1;
+    }
+    return 0;
 }

@@ -162,6 +162,17 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
  *  driver present, directory exists) without writing anything. */
 int tsio_check_vector_output(const char *path, tsio_err *err);
 
+/** Are a and b the same file (same device and inode: a link or another
+ *  spelling of the path counts)?  A path that does not exist is no file. */
+int tsio_same_file(const char *a, const char *b);
+
+/** Make sure the folder exists (created, one level, if need be). */
+int tsio_make_dir(const char *dir, tsio_err *err);
+
+/** "<dir>/<name>.<ext>" into buf; -1 (err set) if it does not fit. */
+int tsio_path(char *buf, size_t n, const char *dir, const char *name, const char *ext,
+              tsio_err *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -192,9 +192,28 @@ static void job_core_err(ts_ctx *ctx, const tsjob_synth *job, const char *fallba
               ts_ctx_message(ctx));
 }
 
-int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
-                        ts_synth_maps *maps, tsio_err *err)
+/* res->maps, allocated for the grid. */
+static int job_alloc_maps(tsjob_synth_result *res, tsio_err *err)
 {
+    size_t n = (size_t)res->geo.width * (size_t)res->geo.height;
+    ts_synth_maps *m = &res->maps;
+    m->source_exemplar = malloc(n * sizeof(int32_t));
+    m->source_x = malloc(n * sizeof(int32_t));
+    m->source_y = malloc(n * sizeof(int32_t));
+    m->order = malloc(n * sizeof(int32_t));
+    m->seams = malloc(n);
+    res->has_maps = 1;
+    if (!m->source_exemplar || !m->source_x || !m->source_y || !m->order || !m->seams) {
+        tsio_errf(err, "synth", "out of memory for the debug maps");
+        return -1;
+    }
+    return 0;
+}
+
+int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
+                        tsio_err *err)
+{
+    ts_synth_maps *maps = NULL;
     tsio_raster ex[TSJOB_MAX_EXEMPLARS];
     ts_raster exr[TSJOB_MAX_EXEMPLARS];
     unsigned char *flags = NULL;
@@ -204,6 +223,11 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     int i, rc = -1, cy = res->geo.height / 2, P = (int)res->params.patch_size.value;
     memset(ex, 0, sizeof ex);
     memset(&heights, 0, sizeof heights);
+    if (keep_maps) {
+        if (job_alloc_maps(res, err) != 0)
+            return -1;
+        maps = &res->maps;
+    }
     for (i = 0; i < job->n_exemplars; i++) {
         double factor = 1.0;
         if (tsio_read_raster_resampled(job->exemplars[i], job->band,
@@ -388,8 +412,228 @@ void tsjob_synth_result_free(tsjob_synth_result *res)
         return;
     tsio_georef_free(&res->geo);
     ts_features_free(res->sketch_features);
+    free(res->maps.source_exemplar);
+    free(res->maps.source_x);
+    free(res->maps.source_y);
+    free(res->maps.order);
+    free(res->maps.seams);
     free(res->dx_m);
     free(res->dy_m);
     ts_raster_free(&res->out);
     memset(res, 0, sizeof *res);
+}
+
+/* ------------------------------------------------------------------ */
+/* what a job writes                                                   */
+/* ------------------------------------------------------------------ */
+
+/* Refuse an output that is one of the inputs (by identity: a link or
+ * another spelling of the path counts too). */
+static int job_not_an_input(const char *out, const char *const *inputs, int n, tsio_err *err)
+{
+    int i;
+    if (!out)
+        return 0;
+    for (i = 0; i < n; i++)
+        if (inputs[i] && (tsio_same_file(out, inputs[i]) || !strcmp(out, inputs[i]))) {
+            tsio_errf(err, out, "is an input (%s): an output never overwrites an input", inputs[i]);
+            return -1;
+        }
+    return 0;
+}
+
+/* A hillshade PNG; with f, its axes drawn over it.  The metrics are the
+ * grid's, or for a CRS-less grid its pixel size. */
+static int job_preview(ts_ctx *ctx, const char *path, const ts_raster *dem, const tsio_georef *geo,
+                       const ts_grid_metrics *metrics, const ts_features *f, tsio_err *err)
+{
+    size_t n = (size_t)dem->width * (size_t)dem->height;
+    unsigned char *rgb = malloc(3 * n);
+    double *rowdx = NULL, *rowdy = NULL;
+    ts_grid_metrics pm;
+    ts_status st;
+    int y, rc;
+    if (!metrics && geo->has_gt) {
+        rowdx = malloc((size_t)dem->height * sizeof *rowdx);
+        rowdy = malloc((size_t)dem->height * sizeof *rowdy);
+        if (rowdx && rowdy) {
+            for (y = 0; y < dem->height; y++) {
+                rowdx[y] = fabs(geo->gt[1]);
+                rowdy[y] = fabs(geo->gt[5]);
+            }
+            pm.dx = rowdx;
+            pm.dy = rowdy;
+            metrics = &pm;
+        }
+    }
+    st = rgb ? ts_render_preview(ctx, dem, metrics, f, rgb) : TS_ERR_NOMEM;
+    free(rowdx);
+    free(rowdy);
+    if (st != TS_OK) {
+        tsio_errf(err, path, "%s", rgb ? ts_ctx_message(ctx) : "out of memory");
+        free(rgb);
+        return -1;
+    }
+    rc = tsio_write_png_rgb(path, dem->width, dem->height, rgb, err);
+    free(rgb);
+    return rc;
+}
+
+int tsjob_ppa_check_outputs(const tsjob_ppa *job, const tsjob_ppa_result *res,
+                            const tsjob_outputs *o, tsio_err *err)
+{
+    const char *in[1] = {job->input};
+    unsigned char probe = 0;
+    tsio_write_opts wo = {o->format, o->create_options, 1};
+    tsio_write_opts png = {"PNG", NULL, 1};
+    if (job_not_an_input(o->output, in, 1, err) || job_not_an_input(o->lines, in, 1, err) ||
+        job_not_an_input(o->preview, in, 1, err))
+        return -1;
+    if (tsio_write_byte(o->output, &wo, &res->in.geo, &probe, 255, err) != 0 ||
+        (o->lines && tsio_check_vector_output(o->lines, err) != 0) ||
+        (o->preview && tsio_write_byte(o->preview, &png, &res->in.geo, &probe, -1, err) != 0))
+        return -1;
+    return 0;
+}
+
+int tsjob_ppa_write(ts_ctx *ctx, const tsjob_ppa_result *res, const tsjob_outputs *o, tsio_err *err)
+{
+    tsio_write_opts wo = {o->format, o->create_options, 0};
+    if (tsio_write_byte(o->output, &wo, &res->in.geo, res->codes, 255, err) != 0)
+        return -1;
+    if (o->lines &&
+        tsio_write_features(o->lines, &res->in.geo, res->features, res->metrics, err) != 0)
+        return -1;
+    if (o->preview && job_preview(ctx, o->preview, &res->in.r, &res->in.geo, res->metrics,
+                                  res->features, err) != 0)
+        return -1;
+    return 0;
+}
+
+/* Every file a synth job reads. */
+static int job_synth_inputs(const tsjob_synth *job, const char **in)
+{
+    int n = 0, i;
+    for (i = 0; i < job->n_exemplars; i++)
+        in[n++] = job->exemplars[i];
+    in[n++] = job->sketch;
+    in[n++] = job->grid.like;
+    in[n++] = job->water;
+    in[n++] = job->regions;
+    in[n++] = job->heights;
+    for (i = 0; i < job->n_pins; i++)
+        in[n++] = job->pins[i].path;
+    return n;
+}
+
+#define JOB_MAX_INPUTS (TSJOB_MAX_EXEMPLARS + TSJOB_MAX_PINS + 5)
+
+/* The names of the debug maps (debug_dir/<name>.tif). */
+static const char *const job_map_names[] = {"seams", "source_exemplar", "source_x", "source_y",
+                                            "order"};
+
+int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *res,
+                              const tsjob_outputs *o, tsio_err *err)
+{
+    const char *in[JOB_MAX_INPUTS];
+    int n = job_synth_inputs(job, in), i;
+    float probe = 0;
+    ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
+    unsigned char bp = 0;
+    tsio_write_opts wo = {o->format, o->create_options, 1};
+    tsio_write_opts png = {"PNG", NULL, 1};
+    tsio_georef g1 = res->geo;
+    g1.width = g1.height = 1;
+    if (job_not_an_input(o->output, in, n, err) || job_not_an_input(o->preview, in, n, err))
+        return -1;
+    if (tsio_write_float(o->output, &wo, &g1, &pr, -9999.0, err) != 0 ||
+        (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
+        return -1;
+    if (o->debug_dir) {
+        char path[4096];
+        if (tsio_make_dir(o->debug_dir, err) != 0)
+            return -1;
+        for (i = 0; i < (int)(sizeof job_map_names / sizeof *job_map_names); i++) {
+            if (tsio_path(path, sizeof path, o->debug_dir, job_map_names[i], "tif", err) != 0 ||
+                job_not_an_input(path, in, n, err) != 0)
+                return -1;
+        }
+    }
+    return 0;
+}
+
+/* Write one int map as Float32 with nodata -1. */
+static int job_int_map(const char *dir, const char *name, const tsio_georef *geo, const int32_t *v,
+                       float *tmp, tsio_err *err)
+{
+    char path[4096];
+    size_t i, n = (size_t)geo->width * (size_t)geo->height;
+    ts_raster r = ts_raster_wrap(tmp, geo->width, geo->height, geo->width);
+    if (tsio_path(path, sizeof path, dir, name, "tif", err) != 0)
+        return -1;
+    for (i = 0; i < n; i++)
+        tmp[i] = v[i] < 0 ? NAN : (float)v[i];
+    return tsio_write_float(path, NULL, geo, &r, -1.0, err);
+}
+
+/* With a sketch: its feature graph and the output's PPA axes as lines. */
+static int job_debug_features(ts_ctx *ctx, const char *dir, const tsjob_synth_result *res,
+                              tsio_err *err)
+{
+    ts_ppa_params pp = ts_ppa_params_default();
+    ts_features *of = NULL;
+    char a[4096], b[4096];
+    int rc = -1;
+    if (tsio_path(a, sizeof a, dir, "sketch_features", "gpkg", err) != 0 ||
+        tsio_path(b, sizeof b, dir, "output_features", "gpkg", err) != 0)
+        return -1;
+    pp.features = res->sketch_info.mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS : TS_PPA_RIDGES;
+    if (res->sketch_features &&
+        tsio_write_features(a, &res->geo, res->sketch_features, NULL, err) != 0)
+        goto out;
+    if (ts_ppa_extract(ctx, &res->out, res->metrics, &pp, &of) != TS_OK) {
+        tsio_errf(err, b, "%s", ts_ctx_message(ctx));
+        goto out;
+    }
+    if (tsio_write_features(b, &res->geo, of, res->metrics, err) != 0)
+        goto out;
+    rc = 0;
+out:
+    ts_features_free(of);
+    return rc;
+}
+
+int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_result *res,
+                      const tsjob_outputs *o, tsio_err *err)
+{
+    tsio_write_opts wo = {o->format, o->create_options, 0};
+    if (tsio_write_float(o->output, &wo, &res->geo, &res->out, -9999.0, err) != 0)
+        return -1;
+    if (o->preview &&
+        job_preview(ctx, o->preview, &res->out, &res->geo, res->metrics, NULL, err) != 0)
+        return -1;
+    if (o->debug_dir && res->has_maps) {
+        const ts_synth_maps *m = &res->maps;
+        size_t n = (size_t)res->geo.width * (size_t)res->geo.height;
+        float *tmp = malloc(n * sizeof *tmp);
+        char path[4096];
+        int bad;
+        if (!tmp) {
+            tsio_errf(err, o->debug_dir, "out of memory");
+            return -1;
+        }
+        bad = tsio_path(path, sizeof path, o->debug_dir, "seams", "tif", err) != 0 ||
+              tsio_write_byte(path, NULL, &res->geo, m->seams, -1, err) != 0 ||
+              job_int_map(o->debug_dir, "source_exemplar", &res->geo, m->source_exemplar, tmp,
+                          err) != 0 ||
+              job_int_map(o->debug_dir, "source_x", &res->geo, m->source_x, tmp, err) != 0 ||
+              job_int_map(o->debug_dir, "source_y", &res->geo, m->source_y, tmp, err) != 0 ||
+              job_int_map(o->debug_dir, "order", &res->geo, m->order, tmp, err) != 0;
+        free(tmp);
+        if (bad)
+            return -1;
+        if (job->sketch && job_debug_features(ctx, o->debug_dir, res, err) != 0)
+            return -1;
+    }
+    return 0;
 }

@@ -19,6 +19,20 @@
 extern "C" {
 #endif
 
+/* ---- what a job writes ---- */
+
+/* The files of a job.  Every front end that writes files (the CLI; QGIS
+ * through it) hands these over, so previews and debug maps are written the
+ * same way everywhere; the GDAL driver serves the raster and writes none. */
+typedef struct tsjob_outputs {
+    const char *output;                /* the raster */
+    const char *format;                /* GDAL driver, NULL = from the extension */
+    const char *const *create_options; /* NULL-terminated KEY=VALUE, or NULL */
+    const char *preview;               /* hillshade PNG (ppa: with the axes), or NULL */
+    const char *lines;                 /* ppa: the axes as vector lines, or NULL */
+    const char *debug_dir;             /* synth: the synthesis maps, or NULL */
+} tsjob_outputs;
+
 /* ---- ppa ---- */
 
 typedef struct tsjob_ppa {
@@ -42,6 +56,13 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
 /** Extract the axes (after prepare); progress and cancel through ctx. */
 int tsjob_ppa_compute(ts_ctx *ctx, const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err);
 void tsjob_ppa_result_free(tsjob_ppa_result *res);
+/** Before the work (after prepare): every output can be written and none
+ *  is the input. */
+int tsjob_ppa_check_outputs(const tsjob_ppa *job, const tsjob_ppa_result *res,
+                            const tsjob_outputs *o, tsio_err *err);
+/** After compute: the codes raster, the lines and the preview. */
+int tsjob_ppa_write(ts_ctx *ctx, const tsjob_ppa_result *res, const tsjob_outputs *o,
+                    tsio_err *err);
 
 /* ---- synth ---- */
 
@@ -101,14 +122,26 @@ typedef struct tsjob_synth_result {
     ts_synth_params params;  /* the job's, lengths turned into cells of this grid */
     ts_features *sketch_features; /* the sketch's PPA graph (sketch-guided only) */
     ts_sketch_info sketch_info;
+    ts_synth_maps maps; /* with keep_maps: where each cell came from (owned) */
+    int has_maps;
 } tsjob_synth_result;
 
 /** Check the job and resolve the target grid (cheap: no exemplar is read). */
 int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err);
-/** Read the exemplars at the target's resolution and synthesize; maps may be NULL. */
-int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
-                        ts_synth_maps *maps, tsio_err *err);
+/** Read the exemplars at the target's resolution and synthesize; with
+ *  keep_maps, res->maps records where each cell came from. */
+int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
+                        tsio_err *err);
 void tsjob_synth_result_free(tsjob_synth_result *res);
+/** Before the work (after prepare): every output can be written, none is
+ *  an input, the debug folder exists (created if need be). */
+int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *res,
+                              const tsjob_outputs *o, tsio_err *err);
+/** After compute: the DEM, the preview, and in debug_dir the maps
+ *  (seams, source_exemplar, source_x, source_y, order; with a sketch its
+ *  feature graph and the output's PPA axes as GeoPackages). */
+int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_result *res,
+                      const tsjob_outputs *o, tsio_err *err);
 
 #ifdef __cplusplus
 }
