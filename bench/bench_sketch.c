@@ -78,7 +78,7 @@ static int run_case(const char *name, const ts_raster *sketch, const ts_raster *
         return 1;
     }
     t0 = bench_now_s();
-    if (ts_synth_sketch(ctx, sketch, ex, 1, &sp, &p, &out, &maps, NULL, &info) != TS_OK) {
+    if (ts_synth_sketch(ctx, sketch, ex, 1, &sp, &p, NULL, &out, &maps, NULL, &info) != TS_OK) {
         fprintf(stderr, "bench_sketch: %s\n", ts_ctx_message(ctx));
         rc = 1;
     }

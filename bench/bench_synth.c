@@ -51,7 +51,7 @@ static int run_case(const char *name, const ts_raster *ex, int size, double goal
         return 1;
     }
     t0 = bench_now_s();
-    if (ts_synth_patches(ctx, ex, 1, &p, &out, NULL, &maps) != TS_OK) {
+    if (ts_synth_patches(ctx, ex, 1, &p, NULL, &out, &maps) != TS_OK) {
         fprintf(stderr, "bench_synth: %s\n", ts_ctx_message(ctx));
         rc = 1;
     }

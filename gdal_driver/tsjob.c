@@ -220,6 +220,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     int32_t *cell_ex = NULL;
     tsio_raster heights;
     ts_synth_params params = res->params; /* lengths in cells */
+    ts_synth_constraints cons = ts_synth_constraints_default();
     int i, rc = -1, cy = res->geo.height / 2, P = (int)res->params.patch_size.value;
     memset(ex, 0, sizeof ex);
     memset(&heights, 0, sizeof heights);
@@ -256,6 +257,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     }
     if (job_constraints(job, res, flags, err) != 0)
         goto done;
+    cons.cell_flags = flags;
     if (job->heights) {
         if (tsio_read_raster(job->heights, 1, &heights, err) != 0)
             goto done;
@@ -264,8 +266,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
                       heights.geo.width, heights.geo.height, res->geo.width, res->geo.height);
             goto done;
         }
-        params.heights = heights.r.data;
-        params.alpha_h = job->alpha_h;
+        cons.heights = heights.r.data;
+        cons.alpha_h = job->alpha_h;
     }
     if (job->regions) {
         size_t n = (size_t)res->geo.width * (size_t)res->geo.height, c;
@@ -284,22 +286,22 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
                     ex_i = job->region_exemplar[r];
             cell_ex[c] = ex_i;
         }
-        params.cell_exemplar = cell_ex;
+        cons.cell_exemplar = cell_ex;
     }
     if (job->sketch) {
         tsio_raster sk;
         int bad;
         if (tsio_read_raster(job->sketch, 1, &sk, err) != 0)
             goto done;
-        bad = ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params,
-                              &params, &res->out, maps, &res->sketch_features,
+        bad = ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params, &params,
+                              &cons, &res->out, maps, &res->sketch_features,
                               &res->sketch_info) != TS_OK;
         tsio_raster_free(&sk);
         if (bad) {
             job_core_err(ctx, job, job->sketch, err);
             goto done;
         }
-    } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &params, &res->out, flags,
+    } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &params, &cons, &res->out,
                                 maps) != TS_OK) {
         job_core_err(ctx, job, "synth", err);
         goto done;

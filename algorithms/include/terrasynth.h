@@ -403,31 +403,6 @@ typedef struct ts_synth_params {
     double variety;    /* pick at random among candidates within (1+variety) of the best */
     int coarse_factor; /* match on exemplars downsampled by this factor, refine at full
                           resolution (1 = exhaustive full-resolution search, 0 = automatic) */
-    /* Several styles in one terrain (Zhou et al. section 6.1): for every
-     * output cell the index of the exemplar its region takes, or -1 for
-     * any; NULL = any exemplar everywhere.  Borrowed, width*height of the
-     * output.  A patch takes the exemplar of its window's centre cell;
-     * graph cuts and Poisson seam removal make the transitions.  (Not a
-     * descriptor parameter: front ends pass a region map.) */
-    const int32_t *cell_exemplar;
-    /* User height constraints (Zhou et al. c_i): wanted elevations per output
-     * cell (NaN = none; borrowed, width*height) or NULL; each candidate's
-     * cost gains alpha_h * RMS(patch - heights) over the constrained cells
-     * of its window.  (Not descriptor parameters.) */
-    const float *heights;
-    double alpha_h;
-    /* The relief a sketch implies (set by ts_synth_sketch from its alpha_r;
-     * NaN = none; borrowed, width*height): candidates gain alpha_r *
-     * RMS(patch - guide) like the height constraints.  NULL = none. */
-    const float *guide;
-    double alpha_r;
-    /* Non-feature patches from featureless windows (Zhou et al. section
-     * 4.2): per exemplar a mask of its main feature cells (non-zero; the
-     * exemplar's size, row-major, stride its width; an entry or the array
-     * NULL = none).  Away from cells flagged TS_CELL_FEATURE, the fill leaves
-     * out the quarter of the exemplar's windows with the most such cells in
-     * their middle half.  Set by ts_synth_sketch; borrowed. */
-    const unsigned char *const *exemplar_features;
 } ts_synth_params;
 
 TS_API ts_synth_params ts_synth_params_default(void);
@@ -458,8 +433,32 @@ typedef struct ts_synth_maps {
     double seconds_prepare, seconds_match, seconds_cut, seconds_poisson;
 } ts_synth_maps;
 
-/** Bits of the cell_flags of ts_synth_patches. */
-enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2, TS_CELL_FEATURE = 4 };
+/** Bits of ts_synth_constraints.cell_flags. */
+enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2 };
+
+/**
+ * What the user asks of the output, beyond the exemplars' style: the same
+ * for both synthesis calls.  Every array is borrowed, width*height of the
+ * output, row-major, and may be NULL.
+ */
+typedef struct ts_synth_constraints {
+    /* TS_CELL_NODATA cells stay NaN; TS_CELL_FIXED cells (filled in `out`
+     * on entry: pinned windows, water) never change */
+    const unsigned char *cell_flags;
+    /* Several styles in one terrain (Zhou et al. section 6.1): the index of
+     * the exemplar each cell's region takes, or -1 for any.  A patch takes
+     * the exemplar of its window's centre cell; graph cuts and Poisson
+     * seam removal make the transitions. */
+    const int32_t *cell_exemplar;
+    /* User height constraints (Zhou et al. c_i): wanted elevations (NaN =
+     * none); each candidate's cost gains alpha_h * RMS(patch - heights)
+     * over the constrained cells of its window. */
+    const float *heights;
+    double alpha_h;
+} ts_synth_constraints;
+
+/** No constraints (alpha_h 1, every array NULL). */
+TS_API ts_synth_constraints ts_synth_constraints_default(void);
 
 /**
  * Fill the NaN cells of `out` (caller-allocated, borrowed) with patches of
@@ -470,18 +469,16 @@ enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2, TS_CELL_FEATURE = 4 };
  * SSD + alpha_g * graph-cut cost; merged by graph cut and Poisson seam
  * removal.  Cells of `out` that are not NaN on entry are matched against
  * and may be replaced by the graph cut or smoothed by the seam remover
- * (within `overlap` cells of new content), unless fixed.
- * `cell_flags` (may be NULL; width*height bytes): TS_CELL_NODATA cells stay
- * NaN; TS_CELL_FIXED cells (filled on entry) never change; a window whose
- * centre is a TS_CELL_FEATURE cell may take exemplar windows with main
- * features (see exemplar_features).
+ * (within `overlap` cells of new content), unless fixed (`constraints`,
+ * may be NULL).
  * The seed of ctx picks the first patch and breaks near-ties.
  * Returns TS_ERR_SIZE when an exemplar or the output is smaller than a
  * patch, TS_ERR_ARG for bad parameters, TS_ERR_CANCELLED, TS_ERR_NOMEM.
  */
 TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
-                                  const ts_synth_params *params, ts_raster *out,
-                                  const unsigned char *cell_flags, ts_synth_maps *maps);
+                                  const ts_synth_params *params,
+                                  const ts_synth_constraints *constraints, ts_raster *out,
+                                  ts_synth_maps *maps);
 
 /* ------------------------------------------------------------------ */
 /* Sketch-guided synthesis (Zhou et al. 2007 sections 3-4)            */
@@ -516,7 +513,8 @@ typedef struct ts_sketch_info {
 
 /**
  * Synthesize `out` (caller-allocated, the sketch's size; cells that are not
- * NaN on entry, such as pinned windows or water, are kept as they are)
+ * NaN on entry, such as pinned windows or water, are kept as they are, as
+ * are cells flagged TS_CELL_FIXED in `constraints`, which may be NULL)
  * following `sketch` (borrowed; a grey drawing, bright = high, NaN =
  * nodata, which stays nodata in the output) in the style of the exemplars
  * (at the output's ground resolution): PPA on the sketch and on the
@@ -529,7 +527,8 @@ typedef struct ts_sketch_info {
  */
 TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_raster *exemplars,
                                  int n_exemplars, const ts_sketch_params *sp,
-                                 const ts_synth_params *params, ts_raster *out,
+                                 const ts_synth_params *params,
+                                 const ts_synth_constraints *constraints, ts_raster *out,
                                  ts_synth_maps *maps, ts_features **sketch_features,
                                  ts_sketch_info *info);
 

@@ -1,12 +1,10 @@
 /*
- * feature_placement.c - sketch-guided synthesis (Zhou et al. 2007 sections
- * 3 and 4.1): feature patch matching and placement, then the non-feature
- * fill of nonfeature_placement.c.
+ * feature_placement.c - feature patch matching and placement (Zhou et al.
+ * 2007 section 4.1), the third step of the sketch pipeline (synth.c: PPA on
+ * the sketch and the exemplars, the sites over the feature tree, these
+ * feature patches, the non-feature fill, the layout).
  *
- * 1. PPA on the sketch (ridges or valleys) and on every exemplar.
- * 2. The sketch's patch sites in breadth-first order over its feature tree
- *    (feature_tree.c), or in raster order.
- * 3. For each site, candidates are the exemplar sites of the same type
+ * For each site, candidates are the exemplar sites of the same type
  *    (branch points of the same degree in each of the d cyclic alignments
  *    and mirrored; endpoints; path sites both ways round).  Their
  *    deformation cost c_d: for branch points the bending energy of the
@@ -28,8 +26,6 @@
  *    the joined crest profile (sk_smoothness).  The lowest alpha_d c_d +
  *    alpha_g c_g + alpha_f c_f + alpha_s c_s + height and guide costs is
  *    merged (patch_merge.c), and its feature cells are fixed.
- * 4. ts_synth_patches fills the rest around the fixed features, with the
- *    relief guide (relief_guide.c) as a soft height constraint.
  * Cost: per site O(exemplar sites) for c_d, O(pool_max) profile estimates,
  *    k warps and graph cuts.
  *
@@ -38,16 +34,12 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "feature_placement.h"
 #include "feature_tree.h"
 #include "patch_merge.h"
 #include "layout.h"
 #include "relief_guide.h"
 #include "tps.h"
-
-typedef struct ex_site {
-    int ex;                  /* exemplar index */
-    ts_feature_site site;
-} ex_site;
 
 typedef struct candidate {
     int idx;                 /* into the exemplar site list */
@@ -60,19 +52,16 @@ typedef struct candidate {
 typedef struct sketcher {
     ts_ctx *ctx;
     const ts_sketch_params *sp;
-    const ts_synth_params *p; /* the caller's, with the relief guide added */
-    ts_synth_params fp;
-    const ts_raster *sketch;
+    const ts__fill *p;       /* parameters in cells, constraints, relief guide */
     const ts_raster *ex;
     int n_ex;
     ts_raster *out;
-    unsigned char *flags;
-    unsigned char *user_flags; /* the flags the caller's fixed cells gave, before any feature */
+    unsigned char *flags;    /* the caller's: feature cores get TS_CELL_FIXED */
     const ts_features *sf;   /* sketch features */
     int kind;
     int P;
     double R;
-    ex_site *es;
+    const ts__ex_site *es;
     size_t n_es;
     ts_merger merger;
     /* work buffers */
@@ -93,9 +82,6 @@ typedef struct sketcher {
     int n_chunks;            /* the deformation scan's parallel chunks */
     candidate *chunk_pool;   /* n_chunks x pool_max */
     int *chunk_n;
-    float *guide;            /* relief guide, or NULL */
-    ts_relief_profile *profs;
-    unsigned char **ex_features; /* per exemplar: its main features of the kind (or NULL) */
     ts_synth_maps *maps;
 } sketcher;
 
@@ -588,7 +574,7 @@ static void sk_eval_range(void *arg, size_t b, size_t e)
             cp = k->sp->alpha_p > 0 ? sk_prominence(k, s, &v) : 0.0;
         }
         k->c_cost[i] = k->sp->alpha_d * k->cands[i].cd +
-                       k->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf +
+                       k->p->s.alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + k->sp->alpha_f * cf +
                        k->sp->alpha_s * cs + k->sp->alpha_p * cp +
                        ts_height_cost(k->p, W, wx, wy, P, patch, P);
     }
@@ -635,7 +621,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
     int P = k->P, W = k->out->width, H = k->out->height;
     size_t P2 = (size_t)P * (size_t)P, M2 = (size_t)(P + 2) * (size_t)(P + 2);
     int wx = (int)lround(s->cx) - P / 2, wy = (int)lround(s->cy) - P / 2, x, y;
-    int n_c = 0, n_pool = 0, kmax = k->p->candidates, i, best = -1;
+    int n_c = 0, n_pool = 0, kmax = k->p->s.candidates, i, best = -1;
     double best_cost = INFINITY;
     ts_status st;
     *placed = 0;
@@ -766,9 +752,9 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
     return TS_OK;
 }
 
-/* ---- the pipeline -------------------------------------------------- */
+/* ---- the entry point ----------------------------------------------- */
 
-static int sk_auto_mode(ts_ctx *ctx, const ts_raster *sketch)
+int ts__sketch_auto_mode(ts_ctx *ctx, const ts_raster *sketch)
 {
     ts_raster_stats st;
     size_t bright = 0, n = 0;
@@ -792,7 +778,6 @@ static int sk_auto_mode(ts_ctx *ctx, const ts_raster *sketch)
 static void sk_free(sketcher *k)
 {
     ts_merger_free(&k->merger);
-    free(k->es);
     free(k->old);
     free(k->c_ring);
     free(k->c_patch);
@@ -809,74 +794,36 @@ static void sk_free(sketcher *k)
     free(k->pool);
     free(k->chunk_pool);
     free(k->chunk_n);
-    free(k->flags);
-    free(k->user_flags);
-    free(k->guide);
-    if (k->profs) {
-        int e;
-        for (e = 0; e < k->n_ex; e++)
-            ts_relief_profile_free(&k->profs[e]);
-        free(k->profs);
-    }
-    if (k->ex_features) {
-        int e;
-        for (e = 0; e < k->n_ex; e++)
-            free(k->ex_features[e]);
-        free(k->ex_features);
-    }
 }
 
-TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_raster *exemplars,
-                                 int n_exemplars, const ts_sketch_params *sp,
-                                 const ts_synth_params *params, ts_raster *out,
-                                 ts_synth_maps *maps, ts_features **sketch_features,
-                                 ts_sketch_info *info)
+ts_status ts__place_features(ts_ctx *ctx, const ts__feature_job *j, ts_raster *out,
+                             unsigned char *flags, ts_synth_maps *maps, size_t *n_placed)
 {
     sketcher k;
-    ts_features *sf = NULL;
-    ts_feature_site *sites = NULL;
-    size_t n_sites = 0, i, n_cells, P2, M2;
-    ts_ppa_params pp = ts_ppa_params_default(), epp;
-    ts_progress_saved sv;
-    ts_status st;
-    int e, first_index, P_cells = 0, ov_cells = 0;
-    double t0 = ts_now(), times[5] = {0, 0, 0, 0, 0};
-    ts_clear(ctx);
+    size_t P2, M2, i;
+    int first_index = maps ? maps->n_patches : 0, n = 0;
+    ts_status st = TS_OK;
+    *n_placed = 0;
     memset(&k, 0, sizeof k);
-    if (sketch_features)
-        *sketch_features = NULL;
-    if (!sketch || !sketch->data || !out || !out->data || !sp || !params || !exemplars ||
-        n_exemplars < 1)
-        return ts_fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
-    if (out->width != sketch->width || out->height != sketch->height)
-        return ts_fail(ctx, TS_ERR_ARG, "sketch", "the output must have the sketch's size");
-    if (ts_params_validate(ctx, "sketch", sp) != TS_OK ||
-        ts_params_validate(ctx, "synth", params) != TS_OK ||
-        ts_synth_cells(ctx, params, &P_cells, &ov_cells) != TS_OK)
-        return ctx->status;
-    if (out->width < P_cells || out->height < P_cells)
-        return ts_fail(ctx, TS_ERR_SIZE, "sketch", "the sketch (%d x %d) is smaller than a patch",
-                       out->width, out->height);
     k.ctx = ctx;
-    k.sp = sp;
-    k.fp = *params;
-    k.fp.guide = NULL;
-    k.fp.alpha_r = 0.0;
-    k.p = &k.fp;
-    k.sketch = sketch;
-    k.ex = exemplars;
-    k.n_ex = n_exemplars;
+    k.sp = j->sp;
+    k.p = j->fill;
+    k.ex = j->exemplars;
+    k.n_ex = j->n_exemplars;
     k.out = out;
+    k.flags = flags;
+    k.sf = j->sketch_features;
+    k.kind = j->kind;
+    k.es = j->exemplar_sites;
+    k.n_es = j->n_exemplar_sites;
     k.maps = maps;
-    k.P = P_cells;
-    k.R = 0.5 * P_cells - 1.0;
-    n_cells = (size_t)out->width * (size_t)out->height;
+    k.P = (int)j->fill->s.patch_size.value;
+    k.R = 0.5 * k.P - 1.0;
     P2 = (size_t)k.P * (size_t)k.P;
     M2 = (size_t)(k.P + 2) * (size_t)(k.P + 2);
-    k.flags = ts_calloc_array(n_cells, 1);
     k.old = ts_malloc_array(P2, sizeof(float));
     {
-        size_t kc = (size_t)params->candidates;
+        size_t kc = (size_t)k.p->s.candidates;
         k.c_ring = ts_malloc_array(kc * M2, sizeof(float));
         k.c_patch = ts_malloc_array(kc * P2, sizeof(float));
         k.c_cons = ts_malloc_array(kc * P2, 1);
@@ -887,221 +834,37 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     }
     k.src_x = ts_malloc_array(P2, sizeof(int32_t));
     k.src_y = ts_malloc_array(P2, sizeof(int32_t));
-    k.cands = ts_malloc_array((size_t)params->candidates, sizeof *k.cands);
-    k.pool_max = TS_MAX(64, 8 * params->candidates);
+    k.cands = ts_malloc_array((size_t)k.p->s.candidates, sizeof *k.cands);
+    k.pool_max = TS_MAX(64, 8 * k.p->s.candidates);
     k.pool = ts_malloc_array((size_t)k.pool_max, sizeof *k.pool);
-    k.profs = ts_calloc_array((size_t)n_exemplars, sizeof *k.profs);
-    k.ex_features = ts_calloc_array((size_t)n_exemplars, sizeof *k.ex_features);
     k.n_chunks = 4 * ts_thread_count(ctx, 1u << 20);
     k.chunk_pool = ts_malloc_array((size_t)k.n_chunks * (size_t)k.pool_max, sizeof *k.chunk_pool);
     k.chunk_n = ts_calloc_array((size_t)k.n_chunks, sizeof *k.chunk_n);
     k.near = ts_malloc_array(P2, sizeof(int));
     k.fixnear = ts_malloc_array(P2, sizeof(int));
     k.core_radius = TS_MAX(1, k.P / 8);
-    if (!k.flags || !k.old || !k.c_ring || !k.c_patch || !k.c_cons || !k.c_labels ||
-        !k.c_core || !k.c_cost || !k.c_status || !k.src_x || !k.src_y ||
-        !k.cands || !k.pool || !k.profs || !k.ex_features || !k.chunk_pool || !k.chunk_n || !k.near || !k.fixnear ||
-        ts_merger_init(ctx, &k.merger, k.P, ov_cells) != TS_OK) {
+    if (!k.old || !k.c_ring || !k.c_patch || !k.c_cons || !k.c_labels || !k.c_core ||
+        !k.c_cost || !k.c_status || !k.src_x || !k.src_y || !k.cands || !k.pool ||
+        !k.chunk_pool || !k.chunk_n || !k.near || !k.fixnear ||
+        ts_merger_init(ctx, &k.merger, k.P, (int)k.p->s.overlap.value) != TS_OK) {
         sk_free(&k);
         return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     }
-    for (i = 0; i < n_cells; i++) {
-        size_t r = i / (size_t)sketch->width, c = i % (size_t)sketch->width;
-        if (isnan(sketch->data[r * (size_t)sketch->stride + c]))
-            k.flags[i] = TS_CELL_NODATA;
-        else if (!isnan(out->data[r * (size_t)out->stride + c]))
-            k.flags[i] = TS_CELL_FIXED; /* pinned windows, water: kept as they are */
-    }
-    /* what the caller fixed (pins, water): the layout keeps away from these,
-     * not from the feature cores fixed below */
-    k.user_flags = ts_malloc_array(n_cells, 1);
-    if (!k.user_flags) {
-        st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
-        goto done;
-    }
-    memcpy(k.user_flags, k.flags, n_cells);
-    /* 1. the sketch's features */
-    {
-        int mode = sp->mode == TS_SKETCH_AUTO ? sk_auto_mode(ctx, sketch) : sp->mode;
-        k.kind = mode == TS_SKETCH_VALLEYS ? TS_VALLEY : TS_RIDGE;
-        pp.features = mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS : TS_PPA_RIDGES;
-        pp.min_branch_length.value = TS_MIN(40.0, 0.5 * k.P);
-        if (info) {
-            memset(info, 0, sizeof *info);
-            info->mode = mode;
-        }
-    }
-    sv = ts_progress_push(ctx, 0.0, 0.05);
-    st = ts_ppa_extract(ctx, sketch, NULL, &pp, &sf);
-    ts_progress_pop(ctx, sv);
-    times[0] = ts_now() - t0;
-    t0 = ts_now();
-    if (st != TS_OK) {
-        ts_fail(ctx, st, "sketch", "PPA on the sketch: %s", ctx->message);
-        goto done;
-    }
-    k.sf = sf;
-    st = ts_feature_sites(ctx, sf, k.kind, k.R, 0.5 * k.P, params->order != TS_ORDER_RASTER,
-                          &sites, &n_sites);
-    if (st != TS_OK)
-        goto done;
-    /* 2. the exemplars' features: only the main ones (a sketch's stroke
-     * stands for a major ridge or valley, not any crease): profiles a third of a
-     * patch long, a dip of 2 % of the relief, branches of a patch length */
-    epp = pp;
-    epp.profile_length = TS_MAX(11, (k.P / 3) | 1);
-    epp.threshold_fraction = 0.02;
-    epp.min_branch_length.value = k.P;
-    for (e = 0; e < n_exemplars; e++) {
-        ts_features *ef = NULL;
-        ts_feature_site *es = NULL;
-        size_t n_es = 0, j;
-        ex_site *grown;
-        sv = ts_progress_push(ctx, 0.05 + 0.15 * e / n_exemplars,
-                              0.05 + 0.15 * (e + 1) / n_exemplars);
-        st = ts_ppa_extract(ctx, &exemplars[e], NULL, &epp, &ef);
-        ts_progress_pop(ctx, sv);
-        if (st == TS_ERR_CANCELLED || st == TS_ERR_NOMEM)
-            goto done;
-        if (st != TS_OK)
-            continue; /* no features in this exemplar: it still serves the fill */
-        st = ts_feature_sites(ctx, ef, k.kind, k.R, 6.0, 0, &es, &n_es);
-        if (st == TS_OK && (sp->alpha_r > 0 || sp->layout > 0))
-            st = ts_relief_profile_measure(ctx, &exemplars[e], ef->mask, k.kind, k.P,
-                                           &k.profs[e]);
-        if (st == TS_OK) {
-            /* the fill keeps away from these (section 4.2) */
-            size_t ne = (size_t)ef->width * (size_t)ef->height, c;
-            if (!(k.ex_features[e] = ts_malloc_array(ne, 1)))
-                st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
-            for (c = 0; st == TS_OK && c < ne; c++)
-                k.ex_features[e][c] = (ef->mask[c] & k.kind) != 0;
-        }
-        ts_features_free(ef);
-        if (st != TS_OK)
-            goto done;
-        grown = realloc(k.es, (k.n_es + n_es + 1) * sizeof *grown);
-        if (!grown) {
-            free(es);
-            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
-            goto done;
-        }
-        k.es = grown;
-        for (j = 0; j < n_es; j++) {
-            k.es[k.n_es].ex = e;
-            k.es[k.n_es].site = es[j];
-            k.n_es++;
-        }
-        free(es);
-    }
-    times[1] = ts_now() - t0;
-    t0 = ts_now();
-    /* the relief the sketch implies, learnt from the exemplars */
-    if (sp->alpha_r > 0) {
-        k.guide = ts_malloc_array(n_cells, sizeof(float));
-        if (!k.guide) {
-            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
-            goto done;
-        }
-        st = ts_relief_guide(ctx, sf->mask, k.kind, out->width, out->height, k.profs,
-                             n_exemplars, params->cell_exemplar, NULL, k.guide);
-        if (st != TS_OK)
-            goto done;
-        k.fp.guide = k.guide;
-        k.fp.alpha_r = sp->alpha_r;
-    }
-    /* 3. feature patches */
-    first_index = maps ? maps->n_patches : 0;
-    {
-        int n_placed = 0;
-        for (i = 0; i < n_sites; i++) {
-            int placed;
-            sv = ts_progress_push(ctx, 0.2 + 0.4 * i / (double)n_sites,
-                                  0.2 + 0.4 * i / (double)n_sites);
-            st = sk_place_site(&k, &sites[i], first_index + n_placed, &placed);
-            if (st == TS_OK)
-                st = ts_progress(ctx, 0.0, "feature patches");
-            ts_progress_pop(ctx, sv);
-            if (st != TS_OK)
-                goto done;
-            n_placed += placed;
-        }
-        if (maps)
-            maps->n_patches = first_index + n_placed;
-        times[2] = ts_now() - t0;
-        t0 = ts_now();
-        if (info) {
-            info->n_sites = n_sites;
-            info->n_feature_patches = (size_t)n_placed;
-            info->n_exemplar_sites = k.n_es;
-        }
-    }
-    /* 4. the non-feature fill around the fixed features (the order
-     * parameter reorders the feature sites only: the fill always grows
-     * out from them) */
-    k.fp.order = TS_ORDER_GROW;
-    k.fp.exemplar_features = (const unsigned char *const *)k.ex_features;
-    {
-        /* windows within a patch of the sketch's features may take any
-         * exemplar window; farther away only featureless ones */
-        float *d = ts_malloc_array(n_cells, sizeof(float));
-        unsigned char *m = ts_malloc_array(n_cells, 1);
-        if (!d || !m) {
-            free(d);
-            free(m);
-            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
-            goto done;
-        }
-        for (i = 0; i < n_cells; i++)
-            m[i] = (sf->mask[i] & k.kind) != 0;
-        st = ts_distance_transform(ctx, m, out->width, out->height, d);
-        for (i = 0; st == TS_OK && i < n_cells; i++)
-            if (d[i] <= k.P)
-                k.flags[i] |= TS_CELL_FEATURE;
-        free(d);
-        free(m);
-        if (st != TS_OK)
-            goto done;
-    }
-    sv = ts_progress_push(ctx, 0.6, 0.95);
-    st = ts_synth_patches(ctx, exemplars, n_exemplars, &k.fp, out, k.flags, maps);
-    ts_progress_pop(ctx, sv);
-    times[3] = ts_now() - t0;
-    t0 = ts_now();
-    if (st != TS_OK)
-        goto done;
-    /* 5. the relief the sketch lays out */
-    if (sp->layout > 0) {
-        ts_layout_spec ls;
-        memset(&ls, 0, sizeof ls);
-        ls.sketch_mask = sf->mask;
-        ls.kind = k.kind;
-        ls.width = out->width;
-        ls.height = out->height;
-        ls.exemplars = exemplars;
-        ls.n_exemplars = n_exemplars;
-        ls.profs = k.profs;
-        ls.cell_exemplar = params->cell_exemplar;
-        ls.patch = k.P;
-        ls.features = sf;
-        st = ts_layout_apply(ctx, &ls, out, k.user_flags, sp->layout);
+    for (i = 0; i < j->n_sites; i++) {
+        int placed;
+        double f = (double)i / (double)j->n_sites;
+        ts_progress_saved sv = ts_progress_push(ctx, f, f);
+        st = sk_place_site(&k, &j->sites[i], first_index + n, &placed);
         if (st == TS_OK)
-            st = ts_progress(ctx, 1.0, "layout");
+            st = ts_progress(ctx, 0.0, "feature patches");
+        ts_progress_pop(ctx, sv);
+        if (st != TS_OK)
+            break;
+        n += placed;
     }
-    times[4] = ts_now() - t0;
-    if (info) {
-        info->seconds_sketch_ppa = times[0];
-        info->seconds_exemplar_ppa = times[1];
-        info->seconds_features = times[2];
-        info->seconds_fill = times[3];
-        info->seconds_layout = times[4];
-    }
-done:
-    free(sites);
+    if (maps)
+        maps->n_patches = first_index + n;
+    *n_placed = (size_t)n;
     sk_free(&k);
-    if (st == TS_OK && sketch_features)
-        *sketch_features = sf;
-    else
-        ts_features_free(sf);
     return st;
 }

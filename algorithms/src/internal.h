@@ -106,6 +106,41 @@ int ts__pool_workers(ts__pool_slot *slot); /* workers started so far */
  * 2..512 and smaller); fails for lengths still in metres. */
 ts_status ts_synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int *overlap);
 
+/* A cell flag of the fill only (beside TS_CELL_NODATA and TS_CELL_FIXED):
+ * a window whose centre is such a cell may take exemplar windows with main
+ * features (see ts__fill.exemplar_features). */
+#define TS__CELL_FEATURE 4
+
+/* Everything the non-feature fill (nonfeature_placement.c) and the
+ * candidates' costs read: the caller's parameters and constraints, and
+ * what a sketch adds (synth.c builds it). */
+typedef struct ts__fill {
+    ts_synth_params s;               /* lengths in whole cells */
+    const unsigned char *cell_flags; /* TS_CELL_* and TS__CELL_FEATURE, or NULL */
+    const int32_t *cell_exemplar;    /* per cell: its region's exemplar or -1; or NULL */
+    const float *heights;            /* wanted heights (NaN = none), or NULL */
+    double alpha_h;
+    /* the relief a sketch implies (NaN = none), or NULL: candidates gain
+     * alpha_r * RMS(patch - guide) like the height constraints */
+    const float *guide;
+    double alpha_r;
+    /* per exemplar a mask of its main feature cells (or NULL): away from
+     * TS__CELL_FEATURE cells the fill leaves out the quarter of the
+     * exemplar's windows with the most such cells in their middle half
+     * (Zhou et al. section 4.2: non-feature patches from featureless
+     * windows) */
+    const unsigned char *const *exemplar_features;
+} ts__fill;
+
+/* The fill from the caller's parameters (lengths already in cells) and
+ * constraints (may be NULL); nothing a sketch adds. */
+ts__fill ts__fill_make(const ts_synth_params *p, const ts_synth_constraints *c);
+
+/* The non-feature fill (nonfeature_placement.c): ts_synth_patches for a
+ * checked ts__fill. */
+ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                       const ts__fill *f, ts_raster *out, ts_synth_maps *maps);
+
 /* Matcher restriction (match_ssd.c): `allowed` (nx * ny positions of the
  * matcher, copied; NULL clears) marks the windows a restricted query may
  * return; ts__matcher_restrict(m, 1) makes the following queries see only

@@ -42,7 +42,7 @@ typedef struct exemplar_data {
 
 typedef struct placer {
     ts_ctx *ctx;
-    const ts_synth_params *p;
+    const ts__fill *p;
     ts_raster *out;
     const unsigned char *flags; /* TS_CELL_* per output cell, or NULL */
     ts_synth_maps *maps;
@@ -234,12 +234,12 @@ static ts_status place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_r
      * smallest that brings the exemplar to at most 512 x 512 cells, keeping
      * at least 8 coarse cells a patch */
     e->K = 0;
-    if (pl->p->coarse_factor == 0) {
+    if (pl->p->s.coarse_factor == 0) {
         while ((double)(w >> e->K) * (double)(h >> e->K) > 512.0 * 512.0 &&
                (pl->P >> (e->K + 1)) >= 8 && e->K + 1 < PLACE_MAX_LEVELS)
             e->K++;
     } else {
-        while ((2 << e->K) <= pl->p->coarse_factor && e->K + 1 < PLACE_MAX_LEVELS)
+        while ((2 << e->K) <= pl->p->s.coarse_factor && e->K + 1 < PLACE_MAX_LEVELS)
             e->K++;
     }
     e->level[0] = *full;
@@ -379,7 +379,7 @@ static void place_refine_range(void *arg, size_t b, size_t e)
 static ts_status place_search(placer *pl, int e, ts_candidate *out, int *n_out)
 {
     exemplar_data *ed = &pl->ex[e];
-    int k = pl->p->candidates, found = 0, i, K = ed->K, nc = 0;
+    int k = pl->p->s.candidates, found = 0, i, K = ed->K, nc = 0;
     ts_candidate *coarse = pl->cands + pl->n_cands_cap / 2;
     ts_raster tc;
     ts_status st;
@@ -492,7 +492,7 @@ static void place_cut_range(void *arg, size_t b, size_t e)
             continue;
         cuts = ts_label_cut_edges(lab, P);
         j->cost[i] = sqrt(pl->cands[i].ssd / j->n_known) +
-                     pl->p->alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + pl->cand_h[i];
+                     pl->p->s.alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + pl->cand_h[i];
     }
     ts_ctx_free(c);
 }
@@ -547,7 +547,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
     ts_status st = TS_OK;
     /* away from the sketch's features, windows without main features */
     int restrict_features =
-        pl->p->exemplar_features && !place_flag(pl, q->x + P / 2, q->y + P / 2, TS_CELL_FEATURE);
+        pl->p->exemplar_features && !place_flag(pl, q->x + P / 2, q->y + P / 2, TS__CELL_FEATURE);
     /* each placement's random stream depends only on the seed and its
      * index, so placements running side by side draw what they would alone */
     pl->rng = pl->rng0 ^ (0xd1b54a32d192ed03ull * (uint64_t)(index + 1));
@@ -582,7 +582,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
      * seam removal stay near the gap instead of reworking the features'
      * flanks) */
     {
-        int ov = (int)pl->p->overlap.value;
+        int ov = (int)pl->p->s.overlap.value;
         for (y = 0; y < P; y++)
             for (x = 0; x < P; x++)
                 pl->near[y * P + x] =
@@ -594,9 +594,9 @@ static ts_status place_one(placer *pl, placement *q, int index)
                 pl->constraint[i] = TS_SEAM_OLD;
     }
     pl->n_tknown[0] = n_known;
-    cand_ex = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *cand_ex);
-    cost = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *cost);
-    status = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->candidates, sizeof *status);
+    cand_ex = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->s.candidates, sizeof *cand_ex);
+    cost = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->s.candidates, sizeof *cost);
+    status = ts_malloc_array((size_t)pl->n_ex * (size_t)pl->p->s.candidates, sizeof *status);
     if (!cand_ex || !cost || !status) {
         st = ts_fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
         goto done;
@@ -707,7 +707,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
             if (w == 1) {
                 /* keep only those that could still matter */
                 for (i = n_first, n_to_cut = n_first; i < total; i++)
-                    if (lb[pl->to_cut[i]] <= best_cost * (1.0 + pl->p->variety))
+                    if (lb[pl->to_cut[i]] <= best_cost * (1.0 + pl->p->s.variety))
                         pl->to_cut[n_to_cut++] = pl->to_cut[i];
                 to = n_to_cut;
             }
@@ -732,13 +732,13 @@ static ts_status place_one(placer *pl, placement *q, int index)
         }
     }
     /* variety: a seeded pick among the near-best */
-    if (pl->p->variety > 0) {
+    if (pl->p->s.variety > 0) {
         int n_ok = 0, pick;
         for (i = 0; i < total; i++)
-            n_ok += cost[i] <= best_cost * (1.0 + pl->p->variety);
+            n_ok += cost[i] <= best_cost * (1.0 + pl->p->s.variety);
         pick = (int)(place_rand(pl) % (uint64_t)n_ok);
         for (i = 0; i < total; i++)
-            if (cost[i] <= best_cost * (1.0 + pl->p->variety) && pick-- == 0) {
+            if (cost[i] <= best_cost * (1.0 + pl->p->s.variety) && pick-- == 0) {
                 best = i;
                 break;
             }
@@ -873,7 +873,7 @@ static void place_pair_run(void *arg, size_t b, size_t e)
 static int placer_alloc_work(placer *pl)
 {
     size_t P2 = (size_t)pl->P * (size_t)pl->P;
-    size_t nk = (size_t)pl->p->candidates * (size_t)pl->n_ex;
+    size_t nk = (size_t)pl->p->s.candidates * (size_t)pl->n_ex;
     int i, failed = 0;
     pl->target = ts_malloc_array(P2, sizeof(float));
     pl->mtarget = ts_malloc_array(P2, sizeof(float));
@@ -886,7 +886,7 @@ static int placer_alloc_work(placer *pl)
         failed |= !(pl->toff[i] = ts_malloc_array(P2, sizeof(ptrdiff_t)));
     pl->patch = ts_malloc_array(P2, sizeof(float));
     pl->cand_patch = ts_malloc_array(P2 * nk, sizeof(float));
-    failed |= ts_merger_init(pl->ctx, &pl->merger, pl->P, (int)pl->p->overlap.value) != TS_OK;
+    failed |= ts_merger_init(pl->ctx, &pl->merger, pl->P, (int)pl->p->s.overlap.value) != TS_OK;
     pl->src_x = ts_malloc_array(P2, sizeof(int32_t));
     pl->src_y = ts_malloc_array(P2, sizeof(int32_t));
     pl->constraint = ts_malloc_array(P2, 1);
@@ -938,10 +938,10 @@ static ts_status placer_second(const placer *a, placer *b)
     return TS_OK;
 }
 
-TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
-                                  const ts_synth_params *params, ts_raster *out,
-                                  const unsigned char *cell_flags, ts_synth_maps *maps)
+ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                       const ts__fill *f, ts_raster *out, ts_synth_maps *maps)
 {
+    const ts_synth_params *params = &f->s;
     placer pl, pl2;
     ts_ctx *ca = NULL, *cb = NULL;
     placement *pos = NULL;
@@ -951,15 +951,14 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     int first_index = maps ? maps->n_patches : 0;
     ts_status st;
 
-    ts_clear(ctx);
     if ((st = place_validate(ctx, exemplars, n_exemplars, params, out)) != TS_OK)
         return st;
     memset(&pl, 0, sizeof pl);
     memset(&pl2, 0, sizeof pl2);
     pl.ctx = ctx;
-    pl.p = params;
+    pl.p = f;
     pl.out = out;
-    pl.flags = cell_flags;
+    pl.flags = f->cell_flags;
     pl.maps = maps;
     pl.n_ex = n_exemplars;
     pl.P = (int)params->patch_size.value; /* whole cells: checked by place_validate */

@@ -244,7 +244,7 @@ static double rms_to(const float *want, double alpha, int width, int wx, int wy,
     return n ? alpha * sqrt(sum / n) : 0.0;
 }
 
-double ts_height_cost(const ts_synth_params *p, int width, int wx, int wy, int P,
+double ts_height_cost(const ts__fill *p, int width, int wx, int wy, int P,
                       const float *patch, int stride)
 {
     return rms_to(p->heights, p->alpha_h, width, wx, wy, P, patch, stride) +

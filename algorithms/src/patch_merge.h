@@ -40,7 +40,7 @@ ts_status ts_merger_apply(ts_ctx *ctx, ts_merger *m, ts_raster *out, const unsig
  * of an output `width` cells wide: alpha_h * RMS(patch - heights) plus
  * alpha_r * RMS(patch - guide), each over the cells where both have a
  * value; 0 without constraints. */
-double ts_height_cost(const ts_synth_params *p, int width, int wx, int wy, int P,
+double ts_height_cost(const ts__fill *p, int width, int wx, int wy, int P,
                       const float *patch, int stride);
 
 /* Two-pass chamfer distance (Chebyshev) on a P x P grid, in place: cells

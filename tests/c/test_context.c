@@ -58,13 +58,13 @@ static void test_failed_input(void)
     }
     p.patch_size.value = 32;
     p.overlap.value = 8;
-    CHECK(ts_synth_patches(ctx, ex, 2, &p, &out, NULL, NULL) == TS_ERR_SIZE);
+    CHECK(ts_synth_patches(ctx, ex, 2, &p, NULL, &out, NULL) == TS_ERR_SIZE);
     CHECK(ts_ctx_failed_input(ctx) == 1);
     CHECK(strstr(ts_ctx_message(ctx), "exemplar 2") != NULL);
     /* a wrapping stage keeps the input; a new call clears it */
     ts_fail(ctx, TS_ERR_SIZE, "job", "%s", "wrapped");
     CHECK(ts_ctx_failed_input(ctx) == 1);
-    CHECK(ts_synth_patches(ctx, ex, 1, &p, &out, NULL, NULL) == TS_OK);
+    CHECK(ts_synth_patches(ctx, ex, 1, &p, NULL, &out, NULL) == TS_OK);
     CHECK(ts_ctx_failed_input(ctx) == -1);
     /* a failure about no input names none */
     ts_fail(ctx, TS_ERR_ARG, "x", "no input");

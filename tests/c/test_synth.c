@@ -75,7 +75,7 @@ static void test_fills_everything_without_exemplar_nodata(void)
         maps.source_y = sy;
         maps.order = ord;
         maps.seams = seams;
-        CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, &maps) == TS_OK);
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &out, &maps) == TS_OK);
         CHECK_MSG(count_nan(&out) == 0, "%zu NaN cells (order %d)", count_nan(&out), order);
         for (y = 0; y < 110; y++)
             for (x = 0; x < 150; x++) {
@@ -106,11 +106,11 @@ static void test_deterministic_and_seeded(void)
     ts_raster_alloc(ctx, 120, 100, &c);
     ts_ctx_set_seed(ctx, 42);
     ts_ctx_set_threads(ctx, 1);
-    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &a, NULL, NULL) == TS_OK);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &a, NULL) == TS_OK);
     ts_ctx_set_threads(ctx, 2);
-    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &b, NULL, NULL) == TS_OK);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &b, NULL) == TS_OK);
     ts_ctx_set_seed(ctx, 43);
-    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &c, NULL, NULL) == TS_OK);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &c, NULL) == TS_OK);
     CHECK(memcmp(a.data, b.data, 120 * 100 * sizeof(float)) == 0);
     CHECK(memcmp(a.data, c.data, 120 * 100 * sizeof(float)) != 0);
     ts_raster_free(&a);
@@ -137,7 +137,11 @@ static void test_keep_nodata_and_prefilled(void)
                 keep[y * 100 + x] = TS_CELL_FIXED;
             }
         }
-    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, keep, NULL) == TS_OK);
+    {
+        ts_synth_constraints c = ts_synth_constraints_default();
+        c.cell_flags = keep;
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, &c, &out, NULL) == TS_OK);
+    }
     for (y = 0; y < 90; y++)
         for (x = 0; x < 100; x++) {
             if (x < 10 && !isnan(TS_PIX(&out, x, y)))
@@ -169,7 +173,7 @@ static void test_several_exemplars(void)
     ex[1] = make_exemplar(ctx, 90, 110, 5, 0);
     ts_raster_alloc(ctx, 128, 128, &out);
     ts_ctx_set_seed(ctx, 9);
-    CHECK(ts_synth_patches(ctx, ex, 2, &p, &out, NULL, &maps) == TS_OK);
+    CHECK(ts_synth_patches(ctx, ex, 2, &p, NULL, &out, &maps) == TS_OK);
     for (i = 0; i < 128 * 128; i++)
         if (se[i] == 0 || se[i] == 1)
             used[se[i]]++;
@@ -228,36 +232,36 @@ static void test_errors_and_cancel(void)
     ts_raster ex = make_exemplar(ctx, 160, 120, 6, 0), small = make_exemplar(ctx, 20, 20, 7, 0), out;
     ts_synth_params p = small_params();
     ts_raster_alloc(ctx, 100, 100, &out);
-    CHECK(ts_synth_patches(ctx, &small, 1, &p, &out, NULL, NULL) == TS_ERR_SIZE);
+    CHECK(ts_synth_patches(ctx, &small, 1, &p, NULL, &out, NULL) == TS_ERR_SIZE);
     CHECK(strstr(ts_ctx_message(ctx), "smaller than a patch") != NULL);
     p.overlap.value = 40;
-    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &out, NULL) == TS_ERR_ARG);
     p = small_params();
     p.patch_size.value = 5000;
-    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &out, NULL) == TS_ERR_ARG);
     /* lengths in cells must be whole; metres must be resolved first */
     p = small_params();
     p.patch_size.value = 32.5;
-    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &out, NULL) == TS_ERR_ARG);
     p = small_params();
     p.patch_size.unit = TS_UNIT_METRES;
-    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_ARG);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &out, NULL) == TS_ERR_ARG);
     CHECK(strstr(ts_ctx_message(ctx), "ts_synth_params_resolve") != NULL);
     p = small_params();
     {
         ts_raster tiny;
         ts_raster_alloc(ctx, 10, 10, &tiny);
-        CHECK(ts_synth_patches(ctx, &ex, 1, &p, &tiny, NULL, NULL) == TS_ERR_SIZE);
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &tiny, NULL) == TS_ERR_SIZE);
         ts_raster_free(&tiny);
     }
     {
         ts_raster allnan;
         ts_raster_alloc(ctx, 64, 64, &allnan);
-        CHECK(ts_synth_patches(ctx, &allnan, 1, &p, &out, NULL, NULL) == TS_ERR_NUMERIC);
+        CHECK(ts_synth_patches(ctx, &allnan, 1, &p, NULL, &out, NULL) == TS_ERR_NUMERIC);
         ts_raster_free(&allnan);
     }
     ts_ctx_set_progress(ctx, cancel_soon, NULL);
-    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &out, NULL, NULL) == TS_ERR_CANCELLED);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &out, NULL) == TS_ERR_CANCELLED);
     ts_raster_free(&out);
     ts_raster_free(&ex);
     ts_raster_free(&small);

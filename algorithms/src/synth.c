@@ -1,0 +1,375 @@
+/*
+ * synth.c - the two synthesis pipelines of Zhou et al. 2007, each a
+ * sequence of the stages in the other files:
+ *
+ * ts_synth_patches: the non-feature fill alone (section 4.2 and 5:
+ *    nonfeature_placement.c, match_ssd.c, seam_graphcut.c, poisson.c).
+ *
+ * ts_synth_sketch (sections 3 and 4):
+ * 1. PPA on the sketch (ridges or valleys: ppa.c) and the patch sites in
+ *    breadth-first order over its feature tree, or in raster order
+ *    (feature_tree.c).
+ * 2. PPA on every exemplar, only its main features: their patch sites,
+ *    their relief profiles (relief_guide.c) and a mask of them that the
+ *    fill keeps away from.
+ * 3. The relief the sketch implies (relief_guide.c), a soft height
+ *    constraint of every candidate from here on.
+ * 4. Feature patches at the sites (feature_placement.c).
+ * 5. The non-feature fill around the fixed features, which may take
+ *    windows with main features only near the sketch's strokes.
+ * 6. The layout (layout.c, a TerraSynth addition): the large-scale relief
+ *    rises to sketched ridges and falls to sketched valleys.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "feature_placement.h"
+#include "feature_tree.h"
+#include "layout.h"
+#include "relief_guide.h"
+
+TS_API ts_synth_constraints ts_synth_constraints_default(void)
+{
+    ts_synth_constraints c;
+    memset(&c, 0, sizeof c);
+    c.alpha_h = 1.0;
+    return c;
+}
+
+ts__fill ts__fill_make(const ts_synth_params *p, const ts_synth_constraints *c)
+{
+    ts__fill f;
+    memset(&f, 0, sizeof f);
+    f.s = *p;
+    if (c) {
+        f.cell_flags = c->cell_flags;
+        f.cell_exemplar = c->cell_exemplar;
+        f.heights = c->heights;
+        f.alpha_h = c->alpha_h;
+    }
+    return f;
+}
+
+static ts_status synth_check_constraints(ts_ctx *ctx, const ts_synth_constraints *c)
+{
+    if (c && c->heights && !(c->alpha_h >= 0.0 && c->alpha_h <= 1e9))
+        return ts_fail(ctx, TS_ERR_ARG, "synth", "alpha_h = %g must be in [0, 1e9]", c->alpha_h);
+    return TS_OK;
+}
+
+TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                  const ts_synth_params *params,
+                                  const ts_synth_constraints *constraints, ts_raster *out,
+                                  ts_synth_maps *maps)
+{
+    ts__fill f;
+    ts_clear(ctx);
+    if (!params)
+        return ts_fail(ctx, TS_ERR_ARG, "synth", "missing exemplars, parameters or output");
+    if (synth_check_constraints(ctx, constraints) != TS_OK)
+        return ctx->status;
+    f = ts__fill_make(params, constraints);
+    return ts__fill_run(ctx, exemplars, n_exemplars, &f, out, maps);
+}
+
+/* ---- the sketch pipeline ------------------------------------------- */
+
+/* What the pipeline owns. */
+typedef struct sketch_run {
+    unsigned char *flags;      /* the fill's and the placement's cell flags */
+    unsigned char *user_flags; /* what the caller fixed (pins, water), before any feature */
+    ts_features *sf;           /* the sketch's PPA graph */
+    ts_feature_site *sites;
+    size_t n_sites;
+    ts__ex_site *es;           /* the exemplars' sites */
+    size_t n_es;
+    ts_relief_profile *profs;  /* per exemplar */
+    unsigned char **ex_features; /* per exemplar: its main features of the kind (or NULL) */
+    float *guide;
+    int n_ex;
+} sketch_run;
+
+static void sketch_run_free(sketch_run *r)
+{
+    int e;
+    free(r->flags);
+    free(r->user_flags);
+    free(r->sites);
+    free(r->es);
+    free(r->guide);
+    if (r->profs)
+        for (e = 0; e < r->n_ex; e++)
+            ts_relief_profile_free(&r->profs[e]);
+    free(r->profs);
+    if (r->ex_features)
+        for (e = 0; e < r->n_ex; e++)
+            free(r->ex_features[e]);
+    free(r->ex_features);
+}
+
+/* Step 2 for exemplar e: its main features of the kind (profiles a third
+ * of a patch long, a dip of 2 % of the relief, branches of a patch length:
+ * a sketch's stroke stands for a major ridge or valley, not any crease). */
+static ts_status sketch_exemplar(ts_ctx *ctx, sketch_run *r, const ts_raster *ex, int e,
+                                 const ts_ppa_params *pp, const ts_sketch_params *sp, int kind,
+                                 int P)
+{
+    ts_ppa_params epp = *pp;
+    ts_features *ef = NULL;
+    ts_feature_site *es = NULL;
+    size_t n_es = 0, j, ne, c;
+    ts__ex_site *grown;
+    ts_status st;
+    epp.profile_length = TS_MAX(11, (P / 3) | 1);
+    epp.threshold_fraction = 0.02;
+    epp.min_branch_length.value = P;
+    st = ts_ppa_extract(ctx, ex, NULL, &epp, &ef);
+    if (st == TS_ERR_CANCELLED || st == TS_ERR_NOMEM)
+        return st;
+    if (st != TS_OK) {
+        ts_clear(ctx);
+        return TS_OK; /* no features in this exemplar: it still serves the fill */
+    }
+    st = ts_feature_sites(ctx, ef, kind, 0.5 * P - 1.0, 6.0, 0, &es, &n_es);
+    if (st == TS_OK && (sp->alpha_r > 0 || sp->layout > 0))
+        st = ts_relief_profile_measure(ctx, ex, ef->mask, kind, P, &r->profs[e]);
+    if (st == TS_OK) {
+        /* the fill keeps away from these (section 4.2) */
+        ne = (size_t)ef->width * (size_t)ef->height;
+        if (!(r->ex_features[e] = ts_malloc_array(ne, 1)))
+            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+        for (c = 0; st == TS_OK && c < ne; c++)
+            r->ex_features[e][c] = (ef->mask[c] & kind) != 0;
+    }
+    ts_features_free(ef);
+    if (st != TS_OK) {
+        free(es);
+        return st;
+    }
+    grown = realloc(r->es, (r->n_es + n_es + 1) * sizeof *grown);
+    if (!grown) {
+        free(es);
+        return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+    }
+    r->es = grown;
+    for (j = 0; j < n_es; j++) {
+        r->es[r->n_es].ex = e;
+        r->es[r->n_es].site = es[j];
+        r->n_es++;
+    }
+    free(es);
+    return TS_OK;
+}
+
+/* Step 5's flags: windows within a patch of the sketch's features may take
+ * any exemplar window; farther away only featureless ones. */
+static ts_status sketch_feature_zone(ts_ctx *ctx, const sketch_run *r, int kind, int W, int H,
+                                     int P)
+{
+    size_t n = (size_t)W * (size_t)H, i;
+    float *d = ts_malloc_array(n, sizeof(float));
+    unsigned char *m = ts_malloc_array(n, 1);
+    ts_status st;
+    if (!d || !m) {
+        free(d);
+        free(m);
+        return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+    }
+    for (i = 0; i < n; i++)
+        m[i] = (r->sf->mask[i] & kind) != 0;
+    st = ts_distance_transform(ctx, m, W, H, d);
+    for (i = 0; st == TS_OK && i < n; i++)
+        if (d[i] <= P)
+            r->flags[i] |= TS__CELL_FEATURE;
+    free(d);
+    free(m);
+    return st;
+}
+
+TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_raster *exemplars,
+                                 int n_exemplars, const ts_sketch_params *sp,
+                                 const ts_synth_params *params,
+                                 const ts_synth_constraints *constraints, ts_raster *out,
+                                 ts_synth_maps *maps, ts_features **sketch_features,
+                                 ts_sketch_info *info)
+{
+    sketch_run r;
+    ts__fill fill;
+    ts_ppa_params pp = ts_ppa_params_default();
+    ts_progress_saved sv;
+    ts_status st = TS_OK;
+    size_t i, n_cells, n_placed = 0;
+    int e, P = 0, ov = 0, kind, mode;
+    double t0 = ts_now(), times[5] = {0, 0, 0, 0, 0};
+    ts_clear(ctx);
+    memset(&r, 0, sizeof r);
+    if (sketch_features)
+        *sketch_features = NULL;
+    if (!sketch || !sketch->data || !out || !out->data || !sp || !params || !exemplars ||
+        n_exemplars < 1)
+        return ts_fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
+    if (out->width != sketch->width || out->height != sketch->height)
+        return ts_fail(ctx, TS_ERR_ARG, "sketch", "the output must have the sketch's size");
+    if (ts_params_validate(ctx, "sketch", sp) != TS_OK ||
+        ts_params_validate(ctx, "synth", params) != TS_OK ||
+        ts_synth_cells(ctx, params, &P, &ov) != TS_OK ||
+        synth_check_constraints(ctx, constraints) != TS_OK)
+        return ctx->status;
+    if (out->width < P || out->height < P)
+        return ts_fail(ctx, TS_ERR_SIZE, "sketch", "the sketch (%d x %d) is smaller than a patch",
+                       out->width, out->height);
+    fill = ts__fill_make(params, constraints);
+    n_cells = (size_t)out->width * (size_t)out->height;
+    r.n_ex = n_exemplars;
+    r.flags = ts_calloc_array(n_cells, 1);
+    r.user_flags = ts_malloc_array(n_cells, 1);
+    r.profs = ts_calloc_array((size_t)n_exemplars, sizeof *r.profs);
+    r.ex_features = ts_calloc_array((size_t)n_exemplars, sizeof *r.ex_features);
+    if (!r.flags || !r.user_flags || !r.profs || !r.ex_features) {
+        st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+        goto done;
+    }
+    /* the sketch's nodata stays nodata; the caller's fixed cells (pins,
+     * water: flagged, or filled on entry) are kept; the rest is made */
+    for (i = 0; i < n_cells; i++) {
+        size_t y = i / (size_t)sketch->width, x = i % (size_t)sketch->width;
+        float *o = &out->data[y * (size_t)out->stride + x];
+        unsigned char cf = constraints && constraints->cell_flags ? constraints->cell_flags[i] : 0;
+        if (isnan(sketch->data[y * (size_t)sketch->stride + x]) || (cf & TS_CELL_NODATA)) {
+            r.flags[i] = TS_CELL_NODATA;
+            *o = NAN;
+        } else if (!isnan(*o))
+            r.flags[i] = TS_CELL_FIXED;
+    }
+    /* the layout keeps away from these, not from the feature cores fixed below */
+    memcpy(r.user_flags, r.flags, n_cells);
+
+    /* 1. the sketch's features and sites */
+    mode = sp->mode == TS_SKETCH_AUTO ? ts__sketch_auto_mode(ctx, sketch) : sp->mode;
+    kind = mode == TS_SKETCH_VALLEYS ? TS_VALLEY : TS_RIDGE;
+    pp.features = mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS : TS_PPA_RIDGES;
+    pp.min_branch_length.value = TS_MIN(40.0, 0.5 * P);
+    if (info) {
+        memset(info, 0, sizeof *info);
+        info->mode = mode;
+    }
+    sv = ts_progress_push(ctx, 0.0, 0.05);
+    st = ts_ppa_extract(ctx, sketch, NULL, &pp, &r.sf);
+    ts_progress_pop(ctx, sv);
+    times[0] = ts_now() - t0;
+    t0 = ts_now();
+    if (st != TS_OK) {
+        ts_fail(ctx, st, "sketch", "PPA on the sketch: %s", ctx->message);
+        goto done;
+    }
+    st = ts_feature_sites(ctx, r.sf, kind, 0.5 * P - 1.0, 0.5 * P, params->order != TS_ORDER_RASTER,
+                          &r.sites, &r.n_sites);
+    if (st != TS_OK)
+        goto done;
+
+    /* 2. the exemplars' main features */
+    for (e = 0; e < n_exemplars; e++) {
+        sv = ts_progress_push(ctx, 0.05 + 0.15 * e / n_exemplars,
+                              0.05 + 0.15 * (e + 1) / n_exemplars);
+        st = sketch_exemplar(ctx, &r, &exemplars[e], e, &pp, sp, kind, P);
+        ts_progress_pop(ctx, sv);
+        if (st != TS_OK)
+            goto done;
+    }
+    times[1] = ts_now() - t0;
+    t0 = ts_now();
+
+    /* 3. the relief the sketch implies, learnt from the exemplars */
+    if (sp->alpha_r > 0) {
+        if (!(r.guide = ts_malloc_array(n_cells, sizeof(float)))) {
+            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+            goto done;
+        }
+        st = ts_relief_guide(ctx, r.sf->mask, kind, out->width, out->height, r.profs,
+                             n_exemplars, fill.cell_exemplar, NULL, r.guide);
+        if (st != TS_OK)
+            goto done;
+        fill.guide = r.guide;
+        fill.alpha_r = sp->alpha_r;
+    }
+
+    /* 4. feature patches */
+    {
+        ts__feature_job j;
+        j.sp = sp;
+        j.fill = &fill;
+        j.exemplars = exemplars;
+        j.n_exemplars = n_exemplars;
+        j.sketch_features = r.sf;
+        j.kind = kind;
+        j.exemplar_sites = r.es;
+        j.n_exemplar_sites = r.n_es;
+        j.sites = r.sites;
+        j.n_sites = r.n_sites;
+        sv = ts_progress_push(ctx, 0.2, 0.6);
+        st = ts__place_features(ctx, &j, out, r.flags, maps, &n_placed);
+        ts_progress_pop(ctx, sv);
+        times[2] = ts_now() - t0;
+        t0 = ts_now();
+        if (st != TS_OK)
+            goto done;
+        if (info) {
+            info->n_sites = r.n_sites;
+            info->n_feature_patches = n_placed;
+            info->n_exemplar_sites = r.n_es;
+        }
+    }
+
+    /* 5. the non-feature fill around the fixed features (the order
+     * parameter reorders the feature sites only: the fill always grows out
+     * from them) */
+    if ((st = sketch_feature_zone(ctx, &r, kind, out->width, out->height, P)) != TS_OK)
+        goto done;
+    fill.s.order = TS_ORDER_GROW;
+    fill.cell_flags = r.flags;
+    fill.exemplar_features = (const unsigned char *const *)r.ex_features;
+    sv = ts_progress_push(ctx, 0.6, 0.95);
+    st = ts__fill_run(ctx, exemplars, n_exemplars, &fill, out, maps);
+    ts_progress_pop(ctx, sv);
+    times[3] = ts_now() - t0;
+    t0 = ts_now();
+    if (st != TS_OK)
+        goto done;
+
+    /* 6. the relief the sketch lays out */
+    if (sp->layout > 0) {
+        ts_layout_spec ls;
+        memset(&ls, 0, sizeof ls);
+        ls.sketch_mask = r.sf->mask;
+        ls.kind = kind;
+        ls.width = out->width;
+        ls.height = out->height;
+        ls.exemplars = exemplars;
+        ls.n_exemplars = n_exemplars;
+        ls.profs = r.profs;
+        ls.cell_exemplar = fill.cell_exemplar;
+        ls.patch = P;
+        ls.features = r.sf;
+        st = ts_layout_apply(ctx, &ls, out, r.user_flags, sp->layout);
+        if (st == TS_OK)
+            st = ts_progress(ctx, 1.0, "layout");
+    }
+    times[4] = ts_now() - t0;
+    if (info) {
+        info->seconds_sketch_ppa = times[0];
+        info->seconds_exemplar_ppa = times[1];
+        info->seconds_features = times[2];
+        info->seconds_fill = times[3];
+        info->seconds_layout = times[4];
+    }
+done:
+    if (st == TS_OK && sketch_features)
+        *sketch_features = r.sf;
+    else
+        ts_features_free(r.sf);
+    sketch_run_free(&r);
+    (void)ov;
+    return st;
+}
