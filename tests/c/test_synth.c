@@ -6,6 +6,8 @@
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
+#include <stdlib.h>
+
 #include "harness.h"
 #include "terrasynth.h"
 
@@ -159,6 +161,57 @@ static void test_keep_nodata_and_prefilled(void)
     ts_ctx_free(ctx);
 }
 
+/* The sketch pipeline takes the same constraints: flagged nodata stays
+ * NaN, a flagged fixed block is kept to the bit, the rest is made. */
+static void test_sketch_keeps_constraints(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_exemplar(ctx, 220, 200, 5, 0), sk, out;
+    ts_synth_params p = small_params();
+    ts_sketch_params sp = ts_sketch_params_default();
+    ts_synth_constraints c = ts_synth_constraints_default();
+    unsigned char *flags = calloc(120 * 110, 1);
+    int x, y, ok_nan = 1, ok_fixed = 1, ok_made = 1;
+    ts_raster_alloc(ctx, 120, 110, &sk);
+    ts_raster_alloc(ctx, 120, 110, &out);
+    for (y = 0; y < 110; y++)
+        for (x = 0; x < 120; x++) {
+            /* a bright diagonal stroke on a dark ground */
+            TS_PIX(&sk, x, y) = abs(x - y) < 3 ? 255.0f : 0.0f;
+            if (x < 8)
+                flags[y * 120 + x] = TS_CELL_NODATA;
+            if (x >= 90 && y >= 85) {
+                flags[y * 120 + x] = TS_CELL_FIXED;
+                TS_PIX(&out, x, y) = 1000.0f + (float)(x - y);
+            }
+        }
+    c.cell_flags = flags;
+    sp.mode = TS_SKETCH_RIDGES;
+    CHECK(ts_synth_sketch(ctx, &sk, &ex, 1, &sp, &p, &c, &out, NULL, NULL, NULL) == TS_OK);
+    for (y = 0; y < 110; y++)
+        for (x = 0; x < 120; x++) {
+            float v = TS_PIX(&out, x, y);
+            if (x < 8)
+                ok_nan &= isnan(v) != 0;
+            else if (x >= 90 && y >= 85)
+                ok_fixed &= v == 1000.0f + (float)(x - y);
+            else
+                ok_made &= isfinite(v) != 0;
+        }
+    CHECK(ok_nan);
+    CHECK(ok_fixed);
+    CHECK(ok_made);
+    /* alpha_h out of range is refused */
+    c.heights = out.data;
+    c.alpha_h = -1.0;
+    CHECK(ts_synth_sketch(ctx, &sk, &ex, 1, &sp, &p, &c, &out, NULL, NULL, NULL) == TS_ERR_ARG);
+    free(flags);
+    ts_raster_free(&sk);
+    ts_raster_free(&out);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
 static void test_several_exemplars(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -275,6 +328,7 @@ int main(int argc, char **argv)
         {"deterministic_and_seeded", test_deterministic_and_seeded},
         {"keep_nodata_and_prefilled", test_keep_nodata_and_prefilled},
         {"several_exemplars", test_several_exemplars},
+        {"sketch_keeps_constraints", test_sketch_keeps_constraints},
         {"resolve_metres", test_resolve_metres},
         {"errors_and_cancel", test_errors_and_cancel},
     };
