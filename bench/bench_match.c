@@ -1,6 +1,6 @@
 /*
  * bench_match.c - micro-benchmark of the FFT masked-SSD matcher
- * (algorithms/src/match_ssd.c).
+ * (algorithms/src/fill/match_ssd.c).
  *
  * Copyright (C) 2026 The TerraSynth developers
  * SPDX-License-Identifier: GPL-2.0-or-later

@@ -55,7 +55,7 @@ ts__fill ts__fill_make(const ts_synth_params *p, const ts_synth_constraints *c)
 static ts_status synth_check_constraints(ts_ctx *ctx, const ts_synth_constraints *c)
 {
     if (c && c->heights && !(c->alpha_h >= 0.0 && c->alpha_h <= 1e9))
-        return ts_fail(ctx, TS_ERR_ARG, "synth", "alpha_h = %g must be in [0, 1e9]", c->alpha_h);
+        return ts__fail(ctx, TS_ERR_ARG, "synth", "alpha_h = %g must be in [0, 1e9]", c->alpha_h);
     return TS_OK;
 }
 
@@ -65,9 +65,9 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
                                   ts_synth_maps *maps)
 {
     ts__fill f;
-    ts_clear(ctx);
+    ts__clear(ctx);
     if (!params)
-        return ts_fail(ctx, TS_ERR_ARG, "synth", "missing exemplars, parameters or output");
+        return ts__fail(ctx, TS_ERR_ARG, "synth", "missing exemplars, parameters or output");
     if (synth_check_constraints(ctx, constraints) != TS_OK)
         return ctx->status;
     f = ts__fill_make(params, constraints);
@@ -101,7 +101,7 @@ static void sketch_run_free(sketch_run *r)
     free(r->guide);
     if (r->profs)
         for (e = 0; e < r->n_ex; e++)
-            ts_relief_profile_free(&r->profs[e]);
+            ts__relief_profile_free(&r->profs[e]);
     free(r->profs);
     if (r->ex_features)
         for (e = 0; e < r->n_ex; e++)
@@ -129,17 +129,17 @@ static ts_status sketch_exemplar(ts_ctx *ctx, sketch_run *r, const ts_raster *ex
     if (st == TS_ERR_CANCELLED || st == TS_ERR_NOMEM)
         return st;
     if (st != TS_OK) {
-        ts_clear(ctx);
+        ts__clear(ctx);
         return TS_OK; /* no features in this exemplar: it still serves the fill */
     }
-    st = ts_feature_sites(ctx, ef, kind, 0.5 * P - 1.0, 6.0, 0, &es, &n_es);
+    st = ts__feature_sites(ctx, ef, kind, 0.5 * P - 1.0, 6.0, 0, &es, &n_es);
     if (st == TS_OK && (sp->alpha_r > 0 || sp->layout > 0))
-        st = ts_relief_profile_measure(ctx, ex, ef->mask, kind, P, &r->profs[e]);
+        st = ts__relief_profile_measure(ctx, ex, ef->mask, kind, P, &r->profs[e]);
     if (st == TS_OK) {
         /* the fill keeps away from these (section 4.2) */
         ne = (size_t)ef->width * (size_t)ef->height;
-        if (!(r->ex_features[e] = ts_malloc_array(ne, 1)))
-            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+        if (!(r->ex_features[e] = ts__malloc_array(ne, 1)))
+            st = ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
         for (c = 0; st == TS_OK && c < ne; c++)
             r->ex_features[e][c] = (ef->mask[c] & kind) != 0;
     }
@@ -151,7 +151,7 @@ static ts_status sketch_exemplar(ts_ctx *ctx, sketch_run *r, const ts_raster *ex
     grown = realloc(r->es, (r->n_es + n_es + 1) * sizeof *grown);
     if (!grown) {
         free(es);
-        return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     }
     r->es = grown;
     for (j = 0; j < n_es; j++) {
@@ -169,17 +169,17 @@ static ts_status sketch_feature_zone(ts_ctx *ctx, const sketch_run *r, int kind,
                                      int P)
 {
     size_t n = (size_t)W * (size_t)H, i;
-    float *d = ts_malloc_array(n, sizeof(float));
-    unsigned char *m = ts_malloc_array(n, 1);
+    float *d = ts__malloc_array(n, sizeof(float));
+    unsigned char *m = ts__malloc_array(n, 1);
     ts_status st;
     if (!d || !m) {
         free(d);
         free(m);
-        return ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     }
     for (i = 0; i < n; i++)
         m[i] = (r->sf->mask[i] & kind) != 0;
-    st = ts_distance_transform(ctx, m, W, H, d);
+    st = ts__distance_transform(ctx, m, W, H, d);
     for (i = 0; st == TS_OK && i < n; i++)
         if (d[i] <= P)
             r->flags[i] |= TS__CELL_FEATURE;
@@ -202,33 +202,33 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     ts_status st = TS_OK;
     size_t i, n_cells, n_placed = 0;
     int e, P = 0, ov = 0, kind, mode;
-    double t0 = ts_now(), times[5] = {0, 0, 0, 0, 0};
-    ts_clear(ctx);
+    double t0 = ts__now(), times[5] = {0, 0, 0, 0, 0};
+    ts__clear(ctx);
     memset(&r, 0, sizeof r);
     if (sketch_features)
         *sketch_features = NULL;
     if (!sketch || !sketch->data || !out || !out->data || !sp || !params || !exemplars ||
         n_exemplars < 1)
-        return ts_fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
+        return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
     if (out->width != sketch->width || out->height != sketch->height)
-        return ts_fail(ctx, TS_ERR_ARG, "sketch", "the output must have the sketch's size");
+        return ts__fail(ctx, TS_ERR_ARG, "sketch", "the output must have the sketch's size");
     if (ts_params_validate(ctx, "sketch", sp) != TS_OK ||
         ts_params_validate(ctx, "synth", params) != TS_OK ||
-        ts_synth_cells(ctx, params, &P, &ov) != TS_OK ||
+        ts__synth_cells(ctx, params, &P, &ov) != TS_OK ||
         synth_check_constraints(ctx, constraints) != TS_OK)
         return ctx->status;
     if (out->width < P || out->height < P)
-        return ts_fail(ctx, TS_ERR_SIZE, "sketch", "the sketch (%d x %d) is smaller than a patch",
-                       out->width, out->height);
+        return ts__fail(ctx, TS_ERR_SIZE, "sketch", "the sketch (%d x %d) is smaller than a patch",
+                        out->width, out->height);
     fill = ts__fill_make(params, constraints);
     n_cells = (size_t)out->width * (size_t)out->height;
     r.n_ex = n_exemplars;
-    r.flags = ts_calloc_array(n_cells, 1);
-    r.user_flags = ts_malloc_array(n_cells, 1);
-    r.profs = ts_calloc_array((size_t)n_exemplars, sizeof *r.profs);
-    r.ex_features = ts_calloc_array((size_t)n_exemplars, sizeof *r.ex_features);
+    r.flags = ts__calloc_array(n_cells, 1);
+    r.user_flags = ts__malloc_array(n_cells, 1);
+    r.profs = ts__calloc_array((size_t)n_exemplars, sizeof *r.profs);
+    r.ex_features = ts__calloc_array((size_t)n_exemplars, sizeof *r.ex_features);
     if (!r.flags || !r.user_flags || !r.profs || !r.ex_features) {
-        st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+        st = ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
         goto done;
     }
     /* the sketch's nodata stays nodata; the caller's fixed cells (pins,
@@ -255,40 +255,40 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         memset(info, 0, sizeof *info);
         info->mode = mode;
     }
-    sv = ts_progress_push(ctx, 0.0, 0.05);
+    sv = ts__progress_push(ctx, 0.0, 0.05);
     st = ts_ppa_extract(ctx, sketch, NULL, &pp, &r.sf);
-    ts_progress_pop(ctx, sv);
-    times[0] = ts_now() - t0;
-    t0 = ts_now();
+    ts__progress_pop(ctx, sv);
+    times[0] = ts__now() - t0;
+    t0 = ts__now();
     if (st != TS_OK) {
-        ts_fail(ctx, st, "sketch", "PPA on the sketch: %s", ctx->message);
+        ts__fail(ctx, st, "sketch", "PPA on the sketch: %s", ctx->message);
         goto done;
     }
-    st = ts_feature_sites(ctx, r.sf, kind, 0.5 * P - 1.0, 0.5 * P, params->order != TS_ORDER_RASTER,
-                          &r.sites, &r.n_sites);
+    st = ts__feature_sites(ctx, r.sf, kind, 0.5 * P - 1.0, 0.5 * P,
+                           params->order != TS_ORDER_RASTER, &r.sites, &r.n_sites);
     if (st != TS_OK)
         goto done;
 
     /* 2. the exemplars' main features */
     for (e = 0; e < n_exemplars; e++) {
-        sv = ts_progress_push(ctx, 0.05 + 0.15 * e / n_exemplars,
-                              0.05 + 0.15 * (e + 1) / n_exemplars);
+        sv = ts__progress_push(ctx, 0.05 + 0.15 * e / n_exemplars,
+                               0.05 + 0.15 * (e + 1) / n_exemplars);
         st = sketch_exemplar(ctx, &r, &exemplars[e], e, &pp, sp, kind, P);
-        ts_progress_pop(ctx, sv);
+        ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto done;
     }
-    times[1] = ts_now() - t0;
-    t0 = ts_now();
+    times[1] = ts__now() - t0;
+    t0 = ts__now();
 
     /* 3. the relief the sketch implies, learnt from the exemplars */
     if (sp->alpha_r > 0) {
-        if (!(r.guide = ts_malloc_array(n_cells, sizeof(float)))) {
-            st = ts_fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+        if (!(r.guide = ts__malloc_array(n_cells, sizeof(float)))) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
             goto done;
         }
-        st = ts_relief_guide(ctx, r.sf->mask, kind, out->width, out->height, r.profs,
-                             n_exemplars, fill.cell_exemplar, NULL, r.guide);
+        st = ts__relief_guide(ctx, r.sf->mask, kind, out->width, out->height, r.profs, n_exemplars,
+                              fill.cell_exemplar, NULL, r.guide);
         if (st != TS_OK)
             goto done;
         fill.guide = r.guide;
@@ -308,11 +308,11 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         j.n_exemplar_sites = r.n_es;
         j.sites = r.sites;
         j.n_sites = r.n_sites;
-        sv = ts_progress_push(ctx, 0.2, 0.6);
+        sv = ts__progress_push(ctx, 0.2, 0.6);
         st = ts__place_features(ctx, &j, out, r.flags, maps, &n_placed);
-        ts_progress_pop(ctx, sv);
-        times[2] = ts_now() - t0;
-        t0 = ts_now();
+        ts__progress_pop(ctx, sv);
+        times[2] = ts__now() - t0;
+        t0 = ts__now();
         if (st != TS_OK)
             goto done;
         if (info) {
@@ -330,11 +330,11 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     fill.s.order = TS_ORDER_GROW;
     fill.cell_flags = r.flags;
     fill.exemplar_features = (const unsigned char *const *)r.ex_features;
-    sv = ts_progress_push(ctx, 0.6, 0.95);
+    sv = ts__progress_push(ctx, 0.6, 0.95);
     st = ts__fill_run(ctx, exemplars, n_exemplars, &fill, out, maps);
-    ts_progress_pop(ctx, sv);
-    times[3] = ts_now() - t0;
-    t0 = ts_now();
+    ts__progress_pop(ctx, sv);
+    times[3] = ts__now() - t0;
+    t0 = ts__now();
     if (st != TS_OK)
         goto done;
 
@@ -352,11 +352,11 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         ls.cell_exemplar = fill.cell_exemplar;
         ls.patch = P;
         ls.features = r.sf;
-        st = ts_layout_apply(ctx, &ls, out, r.user_flags, sp->layout);
+        st = ts__layout_apply(ctx, &ls, out, r.user_flags, sp->layout);
         if (st == TS_OK)
-            st = ts_progress(ctx, 1.0, "layout");
+            st = ts__progress(ctx, 1.0, "layout");
     }
-    times[4] = ts_now() - t0;
+    times[4] = ts__now() - t0;
     if (info) {
         info->seconds_sketch_ppa = times[0];
         info->seconds_exemplar_ppa = times[1];

@@ -1,5 +1,5 @@
 /*
- * test_context.c - the context's errors (algorithms/src/context.c): a
+ * test_context.c - the context's errors (algorithms/src/base/context.c): a
  * stage may wrap the message a deeper stage left in the same context (the
  * arguments alias the message), the failing input is reported as a number,
  * not parsed back out of text, and a call that succeeds clears both.
@@ -25,15 +25,15 @@ static void test_wrap_own_message(void)
 {
     ts_ctx *ctx = ts_ctx_new();
     char longer[2000];
-    ts_fail(ctx, TS_ERR_NUMERIC, "ppa", "every cell is nodata");
-    ts_fail(ctx, TS_ERR_NUMERIC, "sketch", "PPA on the sketch: %s", ts_ctx_message(ctx));
+    ts__fail(ctx, TS_ERR_NUMERIC, "ppa", "every cell is nodata");
+    ts__fail(ctx, TS_ERR_NUMERIC, "sketch", "PPA on the sketch: %s", ts_ctx_message(ctx));
     CHECK(strcmp(ts_ctx_message(ctx), "sketch: PPA on the sketch: ppa: every cell is nodata") == 0);
     CHECK(ts_ctx_status(ctx) == TS_ERR_NUMERIC);
     /* twice more, growing past the buffer: cut, still terminated */
     memset(longer, 'x', sizeof longer - 1);
     longer[sizeof longer - 1] = '\0';
-    ts_fail(ctx, TS_ERR_ARG, "a", "%s", longer);
-    ts_fail(ctx, TS_ERR_ARG, "b", "%s and %s", ts_ctx_message(ctx), ts_ctx_message(ctx));
+    ts__fail(ctx, TS_ERR_ARG, "a", "%s", longer);
+    ts__fail(ctx, TS_ERR_ARG, "b", "%s and %s", ts_ctx_message(ctx), ts_ctx_message(ctx));
     CHECK(strncmp(ts_ctx_message(ctx), "b: a: xxx", 9) == 0);
     CHECK(strlen(ts_ctx_message(ctx)) == 1023);
     ts_ctx_free(ctx);
@@ -62,12 +62,12 @@ static void test_failed_input(void)
     CHECK(ts_ctx_failed_input(ctx) == 1);
     CHECK(strstr(ts_ctx_message(ctx), "exemplar 2") != NULL);
     /* a wrapping stage keeps the input; a new call clears it */
-    ts_fail(ctx, TS_ERR_SIZE, "job", "%s", "wrapped");
+    ts__fail(ctx, TS_ERR_SIZE, "job", "%s", "wrapped");
     CHECK(ts_ctx_failed_input(ctx) == 1);
     CHECK(ts_synth_patches(ctx, ex, 1, &p, NULL, &out, NULL) == TS_OK);
     CHECK(ts_ctx_failed_input(ctx) == -1);
     /* a failure about no input names none */
-    ts_fail(ctx, TS_ERR_ARG, "x", "no input");
+    ts__fail(ctx, TS_ERR_ARG, "x", "no input");
     CHECK(ts_ctx_failed_input(ctx) == -1);
     ts_raster_free(&ex[0]);
     ts_raster_free(&ex[1]);
@@ -85,17 +85,17 @@ static void test_child_cancel(void)
     CHECK(a && b);
     CHECK(ts_ctx_seed(a) == 77);
     CHECK(!ts__cancelled(parent) && !ts__cancelled(a) && !ts__cancelled(b));
-    CHECK(ts_progress(a, 0.5, "x") == TS_OK);
+    CHECK(ts__progress(a, 0.5, "x") == TS_OK);
     /* one worker stops the others and the caller */
     ts__cancel(a);
     CHECK(ts__cancelled(parent) && ts__cancelled(b));
-    CHECK(ts_progress(b, 0.5, "x") == TS_ERR_CANCELLED);
+    CHECK(ts__progress(b, 0.5, "x") == TS_ERR_CANCELLED);
     CHECK(ts__check_cancel(parent) == TS_ERR_CANCELLED);
     CHECK(strstr(ts_ctx_message(parent), "cancelled") != NULL);
     /* a child's new call does not clear its parent's flag; the parent's does */
-    ts_clear(b);
+    ts__clear(b);
     CHECK(ts__cancelled(b));
-    ts_clear(parent);
+    ts__clear(parent);
     CHECK(!ts__cancelled(parent) && !ts__cancelled(a) && !ts__cancelled(b));
     ts_ctx_free(a);
     ts_ctx_free(b);
@@ -157,7 +157,7 @@ static void nested_range(void *arg, size_t b, size_t e)
     size_t i;
     for (i = b; i < e; i++) {
         count_job inner = {j->hits + 50 * i, NULL};
-        ts_parallel_for(j->ctx, 50, count_range, &inner);
+        ts__parallel_for(j->ctx, 50, count_range, &inner);
     }
 }
 
@@ -176,7 +176,7 @@ static void *caller_run(void *arg)
         count_job j = {c->hits, NULL};
         for (i = 0; i < 1000; i++)
             atomic_store(&c->hits[i], 0);
-        ts_parallel_for(c->ctx, 1000, count_range, &j);
+        ts__parallel_for(c->ctx, 1000, count_range, &j);
         for (i = 0; i < 1000; i++)
             c->ok &= atomic_load(&c->hits[i]) == 1;
     }
@@ -196,7 +196,7 @@ static void test_thread_pool(void)
         size_t n = 1 + (size_t)round % 37;
         for (i = 0; i < n; i++)
             atomic_store(&hits[i], 0);
-        ts_parallel_for(ctx, n, count_range, &j);
+        ts__parallel_for(ctx, n, count_range, &j);
         for (i = 0; i < n; i++)
             ok &= atomic_load(&hits[i]) == 1;
     }
@@ -208,7 +208,7 @@ static void test_thread_pool(void)
         count_job j = {hits, ctx};
         for (i = 0; i < 40 * 50; i++)
             atomic_store(&hits[i], 0);
-        ts_parallel_for(ctx, 40, nested_range, &j);
+        ts__parallel_for(ctx, 40, nested_range, &j);
         ok = 1;
         for (i = 0; i < 40 * 50; i++)
             ok &= atomic_load(&hits[i]) == 1;
@@ -234,7 +234,7 @@ static void test_thread_pool(void)
         count_job j = {hits, NULL};
         for (i = 0; i < 100; i++)
             atomic_store(&hits[i], 0);
-        ts_parallel_for(ctx, 100, count_range, &j);
+        ts__parallel_for(ctx, 100, count_range, &j);
         CHECK(ts__pool_workers(ctx->pool) == 5);
     }
     ts_ctx_free(ctx); /* joins the workers (ASan/TSan would see them leak) */

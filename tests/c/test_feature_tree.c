@@ -1,6 +1,6 @@
 /*
  * test_feature_tree.c - the feature tree of sketch-guided synthesis
- * (algorithms/src/feature_tree.c): on a hand-made Y (a branch point with
+ * (algorithms/src/sketch/feature_tree.c): on a hand-made Y (a branch point with
  * three chains, two of them stored from their far end), the sites come
  * breadth first from the branch point, every chain's path sites laid
  * outward from it (distance from the branch point increasing), the control
@@ -68,7 +68,7 @@ static void test_tree_order(void)
     f.n_paths = 3;
     f.verts = verts;
     f.n_verts = at;
-    CHECK(ts_feature_sites(ctx, &f, TS_RIDGE, 10.0, 8.0, 1, &sites, &n_sites) == TS_OK);
+    CHECK(ts__feature_sites(ctx, &f, TS_RIDGE, 10.0, 8.0, 1, &sites, &n_sites) == TS_OK);
     CHECK(n_sites > 6);
     if (getenv("TS_TEST_VERBOSE"))
         for (i = 0; i < n_sites; i++)
@@ -107,7 +107,7 @@ static void test_tree_order(void)
     CHECK(!saw_branch);
     free(sites);
     /* raster order: by row, then column */
-    CHECK(ts_feature_sites(ctx, &f, TS_RIDGE, 10.0, 8.0, 0, &sites, &n_sites) == TS_OK);
+    CHECK(ts__feature_sites(ctx, &f, TS_RIDGE, 10.0, 8.0, 0, &sites, &n_sites) == TS_OK);
     for (i = 1; i < n_sites; i++)
         CHECK(sites[i].cy > sites[i - 1].cy ||
               (sites[i].cy == sites[i - 1].cy && sites[i].cx >= sites[i - 1].cx));
@@ -129,9 +129,9 @@ static void test_junction_alignments(void)
         for (rot = 0; rot < arms; rot++)
             for (mirror = 0; mirror < 2; mirror++) {
                 int hit[8] = {0};
-                CHECK(ts_feature_arm(arms, 0, rot, mirror) == 0);
+                CHECK(ts__feature_arm(arms, 0, rot, mirror) == 0);
                 for (i = 1; i <= arms; i++) {
-                    int j = ts_feature_arm(arms, i, rot, mirror);
+                    int j = ts__feature_arm(arms, i, rot, mirror);
                     CHECK(j >= 1 && j <= arms);
                     if (j >= 1 && j <= arms)
                         hit[j]++;
@@ -167,11 +167,11 @@ static void test_junction_alignments(void)
                 double ax[9], ay[9];
                 ts_tps t;
                 for (i = 0; i <= n; i++) {
-                    int j = ts_feature_arm(n, i, rot, mirror);
+                    int j = ts__feature_arm(n, i, rot, mirror);
                     ax[i] = ex[j];
                     ay[i] = mirror ? -ey[j] : ey[j];
                 }
-                if (ts_tps_fit(ctx, n + 1, ax, ay, sx, sy, 0.0, &t) != TS_OK)
+                if (ts__tps_fit(ctx, n + 1, ax, ay, sx, sy, 0.0, &t) != TS_OK)
                     continue;
                 if (t.bending < best) {
                     best = t.bending;

@@ -1,6 +1,6 @@
 /*
  * test_layout.c - the layout stage of sketch-guided synthesis
- * (algorithms/src/layout.c) and what it stands on: the nearest feature cell
+ * (algorithms/src/sketch/layout.c) and what it stands on: the nearest feature cell
  * of the distance transform against brute force, the three-box blur
  * against a direct NaN-aware convolution with the same kernel (and its
  * spread against the Gaussian it stands for), valley floors made to
@@ -30,7 +30,7 @@ static void test_nearest_brute_force(void)
         for (i = 0; i < w * h; i++)
             m[i] = th_uniform(&s) < density;
         ts_ctx_set_threads(ctx, 1 + rep % 3);
-        CHECK(ts_distance_transform_nearest(ctx, m, w, h, d, nr) == TS_OK);
+        CHECK(ts__distance_transform_nearest(ctx, m, w, h, d, nr) == TS_OK);
         for (i = 0; i < w * h && !bad; i++) {
             int x = i % w, y = i / w, u, v;
             double best = INFINITY;
@@ -88,12 +88,12 @@ static void test_blur_direct(void)
     for (rep = 0; rep < 12; rep++) {
         int w = 40 + (int)(th_uniform(&s) * 40), h = 40 + (int)(th_uniform(&s) * 30), x, y, u, v;
         double sigma = 0.6 + th_uniform(&s) * 5.0, k[1024], var = 0.0, sum = 0.0;
-        int r = ts_blur_radius(sigma), half = 3 * r;
+        int r = ts__blur_radius(sigma), half = 3 * r;
         float *in = malloc((size_t)w * h * sizeof(float)), *out = malloc((size_t)w * h * sizeof(float));
         for (x = 0; x < w * h; x++)
             in[x] = th_uniform(&s) < 0.15 ? NAN : (float)(100.0 * th_uniform(&s));
         ts_ctx_set_threads(ctx, 1 + rep % 2);
-        CHECK(ts_blur_nan(ctx, in, w, w, h, sigma, out) == TS_OK);
+        CHECK(ts__blur_nan(ctx, in, w, w, h, sigma, out) == TS_OK);
         three_box_kernel(r, k);
         for (x = -half; x <= half; x++) {
             sum += k[x + half];
@@ -281,7 +281,7 @@ static void test_corrections(void)
         for (x = 0; x < W; x++)
             TS_PIX(&out, x, y) = TS_PIX(&keep, x, y) = (float)(400.0 + 5.0 * th_uniform(&s));
     /* strength 0: nothing changes */
-    CHECK(ts_layout_apply(ctx, &sp, &out, NULL, 0.0) == TS_OK);
+    CHECK(ts__layout_apply(ctx, &sp, &out, NULL, 0.0) == TS_OK);
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++)
             CHECK(TS_PIX(&out, x, y) == TS_PIX(&keep, x, y));
@@ -289,7 +289,7 @@ static void test_corrections(void)
     for (y = 5; y < 25; y++)
         for (x = 5; x < 25; x++)
             flags[y * W + x] = TS_CELL_FIXED;
-    CHECK(ts_layout_apply(ctx, &sp, &out, flags, 1.0) == TS_OK);
+    CHECK(ts__layout_apply(ctx, &sp, &out, flags, 1.0) == TS_OK);
     for (y = 5; y < 25; y++)
         for (x = 5; x < 25; x++)
             CHECK(TS_PIX(&out, x, y) == TS_PIX(&keep, x, y));
@@ -331,7 +331,7 @@ static void test_corrections(void)
         for (x = 0; x < W; x++)
             TS_PIX(&out, x, y) =
                 (float)(400.0 + 5.0 * th_uniform(&s) + (y == 60 ? 30.0 * sin(0.3 * x) : 0.0));
-    CHECK(ts_layout_apply(ctx, &sp, &out, NULL, 1.0) == TS_OK);
+    CHECK(ts__layout_apply(ctx, &sp, &out, NULL, 1.0) == TS_OK);
     for (x = 1; x < W - 10; x++)
         CHECK(TS_PIX(&out, x - 1, 60) <= TS_PIX(&out, x, 60));
     CHECK(TS_PIX(&out, 80, 60) < TS_PIX(&out, 80, 30) - 20.0);

@@ -141,26 +141,26 @@ static double tg_edmonds_karp(const test_graph *g)
     return flow;
 }
 
-/* Solve with maxflow.c; side (may be NULL) receives ts_maxflow_is_sink. */
+/* Solve with maxflow.c; side (may be NULL) receives ts__maxflow_is_sink. */
 static double tg_solve(const test_graph *g, unsigned char *side)
 {
-    ts_maxflow *mf = ts_maxflow_new((size_t)g->n, (size_t)g->n_edges);
+    ts_maxflow *mf = ts__maxflow_new((size_t)g->n, (size_t)g->n_edges);
     double flow = NAN;
     int i;
     CHECK(mf != NULL);
     if (!mf)
         return NAN;
     for (i = 0; i < g->n; i++)
-        CHECK(ts_maxflow_add_tweights(mf, (size_t)i, g->src[i], g->snk[i]) == 0);
+        CHECK(ts__maxflow_add_tweights(mf, (size_t)i, g->src[i], g->snk[i]) == 0);
     for (i = 0; i < g->n_edges; i++) {
         const tg_edge *e = &g->edges[i];
-        CHECK(ts_maxflow_add_edge(mf, (size_t)e->a, (size_t)e->b, e->cab, e->cba) == 0);
+        CHECK(ts__maxflow_add_edge(mf, (size_t)e->a, (size_t)e->b, e->cab, e->cba) == 0);
     }
-    CHECK(ts_maxflow_solve(mf, &flow) == 0);
+    CHECK(ts__maxflow_solve(mf, &flow) == 0);
     if (side)
         for (i = 0; i < g->n; i++)
-            side[i] = (unsigned char)ts_maxflow_is_sink(mf, (size_t)i);
-    ts_maxflow_free(mf);
+            side[i] = (unsigned char)ts__maxflow_is_sink(mf, (size_t)i);
+    ts__maxflow_free(mf);
     return flow;
 }
 
@@ -287,55 +287,55 @@ static void test_needs_flow_cancellation(void)
 
 static void test_tweights_accumulate(void)
 {
-    ts_maxflow *mf = ts_maxflow_new(2, 1);
+    ts_maxflow *mf = ts__maxflow_new(2, 1);
     double flow = -1;
     /* node 0: source 5 + 0, sink 3 + 4 -> min(5, 7) = 5 straight through */
-    CHECK(ts_maxflow_add_tweights(mf, 0, 5, 3) == 0);
-    CHECK(ts_maxflow_add_tweights(mf, 0, 0, 4) == 0);
+    CHECK(ts__maxflow_add_tweights(mf, 0, 5, 3) == 0);
+    CHECK(ts__maxflow_add_tweights(mf, 0, 0, 4) == 0);
     /* node 1: source 2, sink 0; edge 1->0 of 10 adds 2 more via node 0's sink */
-    CHECK(ts_maxflow_add_tweights(mf, 1, 2, 0) == 0);
-    CHECK(ts_maxflow_add_edge(mf, 1, 0, 10, 0) == 0);
-    CHECK(ts_maxflow_solve(mf, &flow) == 0);
+    CHECK(ts__maxflow_add_tweights(mf, 1, 2, 0) == 0);
+    CHECK(ts__maxflow_add_edge(mf, 1, 0, 10, 0) == 0);
+    CHECK(ts__maxflow_solve(mf, &flow) == 0);
     CHECK_NEAR(flow, 7.0, 0);
-    CHECK(ts_maxflow_is_sink(mf, 0) == 1 && ts_maxflow_is_sink(mf, 1) == 1);
+    CHECK(ts__maxflow_is_sink(mf, 0) == 1 && ts__maxflow_is_sink(mf, 1) == 1);
     /* a second call only reports */
     flow = -1;
-    CHECK(ts_maxflow_solve(mf, &flow) == 0);
+    CHECK(ts__maxflow_solve(mf, &flow) == 0);
     CHECK_NEAR(flow, 7.0, 0);
-    CHECK(ts_maxflow_add_edge(mf, 0, 1, 1, 1) == -1);
-    ts_maxflow_free(mf);
+    CHECK(ts__maxflow_add_edge(mf, 0, 1, 1, 1) == -1);
+    ts__maxflow_free(mf);
 }
 
 static void test_empty_and_isolated(void)
 {
-    ts_maxflow *mf = ts_maxflow_new(0, 0);
+    ts_maxflow *mf = ts__maxflow_new(0, 0);
     double flow = -1;
     CHECK(mf != NULL);
-    CHECK(ts_maxflow_solve(mf, &flow) == 0 && flow == 0.0);
-    ts_maxflow_free(mf);
-    mf = ts_maxflow_new(3, 0);
-    CHECK(ts_maxflow_add_edge(mf, 0, 1, 2, 2) == 0);
-    CHECK(ts_maxflow_add_edge(mf, 2, 2, 5, 5) == 0); /* self-loop: ignored */
-    CHECK(ts_maxflow_add_tweights(mf, 2, 4, 0) == 0);
-    CHECK(ts_maxflow_solve(mf, &flow) == 0 && flow == 0.0);
+    CHECK(ts__maxflow_solve(mf, &flow) == 0 && flow == 0.0);
+    ts__maxflow_free(mf);
+    mf = ts__maxflow_new(3, 0);
+    CHECK(ts__maxflow_add_edge(mf, 0, 1, 2, 2) == 0);
+    CHECK(ts__maxflow_add_edge(mf, 2, 2, 5, 5) == 0); /* self-loop: ignored */
+    CHECK(ts__maxflow_add_tweights(mf, 2, 4, 0) == 0);
+    CHECK(ts__maxflow_solve(mf, &flow) == 0 && flow == 0.0);
     /* reachable from the source: node 2 only; the rest is the sink side */
-    CHECK(ts_maxflow_is_sink(mf, 0) == 1 && ts_maxflow_is_sink(mf, 1) == 1);
-    CHECK(ts_maxflow_is_sink(mf, 2) == 0);
-    ts_maxflow_free(mf);
+    CHECK(ts__maxflow_is_sink(mf, 0) == 1 && ts__maxflow_is_sink(mf, 1) == 1);
+    CHECK(ts__maxflow_is_sink(mf, 2) == 0);
+    ts__maxflow_free(mf);
 }
 
 static void test_bad_arguments(void)
 {
-    ts_maxflow *mf = ts_maxflow_new(2, 0);
-    CHECK(ts_maxflow_add_tweights(mf, 2, 1, 1) == -1);
-    CHECK(ts_maxflow_add_tweights(mf, 0, -1, 1) == -1);
-    CHECK(ts_maxflow_add_tweights(mf, 0, 1, NAN) == -1);
-    CHECK(ts_maxflow_add_edge(mf, 0, 5, 1, 1) == -1);
-    CHECK(ts_maxflow_add_edge(mf, 0, 1, -0.5, 1) == -1);
-    CHECK(ts_maxflow_add_edge(mf, 0, 1, 1, NAN) == -1);
-    ts_maxflow_free(mf);
-    ts_maxflow_free(NULL);
-    CHECK(ts_maxflow_new((size_t)UINT32_MAX, 0) == NULL);
+    ts_maxflow *mf = ts__maxflow_new(2, 0);
+    CHECK(ts__maxflow_add_tweights(mf, 2, 1, 1) == -1);
+    CHECK(ts__maxflow_add_tweights(mf, 0, -1, 1) == -1);
+    CHECK(ts__maxflow_add_tweights(mf, 0, 1, NAN) == -1);
+    CHECK(ts__maxflow_add_edge(mf, 0, 5, 1, 1) == -1);
+    CHECK(ts__maxflow_add_edge(mf, 0, 1, -0.5, 1) == -1);
+    CHECK(ts__maxflow_add_edge(mf, 0, 1, 1, NAN) == -1);
+    ts__maxflow_free(mf);
+    ts__maxflow_free(NULL);
+    CHECK(ts__maxflow_new((size_t)UINT32_MAX, 0) == NULL);
 }
 
 /* ---- infinite capacities ---- */

@@ -23,7 +23,7 @@ static void test_edt_brute_force(void)
         for (y = 0; y < w * h; y++)
             m[y] = th_uniform(&s) < density;
         ts_ctx_set_threads(ctx, 1 + rep % 3);
-        CHECK(ts_distance_transform(ctx, m, w, h, d) == TS_OK);
+        CHECK(ts__distance_transform(ctx, m, w, h, d) == TS_OK);
         for (y = 0; y < h && !bad; y++)
             for (x = 0; x < w; x++) {
                 double best = INFINITY;
@@ -66,17 +66,17 @@ static void test_profile_of_a_roof(void)
             }
         /* a nodata hole is ignored */
         TS_PIX(&dem, 3, 10) = NAN;
-        CHECK(ts_relief_profile_measure(ctx, &dem, mask, kind, 30, &prof) == TS_OK);
+        CHECK(ts__relief_profile_measure(ctx, &dem, mask, kind, 30, &prof) == TS_OK);
         CHECK(prof.valid && prof.max_d == 30);
         CHECK_NEAR(prof.level, 1000.0, 1e-9);
         for (d = 0; d <= 30; d++)
             CHECK_NEAR(prof.drop[d], 7.5 * d, 1e-6);
-        ts_relief_profile_free(&prof);
+        ts__relief_profile_free(&prof);
         /* no such feature: not valid, not an error */
-        CHECK(ts_relief_profile_measure(ctx, &dem, mask, kind == TS_RIDGE ? TS_VALLEY : TS_RIDGE,
-                                        30, &prof) == TS_OK);
+        CHECK(ts__relief_profile_measure(ctx, &dem, mask, kind == TS_RIDGE ? TS_VALLEY : TS_RIDGE,
+                                         30, &prof) == TS_OK);
         CHECK(!prof.valid);
-        ts_relief_profile_free(&prof);
+        ts__relief_profile_free(&prof);
         free(mask);
         ts_raster_free(&dem);
     }
@@ -108,7 +108,7 @@ static void test_guide(void)
         for (x = 0; x < W; x++)
             cell_ex[y * W + x] = x < 20 ? 0 : x < 40 ? 1 : -1;
     nodata[30 * W + 5] = 1;
-    CHECK(ts_relief_guide(ctx, sk, TS_RIDGE, W, H, profs, 2, cell_ex, nodata, g) == TS_OK);
+    CHECK(ts__relief_guide(ctx, sk, TS_RIDGE, W, H, profs, 2, cell_ex, nodata, g) == TS_OK);
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
             double dist = abs(y - 25), want;
@@ -123,14 +123,14 @@ static void test_guide(void)
             CHECK_NEAR(got, want, 1e-3);
         }
     /* valleys: the land rises away from the strokes */
-    CHECK(ts_relief_guide(ctx, sk, TS_VALLEY, W, H, profs, 2, NULL, NULL, g) == TS_OK);
+    CHECK(ts__relief_guide(ctx, sk, TS_VALLEY, W, H, profs, 2, NULL, NULL, g) == TS_OK);
     CHECK_NEAR(g[35 * W + 10], 0.5 * ((500.0 + 100.0) + (2000.0 + 30.0)), 1e-3);
     /* an invalid profile is left out; none valid: no guide */
     profs[1].valid = 0;
-    CHECK(ts_relief_guide(ctx, sk, TS_RIDGE, W, H, profs, 2, NULL, NULL, g) == TS_OK);
+    CHECK(ts__relief_guide(ctx, sk, TS_RIDGE, W, H, profs, 2, NULL, NULL, g) == TS_OK);
     CHECK_NEAR(g[35 * W + 50], 500.0 - 100.0, 1e-3);
     profs[0].valid = 0;
-    CHECK(ts_relief_guide(ctx, sk, TS_RIDGE, W, H, profs, 2, NULL, NULL, g) == TS_OK);
+    CHECK(ts__relief_guide(ctx, sk, TS_RIDGE, W, H, profs, 2, NULL, NULL, g) == TS_OK);
     CHECK(isnan(g[25 * W + 10]));
     for (d = 0; d < 2; d++)
         free(profs[d].drop);

@@ -304,7 +304,7 @@ static void test_errors(void)
     a[0] = INFINITY;
     CHECK(ts_seam_graphcut(ctx, &old, &patch, con, labels, &cost) == TS_ERR_ARG);
     a[0] = 0.0f;
-    /* ts_clear: a good call after a failed one has an empty message */
+    /* ts__clear: a good call after a failed one has an empty message */
     CHECK(ts_seam_graphcut(ctx, &old, &patch, con, labels, NULL) == TS_OK);
     CHECK(ts_ctx_status(ctx) == TS_OK && strcmp(ts_ctx_message(ctx), "") == 0);
     ts_ctx_free(ctx);

@@ -1,6 +1,6 @@
 /*
  * test_tps.c - thin-plate spline fit, bending energy and raster warp
- * (algorithms/src/tps.c): interpolation, affine reproduction, rigid and
+ * (algorithms/src/sketch/tps.c): interpolation, affine reproduction, rigid and
  * scale behaviour of the bending energy, special cases and errors, and a
  * slow oracle (naive Gauss-Jordan on the unnormalised system).
  *
@@ -49,12 +49,12 @@ static void test_interpolates_control_points(void)
             double sx[NMAX], sy[NMAX], dx[NMAX], dy[NMAX];
             ts_tps t;
             random_config(&rng, n, 64.0, 1.0, 6.0, sx, sy, dx, dy);
-            CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+            CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t) == TS_OK);
             CHECK(t.n == n);
             CHECK(t.bending >= 0.0 && isfinite(t.bending));
             for (i = 0; i < n; i++) {
                 double ox, oy;
-                ts_tps_map(&t, sx[i], sy[i], &ox, &oy);
+                ts__tps_map(&t, sx[i], sy[i], &ox, &oy);
                 CHECK_NEAR(ox, dx[i], 1e-9);
                 CHECK_NEAR(oy, dy[i], 1e-9);
             }
@@ -68,10 +68,10 @@ static void test_interpolates_control_points(void)
             sx[i] += 5000.0;
             sy[i] -= 3000.0;
         }
-        CHECK(ts_tps_fit(ctx, 8, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+        CHECK(ts__tps_fit(ctx, 8, sx, sy, dx, dy, 0.0, &t) == TS_OK);
         for (i = 0; i < 8; i++) {
             double ox, oy;
-            ts_tps_map(&t, sx[i], sy[i], &ox, &oy);
+            ts__tps_map(&t, sx[i], sy[i], &ox, &oy);
             CHECK_NEAR(ox, dx[i], 1e-9);
             CHECK_NEAR(oy, dy[i], 1e-9);
         }
@@ -97,12 +97,12 @@ static void test_affine_reproduced(void)
             dx[i] = A[0] + A[1] * sx[i] + A[2] * sy[i];
             dy[i] = A[3] + A[4] * sx[i] + A[5] * sy[i];
         }
-        CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+        CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t) == TS_OK);
         CHECK_MSG(t.bending < 1e-9, "bending %g, n %d", t.bending, n);
         for (k = 0; k < 100; k++) {
             double x = 200.0 * th_uniform(&rng) - 70.0, y = 200.0 * th_uniform(&rng) - 70.0;
             double ox, oy;
-            ts_tps_map(&t, x, y, &ox, &oy);
+            ts__tps_map(&t, x, y, &ox, &oy);
             CHECK_NEAR(ox, A[0] + A[1] * x + A[2] * y, 1e-9);
             CHECK_NEAR(oy, A[3] + A[4] * x + A[5] * y, 1e-9);
         }
@@ -131,22 +131,22 @@ static void test_bending_rigid_invariance(void)
         int n = 4 + rep % 10; /* n = 3 is always affine: bending 0 */
         ts_tps t0, t1, t2;
         random_config(&rng, n, 64.0, 2.0, 8.0, sx, sy, dx, dy);
-        CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t0) == TS_OK);
+        CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t0) == TS_OK);
         CHECK(t0.bending > 1e-6);
         /* the whole configuration moved rigidly */
         rigid(sx, sy, n, 0.7 + rep, 31.0, -17.0);
         rigid(dx, dy, n, 0.7 + rep, 31.0, -17.0);
-        CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t1) == TS_OK);
+        CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t1) == TS_OK);
         CHECK_MSG(fabs(t1.bending - t0.bending) <= 1e-9 * t0.bending, "%.17g vs %.17g",
                   t1.bending, t0.bending);
         /* target moved on its own: the same map up to a rigid motion */
         rigid(dx, dy, n, -2.1, 400.0, 9.0);
-        CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t2) == TS_OK);
+        CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t2) == TS_OK);
         CHECK_MSG(fabs(t2.bending - t0.bending) <= 1e-9 * t0.bending, "%.17g vs %.17g",
                   t2.bending, t0.bending);
         for (i = 0; i < n; i++) { /* still interpolating after the move */
             double ox, oy;
-            ts_tps_map(&t2, sx[i], sy[i], &ox, &oy);
+            ts__tps_map(&t2, sx[i], sy[i], &ox, &oy);
             CHECK_NEAR(ox, dx[i], 1e-9);
             CHECK_NEAR(oy, dy[i], 1e-9);
         }
@@ -164,18 +164,18 @@ static void test_bending_scaling(void)
     ts_tps t0, t1, t2;
     int i, n = 7;
     random_config(&rng, n, 64.0, 2.0, 8.0, sx, sy, dx, dy);
-    CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t0) == TS_OK);
+    CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t0) == TS_OK);
     for (i = 0; i < n; i++) {
         sx[i] *= s;
         sy[i] *= s;
     }
-    CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t1) == TS_OK);
+    CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t1) == TS_OK);
     CHECK_NEAR(t1.bending * s * s / t0.bending, 1.0, 1e-9);
     for (i = 0; i < n; i++) {
         dx[i] *= s;
         dy[i] *= s;
     }
-    CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t2) == TS_OK);
+    CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t2) == TS_OK);
     CHECK_NEAR(t2.bending / t0.bending, 1.0, 1e-9);
     ts_ctx_free(ctx);
 }
@@ -194,7 +194,7 @@ static void test_bending_monotone_in_displacement(void)
         }
         dx[4] += 0.8 * step;
         dy[4] += 0.3 * step;
-        CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+        CHECK(ts__tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
         if (step == 0)
             CHECK(t.bending < 1e-12);
         else
@@ -215,14 +215,14 @@ static void test_lambda_smooths(void)
     random_config(&rng, n, 64.0, 2.0, 8.0, sx, sy, dx, dy);
     for (k = 0; k < 5; k++) {
         ts_tps t;
-        CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, lambdas[k], &t) == TS_OK);
+        CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, lambdas[k], &t) == TS_OK);
         CHECK_MSG(t.bending <= prev * (1.0 + 1e-12), "lambda %g: %g > %g", lambdas[k],
                   t.bending, prev);
         prev = t.bending;
         if (k == 4)
             for (i = 0; i < n; i++) {
                 double ox, oy;
-                ts_tps_map(&t, sx[i], sy[i], &ox, &oy);
+                ts__tps_map(&t, sx[i], sy[i], &ox, &oy);
                 err = fmax(err, hypot(ox - dx[i], oy - dy[i]));
             }
     }
@@ -297,7 +297,7 @@ static void test_against_naive_solver(void)
         ts_tps t;
         /* well conditioned: spread-out points in a few-cell box */
         random_config(&rng, n, 8.0, 1.0, 1.5, sx, sy, dx, dy);
-        CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, lambda, &t) == TS_OK);
+        CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, lambda, &t) == TS_OK);
         if (naive_tps(n, sx, sy, dx, lambda, wx, ax) || naive_tps(n, sx, sy, dy, lambda, wy, ay)) {
             CHECK_MSG(0, "oracle hit a zero pivot (rep %d)", rep);
             continue;
@@ -305,7 +305,7 @@ static void test_against_naive_solver(void)
         for (k = 0; k < 50; k++) {
             double x = 16.0 * th_uniform(&rng) - 4.0, y = 16.0 * th_uniform(&rng) - 4.0;
             double ox, oy;
-            ts_tps_map(&t, x, y, &ox, &oy);
+            ts__tps_map(&t, x, y, &ox, &oy);
             CHECK_NEAR(ox, naive_eval(n, sx, sy, wx, ax, x, y), 1e-9);
             CHECK_NEAR(oy, naive_eval(n, sx, sy, wy, ay, x, y), 1e-9);
         }
@@ -330,12 +330,12 @@ static void test_special_cases(void)
     /* n = 1: translation */
     {
         double sx = 3.0, sy = 4.0, dx = 10.5, dy = -2.0;
-        CHECK(ts_tps_fit(ctx, 1, &sx, &sy, &dx, &dy, 0.0, &t) == TS_OK);
+        CHECK(ts__tps_fit(ctx, 1, &sx, &sy, &dx, &dy, 0.0, &t) == TS_OK);
         CHECK(t.bending == 0.0);
-        ts_tps_map(&t, 3.0, 4.0, &ox, &oy);
+        ts__tps_map(&t, 3.0, 4.0, &ox, &oy);
         CHECK_NEAR(ox, 10.5, 1e-12);
         CHECK_NEAR(oy, -2.0, 1e-12);
-        ts_tps_map(&t, -100.0, 7.0, &ox, &oy);
+        ts__tps_map(&t, -100.0, 7.0, &ox, &oy);
         CHECK_NEAR(ox, -92.5, 1e-12);
         CHECK_NEAR(oy, 1.0, 1e-12);
     }
@@ -343,20 +343,20 @@ static void test_special_cases(void)
      * then a shift by (5, 0) */
     {
         double sx[2] = {1.0, 3.0}, sy[2] = {1.0, 1.0}, dx[2] = {6.0, 6.0}, dy[2] = {1.0, 5.0};
-        CHECK(ts_tps_fit(ctx, 2, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+        CHECK(ts__tps_fit(ctx, 2, sx, sy, dx, dy, 0.0, &t) == TS_OK);
         CHECK(t.bending == 0.0);
-        ts_tps_map(&t, 1.0, 1.0, &ox, &oy);
+        ts__tps_map(&t, 1.0, 1.0, &ox, &oy);
         CHECK_NEAR(ox, 6.0, 1e-12);
         CHECK_NEAR(oy, 1.0, 1e-12);
-        ts_tps_map(&t, 3.0, 1.0, &ox, &oy);
+        ts__tps_map(&t, 3.0, 1.0, &ox, &oy);
         CHECK_NEAR(ox, 6.0, 1e-12);
         CHECK_NEAR(oy, 5.0, 1e-12);
-        ts_tps_map(&t, 1.0, 2.0, &ox, &oy); /* (0, 1) -> 2 * (-1, 0) */
+        ts__tps_map(&t, 1.0, 2.0, &ox, &oy); /* (0, 1) -> 2 * (-1, 0) */
         CHECK_NEAR(ox, 4.0, 1e-12);
         CHECK_NEAR(oy, 1.0, 1e-12);
         sx[1] = sx[0];
         sy[1] = sy[0];
-        CHECK(ts_tps_fit(ctx, 2, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
+        CHECK(ts__tps_fit(ctx, 2, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
     }
     ts_ctx_free(ctx);
 }
@@ -368,35 +368,35 @@ static void test_errors(void)
     double sx[4] = {0, 1, 2, 3}, sy[4] = {0, 2, 4, 6}, dx[4] = {0, 1, 2, 3}, dy[4] = {1, 0, 1, 0};
     double ox, oy, big[17] = {0};
     /* collinear */
-    CHECK(ts_tps_fit(ctx, 4, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 4, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
     CHECK(strstr(ts_ctx_message(ctx), "collinear") != NULL);
     CHECK(t.n == 0 && isinf(t.bending));
-    ts_tps_map(&t, 2.0, 3.0, &ox, &oy); /* identity after a failure */
+    ts__tps_map(&t, 2.0, 3.0, &ox, &oy); /* identity after a failure */
     CHECK(ox == 2.0 && oy == 3.0);
-    CHECK(ts_tps_fit(ctx, 3, sx, sy, dx, dy, 1.0, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 3, sx, sy, dx, dy, 1.0, &t) == TS_ERR_ARG);
     /* all coinciding */
-    CHECK(ts_tps_fit(ctx, 3, big, big, dx, dy, 0.0, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 3, big, big, dx, dy, 0.0, &t) == TS_ERR_ARG);
     /* non-finite input */
     sy[3] = 1.0; /* no longer collinear */
-    CHECK(ts_tps_fit(ctx, 4, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_fit(ctx, 4, sx, sy, dx, dy, 0.0, &t) == TS_OK);
     dx[2] = NAN;
-    CHECK(ts_tps_fit(ctx, 4, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 4, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
     dx[2] = 2.0;
     sx[1] = INFINITY;
-    CHECK(ts_tps_fit(ctx, 4, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 4, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
     sx[1] = 1.0;
-    CHECK(ts_tps_fit(ctx, 4, sx, sy, dx, dy, NAN, &t) == TS_ERR_ARG);
-    CHECK(ts_tps_fit(ctx, 4, sx, sy, dx, dy, -1.0, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 4, sx, sy, dx, dy, NAN, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 4, sx, sy, dx, dy, -1.0, &t) == TS_ERR_ARG);
     /* n out of range */
-    CHECK(ts_tps_fit(ctx, 0, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
-    CHECK(ts_tps_fit(ctx, 17, big, big, big, big, 0.0, &t) == TS_ERR_ARG);
-    CHECK(ts_tps_fit(ctx, 4, NULL, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 0, sx, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 17, big, big, big, big, 0.0, &t) == TS_ERR_ARG);
+    CHECK(ts__tps_fit(ctx, 4, NULL, sy, dx, dy, 0.0, &t) == TS_ERR_ARG);
     /* repeated source point with lambda = 0: singular; lambda > 0 copes */
     {
         double rx[4] = {0, 10, 0, 0}, ry[4] = {0, 0, 10, 10}, qx[4] = {0, 10, 0, 1},
                qy[4] = {0, 0, 10, 11};
-        CHECK(ts_tps_fit(ctx, 4, rx, ry, qx, qy, 0.0, &t) == TS_ERR_NUMERIC);
-        CHECK(ts_tps_fit(ctx, 4, rx, ry, qx, qy, 0.5, &t) == TS_OK);
+        CHECK(ts__tps_fit(ctx, 4, rx, ry, qx, qy, 0.0, &t) == TS_ERR_NUMERIC);
+        CHECK(ts__tps_fit(ctx, 4, rx, ry, qx, qy, 0.5, &t) == TS_OK);
     }
     ts_ctx_free(ctx);
 }
@@ -428,9 +428,9 @@ static void test_warp_identity(void)
     ts_tps t;
     int x, y, bad = 0;
     TS_PIX(&src, 5, 6) = NAN;
-    CHECK(ts_tps_fit(ctx, 4, sx, sy, sx, sy, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_fit(ctx, 4, sx, sy, sx, sy, 0.0, &t) == TS_OK);
     CHECK(ts_raster_alloc(ctx, 23, 17, &out) == TS_OK);
-    CHECK(ts_tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
+    CHECK(ts__tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
     for (y = 0; y < 17; y++)
         for (x = 0; x < 23; x++)
             bad += !same_cell(TS_PIX(&out, x, y), TS_PIX(&src, x, y));
@@ -438,7 +438,7 @@ static void test_warp_identity(void)
     /* offset by whole cells: a sub-window */
     ts_raster_free(&out);
     CHECK(ts_raster_alloc(ctx, 10, 8, &out) == TS_OK);
-    CHECK(ts_tps_warp(ctx, &t, &src, 4.0, 3.0, &out) == TS_OK);
+    CHECK(ts__tps_warp(ctx, &t, &src, 4.0, 3.0, &out) == TS_OK);
     bad = 0;
     for (y = 0; y < 8; y++)
         for (x = 0; x < 10; x++)
@@ -456,9 +456,9 @@ static void test_warp_integer_shift(void)
     double px = 10.0, py = 7.0, qx = 13.0, qy = 5.0; /* T(x, y) = (x + 3, y - 2) */
     ts_tps t;
     int x, y, bad = 0, nan_ok = 1;
-    CHECK(ts_tps_fit(ctx, 1, &px, &py, &qx, &qy, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_fit(ctx, 1, &px, &py, &qx, &qy, 0.0, &t) == TS_OK);
     CHECK(ts_raster_alloc(ctx, 20, 15, &out) == TS_OK);
-    CHECK(ts_tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
+    CHECK(ts__tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
     for (y = 0; y < 15; y++)
         for (x = 0; x < 20; x++) {
             int xs = x + 3, ys = y - 2;
@@ -482,9 +482,9 @@ static void test_warp_half_cells_and_nodata(void)
     ts_tps t;
     int x, y;
     /* half a cell along x: mean of the two neighbours */
-    CHECK(ts_tps_fit(ctx, 1, &px, &py, &qx, &qy, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_fit(ctx, 1, &px, &py, &qx, &qy, 0.0, &t) == TS_OK);
     CHECK(ts_raster_alloc(ctx, 12, 10, &out) == TS_OK);
-    CHECK(ts_tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
+    CHECK(ts__tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
     for (y = 0; y < 10; y++) {
         for (x = 0; x < 11; x++) {
             double m = 0.5 * ((double)TS_PIX(&src, x, y) + TS_PIX(&src, x + 1, y));
@@ -495,8 +495,8 @@ static void test_warp_half_cells_and_nodata(void)
     /* half a cell along both axes: mean of four; NaN spreads to the four
      * outputs whose support holds it */
     TS_PIX(&src, 6, 4) = NAN;
-    CHECK(ts_tps_fit(ctx, 1, &px, &py, &qx, &ry, 0.0, &t) == TS_OK);
-    CHECK(ts_tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
+    CHECK(ts__tps_fit(ctx, 1, &px, &py, &qx, &ry, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
     for (y = 0; y < 9; y++)
         for (x = 0; x < 11; x++) {
             int touches = (x == 5 || x == 6) && (y == 3 || y == 4);
@@ -510,20 +510,20 @@ static void test_warp_half_cells_and_nodata(void)
         }
     /* a warp that lands left of the first centre */
     qx = -0.6;
-    CHECK(ts_tps_fit(ctx, 1, &px, &py, &qx, &py, 0.0, &t) == TS_OK);
-    CHECK(ts_tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
+    CHECK(ts__tps_fit(ctx, 1, &px, &py, &qx, &py, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_warp(ctx, &t, &src, 0.0, 0.0, &out) == TS_OK);
     CHECK(isnan(TS_PIX(&out, 0, 0)));
     CHECK(!isnan(TS_PIX(&out, 1, 0)));
     /* bad arguments */
-    CHECK(ts_tps_warp(ctx, &t, &src, NAN, 0.0, &out) == TS_ERR_ARG);
-    CHECK(ts_tps_warp(ctx, NULL, &src, 0.0, 0.0, &out) == TS_ERR_ARG);
+    CHECK(ts__tps_warp(ctx, &t, &src, NAN, 0.0, &out) == TS_ERR_ARG);
+    CHECK(ts__tps_warp(ctx, NULL, &src, 0.0, 0.0, &out) == TS_ERR_ARG);
     ts_raster_free(&out);
     ts_raster_free(&src);
     ts_ctx_free(ctx);
 }
 
 /* A curved warp: parallel (large output) equals the serial path, and the
- * warp agrees with direct bilinear sampling through ts_tps_map. */
+ * warp agrees with direct bilinear sampling through ts__tps_map. */
 static void test_warp_curved_parallel(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -533,12 +533,12 @@ static void test_warp_curved_parallel(void)
     ts_tps t;
     int x, y, bad = 0;
     ts_ctx_set_threads(ctx, 4);
-    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
     CHECK(t.bending > 0.0);
     CHECK(ts_raster_alloc(ctx, 300, 260, &big) == TS_OK);
     CHECK(ts_raster_alloc(ctx, 300, 20, &small) == TS_OK);
-    CHECK(ts_tps_warp(ctx, &t, &src, 0.0, 0.0, &big) == TS_OK);
-    CHECK(ts_tps_warp(ctx, &t, &src, 0.0, 100.0, &small) == TS_OK);
+    CHECK(ts__tps_warp(ctx, &t, &src, 0.0, 0.0, &big) == TS_OK);
+    CHECK(ts__tps_warp(ctx, &t, &src, 0.0, 100.0, &small) == TS_OK);
     for (y = 0; y < 20; y++)
         for (x = 0; x < 300; x++)
             bad += !same_cell(TS_PIX(&small, x, y), TS_PIX(&big, x, y + 100));
@@ -547,7 +547,7 @@ static void test_warp_curved_parallel(void)
         for (x = 0; x < 300; x += 5) {
             double px, py, fx, fy, tx, ty, v;
             int i0, j0;
-            ts_tps_map(&t, x + 0.5, y + 0.5, &px, &py);
+            ts__tps_map(&t, x + 0.5, y + 0.5, &px, &py);
             fx = px - 0.5;
             fy = py - 0.5;
             if (fx < 0.0 || fy < 0.0 || fx >= 299.0 || fy >= 259.0) {
@@ -568,7 +568,7 @@ static void test_warp_curved_parallel(void)
     ts_ctx_free(ctx);
 }
 
-/* The analytic Jacobian against central differences of ts_tps_map. */
+/* The analytic Jacobian against central differences of ts__tps_map. */
 static void test_jacobian_finite_differences(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -579,15 +579,15 @@ static void test_jacobian_finite_differences(void)
         int n = 3 + rep % 8;
         ts_tps t;
         random_config(&rng, n, 40.0, 2.0, 4.0, sx, sy, dx, dy);
-        CHECK(ts_tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+        CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t) == TS_OK);
         for (k = 0; k < 20; k++) {
             double x = -5.0 + 50.0 * th_uniform(&rng), y = -5.0 + 50.0 * th_uniform(&rng);
             double h = 1e-5, ax, ay, bx, by, cx, cy, ex, ey;
-            ts_tps_jacobian(&t, x, y, j);
-            ts_tps_map(&t, x + h, y, &ax, &ay);
-            ts_tps_map(&t, x - h, y, &bx, &by);
-            ts_tps_map(&t, x, y + h, &cx, &cy);
-            ts_tps_map(&t, x, y - h, &ex, &ey);
+            ts__tps_jacobian(&t, x, y, j);
+            ts__tps_map(&t, x + h, y, &ax, &ay);
+            ts__tps_map(&t, x - h, y, &bx, &by);
+            ts__tps_map(&t, x, y + h, &cx, &cy);
+            ts__tps_map(&t, x, y - h, &ex, &ey);
             CHECK_NEAR(j[0], (ax - bx) / (2 * h), 1e-5 * (1 + fabs(j[0])));
             CHECK_NEAR(j[2], (ay - by) / (2 * h), 1e-5 * (1 + fabs(j[2])));
             CHECK_NEAR(j[1], (cx - ex) / (2 * h), 1e-5 * (1 + fabs(j[1])));
@@ -616,14 +616,14 @@ static void test_folds(void)
         dx[i] = c * sx[i] - s * sy[i] + 3;
         dy[i] = s * sx[i] + c * sy[i] - 2;
     }
-    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
-    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    CHECK(ts__tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(!ts__tps_folds(&t, 0, 0, 12, 13, 2.5));
     /* a mild bend of one arm */
     memcpy(dx, sx, sizeof dx);
     memcpy(dy, sy, sizeof dy);
     dy[1] = 2.0;
-    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
-    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    CHECK(ts__tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(!ts__tps_folds(&t, 0, 0, 12, 13, 2.5));
     /* arms 1 and 2 swapped: the map turns over */
     memcpy(dx, sx, sizeof dx);
     memcpy(dy, sy, sizeof dy);
@@ -631,31 +631,31 @@ static void test_folds(void)
     dy[1] = 10;
     dx[2] = 10;
     dy[2] = 0;
-    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
-    CHECK(ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    CHECK(ts__tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_folds(&t, 0, 0, 12, 13, 2.5));
     /* a mirror (y flipped) is orientation-reversing everywhere: no fold */
     for (i = 0; i < 5; i++) {
         dx[i] = sx[i];
         dy[i] = -sy[i];
     }
-    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
-    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
+    CHECK(ts__tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(!ts__tps_folds(&t, 0, 0, 12, 13, 2.5));
     /* uniform scale 2: areas times 4 */
     for (i = 0; i < 5; i++) {
         dx[i] = 2 * sx[i];
         dy[i] = 2 * sy[i];
     }
-    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
-    CHECK(ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
-    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 4.5));
+    CHECK(ts__tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_folds(&t, 0, 0, 12, 13, 2.5));
+    CHECK(!ts__tps_folds(&t, 0, 0, 12, 13, 4.5));
     /* 3 times along x, a third along y: the same area, too anisotropic */
     for (i = 0; i < 5; i++) {
         dx[i] = 3 * sx[i];
         dy[i] = sy[i] / 3;
     }
-    CHECK(ts_tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
-    CHECK(ts_tps_folds(&t, 0, 0, 12, 13, 2.5));
-    CHECK(!ts_tps_folds(&t, 0, 0, 12, 13, 9.5));
+    CHECK(ts__tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
+    CHECK(ts__tps_folds(&t, 0, 0, 12, 13, 2.5));
+    CHECK(!ts__tps_folds(&t, 0, 0, 12, 13, 9.5));
     ts_ctx_free(ctx);
 }
 

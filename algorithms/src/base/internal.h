@@ -1,0 +1,174 @@
+/*
+ * internal.h - private helpers of libterrasynth: the context layout, error
+ * and progress helpers, a tiny parallel-for.  Not installed.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#ifndef TS_INTERNAL_H
+#define TS_INTERNAL_H
+
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "terrasynth.h"
+
+/* The worker threads of a context (thread_pool.c), started on first use;
+ * the slot's mutex guards that start. */
+typedef struct ts__pool ts__pool;
+typedef struct ts__pool_slot {
+    pthread_mutex_t mu;
+    ts__pool *pool;
+} ts__pool_slot;
+
+struct ts_ctx {
+    ts_status status;
+    char message[1024];
+    int input; /* the failing input (e.g. exemplar index), or -1 */
+    ts_progress_fn progress;
+    void *progress_user;
+    double prog_lo, prog_hi; /* current sub-range of the overall progress */
+    uint64_t seed;
+    int threads;
+    atomic_int cancel_own;  /* set when the progress callback asked to stop */
+    atomic_int *cancel;     /* the flag this context obeys: its own, or its parent's */
+    ts__pool_slot pool_own; /* the threads of a context of its own */
+    ts__pool_slot *pool;    /* the threads it uses: its own, or its parent's */
+};
+
+/* A context for a worker of `parent`'s call (caller frees with
+ * ts_ctx_free, before the parent): the parent's seed, threads and thread
+ * pool, no progress callback, and the parent's cancel flag, so a cancel reaches the worker at its
+ * next ts__progress or ts__cancelled, and ts__cancel from the worker stops the others.  NULL if out
+ * of memory. */
+ts_ctx *ts__ctx_child(ts_ctx *parent);
+/* Has the call been cancelled (by the callback, or by ts__cancel)? */
+int ts__cancelled(const ts_ctx *ctx);
+/* Ask every context sharing ctx's flag to stop (e.g. a worker failed). */
+void ts__cancel(ts_ctx *ctx);
+/* TS_OK, or the cancelled failure recorded on ctx when the call has been
+ * cancelled (after parallel work whose workers stopped early). */
+ts_status ts__check_cancel(ts_ctx *ctx);
+
+/* Record a failure: "<stage>: <formatted text>"; returns status. */
+ts_status ts__fail(ts_ctx *ctx, ts_status status, const char *stage, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+/* The same, naming the failing input (an exemplar index, 0-based) that
+ * ts_ctx_failed_input reports.  A plain ts__fail that wraps a failure keeps
+ * the input it named. */
+ts_status ts__fail_input(ts_ctx *ctx, ts_status status, int input, const char *stage,
+                         const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 5, 6)))
+#endif
+    ;
+/* Clear the status at the start of a public call. */
+void ts__clear(ts_ctx *ctx);
+
+/* Report progress `frac` (0..1) of the current sub-range; returns
+ * TS_ERR_CANCELLED (message set) if the callback asked to stop. */
+ts_status ts__progress(ts_ctx *ctx, double frac, const char *msg);
+
+/* Narrow the progress range to [lo, hi] of the current range; restore
+ * with ts__progress_pop(ctx, saved). */
+typedef struct ts_progress_saved {
+    double lo, hi;
+} ts_progress_saved;
+ts_progress_saved ts__progress_push(ts_ctx *ctx, double lo, double hi);
+void ts__progress_pop(ts_ctx *ctx, ts_progress_saved saved);
+
+/* Number of worker threads to use for `work_items` independent items. */
+int ts__thread_count(const ts_ctx *ctx, size_t work_items);
+
+/* Run fn(arg, begin, end) over [0, n) split into contiguous chunks, one
+ * per thread (the caller's thread takes the first).  Results must not
+ * depend on the split.  A thread that cannot be started has its chunk run
+ * on the calling thread, so this cannot fail. */
+typedef void (*ts_range_fn)(void *arg, size_t begin, size_t end);
+void ts__parallel_for(const ts_ctx *ctx, size_t n, ts_range_fn fn, void *arg);
+
+/* thread_pool.c: fn over [0, n) in nt chunks on the slot's pool (started,
+ * or grown to nt - 1 workers, as needed); the caller runs the first chunk
+ * and helps with queued ones until its own are done.  Cannot fail: without
+ * threads or memory the chunks run on the caller. */
+void ts__pool_slot_init(ts__pool_slot *slot);
+void ts__pool_slot_destroy(ts__pool_slot *slot); /* joins the workers */
+void ts__pool_for(ts__pool_slot *slot, int nt, size_t n, ts_range_fn fn, void *arg);
+int ts__pool_workers(ts__pool_slot *slot); /* workers started so far */
+
+/* The synthesis lengths in whole cells, checked (patch 8..1024, overlap
+ * 2..512 and smaller); fails for lengths still in metres. */
+ts_status ts__synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int *overlap);
+
+/* A cell flag of the fill only (beside TS_CELL_NODATA and TS_CELL_FIXED):
+ * a window whose centre is such a cell may take exemplar windows with main
+ * features (see ts__fill.exemplar_features). */
+#define TS__CELL_FEATURE 4
+
+/* Everything the non-feature fill (nonfeature_placement.c) and the
+ * candidates' costs read: the caller's parameters and constraints, and
+ * what a sketch adds (synth.c builds it). */
+typedef struct ts__fill {
+    ts_synth_params s;               /* lengths in whole cells */
+    const unsigned char *cell_flags; /* TS_CELL_* and TS__CELL_FEATURE, or NULL */
+    const int32_t *cell_exemplar;    /* per cell: its region's exemplar or -1; or NULL */
+    const float *heights;            /* wanted heights (NaN = none), or NULL */
+    double alpha_h;
+    /* the relief a sketch implies (NaN = none), or NULL: candidates gain
+     * alpha_r * RMS(patch - guide) like the height constraints */
+    const float *guide;
+    double alpha_r;
+    /* per exemplar a mask of its main feature cells (or NULL): away from
+     * TS__CELL_FEATURE cells the fill leaves out the quarter of the
+     * exemplar's windows with the most such cells in their middle half
+     * (Zhou et al. section 4.2: non-feature patches from featureless
+     * windows) */
+    const unsigned char *const *exemplar_features;
+} ts__fill;
+
+/* The fill from the caller's parameters (lengths already in cells) and
+ * constraints (may be NULL); nothing a sketch adds. */
+ts__fill ts__fill_make(const ts_synth_params *p, const ts_synth_constraints *c);
+
+/* The non-feature fill (nonfeature_placement.c): ts_synth_patches for a
+ * checked ts__fill. */
+ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars, const ts__fill *f,
+                       ts_raster *out, ts_synth_maps *maps);
+
+/* Matcher restriction (match_ssd.c): `allowed` (nx * ny positions of the
+ * matcher, copied; NULL clears) marks the windows a restricted query may
+ * return; ts__matcher_restrict(m, 1) makes the following queries see only
+ * those (when any is allowed), (m, 0) all of them again; it returns whether
+ * the matcher was restricted before. */
+ts_status ts__matcher_set_allowed(ts_ctx *ctx, ts_matcher *m, const unsigned char *allowed);
+int ts__matcher_restrict(ts_matcher *m, int on);
+
+/* Seconds on a monotonic clock (for stage timings). */
+double ts__now(void);
+
+/* Overflow-checked allocation helpers (NULL on overflow or failure). */
+void *ts__malloc_array(size_t n, size_t size);
+void *ts__calloc_array(size_t n, size_t size);
+
+#define TS_PI 3.14159265358979323846
+#define TS_MIN(a, b) ((a) < (b) ? (a) : (b))
+#define TS_MAX(a, b) ((a) > (b) ? (a) : (b))
+
+/* Ground size of a cell step (dx, dy in cells) starting on row y. */
+static inline double ts_step_length(const ts_grid_metrics *m, int y, int ddx, int ddy)
+{
+    double wx, wy;
+    if (!m)
+        return (ddx && ddy) ? 1.4142135623730951 : 1.0;
+    wx = m->dx[y] * ddx;
+    wy = m->dy[y] * ddy;
+    return sqrt(wx * wx + wy * wy);
+}
+
+#endif

@@ -1,0 +1,425 @@
+/*
+ * params.c - parameter descriptor tables, one per stage, and the generic
+ * parse/format/validate code that every front end (CLI, GDAL driver
+ * recipes and open options, QGIS provider) goes through.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <ctype.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "internal.h"
+
+static const ts_param_desc ppa_desc[] = {
+    {"features", TS_PARAM_ENUM, TS_PPA_RIDGES, 0, 2, TS_UNIT_CELLS, "", "ridges|valleys|both",
+     "Which axes to extract.", offsetof(ts_ppa_params, features)},
+    {"profile_length", TS_PARAM_INT, 11, 3, 1001, TS_UNIT_CELLS, "cells", NULL,
+     "Length of the four profiles through each cell (odd); a target must dip on both sides "
+     "within half of it.",
+     offsetof(ts_ppa_params, profile_length)},
+    {"threshold", TS_PARAM_DOUBLE, 0.0, 0.0, 1e6, TS_UNIT_CELLS, "elevation units", NULL,
+     "Minimum dip on both sides of a profile, in elevation units (metres after unit conversion).",
+     offsetof(ts_ppa_params, threshold)},
+    {"threshold_fraction", TS_PARAM_DOUBLE, 0.0025, 0.0, 1.0, TS_UNIT_CELLS, "fraction", NULL,
+     "Minimum dip as a fraction of the DEM's elevation range; the larger of the two thresholds "
+     "applies.",
+     offsetof(ts_ppa_params, threshold_fraction)},
+    {"min_branch_length", TS_PARAM_LENGTH, 40, 0, 1e7, TS_UNIT_CELLS, "cells or m", NULL,
+     "Branches shorter than this are removed (branch reduction); a plain number is cells, "
+     "a number with suffix m is metres.",
+     offsetof(ts_ppa_params, min_branch_length)},
+};
+
+static const ts_param_desc synth_desc[] = {
+    {"patch_size", TS_PARAM_LENGTH, 64, 8, 1024, TS_UNIT_CELLS, "cells or m", NULL,
+     "Side of the square patches copied from the exemplars: a whole number of cells, or a "
+     "number with suffix m for metres (turned into cells at the output grid's ground "
+     "resolution; 8..1024 cells either way).",
+     offsetof(ts_synth_params, patch_size)},
+    {"overlap", TS_PARAM_LENGTH, 16, 2, 512, TS_UNIT_CELLS, "cells or m", NULL,
+     "Width shared by neighbouring patches, where seams are cut and smoothed: cells, or "
+     "metres with suffix m; smaller than the patch.",
+     offsetof(ts_synth_params, overlap)},
+    {"candidates", TS_PARAM_INT, 6, 1, 256, TS_UNIT_CELLS, "", NULL,
+     "Best SSD matches examined per patch position (k).", offsetof(ts_synth_params, candidates)},
+    {"order", TS_PARAM_ENUM, TS_ORDER_GROW, 0, 2, TS_UNIT_CELLS, "", "grow|raster|tree",
+     "Placement order: grow out from what is filled (with a sketch: its feature tree breadth "
+     "first), raster scan, or tree (= grow).",
+     offsetof(ts_synth_params, order)},
+    {"alpha_g", TS_PARAM_DOUBLE, 1.0, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Weight of the graph-cut seam cost against the SSD when choosing a candidate.",
+     offsetof(ts_synth_params, alpha_g)},
+    {"variety", TS_PARAM_DOUBLE, 0.1, 0.0, 10.0, TS_UNIT_CELLS, "fraction", NULL,
+     "Pick at random (seeded) among candidates whose cost is within this fraction of the best.",
+     offsetof(ts_synth_params, variety)},
+    {"coarse_factor", TS_PARAM_INT, 0, 0, 16, TS_UNIT_CELLS, "", NULL,
+     "Search on exemplars downsampled by this factor, then refine at full resolution "
+     "(1 = exhaustive full-resolution search; 0 = automatic: exemplars brought to at most "
+     "512 x 512 cells).",
+     offsetof(ts_synth_params, coarse_factor)},
+};
+
+static const ts_param_desc sketch_desc[] = {
+    {"mode", TS_PARAM_ENUM, TS_SKETCH_AUTO, 0, 2, TS_UNIT_CELLS, "", "ridges|valleys|auto",
+     "What the sketch draws: ridges (bright strokes), valleys (dark strokes), or auto.",
+     offsetof(ts_sketch_params, mode)},
+    {"alpha_d", TS_PARAM_DOUBLE, 1000.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the warp deformation cost c_d of feature patches.",
+     offsetof(ts_sketch_params, alpha_d)},
+    {"alpha_f", TS_PARAM_DOUBLE, 3.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the feature profile dissimilarity c_f of feature patches.",
+     offsetof(ts_sketch_params, alpha_f)},
+    {"alpha_s", TS_PARAM_DOUBLE, 0.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the path smoothness constraint c_s: crest (valleys: thalweg) heights along "
+     "the sketch's strokes bend less, within a feature patch and where it joins the placed "
+     "ones; larger gives smoother, gentler crests (0 = off).",
+     offsetof(ts_sketch_params, alpha_s)},
+    {"alpha_p", TS_PARAM_DOUBLE, 1.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the crest prominence c_p of feature patches: among the candidates that fit, "
+     "those whose crest (valleys: thalweg) stands out most across the stroke, an eighth of a "
+     "patch either side, so that sketched strokes read as main features (0 = off).",
+     offsetof(ts_sketch_params, alpha_p)},
+    {"alpha_r", TS_PARAM_DOUBLE, 0.5, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
+     "Weight of the relief guide: sketched ridges stand high and sketched valleys lie low, "
+     "falling away from the strokes as the exemplars' land falls away from their main "
+     "features (0 = off: the exemplars alone decide the heights).",
+     offsetof(ts_sketch_params, alpha_r)},
+    {"layout", TS_PARAM_DOUBLE, 1.0, 0.0, 1.0, TS_UNIT_CELLS, "fraction", NULL,
+     "How far the sketch sets the large-scale relief (scales above a third of a patch): "
+     "the land rises to sketched ridges and falls to sketched valleys as steeply, at that "
+     "scale, as the exemplars' land; smaller scales keep the patches' detail (0 = off).",
+     offsetof(ts_sketch_params, layout)},
+};
+
+static const char *const stage_names[] = {"ppa", "synth", "sketch", NULL};
+
+TS_API const char *const *ts_params_stages(void)
+{
+    return stage_names;
+}
+
+TS_API const ts_param_desc *ts_params_describe(const char *stage, size_t *n)
+{
+    if (stage && strcmp(stage, "ppa") == 0) {
+        *n = sizeof ppa_desc / sizeof ppa_desc[0];
+        return ppa_desc;
+    }
+    if (stage && strcmp(stage, "synth") == 0) {
+        *n = sizeof synth_desc / sizeof synth_desc[0];
+        return synth_desc;
+    }
+    if (stage && strcmp(stage, "sketch") == 0) {
+        *n = sizeof sketch_desc / sizeof sketch_desc[0];
+        return sketch_desc;
+    }
+    *n = 0;
+    return NULL;
+}
+
+static const ts_param_desc *find_desc(ts_ctx *ctx, const char *stage, const char *name)
+{
+    size_t i, n;
+    const ts_param_desc *d = ts_params_describe(stage, &n);
+    if (!d) {
+        ts__fail(ctx, TS_ERR_ARG, "params", "unknown stage '%s'", stage ? stage : "(null)");
+        return NULL;
+    }
+    for (i = 0; i < n; i++) {
+        /* accept snake_case and dashed-case */
+        const char *a = d[i].name, *b = name;
+        while (*a && *b && (*a == *b || (*a == '_' && *b == '-')))
+            a++, b++;
+        if (!*a && !*b)
+            return &d[i];
+    }
+    ts__fail(ctx, TS_ERR_ARG, stage, "unknown parameter '%s'", name);
+    return NULL;
+}
+
+/* Index of `word` in "a|b|c", or -1. */
+static int enum_index(const char *choices, const char *word)
+{
+    int idx = 0;
+    size_t wl = strlen(word);
+    const char *p = choices;
+    while (*p) {
+        const char *bar = strchr(p, '|');
+        size_t len = bar ? (size_t)(bar - p) : strlen(p);
+        if (len == wl && strncmp(p, word, len) == 0)
+            return idx;
+        idx++;
+        if (!bar)
+            break;
+        p = bar + 1;
+    }
+    return -1;
+}
+
+static int enum_word(const char *choices, int index, char *buf, size_t buflen)
+{
+    int idx = 0;
+    const char *p = choices;
+    while (*p) {
+        const char *bar = strchr(p, '|');
+        size_t len = bar ? (size_t)(bar - p) : strlen(p);
+        if (idx == index) {
+            snprintf(buf, buflen, "%.*s", (int)len, p);
+            return 0;
+        }
+        idx++;
+        if (!bar)
+            break;
+        p = bar + 1;
+    }
+    return -1;
+}
+
+static ts_status check_range(ts_ctx *ctx, const char *stage, const ts_param_desc *d, double v)
+{
+    if (!(v >= d->min && v <= d->max))
+        return ts__fail(ctx, TS_ERR_ARG, stage, "%s = %g is out of range [%g, %g]", d->name, v,
+                        d->min, d->max);
+    if (d->type == TS_PARAM_INT && strcmp(d->name, "profile_length") == 0 && ((long)v % 2) == 0)
+        return ts__fail(ctx, TS_ERR_ARG, stage, "%s = %g must be odd", d->name, v);
+    return TS_OK;
+}
+
+/* A length's range is in cells; metres are checked once they are turned into
+ * cells against a grid (ts_synth_params_resolve), here only for sign. */
+static ts_status check_length(ts_ctx *ctx, const char *stage, const ts_param_desc *d, double v,
+                              ts_length_unit unit)
+{
+    if (unit == TS_UNIT_CELLS)
+        return check_range(ctx, stage, d, v);
+    if (!(v >= 0.0) || !isfinite(v) || (d->min > 0 && !(v > 0.0)))
+        return ts__fail(ctx, TS_ERR_ARG, stage, "%s = %gm must be %s", d->name, v,
+                        d->min > 0 ? "positive" : "zero or more");
+    return TS_OK;
+}
+
+TS_API ts_status ts_params_set(ts_ctx *ctx, const char *stage, void *params, const char *name,
+                               const char *value)
+{
+    const ts_param_desc *d;
+    char *end;
+    double v;
+    ts__clear(ctx);
+    if (!(d = find_desc(ctx, stage, name)))
+        return ctx->status;
+    if (!value || !*value)
+        return ts__fail(ctx, TS_ERR_ARG, stage, "%s needs a value", d->name);
+    if (d->type == TS_PARAM_ENUM) {
+        int idx = enum_index(d->choices, value);
+        if (idx < 0)
+            return ts__fail(ctx, TS_ERR_ARG, stage, "%s = '%s' is not one of %s", d->name, value,
+                            d->choices);
+        *(int *)((char *)params + d->offset) = idx;
+        return TS_OK;
+    }
+    errno = 0;
+    v = strtod(value, &end);
+    if (end == value || errno == ERANGE || !isfinite(v))
+        return ts__fail(ctx, TS_ERR_ARG, stage, "%s = '%s' is not a number", d->name, value);
+    while (isspace((unsigned char)*end))
+        end++;
+    if (d->type == TS_PARAM_LENGTH) {
+        ts_length *L = (ts_length *)((char *)params + d->offset);
+        ts_length_unit unit;
+        if (!*end || !strcmp(end, "cells") || !strcmp(end, "cell") || !strcmp(end, "px"))
+            unit = TS_UNIT_CELLS;
+        else if (!strcmp(end, "m") || !strcmp(end, "metres") || !strcmp(end, "meters"))
+            unit = TS_UNIT_METRES;
+        else
+            return ts__fail(ctx, TS_ERR_ARG, stage,
+                            "%s = '%s': unit must be cells (no suffix) or m", d->name, value);
+        if (check_length(ctx, stage, d, v, unit) != TS_OK)
+            return ctx->status;
+        L->value = v;
+        L->unit = unit;
+        return TS_OK;
+    }
+    if (*end)
+        return ts__fail(ctx, TS_ERR_ARG, stage, "%s = '%s' is not a number", d->name, value);
+    if (d->type == TS_PARAM_INT && v != floor(v))
+        return ts__fail(ctx, TS_ERR_ARG, stage, "%s = '%s' must be a whole number", d->name, value);
+    if (check_range(ctx, stage, d, v) != TS_OK)
+        return ctx->status;
+    if (d->type == TS_PARAM_INT)
+        *(int *)((char *)params + d->offset) = (int)v;
+    else
+        *(double *)((char *)params + d->offset) = v;
+    return TS_OK;
+}
+
+TS_API ts_status ts_params_get(ts_ctx *ctx, const char *stage, const void *params, const char *name,
+                               char *buf, size_t buflen)
+{
+    const ts_param_desc *d;
+    const char *p = (const char *)params;
+    ts__clear(ctx);
+    if (!(d = find_desc(ctx, stage, name)))
+        return ctx->status;
+    switch (d->type) {
+    case TS_PARAM_ENUM:
+        if (enum_word(d->choices, *(const int *)(p + d->offset), buf, buflen) != 0)
+            return ts__fail(ctx, TS_ERR_ARG, stage, "%s has an invalid value", d->name);
+        break;
+    case TS_PARAM_INT:
+        snprintf(buf, buflen, "%d", *(const int *)(p + d->offset));
+        break;
+    case TS_PARAM_DOUBLE: {
+        /* the shortest of %.15g / %.17g that reads back to the same value */
+        double v = *(const double *)(p + d->offset);
+        snprintf(buf, buflen, "%.15g", v);
+        if (strtod(buf, NULL) != v)
+            snprintf(buf, buflen, "%.17g", v);
+        break;
+    }
+    case TS_PARAM_LENGTH: {
+        const ts_length *L = (const ts_length *)(p + d->offset);
+        snprintf(buf, buflen, "%.15g%s", L->value, L->unit == TS_UNIT_METRES ? "m" : "");
+        if (strtod(buf, NULL) != L->value)
+            snprintf(buf, buflen, "%.17g%s", L->value, L->unit == TS_UNIT_METRES ? "m" : "");
+        break;
+    }
+    }
+    return TS_OK;
+}
+
+TS_API ts_status ts_params_validate(ts_ctx *ctx, const char *stage, const void *params)
+{
+    size_t i, n;
+    const char *p = (const char *)params;
+    const ts_param_desc *d = ts_params_describe(stage, &n);
+    ts__clear(ctx);
+    if (!d)
+        return ts__fail(ctx, TS_ERR_ARG, "params", "unknown stage '%s'", stage ? stage : "(null)");
+    for (i = 0; i < n; i++) {
+        double v = 0;
+        switch (d[i].type) {
+        case TS_PARAM_ENUM:
+        case TS_PARAM_INT:
+            v = *(const int *)(p + d[i].offset);
+            break;
+        case TS_PARAM_DOUBLE:
+            v = *(const double *)(p + d[i].offset);
+            break;
+        case TS_PARAM_LENGTH: {
+            const ts_length *L = (const ts_length *)(p + d[i].offset);
+            if (L->unit != TS_UNIT_CELLS && L->unit != TS_UNIT_METRES)
+                return ts__fail(ctx, TS_ERR_ARG, stage, "%s has an invalid unit", d[i].name);
+            if (check_length(ctx, stage, &d[i], L->value, L->unit) != TS_OK)
+                return ctx->status;
+            continue;
+        }
+        }
+        if (check_range(ctx, stage, &d[i], v) != TS_OK)
+            return ctx->status;
+    }
+    return TS_OK;
+}
+
+/* Fill a params struct with the defaults of its descriptor table: one
+ * place to change them. */
+static void params_fill_defaults(const char *stage, void *params, size_t size)
+{
+    size_t i, n;
+    const ts_param_desc *d = ts_params_describe(stage, &n);
+    memset(params, 0, size);
+    for (i = 0; i < n; i++) {
+        char *f = (char *)params + d[i].offset;
+        switch (d[i].type) {
+        case TS_PARAM_ENUM:
+        case TS_PARAM_INT:
+            *(int *)f = (int)d[i].def;
+            break;
+        case TS_PARAM_DOUBLE:
+            *(double *)f = d[i].def;
+            break;
+        case TS_PARAM_LENGTH:
+            ((ts_length *)f)->value = d[i].def;
+            ((ts_length *)f)->unit = d[i].def_unit;
+            break;
+        }
+    }
+}
+
+TS_API ts_ppa_params ts_ppa_params_default(void)
+{
+    ts_ppa_params p;
+    params_fill_defaults("ppa", &p, sizeof p);
+    return p;
+}
+
+TS_API ts_sketch_params ts_sketch_params_default(void)
+{
+    ts_sketch_params p;
+    params_fill_defaults("sketch", &p, sizeof p);
+    return p;
+}
+
+TS_API ts_synth_params ts_synth_params_default(void)
+{
+    ts_synth_params p;
+    params_fill_defaults("synth", &p, sizeof p);
+    return p;
+}
+
+/* A length that must come to a whole number of cells in [lo, hi]. */
+static ts_status synth_cells_of(ts_ctx *ctx, const char *name, const ts_length *L, int lo, int hi,
+                                int *cells)
+{
+    if (L->unit != TS_UNIT_CELLS)
+        return ts__fail(ctx, TS_ERR_ARG, "synth",
+                        "%s is %gm: resolve it against the grid first (ts_synth_params_resolve)",
+                        name, L->value);
+    if (!(L->value >= lo && L->value <= hi) || L->value != floor(L->value))
+        return ts__fail(ctx, TS_ERR_ARG, "synth",
+                        "%s = %g cells must be a whole number in [%d, %d]", name, L->value, lo, hi);
+    *cells = (int)L->value;
+    return TS_OK;
+}
+
+ts_status ts__synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int *overlap)
+{
+    if (synth_cells_of(ctx, "patch_size", &p->patch_size, 8, 1024, patch) != TS_OK ||
+        synth_cells_of(ctx, "overlap", &p->overlap, 2, 512, overlap) != TS_OK)
+        return ctx->status;
+    if (*overlap >= *patch)
+        return ts__fail(ctx, TS_ERR_ARG, "synth", "overlap %d must be smaller than patch_size %d",
+                        *overlap, *patch);
+    return TS_OK;
+}
+
+TS_API ts_status ts_synth_params_resolve(ts_ctx *ctx, ts_synth_params *params, double cell_m)
+{
+    ts_length *L[2];
+    const char *names[2] = {"patch_size", "overlap"};
+    int i, P, ov;
+    ts__clear(ctx);
+    if (!params)
+        return ts__fail(ctx, TS_ERR_ARG, "synth", "missing parameters");
+    L[0] = &params->patch_size;
+    L[1] = &params->overlap;
+    for (i = 0; i < 2; i++) {
+        double cells;
+        if (L[i]->unit != TS_UNIT_METRES)
+            continue;
+        if (!(cell_m > 0) || !isfinite(cell_m))
+            return ts__fail(ctx, TS_ERR_ARG, "synth",
+                            "%s is given in metres (%gm) but the output grid has no ground size "
+                            "(no CRS): give it in cells",
+                            names[i], L[i]->value);
+        cells = floor(L[i]->value / cell_m + 0.5);
+        if (!(cells >= (i ? 2 : 8) && cells <= (i ? 512 : 1024)))
+            return ts__fail(ctx, TS_ERR_ARG, "synth",
+                            "%s = %gm is %.0f cells of %.4g m: must be %d..%d cells", names[i],
+                            L[i]->value, cells, cell_m, i ? 2 : 8, i ? 512 : 1024);
+        L[i]->value = cells;
+        L[i]->unit = TS_UNIT_CELLS;
+    }
+    return ts__synth_cells(ctx, params, &P, &ov);
+}

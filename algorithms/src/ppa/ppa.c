@@ -1,0 +1,282 @@
+/*
+ * ppa.c - the Profile recognition and Polygon breaking Algorithm (Chang,
+ * Song & Hsu 1998) as summarised by Zhou et al. 2007 section 3: the
+ * pipeline only; each step lives in its own file:
+ *   ppa_profile.c  profile recognition      -> targets
+ *   ppa_connect.c  target connection        -> segments
+ *   ppa_polygon.c  polygon breaking         -> maximum spanning forest
+ *   ppa_branch.c   branch reduction         -> pruned forest
+ *   feature_graph.c                         -> endpoints, branch points, paths
+ * Valleys are ridges of the negated DEM (the weights are negated).
+ */
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ppa_internal.h"
+
+TS_API void ts_features_free(ts_features *f)
+{
+    if (!f)
+        return;
+    free(f->mask);
+    free(f->nodes);
+    free(f->paths);
+    free(f->verts);
+    free(f);
+}
+
+TS_API ts_status ts_features_codes(ts_ctx *ctx, const ts_features *f, const ts_raster *dem,
+                                   unsigned char *codes)
+{
+    int x, y;
+    ts__clear(ctx);
+    if (!f || !dem || !dem->data || !codes || f->width != dem->width || f->height != dem->height)
+        return ts__fail(ctx, TS_ERR_ARG, "ppa", "features and DEM do not match");
+    for (y = 0; y < dem->height; y++)
+        for (x = 0; x < dem->width; x++) {
+            size_t k = (size_t)y * (size_t)dem->width + (size_t)x;
+            codes[k] = isnan(TS_PIX(dem, x, y)) ? 255 : f->mask[k];
+        }
+    return TS_OK;
+}
+
+/* Steps 2-4 for one kind, into f. */
+static ts_status ppa_one_kind(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *m,
+                              const unsigned char *targets, int kind, double min_length,
+                              ts_features *f)
+{
+    size_t n = (size_t)dem->width * (size_t)dem->height, i, n_segs = 0;
+    ts_ppa_segment *segs = NULL;
+    unsigned char *keep = NULL, *adj = NULL;
+    ts_progress_saved sv;
+    ts_status st;
+
+    sv = ts__progress_push(ctx, 0.0, 0.3);
+    st = ts_ppa_target_connection(ctx, dem, targets, kind, &segs, &n_segs);
+    ts__progress_pop(ctx, sv);
+    if (st != TS_OK)
+        return st;
+    keep = ts__malloc_array(n_segs, 1);
+    adj = ts__calloc_array(n, 1);
+    if (!keep || !adj) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory for %zu segments", n_segs);
+        goto done;
+    }
+    sv = ts__progress_push(ctx, 0.3, 0.7);
+    st = ts_ppa_polygon_breaking(ctx, segs, n_segs, n, keep);
+    ts__progress_pop(ctx, sv);
+    if (st != TS_OK)
+        goto done;
+    for (i = 0; i < n_segs; i++) {
+        int w = dem->width, dx, dy, d;
+        if (!keep[i])
+            continue;
+        dx = (int)(segs[i].b % (uint32_t)w) - (int)(segs[i].a % (uint32_t)w);
+        dy = (int)(segs[i].b / (uint32_t)w) - (int)(segs[i].a / (uint32_t)w);
+        d = ppa_dir_of(dx, dy);
+        adj[segs[i].a] |= (unsigned char)(1u << d);
+        adj[segs[i].b] |= (unsigned char)(1u << ((d + 4) & 7));
+    }
+    free(segs);
+    segs = NULL;
+    free(keep);
+    keep = NULL;
+    sv = ts__progress_push(ctx, 0.7, 0.9);
+    st = ppa_branch_reduction(ctx, dem->width, dem->height, adj, m, min_length);
+    ts__progress_pop(ctx, sv);
+    if (st != TS_OK)
+        goto done;
+    st = ppa_graph_collect(ctx, dem, adj, m, kind, f);
+    if (st == TS_OK)
+        st = ts__progress(ctx, 1.0, kind == TS_RIDGE ? "ridges" : "valleys");
+done:
+    free(segs);
+    free(keep);
+    free(adj);
+    return st;
+}
+
+/* Valleys on a second thread while the calling thread does ridges: the two
+ * kinds share nothing but the read-only DEM and targets.  The worker has a
+ * child context: no progress of its own, the caller's cancel flag. */
+typedef struct valley_job {
+    const ts_raster *dem;
+    const ts_grid_metrics *m;
+    const unsigned char *targets;
+    double min_length;
+    ts_ctx *ctx;
+    ts_features *f;
+    ts_status status;
+} valley_job;
+
+static void *valley_run(void *p)
+{
+    valley_job *j = p;
+    j->status = ppa_one_kind(j->ctx, j->dem, j->m, j->targets, TS_VALLEY, j->min_length, j->f);
+    return NULL;
+}
+
+/* Append graph b to a (node indices and vertex offsets shifted). */
+static ts_status ppa_merge(ts_ctx *ctx, ts_features *a, const ts_features *b)
+{
+    size_t i, n = (size_t)a->width * (size_t)a->height;
+    ts_feature_node *nodes = realloc(a->nodes, (a->n_nodes + b->n_nodes + 1) * sizeof *nodes);
+    ts_feature_path *paths;
+    ts_feature_vertex *verts;
+    if (!nodes)
+        return ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory");
+    a->nodes = nodes;
+    paths = realloc(a->paths, (a->n_paths + b->n_paths + 1) * sizeof *paths);
+    if (!paths)
+        return ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory");
+    a->paths = paths;
+    verts = realloc(a->verts, (a->n_verts + b->n_verts + 1) * sizeof *verts);
+    if (!verts)
+        return ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory");
+    a->verts = verts;
+    if (b->n_nodes)
+        memcpy(a->nodes + a->n_nodes, b->nodes, b->n_nodes * sizeof *nodes);
+    if (b->n_verts)
+        memcpy(a->verts + a->n_verts, b->verts, b->n_verts * sizeof *verts);
+    for (i = 0; i < b->n_paths; i++) {
+        ts_feature_path p = b->paths[i];
+        p.node_a += a->n_nodes;
+        p.node_b += a->n_nodes;
+        p.first += a->n_verts;
+        a->paths[a->n_paths + i] = p;
+    }
+    a->n_nodes += b->n_nodes;
+    a->n_paths += b->n_paths;
+    a->n_verts += b->n_verts;
+    for (i = 0; i < n; i++)
+        a->mask[i] |= b->mask[i];
+    return TS_OK;
+}
+
+/* Ridges here, valleys on a worker thread; same result as in sequence. */
+static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *m,
+                                   const unsigned char *targets, double min_length, ts_features *f)
+{
+    valley_job job;
+    pthread_t tid;
+    ts_features *fv = calloc(1, sizeof *fv);
+    ts_ctx *wctx = ts__ctx_child(ctx);
+    ts_status st;
+    size_t n = (size_t)dem->width * (size_t)dem->height;
+    if (!fv || !wctx || !(fv->mask = ts__calloc_array(n, 1))) {
+        ts_features_free(fv);
+        ts_ctx_free(wctx);
+        return ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory");
+    }
+    fv->width = dem->width;
+    fv->height = dem->height;
+    job.dem = dem;
+    job.m = m;
+    job.targets = targets;
+    job.min_length = min_length;
+    job.ctx = wctx;
+    job.f = fv;
+    job.status = TS_ERR_INTERNAL;
+    if (pthread_create(&tid, NULL, valley_run, &job) != 0) {
+        /* no thread: do it in sequence */
+        valley_run(&job);
+        st = ppa_one_kind(ctx, dem, m, targets, TS_RIDGE, min_length, f);
+    } else {
+        st = ppa_one_kind(ctx, dem, m, targets, TS_RIDGE, min_length, f);
+        if (st != TS_OK)
+            ts__cancel(ctx); /* the valleys need not finish */
+        pthread_join(tid, NULL);
+    }
+    if (st == TS_OK && job.status != TS_OK)
+        st = ts__fail(ctx, job.status, "ppa", "%s", ts_ctx_message(wctx));
+    if (st == TS_OK)
+        st = ppa_merge(ctx, f, fv);
+    ts_features_free(fv);
+    ts_ctx_free(wctx);
+    return st;
+}
+
+TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
+                                const ts_ppa_params *params, ts_features **out)
+{
+    ts_raster_stats stats;
+    ts_features *f = NULL;
+    unsigned char *targets = NULL;
+    size_t n;
+    double threshold, min_length;
+    int kinds, k;
+    ts_status st;
+    ts_progress_saved sv;
+
+    ts__clear(ctx);
+    if (out)
+        *out = NULL;
+    if (!dem || !dem->data || !params || !out)
+        return ts__fail(ctx, TS_ERR_ARG, "ppa", "missing DEM, parameters or output");
+    if (ts_params_validate(ctx, "ppa", params) != TS_OK)
+        return ctx->status;
+    if (dem->width < 2 || dem->height < 2)
+        return ts__fail(ctx, TS_ERR_SIZE, "ppa", "the DEM is %d x %d cells; at least 2 x 2 needed",
+                        dem->width, dem->height);
+    if (metrics && (!metrics->dx || !metrics->dy))
+        return ts__fail(ctx, TS_ERR_ARG, "ppa", "ground metrics without cell sizes");
+    if (params->min_branch_length.unit == TS_UNIT_METRES && !metrics)
+        return ts__fail(ctx, TS_ERR_ARG, "ppa",
+                        "min_branch_length is in metres but the DEM has no ground metrics "
+                        "(no CRS): give it in cells");
+    if (ts_raster_stats_compute(ctx, dem, &stats) != TS_OK)
+        return ts__fail(ctx, TS_ERR_NUMERIC, "ppa", "every cell of the DEM is nodata");
+    threshold = TS_MAX(params->threshold, params->threshold_fraction * (stats.max - stats.min));
+    /* a length in cells is measured in cells, one in metres on the ground */
+    min_length = params->min_branch_length.value;
+    if (params->min_branch_length.unit == TS_UNIT_CELLS)
+        metrics = NULL;
+    kinds = params->features == TS_PPA_RIDGES    ? TS_RIDGE
+            : params->features == TS_PPA_VALLEYS ? TS_VALLEY
+                                                 : TS_RIDGE | TS_VALLEY;
+    n = (size_t)dem->width * (size_t)dem->height;
+    f = calloc(1, sizeof *f);
+    targets = ts__malloc_array(n, 1);
+    if (!f || !targets || !(f->mask = ts__calloc_array(n, 1))) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "ppa", "cannot allocate for %d x %d cells", dem->width,
+                      dem->height);
+        goto fail;
+    }
+    f->width = dem->width;
+    f->height = dem->height;
+    f->threshold_used = threshold;
+
+    sv = ts__progress_push(ctx, 0.0, 0.3);
+    st = ts_ppa_profile_recognition(ctx, dem, params->profile_length, threshold, kinds, targets);
+    ts__progress_pop(ctx, sv);
+    if (st != TS_OK)
+        goto fail;
+    if (kinds == (TS_RIDGE | TS_VALLEY) && ts__thread_count(ctx, 2) >= 2) {
+        sv = ts__progress_push(ctx, 0.3, 1.0);
+        st = ppa_both_parallel(ctx, dem, metrics, targets, min_length, f);
+        ts__progress_pop(ctx, sv);
+        if (st != TS_OK)
+            goto fail;
+        kinds = 0;
+    }
+    for (k = TS_RIDGE; k <= TS_VALLEY; k <<= 1) {
+        if (!(kinds & k))
+            continue;
+        sv = kinds == (TS_RIDGE | TS_VALLEY)
+                 ? ts__progress_push(ctx, k == TS_RIDGE ? 0.3 : 0.65, k == TS_RIDGE ? 0.65 : 1.0)
+                 : ts__progress_push(ctx, 0.3, 1.0);
+        st = ppa_one_kind(ctx, dem, metrics, targets, k, min_length, f);
+        ts__progress_pop(ctx, sv);
+        if (st != TS_OK)
+            goto fail;
+    }
+    free(targets);
+    *out = f;
+    return TS_OK;
+fail:
+    free(targets);
+    ts_features_free(f);
+    return st;
+}

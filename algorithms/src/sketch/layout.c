@@ -1,0 +1,1008 @@
+/*
+ * layout.c - the relief a sketch lays out (a TerraSynth addition to Zhou et
+ * al. 2007, in the spirit of the guide of Cruz et al., whose coarse pyramid
+ * levels come from a guide and the fine ones from the exemplars).
+ *
+ * Feature patches put an exemplar ridge (valley) along every stroke, but
+ * patch merging keeps only gradients, so the level of every patch drifts
+ * with its neighbours, and the fill grows relief of its own between the
+ * strokes: a valley network drawn over rugged mountains drowned in
+ * mountains as big as its valleys, and a sketched crest was one crest among
+ * many.  After the synthesis, two corrections, each the blur of a guide
+ * minus the output, added to the output:
+ *
+ *   layout   at sigma_l = P/3 (P the patch), everywhere:
+ *            T(x) = level - s G f_P(d(x)), d the distance to the sketch's
+ *            features, s = +1 for ridges, -1 for valleys, f_c(d) =
+ *            c (1 - exp(-d / c)) (the land keeps falling away from a ridge,
+ *            ever more gently, over about 2c), level the mean height of the
+ *            exemplar's main features of that kind;
+ *   crest    at sigma_c = P/8, after the layout, fading out as
+ *            exp(-(2d/P)^2):
+ *            T_c(x) = crest(p(x)) - s G_c f_{P/4}(d(x)), p(x) the nearest
+ *            feature cell, crest() the output along the features smoothed
+ *            over sigma_c: the crest keeps its own rises and saddles along
+ *            the stroke, and stands out across it.
+ *
+ * G is chosen so that the guide, blurred at its scale, is on average as
+ * steep as the exemplar blurred at that scale: the layout carries the
+ * exemplar's steepness, no more; G_c likewise, measured within P/2 of the
+ * features.  Both are then scaled together by the factor (0.35..2.5) that
+ * brings the output's distribution of slopes closest to the exemplars'
+ * (patch merging flattens a little; a steep exemplar's guide adds to its
+ * own slopes).  For valleys, the layout's level along the features is the
+ * output's own floor made to descend to each network's outlet, and after
+ * both corrections the floor is made to descend cell by cell.  The
+ * output keeps every detail of the patches below each scale.  Both fade to
+ * nothing at fixed cells (pinned windows, water), which never change.
+ * Cost: O(cells) per blur, whatever sigma.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "layout.h"
+#include "relief_guide.h"
+
+/* ---- NaN-aware blur ------------------------------------------------- */
+
+typedef struct blur_job {
+    int w, h, r;   /* box radius */
+    double *v, *m; /* value * weight and weight, w*h, blurred in place */
+    atomic_int failed;
+} blur_job;
+
+/* One box pass of radius r over n samples at stride s (in place). */
+static void box_line(double *a, size_t n, size_t s, int r, double *tmp)
+{
+    size_t i;
+    double acc = 0.0;
+    size_t R = (size_t)r;
+    for (i = 0; i < n; i++)
+        tmp[i] = a[i * s];
+    for (i = 0; i < R && i < n; i++)
+        acc += tmp[i];
+    for (i = 0; i < n; i++) {
+        if (i + R < n)
+            acc += tmp[i + R];
+        if (i > R)
+            acc -= tmp[i - R - 1];
+        a[i * s] = acc;
+    }
+}
+
+static void blur_rows(void *arg, size_t b, size_t e)
+{
+    blur_job *j = arg;
+    double *tmp = ts__malloc_array((size_t)j->w, sizeof *tmp);
+    size_t y;
+    int p;
+    if (!tmp) {
+        atomic_store(&j->failed, 1);
+        return;
+    }
+    for (y = b; y < e; y++)
+        for (p = 0; p < 3; p++) {
+            box_line(j->v + y * (size_t)j->w, (size_t)j->w, 1, j->r, tmp);
+            box_line(j->m + y * (size_t)j->w, (size_t)j->w, 1, j->r, tmp);
+        }
+    free(tmp);
+}
+
+#define BLUR_BLOCK 32 /* columns a vertical pass runs through together */
+
+/* The vertical passes, over blocks of adjacent columns so that every step
+ * runs along memory: for each block a copy of its columns, then running
+ * sums over the rows for all its columns at once. */
+static void blur_cols(void *arg, size_t b, size_t e)
+{
+    blur_job *j = arg;
+    size_t h = (size_t)j->h, w = (size_t)j->w, R = (size_t)j->r, x0;
+    double *tmp = ts__malloc_array(h * BLUR_BLOCK, sizeof *tmp);
+    double acc[BLUR_BLOCK];
+    if (!tmp) {
+        atomic_store(&j->failed, 1);
+        return;
+    }
+    for (x0 = b; x0 < e; x0 += BLUR_BLOCK) {
+        size_t bw = TS_MIN((size_t)BLUR_BLOCK, e - x0), y, c;
+        int arr, p;
+        for (arr = 0; arr < 2; arr++) {
+            double *a = arr ? j->m : j->v;
+            for (p = 0; p < 3; p++) {
+                for (y = 0; y < h; y++)
+                    memcpy(tmp + y * bw, a + y * w + x0, bw * sizeof *tmp);
+                for (c = 0; c < bw; c++)
+                    acc[c] = 0.0;
+                for (y = 0; y < R && y < h; y++)
+                    for (c = 0; c < bw; c++)
+                        acc[c] += tmp[y * bw + c];
+                for (y = 0; y < h; y++) {
+                    double *row = a + y * w + x0;
+                    if (y + R < h)
+                        for (c = 0; c < bw; c++)
+                            acc[c] += tmp[(y + R) * bw + c];
+                    if (y > R)
+                        for (c = 0; c < bw; c++)
+                            acc[c] -= tmp[(y - R - 1) * bw + c];
+                    memcpy(row, acc, bw * sizeof *acc);
+                }
+            }
+        }
+    }
+    free(tmp);
+}
+
+int ts__blur_radius(double sigma)
+{
+    /* three boxes of width n = 2r + 1 have variance 3 (n^2 - 1) / 12 */
+    double n = sqrt(4.0 * sigma * sigma + 1.0);
+    int r = (int)lround(0.5 * (n - 1.0));
+    return r < 0 ? 0 : r;
+}
+
+/* ts__blur_nan with caller buffers v and m (w * h doubles each). */
+static void blur_nan_ws(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h, double sigma,
+                        float *out, double *v, double *m, atomic_int *failed)
+{
+    blur_job j;
+    int x, y;
+    j.w = w;
+    j.h = h;
+    j.r = ts__blur_radius(sigma);
+    j.v = v;
+    j.m = m;
+    atomic_init(&j.failed, 0);
+    for (y = 0; y < h; y++) {
+        const float *row = in + (ptrdiff_t)y * stride;
+        double *vr = v + (size_t)y * (size_t)w, *mr = m + (size_t)y * (size_t)w;
+        for (x = 0; x < w; x++) {
+            int bad = isnan(row[x]);
+            vr[x] = bad ? 0.0 : row[x];
+            mr[x] = bad ? 0.0 : 1.0;
+        }
+    }
+    if (j.r > 0) {
+        ts__parallel_for(ctx, (size_t)h, blur_rows, &j);
+        if (!atomic_load(&j.failed))
+            ts__parallel_for(ctx, (size_t)w, blur_cols, &j);
+    }
+    {
+        size_t i, n = (size_t)w * (size_t)h;
+        for (i = 0; i < n; i++)
+            out[i] = m[i] > 1e-9 ? (float)(v[i] / m[i]) : NAN;
+    }
+    if (atomic_load(&j.failed))
+        atomic_store(failed, 1);
+}
+
+ts_status ts__blur_nan(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h, double sigma,
+                       float *out)
+{
+    size_t n = (size_t)w * (size_t)h;
+    double *v = ts__malloc_array(n, sizeof(double)), *m = ts__malloc_array(n, sizeof(double));
+    atomic_int failed;
+    atomic_init(&failed, 0);
+    if (v && m)
+        blur_nan_ws(ctx, in, stride, w, h, sigma, out, v, m, &failed);
+    free(v);
+    free(m);
+    if (!v || !m || atomic_load(&failed))
+        return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+    return TS_OK;
+}
+
+/* Blur buffers reused by the layout's many blurs of the output's size. */
+typedef struct layout_ws {
+    double *v, *m;
+    size_t cap;
+} layout_ws;
+
+static ts_status lblur(ts_ctx *ctx, const layout_ws *ws, const float *in, ptrdiff_t stride, int w,
+                       int h, double sigma, float *out)
+{
+    atomic_int failed;
+    if (!ws || (size_t)w * (size_t)h > ws->cap)
+        return ts__blur_nan(ctx, in, stride, w, h, sigma, out);
+    atomic_init(&failed, 0);
+    blur_nan_ws(ctx, in, stride, w, h, sigma, out, ws->v, ws->m, &failed);
+    return atomic_load(&failed) ? ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory") : TS_OK;
+}
+
+double ts__mean_gradient(const float *a, int w, int h)
+{
+    double sum = 0.0;
+    size_t cnt = 0;
+    int x, y;
+    for (y = 1; y + 1 < h; y++)
+        for (x = 1; x + 1 < w; x++) {
+            const float *p = a + (size_t)y * (size_t)w + (size_t)x;
+            double gx = 0.5 * ((double)p[1] - (double)p[-1]);
+            double gy = 0.5 * ((double)p[w] - (double)p[-w]);
+            double g = sqrt(gx * gx + gy * gy);
+            if (isnan(g))
+                continue;
+            sum += g;
+            cnt++;
+        }
+    return cnt ? sum / (double)cnt : 0.0;
+}
+
+/* ---- the two corrections ------------------------------------------ */
+
+/* f_c(d): rises like d near the features, levels off over about 2c */
+static double layout_reach(double d, double c)
+{
+    return c * (1.0 - exp(-d / c));
+}
+
+/* Mean gradient of f_c(dist) blurred at sigma, over the cells within dmax
+ * of the features (all when dmax is infinite). */
+static ts_status layout_reach_gradient(ts_ctx *ctx, const layout_ws *ws, const float *dist,
+                                       const unsigned char *nodata, int W, int H, double c,
+                                       double sigma, double dmax, double *g)
+{
+    size_t n = (size_t)W * (size_t)H, i;
+    float *t = ts__malloc_array(n, sizeof(float)), *b = ts__malloc_array(n, sizeof(float));
+    ts_status st = TS_OK;
+    if (!t || !b) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        goto done;
+    }
+    for (i = 0; i < n; i++)
+        t[i] = (nodata && nodata[i]) || !isfinite(dist[i]) ? NAN : (float)layout_reach(dist[i], c);
+    if ((st = lblur(ctx, ws, t, W, W, H, sigma, b)) != TS_OK)
+        goto done;
+    for (i = 0; i < n; i++)
+        if (!(dist[i] <= dmax))
+            b[i] = NAN; /* gradients next to these are left out */
+    *g = ts__mean_gradient(b, W, H);
+done:
+    free(t);
+    free(b);
+    return st;
+}
+
+/* Mean gradient (per cell) of every exemplar blurred at sigma (0 where
+ * unknown), measured on the exemplar averaged over f x f cells first, f the
+ * largest power of two up to sigma / 3 (a blur that wide hardly sees the
+ * difference; a 4096 x 4096 exemplar would otherwise be blurred whole). */
+static ts_status layout_exemplar_gradients(ts_ctx *ctx, const ts_layout_spec *s, double sigma,
+                                           double *g)
+{
+    int e, f = 1;
+    while (2 * f <= sigma / 3.0)
+        f *= 2;
+    for (e = 0; e < s->n_exemplars; e++) {
+        const ts_raster *ex = &s->exemplars[e];
+        int cw = ex->width / f, ch = ex->height / f, x, y, u, v;
+        float *small =
+            cw > 2 && ch > 2 ? ts__malloc_array((size_t)cw * (size_t)ch, sizeof(float)) : NULL;
+        float *eb = small ? ts__malloc_array((size_t)cw * (size_t)ch, sizeof(float)) : NULL;
+        ts_status st;
+        g[e] = 0.0;
+        if (cw <= 2 || ch <= 2)
+            continue;
+        if (!small || !eb) {
+            free(small);
+            free(eb);
+            return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        }
+        for (y = 0; y < ch; y++)
+            for (x = 0; x < cw; x++) {
+                double sum = 0.0;
+                int cnt = 0;
+                for (v = 0; v < f; v++)
+                    for (u = 0; u < f; u++) {
+                        float z = TS_PIX(ex, x * f + u, y * f + v);
+                        if (!isnan(z)) {
+                            sum += z;
+                            cnt++;
+                        }
+                    }
+                small[(size_t)y * (size_t)cw + (size_t)x] = cnt ? (float)(sum / cnt) : NAN;
+            }
+        st = ts__blur_nan(ctx, small, cw, cw, ch, sigma / f, eb);
+        if (st == TS_OK)
+            g[e] = ts__mean_gradient(eb, cw, ch) / f;
+        free(small);
+        free(eb);
+        if (st != TS_OK)
+            return st;
+    }
+    return TS_OK;
+}
+
+/* The steepness and level that cell i takes: its region's exemplar, or the
+ * mean over the exemplars (those with a steepness). */
+static void layout_pick(const ts_layout_spec *s, const double *gain, const double *levels, size_t i,
+                        double *g, double *level)
+{
+    int e, n = 0, ce = s->cell_exemplar ? s->cell_exemplar[i] : -1;
+    if (ce >= 0 && ce < s->n_exemplars && gain[ce] > 0) {
+        *g = gain[ce];
+        *level = levels[ce];
+        return;
+    }
+    *g = *level = 0.0;
+    for (e = 0; e < s->n_exemplars; e++)
+        if (gain[e] > 0) {
+            *g += gain[e];
+            *level += levels[e];
+            n++;
+        }
+    if (n) {
+        *g /= n;
+        *level /= n;
+    }
+}
+
+/* out += weight * blur_sigma(guide - out), weight = strength *
+ * fade(fixed) * (near > 0 ? exp(-(d / near)^2) : 1). */
+static ts_status layout_correct(ts_ctx *ctx, const layout_ws *ws, ts_raster *out,
+                                const float *guide, double sigma, double strength,
+                                const float *fixd, const float *dist, double near, float *work,
+                                float *corr)
+{
+    int W = out->width, H = out->height, x, y;
+    size_t i;
+    ts_status st;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            i = (size_t)y * (size_t)W + (size_t)x;
+            work[i] = guide[i] - TS_PIX(out, x, y); /* NaN where either is */
+        }
+    if ((st = lblur(ctx, ws, work, W, W, H, sigma, corr)) != TS_OK)
+        return st;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            double w = strength, c;
+            i = (size_t)y * (size_t)W + (size_t)x;
+            c = corr[i];
+            if (isnan(TS_PIX(out, x, y)) || isnan(c))
+                continue;
+            if (fixd) {
+                double t = fixd[i] / (2.0 * sigma);
+                t = t > 1.0 ? 1.0 : t;
+                w *= t * t * (3.0 - 2.0 * t);
+            }
+            if (near > 0)
+                w *= exp(-(dist[i] / near) * (dist[i] / near));
+            TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * c);
+        }
+    return TS_OK;
+}
+
+/*
+ * Valley floors that descend (no valley climbs over a saddle), on the
+ * sketch's feature graph: in every connected network, the outlet is the
+ * endpoint nearest the grid's edge (ties: the lowest; a network without
+ * endpoints takes its node nearest the edge); breadth first from it over
+ * the nodes, every path runs from the node reached first (downstream) to
+ * the other.  `fill` walks each path upstream raising every vertex to the
+ * level below it, `carve` walks it downstream lowering every vertex to the
+ * level above it (a node takes the lowest of the paths that reach it from
+ * upstream); both never rise downstream, and neither does their mean,
+ * which replaces level[] on the paths' cells.  Other cells are left as
+ * they are.  O(vertices).
+ */
+ts_status layout_descend(ts_ctx *ctx, const ts_layout_spec *s, float *level)
+{
+    const ts_features *f = s->features;
+    int W = s->width, H = s->height;
+    size_t nn, np, i, k, head, tail;
+    size_t *order = NULL, *qpath = NULL;
+    long *down = NULL; /* per path: its downstream node, -1 unused */
+    double *nfill = NULL, *ncarve = NULL, *vfill = NULL, *vcarve = NULL;
+    unsigned char *seen = NULL;
+    ts_status st = TS_OK;
+    if (!f || !f->n_paths)
+        return TS_OK;
+    nn = f->n_nodes;
+    np = f->n_paths;
+    order = ts__malloc_array(nn + 1, sizeof *order);
+    qpath = ts__malloc_array(np + 1, sizeof *qpath);
+    down = ts__malloc_array(np + 1, sizeof *down);
+    nfill = ts__malloc_array(nn + 1, sizeof *nfill);
+    ncarve = ts__malloc_array(nn + 1, sizeof *ncarve);
+    vfill = ts__malloc_array(f->n_verts + 1, sizeof *vfill);
+    vcarve = ts__malloc_array(f->n_verts + 1, sizeof *vcarve);
+    seen = ts__calloc_array(nn + 1, 1);
+    if (!order || !qpath || !down || !nfill || !ncarve || !vfill || !vcarve || !seen) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        goto done;
+    }
+#define LD_CELL(v) ((size_t)(v)->y * (size_t)W + (size_t)(v)->x)
+#define LD_USED(p) ((p)->kind == s->kind && (p)->count >= 2 && (p)->node_a < nn && (p)->node_b < nn)
+#define LD_BORDER(nd) TS_MIN(TS_MIN((nd)->x, W - 1 - (nd)->x), TS_MIN((nd)->y, H - 1 - (nd)->y))
+    for (k = 0; k < np; k++)
+        down[k] = -1;
+    for (i = 0; i < nn; i++) {
+        size_t first, best = nn, comp_end;
+        int bd = 0, best_end = 0;
+        if (seen[i])
+            continue;
+        /* the network of node i (nodes only through used paths) */
+        tail = 0;
+        order[tail++] = i;
+        seen[i] = 1;
+        for (head = 0; head < tail; head++)
+            for (k = 0; k < np; k++) {
+                const ts_feature_path *p = &f->paths[k];
+                size_t o;
+                if (!LD_USED(p) || (p->node_a != order[head] && p->node_b != order[head]))
+                    continue;
+                o = p->node_a == order[head] ? p->node_b : p->node_a;
+                if (!seen[o]) {
+                    seen[o] = 1;
+                    order[tail++] = o;
+                }
+            }
+        comp_end = tail;
+        for (head = 0; head < comp_end; head++) {
+            const ts_feature_node *nd = &f->nodes[order[head]];
+            int d = LD_BORDER(nd), end = nd->degree == 1;
+            float lv = level[(size_t)nd->y * (size_t)W + (size_t)nd->x];
+            if (best == nn || end > best_end ||
+                (end == best_end &&
+                 (d < bd ||
+                  (d == bd &&
+                   lv < level[(size_t)f->nodes[best].y * (size_t)W + (size_t)f->nodes[best].x])))) {
+                best = order[head];
+                bd = d;
+                best_end = end;
+            }
+        }
+        /* breadth first from the outlet: paths point downstream */
+        for (head = 0; head < comp_end; head++)
+            seen[order[head]] = 2;
+        first = 0;
+        tail = 0;
+        order[tail++] = best;
+        seen[best] = 3;
+        {
+            size_t n_q = 0;
+            for (head = first; head < tail; head++)
+                for (k = 0; k < np; k++) {
+                    const ts_feature_path *p = &f->paths[k];
+                    size_t o;
+                    if (!LD_USED(p) || down[k] >= 0 ||
+                        (p->node_a != order[head] && p->node_b != order[head]))
+                        continue;
+                    down[k] = (long)order[head];
+                    qpath[n_q++] = k;
+                    o = p->node_a == order[head] ? p->node_b : p->node_a;
+                    if (seen[o] != 3) {
+                        seen[o] = 3;
+                        order[tail++] = o;
+                    }
+                }
+            /* fill: paths in the order reached, each walked upstream */
+            for (head = 0; head < tail; head++) {
+                const ts_feature_node *nd = &f->nodes[order[head]];
+                nfill[order[head]] = -INFINITY;
+                ncarve[order[head]] = level[(size_t)nd->y * (size_t)W + (size_t)nd->x];
+            }
+            nfill[best] = level[(size_t)f->nodes[best].y * (size_t)W + (size_t)f->nodes[best].x];
+            for (k = 0; k < n_q; k++) {
+                const ts_feature_path *p = &f->paths[qpath[k]];
+                int from_b = (size_t)down[qpath[k]] == p->node_b;
+                size_t up = from_b ? p->node_a : p->node_b, j;
+                double prev = nfill[down[qpath[k]]];
+                for (j = 0; j < p->count; j++) {
+                    size_t vi = p->first + (from_b ? p->count - 1 - j : j);
+                    double lv = level[LD_CELL(&f->verts[vi])];
+                    prev = isnan(lv) ? prev : fmax(prev, lv);
+                    vfill[vi] = prev;
+                }
+                nfill[up] = fmax(nfill[up], prev);
+            }
+            /* carve: paths in the reverse order, each walked downstream */
+            for (k = n_q; k-- > 0;) {
+                const ts_feature_path *p = &f->paths[qpath[k]];
+                int from_b = (size_t)down[qpath[k]] == p->node_b;
+                size_t up = from_b ? p->node_a : p->node_b, j;
+                double prev = ncarve[up];
+                for (j = 0; j < p->count; j++) {
+                    size_t vi = p->first + (from_b ? j : p->count - 1 - j);
+                    double lv = level[LD_CELL(&f->verts[vi])];
+                    prev = isnan(lv) ? prev : fmin(prev, lv);
+                    vcarve[vi] = prev;
+                }
+                ncarve[down[qpath[k]]] = fmin(ncarve[down[qpath[k]]], prev);
+            }
+            /* the paths' cells take the mean; a node's cell its own */
+            for (k = 0; k < n_q; k++) {
+                const ts_feature_path *p = &f->paths[qpath[k]];
+                size_t j;
+                for (j = 1; j + 1 < p->count; j++) {
+                    size_t vi = p->first + j;
+                    size_t c = LD_CELL(&f->verts[vi]);
+                    if (!isnan(level[c]))
+                        level[c] = (float)(0.5 * (vfill[vi] + vcarve[vi]));
+                }
+            }
+            for (head = 0; head < tail; head++) {
+                const ts_feature_node *nd = &f->nodes[order[head]];
+                size_t c = (size_t)nd->y * (size_t)W + (size_t)nd->x;
+                if (!isnan(level[c]) && isfinite(nfill[order[head]]))
+                    level[c] = (float)(0.5 * (nfill[order[head]] + ncarve[order[head]]));
+            }
+        }
+    }
+#undef LD_CELL
+#undef LD_USED
+#undef LD_BORDER
+done:
+    free(order);
+    free(qpath);
+    free(down);
+    free(nfill);
+    free(ncarve);
+    free(vfill);
+    free(vcarve);
+    free(seen);
+    return st;
+}
+
+/* What both corrections need, computed once. */
+typedef struct layout_run_data {
+    const ts_layout_spec *s;
+    double strength, sig_l, sig_c, c_l, c_c, sign;
+    const float *dist, *fixd;
+    const int32_t *nearest;
+    const double *gl, *gc, *levels;
+    float *guide, *work, *corr;
+    const layout_ws *ws;
+} layout_run_data;
+
+/* Both corrections on r (the output's size), the guides' steepness times
+ * lam: the layout everywhere, then the crest near the features. */
+static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r, double lam,
+                            double lam_c)
+{
+    const ts_layout_spec *s = d->s;
+    int W = s->width, H = s->height;
+    size_t n = (size_t)W * (size_t)H, i;
+    ts_status st;
+    if (s->kind == TS_VALLEY) {
+        /* valley floors at the output's own level, smoothed along them over
+         * a patch, made to descend to their outlets, smoothed again over
+         * half a patch (filling and carving leave steps) */
+        for (i = 0; i < n; i++)
+            d->work[i] = (s->sketch_mask[i] & s->kind)
+                             ? r->data[(i / (size_t)W) * (size_t)r->stride + i % (size_t)W]
+                             : NAN;
+        if ((st = lblur(ctx, d->ws, d->work, W, W, H, s->patch, d->corr)) != TS_OK ||
+            (st = layout_descend(ctx, s, d->corr)) != TS_OK)
+            return st;
+        for (i = 0; i < n; i++)
+            d->work[i] = (s->sketch_mask[i] & s->kind) ? d->corr[i] : NAN;
+        if ((st = lblur(ctx, d->ws, d->work, W, W, H, 0.5 * s->patch, d->corr)) != TS_OK)
+            return st;
+    }
+    for (i = 0; i < n; i++) {
+        double g, level;
+        layout_pick(s, d->gl, d->levels, i, &g, &level);
+        if (s->kind == TS_VALLEY && d->nearest[i] >= 0)
+            level = d->corr[d->nearest[i]];
+        d->guide[i] = (s->nodata && s->nodata[i]) || !isfinite(d->dist[i])
+                          ? NAN
+                          : (float)(level - d->sign * lam * g * layout_reach(d->dist[i], d->c_l));
+    }
+    if ((st = layout_correct(ctx, d->ws, r, d->guide, d->sig_l, d->strength, d->fixd, d->dist, 0.0,
+                             d->work, d->corr)) != TS_OK)
+        return st;
+    /* the crest: the output along the features, smoothed along them over a
+     * quarter patch; valley floors then made to descend to their outlets */
+    for (i = 0; i < n; i++)
+        d->work[i] = (s->sketch_mask[i] & s->kind)
+                         ? r->data[(i / (size_t)W) * (size_t)r->stride + i % (size_t)W]
+                         : NAN;
+    if ((st = lblur(ctx, d->ws, d->work, W, W, H, 2.0 * d->sig_c, d->corr)) != TS_OK)
+        return st;
+    for (i = 0; i < n; i++) {
+        double g, level;
+        layout_pick(s, d->gc, d->levels, i, &g, &level);
+        d->guide[i] = (s->nodata && s->nodata[i]) || d->nearest[i] < 0
+                          ? NAN
+                          : (float)(d->corr[d->nearest[i]] -
+                                    d->sign * lam_c * g * layout_reach(d->dist[i], d->c_c));
+    }
+    return layout_correct(ctx, d->ws, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
+                          0.5 * s->patch, d->work, d->corr);
+}
+
+#define LAYOUT_QUANTILES 199
+#define LAYOUT_SAMPLES 65536
+
+/* The lattice step that samples a w x h grid with at most about
+ * LAYOUT_SAMPLES cells, and how many cells it samples at most. */
+static int layout_step(int w, int h)
+{
+    double cells = (double)w * (double)h;
+    return cells > LAYOUT_SAMPLES ? (int)ceil(sqrt(cells / LAYOUT_SAMPLES)) : 1;
+}
+
+static size_t layout_samples(int w, int h)
+{
+    int st = layout_step(w, h);
+    return ((size_t)w / (size_t)st + 1) * ((size_t)h / (size_t)st + 1);
+}
+
+static int layout_float_cmp(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* Quantiles 0.5 %, 1 %, ..., 99.5 % of the gradient magnitude (central
+ * differences, cells with four valid neighbours) of a + lam * b (b may be
+ * NULL), over at most about LAYOUT_SAMPLES cells on a regular lattice;
+ * returns 0 when no cell has a gradient.  work: w * h floats. */
+static int layout_gradient_quantiles(const float *a, const float *b, ptrdiff_t stride, int w, int h,
+                                     double lam, float *work, double *q)
+{
+    size_t n = 0, k;
+    int step = layout_step(w, h), x, y;
+    for (y = 1; y + 1 < h; y += step)
+        for (x = 1; x + 1 < w; x += step) {
+            size_t i = (size_t)y * (size_t)stride + (size_t)x;
+            double gx = 0.5 * ((double)a[i + 1] - a[i - 1]);
+            double gy = 0.5 * ((double)a[i + (size_t)stride] - a[i - (size_t)stride]);
+            double g;
+            if (b) {
+                gx += lam * 0.5 * ((double)b[i + 1] - b[i - 1]);
+                gy += lam * 0.5 * ((double)b[i + (size_t)stride] - b[i - (size_t)stride]);
+            }
+            g = sqrt(gx * gx + gy * gy);
+            if (!isnan(g))
+                work[n++] = (float)g;
+        }
+    if (!n)
+        return 0;
+    qsort(work, n, sizeof *work, layout_float_cmp);
+    for (k = 0; k < LAYOUT_QUANTILES; k++) {
+        double pos = (0.5 + 0.5 * (double)k) / 100.0 * (double)(n - 1);
+        size_t i0 = (size_t)pos;
+        double f = pos - (double)i0;
+        q[k] = i0 + 1 < n ? (1.0 - f) * work[i0] + f * work[i0 + 1] : work[n - 1];
+    }
+    return 1;
+}
+
+/* The p-th percentile (0..100) of the valid cells of r, over at most about
+ * LAYOUT_SAMPLES cells on a regular lattice (NAN when none is valid). */
+static double layout_percentile(const ts_raster *r, double p, float *work)
+{
+    double pos;
+    int step = layout_step(r->width, r->height), x, y;
+    size_t n = 0, i0;
+    for (y = 0; y < r->height; y += step)
+        for (x = 0; x < r->width; x += step)
+            if (!isnan(TS_PIX(r, x, y)))
+                work[n++] = TS_PIX(r, x, y);
+    if (!n)
+        return NAN;
+    qsort(work, n, sizeof *work, layout_float_cmp);
+    pos = p / 100.0 * (double)(n - 1);
+    i0 = (size_t)pos;
+    return i0 + 1 < n ? work[i0] + (pos - (double)i0) * (work[i0 + 1] - work[i0]) : work[n - 1];
+}
+
+/* Mean distance between the output's gradient quantiles at lam and the
+ * exemplars' (the Wasserstein-1 distance of the two distributions). */
+static double layout_misfit(const float *r0, const float *diff, int W, int H, double lam,
+                            const double *target, float *work)
+{
+    double q[LAYOUT_QUANTILES], sum = 0.0;
+    int k;
+    if (!layout_gradient_quantiles(r0, diff, W, W, H, lam, work, q))
+        return 0.0;
+    for (k = 0; k < LAYOUT_QUANTILES; k++)
+        sum += fabs(q[k] - target[k]);
+    return sum / LAYOUT_QUANTILES;
+}
+
+ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
+                           const unsigned char *flags, double strength)
+{
+    int W = s->width, H = s->height, any_fixed = 0, e, x, y;
+    size_t n = (size_t)W * (size_t)H, i;
+    double P = s->patch, g1, gc1, lam = 1.0, mean_before = 0.0;
+    unsigned char *m = ts__malloc_array(n, 1);
+    float *dist = ts__malloc_array(n, sizeof(float));
+    int32_t *nearest = ts__malloc_array(n, sizeof(int32_t));
+    float *guide = ts__malloc_array(n, sizeof(float));
+    float *work = ts__malloc_array(n, sizeof(float));
+    float *corr = ts__malloc_array(n, sizeof(float));
+    float *r0 = ts__malloc_array(n, sizeof(float)), *r01 = ts__malloc_array(n, sizeof(float));
+    float *d01 = ts__malloc_array(n, sizeof(float));
+    double *gl = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
+    double *gc = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
+    double *levels = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
+    float *fixd = NULL;
+    layout_run_data d;
+    layout_ws ws;
+    ts_raster r0r, r01r;
+    ts_status st = TS_OK;
+    ws.cap = n;
+    ws.v = ts__malloc_array(n, sizeof(double));
+    ws.m = ts__malloc_array(n, sizeof(double));
+    if (!m || !dist || !nearest || !guide || !work || !corr || !r0 || !r01 || !d01 || !gl || !gc ||
+        !levels || !ws.v || !ws.m) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        goto done;
+    }
+    /* the level of the features: the exemplar's main features of the kind,
+     * or, when it has none, its mean height */
+    for (e = 0; e < s->n_exemplars; e++) {
+        ts_raster_stats rs;
+        if (s->profs && s->profs[e].valid)
+            levels[e] = s->profs[e].level;
+        else if (ts_raster_stats_compute(ctx, &s->exemplars[e], &rs) == TS_OK)
+            levels[e] = rs.mean;
+    }
+    ts__clear(ctx);
+    for (i = 0; i < n; i++) {
+        m[i] = (s->sketch_mask[i] & s->kind) != 0;
+        any_fixed |= flags && (flags[i] & TS_CELL_FIXED);
+    }
+    if (!(strength > 0))
+        goto done;
+    if ((st = ts__distance_transform_nearest(ctx, m, W, H, dist, nearest)) != TS_OK)
+        goto done;
+    if (any_fixed) {
+        /* the corrections fade out towards fixed cells, which keep their values */
+        if (!(fixd = ts__malloc_array(n, sizeof(float)))) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+            goto done;
+        }
+        for (i = 0; i < n; i++)
+            m[i] = (flags[i] & TS_CELL_FIXED) != 0;
+        if ((st = ts__distance_transform(ctx, m, W, H, fixd)) != TS_OK)
+            goto done;
+    }
+    d.s = s;
+    d.strength = strength;
+    d.sig_l = P / 3.0;
+    d.sig_c = P / 8.0;
+    d.c_l = P;
+    d.c_c = P / 4.0;
+    d.sign = s->kind == TS_VALLEY ? -1.0 : 1.0;
+    d.dist = dist;
+    d.fixd = fixd;
+    d.nearest = nearest;
+    d.gl = gl;
+    d.gc = gc;
+    d.levels = levels;
+    d.guide = guide;
+    d.work = work;
+    d.corr = corr;
+    d.ws = &ws;
+    /* steepness of the guides and of the exemplars at both scales */
+    if ((st = layout_reach_gradient(ctx, &ws, dist, s->nodata, W, H, d.c_l, d.sig_l, INFINITY,
+                                    &g1)) != TS_OK ||
+        (st = layout_reach_gradient(ctx, &ws, dist, s->nodata, W, H, d.c_c, d.sig_c, 2.0 * d.c_c,
+                                    &gc1)) != TS_OK ||
+        (st = layout_exemplar_gradients(ctx, s, d.sig_l, gl)) != TS_OK ||
+        (st = layout_exemplar_gradients(ctx, s, d.sig_c, gc)) != TS_OK)
+        goto done;
+    if (!(g1 > 0) || !(gc1 > 0))
+        goto done; /* no feature on the grid */
+    for (e = 0; e < s->n_exemplars; e++) {
+        gl[e] /= g1;
+        gc[e] /= gc1;
+    }
+    /* the corrections are linear in the guides' steepness: the layout's
+     * and the crest's together (out: both at 1, r0: both at 0), or the
+     * layout's alone under the crest's at 1 (r01: layout at 0) */
+    for (y = 0; y < H; y++) {
+        memcpy(r0 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+               (size_t)W * sizeof(float));
+        memcpy(r01 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+               (size_t)W * sizeof(float));
+    }
+    r0r = ts_raster_wrap(r0, W, H, W);
+    r01r = ts_raster_wrap(r01, W, H, W);
+    {
+        size_t cnt = 0;
+        for (i = 0; i < n; i++)
+            if (!isnan(r0[i]) && !(fixd && fixd[i] < 2.0 * d.sig_l)) {
+                mean_before += r0[i];
+                cnt++;
+            }
+        mean_before = cnt ? mean_before / (double)cnt : 0.0;
+    }
+    if ((st = layout_run(ctx, &d, out, 1.0, 1.0)) != TS_OK ||
+        (st = layout_run(ctx, &d, &r0r, 0.0, 0.0)) != TS_OK ||
+        (st = layout_run(ctx, &d, &r01r, 0.0, 1.0)) != TS_OK)
+        goto done;
+    /* the steepness that gives the output the exemplars' distribution of
+     * slopes (the patches' merging flattens a little; a steep exemplar's
+     * guide adds to its own slopes): the least Wasserstein distance of the
+     * gradient distributions, golden-section search over 0.35..2.5 times
+     * the calibrated steepness.  Above 1 the layout and the crest steepen
+     * together; below 1 only the layout gentles: the sketched features keep
+     * standing out over an exemplar whose land is mostly flat */
+    for (i = 0; i < n; i++) { /* the parts the steepness scales */
+        float o = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
+        corr[i] = o - r0[i];
+        d01[i] = o - r01[i];
+    }
+    {
+        double target[LAYOUT_QUANTILES], q[LAYOUT_QUANTILES];
+        int k, n_t = 0, it;
+        double lo = log(0.35), hi = log(2.5), g = 0.5 * (sqrt(5.0) - 1.0), x1, x2, f1, f2;
+        memset(target, 0, sizeof target);
+        for (e = 0; e < s->n_exemplars; e++) {
+            const ts_raster *ex = &s->exemplars[e];
+            float *wk = ts__malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
+            if (!wk) {
+                st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+                goto done;
+            }
+            if (layout_gradient_quantiles(ex->data, NULL, ex->stride, ex->width, ex->height, 0.0,
+                                          wk, q)) {
+                for (k = 0; k < LAYOUT_QUANTILES; k++)
+                    target[k] += q[k];
+                n_t++;
+            }
+            free(wk);
+        }
+#define LAYOUT_MISFIT(lm)                                                                          \
+    ((lm) >= 1.0 ? layout_misfit(r0, corr, W, H, (lm), target, work)                               \
+                 : layout_misfit(r01, d01, W, H, (lm), target, work))
+        if (n_t) {
+            for (k = 0; k < LAYOUT_QUANTILES; k++)
+                target[k] /= n_t;
+            x1 = hi - g * (hi - lo);
+            x2 = lo + g * (hi - lo);
+            f1 = LAYOUT_MISFIT(exp(x1));
+            f2 = LAYOUT_MISFIT(exp(x2));
+            for (it = 0; it < 16; it++) {
+                if (f1 <= f2) {
+                    hi = x2;
+                    x2 = x1;
+                    f2 = f1;
+                    x1 = hi - g * (hi - lo);
+                    f1 = LAYOUT_MISFIT(exp(x1));
+                } else {
+                    lo = x1;
+                    x1 = x2;
+                    f1 = f2;
+                    x2 = lo + g * (hi - lo);
+                    f2 = LAYOUT_MISFIT(exp(x2));
+                }
+            }
+            lam = exp(0.5 * (lo + hi));
+        }
+#undef LAYOUT_MISFIT
+    }
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            i = (size_t)y * (size_t)W + (size_t)x;
+            if (!isnan(TS_PIX(out, x, y)))
+                TS_PIX(out, x, y) =
+                    (float)(lam >= 1.0 ? r0[i] + lam * corr[i] : r01[i] + lam * d01[i]);
+        }
+    /* the layout moves heights about, not the land's mean height: the mean
+     * is put back where the patches had it (fading out near fixed cells) */
+    {
+        double after = 0.0, shift;
+        size_t cnt = 0;
+        for (i = 0; i < n; i++) {
+            double z = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
+            if (isnan(z) || isnan(r0[i]) || (fixd && fixd[i] < 2.0 * d.sig_l))
+                continue;
+            after += z;
+            cnt++;
+        }
+        shift = cnt ? (mean_before - after / (double)cnt) : 0.0;
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                double w = 1.0;
+                i = (size_t)y * (size_t)W + (size_t)x;
+                if (isnan(TS_PIX(out, x, y)))
+                    continue;
+                if (fixd) {
+                    double t = fixd[i] / (2.0 * d.sig_l);
+                    t = t > 1.0 ? 1.0 : t;
+                    w = t * t * (3.0 - 2.0 * t);
+                }
+                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * shift);
+            }
+    }
+    /* the land's large-scale heights (blurred at the layout scale) stay
+     * within the exemplars' 1st to 99th percentile: beyond, they are pressed
+     * smoothly into a margin of a tenth of that range, as a far lowland
+     * levels out; the detail above them is kept */
+    {
+        double lo = INFINITY, hi = -INFINITY, margin;
+        for (e = 0; e < s->n_exemplars; e++) {
+            const ts_raster *ex = &s->exemplars[e];
+            float *wk = ts__malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
+            if (!wk) {
+                st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+                goto done;
+            }
+            lo = fmin(lo, layout_percentile(ex, 1.0, wk));
+            hi = fmax(hi, layout_percentile(ex, 99.0, wk));
+            free(wk);
+        }
+        margin = 0.1 * (hi - lo);
+        for (y = 0; y < H; y++)
+            memcpy(work + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+                   (size_t)W * sizeof(float));
+        if (isfinite(lo) && isfinite(hi) && margin > 0 &&
+            (st = lblur(ctx, &ws, work, W, W, H, d.sig_l, corr)) == TS_OK)
+            for (y = 0; y < H; y++)
+                for (x = 0; x < W; x++) {
+                    double L, w = 1.0, want;
+                    i = (size_t)y * (size_t)W + (size_t)x;
+                    L = corr[i];
+                    if (isnan(TS_PIX(out, x, y)) || isnan(L) || (L >= lo && L <= hi))
+                        continue;
+                    want = L < lo ? lo - margin * (1.0 - exp((L - lo) / margin))
+                                  : hi + margin * (1.0 - exp((hi - L) / margin));
+                    if (fixd) {
+                        double t = fixd[i] / (2.0 * d.sig_l);
+                        t = t > 1.0 ? 1.0 : t;
+                        w = t * t * (3.0 - 2.0 * t);
+                    }
+                    TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * (want - L));
+                }
+        if (st != TS_OK)
+            goto done;
+    }
+    /* valleys: the floor along the sketch's features descends to the
+     * outlet cell by cell, the change fading out across the valley over an
+     * eighth of a patch (as a river would cut or fill its bed) */
+    if (s->kind == TS_VALLEY) {
+        double rr = P / 8.0;
+        for (i = 0; i < n; i++) {
+            float v = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
+            work[i] = (s->sketch_mask[i] & s->kind) && !(fixd && fixd[i] < 1.0f) ? v : NAN;
+            corr[i] = work[i];
+        }
+        if ((st = layout_descend(ctx, s, corr)) != TS_OK)
+            goto done;
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                double w, delta;
+                int32_t p;
+                i = (size_t)y * (size_t)W + (size_t)x;
+                p = nearest[i];
+                if (p < 0 || isnan(TS_PIX(out, x, y)) || isnan(work[p]) || isnan(corr[p]) ||
+                    !(dist[i] < 3.0 * rr))
+                    continue;
+                delta = (double)corr[p] - (double)work[p];
+                w = strength * exp(-(dist[i] / rr) * (dist[i] / rr));
+                if (fixd) {
+                    double t = fixd[i] / (2.0 * rr);
+                    t = t > 1.0 ? 1.0 : t;
+                    w *= t * t * (3.0 - 2.0 * t);
+                }
+                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * delta);
+            }
+    }
+done:
+    free(m);
+    free(dist);
+    free(nearest);
+    free(guide);
+    free(work);
+    free(corr);
+    free(r0);
+    free(r01);
+    free(d01);
+    free(gl);
+    free(gc);
+    free(levels);
+    free(fixd);
+    free(ws.v);
+    free(ws.m);
+    return st;
+}

@@ -1,0 +1,56 @@
+/*
+ * layout.h - private: the large-scale relief a sketch lays out (a
+ * TerraSynth addition to Zhou et al. 2007, see layout.c).  Not installed.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#ifndef TS_LAYOUT_H
+#define TS_LAYOUT_H
+
+#include "internal.h"
+#include "relief_guide.h"
+
+/* Radius of the three box passes that approximate a Gaussian of sigma. */
+int ts__blur_radius(double sigma);
+
+/*
+ * NaN-aware Gaussian blur (three box passes, so O(cells) for any sigma):
+ * out[i] = sum of weights * values / sum of weights over the valid cells,
+ * NaN where no valid cell is in reach.  in: w x h at `stride`; out: w*h,
+ * stride w.  Returns TS_ERR_NOMEM.
+ */
+ts_status ts__blur_nan(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h, double sigma,
+                       float *out);
+
+/* Mean gradient magnitude (central differences, per cell) over the cells
+ * whose four neighbours are valid; 0 when there is none. */
+double ts__mean_gradient(const float *a, int w, int h);
+
+typedef struct ts_layout_spec {
+    const unsigned char *sketch_mask; /* width*height: bit `kind` on the sketch's features */
+    int kind;                         /* TS_RIDGE or TS_VALLEY */
+    int width, height;
+    const unsigned char *nodata; /* width*height or NULL: non-zero = no guide there */
+    const ts_raster *exemplars;  /* at the output's ground resolution */
+    int n_exemplars;
+    const ts_relief_profile *profs; /* per exemplar: the level of its main features (an
+                                       exemplar without a valid one: its mean height) */
+    const int32_t *cell_exemplar;   /* per output cell, or NULL */
+    int patch;                      /* the patch size, cells: sets both scales */
+    const ts_features *features;    /* the sketch's feature graph (valleys descend along
+                                       its paths), or NULL */
+} ts_layout_spec;
+
+/* Along the paths of spec->features of spec->kind (level: width*height,
+ * NaN = no level), levels made non-increasing from every network's sources
+ * to its outlet (the endpoint nearest the grid's edge): the mean of filling
+ * and carving (layout.c).  Exposed for the tests. */
+ts_status layout_descend(ts_ctx *ctx, const ts_layout_spec *spec, float *level);
+
+/* The layout and crest corrections of layout.c, applied to out (the
+ * sketch's size) with `strength` (0..1); flags (may be NULL): TS_CELL_FIXED
+ * cells never change and the corrections fade out near them. */
+ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *spec, ts_raster *out,
+                           const unsigned char *flags, double strength);
+
+#endif
