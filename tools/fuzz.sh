@@ -16,7 +16,7 @@ inc="-I algorithms/include -I algorithms/src/base -I algorithms/src/ppa -I algor
 version=$(sed -n 's/^project(TerraSynth VERSION \([0-9.]*\).*/\1/p' CMakeLists.txt)
 $cc $inc -DTS_BUILDING_LIBRARY -DTS_VERSION_STRING="\"$version\"" -o "$out/fuzz_recipe" \
   tests/fuzz/fuzz_recipe.c gdal_driver/recipe.c gdal_driver/jobspec.c gdal_driver/cli_params.c \
-  gdal_driver/tsjob.c gdal_driver/tsio.c algorithms/src/*.c algorithms/src/*/*.c \
+  gdal_driver/tsjob.c gdal_driver/tsio_*.c algorithms/src/*.c algorithms/src/*/*.c \
   $(pkg-config --libs gdal proj fftw3f) -lm -lpthread
 # a recipe can name inputs that do not exist: GDAL's own allocations are not ours
 ASAN_OPTIONS=detect_leaks=1 "$out/fuzz_recipe" -max_total_time="$secs" -rss_limit_mb=4096 \

@@ -1,5 +1,5 @@
 /*
- * test_tsio.c - tests of the GDAL I/O layer (gdal_driver/tsio.c).
+ * test_tsio.c - tests of the GDAL I/O layer (gdal_driver/tsio_*.c).
  *
  * Copyright (C) 2026 The TerraSynth developers
  * SPDX-License-Identifier: GPL-2.0-or-later

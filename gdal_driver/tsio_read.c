@@ -1,0 +1,828 @@
+/*
+ * tsio_read.c - rasters in: any GDAL raster as metres with NaN nodata, its
+ * georeferencing and ground metrics (geodesic cell sizes), resampled to a
+ * target resolution.
+ *
+ * Copyright (C) 2026 The TerraSynth developers
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#define _POSIX_C_SOURCE 200809L
+#define _LARGEFILE64_SOURCE 1 /* struct stat64 behind GDAL's VSIStatBufL under -std=c11 */
+
+#include "tsio_internal.h"
+
+#include <ctype.h>
+#include <float.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cpl_conv.h>
+#include <cpl_string.h>
+#include <cpl_vsi.h>
+#include <gdal.h>
+#include <gdal_utils.h>
+#include <ogr_api.h>
+#include <ogr_srs_api.h>
+
+#include <geodesic.h>
+
+/* ------------------------------------------------------------------ */
+/* Reading                                                             */
+/* ------------------------------------------------------------------ */
+
+/* Metres per vertical unit named `u`; unknown names count as metres. */
+static double vertical_unit_factor(const char *u, int *known)
+{
+    static const char *const intl_ft[] = {"ft",
+                                          "foot",
+                                          "feet",
+                                          "international foot",
+                                          "international feet",
+                                          "foot (international)",
+                                          "ft (international)",
+                                          NULL};
+    static const char *const us_ft[] = {"US survey foot", "ftUS",           "us-ft",
+                                        "US survey feet", "us_survey_foot", "survey foot",
+                                        "foot_us",        "US foot",        NULL};
+    static const char *const metre[] = {"", "m", "metre", "meter", "metres", "meters", NULL};
+    int i;
+    *known = 1;
+    for (i = 0; intl_ft[i]; i++)
+        if (tsio__str_ieq(u, intl_ft[i]))
+            return 0.3048;
+    for (i = 0; us_ft[i]; i++)
+        if (tsio__str_ieq(u, us_ft[i]))
+            return 1200.0 / 3937.0;
+    for (i = 0; metre[i]; i++)
+        if (tsio__str_ieq(u, metre[i]))
+            return 1.0;
+    *known = 0;
+    return 1.0;
+}
+
+static double clamp_lat(double lat)
+{
+    return lat < -90.0 ? -90.0 : (lat > 90.0 ? 90.0 : lat);
+}
+
+/* Per-row ground metrics of a north-up grid in `srs`.  0 or -1 (message in why). */
+static int compute_metrics(OGRSpatialReferenceH srs, const double gt[6], int height, double *dx,
+                           double *dy, char *why, size_t whylen)
+{
+    int y;
+    if (OSRIsGeographic(srs)) {
+        OGRErr e1 = OGRERR_NONE, e2 = OGRERR_NONE;
+        double a = OSRGetSemiMajor(srs, &e1);
+        double invf = OSRGetInvFlattening(srs, &e2);
+        double rad_per_unit = OSRGetAngularUnits(srs, NULL);
+        double deg_per_unit, dlon, dlat, f;
+        struct geod_geodesic g;
+        if (e1 != OGRERR_NONE || !(a > 0.0) || !isfinite(a)) {
+            snprintf(why, whylen, "the CRS has no usable ellipsoid");
+            return -1;
+        }
+        f = (e2 == OGRERR_NONE && invf != 0.0 && isfinite(invf)) ? 1.0 / invf : 0.0;
+        if (!(f < 1.0)) {
+            snprintf(why, whylen, "the CRS has an invalid flattening");
+            return -1;
+        }
+        if (!(rad_per_unit > 0.0) || !isfinite(rad_per_unit))
+            rad_per_unit = TSIO_PI / 180.0;
+        deg_per_unit = rad_per_unit * 180.0 / TSIO_PI;
+        dlon = fabs(gt[1]) * deg_per_unit;
+        dlat = fabs(gt[5]) * deg_per_unit;
+        geod_init(&g, a, f);
+        for (y = 0; y < height; y++) {
+            double lat = clamp_lat((gt[3] + ((double)y + 0.5) * gt[5]) * deg_per_unit);
+            double s = 0.0, step = dlon;
+            int n = 1, i;
+            /* a cell wider than half the globe: measure it in pieces */
+            while (step > 180.0 && n < 1024) {
+                n *= 2;
+                step = dlon / n;
+            }
+            geod_inverse(&g, lat, 0.0, lat, step, &s, NULL, NULL);
+            dx[y] = 0.0;
+            for (i = 0; i < n; i++)
+                dx[y] += s;
+            geod_inverse(&g, clamp_lat(lat - dlat / 2.0), 0.0, clamp_lat(lat + dlat / 2.0), 0.0, &s,
+                         NULL, NULL);
+            dy[y] = s;
+            if (!isfinite(dx[y]) || !isfinite(dy[y])) {
+                snprintf(why, whylen, "cannot compute geodesic cell sizes");
+                return -1;
+            }
+        }
+    } else {
+        double unit = OSRGetLinearUnits(srs, NULL);
+        double w, h;
+        if (!(unit > 0.0) || !isfinite(unit))
+            unit = 1.0;
+        w = fabs(gt[1]) * unit;
+        h = fabs(gt[5]) * unit;
+        for (y = 0; y < height; y++) {
+            dx[y] = w;
+            dy[y] = h;
+        }
+    }
+    return 0;
+}
+
+static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *err)
+{
+    GDALDatasetH ds = NULL;
+    GDALRasterBandH band, mask_band = NULL;
+    OGRSpatialReferenceH srs = NULL;
+    double *buf = NULL;
+    unsigned char *mask = NULL;
+    int rc = -1, w, h, nbands, ok = 0, mask_flags, y0, rows;
+    double scale, offset, vscale = 1.0, nodata = 0.0;
+    float nodata_f = 0.0f;
+    int has_nodata = 0, compare_float = 0, known_unit;
+    size_t ncells, chunk_rows, n_valid = 0;
+    GDALDataType dt;
+    const char *unit;
+
+    CPLErrorReset();
+    ds = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, NULL, NULL,
+                    NULL);
+    if (!ds) {
+        char g[768];
+        tsio__gdal_last_msg(g, sizeof g);
+        /* connection strings ("NETCDF:f.nc:z") are not files: keep GDAL's verdict */
+        if (!tsio__path_exists(path, NULL) &&
+            (!strchr(path, ':') || tsio__starts_with(path, "/vsi")))
+            tsio_errf(err, path, "no such file");
+        else if (g[0] && !strstr(g, "not recognized as a supported file format"))
+            tsio_errf(err, path, "not a raster GDAL can open (%s)", g);
+        else
+            tsio_errf(err, path, "not a raster GDAL can open");
+        return -1;
+    }
+
+    nbands = GDALGetRasterCount(ds);
+    if (nbands < 1) {
+        tsio_errf(err, path, "the file has no raster bands");
+        goto done;
+    }
+    if (band_no < 1 || band_no > nbands) {
+        tsio_errf(err, path, "band %d does not exist (the file has %d band%s)", band_no, nbands,
+                  nbands == 1 ? "" : "s");
+        goto done;
+    }
+    w = GDALGetRasterXSize(ds);
+    h = GDALGetRasterYSize(ds);
+    if (w <= 0 || h <= 0) {
+        tsio_errf(err, path, "empty raster (%d x %d cells)", w, h);
+        goto done;
+    }
+    if ((size_t)w > SIZE_MAX / (size_t)h ||
+        (size_t)w * (size_t)h > (size_t)PTRDIFF_MAX / sizeof(double)) {
+        tsio_errf(err, path, "raster too large (%d x %d cells)", w, h);
+        goto done;
+    }
+    ncells = (size_t)w * (size_t)h;
+    out->geo.width = w;
+    out->geo.height = h;
+
+    /* geotransform */
+    if (GDALGetGeoTransform(ds, out->geo.gt) == CE_None) {
+        int i;
+        out->geo.has_gt = 1;
+        if (out->geo.gt[2] != 0.0 || out->geo.gt[4] != 0.0) {
+            tsio_errf(err, path, "rotated geotransforms are not supported");
+            goto done;
+        }
+        for (i = 0; i < 6; i++)
+            if (!isfinite(out->geo.gt[i])) {
+                tsio_errf(err, path, "the geotransform is not finite");
+                goto done;
+            }
+        if (out->geo.gt[1] == 0.0 || out->geo.gt[5] == 0.0) {
+            tsio_errf(err, path, "the geotransform has a zero cell size");
+            goto done;
+        }
+    } else {
+        static const double identity[6] = {0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
+        memcpy(out->geo.gt, identity, sizeof identity);
+        out->geo.has_gt = 0;
+    }
+    CPLErrorReset();
+
+    /* CRS */
+    {
+        OGRSpatialReferenceH s = GDALGetSpatialRef(ds);
+        if (s) {
+            srs = OSRClone(s);
+            if (!srs) {
+                tsio_errf(err, path, "out of memory");
+                goto done;
+            }
+            OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
+            out->geo.wkt = tsio__srs_to_wkt2(srs);
+            if (!out->geo.wkt) {
+                tsio__set_err_gdal(err, path, "cannot export the CRS as WKT");
+                goto done;
+            }
+            out->geo.is_geographic = OSRIsGeographic(srs) ? 1 : 0;
+        }
+    }
+
+    /* band properties */
+    band = GDALGetRasterBand(ds, band_no);
+    dt = GDALGetRasterDataType(band);
+    if (dt == GDT_Int64) {
+        int64_t v = GDALGetRasterNoDataValueAsInt64(band, &ok);
+        nodata = (double)v;
+    } else if (dt == GDT_UInt64) {
+        uint64_t v = GDALGetRasterNoDataValueAsUInt64(band, &ok);
+        nodata = (double)v;
+    } else {
+        nodata = GDALGetRasterNoDataValue(band, &ok);
+    }
+    has_nodata = ok ? 1 : 0;
+    if (has_nodata) {
+        out->has_nodata = 1;
+        out->nodata = nodata;
+        /* Float32 files store the nodata value as a float: compare as floats */
+        if ((dt == GDT_Float32 || dt == GDT_CFloat32) && isfinite(nodata) &&
+            fabs(nodata) <= FLT_MAX) {
+            compare_float = 1;
+            nodata_f = (float)nodata;
+        }
+    }
+    scale = GDALGetRasterScale(band, &ok);
+    if (!ok || !isfinite(scale))
+        scale = 1.0;
+    offset = GDALGetRasterOffset(band, &ok);
+    if (!ok || !isfinite(offset))
+        offset = 0.0;
+    unit = GDALGetRasterUnitType(band);
+    if (!unit)
+        unit = "";
+    while (*unit == ' ')
+        unit++;
+    vscale = vertical_unit_factor(unit, &known_unit);
+    if (!unit[0] && srs && OSRIsCompound(srs)) {
+        double f = OSRGetTargetLinearUnits(srs, "VERT_CS", NULL);
+        if (f > 0.0 && isfinite(f))
+            vscale = f;
+    }
+    out->vertical_scale = vscale;
+    CPLErrorReset();
+
+    /* buffers */
+    out->r.data = malloc(ncells * sizeof(float));
+    chunk_rows = TSIO_CHUNK_CELLS / (size_t)w;
+    if (chunk_rows < 1)
+        chunk_rows = 1;
+    if (chunk_rows > (size_t)h)
+        chunk_rows = (size_t)h;
+    buf = malloc(chunk_rows * (size_t)w * sizeof(double));
+    mask_flags = GDALGetMaskFlags(band);
+    /* A mask derived only from the nodata value adds nothing to the nodata
+     * test below (and would read the data twice); any other mask is read. */
+    if (!(mask_flags & GMF_ALL_VALID) && !(mask_flags == GMF_NODATA && has_nodata)) {
+        mask_band = GDALGetMaskBand(band);
+        if (mask_band)
+            mask = malloc(chunk_rows * (size_t)w);
+    }
+    if (!out->r.data || !buf || (mask_band && !mask)) {
+        tsio_errf(err, path, "out of memory (%d x %d cells)", w, h);
+        goto done;
+    }
+    out->r.width = w;
+    out->r.height = h;
+    out->r.stride = w;
+
+    for (y0 = 0; y0 < h; y0 += rows) {
+        size_t i, n;
+        float *dst;
+        rows = (int)((size_t)(h - y0) < chunk_rows ? (size_t)(h - y0) : chunk_rows);
+        n = (size_t)rows * (size_t)w;
+        if (GDALRasterIOEx(band, GF_Read, 0, y0, w, rows, buf, w, rows, GDT_Float64,
+                           (GSpacing)sizeof(double), (GSpacing)sizeof(double) * w,
+                           NULL) != CE_None) {
+            tsio__set_err_gdal(err, path, "read error");
+            goto done;
+        }
+        if (mask_band && GDALRasterIOEx(mask_band, GF_Read, 0, y0, w, rows, mask, w, rows, GDT_Byte,
+                                        1, (GSpacing)w, NULL) != CE_None) {
+            tsio__set_err_gdal(err, path, "cannot read the mask band");
+            goto done;
+        }
+        dst = out->r.data + (size_t)y0 * (size_t)w;
+        for (i = 0; i < n; i++) {
+            double v = buf[i];
+            int bad = !isfinite(v);
+            if (!bad && has_nodata) {
+                if (compare_float)
+                    bad = fabs(v) <= FLT_MAX && (float)v == nodata_f;
+                else
+                    bad = (v == nodata);
+            }
+            if (!bad && mask && mask[i] == 0)
+                bad = 1;
+            if (!bad) {
+                v = (v * scale + offset) * vscale;
+                if (!isfinite(v) || fabs(v) > FLT_MAX)
+                    bad = 1;
+            }
+            if (bad) {
+                dst[i] = NAN;
+            } else {
+                dst[i] = (float)v;
+                n_valid++;
+            }
+        }
+    }
+    if (n_valid == 0) {
+        tsio_errf(err, path, "every cell is nodata");
+        goto done;
+    }
+
+    /* ground metrics */
+    if (srs && out->geo.has_gt) {
+        char why[256] = "";
+        out->dx_m = malloc((size_t)h * sizeof(double));
+        out->dy_m = malloc((size_t)h * sizeof(double));
+        if (!out->dx_m || !out->dy_m) {
+            tsio_errf(err, path, "out of memory");
+            goto done;
+        }
+        if (compute_metrics(srs, out->geo.gt, h, out->dx_m, out->dy_m, why, sizeof why) != 0) {
+            tsio_errf(err, path, "%s", why);
+            goto done;
+        }
+    }
+    rc = 0;
+
+done:
+    free(buf);
+    free(mask);
+    if (srs)
+        OSRDestroySpatialReference(srs);
+    if (ds)
+        GDALClose(ds);
+    return rc;
+}
+
+int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err)
+{
+    int rc;
+    if (err)
+        err->msg[0] = '\0';
+    if (!out) {
+        tsio_errf(err, path, "no output raster given");
+        return -1;
+    }
+    memset(out, 0, sizeof *out);
+    out->vertical_scale = 1.0;
+    out->geo.gt[1] = out->geo.gt[5] = 1.0;
+    if (!path || !path[0]) {
+        tsio_errf(err, "(empty path)", "no input file given");
+        return -1;
+    }
+    tsio__ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    rc = read_impl(path, band, out, err);
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    if (rc != 0)
+        tsio_raster_free(out);
+    return rc;
+}
+
+void tsio_raster_free(tsio_raster *r)
+{
+    if (!r)
+        return;
+    free(r->r.data);
+    free(r->dx_m);
+    free(r->dy_m);
+    tsio_georef_free(&r->geo);
+    memset(r, 0, sizeof *r);
+}
+
+const ts_grid_metrics *tsio_metrics(const tsio_raster *r, ts_grid_metrics *storage)
+{
+    if (!r || !storage || !r->dx_m || !r->dy_m)
+        return NULL;
+    storage->dx = r->dx_m;
+    storage->dy = r->dy_m;
+    return storage;
+}
+
+int tsio_georef_copy(const tsio_georef *src, tsio_georef *out)
+{
+    if (!out)
+        return -1;
+    if (!src) {
+        memset(out, 0, sizeof *out);
+        return -1;
+    }
+    *out = *src;
+    out->wkt = NULL;
+    if (src->wkt) {
+        out->wkt = tsio__str_dup(src->wkt);
+        if (!out->wkt)
+            return -1;
+    }
+    return 0;
+}
+
+void tsio_georef_free(tsio_georef *g)
+{
+    if (!g)
+        return;
+    free(g->wkt);
+    g->wkt = NULL;
+}
+
+/* ------------------------------------------------------------------ */
+/* Reading at a ground resolution                                      */
+/* ------------------------------------------------------------------ */
+
+/* The raster as a Float32 MEM dataset (NaN nodata) with its georeferencing. */
+static GDALDatasetH mem_from_raster(const tsio_raster *r)
+{
+    GDALDriverH mem = GDALGetDriverByName("MEM");
+    GDALDatasetH ds;
+    GDALRasterBandH b;
+    if (!mem)
+        return NULL;
+    ds = GDALCreate(mem, "", r->geo.width, r->geo.height, 1, GDT_Float32, NULL);
+    if (!ds)
+        return NULL;
+    GDALSetGeoTransform(ds, (double *)r->geo.gt);
+    if (r->geo.wkt)
+        GDALSetProjection(ds, r->geo.wkt);
+    b = GDALGetRasterBand(ds, 1);
+    GDALSetRasterNoDataValue(b, NAN);
+    if (GDALRasterIOEx(b, GF_Write, 0, 0, r->geo.width, r->geo.height, r->r.data, r->geo.width,
+                       r->geo.height, GDT_Float32, sizeof(float),
+                       (GSpacing)r->r.stride * (GSpacing)sizeof(float), NULL) != CE_None) {
+        GDALClose(ds);
+        return NULL;
+    }
+    return ds;
+}
+
+/* Replace `out` by the warped dataset's contents and georeferencing. */
+static int raster_from_mem(GDALDatasetH ds, tsio_raster *out, const char *path, tsio_err *err)
+{
+    int w = GDALGetRasterXSize(ds), h = GDALGetRasterYSize(ds);
+    size_t i;
+    double gt[6];
+    OGRSpatialReferenceH srs = NULL;
+    const char *wkt = GDALGetProjectionRef(ds);
+    float *data = (w > 0 && h > 0 && (size_t)w <= SIZE_MAX / sizeof(float) / (size_t)h)
+                      ? malloc((size_t)w * (size_t)h * sizeof *data)
+                      : NULL;
+    double *dx = h > 0 ? malloc((size_t)h * sizeof *dx) : NULL;
+    double *dy = h > 0 ? malloc((size_t)h * sizeof *dy) : NULL;
+    char why[256];
+    if (!data || !dx || !dy) {
+        tsio_errf(err, path, "out of memory");
+        goto fail;
+    }
+    GDALGetGeoTransform(ds, gt);
+    if (GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Read, 0, 0, w, h, data, w, h, GDT_Float32, 0,
+                     0) != CE_None) {
+        tsio__set_err_gdal(err, path, "cannot read the resampled raster");
+        goto fail;
+    }
+    srs = wkt && wkt[0] ? tsio__srs_from_wkt(wkt) : NULL;
+    if (!srs || compute_metrics(srs, gt, h, dx, dy, why, sizeof why) != 0) {
+        tsio_errf(err, path, "cannot measure the resampled grid");
+        goto fail;
+    }
+    for (i = 0; i < (size_t)w * (size_t)h; i++)
+        if (!isfinite(data[i]))
+            data[i] = NAN;
+    free(out->r.data);
+    free(out->dx_m);
+    free(out->dy_m);
+    free(out->geo.wkt);
+    out->r = ts_raster_wrap(data, w, h, w);
+    out->dx_m = dx;
+    out->dy_m = dy;
+    out->geo.width = w;
+    out->geo.height = h;
+    memcpy(out->geo.gt, gt, sizeof gt);
+    out->geo.has_gt = 1;
+    out->geo.wkt = tsio__srs_to_wkt2(srs);
+    out->geo.is_geographic = OSRIsGeographic(srs);
+    OSRDestroySpatialReference(srs);
+    return 0;
+fail:
+    if (srs)
+        OSRDestroySpatialReference(srs);
+    free(data);
+    free(dx);
+    free(dy);
+    return -1;
+}
+
+/* A raster without CRS whose cells are cell_m metres: its metrics set to
+ * that and, when the target's cells differ by more than 1 %, resampled to
+ * them in its own pixel space (cubic when finer, average when coarser). */
+static int resample_no_crs(const char *path, double cell_m, double target_dx_m, double target_dy_m,
+                           tsio_raster *out, double *factor, tsio_err *err)
+{
+    int w = out->geo.width, h = out->geo.height, nw, nh, y, rc = -1, usage = 0;
+    double f = sqrt((cell_m * cell_m) / (target_dx_m * target_dy_m));
+    GDALDatasetH src = NULL, dst = NULL;
+    GDALTranslateOptions *to = NULL;
+    char sw[32], sh[32];
+    float *data = NULL;
+    double *dx = NULL, *dy = NULL;
+    if (factor)
+        *factor = f;
+    if (fabs(cell_m / target_dx_m - 1.0) < 1e-2 && fabs(cell_m / target_dy_m - 1.0) < 1e-2) {
+        nw = w;
+        nh = h;
+    } else {
+        char *argv[] = {"-of", "MEM", "-outsize", sw, sh, "-r", NULL, "-ot", "Float32", NULL};
+        nw = (int)lround(w * cell_m / target_dx_m);
+        nh = (int)lround(h * cell_m / target_dy_m);
+        if (nw < 1 || nh < 1 || (double)nw * (double)nh > 4e9) {
+            tsio_errf(err, path, "cannot be resampled to %.6g m cells", target_dx_m);
+            return -1;
+        }
+        snprintf(sw, sizeof sw, "%d", nw);
+        snprintf(sh, sizeof sh, "%d", nh);
+        argv[6] = f > 1.0 ? "cubicspline" : "average";
+        CPLPushErrorHandler(CPLQuietErrorHandler);
+        src = mem_from_raster(out);
+        to = src ? GDALTranslateOptionsNew(argv, NULL) : NULL;
+        dst = to ? GDALTranslate("", src, to, &usage) : NULL;
+        data = dst && (size_t)nw <= SIZE_MAX / sizeof(float) / (size_t)nh
+                   ? malloc((size_t)nw * (size_t)nh * sizeof *data)
+                   : NULL;
+        if (!data || GDALRasterIO(GDALGetRasterBand(dst, 1), GF_Read, 0, 0, nw, nh, data, nw, nh,
+                                  GDT_Float32, 0, 0) != CE_None) {
+            tsio_errf(err, path, "resampling failed");
+            goto done;
+        }
+        {
+            size_t i;
+            for (i = 0; i < (size_t)nw * (size_t)nh; i++)
+                if (!isfinite(data[i]))
+                    data[i] = NAN;
+        }
+    }
+    dx = malloc((size_t)nh * sizeof *dx);
+    dy = malloc((size_t)nh * sizeof *dy);
+    if (!dx || !dy) {
+        tsio_errf(err, path, "out of memory");
+        goto done;
+    }
+    for (y = 0; y < nh; y++) {
+        dx[y] = data ? target_dx_m : cell_m;
+        dy[y] = data ? target_dy_m : cell_m;
+    }
+    if (data) {
+        free(out->r.data);
+        out->r = ts_raster_wrap(data, nw, nh, nw);
+        data = NULL;
+        out->geo.width = nw;
+        out->geo.height = nh;
+        out->geo.gt[1] *= (double)w / nw;
+        out->geo.gt[5] *= (double)h / nh;
+    }
+    free(out->dx_m);
+    free(out->dy_m);
+    out->dx_m = dx;
+    out->dy_m = dy;
+    dx = dy = NULL;
+    rc = 0;
+done:
+    if (src || to) {
+        CPLErrorReset();
+        CPLPopErrorHandler();
+    }
+    if (to)
+        GDALTranslateOptionsFree(to);
+    if (dst)
+        GDALClose(dst);
+    if (src)
+        GDALClose(src);
+    free(data);
+    free(dx);
+    free(dy);
+    if (rc != 0)
+        tsio_raster_free(out);
+    return rc;
+}
+
+int tsio_read_raster_resampled(const char *path, int band, double target_dx_m, double target_dy_m,
+                               double no_crs_cell_m, tsio_raster *out, double *factor,
+                               tsio_err *err)
+{
+    GDALDatasetH src = NULL, dst = NULL;
+    GDALWarpAppOptions *wo = NULL;
+    OGRSpatialReferenceH srs = NULL;
+    char trx[64], try_[64], *t_srs = NULL;
+    const char *alg;
+    double gdx, gdy, f, unit = 1.0;
+    int rc = -1, usage = 0, geographic;
+    if (factor)
+        *factor = 1.0;
+    if (tsio_read_raster(path, band, out, err) != 0)
+        return -1;
+    if (!(target_dx_m > 0) || !(target_dy_m > 0))
+        return 0; /* nothing asked: cells as they are */
+    if (!out->dx_m)
+        return no_crs_cell_m > 0 ? resample_no_crs(path, no_crs_cell_m, target_dx_m, target_dy_m,
+                                                   out, factor, err)
+                                 : 0; /* no CRS and no cell size: cells as they are */
+    gdx = out->dx_m[out->geo.height / 2];
+    gdy = out->dy_m[out->geo.height / 2];
+    geographic = out->geo.is_geographic;
+    f = sqrt((gdx * gdy) / (target_dx_m * target_dy_m));
+    if (factor)
+        *factor = f;
+    /* within 1 % the cells are used as they are: no interpolation blur, and
+     * pinned windows stay exact (a geographic grid's cells change by more than
+     * that only far from its centre latitude) */
+    (void)geographic;
+    if (fabs(gdx / target_dx_m - 1.0) < 1e-2 && fabs(gdy / target_dy_m - 1.0) < 1e-2)
+        return 0;
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    srs = tsio__srs_from_wkt(out->geo.wkt);
+    if (!srs) {
+        tsio_errf(err, path, "cannot read its CRS");
+        goto done;
+    }
+    if (geographic) {
+        /* stay in the geographic CRS: degrees per cell chosen so that a cell
+         * measures target_dx_m x target_dy_m at the raster's centre latitude
+         * (one projection for a large raster would distort far more) */
+        int c = out->geo.height / 2;
+        double mdeg_x = out->dx_m[c] / fabs(out->geo.gt[1]);
+        double mdeg_y = out->dy_m[c] / fabs(out->geo.gt[5]);
+        if (!(mdeg_x > 0) || !(mdeg_y > 0)) {
+            tsio_errf(err, path, "cannot measure its cells on the ground");
+            goto done;
+        }
+        snprintf(trx, sizeof trx, "%.17g", target_dx_m / mdeg_x);
+        snprintf(try_, sizeof try_, "%.17g", target_dy_m / mdeg_y);
+        t_srs = out->geo.wkt;
+    } else {
+        unit = OSRGetLinearUnits(srs, NULL);
+        if (!(unit > 0))
+            unit = 1.0;
+        t_srs = out->geo.wkt;
+        snprintf(trx, sizeof trx, "%.17g", target_dx_m / unit);
+        snprintf(try_, sizeof try_, "%.17g", target_dy_m / unit);
+    }
+    alg = f > 1.0 ? "cubicspline" : "average"; /* finer target: interpolate; coarser: average */
+    {
+        char *argv[] = {"-of", "MEM",       "-t_srs",     t_srs, "-tr", trx,       try_,
+                        "-r",  (char *)alg, "-dstnodata", "nan", "-ot", "Float32", NULL};
+        src = mem_from_raster(out);
+        wo = GDALWarpAppOptionsNew(argv, NULL);
+        if (!src || !wo) {
+            tsio_errf(err, path, "cannot prepare the resampling");
+            goto done;
+        }
+        dst = GDALWarp("", NULL, 1, &src, wo, &usage);
+        if (!dst) {
+            tsio__set_err_gdal(err, path, "resampling failed");
+            goto done;
+        }
+    }
+    rc = raster_from_mem(dst, out, path, err);
+done:
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    if (wo)
+        GDALWarpAppOptionsFree(wo);
+    if (dst)
+        GDALClose(dst);
+    if (src)
+        GDALClose(src);
+    if (srs)
+        OSRDestroySpatialReference(srs);
+    if (rc != 0)
+        tsio_raster_free(out);
+    return rc;
+}
+
+/* ------------------------------------------------------------------ */
+/* Output grids                                                        */
+/* ------------------------------------------------------------------ */
+
+int tsio_georef_metrics(const tsio_georef *geo, double **dx, double **dy, tsio_err *err)
+{
+    OGRSpatialReferenceH srs;
+    char why[256];
+    *dx = *dy = NULL;
+    if (!geo->wkt || !geo->has_gt)
+        return 0;
+    srs = tsio__srs_from_wkt(geo->wkt);
+    if (!srs) {
+        tsio_errf(err, "output grid", "cannot read the CRS");
+        return -1;
+    }
+    *dx = malloc((size_t)geo->height * sizeof **dx);
+    *dy = malloc((size_t)geo->height * sizeof **dy);
+    if (!*dx || !*dy || compute_metrics(srs, geo->gt, geo->height, *dx, *dy, why, sizeof why)) {
+        tsio_errf(err, "output grid", "%s", (*dx && *dy) ? why : "out of memory");
+        free(*dx);
+        free(*dy);
+        *dx = *dy = NULL;
+        OSRDestroySpatialReference(srs);
+        return -1;
+    }
+    OSRDestroySpatialReference(srs);
+    return 0;
+}
+
+int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err)
+{
+    GDALDatasetH ds;
+    const char *wkt;
+    memset(geo, 0, sizeof *geo);
+    tsio__ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    ds = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY, NULL, NULL, NULL);
+    CPLPopErrorHandler();
+    if (!ds) {
+        VSIStatBufL st;
+        if (VSIStatL(path, &st) != 0)
+            tsio_errf(err, path, "no such file");
+        else
+            tsio_errf(err, path, "not a raster GDAL can open");
+        return -1;
+    }
+    geo->width = GDALGetRasterXSize(ds);
+    geo->height = GDALGetRasterYSize(ds);
+    geo->has_gt = GDALGetGeoTransform(ds, geo->gt) == CE_None;
+    if (!geo->has_gt) {
+        double id[6] = {0, 1, 0, 0, 0, 1};
+        memcpy(geo->gt, id, sizeof id);
+    }
+    if (geo->gt[2] != 0.0 || geo->gt[4] != 0.0) {
+        tsio_errf(err, path, "rotated geotransforms are not supported");
+        GDALClose(ds);
+        return -1;
+    }
+    wkt = GDALGetProjectionRef(ds);
+    if (wkt && wkt[0]) {
+        OGRSpatialReferenceH srs = tsio__srs_from_wkt(wkt);
+        if (srs) {
+            geo->wkt = tsio__srs_to_wkt2(srs);
+            geo->is_geographic = OSRIsGeographic(srs);
+            OSRDestroySpatialReference(srs);
+        }
+    }
+    GDALClose(ds);
+    return 0;
+}
+
+int tsio_georef_make(int width, int height, double origin_x, double origin_y, double res_x,
+                     double res_y, const char *crs, tsio_georef *geo, tsio_err *err)
+{
+    memset(geo, 0, sizeof *geo);
+    if (width <= 0 || height <= 0 || !(res_x > 0) || !(res_y > 0) || !isfinite(origin_x) ||
+        !isfinite(origin_y)) {
+        tsio_errf(err, "output grid", "invalid size, origin or resolution");
+        return -1;
+    }
+    geo->width = width;
+    geo->height = height;
+    geo->has_gt = 1;
+    geo->gt[0] = origin_x;
+    geo->gt[1] = res_x;
+    geo->gt[3] = origin_y;
+    geo->gt[5] = -res_y;
+    if (crs && crs[0]) {
+        OGRSpatialReferenceH srs = OSRNewSpatialReference(NULL);
+        OGRErr e;
+        tsio__ensure_registered();
+        CPLPushErrorHandler(CPLQuietErrorHandler);
+        e = srs ? OSRSetFromUserInput(srs, crs) : OGRERR_FAILURE;
+        CPLErrorReset();
+        CPLPopErrorHandler();
+        if (e != OGRERR_NONE) {
+            if (srs)
+                OSRDestroySpatialReference(srs);
+            tsio_errf(err, crs, "not a CRS PROJ knows");
+            return -1;
+        }
+        OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
+        geo->wkt = tsio__srs_to_wkt2(srs);
+        geo->is_geographic = OSRIsGeographic(srs);
+        OSRDestroySpatialReference(srs);
+    }
+    return 0;
+}

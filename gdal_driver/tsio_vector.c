@@ -1,0 +1,586 @@
+/*
+ * tsio_vector.c - vectors: the feature graph as line and point layers, and
+ * label maps read from rasters or polygon layers.
+ *
+ * Copyright (C) 2026 The TerraSynth developers
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#define _POSIX_C_SOURCE 200809L
+#define _LARGEFILE64_SOURCE 1 /* struct stat64 behind GDAL's VSIStatBufL under -std=c11 */
+
+#include "tsio_internal.h"
+
+#include <ctype.h>
+#include <float.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cpl_conv.h>
+#include <cpl_string.h>
+#include <cpl_vsi.h>
+#include <gdal.h>
+#include <gdal_utils.h>
+#include <ogr_api.h>
+#include <ogr_srs_api.h>
+
+#include <geodesic.h>
+
+/* ------------------------------------------------------------------ */
+/* Vector writing                                                      */
+/* ------------------------------------------------------------------ */
+
+static const char *vector_driver_for_ext(const char *ext)
+{
+    static const struct {
+        const char *ext, *driver;
+    } table[] = {
+        {"gpkg", "GPKG"}, {"shp", "ESRI Shapefile"}, {"geojson", "GeoJSON"}, {"json", "GeoJSON"},
+        {"kml", "KML"},   {"fgb", "FlatGeobuf"},     {"sqlite", "SQLite"},   {"gml", "GML"}};
+    size_t i;
+    for (i = 0; i < sizeof table / sizeof table[0]; i++)
+        if (tsio__str_ieq(ext, table[i].ext))
+            return table[i].driver;
+    return NULL;
+}
+
+/* Formats that hold one layer per file. */
+static int single_layer_driver(const char *name)
+{
+    return tsio__str_ieq(name, "ESRI Shapefile") || tsio__str_ieq(name, "GeoJSON") ||
+           tsio__str_ieq(name, "FlatGeobuf");
+}
+
+static const char *kind_name(int kind)
+{
+    return kind == TS_RIDGE ? "ridge" : (kind == TS_VALLEY ? "valley" : "unknown");
+}
+
+static const char *node_kind_name(int degree)
+{
+    return degree >= 3 ? "branch" : "endpoint";
+}
+
+/* Check indices and coordinates before anything is written. */
+static int check_features(const ts_features *f, const char *path, tsio_err *err)
+{
+    size_t i;
+    if ((f->n_nodes && !f->nodes) || (f->n_paths && !f->paths) || (f->n_verts && !f->verts)) {
+        tsio_errf(err, path, "the feature graph is missing arrays");
+        return -1;
+    }
+    for (i = 0; i < f->n_paths; i++) {
+        const ts_feature_path *p = &f->paths[i];
+        size_t k;
+        if (p->count < 1 || p->count > f->n_verts || p->first > f->n_verts - p->count) {
+            tsio_errf(err, path, "path %zu has invalid vertex indices", i);
+            return -1;
+        }
+        if (p->node_a >= f->n_nodes || p->node_b >= f->n_nodes) {
+            tsio_errf(err, path, "path %zu refers to a missing node", i);
+            return -1;
+        }
+        for (k = p->first; k < p->first + p->count; k++) {
+            const ts_feature_vertex *v = &f->verts[k];
+            if (v->x < 0 || v->y < 0 || v->x >= f->width || v->y >= f->height) {
+                tsio_errf(err, path, "path %zu has a vertex outside the %d x %d grid", i, f->width,
+                          f->height);
+                return -1;
+            }
+        }
+    }
+    for (i = 0; i < f->n_nodes; i++) {
+        const ts_feature_node *n = &f->nodes[i];
+        if (n->x < 0 || n->y < 0 || n->x >= f->width || n->y >= f->height) {
+            tsio_errf(err, path, "node %zu lies outside the %d x %d grid", i, f->width, f->height);
+            return -1;
+        }
+    }
+    return 0;
+}
+
+static int add_field(OGRLayerH layer, const char *name, OGRFieldType type, int *index)
+{
+    OGRFieldDefnH fd = OGR_Fld_Create(name, type);
+    OGRErr e;
+    if (!fd)
+        return -1;
+    e = OGR_L_CreateField(layer, fd, TRUE);
+    OGR_Fld_Destroy(fd);
+    if (e != OGRERR_NONE)
+        return -1;
+    /* the field was appended: its index is the last one (its name may
+     * have been shortened, e.g. by the Shapefile driver) */
+    *index = OGR_FD_GetFieldCount(OGR_L_GetLayerDefn(layer)) - 1;
+    return *index >= 0 ? 0 : -1;
+}
+
+static void set_real_or_null(OGRFeatureH feat, int idx, double v)
+{
+    if (isfinite(v))
+        OGR_F_SetFieldDouble(feat, idx, v);
+    else
+        OGR_F_SetFieldNull(feat, idx);
+}
+
+typedef struct vec_ctx {
+    const char *path;
+    const ts_features *f;
+    const ts_grid_metrics *metrics; /* NULL: no metric lengths */
+    double gt[6];
+    OGRSpatialReferenceH srs;
+    tsio_err *err;
+} vec_ctx;
+
+static double cx(const vec_ctx *c, int x, int y)
+{
+    return c->gt[0] + ((double)x + 0.5) * c->gt[1] + ((double)y + 0.5) * c->gt[2];
+}
+
+static double cy(const vec_ctx *c, int x, int y)
+{
+    return c->gt[3] + ((double)x + 0.5) * c->gt[4] + ((double)y + 0.5) * c->gt[5];
+}
+
+static int write_paths_layer(GDALDatasetH ds, const vec_ctx *c)
+{
+    const ts_features *f = c->f;
+    OGRLayerH layer;
+    OGRFeatureH feat = NULL;
+    int i_kind, i_len_m, i_len_c, i_mean, i_min, i_max, i_start, i_end, rc = -1, tx = 0;
+    size_t i;
+
+    CPLErrorReset();
+    layer = GDALDatasetCreateLayer(ds, "paths", c->srs, wkbLineString, NULL);
+    if (!layer) {
+        tsio__set_err_gdal(c->err, c->path, "cannot create the layer \"paths\"");
+        return -1;
+    }
+    if (add_field(layer, "kind", OFTString, &i_kind) ||
+        add_field(layer, "length_m", OFTReal, &i_len_m) ||
+        add_field(layer, "length_cells", OFTReal, &i_len_c) ||
+        add_field(layer, "mean_elev", OFTReal, &i_mean) ||
+        add_field(layer, "min_elev", OFTReal, &i_min) ||
+        add_field(layer, "max_elev", OFTReal, &i_max) ||
+        add_field(layer, "start_kind", OFTString, &i_start) ||
+        add_field(layer, "end_kind", OFTString, &i_end)) {
+        tsio__set_err_gdal(c->err, c->path, "cannot create the fields of layer \"paths\"");
+        return -1;
+    }
+    tx = GDALDatasetStartTransaction(ds, FALSE) == OGRERR_NONE;
+    feat = OGR_F_Create(OGR_L_GetLayerDefn(layer));
+    if (!feat) {
+        tsio_errf(c->err, c->path, "out of memory");
+        goto done;
+    }
+    for (i = 0; i < f->n_paths; i++) {
+        const ts_feature_path *p = &f->paths[i];
+        const ts_feature_vertex *v = &f->verts[p->first];
+        OGRGeometryH line = OGR_G_CreateGeometry(wkbLineString);
+        double len_c = 0.0, len_m = 0.0;
+        size_t k, npts = p->count < 2 ? 2 : p->count;
+        if (!line || npts > INT_MAX) {
+            if (line)
+                OGR_G_DestroyGeometry(line);
+            tsio_errf(c->err, c->path, "cannot build the line of path %zu", i);
+            goto done;
+        }
+        OGR_G_SetPointCount(line, (int)npts);
+        for (k = 0; k < npts; k++) {
+            const ts_feature_vertex *q = &v[k < p->count ? k : p->count - 1];
+            OGR_G_SetPoint_2D(line, (int)k, cx(c, q->x, q->y), cy(c, q->x, q->y));
+        }
+        for (k = 1; k < p->count; k++) {
+            int ddx = v[k].x - v[k - 1].x, ddy = v[k].y - v[k - 1].y;
+            len_c += sqrt((double)ddx * ddx + (double)ddy * ddy);
+            if (c->metrics) {
+                double mx = 0.5 * (c->metrics->dx[v[k].y] + c->metrics->dx[v[k - 1].y]);
+                double my = 0.5 * (c->metrics->dy[v[k].y] + c->metrics->dy[v[k - 1].y]);
+                len_m += sqrt((mx * ddx) * (mx * ddx) + (my * ddy) * (my * ddy));
+            }
+        }
+        OGR_F_SetFID(feat, OGRNullFID);
+        OGR_F_SetFieldString(feat, i_kind, kind_name(p->kind));
+        if (c->metrics)
+            set_real_or_null(feat, i_len_m, len_m);
+        else
+            OGR_F_SetFieldNull(feat, i_len_m);
+        OGR_F_SetFieldDouble(feat, i_len_c, len_c);
+        set_real_or_null(feat, i_mean, p->zmean);
+        set_real_or_null(feat, i_min, p->zmin);
+        set_real_or_null(feat, i_max, p->zmax);
+        OGR_F_SetFieldString(feat, i_start, node_kind_name(f->nodes[p->node_a].degree));
+        OGR_F_SetFieldString(feat, i_end, node_kind_name(f->nodes[p->node_b].degree));
+        OGR_F_SetGeometryDirectly(feat, line);
+        CPLErrorReset();
+        if (OGR_L_CreateFeature(layer, feat) != OGRERR_NONE) {
+            tsio__set_err_gdal(c->err, c->path, "cannot write a path");
+            goto done;
+        }
+    }
+    if (tx) {
+        tx = 0;
+        CPLErrorReset();
+        if (GDALDatasetCommitTransaction(ds) != OGRERR_NONE) {
+            tsio__set_err_gdal(c->err, c->path, "cannot commit the paths");
+            goto done;
+        }
+    }
+    rc = 0;
+done:
+    if (feat)
+        OGR_F_Destroy(feat);
+    if (tx)
+        GDALDatasetRollbackTransaction(ds);
+    return rc;
+}
+
+static int write_nodes_layer(GDALDatasetH ds, const vec_ctx *c, const char *shown_path)
+{
+    const ts_features *f = c->f;
+    OGRLayerH layer;
+    OGRFeatureH feat = NULL;
+    int i_kind, i_degree, i_elev, i_feature, rc = -1, tx = 0;
+    size_t i;
+
+    CPLErrorReset();
+    layer = GDALDatasetCreateLayer(ds, "nodes", c->srs, wkbPoint, NULL);
+    if (!layer) {
+        tsio__set_err_gdal(c->err, shown_path, "cannot create the layer \"nodes\"");
+        return -1;
+    }
+    if (add_field(layer, "kind", OFTString, &i_kind) ||
+        add_field(layer, "degree", OFTInteger, &i_degree) ||
+        add_field(layer, "elev", OFTReal, &i_elev) ||
+        add_field(layer, "feature", OFTString, &i_feature)) {
+        tsio__set_err_gdal(c->err, shown_path, "cannot create the fields of layer \"nodes\"");
+        return -1;
+    }
+    tx = GDALDatasetStartTransaction(ds, FALSE) == OGRERR_NONE;
+    feat = OGR_F_Create(OGR_L_GetLayerDefn(layer));
+    if (!feat) {
+        tsio_errf(c->err, shown_path, "out of memory");
+        goto done;
+    }
+    for (i = 0; i < f->n_nodes; i++) {
+        const ts_feature_node *n = &f->nodes[i];
+        OGRGeometryH pt = OGR_G_CreateGeometry(wkbPoint);
+        if (!pt) {
+            tsio_errf(c->err, shown_path, "out of memory");
+            goto done;
+        }
+        OGR_G_SetPoint_2D(pt, 0, cx(c, n->x, n->y), cy(c, n->x, n->y));
+        OGR_F_SetFID(feat, OGRNullFID);
+        OGR_F_SetFieldString(feat, i_kind, node_kind_name(n->degree));
+        OGR_F_SetFieldInteger(feat, i_degree, n->degree);
+        set_real_or_null(feat, i_elev, n->z);
+        OGR_F_SetFieldString(feat, i_feature, kind_name(n->kind));
+        OGR_F_SetGeometryDirectly(feat, pt);
+        CPLErrorReset();
+        if (OGR_L_CreateFeature(layer, feat) != OGRERR_NONE) {
+            tsio__set_err_gdal(c->err, shown_path, "cannot write a node");
+            goto done;
+        }
+    }
+    if (tx) {
+        tx = 0;
+        CPLErrorReset();
+        if (GDALDatasetCommitTransaction(ds) != OGRERR_NONE) {
+            tsio__set_err_gdal(c->err, shown_path, "cannot commit the nodes");
+            goto done;
+        }
+    }
+    rc = 0;
+done:
+    if (feat)
+        OGR_F_Destroy(feat);
+    if (tx)
+        GDALDatasetRollbackTransaction(ds);
+    return rc;
+}
+
+static int write_features_impl(const char *path, const tsio_georef *geo, const ts_features *f,
+                               const ts_grid_metrics *metrics, tsio_err *err)
+{
+    out_name main_n, nodes_n;
+    char *nodes_stem = NULL;
+    const char *drv_name;
+    GDALDriverH drv;
+    GDALDatasetH ds = NULL, nds = NULL;
+    vec_ctx c;
+    int rc = -1, sibling, created = 0, ncreated = 0, renamed = 0, i;
+
+    memset(&main_n, 0, sizeof main_n);
+    memset(&nodes_n, 0, sizeof nodes_n);
+    memset(&c, 0, sizeof c);
+    if (!path || !path[0]) {
+        tsio_errf(err, "(empty path)", "no output file given");
+        return -1;
+    }
+    if (!f) {
+        tsio_errf(err, path, "no features given");
+        return -1;
+    }
+    if (geo && geo->width > 0 && geo->height > 0 && f->width > 0 && f->height > 0 &&
+        (geo->width != f->width || geo->height != f->height)) {
+        tsio_errf(err, path, "the georeferencing is for %d x %d cells but the features for %d x %d",
+                  geo->width, geo->height, f->width, f->height);
+        return -1;
+    }
+    if (check_features(f, path, err) != 0)
+        return -1;
+    if (tsio__out_name_for(path, &main_n) != 0) {
+        tsio_errf(err, path, "out of memory");
+        return -1;
+    }
+    drv_name = vector_driver_for_ext(main_n.ext);
+    if (!drv_name) {
+        tsio_errf(err, path, "cannot tell the vector format from the extension");
+        goto done;
+    }
+    drv = GDALGetDriverByName(drv_name);
+    if (!drv || !tsio__driver_has(drv, GDAL_DCAP_VECTOR) ||
+        !tsio__driver_has(drv, GDAL_DCAP_CREATE)) {
+        tsio_errf(err, path, "the %s driver is not available for writing", drv_name);
+        goto done;
+    }
+    if (tsio__check_output_location(&main_n, path, err) != 0)
+        goto done;
+
+    c.path = path;
+    c.f = f;
+    c.err = err;
+    c.metrics = (metrics && metrics->dx && metrics->dy) ? metrics : NULL;
+    if (geo && geo->has_gt) {
+        memcpy(c.gt, geo->gt, sizeof c.gt);
+        for (i = 0; i < 6; i++)
+            if (!isfinite(c.gt[i])) {
+                tsio_errf(err, path, "the geotransform is not finite");
+                goto done;
+            }
+    } else {
+        c.gt[1] = 1.0;
+        c.gt[5] = 1.0;
+    }
+    if (geo && geo->wkt && geo->wkt[0]) {
+        c.srs = tsio__srs_from_wkt(geo->wkt);
+        if (!c.srs) {
+            tsio_errf(err, path, "the CRS (WKT) is invalid");
+            goto done;
+        }
+    }
+
+    /* the paths (and, for multi-layer formats, the nodes) */
+    CPLErrorReset();
+    created = 1;
+    ds = GDALCreate(drv, main_n.temp, 0, 0, 0, GDT_Unknown, NULL);
+    if (!ds) {
+        tsio__set_err_gdal(err, path, "cannot create the file");
+        goto done;
+    }
+    if (write_paths_layer(ds, &c) != 0)
+        goto done;
+    sibling = single_layer_driver(drv_name) || !GDALDatasetTestCapability(ds, ODsCCreateLayer);
+    if (!sibling && write_nodes_layer(ds, &c, path) != 0)
+        goto done;
+    i = tsio__close_checked(ds, path, err);
+    ds = NULL;
+    if (i != 0)
+        goto done;
+
+    /* the nodes in "<stem>_nodes.<ext>" */
+    if (sibling) {
+        nodes_stem = tsio__str_fmt("%s_nodes", main_n.stem);
+        if (!nodes_stem || tsio__out_name_make(main_n.dir, nodes_stem, main_n.ext, &nodes_n) != 0) {
+            tsio_errf(err, path, "out of memory");
+            goto done;
+        }
+        CPLErrorReset();
+        ncreated = 1;
+        nds = GDALCreate(drv, nodes_n.temp, 0, 0, 0, GDT_Unknown, NULL);
+        if (!nds) {
+            tsio__set_err_gdal(err, nodes_n.final, "cannot create the file");
+            goto done;
+        }
+        if (write_nodes_layer(nds, &c, nodes_n.final) != 0)
+            goto done;
+        i = tsio__close_checked(nds, nodes_n.final, err);
+        nds = NULL;
+        if (i != 0)
+            goto done;
+    }
+
+    /* move into place (GDAL 3.6's GDALRenameDataset reopens as raster only,
+     * so the files of the temporary dataset are renamed here) */
+    if (tsio__remove_existing(main_n.final, path, err) != 0)
+        goto done;
+    if (sibling && tsio__remove_existing(nodes_n.final, nodes_n.final, err) != 0)
+        goto done;
+    if (tsio__rename_temp_files(&main_n, path, err) != 0)
+        goto done;
+    renamed = 1;
+    if (sibling && tsio__rename_temp_files(&nodes_n, nodes_n.final, err) != 0)
+        goto done;
+    rc = 0;
+
+done:
+    if (ds)
+        GDALClose(ds);
+    if (nds)
+        GDALClose(nds);
+    if (rc != 0) {
+        if (created)
+            tsio__remove_temp_files(&main_n);
+        if (ncreated)
+            tsio__remove_temp_files(&nodes_n);
+        if (renamed) {
+            /* the nodes could not follow: do not leave half an output */
+            GDALDriverH d = GDALIdentifyDriver(main_n.final, NULL);
+            if (d)
+                GDALDeleteDataset(d, main_n.final);
+            if (tsio__path_exists(main_n.final, NULL))
+                VSIUnlink(main_n.final);
+        }
+    }
+    if (c.srs)
+        OSRDestroySpatialReference(c.srs);
+    free(nodes_stem);
+    tsio__out_name_free(&main_n);
+    tsio__out_name_free(&nodes_n);
+    return rc;
+}
+
+int tsio_check_vector_output(const char *path, tsio_err *err)
+{
+    out_name on;
+    const char *drv_name;
+    GDALDriverH drv;
+    int rc = -1;
+    memset(&on, 0, sizeof on);
+    if (!path || !path[0]) {
+        tsio_errf(err, "(empty path)", "no output file given");
+        return -1;
+    }
+    tsio__ensure_registered();
+    if (tsio__out_name_for(path, &on) != 0) {
+        tsio_errf(err, path, "out of memory");
+        return -1;
+    }
+    drv_name = vector_driver_for_ext(on.ext);
+    if (!drv_name)
+        tsio_errf(err, path, "cannot tell the vector format from the extension");
+    else if (!(drv = GDALGetDriverByName(drv_name)) || !tsio__driver_has(drv, GDAL_DCAP_VECTOR) ||
+             !tsio__driver_has(drv, GDAL_DCAP_CREATE))
+        tsio_errf(err, path, "the %s driver is not available for writing", drv_name);
+    else
+        rc = tsio__check_output_location(&on, path, err);
+    tsio__out_name_free(&on);
+    return rc;
+}
+
+int tsio_write_features(const char *path, const tsio_georef *geo, const ts_features *f,
+                        const ts_grid_metrics *metrics, tsio_err *err)
+{
+    int rc;
+    if (err)
+        err->msg[0] = '\0';
+    tsio__ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    rc = write_features_impl(path, geo, f, metrics, err);
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    return rc;
+}
+
+/* ------------------------------------------------------------------ */
+/* Label maps (regions)                                                */
+/* ------------------------------------------------------------------ */
+
+int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *field, int fill,
+                        int32_t *values, tsio_err *err)
+{
+    GDALDatasetH src, mem = NULL;
+    size_t i, n = (size_t)geo->width * (size_t)geo->height;
+    int rc = -1;
+    tsio__ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    src = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_VECTOR | GDAL_OF_READONLY, NULL, NULL, NULL);
+    if (!src) {
+        VSIStatBufL st;
+        tsio_errf(err, path,
+                  VSIStatL(path, &st) != 0 ? "no such file"
+                                           : "not a raster or vector GDAL can open");
+        goto done;
+    }
+    if (GDALGetRasterCount(src) > 0) {
+        GDALRasterBandH b = GDALGetRasterBand(src, 1);
+        int has_nd = 0;
+        double nd = GDALGetRasterNoDataValue(b, &has_nd);
+        if (GDALGetRasterXSize(src) != geo->width || GDALGetRasterYSize(src) != geo->height) {
+            tsio_errf(err, path, "the region map is %d x %d cells, the output %d x %d",
+                      GDALGetRasterXSize(src), GDALGetRasterYSize(src), geo->width, geo->height);
+            goto done;
+        }
+        if (GDALRasterIO(b, GF_Read, 0, 0, geo->width, geo->height, values, geo->width, geo->height,
+                         GDT_Int32, 0, 0) != CE_None) {
+            tsio__set_err_gdal(err, path, "cannot read the region map");
+            goto done;
+        }
+        if (has_nd)
+            for (i = 0; i < n; i++)
+                if ((double)values[i] == nd)
+                    values[i] = fill;
+        rc = 0;
+    } else if (GDALDatasetGetLayerCount(src) > 0) {
+        OGRLayerH layer = GDALDatasetGetLayer(src, 0);
+        OGRFeatureDefnH defn = OGR_L_GetLayerDefn(layer);
+        char *argv[] = {"-a", (char *)field, NULL};
+        GDALRasterizeOptions *ro;
+        int usage = 0;
+        GDALDatasetH out;
+        if (OGR_FD_GetFieldIndex(defn, field) < 0) {
+            tsio_errf(err, path, "the polygon layer has no integer field \"%s\"", field);
+            goto done;
+        }
+        mem =
+            GDALCreate(GDALGetDriverByName("MEM"), "", geo->width, geo->height, 1, GDT_Int32, NULL);
+        if (!mem) {
+            tsio_errf(err, path, "out of memory");
+            goto done;
+        }
+        GDALSetGeoTransform(mem, (double *)geo->gt);
+        if (geo->wkt)
+            GDALSetProjection(mem, geo->wkt);
+        GDALFillRaster(GDALGetRasterBand(mem, 1), fill, 0);
+        ro = GDALRasterizeOptionsNew(argv, NULL);
+        out = ro ? GDALRasterize(NULL, mem, src, ro, &usage) : NULL;
+        if (ro)
+            GDALRasterizeOptionsFree(ro);
+        if (!out) {
+            tsio__set_err_gdal(err, path, "cannot rasterise the region polygons");
+            goto done;
+        }
+        if (GDALRasterIO(GDALGetRasterBand(mem, 1), GF_Read, 0, 0, geo->width, geo->height, values,
+                         geo->width, geo->height, GDT_Int32, 0, 0) != CE_None) {
+            tsio__set_err_gdal(err, path, "cannot read the rasterised regions");
+            goto done;
+        }
+        rc = 0;
+    } else {
+        tsio_errf(err, path, "has neither a raster band nor a layer");
+    }
+done:
+    if (mem)
+        GDALClose(mem);
+    if (src)
+        GDALClose(src);
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    return rc;
+}
