@@ -10,6 +10,7 @@ are `terrasynth synth`'s --pin, --water/--water-level, --regions/--region-exempl
 polygon vector layer (with an integer field "region"); PINS and REGION_EXEMPLARS are strings
 (one item per line or separated by ';').
 """
+import math
 import os
 import re
 
@@ -19,6 +20,7 @@ from qgis.core import (
     QgsProcessingException,
     QgsProcessingParameterCrs,
     QgsProcessingParameterDefinition,
+    QgsProcessingParameterExtent,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterFolderDestination,
     QgsProcessingParameterMapLayer,
@@ -109,11 +111,14 @@ random (seeded) among candidates within that fraction of the best.</li>
 <li><b>Seam removal</b>: Poisson re-solve of the heights around each new patch.</li>
 </ol>
 <h3>Target grid</h3>
-<p>One of: a <b>Sketch</b> (the output is on the sketch's grid, see below); <b>Target grid
-like</b> (size, geotransform and CRS of a raster); or <b>Width</b> and <b>Height</b> in cells,
-on the first exemplar's CRS, resolution and origin unless <b>Origin X/Y</b> (top-left corner,
-CRS units), <b>Resolution</b> (CRS units) and <b>CRS</b> are given. A CRS needs the origin and
-the resolution.</p>
+<p>One of: a <b>Sketch</b> (the output is on the sketch's grid, see below); an <b>Extent</b>
+and a <b>Pixel size</b>, as in QGIS's own <i>Create constant raster layer</i> (the grid starts
+at the extent's top-left corner and covers it, the last row and column rounded up; the CRS is
+<b>CRS</b> when given, the extent's own CRS otherwise, else the first exemplar's); <b>Target
+grid like</b> (size, geotransform and CRS of a raster); or, under <i>Advanced parameters</i>,
+<b>Width</b> and <b>Height</b> in cells, on the first exemplar's CRS, resolution and origin
+unless <b>Origin X/Y</b> (top-left corner, CRS units), <b>Resolution</b> (CRS units) and
+<b>CRS</b> are given. A CRS needs the origin and the resolution.</p>
 <h3>Sketch-guided synthesis</h3>
 <p>A <b>Sketch</b> is a grey drawing (any single-band GDAL raster): <b>bright strokes are
 ridges, dark strokes valleys</b> (Zhou et al. 2007, sections 3-4). The ridge or valley axes
@@ -182,6 +187,8 @@ class SynthAlgorithm(TerraSynthAlgorithm):
 
     EXEMPLARS = "EXEMPLARS"
     SKETCH = "SKETCH"
+    EXTENT = "EXTENT"
+    PIXEL_SIZE = "PIXEL_SIZE"
     LIKE = "LIKE"
     WIDTH = "WIDTH"
     HEIGHT = "HEIGHT"
@@ -219,10 +226,21 @@ class SynthAlgorithm(TerraSynthAlgorithm):
                        "size, geotransform and CRS), nodata where the sketch is nodata; give "
                        "no LIKE, WIDTH/HEIGHT, ORIGIN_X/ORIGIN_Y, RESOLUTION or CRS with it.")
         self.addParameter(sketch)
+        extent = QgsProcessingParameterExtent(self.EXTENT, self.tr("Target extent"),
+                                              optional=True)
+        extent.setHelp("The area to cover, with PIXEL_SIZE: the grid starts at its top-left "
+                       "corner (--origin), covers it (--size, rounded up) and is in CRS, or "
+                       "the extent's own CRS (--crs).")
+        self.addParameter(extent)
+        pixel = QgsProcessingParameterNumber(
+            self.PIXEL_SIZE, self.tr("Pixel size (target CRS units)"),
+            QgsProcessingParameterNumber.Double, optional=True, minValue=0.0)
+        pixel.setHelp("Cell size of the grid over EXTENT, in its CRS's units (--resolution).")
+        self.addParameter(pixel)
         like = QgsProcessingParameterRasterLayer(self.LIKE, self.tr("Target grid like"),
                                                  optional=True)
-        like.setHelp("Size, geotransform and CRS of this raster (--like); or give WIDTH and "
-                     "HEIGHT (or a SKETCH).")
+        like.setHelp("Size, geotransform and CRS of this raster (--like); or give EXTENT "
+                     "and PIXEL_SIZE, WIDTH and HEIGHT, or a SKETCH.")
         self.addParameter(like)
         grid = [
             (Number(self.WIDTH, self.tr("Width (cells)"), Number.Integer, optional=True,
@@ -239,10 +257,13 @@ class SynthAlgorithm(TerraSynthAlgorithm):
                     Number.Double, optional=True, minValue=0.0),
              "Cell size in CRS units (--resolution); default the first exemplar's."),
             (QgsProcessingParameterCrs(self.CRS, self.tr("CRS"), optional=True),
-             "Target CRS (--crs); needs ORIGIN_X/ORIGIN_Y and RESOLUTION."),
+             "Target CRS (--crs); with EXTENT, the CRS it is given in (default the "
+             "extent's own); otherwise needs ORIGIN_X/ORIGIN_Y and RESOLUTION."),
         ]
         for p, text in grid:
             p.setHelp(text)
+            if p.name() != self.CRS:  # cells and CRS units: the extent's long form
+                p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
             self.addParameter(p)
         self.addDescriptorParameters()
         seed = Number(self.SEED, self.tr("Random seed"), Number.Integer, defaultValue=0,
@@ -349,13 +370,49 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         res = self.parameterAsDouble(parameters, self.RESOLUTION, context) if has_res else None
         origin = (self.parameterAsDouble(parameters, self.ORIGIN_X, context),
                   self.parameterAsDouble(parameters, self.ORIGIN_Y, context)) if has_x else None
+        size = (width, height) if width else None
+        if is_set(parameters, self.EXTENT) or is_set(parameters, self.PIXEL_SIZE):
+            size, origin, res, crs = self._extent_grid(
+                parameters, context, crs, (width > 0, has_x, has_res, sketch, like))
         crs_text = None
         if crs.isValid():
             crs_text = crs.authid() or crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
         return [("sketch", gdal_source(sketch, self.SKETCH) if sketch is not None else None),
                 ("like", gdal_source(like, self.LIKE) if like is not None else None),
-                ("size", (width, height) if width else None), ("origin", origin),
+                ("size", size), ("origin", origin),
                 ("resolution", res), ("crs", crs_text)]
+
+    def _extent_grid(self, parameters, context, crs, others):
+        """(size, origin, resolution, crs) of the grid over EXTENT at PIXEL_SIZE, as QGIS's
+        native "Create constant raster layer" lays it: from the top-left corner, rounded up
+        to cover the extent."""
+        has_size, has_origin, has_res, sketch, like = others
+        if not is_set(parameters, self.EXTENT):
+            raise QgsProcessingException("PIXEL_SIZE goes with EXTENT: give both, or use "
+                                         "RESOLUTION with WIDTH and HEIGHT")
+        if not is_set(parameters, self.PIXEL_SIZE):
+            raise QgsProcessingException("EXTENT needs PIXEL_SIZE, the cell size of the grid")
+        for given, name in ((sketch is not None, "SKETCH"), (like is not None, "LIKE"),
+                            (has_size, "WIDTH/HEIGHT"), (has_origin, "ORIGIN_X/ORIGIN_Y"),
+                            (has_res, "RESOLUTION")):
+            if given:
+                raise QgsProcessingException("EXTENT sets the output grid: give no %s with "
+                                             "it" % name)
+        if not crs.isValid():
+            crs = self.parameterAsExtentCrs(parameters, self.EXTENT, context)
+        rect = self.parameterAsExtent(parameters, self.EXTENT, context,
+                                      crs if crs.isValid() else QgsCoordinateReferenceSystem())
+        px = self.parameterAsDouble(parameters, self.PIXEL_SIZE, context)
+        if not px > 0:
+            raise QgsProcessingException("PIXEL_SIZE must be more than 0")
+        if rect.isNull() or not rect.width() > 0 or not rect.height() > 0:
+            raise QgsProcessingException("EXTENT: the area is empty (%s)" % rect.toString())
+        cols = max(1, int(math.ceil(rect.width() / px - 1e-9)))
+        rows = max(1, int(math.ceil(rect.height() / px - 1e-9)))
+        if cols > 65536 or rows > 65536:
+            raise QgsProcessingException("EXTENT at PIXEL_SIZE %g is %d x %d cells: more than "
+                                         "65536 on a side" % (px, cols, rows))
+        return (cols, rows), (rect.xMinimum(), rect.yMaximum()), px, crs
 
     # -- the constraints ----------------------------------------------------------
     def _raster(self, parameters, key, context):

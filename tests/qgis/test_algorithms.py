@@ -40,7 +40,8 @@ OTHER_FLAGS = {
     "ppa": {"INPUT": None, "OUTPUT": None, "NODES": None, "BAND": "--band",
             "CELL_SIZE": "--cell-size", "THREADS": "--threads", "LINES": "--lines",
             "PREVIEW": "--preview"},
-    "synth": {"EXEMPLARS": "--exemplar", "SKETCH": "--sketch", "LIKE": "--like", "WIDTH": "--size",
+    "synth": {"EXEMPLARS": "--exemplar", "SKETCH": "--sketch", "LIKE": "--like",
+              "EXTENT": "--origin", "PIXEL_SIZE": "--resolution", "WIDTH": "--size",
               "HEIGHT": "--size", "ORIGIN_X": "--origin", "ORIGIN_Y": "--origin",
               "RESOLUTION": "--resolution", "CRS": "--crs", "SEED": "--seed", "BAND": "--band",
               "CELL_SIZE": "--cell-size", "THREADS": "--threads", "OUTPUT": None,
@@ -50,7 +51,7 @@ OTHER_FLAGS = {
               "ALPHA_H": "--alpha-h"},
 }
 # parameters whose flag is not --<name in kebab case>
-IRREGULAR_FLAGS = ("--size", "--origin", "--exemplar", "--pin", "--water", "--region-exemplar")
+IRREGULAR_FLAGS = ("--size", "--origin", "--resolution", "--exemplar", "--pin", "--water", "--region-exemplar")
 
 
 def processing_run(alg_id, params, feedback=None):
@@ -261,6 +262,59 @@ def test_synth_command_line_with_crs_origin_resolution(jacksboro, tmp_path):
     assert kv["--order"] == "raster" and kv["--seed"] == "7"
     assert kv["--debug-dir"] == str(tmp_path / "dbg")
     assert "--like" not in argv
+
+
+def test_synth_command_line_extent(jacksboro, tmp_path):
+    """EXTENT + PIXEL_SIZE as QGIS's own raster creators lay a grid: from the top-left corner,
+    rounded up to cover the extent; the CRS is the extent's unless CRS is given."""
+    out = str(tmp_path / "n.tif")
+    argv, _ = build("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "EXTENT": "500000,506010,4000000,4003000 [EPSG:32616]",
+        "PIXEL_SIZE": 30, "OUTPUT": out})
+    kv = pairs(argv)
+    # 6010 / 30 = 200.33 -> 201 columns; 3000 / 30 = exactly 100 rows
+    assert kv["--size"] == "201x100" and kv["--origin"] == "500000,4003000"
+    assert kv["--resolution"] == "30" and kv["--crs"] == "EPSG:32616"
+    assert "--like" not in argv
+    # with CRS, the extent is taken into it (a lon/lat box into UTM 16N)
+    argv, _ = build("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "EXTENT": "-87.01,-86.99,36.99,37.01 [EPSG:4326]",
+        "CRS": "EPSG:32616", "PIXEL_SIZE": 100, "OUTPUT": out})
+    kv = pairs(argv)
+    w, h = (int(v) for v in kv["--size"].split("x"))
+    x0, y0 = (float(v) for v in kv["--origin"].split(","))
+    assert kv["--crs"] == "EPSG:32616" and kv["--resolution"] == "100"
+    assert 17 <= w <= 20 and 22 <= h <= 25  # about 1.8 km x 2.2 km
+    assert 497000 < x0 < 499500 and 4095000 < y0 < 4097500
+    # an extent with no CRS of its own: the first exemplar's CRS
+    argv, _ = build("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "EXTENT": "0,640,0,480", "PIXEL_SIZE": 10, "OUTPUT": out})
+    kv = pairs(argv)
+    assert kv["--size"] == "64x48" and kv["--origin"] == "0,480" and "--crs" not in argv
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("params,want", [
+    ({"EXTENT": "0,640,0,480"}, "EXTENT needs PIXEL_SIZE"),
+    ({"PIXEL_SIZE": 10, "WIDTH": 64, "HEIGHT": 64}, "PIXEL_SIZE goes with EXTENT"),
+    ({"EXTENT": "0,640,0,480", "PIXEL_SIZE": 10, "WIDTH": 64, "HEIGHT": 64},
+     "EXTENT sets the output grid: give no WIDTH/HEIGHT with it"),
+    ({"EXTENT": "0,640,0,480", "PIXEL_SIZE": 10, "LIKE": "JACKSBORO"},
+     "EXTENT sets the output grid: give no LIKE with it"),
+    ({"EXTENT": "0,640,0,480", "PIXEL_SIZE": 10, "RESOLUTION": 10},
+     "EXTENT sets the output grid: give no RESOLUTION with it"),
+    ({"EXTENT": "0,640000000,0,480", "PIXEL_SIZE": 1}, "more than 65536 on a side"),
+    ({"EXTENT": "5,5,0,480", "PIXEL_SIZE": 1}, "EXTENT: the area is empty"),
+])
+def test_synth_extent_form_errors(jacksboro, tmp_path, params, want):
+    params = {k: (jacksboro if v == "JACKSBORO" else v) for k, v in params.items()}
+    params.update(EXEMPLARS=[jacksboro], OUTPUT=str(tmp_path / "n.tif"))
+    alg = registry().createAlgorithmById("terrasynth:synth")
+    ok, msg = alg.checkParameterValues(params, QgsProcessingContext())
+    assert not ok and want in msg
+    with pytest.raises(QgsProcessingException, match=want):
+        processing_run("terrasynth:synth", params)
+    assert os.listdir(tmp_path) == []
 
 
 def test_synth_command_line_like(jacksboro, tmp_path):
@@ -659,6 +713,21 @@ def test_synth_like_grid(jacksboro, cli, tmp_path):
     ds, _ = raster_info(out)
     assert (ds.RasterXSize, ds.RasterYSize) == (72, 56)
     assert ds.GetGeoTransform() == pytest.approx(tuple(gt))
+
+
+def test_synth_extent_grid(jacksboro, cli, tmp_path):
+    """The output covers the extent, from its top-left corner, in its CRS (read back with GDAL,
+    not with our code)."""
+    out = tmp_path / "new.tif"
+    processing_run("terrasynth:synth", {
+        "EXEMPLARS": [jacksboro], "EXTENT": "600000,603610,4100000,4102400 [EPSG:32616]",
+        "PIXEL_SIZE": 50, "PATCH_SIZE": 24, "OVERLAP": 6, "OUTPUT": str(out)})
+    ds, _ = raster_info(out)
+    assert (ds.RasterXSize, ds.RasterYSize) == (73, 48)  # 3610/50 = 72.2 -> 73; 2400/50 = 48
+    assert ds.GetGeoTransform() == pytest.approx((600000, 50, 0, 4102400, 0, -50))
+    srs = osr.SpatialReference(wkt=ds.GetProjection())
+    srs.AutoIdentifyEPSG()
+    assert srs.GetAuthorityCode(None) == "32616"
 
 
 # --------------------------------------------------------------------------- cancel

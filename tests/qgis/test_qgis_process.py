@@ -86,6 +86,22 @@ def test_run_ppa(env, jacksboro, tmp_path):
     assert {v.GetLayer(i).GetName() for i in range(v.GetLayerCount())} == {"paths", "nodes"}
 
 
+def test_run_synth_over_an_extent(env, jacksboro, tmp_path):
+    """EXTENT as qgis_process takes it ("xmin,xmax,ymin,ymax [CRS]") and PIXEL_SIZE."""
+    out = tmp_path / "new.tif"
+    p = qgis_process(env, "run", "terrasynth:synth", "--json", "--",
+                     "EXEMPLARS=%s" % jacksboro,
+                     "EXTENT=400000,402990,3900000,3902000 [EPSG:32616]", "PIXEL_SIZE=40",
+                     "PATCH_SIZE=24", "OVERLAP=6", "OUTPUT=%s" % out)
+    assert p.returncode == 0, p.stdout + p.stderr
+    ds = gdal.Open(str(out))
+    assert (ds.RasterXSize, ds.RasterYSize) == (75, 50)  # 2990/40 = 74.75 -> 75; 2000/40
+    assert ds.GetGeoTransform() == pytest.approx((400000, 40, 0, 3902000, 0, -40))
+    srs = osr.SpatialReference(wkt=ds.GetProjection())
+    srs.AutoIdentifyEPSG()
+    assert srs.GetAuthorityCode(None) == "32616"  # the extent's CRS, not the exemplar's 4326
+
+
 def test_run_error_exit_status(env, jacksboro, tmp_path):
     p = qgis_process(env, "run", "terrasynth:ppa", "--", "INPUT=%s" % jacksboro, "BAND=7",
                      "OUTPUT=%s" % (tmp_path / "a.tif"))
