@@ -51,6 +51,7 @@ struct ts_recipe {
     tsio_georef geo;     /* ppa: the input's grid */
     tsjob_ppa_result ppa_res;
     tsjob_synth_result synth_res;
+    int map; /* synth: -1 the terrain, else the TSJOB_MAP_* served (open option MAP) */
     int computed;
 };
 
@@ -135,6 +136,25 @@ static int recipe_options(ts_recipe *r, const char *const *oo, tsio_err *err)
         }
         for (p = key; *p; p++)
             *p = (char)tolower((unsigned char)*p);
+        if (!strcmp(key, "map") && r->method == RECIPE_SYNTH) {
+            int m;
+            r->map = -2;
+            if (EQUAL(value, "dem"))
+                r->map = -1;
+            for (m = 0; m < TSJOB_N_MAPS; m++)
+                if (EQUAL(value, tsjob_map_names[m]))
+                    r->map = m;
+            if (r->map == -2) {
+                tsio_errf(err, r->path,
+                          "open option MAP=%s: not one of dem, seams, source_exemplar, "
+                          "source_x, source_y, order",
+                          value);
+                CPLFree(key);
+                return -1;
+            }
+            CPLFree(key);
+            continue;
+        }
         o = tsj_option_find(r->values.job, key);
         if (o ? (!o->xml || o->kind == TSJ_FILE || o->kind == TSJ_PIN || o->kind == TSJ_RULE)
               : !tsj_param_stage(r->values.job, key)) {
@@ -194,6 +214,7 @@ int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_e
         tsio_errf(err, path, "out of memory");
         return -1;
     }
+    r->map = -1;
     r->path = CPLStrdup(path);
     fp = VSIFOpenL(path, "rb");
     if (!fp) {
@@ -279,12 +300,16 @@ const tsio_georef *recipe_georef(const ts_recipe *r)
 
 int recipe_gdal_type(const ts_recipe *r)
 {
-    return r->method == RECIPE_PPA ? GDT_Byte : GDT_Float32;
+    if (r->method == RECIPE_PPA || r->map == TSJOB_MAP_SEAMS)
+        return GDT_Byte;
+    return r->map < 0 ? GDT_Float32 : GDT_Int32;
 }
 
 double recipe_nodata(const ts_recipe *r)
 {
-    return r->method == RECIPE_PPA ? 255.0 : -9999.0;
+    if (r->method == RECIPE_PPA || r->map == TSJOB_MAP_SEAMS)
+        return 255.0;
+    return r->map < 0 ? -9999.0 : -1.0;
 }
 
 int recipe_compute(ts_recipe *r, tsio_err *err)
@@ -315,7 +340,7 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
         if (rc == 0)
             rc = tsjob_ppa_compute(ctx, &r->ppa, &r->ppa_res, err);
     } else {
-        rc = tsjob_synth_compute(ctx, &r->synth, &r->synth_res, 0, err);
+        rc = tsjob_synth_compute(ctx, &r->synth, &r->synth_res, r->map >= 0, err);
         if (rc == 0) {
             /* nodata as the driver declares it */
             n = (size_t)r->synth_res.out.width * (size_t)r->synth_res.out.height;
@@ -334,8 +359,13 @@ const void *recipe_data(const ts_recipe *r)
 {
     if (!r->computed)
         return NULL;
-    return r->method == RECIPE_PPA ? (const void *)r->ppa_res.codes
-                                   : (const void *)r->synth_res.out.data;
+    if (r->method == RECIPE_PPA)
+        return r->ppa_res.codes;
+    if (r->map == TSJOB_MAP_SEAMS)
+        return r->synth_res.maps.seams;
+    if (r->map >= 0)
+        return tsjob_synth_int_map(&r->synth_res, r->map);
+    return r->synth_res.out.data;
 }
 
 /* ------------------------------------------------------------------ */
@@ -484,6 +514,19 @@ char *recipe_open_option_list(void)
                 CPLAddXMLAttributeAndValue(o, "min", CPLSPrintf("%.15g", op->min));
                 CPLAddXMLAttributeAndValue(o, "max", CPLSPrintf("%.15g", op->max));
             }
+        }
+    }
+    {
+        /* what a synth recipe serves: the terrain, or one of its synthesis maps */
+        CPLXMLNode *o = option_add(list, "MAP", "string-select",
+                                   "what to serve: the terrain (dem), or where its cells came "
+                                   "from (seams, source_exemplar, source_x, source_y, order; "
+                                   "synth)");
+        if (o) {
+            CPLCreateXMLElementAndValue(o, "Value", "dem");
+            for (j = 0; j < TSJOB_N_MAPS; j++)
+                CPLCreateXMLElementAndValue(o, "Value", tsjob_map_names[j]);
+            CPLAddXMLAttributeAndValue(o, "default", "dem");
         }
     }
     xml = CPLSerializeXMLTree(list);

@@ -530,9 +530,27 @@ static int job_synth_inputs(const tsjob_synth *job, const char **in)
 
 #define JOB_MAX_INPUTS (TSJOB_MAX_EXEMPLARS + TSJOB_MAX_PINS + 5)
 
-/* The names of the debug maps (debug_dir/<name>.tif). */
-static const char *const job_map_names[] = {"seams", "source_exemplar", "source_x", "source_y",
-                                            "order"};
+/* The names of the debug maps (debug_dir/<name>.tif, the driver's MAP). */
+const char *const tsjob_map_names[TSJOB_N_MAPS] = {"seams", "source_exemplar", "source_x",
+                                                   "source_y", "order"};
+
+const int32_t *tsjob_synth_int_map(const tsjob_synth_result *res, int map)
+{
+    if (!res->has_maps)
+        return NULL;
+    switch (map) {
+    case TSJOB_MAP_SOURCE_EXEMPLAR:
+        return res->maps.source_exemplar;
+    case TSJOB_MAP_SOURCE_X:
+        return res->maps.source_x;
+    case TSJOB_MAP_SOURCE_Y:
+        return res->maps.source_y;
+    case TSJOB_MAP_ORDER:
+        return res->maps.order;
+    default:
+        return NULL;
+    }
+}
 
 int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *res,
                               const tsjob_outputs *o, tsio_err *err)
@@ -555,8 +573,8 @@ int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *
         char path[4096];
         if (tsio_make_dir(o->debug_dir, err) != 0)
             return -1;
-        for (i = 0; i < (int)(sizeof job_map_names / sizeof *job_map_names); i++) {
-            if (tsio_path(path, sizeof path, o->debug_dir, job_map_names[i], "tif", err) != 0 ||
+        for (i = 0; i < TSJOB_N_MAPS; i++) {
+            if (tsio_path(path, sizeof path, o->debug_dir, tsjob_map_names[i], "tif", err) != 0 ||
                 job_not_an_input(path, in, n, err) != 0)
                 return -1;
         }
@@ -624,13 +642,13 @@ int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_res
             tsio_errf(err, o->debug_dir, "out of memory");
             return -1;
         }
-        bad = tsio_path(path, sizeof path, o->debug_dir, "seams", "tif", err) != 0 ||
-              tsio_write_byte(path, NULL, &res->geo, m->seams, -1, err) != 0 ||
-              job_int_map(o->debug_dir, "source_exemplar", &res->geo, m->source_exemplar, tmp,
-                          err) != 0 ||
-              job_int_map(o->debug_dir, "source_x", &res->geo, m->source_x, tmp, err) != 0 ||
-              job_int_map(o->debug_dir, "source_y", &res->geo, m->source_y, tmp, err) != 0 ||
-              job_int_map(o->debug_dir, "order", &res->geo, m->order, tmp, err) != 0;
+        int i;
+        bad = tsio_path(path, sizeof path, o->debug_dir, tsjob_map_names[TSJOB_MAP_SEAMS], "tif",
+                        err) != 0 ||
+              tsio_write_byte(path, NULL, &res->geo, m->seams, -1, err) != 0;
+        for (i = TSJOB_MAP_SOURCE_EXEMPLAR; i < TSJOB_N_MAPS && !bad; i++)
+            bad = job_int_map(o->debug_dir, tsjob_map_names[i], &res->geo,
+                              tsjob_synth_int_map(res, i), tmp, err) != 0;
         free(tmp);
         if (bad)
             return -1;

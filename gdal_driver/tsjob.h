@@ -137,6 +137,20 @@ void tsjob_synth_result_free(tsjob_synth_result *res);
  *  an input, the debug folder exists (created if need be). */
 int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *res,
                               const tsjob_outputs *o, tsio_err *err);
+/** The synthesis maps by name: TSJOB_MAP_SEAMS (Byte, 1 next to a seam),
+ *  then the Int32 maps (-1 where no patch put the cell). */
+enum {
+    TSJOB_MAP_SEAMS,
+    TSJOB_MAP_SOURCE_EXEMPLAR,
+    TSJOB_MAP_SOURCE_X,
+    TSJOB_MAP_SOURCE_Y,
+    TSJOB_MAP_ORDER,
+    TSJOB_N_MAPS
+};
+extern const char *const tsjob_map_names[TSJOB_N_MAPS];
+/** One of res->maps' int maps (TSJOB_MAP_SOURCE_EXEMPLAR..ORDER), or NULL. */
+const int32_t *tsjob_synth_int_map(const tsjob_synth_result *res, int map);
+
 /** After compute: the DEM, the preview, and in debug_dir the maps
  *  (seams, source_exemplar, source_x, source_y, order; with a sketch its
  *  feature graph and the output's PPA axes as GeoPackages). */

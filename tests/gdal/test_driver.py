@@ -372,3 +372,45 @@ def test_multistyle_recipe_equals_cli(tmp_path):
     assert "<RegionExemplar" in (tmp_path / "m.tsyn").read_text()
     tool("gdal_translate", "-q", tmp_path / "m.tsyn", tmp_path / "gdal.tif")
     assert arr(tmp_path / "gdal.tif").tobytes() == arr(tmp_path / "cli.tif").tobytes()
+
+
+def test_open_option_map_serves_the_synthesis_maps(tmp_path):
+    """-oo MAP= serves where the cells came from, as --debug-dir writes them; checked against
+    what they mean: a copied patch keeps its exemplar's layout, seams lie between patches."""
+    args = ["--exemplar", JACKSBORO, "--size", "150x140", "--seed", "3", "--patch-size", "32",
+            "--overlap", "8"]
+    ts("synth", *args, "--recipe", tmp_path / "s.tsyn")
+    ts("synth", *args, tmp_path / "cli.tif", "--debug-dir", tmp_path / "dbg", "-q")
+    maps = {}
+    for name in ("seams", "source_exemplar", "source_x", "source_y", "order"):
+        ds = gdal.OpenEx(str(tmp_path / "s.tsyn"), open_options=["MAP=" + name])
+        band = ds.GetRasterBand(1)
+        want_type = gdal.GDT_Byte if name == "seams" else gdal.GDT_Int32
+        assert band.DataType == want_type, name
+        assert band.GetNoDataValue() == (255 if name == "seams" else -1)
+        assert ds.GetGeoTransform() == gdal.Open(str(tmp_path / "cli.tif")).GetGeoTransform()
+        maps[name] = band.ReadAsArray()
+        cli = arr(tmp_path / "dbg" / (name + ".tif"))
+        assert (maps[name].astype(np.float64) == np.nan_to_num(cli, nan=-1)).all(), name
+    # the terrain is the default, and MAP=dem says so
+    dem = gdal.OpenEx(str(tmp_path / "s.tsyn"), open_options=["MAP=dem"]).ReadAsArray()
+    assert dem.tobytes() == arr(tmp_path / "cli.tif").tobytes()
+    # meaning: one exemplar; every cell placed; inside a patch, the source advances with x, y
+    order, sx, sy, seams = maps["order"], maps["source_x"], maps["source_y"], maps["seams"]
+    assert (maps["source_exemplar"] == 0).all() and (order >= 0).all()
+    same = order[:, 1:] == order[:, :-1]
+    assert same.mean() > 0.8
+    assert (sx[:, 1:][same] == sx[:, :-1][same] + 1).all()
+    assert (sy[:, 1:][same] == sy[:, :-1][same]).all()
+    # a seam cell borders a cell of another patch
+    diff = np.zeros(order.shape, bool)
+    diff[:, 1:] |= order[:, 1:] != order[:, :-1]
+    diff[:, :-1] |= order[:, 1:] != order[:, :-1]
+    diff[1:, :] |= order[1:, :] != order[:-1, :]
+    diff[:-1, :] |= order[1:, :] != order[:-1, :]
+    assert seams.sum() > 0 and (diff[seams == 1]).all()
+    with pytest.raises(RuntimeError, match="MAP=nope: not one of dem, seams"):
+        gdal.OpenEx(str(tmp_path / "s.tsyn"), open_options=["MAP=nope"])
+    ts("ppa", JACKSBORO, "--recipe", tmp_path / "p.tsyn")
+    with pytest.raises(RuntimeError, match="not an option of ppa recipes"):
+        gdal.OpenEx(str(tmp_path / "p.tsyn"), open_options=["MAP=seams"])

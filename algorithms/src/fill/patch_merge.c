@@ -181,6 +181,8 @@ ts_status ts__merger_apply(ts_ctx *ctx, ts_merger *m, ts_raster *out, const unsi
                     maps->source_y[o] = src_y[y * P + x];
                 if (maps->order)
                     maps->order[o] = patch_index;
+                if (maps->seams) /* a seam the new patch covers is gone */
+                    maps->seams[o] = 0;
             }
         }
     /* the window with its ring */
