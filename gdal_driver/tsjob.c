@@ -77,14 +77,26 @@ void tsjob_ppa_result_free(tsjob_ppa_result *res)
 /* synth                                                               */
 /* ------------------------------------------------------------------ */
 
+/* The job's rules live in jobspec.c (tsj_build_synth), which every front end
+ * goes through; here only the guard that a job came that way. */
+static int job_synth_built(const tsjob_synth *job)
+{
+    const tsjob_grid *g = &job->grid;
+    if (job->n_exemplars < 1 || job->n_exemplars > TSJOB_MAX_EXEMPLARS)
+        return 0;
+    if (job->sketch && (g->like || g->width || g->crs || g->has_origin || g->has_res))
+        return 0;
+    return !g->crs || (g->has_origin && g->has_res);
+}
+
 int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err)
 {
     const tsjob_grid *g = &job->grid;
     ts_ctx *ctx;
     int bad;
     memset(res, 0, sizeof *res);
-    if (job->n_exemplars < 1 || job->n_exemplars > TSJOB_MAX_EXEMPLARS) {
-        tsio_errf(err, "synth", "needs 1 to 64 exemplars");
+    if (!job_synth_built(job)) {
+        tsio_errf(err, "synth", "internal error: a job not checked by tsj_build_synth");
         return -1;
     }
     ctx = ts_ctx_new();
@@ -96,20 +108,12 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
     }
     ts_ctx_free(ctx);
     if (job->sketch) {
-        if (g->like || g->width || g->crs || g->has_origin || g->has_res) {
-            tsio_errf(err, job->sketch, "a sketch sets the output grid: give no other grid");
-            return -1;
-        }
         if (tsio_read_georef(job->sketch, &res->geo, err) != 0)
             return -1;
     } else if (g->like) {
         if (tsio_read_georef(g->like, &res->geo, err) != 0)
             return -1;
     } else if (g->crs) {
-        if (!g->has_origin || !g->has_res) {
-            tsio_errf(err, "synth", "a target CRS needs an origin and a resolution");
-            return -1;
-        }
         if (tsio_georef_make(g->width, g->height, g->origin_x, g->origin_y, g->res, g->res, g->crs,
                              &res->geo, err) != 0)
             return -1;

@@ -101,6 +101,22 @@ def max_count(job_name, option, default):
     return default
 
 
+def option_range(job_name, option, default):
+    """(min, max) of a numeric option of a job (e.g. size: 1..65536 cells)."""
+    for o in job(job_name).get("options", []):
+        if o.get("name") == option and "max" in o:
+            return o.get("min", 1), o["max"]
+    return default
+
+
+def param(stage_name, name):
+    """One descriptor of a stage by name, or None."""
+    for d in stage(stage_name):
+        if d["name"] == name:
+            return d
+    return None
+
+
 def check_rules(job_name, given):
     """The message of the first rule of a job (from `terrasynth describe`) that the set of
     given option and parameter names breaks, else None: the same rules, in the same order and

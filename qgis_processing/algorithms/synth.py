@@ -130,8 +130,7 @@ Height, Origin X/Y, Resolution and CRS must then be left empty.</p>
 {SKETCH_PARAMETERS}
 <h3>Parameters</h3>
 <ul>
-<li><b>Patch size</b> (8..1024 cells, default 64) and <b>Overlap</b> (2..512, default 16, smaller
-than the patch), in target cells, or in metres on the ground with their <b>unit</b> set to metres
+<li><b>Patch size</b> ({PATCH_SIZE}) and <b>Overlap</b> ({OVERLAP}, smaller than the patch), in target cells, or in metres on the ground with their <b>unit</b> set to metres
 (turned into cells at the target grid's resolution). A patch should hold a few ridge and valley
 spacings.</li>
 <li><b>Seed</b>: same inputs and seed give identical bytes.</li>
@@ -242,11 +241,12 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         like.setHelp("Size, geotransform and CRS of this raster (--like); or give EXTENT "
                      "and PIXEL_SIZE, WIDTH and HEIGHT, or a SKETCH.")
         self.addParameter(like)
+        lo, hi = (int(v) for v in descriptors.option_range("synth", "size", (1, 65536)))
         grid = [
             (Number(self.WIDTH, self.tr("Width (cells)"), Number.Integer, optional=True,
-                    minValue=1, maxValue=65536), "Target width in cells (--size WxH)."),
+                    minValue=lo, maxValue=hi), "Target width in cells (--size WxH)."),
             (Number(self.HEIGHT, self.tr("Height (cells)"), Number.Integer, optional=True,
-                    minValue=1, maxValue=65536), "Target height in cells (--size WxH)."),
+                    minValue=lo, maxValue=hi), "Target height in cells (--size WxH)."),
             (Number(self.ORIGIN_X, self.tr("Origin X (top-left corner, CRS units)"),
                     Number.Double, optional=True),
              "Top-left corner X (--origin X,Y); default the first exemplar's."),
@@ -330,10 +330,16 @@ class SynthAlgorithm(TerraSynthAlgorithm):
     def shortHelpString(self):  # noqa: N802
         """The manual's summary, with the sketch parameters listed from the descriptor
         tables (every one of them, with its default: never out of date)."""
+        help_text = HELP
         items = "".join("<li><b>%s</b> (default %s): %s</li>" % (
             d["name"].upper(), d["choices"][int(d["default"])] if d.get("choices")
             else ("%g" % d["default"]), d["help"]) for d in descriptors.stage(self.SKETCH_STAGE))
-        text = HELP.replace("{SKETCH_PARAMETERS}",
+        for name in ("patch_size", "overlap"):  # ranges and defaults from the core
+            d = descriptors.param("synth", name)
+            text_range = "%g..%g cells, default %g" % (d["min"], d["max"], d["default"]) \
+                if d else "cells"
+            help_text = help_text.replace("{%s}" % name.upper(), text_range)
+        text = help_text.replace("{SKETCH_PARAMETERS}",
                             "<ul>%s</ul><p>They are passed only with a sketch (the program "
                             "refuses them without one).</p>" % items)
         return " ".join(text.split())
@@ -409,9 +415,10 @@ class SynthAlgorithm(TerraSynthAlgorithm):
             raise QgsProcessingException("EXTENT: the area is empty (%s)" % rect.toString())
         cols = max(1, int(math.ceil(rect.width() / px - 1e-9)))
         rows = max(1, int(math.ceil(rect.height() / px - 1e-9)))
-        if cols > 65536 or rows > 65536:
+        most = int(descriptors.option_range("synth", "size", (1, 65536))[1])
+        if cols > most or rows > most:
             raise QgsProcessingException("EXTENT at PIXEL_SIZE %g is %d x %d cells: more than "
-                                         "65536 on a side" % (px, cols, rows))
+                                         "%d on a side" % (px, cols, rows, most))
         return (cols, rows), (rect.xMinimum(), rect.yMaximum()), px, crs
 
     # -- the constraints ----------------------------------------------------------

@@ -825,3 +825,12 @@ def test_synth_help_lists_every_sketch_parameter():
     text = registry().algorithmById("terrasynth:synth").shortHelpString()
     for d in descriptors.stage("sketch"):
         assert "<b>%s</b>" % d["name"].upper() in text, d["name"]
+    # the patch ranges come from the core's declarations, not from the help's own text
+    for name in ("patch_size", "overlap"):
+        d = descriptors.param("synth", name)
+        assert "%g..%g cells, default %g" % (d["min"], d["max"], d["default"]) in text
+    assert "{" not in text
+    lo, hi = descriptors.option_range("synth", "size", None)
+    alg = registry().algorithmById("terrasynth:synth")
+    assert alg.parameterDefinition("WIDTH").maximum() == hi
+    assert alg.parameterDefinition("HEIGHT").minimum() == lo
