@@ -18,6 +18,7 @@
 #include <gdal.h>
 
 #include "cli.h"
+#include "tsio.h"
 
 /* ------------------------------------------------------------------ */
 /* Progress: GDAL's terminal bar, machine-readable lines, or nothing  */
@@ -156,6 +157,8 @@ int main(int argc, char **argv)
         return 0;
     }
     GDALAllRegister();
+    /* Ctrl-C, kill, a closed terminal: no unfinished output is left behind */
+    tsio_cleanup_on_signals("terrasynth");
     if (!strcmp(argv[1], "ppa"))
         rc = cli_ppa(argc, argv);
     else if (!strcmp(argv[1], "synth"))

@@ -46,7 +46,7 @@ int cli_ppa(int argc, char **argv)
     common_opts co = {"ppa", NULL, NULL, PROGRESS_BAR, 0};
     const char *input = NULL, *recipe_path = NULL;
     tsjob_outputs outs = {NULL, NULL, NULL, NULL, NULL, NULL};
-    int i, rc = EXIT_RUN, progress_state = -1;
+    int i, rc = EXIT_RUN, progress_state = -1, staged = 0;
     ts_ctx *ctx = ts_ctx_new();
     tsjob_ppa job;
     tsjob_ppa_result res;
@@ -87,14 +87,18 @@ int cli_ppa(int argc, char **argv)
     outs.create_options = (const char *const *)co.create_options;
     recipe_path = tsj_get(&v, "recipe", 0);
     if (recipe_path) {
-        if (recipe_write(recipe_path, &v, &err) != 0) {
+        if (tsjob_ppa_check_recipe(&job, recipe_path, &err) != 0 ||
+            recipe_write(recipe_path, &v, &err) != 0) {
             fprintf(stderr, "terrasynth: %s\n", err.msg);
             goto done;
         }
         rc = 0;
         goto done;
     }
-    /* the input is read and every output checked before the work starts */
+    /* the input is read and every output checked before the work starts; the
+     * outputs are written all or none (a stage) */
+    tsio_stage_begin();
+    staged = 1;
     if (tsjob_ppa_prepare(&job, &res, &err) != 0 ||
         tsjob_ppa_check_outputs(&job, &res, &outs, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
@@ -105,10 +109,12 @@ int cli_ppa(int argc, char **argv)
     ts_ctx_set_threads(ctx, co.threads);
     cli_set_progress(ctx, co.progress, &progress_state);
     if (tsjob_ppa_compute(ctx, &job, &res, &err) != 0 ||
-        tsjob_ppa_write(ctx, &res, &outs, &err) != 0) {
+        tsjob_ppa_write(ctx, &res, &outs, &err) != 0 || tsio_stage_commit(&err) != 0) {
+        staged = 0; /* a failed commit has cleaned up */
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
+    staged = 0;
     f = res.features;
     if (co.progress != PROGRESS_QUIET) {
         size_t nb = 0, ne = 0, np[3] = {0, 0, 0};
@@ -126,6 +132,8 @@ int cli_ppa(int argc, char **argv)
     }
     rc = 0;
 done:
+    if (staged)
+        tsio_stage_abort();
     tsjob_ppa_result_free(&res);
     tsj_values_free(&v);
     CSLDestroy(co.create_options);

@@ -55,7 +55,7 @@ int cli_synth(int argc, char **argv)
     common_opts co = {"synth", NULL, NULL, PROGRESS_BAR, 0};
     const char *recipe_path = NULL;
     tsjob_outputs outs = {NULL, NULL, NULL, NULL, NULL, NULL};
-    int i, rc = EXIT_RUN, progress_state = -1;
+    int i, rc = EXIT_RUN, progress_state = -1, staged = 0;
     uint64_t seed = 0;
     tsjob_synth job;
     tsjob_synth_result res;
@@ -95,14 +95,18 @@ int cli_synth(int argc, char **argv)
     outs.create_options = (const char *const *)co.create_options;
     recipe_path = tsj_get(&v, "recipe", 0);
     if (recipe_path) {
-        if (recipe_write(recipe_path, &v, &err) != 0) {
+        if (tsjob_synth_check_recipe(&job, recipe_path, &err) != 0 ||
+            recipe_write(recipe_path, &v, &err) != 0) {
             fprintf(stderr, "terrasynth: %s\n", err.msg);
             goto done;
         }
         rc = 0;
         goto done;
     }
-    /* the grid is resolved and every output checked before the work */
+    /* the grid is resolved and every output checked before the work; the
+     * outputs are written all or none (a stage) */
+    tsio_stage_begin();
+    staged = 1;
     if (tsjob_synth_prepare(&job, &res, &err) != 0 ||
         tsjob_synth_check_outputs(&job, &res, &outs, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
@@ -137,8 +141,15 @@ int cli_synth(int argc, char **argv)
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
+    staged = 0;
+    if (tsio_stage_commit(&err) != 0) {
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+        goto done;
+    }
     rc = 0;
 done:
+    if (staged)
+        tsio_stage_abort();
     tsjob_synth_result_free(&res);
     tsj_values_free(&v);
     CSLDestroy(co.create_options);

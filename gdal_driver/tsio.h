@@ -28,6 +28,22 @@ typedef struct tsio_err {
     char msg[1024];
 } tsio_err;
 
+/**
+ * A job's outputs, all or nothing.  After tsio_stage_begin every output
+ * written stays under its temporary name until tsio_stage_commit moves
+ * them all into place; tsio_stage_abort removes them, and the folders
+ * registered with tsio_stage_dir_created (when empty).  One stage at a
+ * time, from one thread (a command's main thread).
+ */
+void tsio_stage_begin(void);
+int tsio_stage_commit(tsio_err *err);
+void tsio_stage_abort(void);
+int tsio_stage_dir_created(const char *dir);
+/** SIGINT, SIGTERM, SIGHUP: remove every unfinished output (temporary
+ *  files, created folders), say so on stderr as "<prog>: interrupted: ...",
+ *  then die by the signal.  For programs (the CLI), never for a library. */
+void tsio_cleanup_on_signals(const char *prog);
+
 /** err->msg = "<path>: <formatted problem>" on one line (the one way every
  *  wrapper file reports a problem; arguments may point into err->msg). */
 void tsio_errf(tsio_err *err, const char *path, const char *fmt, ...)
@@ -163,8 +179,12 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
 int tsio_check_vector_output(const char *path, tsio_err *err);
 
 /** Are a and b the same file (same device and inode: a link or another
- *  spelling of the path counts)?  A path that does not exist is no file. */
+ *  spelling of the path counts)?  When one does not exist yet: the same
+ *  name in the same folder (its links and spelling resolved). */
 int tsio_same_file(const char *a, const char *b);
+/** Can an output be written at path: its folder exists and is writable,
+ *  and path is new or a regular file (not a folder, device, FIFO, socket). */
+int tsio_check_output_file(const char *path, tsio_err *err);
 
 /** Make sure the folder exists (created, one level, if need be). */
 int tsio_make_dir(const char *dir, tsio_err *err);

@@ -246,6 +246,20 @@ static int out_name_split(const char *path, out_name *o)
     return 0;
 }
 
+/* Does a file "<tstem>" or "<tstem>.<anything>" exist in dir?  Several
+ * outputs of one job may share a stem (axes.tif, axes.png, axes.gpkg), and
+ * a temporary dataset is renamed by its stem. */
+static int stem_in_use(const char *dir, const char *tstem)
+{
+    char **entries = VSIReadDir(dir[0] ? dir : ".");
+    size_t n = strlen(tstem);
+    int i, used = 0;
+    for (i = 0; entries && entries[i] && !used; i++)
+        used = !strncmp(entries[i], tstem, n) && (entries[i][n] == '\0' || entries[i][n] == '.');
+    CSLDestroy(entries);
+    return used;
+}
+
 /* Build from dir/stem/ext a final name, then pick an unused temporary name. */
 int tsio__out_name_make(const char *dir, const char *stem, const char *ext, out_name *o)
 {
@@ -277,7 +291,7 @@ int tsio__out_name_make(const char *dir, const char *stem, const char *ext, out_
         free(base);
         if (!o->temp)
             goto nomem;
-        if (!tsio__path_exists(o->temp, NULL))
+        if (!tsio__path_exists(o->temp, NULL) && !stem_in_use(dir, o->tstem))
             return 0;
         free(o->tstem);
         free(o->temp);
@@ -377,17 +391,30 @@ int tsio__rename_temp_files(const out_name *o, const char *path, tsio_err *err)
     return rc;
 }
 
-/* The directory of `o` must exist, and the final name must not be a directory. */
+/* The directory of `o` must exist and be writable; the final name must be
+ * new or a regular file (never a directory, a device, a FIFO or a socket:
+ * replacing /dev/null as root would destroy it). */
 int tsio__check_output_location(const out_name *o, const char *path, tsio_err *err)
 {
     int is_dir = 0;
     const char *dir = o->dir[0] ? o->dir : ".";
+    struct stat st;
     if (tsio__path_exists(o->final, &is_dir) && is_dir) {
         tsio_errf(err, path, "is a directory");
         return -1;
     }
     if (tsio__starts_with(o->final, "/vsi"))
         return 0; /* virtual file systems may have implicit directories */
+    if (stat(o->final, &st) == 0 && !S_ISREG(st.st_mode)) {
+        tsio_errf(err, path,
+                  "is not a regular file (a device, FIFO or socket): outputs are "
+                  "written to regular files only");
+        return -1;
+    }
+    if (lstat(o->final, &st) == 0 && S_ISLNK(st.st_mode) && stat(o->final, &st) != 0) {
+        tsio_errf(err, path, "is a broken symbolic link");
+        return -1;
+    }
     if (!tsio__path_exists(dir, &is_dir)) {
         tsio_errf(err, path, "directory %s does not exist", dir);
         return -1;
@@ -396,7 +423,40 @@ int tsio__check_output_location(const out_name *o, const char *path, tsio_err *e
         tsio_errf(err, path, "%s is not a directory", dir);
         return -1;
     }
+    if (access(dir, W_OK | X_OK) != 0) {
+        tsio_errf(err, path, "cannot write in directory %s: %s", dir, strerror(errno));
+        return -1;
+    }
     return 0;
+}
+
+int tsio__move_into_place(const out_name *o, const char *path, int gdal_rename, tsio_err *err)
+{
+    GDALDriverH drv;
+    if (tsio__remove_existing(o->final, path, err) != 0)
+        return -1;
+    CPLErrorReset();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    drv = gdal_rename ? GDALIdentifyDriver(o->temp, NULL) : NULL;
+    if (drv && GDALRenameDataset(drv, o->final, o->temp) == CE_None) {
+        CPLErrorReset();
+        CPLPopErrorHandler();
+        return 0;
+    }
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    /* e.g. a driver whose rename cannot reopen the file: move the files ourselves */
+    return tsio__rename_temp_files(o, path, err);
+}
+
+int tsio__finish_output(out_name *o, const char *path, int slot, int gdal_rename, tsio_err *err)
+{
+    int rc;
+    if (tsio__stage_active())
+        return tsio__stage_keep(o, path, slot, gdal_rename, err);
+    rc = tsio__move_into_place(o, path, gdal_rename, err);
+    tsio__temp_unregister(slot);
+    return rc;
 }
 
 /* Remove an existing output (with its sidecar files) so the new one can
@@ -464,14 +524,60 @@ char *tsio__srs_to_wkt2(OGRSpatialReferenceH srs)
     return out;
 }
 
+/* dir/base with dir resolved (links, "..", another spelling); NULL when the
+ * folder does not exist. */
+static char *canonical_name(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    char dir[PATH_MAX], *d;
+    if (!slash)
+        d = realpath(".", dir);
+    else if (slash == path)
+        d = realpath("/", dir);
+    else {
+        char *part = tsio__str_dup(path);
+        if (!part)
+            return NULL;
+        part[slash - path] = '\0';
+        d = realpath(part, dir);
+        free(part);
+    }
+    if (!d)
+        return NULL;
+    return tsio__str_fmt("%s/%s", strcmp(dir, "/") ? dir : "", slash ? slash + 1 : path);
+}
+
 int tsio_same_file(const char *a, const char *b)
 {
     struct stat sa, sb;
+    char *ca, *cb;
+    int same;
     if (!a || !b)
         return 0;
-    if (stat(a, &sa) != 0 || stat(b, &sb) != 0)
-        return 0;
-    return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+    if (!strcmp(a, b))
+        return 1;
+    if (stat(a, &sa) == 0 && stat(b, &sb) == 0)
+        return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+    /* one does not exist (yet): the same name once the folders are resolved */
+    ca = canonical_name(a);
+    cb = canonical_name(b);
+    same = ca && cb && !strcmp(ca, cb);
+    free(ca);
+    free(cb);
+    return same;
+}
+
+int tsio_check_output_file(const char *path, tsio_err *err)
+{
+    out_name on;
+    int rc;
+    if (tsio__out_name_for(path, &on) != 0) {
+        tsio_errf(err, path, "out of memory");
+        return -1;
+    }
+    rc = tsio__check_output_location(&on, path, err);
+    tsio__out_name_free(&on);
+    return rc;
 }
 
 int tsio_make_dir(const char *dir, tsio_err *err)
@@ -487,6 +593,8 @@ int tsio_make_dir(const char *dir, tsio_err *err)
         tsio_errf(err, dir, "cannot create the folder");
         return -1;
     }
+    if (tsio__stage_active())
+        tsio_stage_dir_created(dir); /* removed again if the job fails */
     return 0;
 }
 

@@ -63,6 +63,21 @@ char *tsio__str_dup(const char *s);
 /* printf into a new malloc'ed string (NULL when out of memory). */
 char *tsio__str_fmt(const char *fmt, ...);
 int tsio__str_ieq(const char *a, const char *b);
+/* Move a written temporary dataset to its final name (replacing a regular
+ * file there): with gdal_rename, GDALRenameDataset first, else (or when it
+ * fails) every "<tstem><suffix>" file renamed. */
+int tsio__move_into_place(const out_name *o, const char *path, int gdal_rename, tsio_err *err);
+/* The end of every output write: the temporary dataset `o` (registered as
+ * `slot`) is moved into place now, or kept for tsio_stage_commit inside a
+ * stage (ownership of o moves then). */
+int tsio__finish_output(out_name *o, const char *path, int slot, int gdal_rename, tsio_err *err);
+
+/* tsio_stage.c: temporary names a signal handler removes (slot, or -1). */
+int tsio__temp_register(const out_name *o);
+void tsio__temp_unregister(int slot);
+int tsio__stage_active(void);
+int tsio__stage_keep(out_name *o, const char *path, int slot, int gdal_rename, tsio_err *err);
+
 /* Close a dataset and report whether GDAL flagged a failure while flushing. */
 int tsio__close_checked(GDALDatasetH ds, const char *path, tsio_err *err);
 

@@ -314,7 +314,7 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
     GDALDriverH drv;
     GDALDatasetH ds = NULL, nds = NULL;
     vec_ctx c;
-    int rc = -1, sibling, created = 0, ncreated = 0, renamed = 0, i;
+    int rc = -1, sibling, created = 0, ncreated = 0, i, slot = -1, nslot = -1, staged;
 
     memset(&main_n, 0, sizeof main_n);
     memset(&nodes_n, 0, sizeof nodes_n);
@@ -379,6 +379,7 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
     /* the paths (and, for multi-layer formats, the nodes) */
     CPLErrorReset();
     created = 1;
+    slot = tsio__temp_register(&main_n);
     ds = GDALCreate(drv, main_n.temp, 0, 0, 0, GDT_Unknown, NULL);
     if (!ds) {
         tsio__set_err_gdal(err, path, "cannot create the file");
@@ -403,6 +404,7 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
         }
         CPLErrorReset();
         ncreated = 1;
+        nslot = tsio__temp_register(&nodes_n);
         nds = GDALCreate(drv, nodes_n.temp, 0, 0, 0, GDT_Unknown, NULL);
         if (!nds) {
             tsio__set_err_gdal(err, nodes_n.final, "cannot create the file");
@@ -416,17 +418,39 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
             goto done;
     }
 
-    /* move into place (GDAL 3.6's GDALRenameDataset reopens as raster only,
-     * so the files of the temporary dataset are renamed here) */
-    if (tsio__remove_existing(main_n.final, path, err) != 0)
+    /* move into place, now or with the job's other outputs (GDAL 3.6's
+     * GDALRenameDataset reopens as raster only, so the files of the
+     * temporary dataset are renamed) */
+    if (!tsio__stage_active()) {
+        /* both files or neither: check the second can go before moving the first */
+        if (sibling && tsio__remove_existing(nodes_n.final, nodes_n.final, err) != 0)
+            goto done;
+    }
+    staged = tsio__stage_active();
+    created = 0;
+    if (tsio__finish_output(&main_n, path, slot, 0, err) != 0) {
+        created = 1;
+        slot = -1;
         goto done;
-    if (sibling && tsio__remove_existing(nodes_n.final, nodes_n.final, err) != 0)
-        goto done;
-    if (tsio__rename_temp_files(&main_n, path, err) != 0)
-        goto done;
-    renamed = 1;
-    if (sibling && tsio__rename_temp_files(&nodes_n, nodes_n.final, err) != 0)
-        goto done;
+    }
+    slot = -1;
+    if (sibling) {
+        ncreated = 0;
+        if (tsio__finish_output(&nodes_n, nodes_n.final, nslot, 0, err) != 0) {
+            ncreated = 1;
+            nslot = -1;
+            if (!staged) {
+                /* the nodes could not follow: do not leave half an output */
+                GDALDriverH d = GDALIdentifyDriver(main_n.final, NULL);
+                if (d)
+                    GDALDeleteDataset(d, main_n.final);
+                if (tsio__path_exists(main_n.final, NULL))
+                    VSIUnlink(main_n.final);
+            }
+            goto done;
+        }
+        nslot = -1;
+    }
     rc = 0;
 
 done:
@@ -435,19 +459,13 @@ done:
     if (nds)
         GDALClose(nds);
     if (rc != 0) {
-        if (created)
+        if (created && main_n.temp)
             tsio__remove_temp_files(&main_n);
-        if (ncreated)
+        if (ncreated && nodes_n.temp)
             tsio__remove_temp_files(&nodes_n);
-        if (renamed) {
-            /* the nodes could not follow: do not leave half an output */
-            GDALDriverH d = GDALIdentifyDriver(main_n.final, NULL);
-            if (d)
-                GDALDeleteDataset(d, main_n.final);
-            if (tsio__path_exists(main_n.final, NULL))
-                VSIUnlink(main_n.final);
-        }
     }
+    tsio__temp_unregister(slot);
+    tsio__temp_unregister(nslot);
     if (c.srs)
         OSRDestroySpatialReference(c.srs);
     free(nodes_stem);

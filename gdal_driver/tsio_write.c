@@ -209,7 +209,7 @@ static int write_raster_impl(const char *path, const tsio_write_opts *opts,
     char **copts = NULL;
     const char *drv_name, *types;
     out_name on;
-    int rc = -1, created = 0, i, can_create, can_copy;
+    int rc = -1, created = 0, i, can_create, can_copy, slot = -1;
 
     memset(&on, 0, sizeof on);
     if (!path || !path[0]) {
@@ -315,6 +315,7 @@ static int write_raster_impl(const char *path, const tsio_write_opts *opts,
     /* write the temporary dataset */
     CPLErrorReset();
     created = 1;
+    slot = tsio__temp_register(&on);
     if (can_create) {
         ds = GDALCreate(drv, on.temp, src->width, src->height, src->nbands, src->type, copts);
         if (!ds) {
@@ -358,16 +359,14 @@ static int write_raster_impl(const char *path, const tsio_write_opts *opts,
             goto done;
     }
 
-    /* move it into place */
-    if (tsio__remove_existing(on.final, path, err) != 0)
+    /* move it into place, now or with the job's other outputs */
+    created = 0;
+    if (tsio__finish_output(&on, path, slot, 1, err) != 0) {
+        created = 1; /* not moved: its files go */
+        slot = -1;
         goto done;
-    CPLErrorReset();
-    if (GDALRenameDataset(drv, on.final, on.temp) != CE_None) {
-        /* e.g. a driver whose rename cannot reopen the file: move the files ourselves */
-        CPLErrorReset();
-        if (tsio__rename_temp_files(&on, path, err) != 0)
-            goto done;
     }
+    slot = -1;
     rc = 0;
 
 done:
@@ -375,8 +374,9 @@ done:
         GDALClose(ds);
     if (mem)
         GDALClose(mem);
-    if (rc != 0 && created)
+    if (rc != 0 && created && on.temp)
         tsio__remove_temp_files(&on);
+    tsio__temp_unregister(slot);
     CSLDestroy(copts);
     tsio__out_name_free(&on);
     return rc;

@@ -448,6 +448,20 @@ static int job_not_an_input(const char *out, const char *const *inputs, int n, t
     return 0;
 }
 
+/* Two outputs of a job must be two files (-d: refused). */
+static int job_distinct(const char *const *outs, int n, tsio_err *err)
+{
+    int i, j;
+    for (i = 0; i < n; i++)
+        for (j = i + 1; j < n; j++)
+            if (outs[i] && outs[j] && tsio_same_file(outs[i], outs[j])) {
+                tsio_errf(err, outs[j], "is also an output (%s): each output needs its own file",
+                          outs[i]);
+                return -1;
+            }
+    return 0;
+}
+
 /* A hillshade PNG; with f, its axes drawn over it.  The metrics are the
  * grid's, or for a CRS-less grid its pixel size. */
 static int job_preview(ts_ctx *ctx, const char *path, const ts_raster *dem, const tsio_georef *geo,
@@ -492,8 +506,9 @@ int tsjob_ppa_check_outputs(const tsjob_ppa *job, const tsjob_ppa_result *res,
     unsigned char probe = 0;
     tsio_write_opts wo = {o->format, o->create_options, 1};
     tsio_write_opts png = {"PNG", NULL, 1};
+    const char *outs[3] = {o->output, o->lines, o->preview};
     if (job_not_an_input(o->output, in, 1, err) || job_not_an_input(o->lines, in, 1, err) ||
-        job_not_an_input(o->preview, in, 1, err))
+        job_not_an_input(o->preview, in, 1, err) || job_distinct(outs, 3, err))
         return -1;
     if (tsio_write_byte(o->output, &wo, &res->in.geo, &probe, 255, err) != 0 ||
         (o->lines && tsio_check_vector_output(o->lines, err) != 0) ||
@@ -516,6 +531,12 @@ int tsjob_ppa_write(ts_ctx *ctx, const tsjob_ppa_result *res, const tsjob_output
     return 0;
 }
 
+int tsjob_ppa_check_recipe(const tsjob_ppa *job, const char *recipe, tsio_err *err)
+{
+    const char *in[1] = {job->input};
+    return job_not_an_input(recipe, in, 1, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
+}
+
 /* Every file a synth job reads. */
 static int job_synth_inputs(const tsjob_synth *job, const char **in)
 {
@@ -533,6 +554,13 @@ static int job_synth_inputs(const tsjob_synth *job, const char **in)
 }
 
 #define JOB_MAX_INPUTS (TSJOB_MAX_EXEMPLARS + TSJOB_MAX_PINS + 5)
+
+int tsjob_synth_check_recipe(const tsjob_synth *job, const char *recipe, tsio_err *err)
+{
+    const char *in[JOB_MAX_INPUTS];
+    int n = job_synth_inputs(job, in);
+    return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
+}
 
 /* The names of the debug maps (debug_dir/<name>.tif, the driver's MAP). */
 const char *const tsjob_map_names[TSJOB_N_MAPS] = {"seams", "source_exemplar", "source_x",
@@ -574,14 +602,34 @@ int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *
         (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
         return -1;
     if (o->debug_dir) {
-        char path[4096];
+        char paths[TSJOB_N_MAPS + 2][4096];
+        const char *outs[TSJOB_N_MAPS + 4];
+        int k = 0;
+        outs[k++] = o->output;
+        outs[k++] = o->preview;
         if (tsio_make_dir(o->debug_dir, err) != 0)
             return -1;
-        for (i = 0; i < TSJOB_N_MAPS; i++) {
-            if (tsio_path(path, sizeof path, o->debug_dir, tsjob_map_names[i], "tif", err) != 0 ||
-                job_not_an_input(path, in, n, err) != 0)
+        for (i = 0; i < TSJOB_N_MAPS + 2; i++) {
+            const char *name = i < TSJOB_N_MAPS    ? tsjob_map_names[i]
+                               : i == TSJOB_N_MAPS ? "sketch_features"
+                                                   : "output_features";
+            if (i >= TSJOB_N_MAPS && !job->sketch)
+                break;
+            if (tsio_path(paths[i], sizeof paths[i], o->debug_dir, name,
+                          i < TSJOB_N_MAPS ? "tif" : "gpkg", err) != 0 ||
+                job_not_an_input(paths[i], in, n, err) != 0)
                 return -1;
+            outs[k++] = paths[i];
         }
+        if (job_distinct(outs, k, err) != 0)
+            return -1;
+        for (i = 2; i < k; i++)
+            if (tsio_check_output_file(outs[i], err) != 0)
+                return -1;
+    } else {
+        const char *outs[2] = {o->output, o->preview};
+        if (job_distinct(outs, 2, err) != 0)
+            return -1;
     }
     return 0;
 }

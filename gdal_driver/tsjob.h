@@ -137,6 +137,10 @@ void tsjob_synth_result_free(tsjob_synth_result *res);
  *  an input, the debug folder exists (created if need be). */
 int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *res,
                               const tsjob_outputs *o, tsio_err *err);
+/** Before writing a recipe: it is no input of the job and can be written. */
+int tsjob_ppa_check_recipe(const tsjob_ppa *job, const char *recipe, tsio_err *err);
+int tsjob_synth_check_recipe(const tsjob_synth *job, const char *recipe, tsio_err *err);
+
 /** The synthesis maps by name: TSJOB_MAP_SEAMS (Byte, 1 next to a seam),
  *  then the Int32 maps (-1 where no patch put the cell). */
 enum {
