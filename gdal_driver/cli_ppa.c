@@ -109,12 +109,15 @@ int cli_ppa(int argc, char **argv)
     ts_ctx_set_threads(ctx, co.threads);
     cli_set_progress(ctx, co.progress, &progress_state);
     if (tsjob_ppa_compute(ctx, &job, &res, &err) != 0 ||
-        tsjob_ppa_write(ctx, &res, &outs, &err) != 0 || tsio_stage_commit(&err) != 0) {
-        staged = 0; /* a failed commit has cleaned up */
+        tsjob_ppa_write(ctx, &res, &outs, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
-    staged = 0;
+    staged = 0; /* a failed commit cleans up itself */
+    if (tsio_stage_commit(&err) != 0) {
+        fprintf(stderr, "terrasynth: %s\n", err.msg);
+        goto done;
+    }
     f = res.features;
     if (co.progress != PROGRESS_QUIET) {
         size_t nb = 0, ne = 0, np[3] = {0, 0, 0};

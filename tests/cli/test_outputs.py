@@ -104,3 +104,130 @@ def test_debug_dir_that_is_a_file(tmp_path, dem):
             "-q", check=False)
     assert p.returncode != 0 and "exists and is not a folder" in p.stderr
     assert not (tmp_path / "o.tif").exists()
+
+
+# ------------------------------------------------------------------ issue 12: nothing lost
+
+def listing(d):
+    """Every file under d with its content's digest (the directory's state)."""
+    out = {}
+    for root, dirs, files in os.walk(d):
+        for name in dirs + files:
+            p = os.path.join(root, name)
+            out[os.path.relpath(p, d)] = None if os.path.isdir(p) else digest(p)
+    return out
+
+
+def test_two_outputs_never_the_same_file(tmp_path, dem):
+    """The DEM output replaced by its own PNG, a debug map over the output: refused."""
+    before = listing(tmp_path)
+    for cmd in (["ppa", dem, tmp_path / "p.tif", "--preview", tmp_path / "p.tif"],
+                ["ppa", dem, tmp_path / "p.tif", "--lines", tmp_path / "sub" / ".." / "p.tif"],
+                ["synth", "--exemplar", dem, "--size", "64x64", tmp_path / "seams.tif",
+                 "--debug-dir", tmp_path],
+                ["synth", "--exemplar", dem, "--size", "64x64", tmp_path / "o.tif", "--preview",
+                 tmp_path / "o.tif"]):
+        (tmp_path / "sub").mkdir(exist_ok=True)
+        p = run(*cmd, "-q", check=False)
+        assert p.returncode == 1, (cmd, p.stderr)
+        assert "each output needs its own file" in p.stderr, p.stderr
+        assert len(p.stderr.strip().splitlines()) == 1
+        (tmp_path / "sub").rmdir()
+        assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize("job", ["ppa", "synth"])
+def test_recipe_never_over_an_input(tmp_path, dem, job):
+    before = digest(dem)
+    link = tmp_path / "link.tif"
+    os.symlink(dem, link)
+    args = [dem] if job == "ppa" else ["--exemplar", dem, "--size", "64x64"]
+    for target in (dem, link):
+        p = run(job, *args, "--recipe", target, check=False)
+        assert p.returncode != 0 and "an output never overwrites an input" in p.stderr
+        assert digest(dem) == before
+
+
+def test_special_files_are_not_replaced(tmp_path, dem):
+    """A FIFO (or /dev/null, as root) is no output: refused at once, left as it was."""
+    import stat
+
+    fifo = tmp_path / "fifo.tif"
+    os.mkfifo(fifo)
+    for cmd in (["ppa", dem, fifo], ["synth", "--exemplar", dem, "--size", "64x64", fifo],
+                ["ppa", dem, tmp_path / "o.tif", "--preview", fifo],
+                ["ppa", dem, "--recipe", fifo]):
+        p = run(*cmd, "-q", check=False)
+        assert p.returncode == 1, (cmd, p.stderr)
+        assert "is not a regular file" in p.stderr, p.stderr
+        assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert sorted(os.listdir(tmp_path)) == ["dem.tif", "fifo.tif"]
+    p = run("ppa", dem, "/dev/null", "-q", check=False)
+    assert p.returncode == 1 and "is not a regular file" in p.stderr
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+
+
+def run_with_file_limit(limit, *args):
+    """terrasynth with files capped at `limit` bytes (SIGXFSZ ignored, so a write past it
+    fails with EFBIG): a write that fails half way through the job."""
+    import resource
+    import signal
+    import subprocess
+    from tsutil import TERRASYNTH
+
+    def cap():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return subprocess.run([TERRASYNTH, *map(str, args)], capture_output=True, text=True,
+                          timeout=600, preexec_fn=cap)
+
+
+def test_a_failed_write_leaves_nothing(tmp_path, dem):
+    """The DEM is written (140 kB), the lines or the preview (250 kB) fail: none is left,
+    nor any temporary file; an earlier output of the same name is kept as it was."""
+    out, png = tmp_path / "p.tif", tmp_path / "p.png"
+    out.write_bytes(b"an earlier result")
+    before = listing(tmp_path)
+    p = run_with_file_limit(200_000, "ppa", dem, out, "--preview", png, "--lines",
+                            tmp_path / "p.gpkg", "-q")
+    assert p.returncode == 1, p.stderr
+    assert ("p.png" in p.stderr or "p.gpkg" in p.stderr) and p.stderr.count("\n") == 1
+    assert listing(tmp_path) == before
+    # the same run without the cap writes all three
+    run("ppa", dem, out, "--preview", png, "--lines", tmp_path / "p.gpkg", "-q")
+    assert out.stat().st_size > 100_000 and png.exists() and (tmp_path / "p.gpkg").exists()
+
+
+def test_a_failed_synth_removes_the_debug_folder_it_made(tmp_path, dem):
+    dbg = tmp_path / "dbg"
+    p = run_with_file_limit(20_000, "synth", "--exemplar", dem, "--size", "96x96",
+                            tmp_path / "o.tif", "--debug-dir", dbg, "-q")
+    assert p.returncode == 1, p.stderr
+    assert sorted(os.listdir(tmp_path)) == ["dem.tif"]
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
+def test_a_signal_leaves_nothing(tmp_path, dem, sig):
+    """Interrupted while it works: the folder it made is gone, no temporary file, it says
+    so, and it dies by the signal (as a shell expects)."""
+    import signal
+    import subprocess
+    import time
+    from tsutil import TERRASYNTH
+
+    dbg = tmp_path / "dbg"
+    proc = subprocess.Popen([TERRASYNTH, "synth", "--exemplar", dem, "--size", "1500x1500",
+                             tmp_path / "o.tif", "--debug-dir", dbg, "--preview",
+                             tmp_path / "o.png", "--progress-lines"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # wait for the work to start (the folder exists once the outputs are checked)
+    line = proc.stdout.readline()
+    assert line.startswith("PROGRESS"), line + proc.stderr.read()
+    assert dbg.is_dir()
+    time.sleep(0.3)
+    proc.send_signal(getattr(signal, sig))
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == -getattr(signal, sig), err
+    assert "interrupted" in err and "nothing was written" in err, err
+    assert sorted(os.listdir(tmp_path)) == ["dem.tif"]
