@@ -109,8 +109,13 @@ static int recipe_check_not_self(const ts_recipe *r, const char *input, tsio_err
 static const char *recipe_resolve(void *user, const char *name, char *msg, size_t len)
 {
     ts_recipe *r = user;
-    const char *path = recipe_keep_path(r, name);
+    const char *path;
     tsio_err e;
+    if (tsio_name_offline(name, &e) != 0) {
+        snprintf(msg, len, "%s", e.msg);
+        return NULL;
+    }
+    path = recipe_keep_path(r, name);
     if (recipe_check_not_self(r, path, &e) != 0) {
         /* without the recipe's own name: the caller adds it */
         const char *colon = strstr(e.msg, ": ");
@@ -193,15 +198,186 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
         tsio_errf(err, r->path, "%s", msg);
         return -1;
     }
+    if (r->synth.grid.crs && tsio_crs_offline(r->synth.grid.crs, err) != 0) {
+        tsio_errf(err, r->path, "%s", err->msg);
+        return -1;
+    }
     return tsjob_synth_prepare(&r->synth, &r->synth_res, err);
+}
+
+/* Read and parse a recipe file; *top is its <TerraSynth> element (version
+ * checked), *root the tree to free. */
+static int recipe_read_xml(const char *path, CPLXMLNode **root, CPLXMLNode **top, tsio_err *err)
+{
+    VSILFILE *fp;
+    vsi_l_offset size;
+    char *text;
+    *root = *top = NULL;
+    fp = VSIFOpenL(path, "rb");
+    if (!fp) {
+        tsio_errf(err, path, "cannot open the recipe");
+        return -1;
+    }
+    VSIFSeekL(fp, 0, SEEK_END);
+    size = VSIFTellL(fp);
+    VSIFSeekL(fp, 0, SEEK_SET);
+    if (size == 0 || size > RECIPE_MAX_BYTES) {
+        tsio_errf(err, path, "a recipe must be 1 byte to 1 MB, not %llu bytes",
+                  (unsigned long long)size);
+        VSIFCloseL(fp);
+        return -1;
+    }
+    text = CPLMalloc((size_t)size + 1);
+    if (VSIFReadL(text, 1, (size_t)size, fp) != (size_t)size) {
+        tsio_errf(err, path, "cannot read the recipe");
+        VSIFCloseL(fp);
+        CPLFree(text);
+        return -1;
+    }
+    text[size] = '\0';
+    VSIFCloseL(fp);
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    *root = CPLParseXMLString(text);
+    CPLFree(text);
+    if (!*root) {
+        char msg[512];
+        snprintf(msg, sizeof msg, "%s", CPLGetLastErrorMsg());
+        CPLPopErrorHandler();
+        tsio_errf(err, path, "not well-formed XML (%s)", msg[0] ? msg : "parse error");
+        return -1;
+    }
+    CPLPopErrorHandler();
+    *top = CPLGetXMLNode(*root, "=TerraSynth");
+    if (!*top) {
+        tsio_errf(err, path, "the root element must be <TerraSynth>");
+        return -1;
+    }
+    if (strcmp(CPLGetXMLValue(*top, "version", "1"), "1") != 0) {
+        tsio_errf(err, path, "<TerraSynth version=\"%s\"> is not supported (only 1)",
+                  CPLGetXMLValue(*top, "version", ""));
+        return -1;
+    }
+    return 0;
+}
+
+/* Is the file at path a recipe (by its name or its first bytes)? */
+static int recipe_is_recipe(const char *path)
+{
+    unsigned char head[64];
+    size_t n = 0;
+    VSILFILE *fp;
+    if (EQUAL(CPLGetExtension(path), "tsyn"))
+        return 1;
+    fp = VSIFOpenL(path, "rb");
+    if (!fp)
+        return 0;
+    n = VSIFReadL(head, 1, sizeof head, fp);
+    VSIFCloseL(fp);
+    return recipe_identify(path, head, (int)n);
+}
+
+/* The files a recipe names (tsj_from_xml's resolver: every file option the
+ * jobs declare), relative to its folder. */
+typedef struct recipe_names {
+    char *dir;
+    char **names;
+} recipe_names;
+
+static const char *recipe_collect(void *user, const char *name, char *msg, size_t len)
+{
+    recipe_names *n = user;
+    const char *resolved = name;
+    tsio_err e;
+    if (tsio_name_offline(name, &e) != 0) {
+        snprintf(msg, len, "%s", e.msg); /* never followed; the open refuses it */
+        return NULL;
+    }
+    if (CPLIsFilenameRelative(name) && strncmp(name, "/vsi", 4) != 0)
+        resolved = CPLProjectRelativeFilename(n->dir, name);
+    n->names = CSLAddString(n->names, resolved);
+    return n->names[CSLCount(n->names) - 1];
+}
+
+/* The same file, as far as a loop goes (links and spellings resolved). */
+static int recipe_same(const char *a, const char *b)
+{
+    char ra[4096], rb[4096];
+    if (realpath(a, ra) && realpath(b, rb))
+        return strcmp(ra, rb) == 0;
+    return strcmp(a, b) == 0;
+}
+
+/* "a.tsyn -> b.tsyn -> ..." of the chain, and `last` after it. */
+static void recipe_chain_text(char *buf, size_t len, char **chain, const char *last)
+{
+    size_t used = 0;
+    int i;
+    buf[0] = '\0';
+    for (i = 0; chain && chain[i] && used < len; i++)
+        used += (size_t)snprintf(buf + used, len - used, "%s -> ", CPLGetFilename(chain[i]));
+    if (used < len)
+        snprintf(buf + used, len - used, "%s", CPLGetFilename(last));
+}
+
+/* Follow every recipe that `path` names, and those they name: a recipe met
+ * again is a loop, refused at open with the chain; so is nesting past
+ * RECIPE_MAX_DEPTH.  Recipes that cannot be read are left to their own
+ * open to report. */
+static int recipe_scan(const char *path, char ***chain, tsio_err *err)
+{
+    CPLXMLNode *root = NULL, *top = NULL, *node;
+    recipe_names n = {NULL, NULL};
+    tsio_err ignored;
+    char msg[1024];
+    int rc = 0, i, j, depth = CSLCount(*chain);
+    if (recipe_read_xml(path, &root, &top, &ignored) != 0) {
+        CPLDestroyXMLNode(root);
+        return 0;
+    }
+    node = CPLGetXMLNode(top, "PPA");
+    if (!node)
+        node = CPLGetXMLNode(top, "Synth");
+    if (node) {
+        tsj_values v;
+        tsj_values_init(&v, tsj_find(CPLGetXMLNode(top, "PPA") ? "ppa" : "synth"));
+        n.dir = CPLStrdup(CPLGetPath(path));
+        tsj_from_xml(&v, node, recipe_collect, &n, msg, sizeof msg); /* names, not checks */
+        tsj_values_free(&v);
+    }
+    CPLDestroyXMLNode(root);
+    for (i = 0; n.names && n.names[i] && rc == 0; i++) {
+        const char *name = n.names[i];
+        if (!recipe_is_recipe(name))
+            continue;
+        for (j = 0; j < depth; j++)
+            if (recipe_same(name, (*chain)[j])) {
+                recipe_chain_text(msg, sizeof msg, *chain, name);
+                tsio_errf(err, (*chain)[0],
+                          "recipes that name each other in a loop (recursion): %s", msg);
+                rc = -1;
+                break;
+            }
+        if (rc == 0 && depth + 1 >= RECIPE_MAX_DEPTH) {
+            recipe_chain_text(msg, sizeof msg, *chain, name);
+            tsio_errf(err, (*chain)[0], "recipes nested more than %d deep: %s", RECIPE_MAX_DEPTH,
+                      msg);
+            rc = -1;
+        }
+        if (rc == 0) {
+            *chain = CSLAddString(*chain, name);
+            rc = recipe_scan(name, chain, err);
+            CPLFree((*chain)[depth]);
+            (*chain)[depth] = NULL;
+        }
+    }
+    CSLDestroy(n.names);
+    CPLFree(n.dir);
+    return rc;
 }
 
 int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_err *err)
 {
     ts_recipe *r;
-    VSILFILE *fp;
-    vsi_l_offset size;
-    char *text = NULL;
     CPLXMLNode *root = NULL, *top, *node;
     int rc = -1;
     *out = NULL;
@@ -216,47 +392,15 @@ int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_e
     }
     r->map = -1;
     r->path = CPLStrdup(path);
-    fp = VSIFOpenL(path, "rb");
-    if (!fp) {
-        tsio_errf(err, path, "cannot open the recipe");
+    if (recipe_read_xml(path, &root, &top, err) != 0)
         goto done;
-    }
-    VSIFSeekL(fp, 0, SEEK_END);
-    size = VSIFTellL(fp);
-    VSIFSeekL(fp, 0, SEEK_SET);
-    if (size == 0 || size > RECIPE_MAX_BYTES) {
-        tsio_errf(err, path, "a recipe must be 1 byte to 1 MB, not %llu bytes",
-                  (unsigned long long)size);
-        VSIFCloseL(fp);
-        goto done;
-    }
-    text = CPLMalloc((size_t)size + 1);
-    if (VSIFReadL(text, 1, (size_t)size, fp) != (size_t)size) {
-        tsio_errf(err, path, "cannot read the recipe");
-        VSIFCloseL(fp);
-        goto done;
-    }
-    text[size] = '\0';
-    VSIFCloseL(fp);
-    CPLPushErrorHandler(CPLQuietErrorHandler);
-    root = CPLParseXMLString(text);
-    if (!root) {
-        char msg[512];
-        snprintf(msg, sizeof msg, "%s", CPLGetLastErrorMsg());
-        CPLPopErrorHandler();
-        tsio_errf(err, path, "not well-formed XML (%s)", msg[0] ? msg : "parse error");
-        goto done;
-    }
-    CPLPopErrorHandler();
-    top = CPLGetXMLNode(root, "=TerraSynth");
-    if (!top) {
-        tsio_errf(err, path, "the root element must be <TerraSynth>");
-        goto done;
-    }
-    if (strcmp(CPLGetXMLValue(top, "version", "1"), "1") != 0) {
-        tsio_errf(err, path, "<TerraSynth version=\"%s\"> is not supported (only 1)",
-                  CPLGetXMLValue(top, "version", ""));
-        goto done;
+    if (recipe_depth == 0) {
+        /* the outermost recipe: every loop through any input, before any is opened */
+        char **chain = CSLAddString(NULL, path);
+        int bad = recipe_scan(path, &chain, err);
+        CSLDestroy(chain);
+        if (bad)
+            goto done;
     }
     recipe_stack[recipe_depth++] = r->path;
     if ((node = CPLGetXMLNode(top, "PPA"))) {
@@ -271,7 +415,6 @@ int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_e
     recipe_depth--;
 done:
     CPLDestroyXMLNode(root);
-    CPLFree(text);
     if (rc != 0) {
         recipe_free(r);
         return -1;

@@ -182,6 +182,13 @@ int tsio_check_vector_output(const char *path, tsio_err *err);
  *  spelling of the path counts)?  When one does not exist yet: the same
  *  name in the same folder (its links and spelling resolved). */
 int tsio_same_file(const char *a, const char *b);
+/** What an untrusted recipe may name.  tsio_name_offline: no network
+ *  dataset (/vsicurl/, /vsis3/, ..., any "scheme://") unless the
+ *  configuration option TSYN_ALLOW_NETWORK=YES says so.  tsio_crs_offline:
+ *  a CRS given as text (AUTH:CODE, WKT, PROJJSON, a PROJ string without
+ *  init=), never a file name or a URL, which GDAL would read or fetch. */
+int tsio_name_offline(const char *name, tsio_err *err);
+int tsio_crs_offline(const char *crs, tsio_err *err);
 /** Can an output be written at path: its folder exists and is writable,
  *  and path is new or a regular file (not a folder, device, FIFO, socket). */
 int tsio_check_output_file(const char *path, tsio_err *err);

@@ -414,3 +414,149 @@ def test_open_option_map_serves_the_synthesis_maps(tmp_path):
     ts("ppa", JACKSBORO, "--recipe", tmp_path / "p.tsyn")
     with pytest.raises(RuntimeError, match="not an option of ppa recipes"):
         gdal.OpenEx(str(tmp_path / "p.tsyn"), open_options=["MAP=seams"])
+
+
+# ---------------------------------------------------------------- untrusted recipes (issue 12)
+
+class Listener:
+    """A local TCP port that records whether anything connected to it."""
+
+    def __init__(self):
+        import socket
+        import threading
+
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(4)
+        self.sock.settimeout(0.2)
+        self.port = self.sock.getsockname()[1]
+        self.hits = 0
+        self.stop = False
+        self.t = threading.Thread(target=self._serve, daemon=True)
+        self.t.start()
+
+    def _serve(self):
+        import socket
+
+        while not self.stop:
+            try:
+                c, _ = self.sock.accept()
+            except socket.timeout:
+                continue
+            except OSError:
+                return
+            self.hits += 1
+            c.close()
+
+    def close(self):
+        self.stop = True
+        self.t.join()
+        self.sock.close()
+
+
+@pytest.mark.parametrize("where", ["crs", "exemplar", "vsicurl"])
+def test_a_recipe_never_reaches_out(tmp_path, where):
+    import shutil
+
+    shutil.copy(JACKSBORO, tmp_path / "dem.tif")
+    srv = Listener()
+    url = "http://127.0.0.1:%d/x" % srv.port
+    grid = "<Grid width='64' height='64' originX='0' originY='0' resolution='30' crs='%s'/>"
+    ex, crs = "dem.tif", "EPSG:32611"
+    if where == "crs":
+        crs = url
+    else:
+        ex = (url if where == "exemplar" else "/vsicurl/" + url) + ".tif"
+    (tmp_path / "r.tsyn").write_text("<TerraSynth version='1'><Synth><Exemplar>%s</Exemplar>%s"
+                                     "</Synth></TerraSynth>" % (ex, grid % crs))
+    try:
+        p = tool("gdalinfo", tmp_path / "r.tsyn", check=False)
+        assert p.returncode != 0 and "r.tsyn" in p.stderr
+        want = "never a file or an address" if where == "crs" else "names a network resource"
+        assert want in p.stderr, p.stderr
+        import time
+        time.sleep(0.3)
+        assert srv.hits == 0
+        if where == "vsicurl":
+            # the user may allow it: then GDAL does go there
+            p = tool("gdalinfo", "-checksum", "--config", "TSYN_ALLOW_NETWORK", "YES",
+                     tmp_path / "r.tsyn",
+                     check=False)
+            assert "names a network resource" not in p.stderr
+            time.sleep(0.3)
+            assert srv.hits > 0
+    finally:
+        srv.close()
+
+
+@pytest.mark.parametrize("crs", ["/etc/hostname", "../secret.prj", "+init=epsg:4326"])
+def test_a_recipe_crs_reads_no_file(tmp_path, crs):
+    import shutil
+
+    shutil.copy(JACKSBORO, tmp_path / "dem.tif")
+    (tmp_path / "r.tsyn").write_text(
+        "<TerraSynth version='1'><Synth><Exemplar>dem.tif</Exemplar><Grid width='64' "
+        "height='64' originX='0' originY='0' resolution='30' crs='%s'/></Synth></TerraSynth>"
+        % crs)
+    with pytest.raises(RuntimeError, match="never a file or an address"):
+        gdal.Open(str(tmp_path / "r.tsyn"))
+    # the forms a recipe does take
+    for ok in ("EPSG:32611", osr.SRS_WKT_WGS84_LAT_LONG.replace("'", '"')):
+        (tmp_path / "ok.tsyn").write_text(
+            "<TerraSynth version='1'><Synth><Exemplar>dem.tif</Exemplar><Grid width='64' "
+            "height='64' originX='0' originY='0' resolution='30' crs='%s'/></Synth></TerraSynth>"
+            % ok)
+        assert gdal.Open(str(tmp_path / "ok.tsyn")).RasterXSize == 64
+
+
+SYNTH_GRID = "<Grid width='64' height='64' originX='0' originY='0' resolution='30' crs='EPSG:32611'/>"
+
+
+@pytest.mark.parametrize("element", [
+    "<Exemplar>{}</Exemplar>" + SYNTH_GRID,
+    "<Exemplar>dem.tif</Exemplar><Sketch>{}</Sketch>",
+    "<Exemplar>dem.tif</Exemplar><Grid like='{}'/>",
+    "<Exemplar>dem.tif</Exemplar>" + SYNTH_GRID + "<Water level='3'>{}</Water>",
+    "<Exemplar>dem.tif</Exemplar>" + SYNTH_GRID + "<Heights>{}</Heights>",
+    "<Exemplar>dem.tif</Exemplar>" + SYNTH_GRID +
+    "<Pin xoff='0' yoff='0' width='8' height='8' x='1' y='1'>{}</Pin>",
+    "<Exemplar>dem.tif</Exemplar>" + SYNTH_GRID + "<Regions>{}</Regions>"
+    "<RegionExemplar id='1'>dem.tif</RegionExemplar>",
+    "<Exemplar>dem.tif</Exemplar>" + SYNTH_GRID + "<Regions>reg.tif</Regions>"
+    "<RegionExemplar id='1'>{}</RegionExemplar>",
+], ids=["exemplar", "sketch", "like", "water", "heights", "pin", "regions", "region_exemplar"])
+def test_recipe_loops_refused_at_open(tmp_path, element):
+    """A loop through any input, direct or through another recipe, is refused when the
+    recipe is opened, in one line naming the chain (issue 12: it failed 8 levels deep, or
+    said "not a raster")."""
+    import shutil
+
+    shutil.copy(JACKSBORO, tmp_path / "dem.tif")
+    write_tif(tmp_path / "reg.tif", np.ones((64, 64), np.float32), srs="EPSG:32611",
+              gt=(0, 30, 0, 0, 0, -30))
+    body = "<TerraSynth version='1'><Synth>%s</Synth></TerraSynth>"
+    (tmp_path / "self.tsyn").write_text(body % element.format("self.tsyn"))
+    (tmp_path / "a.tsyn").write_text(body % element.format("b.tsyn"))
+    (tmp_path / "b.tsyn").write_text(body % element.format("a.tsyn"))
+    for name, chain in (("self.tsyn", "self.tsyn -> self.tsyn"),
+                        ("a.tsyn", "a.tsyn -> b.tsyn -> a.tsyn")):
+        p = tool("gdalinfo", "-checksum", tmp_path / name, check=False)
+        assert p.returncode != 0
+        errors = [l for l in p.stderr.splitlines() if l.startswith("ERROR")]
+        assert len(errors) == 1, p.stderr
+        assert "in a loop (recursion): " + chain in errors[0], p.stderr
+
+
+def test_recipe_nesting_limit_names_the_chain(tmp_path):
+    import shutil
+
+    shutil.copy(JACKSBORO, tmp_path / "dem.tif")
+    body = "<TerraSynth version='1'><Synth><Exemplar>%s</Exemplar>" + SYNTH_GRID + \
+        "</Synth></TerraSynth>"
+    for i in range(10):
+        (tmp_path / ("r%d.tsyn" % i)).write_text(body % ("r%d.tsyn" % (i + 1) if i < 9
+                                                         else "dem.tif"))
+    with pytest.raises(RuntimeError, match=r"nested more than 8 deep: r0.tsyn -> r1.tsyn"):
+        gdal.Open(str(tmp_path / "r0.tsyn"))
+    # 8 deep is fine
+    assert gdal.Open(str(tmp_path / "r3.tsyn")).RasterXSize == 64
