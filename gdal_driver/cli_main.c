@@ -57,7 +57,11 @@ void cli_set_progress(ts_ctx *ctx, progress_mode mode, int *state)
 
 void cli_usage_error(const char *cmd, const char *fmt, const char *arg)
 {
+    size_t n = strlen(cmd);
     fprintf(stderr, "terrasynth %s: ", cmd);
+    /* a message of the core that names the command already ("synth: ...") */
+    if (arg && !strcmp(fmt, "%s") && !strncmp(arg, cmd, n) && arg[n] == ':' && arg[n + 1] == ' ')
+        arg += n + 2;
     fprintf(stderr, fmt, arg);
     fprintf(stderr, " (see 'terrasynth %s --help')\n", cmd);
 }

@@ -104,6 +104,8 @@ int cli_ppa(int argc, char **argv)
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
+    if (res.warning.msg[0]) /* data read otherwise than the file says: even with -q */
+        fprintf(stderr, "terrasynth: warning: %s\n", res.warning.msg);
     if (res.no_crs && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: lengths are in cells\n", input);
     ts_ctx_set_threads(ctx, co.threads);

@@ -122,6 +122,8 @@ int cli_synth(int argc, char **argv)
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
+    if (res.warning.msg[0]) /* data read otherwise than the file says: even with -q */
+        fprintf(stderr, "terrasynth: warning: %s\n", res.warning.msg);
     if (job.sketch && co.progress != PROGRESS_QUIET)
         printf("sketch: %s, %zu feature sites, %zu feature patches placed (from %zu exemplar "
                "sites)\n",

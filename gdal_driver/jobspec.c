@@ -405,9 +405,13 @@ static int check_value(const tsj_option *o, const char *s, char *msg, size_t len
         }
         return 0;
     case TSJ_SEED: {
-        char *end;
-        if (!s || !*s || s[0] == '-' || (strtoull(s, &end, 10), *end)) {
-            msgf(msg, len, "%s must be a non-negative integer, not '%s'", o->name, s ? s : "");
+        char *end = NULL;
+        int bad;
+        errno = 0;
+        bad = !s || !*s || !isdigit((unsigned char)s[0]) || (strtoull(s, &end, 10), *end);
+        if (bad || errno == ERANGE) {
+            msgf(msg, len, "%s must be a whole number in 0..18446744073709551615, not '%s'",
+                 o->name, s ? s : "");
             return -1;
         }
         return 0;

@@ -480,10 +480,14 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
             tsio_errf(err, r->path, "the input changed size since the recipe was opened");
             rc = -1;
         }
+        if (rc == 0 && r->ppa_res.warning.msg[0])
+            CPLError(CE_Warning, CPLE_AppDefined, "%s", r->ppa_res.warning.msg);
         if (rc == 0)
             rc = tsjob_ppa_compute(ctx, &r->ppa, &r->ppa_res, err);
     } else {
         rc = tsjob_synth_compute(ctx, &r->synth, &r->synth_res, r->map >= 0, err);
+        if (rc == 0 && r->synth_res.warning.msg[0])
+            CPLError(CE_Warning, CPLE_AppDefined, "%s", r->synth_res.warning.msg);
         if (rc == 0) {
             /* nodata as the driver declares it */
             n = (size_t)r->synth_res.out.width * (size_t)r->synth_res.out.height;

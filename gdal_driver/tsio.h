@@ -71,6 +71,7 @@ typedef struct tsio_raster {
     /* Ground metrics: per-row cell width/height in metres (owned arrays of
      * geo.height entries), or NULL when the raster has no CRS. */
     double *dx_m, *dy_m;
+    size_t n_sentinels; /* tsio_read_dem: cells of +-3.4e38 taken as nodata */
 } tsio_raster;
 
 /**
@@ -87,6 +88,11 @@ typedef struct tsio_raster {
  *   each row's latitude; no CRS: dx_m = dy_m = NULL.
  */
 int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err);
+/** Read an elevation raster: as tsio_read_raster, then the float's extreme
+ *  values (|z| >= 1e38, an undeclared nodata) become NaN (counted in
+ *  out->n_sentinels: the caller warns), and any other elevation outside
+ *  -12000..9000 m (after units) is an error naming the first cell. */
+int tsio_read_dem(const char *path, int band, tsio_raster *out, tsio_err *err);
 void tsio_raster_free(tsio_raster *r);
 
 /** Ground metrics view of a read raster; NULL when it has no CRS. */
@@ -136,7 +142,7 @@ int tsio_write_features(const char *path, const tsio_georef *geo, const ts_featu
                         const ts_grid_metrics *metrics, tsio_err *err);
 
 /**
- * Read like tsio_read_raster, then resample to cells of target_dx_m x
+ * Read like tsio_read_dem, then resample to cells of target_dx_m x
  * target_dy_m metres on the ground (for exemplars whose resolution differs
  * from the output's): a projected raster is warped in its own CRS; a
  * geographic one stays in its CRS with degrees per cell chosen so that a

@@ -109,6 +109,10 @@ void tsio_errf(tsio_err *err, const char *path, const char *fmt, ...)
     vsnprintf(buf + used, sizeof buf - used, fmt, ap);
     va_end(ap);
     one_line(buf);
+    /* a message that already names the same thing is not prefixed twice
+     * ("synth: synth: ...") */
+    if (used > 0 && used < sizeof buf && !strncmp(buf + used, buf, used))
+        memmove(buf, buf + used, strlen(buf + used) + 1);
     memcpy(err->msg, buf, sizeof buf);
 }
 

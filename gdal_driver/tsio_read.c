@@ -98,6 +98,18 @@ static int compute_metrics(OGRSpatialReferenceH srs, const double gt[6], int hei
         deg_per_unit = rad_per_unit * 180.0 / TSIO_PI;
         dlon = fabs(gt[1]) * deg_per_unit;
         dlat = fabs(gt[5]) * deg_per_unit;
+        {
+            /* one rule for every job: a grid past a pole has wrong georeferencing */
+            double top = gt[3] * deg_per_unit, bottom = (gt[3] + height * gt[5]) * deg_per_unit;
+            double worst = fabs(top) > fabs(bottom) ? top : bottom;
+            if (!(fabs(worst) <= 90.0 + 1e-9)) {
+                snprintf(why, whylen,
+                         "the grid reaches latitude %.6g, past the pole: its georeferencing is "
+                         "wrong (ground sizes in metres cannot be measured)",
+                         worst);
+                return -1;
+            }
+        }
         geod_init(&g, a, f);
         for (y = 0; y < height; y++) {
             double lat = clamp_lat((gt[3] + ((double)y + 0.5) * gt[5]) * deg_per_unit);
@@ -400,6 +412,52 @@ int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err
     return rc;
 }
 
+/* Elevations the Earth has (metres, with a margin): the deepest trench is
+ * -10 994 m, the highest summit 8 849 m. */
+#define TSIO_MIN_ELEVATION (-12000.0)
+#define TSIO_MAX_ELEVATION 9000.0
+/* A float's extreme values (+-3.4e38) stored as an undeclared nodata. */
+#define TSIO_SENTINEL 1e38
+
+int tsio_read_dem(const char *path, int band, tsio_raster *out, tsio_err *err)
+{
+    size_t i, n, n_bad = 0, n_valid = 0, first = 0;
+    if (tsio_read_raster(path, band, out, err) != 0)
+        return -1;
+    n = (size_t)out->r.width * (size_t)out->r.height;
+    out->n_sentinels = 0;
+    for (i = 0; i < n; i++) {
+        float v = out->r.data[i];
+        if (isnan(v))
+            continue;
+        if (fabs(v) >= TSIO_SENTINEL) {
+            out->r.data[i] = NAN;
+            out->n_sentinels++;
+        } else if (v < TSIO_MIN_ELEVATION || v > TSIO_MAX_ELEVATION) {
+            if (!n_bad++)
+                first = i;
+        } else
+            n_valid++;
+    }
+    if (n_bad) {
+        tsio_errf(err, path,
+                  "%zu cells hold elevations no terrain has (%.6g m at column %zu, row %zu; "
+                  "the Earth's are %g..%g m): declare them nodata (gdal_edit.py -a_nodata) or "
+                  "check the units",
+                  n_bad, (double)out->r.data[first], first % (size_t)out->r.width,
+                  first / (size_t)out->r.width, TSIO_MIN_ELEVATION, TSIO_MAX_ELEVATION);
+        tsio_raster_free(out);
+        return -1;
+    }
+    if (n_valid == 0) {
+        tsio_errf(err, path, "every cell is nodata (%zu cells of +-3.4e38 taken as nodata)",
+                  out->n_sentinels);
+        tsio_raster_free(out);
+        return -1;
+    }
+    return 0;
+}
+
 void tsio_raster_free(tsio_raster *r)
 {
     if (!r)
@@ -636,7 +694,7 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m, d
     int rc = -1, usage = 0, geographic;
     if (factor)
         *factor = 1.0;
-    if (tsio_read_raster(path, band, out, err) != 0)
+    if (tsio_read_dem(path, band, out, err) != 0)
         return -1;
     if (!(target_dx_m > 0) || !(target_dy_m > 0))
         return 0; /* nothing asked: cells as they are */

@@ -15,12 +15,23 @@
 /* ppa                                                                 */
 /* ------------------------------------------------------------------ */
 
+/* The first warning of a job: cells of a float's extreme value read as nodata. */
+static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_raster *r)
+{
+    if (r->n_sentinels && !warning->msg[0])
+        tsio_errf(warning, path,
+                  "%zu cells of +-3.4e38 (a float's extreme value, not declared nodata) taken "
+                  "as nodata",
+                  r->n_sentinels);
+}
+
 int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err)
 {
     int y;
     memset(res, 0, sizeof *res);
-    if (tsio_read_raster(job->input, job->band, &res->in, err) != 0)
+    if (tsio_read_dem(job->input, job->band, &res->in, err) != 0)
         return -1;
+    job_warn_sentinels(&res->warning, job->input, &res->in);
     if (!res->in.dx_m && job->cell_size > 0) {
         res->in.dx_m = malloc((size_t)res->in.geo.height * sizeof *res->in.dx_m);
         res->in.dy_m = malloc((size_t)res->in.geo.height * sizeof *res->in.dy_m);
@@ -239,6 +250,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
                                        res->dx_m ? res->dx_m[cy] : 0, res->dy_m ? res->dy_m[cy] : 0,
                                        job->cell_size, &ex[i], &factor, err) != 0)
             goto done;
+        job_warn_sentinels(&res->warning, job->exemplars[i], &ex[i]);
         if (res->dx_m && !ex[i].dx_m && !res->exemplar_no_crs)
             res->exemplar_no_crs = i + 1;
         if (ex[i].r.width < P || ex[i].r.height < P) {
@@ -263,8 +275,9 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         goto done;
     cons.cell_flags = flags;
     if (job->heights) {
-        if (tsio_read_raster(job->heights, 1, &heights, err) != 0)
+        if (tsio_read_dem(job->heights, 1, &heights, err) != 0)
             goto done;
+        job_warn_sentinels(&res->warning, job->heights, &heights);
         if (heights.geo.width != res->geo.width || heights.geo.height != res->geo.height) {
             tsio_errf(err, job->heights, "the heights are %d x %d cells, the output %d x %d",
                       heights.geo.width, heights.geo.height, res->geo.width, res->geo.height);
@@ -377,6 +390,7 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
                                        res->dy_m ? res->dy_m[cy] : 0, job->cell_size, &ex, &f,
                                        err) != 0)
             return -1;
+        job_warn_sentinels(&res->warning, p->path, &ex);
         /* the window in the file's cells, at the output's resolution */
         x0 = (int)lround(p->xoff * f);
         y0 = (int)lround(p->yoff * f);

@@ -49,6 +49,7 @@ typedef struct tsjob_ppa_result {
     ts_grid_metrics mstore;
     const ts_grid_metrics *metrics; /* NULL without CRS */
     int no_crs;              /* the input has no CRS (lengths in cells) */
+    tsio_err warning;        /* "" or one line a front end shows as a warning */
 } tsjob_ppa_result;
 
 /** Read and check the input (no computation); res->in is filled. */
@@ -124,6 +125,7 @@ typedef struct tsjob_synth_result {
     ts_sketch_info sketch_info;
     ts_synth_maps maps; /* with keep_maps: where each cell came from (owned) */
     int has_maps;
+    tsio_err warning; /* "" or one line a front end shows as a warning */
 } tsjob_synth_result;
 
 /** Check the job and resolve the target grid (cheap: no exemplar is read). */
