@@ -60,7 +60,7 @@ CASES = [
     ("synth", ["--exemplar", "EX", "--size", "100x100", "--seed", "-1"],
      "<Synth seed='-1'><Exemplar>EX</Exemplar><Grid width='100' height='100'/></Synth>",
      None,
-     "seed must be a non-negative integer, not '-1'"),
+     "seed must be a whole number in 0..18446744073709551615, not '-1'"),
     ("synth", ["--exemplar", "EX", "--size", "0x100"],
      "<Synth><Exemplar>EX</Exemplar><Grid width='0' height='100'/></Synth>",
      None,

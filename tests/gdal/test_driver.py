@@ -501,11 +501,11 @@ def test_a_recipe_crs_reads_no_file(tmp_path, crs):
     with pytest.raises(RuntimeError, match="never a file or an address"):
         gdal.Open(str(tmp_path / "r.tsyn"))
     # the forms a recipe does take
-    for ok in ("EPSG:32611", osr.SRS_WKT_WGS84_LAT_LONG.replace("'", '"')):
+    for ok, res in (("EPSG:32611", 30), (osr.SRS_WKT_WGS84_LAT_LONG.replace("'", '"'), 0.001)):
         (tmp_path / "ok.tsyn").write_text(
             "<TerraSynth version='1'><Synth><Exemplar>dem.tif</Exemplar><Grid width='64' "
-            "height='64' originX='0' originY='0' resolution='30' crs='%s'/></Synth></TerraSynth>"
-            % ok)
+            "height='64' originX='0' originY='0' resolution='%g' crs='%s'/></Synth></TerraSynth>"
+            % (res, ok))
         assert gdal.Open(str(tmp_path / "ok.tsyn")).RasterXSize == 64
 
 
