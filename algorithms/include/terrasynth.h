@@ -411,7 +411,7 @@ TS_API ts_synth_params ts_synth_params_default(void);
  * Turn patch_size and overlap given in metres into whole cells of a grid
  * whose cells are `cell_m` metres on the ground (<= 0: the grid has no
  * ground size, and metres are an error), then check them: patch_size
- * 8..1024 cells, overlap 2..512 and smaller than the patch.  The synthesis
+ * 8..1024 cells, overlap 2..512 and at most half the patch.  The synthesis
  * calls need cells.
  */
 TS_API ts_status ts_synth_params_resolve(ts_ctx *ctx, ts_synth_params *params, double cell_m);

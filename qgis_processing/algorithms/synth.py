@@ -130,7 +130,7 @@ Height, Origin X/Y, Resolution and CRS must then be left empty.</p>
 {SKETCH_PARAMETERS}
 <h3>Parameters</h3>
 <ul>
-<li><b>Patch size</b> ({PATCH_SIZE}) and <b>Overlap</b> ({OVERLAP}, smaller than the patch), in target cells, or in metres on the ground with their <b>unit</b> set to metres
+<li><b>Patch size</b> ({PATCH_SIZE}) and <b>Overlap</b> ({OVERLAP}, at most half the patch), in target cells, or in metres on the ground with their <b>unit</b> set to metres
 (turned into cells at the target grid's resolution). A patch should hold a few ridge and valley
 spacings.</li>
 <li><b>Seed</b>: same inputs and seed give identical bytes.</li>

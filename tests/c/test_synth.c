@@ -271,7 +271,16 @@ static void test_resolve_metres(void)
     p = ts_synth_params_default();
     CHECK(ts_params_set(ctx, "synth", &p, "overlap", "2000m") == TS_OK);
     CHECK(ts_synth_params_resolve(ctx, &p, 30.0) == TS_ERR_ARG); /* 67 cells >= 64 */
-    CHECK(strstr(ts_ctx_message(ctx), "smaller than patch_size") != NULL);
+    CHECK(strstr(ts_ctx_message(ctx), "at most half of patch_size") != NULL);
+    /* the bound: half the patch is the most (31 of 32 took 86x the default's time) */
+    p = ts_synth_params_default();
+    p.patch_size.value = 32;
+    p.overlap.value = 16;
+    CHECK(ts_synth_params_resolve(ctx, &p, 30.0) == TS_OK);
+    p.overlap.value = 17;
+    CHECK(ts_synth_params_resolve(ctx, &p, 30.0) == TS_ERR_ARG);
+    p.overlap.value = 31;
+    CHECK(ts_synth_params_resolve(ctx, &p, 30.0) == TS_ERR_ARG);
     /* negative or unknown units are refused when set */
     CHECK(ts_params_set(ctx, "synth", &p, "patch_size", "-5m") == TS_ERR_ARG);
     CHECK(ts_params_set(ctx, "synth", &p, "patch_size", "5km") == TS_ERR_ARG);

@@ -212,7 +212,7 @@ def test_valley_sketch_with_a_canyon(tmp_path):
         (["--patch-size", "1024"], "smaller than a patch"),
         (["--patch-size", "200000m"], "2403 cells of 83.23 m: must be 8..1024 cells"),
         (["--patch-size", "5km"], "unit must be cells (no suffix) or m"),
-        (["--patch-size", "3000m", "--overlap", "40"], "overlap 40 must be smaller than patch_size 36"),
+        (["--patch-size", "3000m", "--overlap", "40"], "overlap 40 must be at most half of patch_size 36"),
     ],
 )
 def test_errors(tmp_path, extra, words):

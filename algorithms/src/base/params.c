@@ -41,7 +41,7 @@ static const ts_param_desc synth_desc[] = {
      offsetof(ts_synth_params, patch_size)},
     {"overlap", TS_PARAM_LENGTH, 16, 2, 512, TS_UNIT_CELLS, "cells or m", NULL,
      "Width shared by neighbouring patches, where seams are cut and smoothed: cells, or "
-     "metres with suffix m; smaller than the patch.",
+     "metres with suffix m; at most half the patch.",
      offsetof(ts_synth_params, overlap)},
     {"candidates", TS_PARAM_INT, 6, 1, 256, TS_UNIT_CELLS, "", NULL,
      "Best SSD matches examined per patch position (k).", offsetof(ts_synth_params, candidates)},
@@ -388,8 +388,12 @@ ts_status ts__synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int
     if (synth_cells_of(ctx, "patch_size", &p->patch_size, 8, 1024, patch) != TS_OK ||
         synth_cells_of(ctx, "overlap", &p->overlap, 2, 512, overlap) != TS_OK)
         return ctx->status;
-    if (*overlap >= *patch)
-        return ts__fail(ctx, TS_ERR_ARG, "synth", "overlap %d must be smaller than patch_size %d",
+    /* at most half: every cell is then covered by at most 4 patches; an overlap
+     * near the patch size multiplies the work without limit (31 of 32: 86x) */
+    if (2 * *overlap > *patch)
+        return ts__fail(ctx, TS_ERR_ARG, "synth",
+                        "overlap %d must be at most half of patch_size %d (more multiplies the "
+                        "work: every cell would be matched again and again)",
                         *overlap, *patch);
     return TS_OK;
 }
