@@ -10,10 +10,12 @@
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include <cpl_conv.h>
 #include <cpl_string.h>
 #include <gdal.h>
 
@@ -81,7 +83,8 @@ static int parse_common(const char *cmd, common_opts *o, int argc, char **argv, 
         o->progress = PROGRESS_LINES;
         return 1;
     }
-    if (!strcmp(a, "-of") || !strcmp(a, "-co") || !strcmp(a, "--threads")) {
+    if (!strcmp(a, "-of") || !strcmp(a, "-co") || !strcmp(a, "--threads") ||
+        !strcmp(a, "--max-memory")) {
         if (!value) {
             cli_usage_error(cmd, "%s needs a value", a);
             return -1;
@@ -95,6 +98,17 @@ static int parse_common(const char *cmd, common_opts *o, int argc, char **argv, 
                 return -1;
             }
             o->create_options = CSLAddString(o->create_options, value);
+        } else if (!strcmp(a, "--max-memory")) {
+            uint64_t bytes;
+            if (tsio_parse_memory(value, &bytes) != 0) {
+                cli_usage_error(cmd,
+                                "--max-memory takes an amount of memory (2G, 500M, 512 = MB, "
+                                "50%%), not '%s'",
+                                value);
+                return -1;
+            }
+            /* the same option the GDAL driver reads (--config TSYN_MAX_MEMORY) */
+            CPLSetConfigOption("TSYN_MAX_MEMORY", value);
         } else {
             long t = strtol(value, &end, 10);
             if (*end || t < 0 || t > 256) {
@@ -121,6 +135,8 @@ const char cli_common_help[] =
     "                                   else GTiff)\n"
     "  -co KEY=VALUE                    creation option (repeatable)\n"
     "  --threads N                      worker threads (default 0 = all cores)\n"
+    "  --max-memory M                   refuse a job that needs more (2G, 500M, 50%;\n"
+    "                                   default the machine's memory; TSYN_MAX_MEMORY)\n"
     "  --progress-lines                 print 'PROGRESS <percent> <stage>' lines\n"
     "  -q, --quiet                      no progress bar or summary\n";
 

@@ -192,7 +192,9 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
             return -1;
         }
         /* the grid without reading the cells */
-        return tsio_read_georef(r->ppa.input, &r->geo, err);
+        if (tsio_read_georef(r->ppa.input, &r->geo, err) != 0)
+            return -1;
+        return tsjob_ppa_check_memory(&r->geo, r->ppa.input, err);
     }
     if (tsj_build_synth(&r->values, &r->synth, &r->seed, msg, sizeof msg) != 0) {
         tsio_errf(err, r->path, "%s", msg);

@@ -17,6 +17,7 @@
 #define TSIO_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "terrasynth.h"
 
@@ -195,6 +196,16 @@ int tsio_same_file(const char *a, const char *b);
  *  init=), never a file name or a URL, which GDAL would read or fetch. */
 int tsio_name_offline(const char *name, tsio_err *err);
 int tsio_crs_offline(const char *crs, tsio_err *err);
+/** Memory.  tsio_parse_memory reads "2G", "500M", "512" (MB, as
+ *  GDAL_CACHEMAX), "64K", "1T" or "50%" (of the machine's memory).
+ *  tsio_physical_memory: the machine's memory, or its container's limit
+ *  when lower.  tsio_check_memory: refuses `need` bytes past the limit
+ *  (the configuration option TSYN_MAX_MEMORY, else the machine's memory)
+ *  with a message that says how much is needed. */
+int tsio_parse_memory(const char *text, uint64_t *bytes);
+uint64_t tsio_physical_memory(void);
+int tsio_memory_limit(uint64_t *bytes, int *from_option, tsio_err *err);
+int tsio_check_memory(uint64_t need, const char *what, const char *advice, tsio_err *err);
 /** Can an output be written at path: its folder exists and is writable,
  *  and path is new or a regular file (not a folder, device, FIFO, socket). */
 int tsio_check_output_file(const char *path, tsio_err *err);

@@ -12,6 +12,7 @@
 #include "tsio_internal.h"
 
 #include <ctype.h>
+#include <errno.h>
 #include <float.h>
 #include <limits.h>
 #include <math.h>
@@ -666,4 +667,92 @@ int tsio_crs_offline(const char *crs, tsio_err *err)
         return -1;
     }
     return 0;
+}
+
+/* ------------------------------------------------------------------ */
+/* Memory                                                              */
+/* ------------------------------------------------------------------ */
+
+int tsio_parse_memory(const char *text, uint64_t *bytes)
+{
+    char *end;
+    double v, ram;
+    if (!text || !*text)
+        return -1;
+    errno = 0;
+    v = strtod(text, &end);
+    if (end == text || errno || !(v > 0) || !isfinite(v))
+        return -1;
+    while (*end == ' ')
+        end++;
+    ram = (double)tsio_physical_memory();
+    if (!*end || tsio__str_ieq(end, "MB") || tsio__str_ieq(end, "M"))
+        v *= 1048576.0; /* a plain number is in MB, as GDAL_CACHEMAX */
+    else if (tsio__str_ieq(end, "K") || tsio__str_ieq(end, "KB"))
+        v *= 1024.0;
+    else if (tsio__str_ieq(end, "G") || tsio__str_ieq(end, "GB"))
+        v *= 1073741824.0;
+    else if (tsio__str_ieq(end, "T") || tsio__str_ieq(end, "TB"))
+        v *= 1099511627776.0;
+    else if (!strcmp(end, "%") && v <= 100.0)
+        v = ram * v / 100.0;
+    else
+        return -1;
+    if (!(v >= 1.0) || v > 1.8e19)
+        return -1;
+    *bytes = (uint64_t)v;
+    return 0;
+}
+
+uint64_t tsio_physical_memory(void)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    uint64_t ram = pages > 0 && size > 0 ? (uint64_t)pages * (uint64_t)size : ((uint64_t)1 << 32);
+    /* a container's own limit (cgroup v2, then v1) when it is lower */
+    static const char *const files[] = {"/sys/fs/cgroup/memory.max",
+                                        "/sys/fs/cgroup/memory/memory.limit_in_bytes", NULL};
+    int i;
+    for (i = 0; files[i]; i++) {
+        FILE *f = fopen(files[i], "r");
+        unsigned long long lim;
+        if (!f)
+            continue;
+        if (fscanf(f, "%llu", &lim) == 1 && lim > 0 && lim < ram)
+            ram = lim;
+        fclose(f);
+    }
+    return ram;
+}
+
+int tsio_memory_limit(uint64_t *bytes, int *from_option, tsio_err *err)
+{
+    const char *opt = CPLGetConfigOption("TSYN_MAX_MEMORY", NULL);
+    *from_option = 0;
+    if (opt && opt[0]) {
+        if (tsio_parse_memory(opt, bytes) != 0) {
+            tsio_errf(err, "TSYN_MAX_MEMORY",
+                      "'%s' is not an amount of memory (e.g. 2G, 500M, 512 = MB, 50%%)", opt);
+            return -1;
+        }
+        *from_option = 1;
+        return 0;
+    }
+    *bytes = tsio_physical_memory();
+    return 0;
+}
+
+int tsio_check_memory(uint64_t need, const char *what, const char *advice, tsio_err *err)
+{
+    uint64_t limit;
+    int from_option;
+    if (tsio_memory_limit(&limit, &from_option, err) != 0)
+        return -1;
+    if (need <= limit)
+        return 0;
+    tsio_errf(err, what,
+              "needs about %.3g GB of memory, more than the %.3g GB %s (--max-memory, or the "
+              "configuration option TSYN_MAX_MEMORY): %s",
+              need / 1073741824.0, limit / 1073741824.0,
+              from_option ? "allowed" : "this machine has", advice);
+    return -1;
 }

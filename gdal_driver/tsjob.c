@@ -25,10 +25,36 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
                   r->n_sentinels);
 }
 
+/* Memory a job takes, estimated before the work (bytes; measured peaks of
+ * the CLI with a margin: bench/README.md).  Libraries and buffers: */
+#define JOB_MEM_BASE ((uint64_t)96 << 20)
+#define JOB_MEM_PPA_CELL 24       /* per input cell: the DEM, profiles, masks, codes */
+#define JOB_MEM_SYNTH_CELL 16     /* per output cell: terrain, flags, fill state */
+#define JOB_MEM_MAPS_CELL 20      /* per output cell with the synthesis maps */
+#define JOB_MEM_SKETCH_CELL 96    /* per output cell with a sketch: PPA, features, guides */
+#define JOB_MEM_EX_SOURCE_CELL 12 /* per exemplar cell as read */
+#define JOB_MEM_EX_CELL 24        /* per exemplar cell at the target resolution: pyramid, FFT */
+
+int tsjob_ppa_check_memory(const tsio_georef *in, const char *path, tsio_err *err)
+{
+    uint64_t cells = (uint64_t)in->width * (uint64_t)in->height;
+    return tsio_check_memory(JOB_MEM_BASE + cells * JOB_MEM_PPA_CELL, path,
+                             "cut the DEM into tiles (gdal_retile.py) or coarsen it (gdalwarp -tr)",
+                             err);
+}
+
 int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err)
 {
     int y;
+    tsio_georef g;
     memset(res, 0, sizeof *res);
+    /* the size before the cells: a huge raster is refused, not read */
+    if (tsio_read_georef(job->input, &g, err) != 0)
+        return -1;
+    y = tsjob_ppa_check_memory(&g, job->input, err);
+    tsio_georef_free(&g);
+    if (y != 0)
+        return -1;
     if (tsio_read_dem(job->input, job->band, &res->in, err) != 0)
         return -1;
     job_warn_sentinels(&res->warning, job->input, &res->in);
@@ -87,6 +113,51 @@ void tsjob_ppa_result_free(tsjob_ppa_result *res)
 /* ------------------------------------------------------------------ */
 /* synth                                                               */
 /* ------------------------------------------------------------------ */
+
+/* Cells of an exemplar, as read and at the target grid's ground size. */
+static int job_exemplar_cells(const char *path, const tsjob_synth_result *res, double cell_size,
+                              uint64_t *source, uint64_t *target, tsio_err *err)
+{
+    tsio_georef g;
+    double *dx = NULL, *dy = NULL, ratio = 1.0;
+    int cy = res->geo.height / 2;
+    if (tsio_read_georef(path, &g, err) != 0)
+        return -1;
+    *source = (uint64_t)g.width * (uint64_t)g.height;
+    if (tsio_georef_metrics(&g, &dx, &dy, err) == 0 && res->dx_m) {
+        double ex_area = dx ? dx[g.height / 2] * dy[g.height / 2] : cell_size * cell_size;
+        double t_area = res->dx_m[cy] * res->dy_m[cy];
+        if (ex_area > 0 && t_area > 0)
+            ratio = ex_area / t_area;
+    }
+    free(dx);
+    free(dy);
+    tsio_georef_free(&g);
+    *target = (uint64_t)((double)*source * ratio + 1.0);
+    return 0;
+}
+
+/* The whole job's memory against the limit, before any exemplar is read. */
+static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_result *res,
+                                  tsio_err *err)
+{
+    uint64_t cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
+    uint64_t need = JOB_MEM_BASE, biggest = 0;
+    int i;
+    need +=
+        cells * (JOB_MEM_SYNTH_CELL + JOB_MEM_MAPS_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0));
+    for (i = 0; i < job->n_exemplars; i++) {
+        uint64_t src, tgt;
+        if (job_exemplar_cells(job->exemplars[i], res, job->cell_size, &src, &tgt, err) != 0)
+            return -1;
+        need += tgt * JOB_MEM_EX_CELL;
+        if (src > biggest)
+            biggest = src; /* read one at a time */
+    }
+    need += biggest * JOB_MEM_EX_SOURCE_CELL;
+    return tsio_check_memory(need, "synth",
+                             "a smaller target grid, or smaller or coarser exemplars", err);
+}
 
 /* The job's rules live in jobspec.c (tsj_build_synth), which every front end
  * goes through; here only the guard that a job came that way. */
@@ -185,6 +256,10 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         return -1;
     }
     ts_ctx_free(ctx);
+    if (job_synth_check_memory(job, res, err) != 0) {
+        tsjob_synth_result_free(res);
+        return -1;
+    }
     if (job->sketch && (res->geo.width < (int)res->params.patch_size.value ||
                         res->geo.height < (int)res->params.patch_size.value)) {
         tsio_errf(err, job->sketch, "%d x %d cells is smaller than a patch (%d)", res->geo.width,

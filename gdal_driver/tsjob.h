@@ -52,7 +52,11 @@ typedef struct tsjob_ppa_result {
     tsio_err warning;        /* "" or one line a front end shows as a warning */
 } tsjob_ppa_result;
 
-/** Read and check the input (no computation); res->in is filled. */
+/** The memory a ppa of a grid takes, against the limit (tsio_check_memory). */
+int tsjob_ppa_check_memory(const tsio_georef *in, const char *path, tsio_err *err);
+/** Read and check the input (no computation); res->in is filled.  A grid
+ *  that would take more memory than allowed is refused before it is read
+ *  (as synth's prepare refuses its grid and exemplars). */
 int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err);
 /** Extract the axes (after prepare); progress and cancel through ctx. */
 int tsjob_ppa_compute(ts_ctx *ctx, const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err);

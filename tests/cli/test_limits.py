@@ -1,0 +1,122 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""No unbounded memory (issue 12, item 6): a job's memory is estimated from the sizes of its
+grids before anything is read or allocated, and refused past the machine's memory, or past
+--max-memory / TSYN_MAX_MEMORY, with a message that says how much is needed.  The same in
+the GDAL driver.  The estimate is checked against the peak the kernel measures."""
+import os
+import re
+import subprocess
+import sys
+import time
+
+import pytest
+from osgeo import gdal
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tsutil import JACKSBORO, ROOT, TERRASYNTH, run  # noqa: E402
+
+gdal.UseExceptions()
+PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
+NEEDS = re.compile(r"needs about ([0-9.e+-]+) GB of memory, more than the ([0-9.e+-]+) GB")
+
+
+def huge_vrt(tmp_path, size=100000):
+    """A VRT that says it is size x size cells (over the small real DEM)."""
+    src = gdal.Open(JACKSBORO)
+    gt = src.GetGeoTransform()
+    p = tmp_path / "huge.vrt"
+    p.write_text(
+        '<VRTDataset rasterXSize="%d" rasterYSize="%d"><SRS>%s</SRS>'
+        '<GeoTransform>%r, %r, 0, %r, 0, %r</GeoTransform>'
+        '<VRTRasterBand dataType="Float32" band="1"><SimpleSource>'
+        '<SourceFilename relativeToVRT="0">%s</SourceFilename><SourceBand>1</SourceBand>'
+        '</SimpleSource></VRTRasterBand></VRTDataset>'
+        % (size, size, src.GetProjection().replace('"', "&quot;"), gt[0], gt[1] / 100, gt[3],
+           gt[5] / 100, JACKSBORO))
+    return p
+
+
+@pytest.mark.parametrize("args", [
+    ["synth", "--exemplar", JACKSBORO, "--size", "65536x65536", "{out}"],
+    ["synth", "--exemplar", JACKSBORO, "--like", "{huge}", "{out}"],
+    ["synth", "--exemplar", "{huge}", "--size", "64x64", "{out}"],
+    ["ppa", "{huge}", "{out}"],
+])
+def test_too_big_for_the_machine_is_refused_at_once(tmp_path, args):
+    huge = huge_vrt(tmp_path)
+    argv = [a.format(out=tmp_path / "o.tif", huge=huge) for a in args]
+    t0 = time.monotonic()
+    p = run(*argv, "-q", check=False)
+    took = time.monotonic() - t0
+    assert p.returncode == 1, p.stderr
+    m = NEEDS.search(p.stderr)
+    assert m, p.stderr
+    need, limit = float(m.group(1)), float(m.group(2))
+    assert need > limit and "this machine has" in p.stderr
+    assert took < 60  # refused from the sizes, nothing read or allocated
+    assert not (tmp_path / "o.tif").exists()
+
+
+def test_max_memory_option_and_config(tmp_path):
+    out = tmp_path / "o.tif"
+    args = ["synth", "--exemplar", JACKSBORO, "--size", "512x512", out, "-q"]
+    p = run(*args, "--max-memory", "50M", check=False)
+    assert p.returncode == 1 and "GB allowed (--max-memory" in p.stderr, p.stderr
+    assert not out.exists()
+    run(*args, "--max-memory", "8G")
+    assert out.exists()
+    out.unlink()
+    # the configuration option, as GDAL reads it (an environment variable here)
+    p = subprocess.run([TERRASYNTH, *map(str, args)], capture_output=True, text=True,
+                       env=dict(os.environ, TSYN_MAX_MEMORY="50"))
+    assert p.returncode == 1 and "allowed" in p.stderr
+    for bad in ("lots", "-5G", "0", "150%"):
+        p = run(*args, "--max-memory", bad, check=False)
+        assert p.returncode == 2 and "--max-memory takes an amount of memory" in p.stderr
+
+
+def test_driver_refuses_at_open(tmp_path):
+    r = tmp_path / "big.tsyn"
+    run("synth", "--exemplar", JACKSBORO, "--size", "65536x65536", "--recipe", r)
+    code = ("import sys; from osgeo import gdal; gdal.UseExceptions()\n"
+            "for k, v in [a.split('=', 1) for a in sys.argv[2:]]: gdal.SetConfigOption(k, v)\n"
+            "try:\n  gdal.Open(sys.argv[1])\nexcept RuntimeError as e:\n  print(e); sys.exit(1)\n")
+    env = dict(os.environ, GDAL_DRIVER_PATH=PLUGINS)
+    p = subprocess.run([sys.executable, "-c", code, str(r)], capture_output=True, text=True,
+                       env=env, timeout=120)
+    assert p.returncode == 1 and NEEDS.search(p.stdout), p.stdout + p.stderr
+    small = tmp_path / "small.tsyn"
+    run("synth", "--exemplar", JACKSBORO, "--size", "512x512", "--recipe", small)
+    p = subprocess.run([sys.executable, "-c", code, str(small), "TSYN_MAX_MEMORY=50M"],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 1 and "allowed" in p.stdout, p.stdout + p.stderr
+
+
+def peak_rss(argv):
+    """Run argv; its peak resident memory in bytes, as the kernel counts it."""
+    proc = subprocess.Popen([str(a) for a in argv], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0, proc.stderr.read()
+    return usage.ru_maxrss * 1024
+
+
+@pytest.mark.skipif(bool(os.environ.get("TS_TOOL_PRELOAD")),
+                    reason="sanitizers multiply the memory a run takes")
+@pytest.mark.parametrize("args", [
+    ["synth", "--exemplar", JACKSBORO, "--size", "1024x1024"],
+    ["synth", "--exemplar", JACKSBORO, "--exemplar", JACKSBORO, "--size", "700x500",
+     "--debug-dir", "{dbg}"],
+    ["synth", "--sketch", os.path.join(os.path.dirname(JACKSBORO), "sketches",
+                                       "lambda_ridges.tif"), "--exemplar", JACKSBORO],
+    ["ppa", JACKSBORO],
+])
+def test_the_estimate_covers_the_measured_peak(tmp_path, args):
+    argv = [a.format(dbg=tmp_path / "dbg") for a in args] + [tmp_path / "o.tif", "-q"]
+    p = run(*argv, "--max-memory", "1K", check=False)
+    m = NEEDS.search(p.stderr)
+    assert m, p.stderr
+    estimate = float(m.group(1)) * 2**30
+    peak = peak_rss([TERRASYNTH, *argv])
+    assert peak <= estimate, (peak, estimate)
+    assert estimate < 6 * peak + 200e6  # and not absurdly above it
