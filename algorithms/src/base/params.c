@@ -319,6 +319,14 @@ TS_API ts_status ts_params_validate(ts_ctx *ctx, const char *stage, const void *
         if (check_range(ctx, stage, &d[i], v) != TS_OK)
             return ctx->status;
     }
+    if (!strcmp(stage, "synth")) {
+        /* the rule between patch and overlap, when both are in cells (in metres it
+         * waits for the grid: ts_synth_params_resolve) */
+        const ts_synth_params *sp = params;
+        int P, ov;
+        if (sp->patch_size.unit == TS_UNIT_CELLS && sp->overlap.unit == TS_UNIT_CELLS)
+            return ts__synth_cells(ctx, sp, &P, &ov);
+    }
     return TS_OK;
 }
 
