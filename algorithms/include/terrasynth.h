@@ -576,6 +576,76 @@ TS_API ts_status ts_hillshade(ts_ctx *ctx, const ts_raster *dem, const ts_grid_m
 TS_API ts_status ts_render_preview(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
                                    const ts_features *features, unsigned char *rgb);
 
+/* ------------------------------------------------------------------ */
+/* Amplification with a dictionary (Argudo et al. 2017)               */
+/* ------------------------------------------------------------------ */
+
+/**
+ * Parameters of `terrasynth amplify` (stage "amplify").  A coarse DEM is
+ * cut into patches of `patch` x `patch` cells overlapping by half; each is
+ * matched to the low-resolution atom of a dictionary that scores best on
+ * g = sum_j w_j g_j / sum_j w_j (section 5): g_h = (1 + P_h . D_h) / 2 on
+ * the normalised elevation (orientation kept: no atom is ever inverted),
+ * g_a and g_s Gaussians of the mean altitude and of the mean deviation
+ * (sigma: the Gaussian is 0.5 at the median difference over the atoms), and
+ * g_u = (1 + P_u . D_u) / 2 on the normalised log drainage area.  The
+ * atom's high-resolution counterpart replaces the patch
+ * (P~ = (P_h . D_h) P_s D~_h + P_a) and patches are blended with a falloff.
+ */
+typedef struct ts_amplify_params {
+    int factor;                /* output cells per input cell along each axis, 2..16 */
+    int patch;                 /* patch side in input cells (4..64); patches step by half of it */
+    int atoms;                 /* at most this many atoms per exemplar */
+    double w_h, w_a, w_s, w_u; /* matching weights (any scale; normalised to sum 1) */
+    int refine;                /* back-projection passes: the output, area-averaged, gives back the
+                                  input (our addition, 0 = the paper's reconstruction alone) */
+} ts_amplify_params;
+
+TS_API ts_amplify_params ts_amplify_params_default(void);
+
+/** A multi-resolution dictionary (D, D~): low- and high-resolution atoms in
+ *  one-to-one correspondence, with their descriptors. */
+typedef struct ts_dictionary ts_dictionary;
+
+/**
+ * Build a dictionary from exemplar DEMs given at the OUTPUT resolution (the
+ * caller resamples them): each is area-averaged by `factor` into its
+ * low-resolution version, and atoms are the windows of `patch` cells of it
+ * (all valid, on a regular lattice chosen to give at most `atoms` of them)
+ * with the `patch * factor` windows of the exemplar above them.
+ */
+TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                     const ts_amplify_params *params, ts_dictionary **out);
+TS_API size_t ts_dictionary_size(const ts_dictionary *dict);
+TS_API void ts_dictionary_free(ts_dictionary *dict);
+
+/** What ts_amplify did (may be NULL). */
+typedef struct ts_amplify_info {
+    size_t n_patches, n_atoms;
+    double seconds_match, seconds_synthesis;
+    double mean_score; /* mean g of the chosen atoms */
+    int n_inverted;    /* patches whose best atom had P_h . D_h < 0 (taken as flat) */
+} ts_amplify_info;
+
+/**
+ * Amplify `coarse` (NaN = nodata) into `out` (caller-allocated,
+ * coarse->width * factor x coarse->height * factor).  Cells under a nodata
+ * coarse cell stay NaN.  Deterministic; threads from the context.
+ */
+TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dictionary *dict,
+                            const ts_amplify_params *params, ts_raster *out, ts_amplify_info *info);
+
+/** Area-average `fine` by `factor` into `coarse` (caller-allocated,
+ *  fine->width / factor x fine->height / factor); a coarse cell with any
+ *  nodata below it is nodata. */
+TS_API ts_status ts_area_average(ts_ctx *ctx, const ts_raster *fine, int factor, ts_raster *coarse);
+
+/** Upstream drainage area in cells, D8 (each cell drains to its steepest
+ *  lower neighbour, diagonals at sqrt(2); ties to the first in the order
+ *  E, SE, S, SW, W, NW, N, NE), deterministic.  `out` caller-allocated;
+ *  NaN where the DEM is nodata. */
+TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *out);
+
 #ifdef __cplusplus
 }
 #endif

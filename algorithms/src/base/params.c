@@ -94,7 +94,39 @@ static const ts_param_desc sketch_desc[] = {
      offsetof(ts_sketch_params, layout)},
 };
 
-static const char *const stage_names[] = {"ppa", "synth", "sketch", NULL};
+static const ts_param_desc amplify_desc[] = {
+    {"factor", TS_PARAM_INT, 4, 2, 16, TS_UNIT_CELLS, "", NULL,
+     "Output cells per input cell along each axis: the output grid is this many times finer, "
+     "on the same extent and CRS.",
+     offsetof(ts_amplify_params, factor)},
+    {"patch", TS_PARAM_INT, 8, 4, 64, TS_UNIT_CELLS, "input cells", NULL,
+     "Side of the patches the input is cut into (they overlap by half), in input cells; an "
+     "atom is this many cells of the area-averaged exemplar.",
+     offsetof(ts_amplify_params, patch)},
+    {"atoms", TS_PARAM_INT, 4096, 16, 262144, TS_UNIT_CELLS, "", NULL,
+     "Most atoms taken from one exemplar (on a regular lattice over its valid windows).",
+     offsetof(ts_amplify_params, atoms)},
+    {"w_h", TS_PARAM_DOUBLE, 0.4, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Weight of the shape term g_h: (1 + P_h . D_h) / 2 on the normalised elevation.",
+     offsetof(ts_amplify_params, w_h)},
+    {"w_a", TS_PARAM_DOUBLE, 0.2, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Weight of the altitude term g_a: a Gaussian of the mean elevation difference.",
+     offsetof(ts_amplify_params, w_a)},
+    {"w_s", TS_PARAM_DOUBLE, 0.2, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Weight of the slope term g_s: a Gaussian of the difference of mean deviations.",
+     offsetof(ts_amplify_params, w_s)},
+    {"w_u", TS_PARAM_DOUBLE, 0.2, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Weight of the drainage term g_u: (1 + P_u . D_u) / 2 on the normalised log upstream "
+     "drainage area.",
+     offsetof(ts_amplify_params, w_u)},
+    {"refine", TS_PARAM_INT, 3, 0, 10, TS_UNIT_CELLS, "", NULL,
+     "Back-projection passes (our addition): the low-frequency difference between the input "
+     "and the area-averaged output is added back, so the output averages to the input "
+     "(0 = the paper's reconstruction alone).",
+     offsetof(ts_amplify_params, refine)},
+};
+
+static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", NULL};
 
 TS_API const char *const *ts_params_stages(void)
 {
@@ -114,6 +146,10 @@ TS_API const ts_param_desc *ts_params_describe(const char *stage, size_t *n)
     if (stage && strcmp(stage, "sketch") == 0) {
         *n = sizeof sketch_desc / sizeof sketch_desc[0];
         return sketch_desc;
+    }
+    if (stage && strcmp(stage, "amplify") == 0) {
+        *n = sizeof amplify_desc / sizeof amplify_desc[0];
+        return amplify_desc;
     }
     *n = 0;
     return NULL;
@@ -366,6 +402,13 @@ TS_API ts_sketch_params ts_sketch_params_default(void)
 {
     ts_sketch_params p;
     params_fill_defaults("sketch", &p, sizeof p);
+    return p;
+}
+
+TS_API ts_amplify_params ts_amplify_params_default(void)
+{
+    ts_amplify_params p;
+    params_fill_defaults("amplify", &p, sizeof p);
     return p;
 }
 

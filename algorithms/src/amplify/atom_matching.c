@@ -1,0 +1,167 @@
+/*
+ * atom_matching.c - matching patches to atoms (Argudo et al. 2017, section
+ * 5): g = sum_j w_j g_j with g_h = (1 + P_h . D_h) / 2 (orientation kept),
+ * g_a and g_s Gaussians k(x) = exp(-x^2 / sigma^2) of the mean altitude and
+ * mean deviation differences with sigma set so that k is 0.5 at the median
+ * difference over the atoms, and g_u = (1 + P_u . D_u) / 2 on the drainage.
+ * The best atom k = argmax_i g(P, D_i).
+ *
+ * The dot products of every patch with every atom are the cost: they are
+ * computed over tiles (a block of patches against a block of atoms, so both
+ * stay in cache), four sums at a time; tests/c/test_amplify.c checks the
+ * choice against a plain loop over every atom.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "amplify.h"
+
+#define PATCH_TILE 16
+#define ATOM_TILE 128
+
+double ts__amp_score(const double w[4], double dot_h, double dot_u, double da, double ds,
+                     double sigma_a, double sigma_s)
+{
+    double ga = sigma_a > 0 ? exp(-(da * da) / (sigma_a * sigma_a)) : (da == 0 ? 1.0 : 0.0);
+    double gs = sigma_s > 0 ? exp(-(ds * ds) / (sigma_s * sigma_s)) : (ds == 0 ? 1.0 : 0.0);
+    return w[0] * 0.5 * (1.0 + dot_h) + w[1] * ga + w[2] * gs + w[3] * 0.5 * (1.0 + dot_u);
+}
+
+static float dot(const float *a, const float *b, int d)
+{
+    float s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+    int i = 0;
+    for (; i + 4 <= d; i += 4) {
+        s0 += a[i] * b[i];
+        s1 += a[i + 1] * b[i + 1];
+        s2 += a[i + 2] * b[i + 2];
+        s3 += a[i + 3] * b[i + 3];
+    }
+    for (; i < d; i++)
+        s0 += a[i] * b[i];
+    return (s0 + s1) + (s2 + s3);
+}
+
+/* The median (element n/2 in order) of v[0..n) (v is reordered):
+ * quickselect with a three-way partition, deterministic. */
+static double median(double *v, size_t n)
+{
+    size_t lo = 0, hi = n, k = n / 2;
+    while (hi - lo > 1) {
+        double a = v[lo], b = v[lo + (hi - lo) / 2], c = v[hi - 1], pivot, t;
+        size_t lt = lo, i = lo, gt = hi;
+        pivot = a < b ? (b < c ? b : (a < c ? c : a)) : (a < c ? a : (b < c ? c : b));
+        /* [lo, lt) < pivot, [lt, i) == pivot, [gt, hi) > pivot */
+        while (i < gt) {
+            if (v[i] < pivot) {
+                t = v[i], v[i] = v[lt], v[lt] = t;
+                lt++, i++;
+            } else if (v[i] > pivot) {
+                gt--;
+                t = v[i], v[i] = v[gt], v[gt] = t;
+            } else
+                i++;
+        }
+        if (k < lt)
+            hi = lt;
+        else if (k >= gt)
+            lo = gt;
+        else
+            return pivot;
+    }
+    return v[k];
+}
+
+typedef struct match_job {
+    const ts_dictionary *dict;
+    const float *ph, *pu;
+    const double *pa, *ps, *w;
+    size_t np;
+    int *best;
+    float *score, *coef;
+} match_job;
+
+static void match_range(void *arg, size_t begin, size_t end)
+{
+    match_job *m = arg;
+    const ts_dictionary *D = m->dict;
+    size_t na = D->n, b0, a0, i, k;
+    int d = D->d;
+    float *dh = malloc(PATCH_TILE * na * sizeof *dh);
+    float *du = malloc(PATCH_TILE * na * sizeof *du);
+    double *diff = malloc(na * sizeof *diff);
+    const double ln2 = log(2.0);
+    if (!dh || !du || !diff) {
+        /* no memory for tiles: one patch at a time */
+        free(dh);
+        free(du);
+        free(diff);
+        dh = du = NULL;
+        diff = NULL;
+    }
+    for (b0 = begin; b0 < end; b0 += PATCH_TILE) {
+        size_t b1 = b0 + PATCH_TILE < end ? b0 + PATCH_TILE : end;
+        if (!dh) {
+            for (i = b0; i < b1; i++) {
+                m->best[i] = -1;
+                m->score[i] = 0;
+                m->coef[i] = 0;
+            }
+            continue;
+        }
+        /* the dot products, tile by tile */
+        for (a0 = 0; a0 < na; a0 += ATOM_TILE) {
+            size_t a1 = a0 + ATOM_TILE < na ? a0 + ATOM_TILE : na;
+            for (i = b0; i < b1; i++) {
+                const float *ph = m->ph + i * (size_t)d, *pu = m->pu + i * (size_t)d;
+                float *rh = dh + (i - b0) * na, *ru = du + (i - b0) * na;
+                for (k = a0; k < a1; k++) {
+                    rh[k] = dot(ph, D->dh + k * (size_t)d, d);
+                    ru[k] = m->w[3] > 0 ? dot(pu, D->du + k * (size_t)d, d) : 0.0f;
+                }
+            }
+        }
+        for (i = b0; i < b1; i++) {
+            const float *rh = dh + (i - b0) * na, *ru = du + (i - b0) * na;
+            double sa, ss, best = -1.0;
+            int bk = -1;
+            if (isnan(m->pa[i])) { /* an all-nodata patch */
+                m->best[i] = -1;
+                m->score[i] = 0;
+                m->coef[i] = 0;
+                continue;
+            }
+            for (k = 0; k < na; k++)
+                diff[k] = fabs(m->pa[i] - D->a[k]);
+            sa = median(diff, na) / sqrt(ln2);
+            for (k = 0; k < na; k++)
+                diff[k] = fabs(m->ps[i] - D->s[k]);
+            ss = median(diff, na) / sqrt(ln2);
+            for (k = 0; k < na; k++) {
+                double g = ts__amp_score(m->w, rh[k], ru[k], m->pa[i] - D->a[k], m->ps[i] - D->s[k],
+                                         sa, ss);
+                if (g > best) {
+                    best = g;
+                    bk = (int)k;
+                }
+            }
+            m->best[i] = bk;
+            m->score[i] = (float)best;
+            m->coef[i] = bk >= 0 ? rh[bk] : 0.0f;
+        }
+    }
+    free(dh);
+    free(du);
+    free(diff);
+}
+
+void ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const float *ph, const float *pu,
+                     const double *pa, const double *ps, size_t np, const double w[4], int *best,
+                     float *score, float *coef)
+{
+    match_job m = {dict, ph, pu, pa, ps, w, np, best, score, coef};
+    ts__parallel_for(ctx, np, match_range, &m);
+}

@@ -1,0 +1,78 @@
+/*
+ * drainage.c - upstream drainage area (Argudo et al. 2017, section 5.6):
+ * the deterministic D8 flow accumulation stands for the paper's particle
+ * simulation (named as such in the manual): each cell drains to its
+ * steepest lower neighbour, and cells are visited from the highest down so
+ * each passes its whole area on.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <math.h>
+#include <stdlib.h>
+
+#include "amplify.h"
+
+typedef struct cell_z {
+    float z;
+    size_t i;
+} cell_z;
+
+static int by_height_desc(const void *a, const void *b)
+{
+    const cell_z *p = a, *q = b;
+    if (p->z != q->z)
+        return p->z > q->z ? -1 : 1;
+    return p->i < q->i ? -1 : (p->i > q->i);
+}
+
+TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *out)
+{
+    static const int dx[8] = {1, 1, 0, -1, -1, -1, 0, 1}, dy[8] = {0, 1, 1, 1, 0, -1, -1, -1};
+    int W, H, x, y, k;
+    size_t n, m = 0, j;
+    cell_z *order;
+    ts__clear(ctx);
+    if (!dem || !out || !dem->data || !out->data || out->width != dem->width ||
+        out->height != dem->height)
+        return ts__fail(ctx, TS_ERR_ARG, "drainage", "missing or mismatched rasters");
+    W = dem->width;
+    H = dem->height;
+    n = (size_t)W * (size_t)H;
+    order = ts__malloc_array(n, sizeof *order);
+    if (!order)
+        return ts__fail(ctx, TS_ERR_NOMEM, "drainage", "out of memory");
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            float z = TS_PIX(dem, x, y);
+            TS_PIX(out, x, y) = isnan(z) ? NAN : 1.0f;
+            if (!isnan(z)) {
+                order[m].z = z;
+                order[m].i = (size_t)y * (size_t)W + (size_t)x;
+                m++;
+            }
+        }
+    qsort(order, m, sizeof *order, by_height_desc);
+    for (j = 0; j < m; j++) {
+        int cx = (int)(order[j].i % (size_t)W), cy = (int)(order[j].i / (size_t)W), to = -1;
+        double best = 0.0;
+        for (k = 0; k < 8; k++) {
+            int nx = cx + dx[k], ny = cy + dy[k];
+            float zn;
+            double drop;
+            if (nx < 0 || ny < 0 || nx >= W || ny >= H)
+                continue;
+            zn = TS_PIX(dem, nx, ny);
+            if (isnan(zn))
+                continue;
+            drop = (order[j].z - zn) / ((k & 1) ? 1.4142135623730951 : 1.0);
+            if (drop > best) {
+                best = drop;
+                to = k;
+            }
+        }
+        if (to >= 0)
+            TS_PIX(out, cx + dx[to], cy + dy[to]) += TS_PIX(out, cx, cy);
+    }
+    free(order);
+    return TS_OK;
+}
