@@ -154,6 +154,7 @@ static void main_help(FILE *out)
             "Commands:\n"
             "  ppa        map ridge and valley axes of a DEM (raster, vector lines, preview)\n"
             "  synth      grow a new terrain from real DEMs, free or following a sketch\n"
+            "  amplify    make a coarse DEM finer with the detail of real terrain\n"
             "  describe   print every stage's parameters as JSON (for front ends)\n"
             "\n"
             "'terrasynth COMMAND --help' lists a command's options with defaults and units.\n"
@@ -183,6 +184,8 @@ int main(int argc, char **argv)
         rc = cli_ppa(argc, argv);
     else if (!strcmp(argv[1], "synth"))
         rc = cli_synth(argc, argv);
+    else if (!strcmp(argv[1], "amplify"))
+        rc = cli_amplify(argc, argv);
     else if (!strcmp(argv[1], "describe"))
         rc = cli_describe(argc, argv);
     else {

@@ -152,11 +152,58 @@ static const tsj_rule ppa_rules[] = {
     {TSJ_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
 };
 
+static const tsj_option amplify_opts[] = {
+    {"input", TSJ_FILE, 1, 0, 0, "INPUT", G_IN,
+     "the coarse DEM (any GDAL raster): the output is `factor` times finer on its extent", "Input",
+     1, NULL},
+    {"exemplar", TSJ_FILE, TSJOB_MAX_EXEMPLARS, 0, 0, "EX.tif", G_IN,
+     "a real DEM whose detail the output takes (resampled to the output's ground "
+     "resolution); repeatable",
+     "Exemplar", 0, NULL},
+    {"band", TSJ_INT, 1, 1, 65535, "N", G_IN, "band read from every input (default 1)", "Band", 0,
+     NULL},
+    {"cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
+     "ground size of a cell in metres of every raster without a CRS (without it such "
+     "rasters are used cell for cell)",
+     "CellSize", 0, NULL},
+    {"output", TSJ_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
+     "the amplified DEM: Float32 on the input's extent and CRS, factor times finer, "
+     "nodata -9999 where the input is nodata",
+     NULL, 2, NULL},
+    {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0, NULL},
+    {"recipe", TSJ_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,
+     "write a recipe for this job instead of running it: gdal_translate FILE.tsyn out.tif", NULL, 0,
+     NULL},
+};
+
+static const tsj_rule amplify_rules[] = {
+    {TSJ_REQUIRES, "input", {"exemplar", NULL}, "give at least one exemplar"},
+    {TSJ_EXCLUDES,
+     "recipe",
+     {"output", "preview", NULL},
+     "recipe writes the recipe instead of running the job: give no %s"},
+    {TSJ_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
+};
+
 static const tsj_job jobs[] = {
-    {"ppa", ppa_opts, sizeof ppa_opts / sizeof ppa_opts[0], ppa_rules,
-     sizeof ppa_rules / sizeof ppa_rules[0], {"ppa", NULL, NULL}},
-    {"synth", synth_opts, sizeof synth_opts / sizeof synth_opts[0], synth_rules,
-     sizeof synth_rules / sizeof synth_rules[0], {"synth", "sketch", NULL}},
+    {"ppa",
+     ppa_opts,
+     sizeof ppa_opts / sizeof ppa_opts[0],
+     ppa_rules,
+     sizeof ppa_rules / sizeof ppa_rules[0],
+     {"ppa", NULL, NULL}},
+    {"synth",
+     synth_opts,
+     sizeof synth_opts / sizeof synth_opts[0],
+     synth_rules,
+     sizeof synth_rules / sizeof synth_rules[0],
+     {"synth", "sketch", NULL}},
+    {"amplify",
+     amplify_opts,
+     sizeof amplify_opts / sizeof amplify_opts[0],
+     amplify_rules,
+     sizeof amplify_rules / sizeof amplify_rules[0],
+     {"amplify", NULL, NULL}},
 };
 
 const tsj_job *tsj_find(const char *name)
@@ -634,6 +681,40 @@ int tsj_build_ppa(tsj_values *v, tsjob_ppa *job, char *msg, size_t len)
     job->input = tsj_get(v, "input", 0);
     if (!job->input) {
         msgf(msg, len, "needs an input DEM");
+        return -1;
+    }
+    if ((s = tsj_get(v, "band", 0)))
+        job->band = atoi(s);
+    if ((s = tsj_get(v, "cell_size", 0)))
+        job->cell_size = atof(s);
+    return 0;
+}
+
+int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len)
+{
+    const char *s;
+    int i;
+    memset(job, 0, sizeof *job);
+    job->params = ts_amplify_params_default();
+    job->band = 1;
+    if (check_values(v, msg, len) || check_rules(v, v->cli, msg, len))
+        return -1;
+    if (apply_params(v, "amplify", &job->params, msg, len))
+        return -1;
+    job->input = tsj_get(v, "input", 0);
+    if (!job->input) {
+        msgf(msg, len, "needs an input DEM");
+        return -1;
+    }
+    for (i = 0; (s = tsj_get(v, "exemplar", i)); i++) {
+        if (job->n_exemplars == TSJOB_MAX_EXEMPLARS) {
+            msgf(msg, len, "exemplar: at most %d", TSJOB_MAX_EXEMPLARS);
+            return -1;
+        }
+        job->exemplars[job->n_exemplars++] = s;
+    }
+    if (!job->n_exemplars) {
+        msgf(msg, len, "give at least one exemplar");
         return -1;
     }
     if ((s = tsj_get(v, "band", 0)))

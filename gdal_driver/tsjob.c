@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "tsjob.h"
 
@@ -796,5 +797,187 @@ int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_res
         if (job->sketch && job_debug_features(ctx, o->debug_dir, res, err) != 0)
             return -1;
     }
+    return 0;
+}
+
+/* ------------------------------------------------------------------ */
+/* amplify                                                             */
+/* ------------------------------------------------------------------ */
+
+/* Several core calls in one job: each reports on [lo, hi] of the job's progress. */
+typedef struct job_progress {
+    ts_progress_fn fn;
+    void *user;
+    double lo, hi;
+} job_progress;
+
+static int job_progress_cb(double done, const char *msg, void *user)
+{
+    job_progress *p = user;
+    return p->fn ? p->fn(p->lo + (p->hi - p->lo) * done, msg, p->user) : 1; /* 1: go on */
+}
+
+static void job_progress_range(ts_ctx *ctx, job_progress *p, double lo, double hi)
+{
+    p->lo = lo;
+    p->hi = hi;
+    ts_ctx_set_progress(ctx, job_progress_cb, p);
+}
+
+int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, tsio_err *err)
+{
+    tsio_georef g;
+    const ts_amplify_params *p = &job->params;
+    uint64_t need, atoms_total = 0, biggest = 0, cells_out;
+    int F = p->factor, i, rc;
+    memset(res, 0, sizeof *res);
+    if (tsio_read_georef(job->input, &g, err) != 0)
+        return -1;
+    cells_out = (uint64_t)g.width * F * (uint64_t)g.height * F;
+    need = JOB_MEM_BASE + (uint64_t)g.width * g.height * 48 + cells_out * 8;
+    tsio_georef_free(&g);
+    for (i = 0; i < job->n_exemplars; i++) {
+        tsio_georef e;
+        uint64_t src, atoms;
+        if (tsio_read_georef(job->exemplars[i], &e, err) != 0)
+            return -1;
+        src = (uint64_t)e.width * (uint64_t)e.height;
+        tsio_georef_free(&e);
+        atoms = (uint64_t)p->atoms;
+        atoms_total += atoms;
+        need += src * 16; /* as read and at the output's resolution (about as many cells) */
+        if (src > biggest)
+            biggest = src;
+    }
+    need += biggest * JOB_MEM_EX_SOURCE_CELL;
+    need += atoms_total * ((uint64_t)p->patch * p->patch * ((uint64_t)F * F + 2) * 4 + 64);
+    if (tsio_check_memory(need, "amplify", "a smaller input, a smaller factor or fewer atoms",
+                          err) != 0)
+        return -1;
+    if (tsio_read_dem(job->input, job->band, &res->in, err) != 0)
+        return -1;
+    job_warn_sentinels(&res->warning, job->input, &res->in);
+    if (res->in.geo.width < p->patch || res->in.geo.height < p->patch) {
+        tsio_errf(err, job->input, "%d x %d cells is smaller than a patch (%d cells)",
+                  res->in.geo.width, res->in.geo.height, p->patch);
+        tsjob_amplify_result_free(res);
+        return -1;
+    }
+    rc = tsio_georef_make(res->in.geo.width * F, res->in.geo.height * F, res->in.geo.gt[0],
+                          res->in.geo.gt[3], fabs(res->in.geo.gt[1]) / F,
+                          fabs(res->in.geo.gt[5]) / F, res->in.geo.wkt, &res->geo, err);
+    if (rc != 0) {
+        tsjob_amplify_result_free(res);
+        return -1;
+    }
+    res->geo.has_gt = res->in.geo.has_gt;
+    return 0;
+}
+
+int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
+                          tsio_err *err)
+{
+    tsio_raster ex[TSJOB_MAX_EXEMPLARS];
+    ts_raster exr[TSJOB_MAX_EXEMPLARS];
+    ts_dictionary *dict = NULL;
+    int i, rc = -1, cy = res->in.geo.height / 2, F = job->params.factor;
+    double in_dx = res->in.dx_m ? res->in.dx_m[cy] : job->cell_size;
+    double in_dy = res->in.dy_m ? res->in.dy_m[cy] : job->cell_size;
+    double t0;
+    struct timespec ts0, ts1;
+    job_progress jp;
+    memset(ex, 0, sizeof ex);
+    ts_ctx_get_progress(ctx, &jp.fn, &jp.user);
+    for (i = 0; i < job->n_exemplars; i++) {
+        double f = 1.0;
+        if (tsio_read_raster_resampled(job->exemplars[i], job->band, in_dx > 0 ? in_dx / F : 0,
+                                       in_dy > 0 ? in_dy / F : 0, job->cell_size, &ex[i], &f,
+                                       err) != 0)
+            goto done;
+        job_warn_sentinels(&res->warning, job->exemplars[i], &ex[i]);
+        if (in_dx > 0 && !ex[i].dx_m && !res->exemplar_no_crs)
+            res->exemplar_no_crs = i + 1;
+        exr[i] = ex[i].r;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &ts0);
+    job_progress_range(ctx, &jp, 0.0, 0.2);
+    if (ts_dictionary_build(ctx, exr, job->n_exemplars, &job->params, &dict) != TS_OK) {
+        int bad = ts_ctx_failed_input(ctx);
+        tsio_errf(err, bad >= 0 && bad < job->n_exemplars ? job->exemplars[bad] : "amplify", "%s",
+                  ts_ctx_message(ctx));
+        goto done;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &ts1);
+    t0 = (double)(ts1.tv_sec - ts0.tv_sec) + 1e-9 * (double)(ts1.tv_nsec - ts0.tv_nsec);
+    res->seconds_dictionary = t0;
+    res->n_atoms = ts_dictionary_size(dict);
+    if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
+        tsio_errf(err, "amplify", "%s", ts_ctx_message(ctx));
+        goto done;
+    }
+    job_progress_range(ctx, &jp, 0.2, 1.0);
+    if (ts_amplify(ctx, &res->in.r, dict, &job->params, &res->out, &res->info) != TS_OK) {
+        tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
+        goto done;
+    }
+    rc = 0;
+done:
+    ts_ctx_set_progress(ctx, jp.fn, jp.user);
+    ts_dictionary_free(dict);
+    for (i = 0; i < job->n_exemplars; i++)
+        tsio_raster_free(&ex[i]);
+    return rc;
+}
+
+void tsjob_amplify_result_free(tsjob_amplify_result *res)
+{
+    tsio_raster_free(&res->in);
+    tsio_georef_free(&res->geo);
+    ts_raster_free(&res->out);
+    memset(res, 0, sizeof *res);
+}
+
+int tsjob_amplify_check_recipe(const tsjob_amplify *job, const char *recipe, tsio_err *err)
+{
+    const char *in[TSJOB_MAX_EXEMPLARS + 1];
+    int n = 0, i;
+    in[n++] = job->input;
+    for (i = 0; i < job->n_exemplars; i++)
+        in[n++] = job->exemplars[i];
+    return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
+}
+
+int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_result *res,
+                                const tsjob_outputs *o, tsio_err *err)
+{
+    const char *in[TSJOB_MAX_EXEMPLARS + 1], *outs[2] = {o->output, o->preview};
+    int n = 0, i;
+    float probe = 0;
+    ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
+    unsigned char bp = 0;
+    tsio_write_opts wo = {o->format, o->create_options, 1};
+    tsio_write_opts png = {"PNG", NULL, 1};
+    tsio_georef g1 = res->geo;
+    g1.width = g1.height = 1;
+    in[n++] = job->input;
+    for (i = 0; i < job->n_exemplars; i++)
+        in[n++] = job->exemplars[i];
+    if (job_not_an_input(o->output, in, n, err) || job_not_an_input(o->preview, in, n, err) ||
+        job_distinct(outs, 2, err))
+        return -1;
+    if (tsio_write_float(o->output, &wo, &g1, &pr, -9999.0, err) != 0 ||
+        (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
+        return -1;
+    return 0;
+}
+
+int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjob_outputs *o,
+                        tsio_err *err)
+{
+    tsio_write_opts wo = {o->format, o->create_options, 0};
+    if (tsio_write_float(o->output, &wo, &res->geo, &res->out, -9999.0, err) != 0)
+        return -1;
+    if (o->preview && job_preview(ctx, o->preview, &res->out, &res->geo, NULL, NULL, err) != 0)
+        return -1;
     return 0;
 }

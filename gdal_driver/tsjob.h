@@ -167,6 +167,43 @@ const int32_t *tsjob_synth_int_map(const tsjob_synth_result *res, int map);
 int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_result *res,
                       const tsjob_outputs *o, tsio_err *err);
 
+/* ------------------------------------------------------------------ */
+/* amplify                                                             */
+/* ------------------------------------------------------------------ */
+
+typedef struct tsjob_amplify {
+    const char *input;
+    const char *exemplars[TSJOB_MAX_EXEMPLARS];
+    int n_exemplars;
+    int band;
+    double cell_size;
+    ts_amplify_params params;
+} tsjob_amplify;
+
+typedef struct tsjob_amplify_result {
+    tsio_raster in;  /* the coarse DEM as read */
+    tsio_georef geo; /* the output grid: the input's extent and CRS, factor finer */
+    ts_raster out;   /* the amplified DEM (owned) */
+    ts_amplify_info info;
+    size_t n_atoms;
+    double seconds_dictionary;
+    int exemplar_no_crs; /* index+1 of an exemplar used cell for cell, or 0 */
+    tsio_err warning;
+} tsjob_amplify_result;
+
+/** Read and check the input, resolve the output grid, estimate the memory. */
+int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, tsio_err *err);
+/** Read the exemplars at the output's ground resolution, build the
+ *  dictionary and amplify. */
+int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
+                          tsio_err *err);
+void tsjob_amplify_result_free(tsjob_amplify_result *res);
+int tsjob_amplify_check_recipe(const tsjob_amplify *job, const char *recipe, tsio_err *err);
+int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_result *res,
+                                const tsjob_outputs *o, tsio_err *err);
+int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjob_outputs *o,
+                        tsio_err *err);
+
 #ifdef __cplusplus
 }
 #endif

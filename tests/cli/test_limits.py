@@ -13,7 +13,7 @@ import pytest
 from osgeo import gdal
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from tsutil import JACKSBORO, ROOT, TERRASYNTH, run  # noqa: E402
+from tsutil import JACKSBORO, ROOT, TERRASYNTH, plugin_env, run  # noqa: E402
 
 gdal.UseExceptions()
 PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
@@ -81,7 +81,7 @@ def test_driver_refuses_at_open(tmp_path):
     code = ("import sys; from osgeo import gdal; gdal.UseExceptions()\n"
             "for k, v in [a.split('=', 1) for a in sys.argv[2:]]: gdal.SetConfigOption(k, v)\n"
             "try:\n  gdal.Open(sys.argv[1])\nexcept RuntimeError as e:\n  print(e); sys.exit(1)\n")
-    env = dict(os.environ, GDAL_DRIVER_PATH=PLUGINS)
+    env = plugin_env(PLUGINS)
     p = subprocess.run([sys.executable, "-c", code, str(r)], capture_output=True, text=True,
                        env=env, timeout=120)
     assert p.returncode == 1 and NEEDS.search(p.stdout), p.stdout + p.stderr

@@ -10,7 +10,7 @@ import pytest
 from osgeo import gdal
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from tsutil import JACKSBORO, ROOT, run  # noqa: E402
+from tsutil import JACKSBORO, ROOT, plugin_env, run  # noqa: E402
 
 gdal.UseExceptions()
 PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
@@ -39,7 +39,7 @@ def test_seed_past_2_64_refused_by_recipes(tmp_path, how):
             "except RuntimeError as e:\n  print(e); sys.exit(1)\n")
     oo = ["SEED=" + TOO_BIG] if how == "open_option" else []
     p = subprocess.run([sys.executable, "-c", code, str(r), *oo], capture_output=True,
-                       text=True, env=dict(os.environ, GDAL_DRIVER_PATH=PLUGINS))
+                       text=True, env=plugin_env(PLUGINS))
     assert p.returncode == 1, p.stdout + p.stderr
     assert "seed must be a whole number in 0..18446744073709551615" in p.stdout
 

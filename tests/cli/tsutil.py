@@ -17,3 +17,13 @@ def run(*args, check=True):
     if check and p.returncode != 0:
         raise AssertionError(f"terrasynth failed ({p.returncode}): {p.stderr}")
     return p
+
+
+def plugin_env(plugins):
+    """The environment for a plain program (python3, gdalinfo) that loads the TSYN plugin
+    from `plugins`: under the sanitizers the instrumented plugin needs their runtimes
+    preloaded (TS_TOOL_PRELOAD)."""
+    env = dict(os.environ, GDAL_DRIVER_PATH=plugins)
+    if os.environ.get("TS_TOOL_PRELOAD"):
+        env.update(LD_PRELOAD=os.environ["TS_TOOL_PRELOAD"], ASAN_OPTIONS="detect_leaks=0")
+    return env

@@ -22,6 +22,11 @@
 
 #include "amplify.h"
 
+/* Most the matched atom's relief is scaled up (see recon_rows). */
+#ifndef AMP_MAX_GAIN
+#define AMP_MAX_GAIN 2.0
+#endif
+
 static double now_s(void)
 {
     struct timespec t;
@@ -80,6 +85,10 @@ static void recon_rows(void *arg, size_t begin, size_t end)
                 if (k < 0)
                     continue;
                 scale = c * r->pnorm[pi];
+                /* an atom far gentler than its patch would have its detail blown up
+                 * into spikes: at most AMP_MAX_GAIN times its own relief */
+                if (scale > AMP_MAX_GAIN * r->dict->s[k] * r->dict->patch)
+                    scale = AMP_MAX_GAIN * r->dict->s[k] * r->dict->patch;
                 hh = r->dict->hh + (size_t)k * (size_t)r->dict->hd + (size_t)ty * (size_t)P;
                 for (tx = 0; tx < P; tx++) {
                     double w = wy * r->window[tx];
@@ -98,11 +107,29 @@ static void recon_rows(void *arg, size_t begin, size_t end)
     free(wsum);
 }
 
-/* out += the bilinear upsampling of (coarse - area average of out). */
+/* Keys' cubic convolution weights (a = -0.5) of the four taps around t in [0, 1). */
+static void cubic_weights(double t, double w[4])
+{
+    const double a = -0.5;
+    double t2 = t * t, t3 = t2 * t;
+    w[0] = a * (t3 - 2 * t2 + t);
+    w[1] = (a + 2) * t3 - (a + 3) * t2 + 1;
+    w[2] = -(a + 2) * t3 + (2 * a + 3) * t2 - a * t;
+    w[3] = -a * (t3 - t2);
+}
+
+static int clampi(int v, int lo, int hi)
+{
+    return v < lo ? lo : v > hi ? hi : v;
+}
+
+/* out += the bicubic upsampling of (coarse - area average of out): smooth
+ * (its gradient has no jumps at the coarse cells' edges, which a bilinear
+ * one would draw as facets in a hillshade). */
 static ts_status back_project(ts_ctx *ctx, const ts_raster *coarse, int F, ts_raster *out,
                               ts_raster *avg)
 {
-    int W = coarse->width, H = coarse->height, X, Y, x, y;
+    int W = coarse->width, H = coarse->height, X, Y, x, y, i, j;
     ts_status st = ts_area_average(ctx, out, F, avg);
     if (st != TS_OK)
         return st;
@@ -112,24 +139,23 @@ static ts_status back_project(ts_ctx *ctx, const ts_raster *coarse, int F, ts_ra
             TS_PIX(avg, x, y) = isnan(c) || isnan(a) ? 0.0f : c - a; /* the residual */
         }
     for (Y = 0; Y < out->height; Y++) {
-        double v = ((double)Y + 0.5) / F - 0.5;
-        int y0 = (int)floor(v), y1;
-        double fy = v - y0;
-        if (y0 < 0)
-            y0 = 0, fy = 0;
-        y1 = y0 + 1 < H ? y0 + 1 : H - 1;
+        double v = ((double)Y + 0.5) / F - 0.5, wy[4];
+        int y0 = (int)floor(v);
+        cubic_weights(v - y0, wy);
         for (X = 0; X < out->width; X++) {
-            double u = ((double)X + 0.5) / F - 0.5, fx, r;
-            int x0 = (int)floor(u), x1;
+            double u = ((double)X + 0.5) / F - 0.5, wx[4], r = 0;
+            int x0 = (int)floor(u);
             float *o = &TS_PIX(out, X, Y);
             if (isnan(*o))
                 continue;
-            fx = u - x0;
-            if (x0 < 0)
-                x0 = 0, fx = 0;
-            x1 = x0 + 1 < W ? x0 + 1 : W - 1;
-            r = (1 - fy) * ((1 - fx) * TS_PIX(avg, x0, y0) + fx * TS_PIX(avg, x1, y0)) +
-                fy * ((1 - fx) * TS_PIX(avg, x0, y1) + fx * TS_PIX(avg, x1, y1));
+            cubic_weights(u - x0, wx);
+            for (j = 0; j < 4; j++) {
+                int yy = clampi(y0 - 1 + j, 0, H - 1);
+                double row = 0;
+                for (i = 0; i < 4; i++)
+                    row += wx[i] * TS_PIX(avg, clampi(x0 - 1 + i, 0, W - 1), yy);
+                r += wy[j] * row;
+            }
             *o += (float)r;
         }
     }

@@ -97,6 +97,12 @@ TS_API void ts_ctx_set_progress(ts_ctx *ctx, ts_progress_fn fn, void *user)
     ctx->progress_user = user;
 }
 
+TS_API void ts_ctx_get_progress(const ts_ctx *ctx, ts_progress_fn *fn, void **user)
+{
+    *fn = ctx->progress;
+    *user = ctx->progress_user;
+}
+
 TS_API void ts_ctx_set_seed(ts_ctx *ctx, uint64_t seed)
 {
     ctx->seed = seed;

@@ -99,7 +99,7 @@ static const ts_param_desc amplify_desc[] = {
      "Output cells per input cell along each axis: the output grid is this many times finer, "
      "on the same extent and CRS.",
      offsetof(ts_amplify_params, factor)},
-    {"patch", TS_PARAM_INT, 8, 4, 64, TS_UNIT_CELLS, "input cells", NULL,
+    {"patch", TS_PARAM_INT, 6, 4, 64, TS_UNIT_CELLS, "input cells", NULL,
      "Side of the patches the input is cut into (they overlap by half), in input cells; an "
      "atom is this many cells of the area-averaged exemplar.",
      offsetof(ts_amplify_params, patch)},
