@@ -191,19 +191,22 @@ static const tsj_job jobs[] = {
      sizeof ppa_opts / sizeof ppa_opts[0],
      ppa_rules,
      sizeof ppa_rules / sizeof ppa_rules[0],
-     {"ppa", NULL, NULL}},
+     {"ppa", NULL, NULL},
+     "PPA"},
     {"synth",
      synth_opts,
      sizeof synth_opts / sizeof synth_opts[0],
      synth_rules,
      sizeof synth_rules / sizeof synth_rules[0],
-     {"synth", "sketch", NULL}},
+     {"synth", "sketch", NULL},
+     "Synth"},
     {"amplify",
      amplify_opts,
      sizeof amplify_opts / sizeof amplify_opts[0],
      amplify_rules,
      sizeof amplify_rules / sizeof amplify_rules[0],
-     {"amplify", NULL, NULL}},
+     {"amplify", NULL, NULL},
+     "Amplify"},
 };
 
 const tsj_job *tsj_find(const char *name)
@@ -212,6 +215,20 @@ const tsj_job *tsj_find(const char *name)
     for (i = 0; name && i < sizeof jobs / sizeof jobs[0]; i++)
         if (!strcmp(jobs[i].name, name))
             return &jobs[i];
+    return NULL;
+}
+
+const tsj_job *tsj_find_element(const CPLXMLNode *top, const CPLXMLNode **node)
+{
+    size_t i;
+    for (i = 0; top && i < sizeof jobs / sizeof jobs[0]; i++) {
+        const CPLXMLNode *n = CPLGetXMLNode((CPLXMLNode *)top, jobs[i].element);
+        if (n) {
+            if (node)
+                *node = n;
+            return &jobs[i];
+        }
+    }
     return NULL;
 }
 
@@ -855,7 +872,10 @@ void tsj_help(FILE *out, const tsj_job *job)
         if (!strcmp(job->stages[s], "sketch"))
             fprintf(out, "Sketch parameters (with --sketch):\n");
         else
-            fprintf(out, "%s parameters:\n", !strcmp(job->stages[s], "ppa") ? "PPA" : "Synthesis");
+            fprintf(out, "%s parameters:\n",
+                    !strcmp(job->stages[s], "ppa")       ? "PPA"
+                    : !strcmp(job->stages[s], "amplify") ? "Amplification"
+                                                         : "Synthesis");
         cli_params_help(out, job->stages[s], NULL);
         fputc('\n', out);
     }
@@ -1032,8 +1052,7 @@ static CPLXMLNode *xml_child(CPLXMLNode *node, const char *name)
 void tsj_to_xml(const tsj_values *v, CPLXMLNode *root,
                 const char *(*rel)(void *user, const char *name), void *user)
 {
-    CPLXMLNode *node = CPLCreateXMLNode(root, CXT_Element, v->job->name[0] == 'p' ? "PPA"
-                                                                                    : "Synth");
+    CPLXMLNode *node = CPLCreateXMLNode(root, CXT_Element, v->job->element);
     size_t k;
     int i, s;
     /* attributes of the job's element first (XML puts them before children) */

@@ -85,7 +85,10 @@ typedef struct tsj_job {
     const tsj_rule *rules;
     size_t n_rules;
     const char *stages[3]; /* the core stages whose parameters the job takes (NULL-ended) */
+    const char *element;   /* its element in a recipe ("PPA", "Synth", "Amplify") */
 } tsj_job;
+/* The job whose recipe element `node` is (a child of <TerraSynth>), or NULL. */
+const tsj_job *tsj_find_element(const CPLXMLNode *top, const CPLXMLNode **node);
 
 /* The job declared as `name`, or NULL. */
 const tsj_job *tsj_find(const char *name);

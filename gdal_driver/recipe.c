@@ -51,6 +51,8 @@ struct ts_recipe {
     tsio_georef geo;     /* ppa: the input's grid */
     tsjob_ppa_result ppa_res;
     tsjob_synth_result synth_res;
+    tsjob_amplify amplify;
+    tsjob_amplify_result amplify_res;
     int map; /* synth: -1 the terrain, else the TSJOB_MAP_* served (open option MAP) */
     int computed;
 };
@@ -179,7 +181,9 @@ static int recipe_options(ts_recipe *r, const char *const *oo, tsio_err *err)
 static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsio_err *err)
 {
     char msg[1024];
-    tsj_values_init(&r->values, tsj_find(r->method == RECIPE_PPA ? "ppa" : "synth"));
+    tsj_values_init(&r->values, tsj_find(r->method == RECIPE_PPA     ? "ppa"
+                                         : r->method == RECIPE_SYNTH ? "synth"
+                                                                     : "amplify"));
     if (tsj_from_xml(&r->values, node, recipe_resolve, r, msg, sizeof msg) != 0) {
         tsio_errf(err, r->path, "%s", msg);
         return -1;
@@ -195,6 +199,13 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
         if (tsio_read_georef(r->ppa.input, &r->geo, err) != 0)
             return -1;
         return tsjob_ppa_check_memory(&r->geo, r->ppa.input, err);
+    }
+    if (r->method == RECIPE_AMPLIFY) {
+        if (tsj_build_amplify(&r->values, &r->amplify, msg, sizeof msg) != 0) {
+            tsio_errf(err, r->path, "%s", msg);
+            return -1;
+        }
+        return tsjob_amplify_prepare(&r->amplify, &r->amplify_res, err);
     }
     if (tsj_build_synth(&r->values, &r->synth, &r->seed, msg, sizeof msg) != 0) {
         tsio_errf(err, r->path, "%s", msg);
@@ -336,12 +347,16 @@ static int recipe_scan(const char *path, char ***chain, tsio_err *err)
         CPLDestroyXMLNode(root);
         return 0;
     }
-    node = CPLGetXMLNode(top, "PPA");
-    if (!node)
-        node = CPLGetXMLNode(top, "Synth");
+    {
+        const CPLXMLNode *cn = NULL;
+        const tsj_job *job = tsj_find_element(top, &cn);
+        node = (CPLXMLNode *)cn;
+        if (!job)
+            node = NULL;
+    }
     if (node) {
         tsj_values v;
-        tsj_values_init(&v, tsj_find(CPLGetXMLNode(top, "PPA") ? "ppa" : "synth"));
+        tsj_values_init(&v, tsj_find_element(top, NULL));
         n.dir = CPLStrdup(CPLGetPath(path));
         tsj_from_xml(&v, node, recipe_collect, &n, msg, sizeof msg); /* names, not checks */
         tsj_values_free(&v);
@@ -405,14 +420,18 @@ int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_e
             goto done;
     }
     recipe_stack[recipe_depth++] = r->path;
-    if ((node = CPLGetXMLNode(top, "PPA"))) {
-        r->method = RECIPE_PPA;
-        rc = recipe_job(r, node, oo, err);
-    } else if ((node = CPLGetXMLNode(top, "Synth"))) {
-        r->method = RECIPE_SYNTH;
-        rc = recipe_job(r, node, oo, err);
-    } else {
-        tsio_errf(err, path, "<TerraSynth> needs a <PPA> or a <Synth> element");
+    {
+        const CPLXMLNode *cn = NULL;
+        const tsj_job *job = tsj_find_element(top, &cn);
+        node = (CPLXMLNode *)cn;
+        if (job) {
+            r->method = !strcmp(job->name, "ppa")     ? RECIPE_PPA
+                        : !strcmp(job->name, "synth") ? RECIPE_SYNTH
+                                                      : RECIPE_AMPLIFY;
+            rc = recipe_job(r, node, oo, err);
+        } else {
+            tsio_errf(err, path, "<TerraSynth> needs a <PPA>, a <Synth> or an <Amplify> element");
+        }
     }
     recipe_depth--;
 done:
@@ -431,6 +450,7 @@ void recipe_free(ts_recipe *r)
         return;
     tsjob_ppa_result_free(&r->ppa_res);
     tsjob_synth_result_free(&r->synth_res);
+    tsjob_amplify_result_free(&r->amplify_res);
     tsio_georef_free(&r->geo);
     tsj_values_free(&r->values);
     CSLDestroy(r->strings);
@@ -440,6 +460,8 @@ void recipe_free(ts_recipe *r)
 
 const tsio_georef *recipe_georef(const ts_recipe *r)
 {
+    if (r->method == RECIPE_AMPLIFY)
+        return &r->amplify_res.geo;
     return r->method == RECIPE_PPA ? &r->geo : &r->synth_res.geo;
 }
 
@@ -486,6 +508,14 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
             CPLError(CE_Warning, CPLE_AppDefined, "%s", r->ppa_res.warning.msg);
         if (rc == 0)
             rc = tsjob_ppa_compute(ctx, &r->ppa, &r->ppa_res, err);
+    } else if (r->method == RECIPE_AMPLIFY) {
+        rc = tsjob_amplify_compute(ctx, &r->amplify, &r->amplify_res, err);
+        if (rc == 0) {
+            n = (size_t)r->amplify_res.out.width * (size_t)r->amplify_res.out.height;
+            for (i = 0; i < n; i++)
+                if (isnan(r->amplify_res.out.data[i]))
+                    r->amplify_res.out.data[i] = -9999.0f;
+        }
     } else {
         rc = tsjob_synth_compute(ctx, &r->synth, &r->synth_res, r->map >= 0, err);
         if (rc == 0 && r->synth_res.warning.msg[0])
@@ -510,6 +540,8 @@ const void *recipe_data(const ts_recipe *r)
         return NULL;
     if (r->method == RECIPE_PPA)
         return r->ppa_res.codes;
+    if (r->method == RECIPE_AMPLIFY)
+        return r->amplify_res.out.data;
     if (r->map == TSJOB_MAP_SEAMS)
         return r->synth_res.maps.seams;
     if (r->map >= 0)
@@ -609,10 +641,10 @@ static CPLXMLNode *option_add(CPLXMLNode *list, const char *name, const char *ty
 char *recipe_open_option_list(void)
 {
     CPLXMLNode *list = CPLCreateXMLNode(NULL, CXT_Element, "OpenOptionList");
-    const char *jobs[2] = {"ppa", "synth"};
+    const char *jobs[3] = {"ppa", "synth", "amplify"};
     char *out, *xml;
     int j, s;
-    for (j = 0; j < 2; j++) {
+    for (j = 0; j < 3; j++) {
         const tsj_job *job = tsj_find(jobs[j]);
         size_t k;
         /* the stages' parameters, as GDAL drivers declare them */

@@ -18,7 +18,7 @@
 extern "C" {
 #endif
 
-enum { RECIPE_PPA = 1, RECIPE_SYNTH = 2 };
+enum { RECIPE_PPA = 1, RECIPE_SYNTH = 2, RECIPE_AMPLIFY = 3 };
 
 typedef struct ts_recipe ts_recipe;
 
