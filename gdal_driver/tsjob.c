@@ -977,7 +977,20 @@ int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjo
     tsio_write_opts wo = {o->format, o->create_options, 0};
     if (tsio_write_float(o->output, &wo, &res->geo, &res->out, -9999.0, err) != 0)
         return -1;
-    if (o->preview && job_preview(ctx, o->preview, &res->out, &res->geo, NULL, NULL, err) != 0)
-        return -1;
+    if (o->preview) {
+        /* the hillshade on the ground: cell sizes in metres (a geographic grid's too) */
+        double *dx = NULL, *dy = NULL;
+        ts_grid_metrics m;
+        int rc;
+        if (tsio_georef_metrics(&res->geo, &dx, &dy, err) != 0)
+            return -1;
+        m.dx = dx;
+        m.dy = dy;
+        rc = job_preview(ctx, o->preview, &res->out, &res->geo, dx ? &m : NULL, NULL, err);
+        free(dx);
+        free(dy);
+        if (rc != 0)
+            return -1;
+    }
     return 0;
 }
