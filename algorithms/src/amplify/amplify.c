@@ -123,13 +123,51 @@ static int clampi(int v, int lo, int hi)
     return v < lo ? lo : v > hi ? hi : v;
 }
 
+typedef struct bp_job {
+    const ts_raster *res; /* the residual on the coarse grid */
+    ts_raster *out;
+    int F;
+} bp_job;
+
+static void bp_rows(void *arg, size_t begin, size_t end)
+{
+    bp_job *b = arg;
+    int W = b->res->width, H = b->res->height, F = b->F, X, i, j;
+    size_t Y;
+    for (Y = begin; Y < end; Y++) {
+        double v = ((double)Y + 0.5) / F - 0.5, wy[4];
+        int y0 = (int)floor(v), yy[4];
+        cubic_weights(v - y0, wy);
+        for (j = 0; j < 4; j++)
+            yy[j] = clampi(y0 - 1 + j, 0, H - 1);
+        for (X = 0; X < b->out->width; X++) {
+            double u = ((double)X + 0.5) / F - 0.5, wx[4], r = 0;
+            int x0 = (int)floor(u), xx[4];
+            float *o = &TS_PIX(b->out, X, (int)Y);
+            if (isnan(*o))
+                continue;
+            cubic_weights(u - x0, wx);
+            for (i = 0; i < 4; i++)
+                xx[i] = clampi(x0 - 1 + i, 0, W - 1);
+            for (j = 0; j < 4; j++) {
+                double row = 0;
+                for (i = 0; i < 4; i++)
+                    row += wx[i] * TS_PIX(b->res, xx[i], yy[j]);
+                r += wy[j] * row;
+            }
+            *o += (float)r;
+        }
+    }
+}
+
 /* out += the bicubic upsampling of (coarse - area average of out): smooth
  * (its gradient has no jumps at the coarse cells' edges, which a bilinear
  * one would draw as facets in a hillshade). */
 static ts_status back_project(ts_ctx *ctx, const ts_raster *coarse, int F, ts_raster *out,
                               ts_raster *avg)
 {
-    int W = coarse->width, H = coarse->height, X, Y, x, y, i, j;
+    int W = coarse->width, H = coarse->height, x, y;
+    bp_job b;
     ts_status st = ts_area_average(ctx, out, F, avg);
     if (st != TS_OK)
         return st;
@@ -138,27 +176,10 @@ static ts_status back_project(ts_ctx *ctx, const ts_raster *coarse, int F, ts_ra
             float c = TS_PIX(coarse, x, y), a = TS_PIX(avg, x, y);
             TS_PIX(avg, x, y) = isnan(c) || isnan(a) ? 0.0f : c - a; /* the residual */
         }
-    for (Y = 0; Y < out->height; Y++) {
-        double v = ((double)Y + 0.5) / F - 0.5, wy[4];
-        int y0 = (int)floor(v);
-        cubic_weights(v - y0, wy);
-        for (X = 0; X < out->width; X++) {
-            double u = ((double)X + 0.5) / F - 0.5, wx[4], r = 0;
-            int x0 = (int)floor(u);
-            float *o = &TS_PIX(out, X, Y);
-            if (isnan(*o))
-                continue;
-            cubic_weights(u - x0, wx);
-            for (j = 0; j < 4; j++) {
-                int yy = clampi(y0 - 1 + j, 0, H - 1);
-                double row = 0;
-                for (i = 0; i < 4; i++)
-                    row += wx[i] * TS_PIX(avg, clampi(x0 - 1 + i, 0, W - 1), yy);
-                r += wy[j] * row;
-            }
-            *o += (float)r;
-        }
-    }
+    b.res = avg;
+    b.out = out;
+    b.F = F;
+    ts__parallel_for(ctx, (size_t)out->height, bp_rows, &b);
     return TS_OK;
 }
 
