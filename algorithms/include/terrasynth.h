@@ -638,6 +638,17 @@ typedef struct ts_amplify_info {
 TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dictionary *dict,
                             const ts_amplify_params *params, ts_raster *out, ts_amplify_info *info);
 
+/**
+ * One window of what ts_amplify gives: the output cells [x0, x0 + out->width)
+ * x [y0, y0 + out->height), byte for byte the same as that window of the
+ * whole (amplification is local: only the patches over the window and the
+ * margin back-projection needs are computed).  `drainage` is
+ * ts_drainage_area of `coarse` (global: computed once, on the coarse grid).
+ */
+TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raster *drainage,
+                                   const ts_dictionary *dict, const ts_amplify_params *params,
+                                   int x0, int y0, ts_raster *out, ts_amplify_info *info);
+
 /** Area-average `fine` by `factor` into `coarse` (caller-allocated,
  *  fine->width / factor x fine->height / factor); a coarse cell with any
  *  nodata below it is nodata. */

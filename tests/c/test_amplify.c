@@ -306,6 +306,58 @@ static void test_no_atom_inverted(void)
     ts_ctx_free(ctx);
 }
 
+/* Windows of every size and place, at the edges too, with nodata and any
+ * number of back-projection passes: byte for byte the window of the whole. */
+static void test_windows_equal_the_whole(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_amplify_params p = ts_amplify_params_default();
+    ts_raster ex = make_terrain(ctx, 300, 260, 41), in = make_terrain(ctx, 53, 47, 42), drain,
+              whole, win;
+    ts_dictionary *D = NULL;
+    uint64_t rng = 5;
+    int refine, k, x, y;
+    p.factor = 4;
+    TS_PIX(&in, 20, 11) = NAN;
+    TS_PIX(&in, 0, 46) = NAN;
+    ts_raster_alloc(ctx, 53, 47, &drain);
+    CHECK(ts_drainage_area(ctx, &in, &drain) == TS_OK);
+    ts_raster_alloc(ctx, 212, 188, &whole);
+    for (refine = 0; refine <= 4; refine += 2) {
+        p.refine = refine;
+        CHECK(ts_dictionary_build(ctx, &ex, 1, &p, &D) == TS_OK);
+        CHECK(ts_amplify(ctx, &in, D, &p, &whole, NULL) == TS_OK);
+        for (k = 0; k < 12; k++) {
+            int w = 1 + (int)(th_uniform(&rng) * 90), h = 1 + (int)(th_uniform(&rng) * 90);
+            int x0 = (int)(th_uniform(&rng) * (212 - w)), y0 = (int)(th_uniform(&rng) * (188 - h));
+            int same = 1;
+            if (k == 0)
+                x0 = y0 = 0; /* the corners */
+            if (k == 1)
+                x0 = 212 - w, y0 = 188 - h;
+            ts_raster_alloc(ctx, w, h, &win);
+            ts_ctx_set_threads(ctx, 1 + k % 3);
+            CHECK(ts_amplify_window(ctx, &in, &drain, D, &p, x0, y0, &win, NULL) == TS_OK);
+            for (y = 0; y < h; y++)
+                for (x = 0; x < w; x++)
+                    same &= memcmp(&TS_PIX(&win, x, y), &TS_PIX(&whole, x0 + x, y0 + y),
+                                   sizeof(float)) == 0;
+            CHECK_MSG(same, "refine %d window %d,%d %dx%d differs", refine, x0, y0, w, h);
+            ts_raster_free(&win);
+        }
+        ts_dictionary_free(D);
+        D = NULL;
+    }
+    ts_raster_alloc(ctx, 10, 10, &win);
+    CHECK(ts_amplify_window(ctx, &in, &drain, D ? D : NULL, &p, 0, 0, &win, NULL) == TS_ERR_ARG);
+    ts_raster_free(&win);
+    ts_raster_free(&ex);
+    ts_raster_free(&in);
+    ts_raster_free(&drain);
+    ts_raster_free(&whole);
+    ts_ctx_free(ctx);
+}
+
 static void test_errors(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -341,6 +393,7 @@ int main(int argc, char **argv)
         {"exemplar_comes_back", test_exemplar_comes_back},
         {"back_projection_nodata_threads", test_back_projection_nodata_threads},
         {"no_atom_inverted", test_no_atom_inverted},
+        {"windows_equal_the_whole", test_windows_equal_the_whole},
         {"errors", test_errors},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);

@@ -45,68 +45,6 @@ static int patch_origins(int n, int p, int step, int *pos)
     return k;
 }
 
-typedef struct recon_job {
-    const ts_raster *coarse;
-    const ts_dictionary *dict;
-    const int *xs, *ys, *best;
-    int nx, ny, F, P;
-    const double *pa, *pnorm;
-    const float *coef;
-    const float *window; /* P falloff weights */
-    ts_raster *out;
-    int fail;
-} recon_job;
-
-static void recon_rows(void *arg, size_t begin, size_t end)
-{
-    recon_job *r = arg;
-    int Wf = r->out->width, F = r->F, P = r->P, cx, X;
-    double *acc = malloc((size_t)Wf * sizeof *acc), *wsum = malloc((size_t)Wf * sizeof *wsum);
-    size_t Y;
-    if (!acc || !wsum) {
-        free(acc);
-        free(wsum);
-        r->fail = 1;
-        return;
-    }
-    for (Y = begin; Y < end; Y++) {
-        int ry;
-        memset(acc, 0, (size_t)Wf * sizeof *acc);
-        memset(wsum, 0, (size_t)Wf * sizeof *wsum);
-        for (ry = 0; ry < r->ny; ry++) {
-            int y0 = r->ys[ry] * F, ty = (int)Y - y0;
-            if (ty < 0 || ty >= P)
-                continue;
-            for (cx = 0; cx < r->nx; cx++) {
-                size_t pi = (size_t)ry * (size_t)r->nx + (size_t)cx;
-                int k = r->best[pi], x0 = r->xs[cx] * F, tx;
-                double c = r->coef[pi] > 0 ? r->coef[pi] : 0.0, scale, wy = r->window[ty];
-                const float *hh;
-                if (k < 0)
-                    continue;
-                scale = c * r->pnorm[pi];
-                /* an atom far gentler than its patch would have its detail blown up
-                 * into spikes: at most AMP_MAX_GAIN times its own relief */
-                if (scale > AMP_MAX_GAIN * r->dict->s[k] * r->dict->patch)
-                    scale = AMP_MAX_GAIN * r->dict->s[k] * r->dict->patch;
-                hh = r->dict->hh + (size_t)k * (size_t)r->dict->hd + (size_t)ty * (size_t)P;
-                for (tx = 0; tx < P; tx++) {
-                    double w = wy * r->window[tx];
-                    acc[x0 + tx] += w * (r->pa[pi] + scale * hh[tx]);
-                    wsum[x0 + tx] += w;
-                }
-            }
-        }
-        for (X = 0; X < Wf; X++) {
-            float parent = TS_PIX(r->coarse, X / F, (int)Y / F);
-            TS_PIX(r->out, X, (int)Y) =
-                isnan(parent) || !(wsum[X] > 0) ? NAN : (float)(acc[X] / wsum[X]);
-        }
-    }
-    free(acc);
-    free(wsum);
-}
-
 /* Keys' cubic convolution weights (a = -0.5) of the four taps around t in [0, 1). */
 static void cubic_weights(double t, double w[4])
 {
@@ -123,32 +61,120 @@ static int clampi(int v, int lo, int hi)
     return v < lo ? lo : v > hi ? hi : v;
 }
 
-typedef struct bp_job {
-    const ts_raster *res; /* the residual on the coarse grid */
-    ts_raster *out;
-    int F;
-} bp_job;
+/* A rectangle of coarse cells [x0, x1) x [y0, y1). */
+typedef struct amp_rect {
+    int x0, y0, x1, y1;
+} amp_rect;
+
+static amp_rect rect_grow(amp_rect r, int by, int W, int H)
+{
+    amp_rect g = {r.x0 - by, r.y0 - by, r.x1 + by, r.y1 + by};
+    if (g.x0 < 0)
+        g.x0 = 0;
+    if (g.y0 < 0)
+        g.y0 = 0;
+    if (g.x1 > W)
+        g.x1 = W;
+    if (g.y1 > H)
+        g.y1 = H;
+    return g;
+}
+
+/* Everything the passes share.  The working raster `buf` holds the fine
+ * cells of the coarse rectangle `base`, from fine cell (bx, by). */
+typedef struct amp_work {
+    const ts_raster *coarse;
+    const ts_dictionary *dict;
+    int F, p, P, W, H;
+    const int *xs, *ys; /* global patch origins */
+    int c0, c1, r0, r1; /* the patch columns and rows in use */
+    const int *best;
+    const double *pa, *pnorm;
+    const float *coef;
+    const float *window; /* P falloff weights */
+    ts_raster *buf;
+    int bx, by;
+    /* back-projection */
+    const ts_raster *res; /* the residual on the coarse rectangle rr */
+    amp_rect rr;
+    int ux0, uy0, ux1, uy1; /* the fine cells it updates (global) */
+    int fail;
+} amp_work;
+
+static void recon_rows(void *arg, size_t begin, size_t end)
+{
+    amp_work *r = arg;
+    int Wb = r->buf->width, F = r->F, P = r->P, ncols = r->c1 - r->c0, cx, X;
+    double *acc = malloc((size_t)Wb * sizeof *acc), *wsum = malloc((size_t)Wb * sizeof *wsum);
+    size_t Yb;
+    if (!acc || !wsum) {
+        free(acc);
+        free(wsum);
+        r->fail = 1;
+        return;
+    }
+    for (Yb = begin; Yb < end; Yb++) {
+        int Y = r->by + (int)Yb, ry;
+        memset(acc, 0, (size_t)Wb * sizeof *acc);
+        memset(wsum, 0, (size_t)Wb * sizeof *wsum);
+        /* every patch over this row, in the same order whatever the window */
+        for (ry = r->r0; ry < r->r1; ry++) {
+            int ty = Y - r->ys[ry] * F;
+            if (ty < 0 || ty >= P)
+                continue;
+            for (cx = r->c0; cx < r->c1; cx++) {
+                size_t pi = (size_t)(ry - r->r0) * (size_t)ncols + (size_t)(cx - r->c0);
+                int k = r->best[pi], x0 = r->xs[cx] * F, tx, t0, t1;
+                double c = r->coef[pi] > 0 ? r->coef[pi] : 0.0, scale, wy = r->window[ty];
+                const float *hh;
+                if (k < 0)
+                    continue;
+                scale = c * r->pnorm[pi];
+                /* an atom far gentler than its patch would have its detail blown up
+                 * into spikes: at most AMP_MAX_GAIN times its own relief */
+                if (scale > AMP_MAX_GAIN * r->dict->s[k] * r->dict->patch)
+                    scale = AMP_MAX_GAIN * r->dict->s[k] * r->dict->patch;
+                hh = r->dict->hh + (size_t)k * (size_t)r->dict->hd + (size_t)ty * (size_t)P;
+                t0 = r->bx - x0 > 0 ? r->bx - x0 : 0;
+                t1 = r->bx + Wb - x0 < P ? r->bx + Wb - x0 : P;
+                for (tx = t0; tx < t1; tx++) {
+                    double w = wy * r->window[tx];
+                    acc[x0 + tx - r->bx] += w * (r->pa[pi] + scale * hh[tx]);
+                    wsum[x0 + tx - r->bx] += w;
+                }
+            }
+        }
+        for (X = 0; X < Wb; X++) {
+            float parent = TS_PIX(r->coarse, (r->bx + X) / F, Y / F);
+            TS_PIX(r->buf, X, (int)Yb) =
+                isnan(parent) || !(wsum[X] > 0) ? NAN : (float)(acc[X] / wsum[X]);
+        }
+    }
+    free(acc);
+    free(wsum);
+}
 
 static void bp_rows(void *arg, size_t begin, size_t end)
 {
-    bp_job *b = arg;
-    int W = b->res->width, H = b->res->height, F = b->F, X, i, j;
-    size_t Y;
-    for (Y = begin; Y < end; Y++) {
+    amp_work *b = arg;
+    int F = b->F, X, i, j;
+    size_t k;
+    for (k = begin; k < end; k++) {
+        int Y = b->uy0 + (int)k;
         double v = ((double)Y + 0.5) / F - 0.5, wy[4];
         int y0 = (int)floor(v), yy[4];
         cubic_weights(v - y0, wy);
         for (j = 0; j < 4; j++)
-            yy[j] = clampi(y0 - 1 + j, 0, H - 1);
-        for (X = 0; X < b->out->width; X++) {
+            yy[j] = clampi(y0 - 1 + j, 0, b->H - 1) - b->rr.y0;
+        for (X = b->ux0; X < b->ux1; X++) {
             double u = ((double)X + 0.5) / F - 0.5, wx[4], r = 0;
             int x0 = (int)floor(u), xx[4];
-            float *o = &TS_PIX(b->out, X, (int)Y);
+            float *o = &TS_PIX(b->buf, X - b->bx, Y - b->by);
             if (isnan(*o))
                 continue;
             cubic_weights(u - x0, wx);
             for (i = 0; i < 4; i++)
-                xx[i] = clampi(x0 - 1 + i, 0, W - 1);
+                xx[i] = clampi(x0 - 1 + i, 0, b->W - 1) - b->rr.x0;
             for (j = 0; j < 4; j++) {
                 double row = 0;
                 for (i = 0; i < 4; i++)
@@ -160,63 +186,72 @@ static void bp_rows(void *arg, size_t begin, size_t end)
     }
 }
 
-/* out += the bicubic upsampling of (coarse - area average of out): smooth
- * (its gradient has no jumps at the coarse cells' edges, which a bilinear
- * one would draw as facets in a hillshade). */
-static ts_status back_project(ts_ctx *ctx, const ts_raster *coarse, int F, ts_raster *out,
-                              ts_raster *avg)
+/* One back-projection pass: the residual (input minus the area average of
+ * buf) on the coarse rectangle rr, its bicubic upsampling added to the fine
+ * cells [ux0, ux1) x [uy0, uy1) (global).  Smooth: a bilinear one would draw
+ * the coarse cells' edges as facets in a hillshade. */
+static void back_project(ts_ctx *ctx, amp_work *w, amp_rect rr, ts_raster *res)
 {
-    int W = coarse->width, H = coarse->height, x, y;
-    bp_job b;
-    ts_status st = ts_area_average(ctx, out, F, avg);
-    if (st != TS_OK)
-        return st;
-    for (y = 0; y < H; y++)
-        for (x = 0; x < W; x++) {
-            float c = TS_PIX(coarse, x, y), a = TS_PIX(avg, x, y);
-            TS_PIX(avg, x, y) = isnan(c) || isnan(a) ? 0.0f : c - a; /* the residual */
+    int x, y, i, j, F = w->F;
+    res->width = rr.x1 - rr.x0;
+    res->height = rr.y1 - rr.y0;
+    res->stride = res->width;
+    for (y = rr.y0; y < rr.y1; y++)
+        for (x = rr.x0; x < rr.x1; x++) {
+            double sum = 0.0;
+            int bad = 0;
+            float c = TS_PIX(w->coarse, x, y);
+            for (j = 0; j < F && !bad; j++)
+                for (i = 0; i < F; i++) {
+                    float v = TS_PIX(w->buf, x * F + i - w->bx, y * F + j - w->by);
+                    if (isnan(v)) {
+                        bad = 1;
+                        break;
+                    }
+                    sum += v;
+                }
+            TS_PIX(res, x - rr.x0, y - rr.y0) =
+                isnan(c) || bad ? 0.0f : c - (float)(sum / ((double)F * F));
         }
-    b.res = avg;
-    b.out = out;
-    b.F = F;
-    ts__parallel_for(ctx, (size_t)out->height, bp_rows, &b);
-    return TS_OK;
+    w->res = res;
+    w->rr = rr;
+    ts__parallel_for(ctx, (size_t)(w->uy1 - w->uy0), bp_rows, w);
 }
 
-TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dictionary *dict,
-                            const ts_amplify_params *params, ts_raster *out, ts_amplify_info *info)
+/* The fine cells [X0, X0 + out->width) x [Y0, Y0 + out->height) of the
+ * amplified DEM: the patches over them and the coarse margin every
+ * back-projection pass needs (two cells per pass, the cubic's reach) are
+ * computed, nothing else.  Each cell is computed by the same operations in
+ * the same order whatever the window, so a window is byte for byte the same
+ * window of the whole. */
+static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raster *drain,
+                            const ts_dictionary *dict, const ts_amplify_params *params, int X0,
+                            int Y0, ts_raster *out, ts_amplify_info *info)
 {
-    int W, H, F, p, P, step, nx, ny, i, j, cx, cy, pass;
-    int *xs = NULL, *ys = NULL, *best = NULL;
+    int W = coarse->width, H = coarse->height, F = params->factor, p = params->patch;
+    int P = p * F, step = p / 2 > 0 ? p / 2 : 1, nx, ny, i, j, cx, cy, pass, R = params->refine;
+    int *xs = NULL, *ys = NULL, *best = NULL, c0, c1, r0, r1;
     float *ph = NULL, *pu = NULL, *coef = NULL, *score = NULL, *win = NULL, *window = NULL;
-    float *lwin = NULL;
+    float *lwin = NULL, *resbuf = NULL;
     double *pa = NULL, *ps = NULL, *pnorm = NULL, w[4], t0, t1;
-    ts_raster drain = {0, 0, 0, NULL}, avg = {0, 0, 0, NULL};
+    ts_raster buf = {0, 0, 0, NULL}, res;
+    amp_rect foot, reg[12], base;
     size_t np, pi;
+    int whole, ncols;
     ts_status st = TS_OK;
-    ts__clear(ctx);
-    if (info)
-        memset(info, 0, sizeof *info);
-    if (!coarse || !coarse->data || !dict || !params || !out || !out->data)
-        return ts__fail(ctx, TS_ERR_ARG, "amplify", "missing input, dictionary or output");
-    if (ts_params_validate(ctx, "amplify", params) != TS_OK)
-        return ctx->status;
-    F = params->factor;
-    p = params->patch;
-    P = p * F;
-    if (dict->factor != F || dict->patch != p)
-        return ts__fail(ctx, TS_ERR_ARG, "amplify",
-                        "the dictionary was built for factor %d and patch %d, not %d and %d",
-                        dict->factor, dict->patch, F, p);
-    W = coarse->width;
-    H = coarse->height;
-    if (out->width != W * F || out->height != H * F)
-        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the output must be %d x %d cells", W * F,
-                        H * F);
-    if (W < p || H < p)
-        return ts__fail(ctx, TS_ERR_SIZE, "amplify",
-                        "the input (%d x %d cells) is smaller than a patch (%d cells)", W, H, p);
-    step = p / 2 > 0 ? p / 2 : 1;
+    amp_work wk;
+    memset(&wk, 0, sizeof wk);
+    /* the coarse cells under the window, and what each pass reads */
+    foot.x0 = X0 / F;
+    foot.y0 = Y0 / F;
+    foot.x1 = (X0 + out->width + F - 1) / F;
+    foot.y1 = (Y0 + out->height + F - 1) / F;
+    reg[R + 1] = foot;
+    for (pass = R; pass >= 1; pass--)
+        reg[pass] = rect_grow(reg[pass + 1], 2, W, H);
+    base = R > 0 ? reg[1] : foot;
+    whole = X0 == 0 && Y0 == 0 && out->width == W * F && out->height == H * F;
+    /* the patches over the base rectangle (global lattice) */
     xs = malloc((size_t)(W / step + 2) * sizeof *xs);
     ys = malloc((size_t)(H / step + 2) * sizeof *ys);
     if (!xs || !ys) {
@@ -225,7 +260,16 @@ TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dicti
     }
     nx = patch_origins(W, p, step, xs);
     ny = patch_origins(H, p, step, ys);
-    np = (size_t)nx * (size_t)ny;
+    for (c0 = 0; c0 < nx && xs[c0] + p <= base.x0; c0++)
+        ;
+    for (c1 = c0; c1 < nx && xs[c1] < base.x1; c1++)
+        ;
+    for (r0 = 0; r0 < ny && ys[r0] + p <= base.y0; r0++)
+        ;
+    for (r1 = r0; r1 < ny && ys[r1] < base.y1; r1++)
+        ;
+    ncols = c1 - c0;
+    np = (size_t)ncols * (size_t)(r1 - r0);
     ph = ts__malloc_array(np * (size_t)p * p, sizeof *ph);
     pu = ts__malloc_array(np * (size_t)p * p, sizeof *pu);
     pa = ts__malloc_array(np, sizeof *pa);
@@ -237,29 +281,26 @@ TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dicti
     win = malloc((size_t)p * p * sizeof *win);
     lwin = malloc((size_t)p * p * sizeof *lwin);
     window = malloc((size_t)P * sizeof *window);
+    resbuf =
+        ts__malloc_array((size_t)(base.x1 - base.x0) * (size_t)(base.y1 - base.y0), sizeof *resbuf);
     if (!ph || !pu || !pa || !ps || !pnorm || !best || !coef || !score || !win || !lwin ||
-        !window) {
+        !window || !resbuf) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu patches", np);
-        goto done;
-    }
-    if (ts_raster_alloc(ctx, W, H, &drain) != TS_OK ||
-        ts_drainage_area(ctx, coarse, &drain) != TS_OK) {
-        st = ctx->status;
         goto done;
     }
     /* the patches described as the atoms are (nodata cells take the patch's mean) */
     t0 = now_s();
-    for (cy = 0; cy < ny; cy++)
-        for (cx = 0; cx < nx; cx++) {
+    for (cy = r0; cy < r1; cy++)
+        for (cx = c0; cx < c1; cx++) {
             double m = 0, mu = 0, rms, um, urms;
             int nv = 0;
-            pi = (size_t)cy * (size_t)nx + (size_t)cx;
+            pi = (size_t)(cy - r0) * (size_t)ncols + (size_t)(cx - c0);
             for (j = 0; j < p; j++)
                 for (i = 0; i < p; i++) {
                     float v = TS_PIX(coarse, xs[cx] + i, ys[cy] + j);
                     if (!isnan(v)) {
                         m += v;
-                        mu += log1p(TS_PIX(&drain, xs[cx] + i, ys[cy] + j));
+                        mu += log1p(TS_PIX(drain, xs[cx] + i, ys[cy] + j));
                         nv++;
                     }
                 }
@@ -277,7 +318,7 @@ TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dicti
                     float v = TS_PIX(coarse, xs[cx] + i, ys[cy] + j);
                     win[j * p + i] = isnan(v) ? (float)m : v;
                     lwin[j * p + i] =
-                        isnan(v) ? (float)mu : (float)log1p(TS_PIX(&drain, xs[cx] + i, ys[cy] + j));
+                        isnan(v) ? (float)mu : (float)log1p(TS_PIX(drain, xs[cx] + i, ys[cy] + j));
                 }
             ts__amp_normalise(win, p * p, ph + pi * (size_t)p * p, &pa[pi], &rms);
             ts__amp_normalise(lwin, p * p, pu + pi * (size_t)p * p, &um, &urms);
@@ -298,27 +339,62 @@ TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dicti
         double sv = sin(3.14159265358979323846 * (i + 0.5) / P);
         window[i] = (float)(sv * sv);
     }
-    {
-        recon_job r = {coarse, dict, xs, ys, best, nx, ny, F, P, pa, pnorm, coef, window, out, 0};
-        ts__parallel_for(ctx, (size_t)out->height, recon_rows, &r);
-        if (r.fail) {
-            st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
-            goto done;
-        }
+    /* the working raster: the output itself for the whole grid */
+    if (whole) {
+        buf = *out;
+    } else if (ts_raster_alloc(ctx, (base.x1 - base.x0) * F, (base.y1 - base.y0) * F, &buf) !=
+               TS_OK) {
+        st = ctx->status;
+        goto done;
     }
-    if (params->refine > 0) {
-        if (ts_raster_alloc(ctx, W, H, &avg) != TS_OK) {
-            st = ctx->status;
-            goto done;
-        }
-        for (pass = 0; pass < params->refine; pass++) {
-            if ((st = back_project(ctx, coarse, F, out, &avg)) != TS_OK)
-                goto done;
-            if ((st = ts__progress(ctx, 0.9 + 0.1 * (pass + 1) / params->refine,
-                                   "back-projection")) != TS_OK)
-                goto done;
-        }
+    wk.coarse = coarse;
+    wk.dict = dict;
+    wk.F = F;
+    wk.p = p;
+    wk.P = P;
+    wk.W = W;
+    wk.H = H;
+    wk.xs = xs;
+    wk.ys = ys;
+    wk.c0 = c0;
+    wk.c1 = c1;
+    wk.r0 = r0;
+    wk.r1 = r1;
+    wk.best = best;
+    wk.pa = pa;
+    wk.pnorm = pnorm;
+    wk.coef = coef;
+    wk.window = window;
+    wk.buf = &buf;
+    wk.bx = base.x0 * F;
+    wk.by = base.y0 * F;
+    ts__parallel_for(ctx, (size_t)buf.height, recon_rows, &wk);
+    if (wk.fail) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
+        goto done;
     }
+    res.data = resbuf;
+    for (pass = 1; pass <= R; pass++) {
+        /* this pass updates what the next one reads (the last: the window) */
+        if (pass < R) {
+            wk.ux0 = reg[pass + 1].x0 * F;
+            wk.uy0 = reg[pass + 1].y0 * F;
+            wk.ux1 = reg[pass + 1].x1 * F;
+            wk.uy1 = reg[pass + 1].y1 * F;
+        } else {
+            wk.ux0 = X0;
+            wk.uy0 = Y0;
+            wk.ux1 = X0 + out->width;
+            wk.uy1 = Y0 + out->height;
+        }
+        back_project(ctx, &wk, reg[pass], &res);
+        if ((st = ts__progress(ctx, 0.9 + 0.1 * pass / R, "back-projection")) != TS_OK)
+            goto done;
+    }
+    if (!whole)
+        for (j = 0; j < out->height; j++)
+            memcpy(&TS_PIX(out, 0, j), &TS_PIX(&buf, X0 - wk.bx, Y0 + j - wk.by),
+                   (size_t)out->width * sizeof(float));
     if (info) {
         double sum = 0;
         size_t used = 0;
@@ -337,6 +413,8 @@ TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dicti
     }
     st = ts__progress(ctx, 1.0, "done");
 done:
+    if (!whole)
+        ts_raster_free(&buf);
     free(xs);
     free(ys);
     free(best);
@@ -350,7 +428,70 @@ done:
     free(win);
     free(lwin);
     free(window);
-    ts_raster_free(&drain);
-    ts_raster_free(&avg);
+    free(resbuf);
     return st;
+}
+
+/* The checks both entry points share. */
+static ts_status amp_check(ts_ctx *ctx, const ts_raster *coarse, const ts_dictionary *dict,
+                           const ts_amplify_params *params, const ts_raster *out)
+{
+    int F, p;
+    if (!coarse || !coarse->data || !dict || !params || !out || !out->data)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "missing input, dictionary or output");
+    if (ts_params_validate(ctx, "amplify", params) != TS_OK)
+        return ctx->status;
+    F = params->factor;
+    p = params->patch;
+    if (dict->factor != F || dict->patch != p)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify",
+                        "the dictionary was built for factor %d and patch %d, not %d and %d",
+                        dict->factor, dict->patch, F, p);
+    if (coarse->width < p || coarse->height < p)
+        return ts__fail(ctx, TS_ERR_SIZE, "amplify",
+                        "the input (%d x %d cells) is smaller than a patch (%d cells)",
+                        coarse->width, coarse->height, p);
+    return TS_OK;
+}
+
+TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dictionary *dict,
+                            const ts_amplify_params *params, ts_raster *out, ts_amplify_info *info)
+{
+    ts_raster drain = {0, 0, 0, NULL};
+    ts_status st;
+    ts__clear(ctx);
+    if (info)
+        memset(info, 0, sizeof *info);
+    if ((st = amp_check(ctx, coarse, dict, params, out)) != TS_OK)
+        return st;
+    if (out->width != coarse->width * params->factor ||
+        out->height != coarse->height * params->factor)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the output must be %d x %d cells",
+                        coarse->width * params->factor, coarse->height * params->factor);
+    if (ts_raster_alloc(ctx, coarse->width, coarse->height, &drain) != TS_OK ||
+        ts_drainage_area(ctx, coarse, &drain) != TS_OK)
+        st = ctx->status;
+    else
+        st = amp_window(ctx, coarse, &drain, dict, params, 0, 0, out, info);
+    ts_raster_free(&drain);
+    return st;
+}
+
+TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raster *drainage,
+                                   const ts_dictionary *dict, const ts_amplify_params *params,
+                                   int x0, int y0, ts_raster *out, ts_amplify_info *info)
+{
+    ts_status st;
+    ts__clear(ctx);
+    if (info)
+        memset(info, 0, sizeof *info);
+    if ((st = amp_check(ctx, coarse, dict, params, out)) != TS_OK)
+        return st;
+    if (!drainage || drainage->width != coarse->width || drainage->height != coarse->height)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the drainage area must be on the input grid");
+    if (x0 < 0 || y0 < 0 || x0 + out->width > coarse->width * params->factor ||
+        y0 + out->height > coarse->height * params->factor)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the window %d,%d %dx%d is outside the output",
+                        x0, y0, out->width, out->height);
+    return amp_window(ctx, coarse, drainage, dict, params, x0, y0, out, info);
 }
