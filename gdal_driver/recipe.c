@@ -205,6 +205,7 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
             tsio_errf(err, r->path, "%s", msg);
             return -1;
         }
+        r->amplify.lazy = 1; /* computed block by block: recipe_read_window */
         return tsjob_amplify_prepare(&r->amplify, &r->amplify_res, err);
     }
     if (tsj_build_synth(&r->values, &r->synth, &r->seed, msg, sizeof msg) != 0) {
@@ -509,13 +510,10 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
         if (rc == 0)
             rc = tsjob_ppa_compute(ctx, &r->ppa, &r->ppa_res, err);
     } else if (r->method == RECIPE_AMPLIFY) {
-        rc = tsjob_amplify_compute(ctx, &r->amplify, &r->amplify_res, err);
-        if (rc == 0) {
-            n = (size_t)r->amplify_res.out.width * (size_t)r->amplify_res.out.height;
-            for (i = 0; i < n; i++)
-                if (isnan(r->amplify_res.out.data[i]))
-                    r->amplify_res.out.data[i] = -9999.0f;
-        }
+        /* what every block shares; the blocks themselves: recipe_read_window */
+        rc = tsjob_amplify_setup(ctx, &r->amplify, &r->amplify_res, err);
+        if (rc == 0 && r->amplify_res.warning.msg[0])
+            CPLError(CE_Warning, CPLE_AppDefined, "%s", r->amplify_res.warning.msg);
     } else {
         rc = tsjob_synth_compute(ctx, &r->synth, &r->synth_res, r->map >= 0, err);
         if (rc == 0 && r->synth_res.warning.msg[0])
@@ -541,12 +539,39 @@ const void *recipe_data(const ts_recipe *r)
     if (r->method == RECIPE_PPA)
         return r->ppa_res.codes;
     if (r->method == RECIPE_AMPLIFY)
-        return r->amplify_res.out.data;
+        return NULL; /* lazy: recipe_read_window */
     if (r->map == TSJOB_MAP_SEAMS)
         return r->synth_res.maps.seams;
     if (r->map >= 0)
         return tsjob_synth_int_map(&r->synth_res, r->map);
     return r->synth_res.out.data;
+}
+
+int recipe_lazy(const ts_recipe *r)
+{
+    return r->method == RECIPE_AMPLIFY;
+}
+
+int recipe_read_window(const ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err)
+{
+    ts_ctx *ctx;
+    size_t i, n = (size_t)w * (size_t)h;
+    int rc;
+    if (!r->computed || r->method != RECIPE_AMPLIFY) {
+        tsio_errf(err, r->path, "not computed");
+        return -1;
+    }
+    ctx = ts_ctx_new();
+    if (!ctx) {
+        tsio_errf(err, r->path, "out of memory");
+        return -1;
+    }
+    rc = tsjob_amplify_window(ctx, &r->amplify, &r->amplify_res, x0, y0, w, h, out, err);
+    ts_ctx_free(ctx);
+    for (i = 0; rc == 0 && i < n; i++)
+        if (isnan(out[i]))
+            out[i] = -9999.0f; /* nodata as the driver declares it */
+    return rc;
 }
 
 /* ------------------------------------------------------------------ */

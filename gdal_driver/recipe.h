@@ -42,6 +42,12 @@ double recipe_nodata(const ts_recipe *r);
  *  On success recipe_data gives width*height cells of recipe_gdal_type. */
 int recipe_compute(ts_recipe *r, tsio_err *err);
 const void *recipe_data(const ts_recipe *r);
+/** A lazy recipe (amplify) keeps no whole output: after recipe_compute (what
+ *  every block shares), recipe_read_window computes the cells [x0, x0+w) x
+ *  [y0, y0+h) (Float32, nodata -9999), the same bytes as the whole would
+ *  have; thread-safe. */
+int recipe_lazy(const ts_recipe *r);
+int recipe_read_window(const ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err);
 
 /** Write a recipe for a job from what a front end was given (jobspec.h;
  *  temporary file + rename).  Input paths are stored relative to the

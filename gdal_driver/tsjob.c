@@ -829,33 +829,59 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
     tsio_georef g;
     const ts_amplify_params *p = &job->params;
     uint64_t need, atoms_total = 0, biggest = 0, cells_out;
+    double *dx = NULL, *dy = NULL, out_area = 0;
     int F = p->factor, i, rc;
     memset(res, 0, sizeof *res);
     if (tsio_read_georef(job->input, &g, err) != 0)
         return -1;
     cells_out = (uint64_t)g.width * F * (uint64_t)g.height * F;
-    need = JOB_MEM_BASE + (uint64_t)g.width * g.height * 48 + cells_out * 8;
+    /* served window by window, the output is never whole in memory */
+    need = JOB_MEM_BASE + (uint64_t)g.width * g.height * 48 + (job->lazy ? 0 : cells_out * 8);
+    /* the ground size of an output cell, to count the exemplars' cells at it */
+    if (tsio_georef_metrics(&g, &dx, &dy, err) == 0 && dx)
+        out_area = dx[g.height / 2] * dy[g.height / 2] / ((double)F * F);
+    else if (job->cell_size > 0)
+        out_area = job->cell_size * job->cell_size / ((double)F * F);
+    free(dx);
+    free(dy);
     tsio_georef_free(&g);
     for (i = 0; i < job->n_exemplars; i++) {
         tsio_georef e;
-        uint64_t src, atoms;
+        uint64_t src, tgt;
+        double *ex = NULL, *ey = NULL, ratio = 1.0;
         if (tsio_read_georef(job->exemplars[i], &e, err) != 0)
             return -1;
         src = (uint64_t)e.width * (uint64_t)e.height;
+        if (out_area > 0 && tsio_georef_metrics(&e, &ex, &ey, err) == 0 && ex)
+            ratio = ex[e.height / 2] * ey[e.height / 2] / out_area;
+        free(ex);
+        free(ey);
         tsio_georef_free(&e);
-        atoms = (uint64_t)p->atoms;
-        atoms_total += atoms;
-        need += src * 16; /* as read and at the output's resolution (about as many cells) */
+        tgt = (uint64_t)((double)src * ratio + 1.0);
+        atoms_total += (uint64_t)p->atoms;
+        need += src * 4 + tgt * 16; /* as read, and at the output's resolution */
         if (src > biggest)
             biggest = src;
+        if (ratio > 4.0 && !res->warning.msg[0])
+            tsio_errf(&res->warning, job->exemplars[i],
+                      "its cells are %.1f times the output's on the ground: its detail is "
+                      "interpolated, not real (an exemplar at the output's resolution or finer "
+                      "gives real detail)",
+                      sqrt(ratio));
     }
     need += biggest * JOB_MEM_EX_SOURCE_CELL;
     need += atoms_total * ((uint64_t)p->patch * p->patch * ((uint64_t)F * F + 2) * 4 + 64);
-    if (tsio_check_memory(need, "amplify", "a smaller input, a smaller factor or fewer atoms",
+    if (tsio_check_memory(need, "amplify",
+                          "a smaller input, a smaller factor, fewer atoms or "
+                          "exemplars nearer the output's resolution",
                           err) != 0)
         return -1;
-    if (tsio_read_dem(job->input, job->band, &res->in, err) != 0)
-        return -1;
+    {
+        tsio_err keep = res->warning;
+        if (tsio_read_dem(job->input, job->band, &res->in, err) != 0)
+            return -1;
+        res->warning = keep;
+    }
     job_warn_sentinels(&res->warning, job->input, &res->in);
     if (res->in.geo.width < p->patch || res->in.geo.height < p->patch) {
         tsio_errf(err, job->input, "%d x %d cells is smaller than a patch (%d cells)",
@@ -874,20 +900,16 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
     return 0;
 }
 
-int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
-                          tsio_err *err)
+int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
+                        tsio_err *err)
 {
     tsio_raster ex[TSJOB_MAX_EXEMPLARS];
     ts_raster exr[TSJOB_MAX_EXEMPLARS];
-    ts_dictionary *dict = NULL;
     int i, rc = -1, cy = res->in.geo.height / 2, F = job->params.factor;
     double in_dx = res->in.dx_m ? res->in.dx_m[cy] : job->cell_size;
     double in_dy = res->in.dy_m ? res->in.dy_m[cy] : job->cell_size;
-    double t0;
     struct timespec ts0, ts1;
-    job_progress jp;
     memset(ex, 0, sizeof ex);
-    ts_ctx_get_progress(ctx, &jp.fn, &jp.user);
     for (i = 0; i < job->n_exemplars; i++) {
         double f = 1.0;
         if (tsio_read_raster_resampled(job->exemplars[i], job->band, in_dx > 0 ? in_dx / F : 0,
@@ -900,37 +922,69 @@ int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_r
         exr[i] = ex[i].r;
     }
     clock_gettime(CLOCK_MONOTONIC, &ts0);
-    job_progress_range(ctx, &jp, 0.0, 0.2);
-    if (ts_dictionary_build(ctx, exr, job->n_exemplars, &job->params, &dict) != TS_OK) {
+    if (ts_dictionary_build(ctx, exr, job->n_exemplars, &job->params, &res->dict) != TS_OK) {
         int bad = ts_ctx_failed_input(ctx);
         tsio_errf(err, bad >= 0 && bad < job->n_exemplars ? job->exemplars[bad] : "amplify", "%s",
                   ts_ctx_message(ctx));
         goto done;
     }
     clock_gettime(CLOCK_MONOTONIC, &ts1);
-    t0 = (double)(ts1.tv_sec - ts0.tv_sec) + 1e-9 * (double)(ts1.tv_nsec - ts0.tv_nsec);
-    res->seconds_dictionary = t0;
-    res->n_atoms = ts_dictionary_size(dict);
+    res->seconds_dictionary =
+        (double)(ts1.tv_sec - ts0.tv_sec) + 1e-9 * (double)(ts1.tv_nsec - ts0.tv_nsec);
+    res->n_atoms = ts_dictionary_size(res->dict);
+    if (ts_raster_alloc(ctx, res->in.r.width, res->in.r.height, &res->drain) != TS_OK ||
+        ts_drainage_area(ctx, &res->in.r, &res->drain) != TS_OK) {
+        tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
+        goto done;
+    }
+    rc = 0;
+done:
+    for (i = 0; i < job->n_exemplars; i++)
+        tsio_raster_free(&ex[i]);
+    return rc;
+}
+
+int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
+                         int x0, int y0, int w, int h, float *out, tsio_err *err)
+{
+    ts_raster o = ts_raster_wrap(out, w, h, w);
+    if (ts_amplify_window(ctx, &res->in.r, &res->drain, res->dict, &job->params, x0, y0, &o,
+                          NULL) != TS_OK) {
+        tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
+        return -1;
+    }
+    return 0;
+}
+
+int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
+                          tsio_err *err)
+{
+    job_progress jp;
+    int rc = -1;
+    ts_ctx_get_progress(ctx, &jp.fn, &jp.user);
+    job_progress_range(ctx, &jp, 0.0, 0.2);
+    if (tsjob_amplify_setup(ctx, job, res, err) != 0)
+        goto done;
     if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
         tsio_errf(err, "amplify", "%s", ts_ctx_message(ctx));
         goto done;
     }
     job_progress_range(ctx, &jp, 0.2, 1.0);
-    if (ts_amplify(ctx, &res->in.r, dict, &job->params, &res->out, &res->info) != TS_OK) {
+    if (ts_amplify_window(ctx, &res->in.r, &res->drain, res->dict, &job->params, 0, 0, &res->out,
+                          &res->info) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
         goto done;
     }
     rc = 0;
 done:
     ts_ctx_set_progress(ctx, jp.fn, jp.user);
-    ts_dictionary_free(dict);
-    for (i = 0; i < job->n_exemplars; i++)
-        tsio_raster_free(&ex[i]);
     return rc;
 }
 
 void tsjob_amplify_result_free(tsjob_amplify_result *res)
 {
+    ts_dictionary_free(res->dict);
+    ts_raster_free(&res->drain);
     tsio_raster_free(&res->in);
     tsio_georef_free(&res->geo);
     ts_raster_free(&res->out);

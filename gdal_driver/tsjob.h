@@ -178,6 +178,7 @@ typedef struct tsjob_amplify {
     int band;
     double cell_size;
     ts_amplify_params params;
+    int lazy; /* served window by window (the driver): no whole output */
 } tsjob_amplify;
 
 typedef struct tsjob_amplify_result {
@@ -189,12 +190,21 @@ typedef struct tsjob_amplify_result {
     double seconds_dictionary;
     int exemplar_no_crs; /* index+1 of an exemplar used cell for cell, or 0 */
     tsio_err warning;
+    ts_dictionary *dict; /* after tsjob_amplify_setup (owned) */
+    ts_raster drain;     /* the input's drainage area (owned) */
 } tsjob_amplify_result;
 
 /** Read and check the input, resolve the output grid, estimate the memory. */
 int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, tsio_err *err);
 /** Read the exemplars at the output's ground resolution, build the
- *  dictionary and amplify. */
+ *  dictionary and the input's drainage area (what every window shares). */
+int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
+                        tsio_err *err);
+/** After setup: output cells [x0, x0+w) x [y0, y0+h) into out (w*h floats,
+ *  NaN = nodata), the same bytes as that window of the whole. */
+int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
+                         int x0, int y0, int w, int h, float *out, tsio_err *err);
+/** Setup, then the whole output into res->out. */
 int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                           tsio_err *err);
 void tsjob_amplify_result_free(tsjob_amplify_result *res);

@@ -3,11 +3,14 @@
  * API requires (GDAL 3.6 has no C hook for Open/Identify).  Everything else
  * is C: recipe.c parses and computes, pixfun.c holds the VRT pixel
  * functions.  A recipe is computed once, on the first block read, under a
- * mutex, and served block by block from that cache.
+ * mutex, and served block by block from that cache; a lazy one (amplify)
+ * computes only what every block shares then, and each block on its own.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
+#include <algorithm>
 #include <cstring>
+#include <vector>
 
 #include "cpl_multiproc.h"
 #include "gdal_pam.h"
@@ -140,6 +143,24 @@ CPLErr TSYNRasterBand::IReadBlock(int bx, int by, void *image)
     auto *ds = static_cast<TSYNDataset *>(poDS);
     if (!ds->Compute())
         return CE_Failure;
+    if (recipe_lazy(ds->m_recipe)) {
+        /* computed block by block (with the margin it needs), never whole */
+        const int x0 = bx * nBlockXSize, y0 = by * nBlockYSize;
+        const int w = std::min(nBlockXSize, nRasterXSize - x0);
+        const int h = std::min(nBlockYSize, nRasterYSize - y0);
+        std::vector<float> cells(static_cast<size_t>(w) * h);
+        tsio_err err;
+        if (recipe_read_window(ds->m_recipe, x0, y0, w, h, cells.data(), &err) != 0) {
+            CPLError(CE_Failure, CPLE_AppDefined, "%s", err.msg);
+            return CE_Failure;
+        }
+        auto *dst = static_cast<float *>(image);
+        std::fill(dst, dst + static_cast<size_t>(nBlockXSize) * nBlockYSize, -9999.0f);
+        for (int y = 0; y < h; y++)
+            std::memcpy(dst + static_cast<size_t>(y) * nBlockXSize,
+                        cells.data() + static_cast<size_t>(y) * w, static_cast<size_t>(w) * 4);
+        return CE_None;
+    }
     const auto *data = static_cast<const GByte *>(recipe_data(ds->m_recipe));
     const int size = GDALGetDataTypeSizeBytes(eDataType);
     const int x0 = bx * nBlockXSize, y0 = by * nBlockYSize;

@@ -128,3 +128,49 @@ def test_super_resolution_beats_cubic(tmp_path, fine, exemplar, factor):
         fig[name] = (m["slope_w1_deg"], float(np.sqrt(np.mean((a - z) ** 2))))
     assert fig["amp"][0] <= 0.5 * fig["cubic"][0], fig
     assert fig["amp"][1] <= 1.2 * fig["cubic"][1], fig
+
+
+def test_recipe_is_lazy_window_equals_whole(tmp_path):
+    """gdal_translate -srcwin and ReadAsArray windows of an amplify recipe are the same bytes
+    as the same windows of the command line's whole output (the driver computes only the
+    blocks asked for, with the margin they need)."""
+    args = ["--exemplar", JACKSBORO, "--factor", "5"]
+    run("amplify", JACKSBORO, tmp_path / "cli.tif", *args, "-q")
+    run("amplify", JACKSBORO, *args, "--recipe", tmp_path / "a.tsyn")
+    whole = gdal.Open(str(tmp_path / "cli.tif")).ReadAsArray()
+    code = ("import sys; from osgeo import gdal; import numpy as np; gdal.UseExceptions()\n"
+            "ds = gdal.Open(sys.argv[1]); b = ds.GetRasterBand(1)\n"
+            "for x, y, w, h in ((0, 0, 300, 200), (1700, 1500, 315, 220), (777, 333, 1, 1)):\n"
+            "    sys.stdout.buffer.write(b.ReadAsArray(x, y, w, h).astype('<f4').tobytes())\n")
+    p = subprocess.run([sys.executable, "-c", code, str(tmp_path / "a.tsyn")],
+                       capture_output=True, env=plugin_env(PLUGINS), check=True)
+    got = np.frombuffer(p.stdout, "<f4")
+    want = np.concatenate([whole[0:200, 0:300].ravel(), whole[1500:1720, 1700:2015].ravel(),
+                           whole[333:334, 777:778].ravel()]).astype("<f4")
+    assert got.tobytes() == want.tobytes()
+
+
+@pytest.mark.skipif(bool(os.environ.get("TS_TOOL_PRELOAD")),
+                    reason="sanitizers multiply the memory a run takes")
+def test_a_huge_recipe_reads_a_window_in_little_memory(tmp_path):
+    """A 2048 x 2048 input amplified x16 is 32768 x 32768 cells (4 GB of Float32): the
+    driver opens it and serves a window in a small fraction of that.  The input's cells are
+    16 times the exemplar's, so the exemplar is at the output's resolution."""
+    src = gdal.Open(JACKSBORO)
+    z = src.ReadAsArray().astype(np.float32)
+    tiled = np.tile(np.concatenate([z, z[::-1]], axis=0), (4, 6))[:2048, :2048]
+    big = tmp_path / "big.tif"
+    res = src.GetGeoTransform()[1] * 16
+    write(big, np.ascontiguousarray(tiled), (-100, res, 0, 40, 0, -res), src.GetProjection())
+    run("amplify", big, "--exemplar", JACKSBORO, "--factor", "16", "--recipe",
+        tmp_path / "huge.tsyn")
+    code = ("import sys; from osgeo import gdal; gdal.UseExceptions()\n"
+            "ds = gdal.Open(sys.argv[1]); assert ds.RasterXSize == 32768\n"
+            "a = ds.GetRasterBand(1).ReadAsArray(16000, 16000, 512, 512)\n"
+            "assert a.shape == (512, 512) and (a > -9999).all()\n")
+    argv = [sys.executable, "-c", code, str(tmp_path / "huge.tsyn")]
+    pid = os.posix_spawn(argv[0], argv, plugin_env(PLUGINS))
+    _, status, usage = os.wait4(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    peak_mb = usage.ru_maxrss / 1024
+    assert peak_mb < 600, peak_mb  # the whole output alone would be 4096 MB
