@@ -7,6 +7,7 @@ from qgis.core import Qgis, QgsMessageLog, QgsProcessingException, QgsProcessing
 from qgis.PyQt.QtGui import QIcon
 
 from . import descriptors, runner
+from .algorithms.amplify import AmplifyAlgorithm
 from .algorithms.ppa import PpaAlgorithm
 from .algorithms.synth import SynthAlgorithm
 
@@ -16,7 +17,7 @@ except ImportError:  # pragma: no cover
     ProcessingConfig = Setting = None
 
 # The explicit list of algorithms; a new `terrasynth` stage adds its class here.
-ALGORITHMS = (PpaAlgorithm, SynthAlgorithm)
+ALGORITHMS = (PpaAlgorithm, SynthAlgorithm, AmplifyAlgorithm)
 
 ICON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "icon.svg")
 

@@ -30,9 +30,10 @@ gdal.UseExceptions()
 pytestmark = pytest.mark.usefixtures("qgis_app")
 
 ALGORITHMS = {"ppa": ("Extract ridges and valleys (PPA)", "Terrain analysis"),
-              "synth": ("Synthesize terrain", "Terrain synthesis")}
+              "synth": ("Synthesize terrain", "Terrain synthesis"),
+              "amplify": ("Amplify a coarse DEM", "Terrain synthesis")}
 # the descriptor tables of `terrasynth describe` each algorithm shows
-DESCRIPTOR_STAGES = {"ppa": ("ppa",), "synth": ("synth", "sketch")}
+DESCRIPTOR_STAGES = {"ppa": ("ppa",), "synth": ("synth", "sketch"), "amplify": ("amplify",)}
 ALG_STAGES = [(alg, st) for alg in sorted(DESCRIPTOR_STAGES) for st in DESCRIPTOR_STAGES[alg]]
 # parameters that are not the core's descriptors, and the CLI flag each maps to
 # (None: a positional file or an output QGIS reports, not a CLI option)
@@ -49,6 +50,9 @@ OTHER_FLAGS = {
               "WATER_MASK": "--water", "WATER_LEVEL": "--water-level", "REGIONS": "--regions",
               "REGION_EXEMPLARS": "--region-exemplar", "HEIGHTS": "--heights",
               "ALPHA_H": "--alpha-h"},
+    "amplify": {"INPUT": None, "EXEMPLARS": "--exemplar", "BAND": "--band",
+                "CELL_SIZE": "--cell-size", "THREADS": "--threads", "OUTPUT": None,
+                "PREVIEW": "--preview"},
 }
 # parameters whose flag is not --<name in kebab case>
 IRREGULAR_FLAGS = ("--size", "--origin", "--resolution", "--exemplar", "--pin", "--water", "--region-exemplar")
@@ -78,11 +82,12 @@ def raster_info(path):
 
 # --------------------------------------------------------------------------- registration
 
-def test_provider_registered_with_both_algorithms():
+def test_provider_registered_with_every_algorithm():
     provider = registry().providerById("terrasynth")
     assert provider is not None
     assert provider.name() == "TerraSynth"
-    assert sorted(a.id() for a in provider.algorithms()) == ["terrasynth:ppa", "terrasynth:synth"]
+    assert sorted(a.id() for a in provider.algorithms()) == sorted(
+        "terrasynth:" + name for name in ALGORITHMS)
     for name, (display, group) in ALGORITHMS.items():
         alg = registry().algorithmById("terrasynth:" + name)
         assert alg.displayName() == display
@@ -728,6 +733,23 @@ def test_synth_extent_grid(jacksboro, cli, tmp_path):
     srs = osr.SpatialReference(wkt=ds.GetProjection())
     srs.AutoIdentifyEPSG()
     assert srs.GetAuthorityCode(None) == "32616"
+
+
+def test_amplify_command_line_and_run(jacksboro, cli, tmp_path):
+    out, png = tmp_path / "fine.tif", tmp_path / "fine.png"
+    params = {"INPUT": jacksboro, "EXEMPLARS": [jacksboro], "FACTOR": 2, "PATCH": 8,
+              "W_U": 0, "OUTPUT": str(out), "PREVIEW": str(png)}
+    argv, _ = build("terrasynth:amplify", params)
+    assert argv[:2] == ["/x/terrasynth", "amplify"] and argv[-2:] == [jacksboro, str(out)]
+    kv = pairs(argv)
+    assert kv["--exemplar"] == jacksboro and kv["--factor"] == "2" and kv["--patch"] == "8"
+    assert kv["--w-u"] == "0" and kv["--preview"] == str(png)
+    res = processing_run("terrasynth:amplify", params)
+    assert res["OUTPUT"] == str(out) and res["PREVIEW"] == str(png)
+    ds, src = gdal.Open(str(out)), gdal.Open(jacksboro)
+    assert (ds.RasterXSize, ds.RasterYSize) == (2 * src.RasterXSize, 2 * src.RasterYSize)
+    gt, sg = ds.GetGeoTransform(), src.GetGeoTransform()
+    assert gt == pytest.approx((sg[0], sg[1] / 2, 0, sg[3], 0, sg[5] / 2))
 
 
 # --------------------------------------------------------------------------- cancel

@@ -102,6 +102,15 @@ def test_run_synth_over_an_extent(env, jacksboro, tmp_path):
     assert srs.GetAuthorityCode(None) == "32616"  # the extent's CRS, not the exemplar's 4326
 
 
+def test_run_amplify(env, jacksboro, tmp_path):
+    out = tmp_path / "fine.tif"
+    p = qgis_process(env, "run", "terrasynth:amplify", "--json", "--", "INPUT=%s" % jacksboro,
+                     "EXEMPLARS=%s" % jacksboro, "FACTOR=2", "OUTPUT=%s" % out)
+    assert p.returncode == 0, p.stdout + p.stderr
+    ds, src = gdal.Open(str(out)), gdal.Open(jacksboro)
+    assert (ds.RasterXSize, ds.RasterYSize) == (2 * src.RasterXSize, 2 * src.RasterYSize)
+
+
 def test_run_error_exit_status(env, jacksboro, tmp_path):
     p = qgis_process(env, "run", "terrasynth:ppa", "--", "INPUT=%s" % jacksboro, "BAND=7",
                      "OUTPUT=%s" % (tmp_path / "a.tif"))

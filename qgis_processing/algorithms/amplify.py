@@ -1,0 +1,128 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""terrasynth:amplify - a coarse DEM made finer with the detail of real terrain
+(`terrasynth amplify`, Argudo et al. 2017).  The core's parameters come from the
+"amplify" descriptor table of `terrasynth describe`."""
+import os
+
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingException,
+    QgsProcessingParameterDefinition,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterMultipleLayers,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterDestination,
+    QgsProcessingParameterRasterLayer,
+)
+
+from .base import TerraSynthAlgorithm, gdal_source, is_set
+
+# Condensed from algorithms/docs/amplify.md (the manual page).
+HELP = """
+<p>Makes a <b>coarse DEM finer</b> with the detail of real terrain (Argudo et al. 2017,
+<i>Coherent multi-layer landscape synthesis</i>). Runs <code>terrasynth amplify</code>.
+Where <i>Warp (reproject)</i> with cubic resampling gives smooth slopes, this gives the
+gullies and crests of the exemplars' terrain; averaged back by the factor, the output is the
+input.</p>
+<ol>
+<li><b>Dictionary</b>: the exemplars (resampled to the output's ground resolution) are
+area-averaged by the factor; atoms are their windows of <i>Patch</i> cells with the fine
+windows above them, described by shape, mean altitude, slope (mean deviation) and drainage
+area.</li>
+<li><b>Matching</b>: the input is cut into patches overlapping by half; each takes the atom
+that scores best on g = w_h g_h + w_a g_a + w_s g_s + w_u g_u, keeping orientation (a ridge is
+never matched by an inverted valley).</li>
+<li><b>Replacement and blending</b>: each patch is replaced by its atom's fine window, scaled
+to the patch's relief, and patches are blended with a falloff.</li>
+<li><b>Back-projection</b> (our addition, <i>refine</i> passes): what the atoms do not
+explain is added back smoothly, so the output averages back to the input.</li>
+</ol>
+<h3>Outputs</h3>
+<ul>
+<li><b>Amplified DEM</b>: Float32 on the input's extent and CRS, <i>Factor</i> times finer,
+nodata -9999 where the input is nodata.</li>
+<li><b>Preview</b> (optional PNG): hillshade of the result.</li>
+</ul>
+<p>Outputs are written to temporary names and moved into place together: a failed or canceled
+run leaves no file. Same inputs give the same bytes.</p>
+"""
+
+
+class AmplifyAlgorithm(TerraSynthAlgorithm):
+    STAGE = "amplify"
+    POSITIONAL = ("input", "output")
+    NAME = "amplify"
+    DISPLAY_NAME = "Amplify a coarse DEM"
+    GROUP = "Terrain synthesis"
+    GROUP_ID = "terrainsynthesis"
+    HELP = HELP
+    LABELS = {"factor": "Factor (output cells per input cell)", "patch": "Patch (input cells)",
+              "atoms": "Atoms per exemplar", "w_h": "Shape weight (w_h)",
+              "w_a": "Altitude weight (w_a)", "w_s": "Slope weight (w_s)",
+              "w_u": "Drainage weight (w_u)", "refine": "Back-projection passes"}
+    ADVANCED = ("atoms", "w_h", "w_a", "w_s", "w_u", "refine")
+
+    INPUT = "INPUT"
+    EXEMPLARS = "EXEMPLARS"
+    BAND = "BAND"
+    CELL_SIZE = "CELL_SIZE"
+    THREADS = "THREADS"
+    OUTPUT = "OUTPUT"
+    PREVIEW = "PREVIEW"
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.addParameter(QgsProcessingParameterRasterLayer(self.INPUT,
+                                                            self.tr("Coarse DEM")))
+        ex = QgsProcessingParameterMultipleLayers(self.EXEMPLARS, self.tr("Exemplar DEMs"),
+                                                  QgsProcessing.TypeRaster)
+        ex.setMinimumNumberInputs(1)
+        ex.setHelp("Real DEMs whose detail the output takes (--exemplar), best at the "
+                   "output's resolution or finer.")
+        self.addParameter(ex)
+        self.addDescriptorParameters()
+        Number = QgsProcessingParameterNumber
+        band = Number(self.BAND, self.tr("Band of every input"), Number.Integer,
+                      defaultValue=1, minValue=1, maxValue=65535)
+        band.setHelp("Band read from the input and the exemplars (--band).")
+        cell = Number(self.CELL_SIZE, self.tr("Cell size for rasters without CRS (metres)"),
+                      Number.Double, optional=True, minValue=0.0, maxValue=1e7)
+        cell.setHelp("Ground size of a cell in metres, for rasters with no CRS (--cell-size).")
+        threads = Number(self.THREADS, self.tr("Threads (0 = all cores)"), Number.Integer,
+                         defaultValue=0, minValue=0, maxValue=256)
+        threads.setHelp("Worker threads (--threads); results never depend on it.")
+        for p in (band, cell, threads):
+            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            self.addParameter(p)
+        self.addParameter(QgsProcessingParameterRasterDestination(
+            self.OUTPUT, self.tr("Amplified DEM")))
+        self.addParameter(QgsProcessingParameterFileDestination(
+            self.PREVIEW, self.tr("Preview"), fileFilter="PNG files (*.png)", optional=True,
+            createByDefault=False))
+
+    def checkJob(self, parameters, context):  # noqa: N802
+        if is_set(parameters, self.CELL_SIZE) and \
+                self.parameterAsDouble(parameters, self.CELL_SIZE, context) <= 0:
+            raise QgsProcessingException("CELL_SIZE must be a positive number of metres")
+
+    def prepareJob(self, parameters, context):  # noqa: N802
+        layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)
+        if layer is None:
+            raise QgsProcessingException(self.invalidRasterError(parameters, self.INPUT))
+        layers = self.parameterAsLayerList(parameters, self.EXEMPLARS, context)
+        exemplars = [gdal_source(lyr, self.EXEMPLARS) for lyr in layers]
+        output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
+        preview = self.parameterAsFileOutput(parameters, self.PREVIEW, context) or ""
+        if preview and os.path.splitext(preview)[1].lower() != ".png":
+            raise QgsProcessingException("PREVIEW must be a .png file, not %s" % preview)
+        cell = (self.parameterAsDouble(parameters, self.CELL_SIZE, context)
+                if is_set(parameters, self.CELL_SIZE) else None)
+        options = [("exemplar", exemplars),
+                   ("band", self.parameterAsInt(parameters, self.BAND, context)),
+                   ("cell_size", cell),
+                   ("threads", self.parameterAsInt(parameters, self.THREADS, context)),
+                   ("preview", preview)]
+        results = {self.OUTPUT: output}
+        if preview:
+            results[self.PREVIEW] = preview
+        return {"positional": [gdal_source(layer, self.INPUT), output], "options": options,
+                "outputs": [output, preview], "results": results}
