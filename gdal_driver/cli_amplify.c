@@ -102,8 +102,9 @@ int cli_amplify(int argc, char **argv)
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
-    if (res.warning.msg[0])
+    if (res.warning.msg[0]) /* from the inputs' sizes and values: even with -q */
         fprintf(stderr, "terrasynth: warning: %s\n", res.warning.msg);
+    res.warning.msg[0] = '\0';
     ts_ctx_set_threads(ctx, co.threads);
     cli_set_progress(ctx, co.progress, &progress_state);
     if (tsjob_amplify_compute(ctx, &job, &res, &err) != 0 ||
@@ -116,7 +117,7 @@ int cli_amplify(int argc, char **argv)
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;
     }
-    if (res.warning.msg[0] && !strstr(res.warning.msg, job.input))
+    if (res.warning.msg[0]) /* from the exemplars */
         fprintf(stderr, "terrasynth: warning: %s\n", res.warning.msg);
     if (res.exemplar_no_crs && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",

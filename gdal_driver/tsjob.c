@@ -932,6 +932,11 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
     res->seconds_dictionary =
         (double)(ts1.tv_sec - ts0.tv_sec) + 1e-9 * (double)(ts1.tv_nsec - ts0.tv_nsec);
     res->n_atoms = ts_dictionary_size(res->dict);
+    if (res->n_atoms < 256 && !res->warning.msg[0])
+        tsio_errf(&res->warning, job->exemplars[0],
+                  "only %zu atoms: the exemplars cover little ground at the output's resolution "
+                  "(%.3g m), so their patterns repeat; give larger exemplars",
+                  res->n_atoms, in_dx > 0 ? in_dx / F : 0.0);
     if (ts_raster_alloc(ctx, res->in.r.width, res->in.r.height, &res->drain) != TS_OK ||
         ts_drainage_area(ctx, &res->in.r, &res->drain) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
