@@ -24,7 +24,8 @@ EXEMPLAR = os.path.join(DEM, "mountains_mackay_id_30m.tif")
 
 
 def spawn(argv):
-    """Wall seconds, peak resident MB and standard output of argv (spawned, not forked)."""
+    """Wall seconds, peak resident MB and standard output of argv (spawned, not forked;
+    the peak may include this small Python's pages from before the exec)."""
     r, w = os.pipe()
     t0 = time.monotonic()
     pid = os.posix_spawn(argv[0], argv, dict(os.environ),
