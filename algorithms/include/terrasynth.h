@@ -622,6 +622,17 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, in
 TS_API size_t ts_dictionary_size(const ts_dictionary *dict);
 TS_API void ts_dictionary_free(ts_dictionary *dict);
 
+/** A dictionary as bytes, to build once and reuse (the caller writes and
+ *  reads them: the core does no file I/O).  Little-endian whatever the
+ *  machine, versioned; from_bytes checks every size against `len` (a file is
+ *  untrusted).  *bytes is freed with free(). */
+TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
+                                        unsigned char **bytes, size_t *len);
+TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *bytes, size_t len,
+                                          ts_dictionary **out);
+/** The factor and patch a dictionary was built for. */
+TS_API void ts_dictionary_shape(const ts_dictionary *dict, int *factor, int *patch);
+
 /** What ts_amplify did (may be NULL). */
 typedef struct ts_amplify_info {
     size_t n_patches, n_atoms;

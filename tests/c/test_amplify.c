@@ -358,6 +358,63 @@ static void test_windows_equal_the_whole(void)
     ts_ctx_free(ctx);
 }
 
+/* A dictionary through bytes gives the same output; damaged bytes are
+ * refused with a message, never read past their end. */
+static void test_dictionary_bytes(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_amplify_params p = ts_amplify_params_default();
+    ts_raster ex = make_terrain(ctx, 200, 180, 51), in = make_terrain(ctx, 30, 26, 52), a, b;
+    ts_dictionary *D = NULL, *E = NULL;
+    unsigned char *bytes = NULL, *bad;
+    size_t len = 0, k;
+    int f, pa;
+    uint64_t rng = 9;
+    p.factor = 3;
+    CHECK(ts_dictionary_build(ctx, &ex, 1, &p, &D) == TS_OK);
+    CHECK(ts_dictionary_to_bytes(ctx, D, &bytes, &len) == TS_OK);
+    CHECK(memcmp(bytes, "TSDICT\r\n", 8) == 0 && bytes[8] == 1 && bytes[12] == 3);
+    CHECK(ts_dictionary_from_bytes(ctx, bytes, len, &E) == TS_OK);
+    ts_dictionary_shape(E, &f, &pa);
+    CHECK(f == 3 && pa == p.patch && ts_dictionary_size(E) == ts_dictionary_size(D));
+    ts_raster_alloc(ctx, 90, 78, &a);
+    ts_raster_alloc(ctx, 90, 78, &b);
+    CHECK(ts_amplify(ctx, &in, D, &p, &a, NULL) == TS_OK);
+    CHECK(ts_amplify(ctx, &in, E, &p, &b, NULL) == TS_OK);
+    CHECK(memcmp(a.data, b.data, sizeof(float) * 90 * 78) == 0);
+    ts_dictionary_free(E);
+    E = NULL;
+    /* truncated, wrong magic, another version, a header that lies */
+    CHECK(ts_dictionary_from_bytes(ctx, bytes, len - 1, &E) == TS_ERR_ARG && !E);
+    CHECK(strstr(ts_ctx_message(ctx), "damaged") != NULL);
+    bad = malloc(len);
+    memcpy(bad, bytes, len);
+    bad[0] = 'X';
+    CHECK(ts_dictionary_from_bytes(ctx, bad, len, &E) == TS_ERR_ARG && !E);
+    CHECK(strstr(ts_ctx_message(ctx), "not a TerraSynth dictionary") != NULL);
+    memcpy(bad, bytes, len);
+    bad[8] = 2;
+    CHECK(ts_dictionary_from_bytes(ctx, bad, len, &E) == TS_ERR_ARG && !E);
+    CHECK(strstr(ts_ctx_message(ctx), "version 2") != NULL);
+    for (k = 0; k < 2000; k++) { /* random damage to the header: a clean refusal or a load */
+        size_t at = (size_t)(th_uniform(&rng) * 40);
+        memcpy(bad, bytes, len);
+        bad[at] = (unsigned char)(th_uniform(&rng) * 256);
+        if (ts_dictionary_from_bytes(ctx, bad, len, &E) == TS_OK) {
+            ts_dictionary_free(E);
+            E = NULL;
+        }
+    }
+    free(bad);
+    free(bytes);
+    ts_dictionary_free(D);
+    ts_raster_free(&ex);
+    ts_raster_free(&in);
+    ts_raster_free(&a);
+    ts_raster_free(&b);
+    ts_ctx_free(ctx);
+}
+
 static void test_errors(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -394,6 +451,7 @@ int main(int argc, char **argv)
         {"back_projection_nodata_threads", test_back_projection_nodata_threads},
         {"no_atom_inverted", test_no_atom_inverted},
         {"windows_equal_the_whole", test_windows_equal_the_whole},
+        {"dictionary_bytes", test_dictionary_bytes},
         {"errors", test_errors},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);

@@ -1,0 +1,180 @@
+/*
+ * dictionary_io.c - a dictionary as bytes, to be built once and reused: a
+ * versioned, portable layout (little-endian whatever the machine), and a
+ * reader that checks every size against the bytes it is given (a file is
+ * untrusted data).  The core does no file I/O: the caller writes and reads
+ * the bytes.
+ *
+ *   "TSDICT\r\n" (8 bytes), u32 version (1), u32 factor, u32 patch, u32 d,
+ *   u32 hd, u64 n, then f32 dh[n*d], f32 du[n*d], f32 hh[n*hd], f64 a[n],
+ *   f64 s[n], i32 exemplar[n], i32 x[n], i32 y[n].
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "amplify.h"
+
+#define DICT_MAGIC "TSDICT\r\n"
+#define DICT_VERSION 1u
+#define DICT_HEADER 40
+
+static int host_little(void)
+{
+    const uint16_t one = 1;
+    unsigned char c;
+    memcpy(&c, &one, 1);
+    return c == 1;
+}
+
+/* n items of `size` bytes from src to dst, in little-endian order. */
+static void le_copy(unsigned char *dst, const void *src, size_t n, size_t size)
+{
+    size_t i, k;
+    if (host_little()) {
+        memcpy(dst, src, n * size);
+        return;
+    }
+    for (i = 0; i < n; i++)
+        for (k = 0; k < size; k++)
+            dst[i * size + k] = ((const unsigned char *)src)[i * size + size - 1 - k];
+}
+
+static void put_u32(unsigned char *p, uint32_t v)
+{
+    int k;
+    for (k = 0; k < 4; k++)
+        p[k] = (unsigned char)(v >> (8 * k));
+}
+
+static uint32_t get_u32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static uint64_t get_u64(const unsigned char *p)
+{
+    return (uint64_t)get_u32(p) | (uint64_t)get_u32(p + 4) << 32;
+}
+
+static size_t dict_bytes(uint64_t n, uint32_t d, uint32_t hd)
+{
+    return DICT_HEADER + (size_t)n * ((size_t)d * 8 + (size_t)hd * 4 + 16 + 12);
+}
+
+TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
+                                        unsigned char **bytes, size_t *len)
+{
+    unsigned char *b, *p;
+    size_t n, total;
+    ts__clear(ctx);
+    if (!dict || !bytes || !len)
+        return ts__fail(ctx, TS_ERR_ARG, "dictionary", "missing dictionary or output");
+    n = dict->n;
+    total = dict_bytes(n, (uint32_t)dict->d, (uint32_t)dict->hd);
+    b = malloc(total);
+    if (!b)
+        return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory (%zu bytes)", total);
+    memcpy(b, DICT_MAGIC, 8);
+    put_u32(b + 8, DICT_VERSION);
+    put_u32(b + 12, (uint32_t)dict->factor);
+    put_u32(b + 16, (uint32_t)dict->patch);
+    put_u32(b + 20, (uint32_t)dict->d);
+    put_u32(b + 24, (uint32_t)dict->hd);
+    put_u32(b + 28, (uint32_t)(n & 0xffffffffu));
+    put_u32(b + 32, (uint32_t)((uint64_t)n >> 32));
+    put_u32(b + 36, 0);
+    p = b + DICT_HEADER;
+    le_copy(p, dict->dh, n * dict->d, 4), p += n * dict->d * 4;
+    le_copy(p, dict->du, n * dict->d, 4), p += n * dict->d * 4;
+    le_copy(p, dict->hh, n * dict->hd, 4), p += n * dict->hd * 4;
+    le_copy(p, dict->a, n, 8), p += n * 8;
+    le_copy(p, dict->s, n, 8), p += n * 8;
+    le_copy(p, dict->exemplar, n, 4), p += n * 4;
+    le_copy(p, dict->x, n, 4), p += n * 4;
+    le_copy(p, dict->y, n, 4);
+    *bytes = b;
+    *len = total;
+    return TS_OK;
+}
+
+TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *bytes, size_t len,
+                                          ts_dictionary **out)
+{
+    ts_dictionary *d;
+    const unsigned char *p;
+    uint32_t version, factor, patch, dd, hd;
+    uint64_t n;
+    size_t k;
+    ts__clear(ctx);
+    if (!out)
+        return ts__fail(ctx, TS_ERR_ARG, "dictionary", "no output given");
+    *out = NULL;
+    if (!bytes || len < DICT_HEADER || memcmp(bytes, DICT_MAGIC, 8) != 0)
+        return ts__fail(ctx, TS_ERR_ARG, "dictionary", "not a TerraSynth dictionary");
+    version = get_u32(bytes + 8);
+    if (version != DICT_VERSION)
+        return ts__fail(ctx, TS_ERR_ARG, "dictionary",
+                        "version %u; this TerraSynth reads version %u", version, DICT_VERSION);
+    factor = get_u32(bytes + 12);
+    patch = get_u32(bytes + 16);
+    dd = get_u32(bytes + 20);
+    hd = get_u32(bytes + 24);
+    n = get_u64(bytes + 28);
+    if (factor < 2 || factor > 16 || patch < 4 || patch > 64 || dd != patch * patch ||
+        hd != dd * factor * factor || n < 1 || n > ((uint64_t)1 << 31) ||
+        dict_bytes(n, dd, hd) != len)
+        return ts__fail(ctx, TS_ERR_ARG, "dictionary",
+                        "damaged: its header (factor %u, patch %u, %llu atoms) does not match "
+                        "its %zu bytes",
+                        factor, patch, (unsigned long long)n, len);
+    d = calloc(1, sizeof *d);
+    if (!d)
+        return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory");
+    d->factor = (int)factor;
+    d->patch = (int)patch;
+    d->d = (int)dd;
+    d->hd = (int)hd;
+    d->n = (size_t)n;
+    d->dh = ts__malloc_array(d->n * dd, 4);
+    d->du = ts__malloc_array(d->n * dd, 4);
+    d->hh = ts__malloc_array(d->n * hd, 4);
+    d->a = ts__malloc_array(d->n, 8);
+    d->s = ts__malloc_array(d->n, 8);
+    d->exemplar = ts__malloc_array(d->n, 4);
+    d->x = ts__malloc_array(d->n, 4);
+    d->y = ts__malloc_array(d->n, 4);
+    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y) {
+        ts_dictionary_free(d);
+        return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory for %zu atoms", d->n);
+    }
+    p = bytes + DICT_HEADER;
+    le_copy((unsigned char *)d->dh, p, d->n * dd, 4), p += d->n * dd * 4;
+    le_copy((unsigned char *)d->du, p, d->n * dd, 4), p += d->n * dd * 4;
+    le_copy((unsigned char *)d->hh, p, d->n * hd, 4), p += d->n * hd * 4;
+    le_copy((unsigned char *)d->a, p, d->n, 8), p += d->n * 8;
+    le_copy((unsigned char *)d->s, p, d->n, 8), p += d->n * 8;
+    le_copy((unsigned char *)d->exemplar, p, d->n, 4), p += d->n * 4;
+    le_copy((unsigned char *)d->x, p, d->n, 4), p += d->n * 4;
+    le_copy((unsigned char *)d->y, p, d->n, 4);
+    /* what matching relies on: finite descriptors, a positive deviation */
+    for (k = 0; k < d->n; k++)
+        if (!(d->s[k] > 0) || !(d->a[k] == d->a[k]) || d->a[k] > 1e7 || d->a[k] < -1e7 ||
+            d->s[k] > 1e7) {
+            ts_dictionary_free(d);
+            return ts__fail(ctx, TS_ERR_ARG, "dictionary",
+                            "damaged: atom %zu has no usable "
+                            "altitude or deviation",
+                            k);
+        }
+    *out = d;
+    return TS_OK;
+}
+
+TS_API void ts_dictionary_shape(const ts_dictionary *dict, int *factor, int *patch)
+{
+    *factor = dict ? dict->factor : 0;
+    *patch = dict ? dict->patch : 0;
+}
