@@ -97,7 +97,8 @@ int cli_amplify(int argc, char **argv)
      * the outputs are written all or none */
     tsio_stage_begin();
     staged = 1;
-    if (tsjob_amplify_prepare(&job, &res, &err) != 0 ||
+    if (tsjob_amplify_adopt_dictionary(&job, &err) != 0 ||
+        tsjob_amplify_prepare(&job, &res, &err) != 0 ||
         tsjob_amplify_check_outputs(&job, &res, &outs, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
         goto done;

@@ -155,6 +155,7 @@ static void main_help(FILE *out)
             "  ppa        map ridge and valley axes of a DEM (raster, vector lines, preview)\n"
             "  synth      grow a new terrain from real DEMs, free or following a sketch\n"
             "  amplify    make a coarse DEM finer with the detail of real terrain\n"
+            "  dictionary build an amplification dictionary once (build), or show one (info)\n"
             "  describe   print every stage's parameters as JSON (for front ends)\n"
             "\n"
             "'terrasynth COMMAND --help' lists a command's options with defaults and units.\n"
@@ -186,6 +187,8 @@ int main(int argc, char **argv)
         rc = cli_synth(argc, argv);
     else if (!strcmp(argv[1], "amplify"))
         rc = cli_amplify(argc, argv);
+    else if (!strcmp(argv[1], "dictionary"))
+        rc = cli_dictionary(argc, argv);
     else if (!strcmp(argv[1], "describe"))
         rc = cli_describe(argc, argv);
     else {

@@ -160,6 +160,10 @@ static const tsj_option amplify_opts[] = {
      "a real DEM whose detail the output takes (resampled to the output's ground "
      "resolution); repeatable",
      "Exemplar", 0, NULL},
+    {"dictionary", TSJ_FILE, 1, 0, 0, "D.tsd", G_IN,
+     "a dictionary built once by `terrasynth dictionary build` (instead of exemplars): "
+     "its factor, patch and cell size are the job's",
+     "Dictionary", 0, NULL},
     {"band", TSJ_INT, 1, 1, 65535, "N", G_IN, "band read from every input (default 1)", "Band", 0,
      NULL},
     {"cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
@@ -177,12 +181,34 @@ static const tsj_option amplify_opts[] = {
 };
 
 static const tsj_rule amplify_rules[] = {
-    {TSJ_REQUIRES, "input", {"exemplar", NULL}, "give at least one exemplar"},
+    {TSJ_ONE_OF, "exemplar", {"dictionary", NULL}, "give at least one exemplar, or a dictionary"},
     {TSJ_EXCLUDES,
      "recipe",
      {"output", "preview", NULL},
      "recipe writes the recipe instead of running the job: give no %s"},
     {TSJ_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
+};
+
+static const tsj_option dictionary_opts[] = {
+    {"exemplar", TSJ_FILE, TSJOB_MAX_EXEMPLARS, 0, 0, "EX.tif", G_IN,
+     "a real DEM whose detail the atoms hold (resampled to the resolution); repeatable", "Exemplar",
+     0, NULL},
+    {"band", TSJ_INT, 1, 1, 65535, "N", G_IN, "band read from every exemplar (default 1)", "Band",
+     0, NULL},
+    {"cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
+     "ground size of a cell in metres of every exemplar without a CRS", "CellSize", 0, NULL},
+    {"resolution", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
+     "ground size in metres of the cells of the amplified DEMs the dictionary is for (the "
+     "input's cell divided by the factor); required",
+     "Resolution", 0, NULL},
+    {"output", TSJ_OUTPUT, 1, 0, 0, "D.tsd", G_OUT, "the dictionary file", NULL, 1, NULL},
+};
+
+static const tsj_rule dictionary_rules[] = {
+    {TSJ_REQUIRES,
+     "output",
+     {"exemplar", "resolution", NULL},
+     "a dictionary needs exemplars and the resolution"},
 };
 
 static const tsj_job jobs[] = {
@@ -207,6 +233,13 @@ static const tsj_job jobs[] = {
      sizeof amplify_rules / sizeof amplify_rules[0],
      {"amplify", NULL, NULL},
      "Amplify"},
+    {"dictionary",
+     dictionary_opts,
+     sizeof dictionary_opts / sizeof dictionary_opts[0],
+     dictionary_rules,
+     sizeof dictionary_rules / sizeof dictionary_rules[0],
+     {"amplify", NULL, NULL},
+     "Dictionary"},
 };
 
 const tsj_job *tsj_find(const char *name)
@@ -719,7 +752,7 @@ int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len)
     if (apply_params(v, "amplify", &job->params, msg, len))
         return -1;
     job->input = tsj_get(v, "input", 0);
-    if (!job->input) {
+    if (!job->input && strcmp(v->job->name, "dictionary") != 0) {
         msgf(msg, len, "needs an input DEM");
         return -1;
     }
@@ -730,8 +763,16 @@ int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len)
         }
         job->exemplars[job->n_exemplars++] = s;
     }
-    if (!job->n_exemplars) {
-        msgf(msg, len, "give at least one exemplar");
+    job->dictionary = tsj_get(v, "dictionary", 0);
+    job->shape_given = tsj_count(v, "factor") || tsj_count(v, "patch");
+    if (!job->n_exemplars && !job->dictionary) {
+        msgf(msg, len, "give at least one exemplar, or a dictionary");
+        return -1;
+    }
+    if ((s = tsj_get(v, "resolution", 0)))
+        job->resolution = atof(s);
+    if (!strcmp(v->job->name, "dictionary") && !(job->resolution > 0)) {
+        msgf(msg, len, "a dictionary needs the resolution of the cells it is for");
         return -1;
     }
     if ((s = tsj_get(v, "band", 0)))

@@ -206,6 +206,10 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
             return -1;
         }
         r->amplify.lazy = 1; /* computed block by block: recipe_read_window */
+        if (tsjob_amplify_adopt_dictionary(&r->amplify, err) != 0) {
+            tsio_errf(err, r->path, "%s", err->msg);
+            return -1;
+        }
         return tsjob_amplify_prepare(&r->amplify, &r->amplify_res, err);
     }
     if (tsj_build_synth(&r->values, &r->synth, &r->seed, msg, sizeof msg) != 0) {

@@ -126,6 +126,16 @@ int tsio_write_byte(const char *path, const tsio_write_opts *opts, const tsio_ge
                     const unsigned char *data, int nodata, tsio_err *err);
 
 /** Write an RGB PNG (3*w*h bytes, pixel-interleaved, row-major). */
+/** The first n bytes of a file into buf: the count read, or -1. */
+int tsio_read_head(const char *path, unsigned char *buf, size_t n, tsio_err *err);
+/** A whole file into *bytes (malloc'ed), refused past max_len bytes. */
+int tsio_read_bytes(const char *path, size_t max_len, unsigned char **bytes, size_t *len,
+                    tsio_err *err);
+/** Write head then data as one file, all or nothing like every output (a
+ *  temporary name, moved into place now or with the job's stage); with
+ *  check_only, only check that it could be written. */
+int tsio_write_bytes(const char *path, const void *head, size_t head_len, const void *data,
+                     size_t len, int check_only, tsio_err *err);
 int tsio_write_png_rgb(const char *path, int width, int height, const unsigned char *rgb,
                        tsio_err *err);
 

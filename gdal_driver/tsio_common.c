@@ -756,3 +756,49 @@ int tsio_check_memory(uint64_t need, const char *what, const char *advice, tsio_
               from_option ? "allowed" : "this machine has", advice);
     return -1;
 }
+
+int tsio_read_bytes(const char *path, size_t max_len, unsigned char **bytes, size_t *len,
+                    tsio_err *err)
+{
+    VSILFILE *fp = VSIFOpenL(path, "rb");
+    vsi_l_offset size;
+    unsigned char *b;
+    *bytes = NULL;
+    *len = 0;
+    if (!fp) {
+        tsio_errf(err, path, tsio__path_exists(path, NULL) ? "cannot open" : "no such file");
+        return -1;
+    }
+    VSIFSeekL(fp, 0, SEEK_END);
+    size = VSIFTellL(fp);
+    VSIFSeekL(fp, 0, SEEK_SET);
+    if (size > (vsi_l_offset)max_len) {
+        VSIFCloseL(fp);
+        tsio_errf(err, path, "is %llu bytes, more than %zu", (unsigned long long)size, max_len);
+        return -1;
+    }
+    b = malloc(size ? (size_t)size : 1);
+    if (!b || VSIFReadL(b, 1, (size_t)size, fp) != (size_t)size) {
+        VSIFCloseL(fp);
+        free(b);
+        tsio_errf(err, path, b ? "cannot read it" : "out of memory");
+        return -1;
+    }
+    VSIFCloseL(fp);
+    *bytes = b;
+    *len = (size_t)size;
+    return 0;
+}
+
+int tsio_read_head(const char *path, unsigned char *buf, size_t n, tsio_err *err)
+{
+    VSILFILE *fp = VSIFOpenL(path, "rb");
+    size_t got;
+    if (!fp) {
+        tsio_errf(err, path, tsio__path_exists(path, NULL) ? "cannot open" : "no such file");
+        return -1;
+    }
+    got = VSIFReadL(buf, 1, n, fp);
+    VSIFCloseL(fp);
+    return (int)got;
+}

@@ -488,3 +488,50 @@ int tsio_write_png_rgb(const char *path, int width, int height, const unsigned c
     src.bytes = rgb;
     return write_raster(path, NULL, "PNG", NULL, &src, 0, 0.0, 1, err);
 }
+
+int tsio_write_bytes(const char *path, const void *head, size_t head_len, const void *data,
+                     size_t len, int check_only, tsio_err *err)
+{
+    out_name on;
+    VSILFILE *fp;
+    int slot, ok, rc = -1;
+    if (!path || !path[0]) {
+        tsio_errf(err, "(empty path)", "no output file given");
+        return -1;
+    }
+    if (tsio__out_name_for(path, &on) != 0) {
+        tsio_errf(err, path, "out of memory");
+        return -1;
+    }
+    if (tsio__check_output_location(&on, path, err) != 0)
+        goto done;
+    if (check_only) {
+        rc = 0;
+        goto done;
+    }
+    slot = tsio__temp_register(&on);
+    fp = VSIFOpenL(on.temp, "wb");
+    if (!fp) {
+        tsio__temp_unregister(slot);
+        tsio_errf(err, path, "cannot create the file");
+        goto done;
+    }
+    ok = (!head_len || VSIFWriteL(head, 1, head_len, fp) == head_len) &&
+         (!len || VSIFWriteL(data, 1, len, fp) == len);
+    ok = VSIFCloseL(fp) == 0 && ok;
+    if (!ok) {
+        VSIUnlink(on.temp);
+        tsio__temp_unregister(slot);
+        tsio_errf(err, path, "cannot write the file (disk full?)");
+        goto done;
+    }
+    if (tsio__finish_output(&on, path, slot, 0, err) != 0) {
+        if (on.temp)
+            VSIUnlink(on.temp);
+        goto done;
+    }
+    rc = 0;
+done:
+    tsio__out_name_free(&on);
+    return rc;
+}

@@ -900,6 +900,120 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
     return 0;
 }
 
+/* A dictionary file: "TSDFILE1", f64 metres per output cell (little-endian), then the
+ * core's bytes (ts_dictionary_to_bytes). */
+#define DICT_FILE_MAGIC "TSDFILE1"
+#define DICT_FILE_HEAD 16
+
+int tsjob_dictionary_read(ts_ctx *ctx, const char *path, ts_dictionary **dict, double *resolution,
+                          tsio_err *err)
+{
+    unsigned char *b = NULL;
+    size_t len = 0;
+    uint64_t bits = 0, limit;
+    int k, from_option, rc = -1;
+    *dict = NULL;
+    /* the file and its dictionary both in memory, at most */
+    if (tsio_memory_limit(&limit, &from_option, err) != 0)
+        return -1;
+    if (tsio_read_bytes(path, (size_t)(limit / 2), &b, &len, err) != 0)
+        return -1;
+    if (len < DICT_FILE_HEAD || memcmp(b, DICT_FILE_MAGIC, 8) != 0) {
+        tsio_errf(err, path, "not a TerraSynth dictionary (made by terrasynth dictionary build)");
+        goto done;
+    }
+    for (k = 7; k >= 0; k--)
+        bits = bits << 8 | b[8 + k];
+    memcpy(resolution, &bits, 8);
+    if (!(*resolution > 0) || *resolution > 1e7) {
+        tsio_errf(err, path, "damaged: no usable resolution");
+        goto done;
+    }
+    if (ts_dictionary_from_bytes(ctx, b + DICT_FILE_HEAD, len - DICT_FILE_HEAD, dict) != TS_OK) {
+        tsio_errf(err, path, "%s", ts_ctx_message(ctx));
+        goto done;
+    }
+    rc = 0;
+done:
+    free(b);
+    return rc;
+}
+
+int tsjob_amplify_adopt_dictionary(tsjob_amplify *job, tsio_err *err)
+{
+    unsigned char h[DICT_FILE_HEAD + 24];
+    int got, factor, patch;
+    if (!job->dictionary)
+        return 0;
+    got = tsio_read_head(job->dictionary, h, sizeof h, err);
+    if (got < 0)
+        return -1;
+    if (got < (int)sizeof h || memcmp(h, DICT_FILE_MAGIC, 8) != 0 ||
+        memcmp(h + DICT_FILE_HEAD, "TSDICT\r\n", 8) != 0) {
+        tsio_errf(err, job->dictionary,
+                  "not a TerraSynth dictionary (made by terrasynth dictionary build)");
+        return -1;
+    }
+    factor = h[DICT_FILE_HEAD + 12] | h[DICT_FILE_HEAD + 13] << 8;
+    patch = h[DICT_FILE_HEAD + 16] | h[DICT_FILE_HEAD + 17] << 8;
+    if (job->shape_given && (factor != job->params.factor || patch != job->params.patch)) {
+        tsio_errf(err, job->dictionary,
+                  "was built for factor %d and patch %d, not %d and %d: give neither, or "
+                  "build another",
+                  factor, patch, job->params.factor, job->params.patch);
+        return -1;
+    }
+    job->params.factor = factor;
+    job->params.patch = patch;
+    return 0;
+}
+
+int tsjob_dictionary_build(ts_ctx *ctx, const tsjob_amplify *job, const char *path, size_t *n_atoms,
+                           tsio_err *err)
+{
+    tsio_raster ex[TSJOB_MAX_EXEMPLARS];
+    ts_raster exr[TSJOB_MAX_EXEMPLARS];
+    ts_dictionary *dict = NULL;
+    unsigned char head[DICT_FILE_HEAD], *bytes = NULL;
+    size_t len = 0;
+    uint64_t bits;
+    int i, k, rc = -1;
+    memset(ex, 0, sizeof ex);
+    if (tsio_write_bytes(path, NULL, 0, NULL, 0, 1, err) != 0)
+        return -1; /* the destination, before the work */
+    for (i = 0; i < job->n_exemplars; i++) {
+        double f = 1.0;
+        if (tsio_read_raster_resampled(job->exemplars[i], job->band, job->resolution,
+                                       job->resolution, job->cell_size, &ex[i], &f, err) != 0)
+            goto done;
+        exr[i] = ex[i].r;
+    }
+    if (ts_dictionary_build(ctx, exr, job->n_exemplars, &job->params, &dict) != TS_OK) {
+        int bad = ts_ctx_failed_input(ctx);
+        tsio_errf(err, bad >= 0 && bad < job->n_exemplars ? job->exemplars[bad] : "dictionary",
+                  "%s", ts_ctx_message(ctx));
+        goto done;
+    }
+    if (ts_dictionary_to_bytes(ctx, dict, &bytes, &len) != TS_OK) {
+        tsio_errf(err, path, "%s", ts_ctx_message(ctx));
+        goto done;
+    }
+    memcpy(head, DICT_FILE_MAGIC, 8);
+    memcpy(&bits, &job->resolution, 8);
+    for (k = 0; k < 8; k++)
+        head[8 + k] = (unsigned char)(bits >> (8 * k));
+    if (tsio_write_bytes(path, head, sizeof head, bytes, len, 0, err) != 0)
+        goto done;
+    *n_atoms = ts_dictionary_size(dict);
+    rc = 0;
+done:
+    free(bytes);
+    ts_dictionary_free(dict);
+    for (i = 0; i < job->n_exemplars; i++)
+        tsio_raster_free(&ex[i]);
+    return rc;
+}
+
 int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                         tsio_err *err)
 {
@@ -910,6 +1024,20 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
     double in_dy = res->in.dy_m ? res->in.dy_m[cy] : job->cell_size;
     struct timespec ts0, ts1;
     memset(ex, 0, sizeof ex);
+    if (job->dictionary) {
+        double dres;
+        if (tsjob_dictionary_read(ctx, job->dictionary, &res->dict, &dres, err) != 0)
+            return -1;
+        if (in_dx > 0 && fabs(sqrt(in_dx * in_dy) / F / dres - 1.0) > 0.02) {
+            tsio_errf(err, job->dictionary,
+                      "was built for cells of %.6g m; this input at factor %d gives cells of "
+                      "%.6g m: build one for them (terrasynth dictionary build --resolution)",
+                      dres, F, sqrt(in_dx * in_dy) / F);
+            return -1;
+        }
+        res->n_atoms = ts_dictionary_size(res->dict);
+        goto drainage;
+    }
     for (i = 0; i < job->n_exemplars; i++) {
         double f = 1.0;
         if (tsio_read_raster_resampled(job->exemplars[i], job->band, in_dx > 0 ? in_dx / F : 0,
@@ -937,6 +1065,7 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
                   "only %zu atoms: the exemplars cover little ground at the output's resolution "
                   "(%.3g m), so their patterns repeat; give larger exemplars",
                   res->n_atoms, in_dx > 0 ? in_dx / F : 0.0);
+drainage:
     if (ts_raster_alloc(ctx, res->in.r.width, res->in.r.height, &res->drain) != TS_OK ||
         ts_drainage_area(ctx, &res->in.r, &res->drain) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
@@ -998,9 +1127,10 @@ void tsjob_amplify_result_free(tsjob_amplify_result *res)
 
 int tsjob_amplify_check_recipe(const tsjob_amplify *job, const char *recipe, tsio_err *err)
 {
-    const char *in[TSJOB_MAX_EXEMPLARS + 1];
+    const char *in[TSJOB_MAX_EXEMPLARS + 2];
     int n = 0, i;
     in[n++] = job->input;
+    in[n++] = job->dictionary;
     for (i = 0; i < job->n_exemplars; i++)
         in[n++] = job->exemplars[i];
     return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
@@ -1009,7 +1139,7 @@ int tsjob_amplify_check_recipe(const tsjob_amplify *job, const char *recipe, tsi
 int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_result *res,
                                 const tsjob_outputs *o, tsio_err *err)
 {
-    const char *in[TSJOB_MAX_EXEMPLARS + 1], *outs[2] = {o->output, o->preview};
+    const char *in[TSJOB_MAX_EXEMPLARS + 2], *outs[2] = {o->output, o->preview};
     int n = 0, i;
     float probe = 0;
     ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
@@ -1019,6 +1149,7 @@ int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_re
     tsio_georef g1 = res->geo;
     g1.width = g1.height = 1;
     in[n++] = job->input;
+    in[n++] = job->dictionary;
     for (i = 0; i < job->n_exemplars; i++)
         in[n++] = job->exemplars[i];
     if (job_not_an_input(o->output, in, n, err) || job_not_an_input(o->preview, in, n, err) ||

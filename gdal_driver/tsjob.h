@@ -179,6 +179,9 @@ typedef struct tsjob_amplify {
     double cell_size;
     ts_amplify_params params;
     int lazy; /* served window by window (the driver): no whole output */
+    const char *dictionary; /* a dictionary file instead of exemplars */
+    int shape_given;        /* factor or patch given: they must be the dictionary's */
+    double resolution;      /* `terrasynth dictionary build`: metres per output cell */
 } tsjob_amplify;
 
 typedef struct tsjob_amplify_result {
@@ -208,6 +211,17 @@ int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_ampl
 int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                           tsio_err *err);
 void tsjob_amplify_result_free(tsjob_amplify_result *res);
+/** `terrasynth dictionary build` (the same job, the "dictionary" options):
+ *  the exemplars at job->resolution, the dictionary, written as one file. */
+int tsjob_dictionary_build(ts_ctx *ctx, const tsjob_amplify *job, const char *path, size_t *n_atoms,
+                           tsio_err *err);
+/** With job->dictionary: the job takes the dictionary's factor and patch
+ *  (an error if others were given).  Before prepare. */
+int tsjob_amplify_adopt_dictionary(tsjob_amplify *job, tsio_err *err);
+/** A dictionary file: its dictionary and the ground size (m) of the cells
+ *  it is for. */
+int tsjob_dictionary_read(ts_ctx *ctx, const char *path, ts_dictionary **dict, double *resolution,
+                          tsio_err *err);
 int tsjob_amplify_check_recipe(const tsjob_amplify *job, const char *recipe, tsio_err *err);
 int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_result *res,
                                 const tsjob_outputs *o, tsio_err *err);

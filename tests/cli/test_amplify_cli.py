@@ -176,3 +176,57 @@ def test_a_huge_recipe_reads_a_window_in_little_memory(tmp_path):
     assert p.returncode == 0, p.stderr
     peak_mb = int(rss.read_text().split()[-1]) / 1024
     assert peak_mb < 600, peak_mb  # the whole output alone would be 4096 MB
+
+
+def test_dictionary_built_once_and_reused(tmp_path):
+    """`terrasynth dictionary build` then `amplify --dictionary`: the same bytes as amplify
+    with the exemplar (the dictionary is the same atoms); its info; the checks that keep a
+    dictionary to the grids it was built for; a damaged file is refused."""
+    import json as js
+
+    # a projected exemplar at 90 m, and a coarse input of 360 m cells: exact resolutions
+    ex = tmp_path / "utm90.tif"
+    subprocess.run(["gdalwarp", "-q", "-t_srs", "EPSG:32616", "-tr", "90", "90", "-r", "cubic",
+                    JACKSBORO, str(ex)], check=True)
+    e = gdal.Open(str(ex))
+    z = e.ReadAsArray().astype(np.float64)
+    nd = e.GetRasterBand(1).GetNoDataValue()
+    h, w = (z.shape[0] // 4) * 4, (z.shape[1] // 4) * 4
+    zc = z[:h, :w].copy()
+    if nd is not None:
+        zc[zc == nd] = np.nan
+    c = zc.reshape(h // 4, 4, w // 4, 4).mean(axis=(1, 3))
+    gt = list(e.GetGeoTransform())
+    write(tmp_path / "coarse.tif", np.where(np.isnan(c), -9999, c).astype(np.float32),
+          [gt[0], 360, 0, gt[3], 0, -360], e.GetProjection(), nodata=-9999)
+    JEX = str(ex)
+    res = 90
+    d = tmp_path / "j.tsd"
+    out = run("dictionary", "build", d, "--exemplar", JEX, "--resolution", str(res),
+              "--factor", "4").stdout
+    assert "atoms (factor 4, patch 6" in out
+    info = js.loads(run("dictionary", "info", d).stdout)
+    assert info["factor"] == 4 and info["patch"] == 6 and info["atoms"] > 256
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "a.tif", "--dictionary", d, "-q")
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "b.tif", "--exemplar", JEX,
+        "--factor", "4", "-q")
+    a = gdal.Open(str(tmp_path / "a.tif")).ReadAsArray()
+    b = gdal.Open(str(tmp_path / "b.tif")).ReadAsArray()
+    assert a.shape == (h, w) and a.tobytes() == b.tobytes()  # the same atoms, the same bytes
+    p = run("amplify", tmp_path / "coarse.tif", tmp_path / "c.tif", "--dictionary", d,
+            "--factor", "2", check=False)
+    assert p.returncode == 1 and "was built for factor 4 and patch 6" in p.stderr
+    p = run("amplify", JACKSBORO, tmp_path / "c.tif", "--dictionary", d, check=False)
+    assert p.returncode == 1 and "was built for cells of" in p.stderr
+    p = run("amplify", tmp_path / "coarse.tif", tmp_path / "c.tif", "--dictionary", d,
+            "--exemplar", JEX, check=False)
+    assert p.returncode == 2 and "give at least one exemplar, or a dictionary" in p.stderr
+    raw = d.read_bytes()
+    (tmp_path / "cut.tsd").write_bytes(raw[:-10])
+    p = run("amplify", tmp_path / "coarse.tif", tmp_path / "c.tif", "--dictionary",
+            tmp_path / "cut.tsd", check=False)
+    assert p.returncode == 1 and "damaged" in p.stderr
+    (tmp_path / "not.tsd").write_bytes(b"hello world, not a dictionary at all")
+    p = run("dictionary", "info", tmp_path / "not.tsd", check=False)
+    assert p.returncode == 1 and "not a TerraSynth dictionary" in p.stderr
+    assert not (tmp_path / "c.tif").exists()
