@@ -31,6 +31,10 @@ PAIRS = [
     ("mountains_mackay_id_30m.tif", "mountains_bigtujunga_ca_30m.tif", 8),
     ("mountains_bigtujunga_ca_30m.tif", "mountains_mackay_id_30m.tif", 4),
     ("volcano_st_helens_30m.tif", "mountains_mackay_id_30m.tif", 6),
+    # beyond the four the patch size was chosen on
+    ("canyon_zion_ut_srtm90m.tif", "mountains_bigtujunga_ca_30m.tif", 4),
+    ("hills_jacksboro_tn_3arcsec.tif", "canyon_zion_ut_srtm90m.tif", 4),
+    ("mountains_mackay_id_30m.tif", "volcano_st_helens_30m.tif", 6),
 ]
 
 
