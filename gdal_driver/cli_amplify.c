@@ -106,6 +106,10 @@ int cli_amplify(int argc, char **argv)
     if (res.warning.msg[0]) /* from the inputs' sizes and values: even with -q */
         fprintf(stderr, "terrasynth: warning: %s\n", res.warning.msg);
     res.warning.msg[0] = '\0';
+    if (!res.in.dx_m && !(job.cell_size > 0) && co.progress != PROGRESS_QUIET)
+        fprintf(stderr, "terrasynth: warning: %s has no CRS: the exemplars are used cell for "
+                        "cell (give --cell-size for their ground size)\n",
+                job.input);
     ts_ctx_set_threads(ctx, co.threads);
     cli_set_progress(ctx, co.progress, &progress_state);
     if (tsjob_amplify_compute(ctx, &job, &res, &err) != 0 ||
