@@ -157,33 +157,40 @@ static void recon_rows(void *arg, size_t begin, size_t end)
 static void bp_rows(void *arg, size_t begin, size_t end)
 {
     amp_work *b = arg;
-    int F = b->F, X, i, j;
+    int F = b->F, X, i, j, rw = b->rr.x1 - b->rr.x0;
+    double *col = malloc((size_t)rw * sizeof *col);
     size_t k;
+    if (!col) {
+        b->fail = 1;
+        return;
+    }
     for (k = begin; k < end; k++) {
-        int Y = b->uy0 + (int)k;
+        int Y = b->uy0 + (int)k, x;
         double v = ((double)Y + 0.5) / F - 0.5, wy[4];
         int y0 = (int)floor(v), yy[4];
         cubic_weights(v - y0, wy);
         for (j = 0; j < 4; j++)
             yy[j] = clampi(y0 - 1 + j, 0, b->H - 1) - b->rr.y0;
+        /* separable: the residual interpolated down each coarse column, then across */
+        for (x = 0; x < rw; x++) {
+            double c = 0;
+            for (j = 0; j < 4; j++)
+                c += wy[j] * TS_PIX(b->res, x, yy[j]);
+            col[x] = c;
+        }
         for (X = b->ux0; X < b->ux1; X++) {
             double u = ((double)X + 0.5) / F - 0.5, wx[4], r = 0;
-            int x0 = (int)floor(u), xx[4];
+            int x0 = (int)floor(u);
             float *o = &TS_PIX(b->buf, X - b->bx, Y - b->by);
             if (isnan(*o))
                 continue;
             cubic_weights(u - x0, wx);
             for (i = 0; i < 4; i++)
-                xx[i] = clampi(x0 - 1 + i, 0, b->W - 1) - b->rr.x0;
-            for (j = 0; j < 4; j++) {
-                double row = 0;
-                for (i = 0; i < 4; i++)
-                    row += wx[i] * TS_PIX(b->res, xx[i], yy[j]);
-                r += wy[j] * row;
-            }
+                r += wx[i] * col[clampi(x0 - 1 + i, 0, b->W - 1) - b->rr.x0];
             *o += (float)r;
         }
     }
+    free(col);
 }
 
 /* One back-projection pass: the residual (input minus the area average of
@@ -388,6 +395,10 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raste
             wk.uy1 = Y0 + out->height;
         }
         back_project(ctx, &wk, reg[pass], &res);
+        if (wk.fail) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
+            goto done;
+        }
         if ((st = ts__progress(ctx, 0.9 + 0.1 * pass / R, "back-projection")) != TS_OK)
             goto done;
     }
