@@ -231,3 +231,33 @@ def test_a_signal_leaves_nothing(tmp_path, dem, sig):
     assert proc.returncode == -getattr(signal, sig), err
     assert "interrupted" in err and "nothing was written" in err, err
     assert sorted(os.listdir(tmp_path)) == ["dem.tif"]
+
+
+def test_a_signal_while_writing_leaves_nothing(tmp_path, dem):
+    """Interrupted while the output is being written (its temporary file exists): the
+    handler removes it and the folder is as before."""
+    import signal
+    import subprocess
+    import time
+    from tsutil import TERRASYNTH
+
+    before = listing(tmp_path)
+    proc = subprocess.Popen([TERRASYNTH, "synth", "--exemplar", dem, "--size", "2500x2500",
+                             tmp_path / "o.tif", "-co", "COMPRESS=DEFLATE", "-co", "ZLEVEL=9",
+                             "-co", "PREDICTOR=3", "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    seen = False
+    deadline = time.monotonic() + 600
+    while proc.poll() is None and time.monotonic() < deadline:
+        if any(n.startswith(".o.tmp") for n in os.listdir(tmp_path)):
+            seen = True
+            proc.send_signal(signal.SIGINT)
+            break
+        time.sleep(0.002)
+    _, err = proc.communicate(timeout=120)
+    if not seen:
+        pytest.skip("the write was over before it could be interrupted")
+    assert proc.returncode == -signal.SIGINT, err
+    import re
+    assert re.search(r"interrupted: removed [1-9]\d* unfinished output file", err), err
+    assert listing(tmp_path) == before
