@@ -79,7 +79,7 @@ static void test_matching_equals_brute_force(void)
     }
     ts__amp_weights(&p, w);
     ts_ctx_set_threads(ctx, 3);
-    ts__match_atoms(ctx, D, ph, pu, pa, ps, np, w, best, score, coef);
+    CHECK(ts__match_atoms(ctx, D, ph, pu, pa, ps, np, w, best, score, coef) == 0);
     for (i = 0; i < np; i++) {
         /* brute force: every atom, dot products in double, medians by sorting */
         size_t na = D->n;

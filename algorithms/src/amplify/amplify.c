@@ -335,7 +335,10 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raste
     if ((st = ts__progress(ctx, 0.05, "matching")) != TS_OK)
         goto done;
     ts__amp_weights(params, w);
-    ts__match_atoms(ctx, dict, ph, pu, pa, ps, np, w, best, score, coef);
+    if (ts__match_atoms(ctx, dict, ph, pu, pa, ps, np, w, best, score, coef) != 0) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for matching");
+        goto done;
+    }
     if ((st = ts__check_cancel(ctx)) != TS_OK)
         goto done;
     t1 = now_s();

@@ -20,7 +20,12 @@ struct ts_dictionary {
     double *a;             /* mean altitude D_a */
     double *s;             /* mean deviation D_s (RMS of the centred low-resolution atom) */
     int *exemplar, *x, *y; /* where each atom came from (low-resolution cells) */
+    double *a_sorted, *s_sorted; /* a and s in ascending order (the matching's medians) */
 };
+
+/* After the atoms are filled: the sorted copies of a and s (0, or -1 when
+ * out of memory). */
+int ts__dict_sort(ts_dictionary *d);
 
 /* Centre v (d values) and divide by its norm: out = (v - mean) / |v - mean|.
  * *mean and *rms (the norm / sqrt(d)) are returned; a flat v gives zeros and
@@ -32,10 +37,11 @@ void ts__amp_weights(const ts_amplify_params *p, double w[4]);
 
 /* For each of the np patches (descriptors ph, pu: np x d; pa, ps), the atom
  * with the highest g (ties: the lowest index), its g and P_h . D_h.  Fast
- * kernel: blocked dot products over tiles of patches and atoms. */
-void ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const float *ph, const float *pu,
-                     const double *pa, const double *ps, size_t np, const double w[4], int *best,
-                     float *score, float *coef);
+ * kernel: blocked dot products over tiles of patches and atoms.  0, or -1
+ * when out of memory. */
+int ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const float *ph, const float *pu,
+                    const double *pa, const double *ps, size_t np, const double w[4], int *best,
+                    float *score, float *coef);
 
 /* g of one patch against one atom, given the two dot products and the two
  * Gaussian widths (the matching function of section 5). */

@@ -62,34 +62,32 @@ static float dot(const float *a, const float *b, int d)
     return ((s0[0] + s0[1]) + (s0[2] + s0[3])) + tail;
 }
 
-/* The median (element n/2 in order) of v[0..n) (v is reordered):
- * quickselect with a three-way partition, deterministic. */
-static double median(double *v, size_t n)
+/* The median (element n/2 in ascending order) of |q - v[j]| over the sorted
+ * v[0..n): the distances to the left and to the right of q are two ascending
+ * lists; merged from q outwards, the (n/2+1)-th taken is it. */
+static double median_distance(const double *v, size_t n, double q)
 {
-    size_t lo = 0, hi = n, k = n / 2;
-    while (hi - lo > 1) {
-        double a = v[lo], b = v[lo + (hi - lo) / 2], c = v[hi - 1], pivot, t;
-        size_t lt = lo, i = lo, gt = hi;
-        pivot = a < b ? (b < c ? b : (a < c ? c : a)) : (a < c ? a : (b < c ? c : b));
-        /* [lo, lt) < pivot, [lt, i) == pivot, [gt, hi) > pivot */
-        while (i < gt) {
-            if (v[i] < pivot) {
-                t = v[i], v[i] = v[lt], v[lt] = t;
-                lt++, i++;
-            } else if (v[i] > pivot) {
-                gt--;
-                t = v[i], v[i] = v[gt], v[gt] = t;
-            } else
-                i++;
-        }
-        if (k < lt)
-            hi = lt;
-        else if (k >= gt)
-            lo = gt;
+    size_t lo = 0, hi = n, k, taken;
+    ptrdiff_t i;
+    size_t j;
+    double last = 0;
+    while (lo < hi) { /* the first v[j] > q */
+        size_t mid = lo + (hi - lo) / 2;
+        if (v[mid] <= q)
+            lo = mid + 1;
         else
-            return pivot;
+            hi = mid;
     }
-    return v[k];
+    i = (ptrdiff_t)lo - 1;
+    j = lo;
+    k = n / 2;
+    for (taken = 0; taken <= k; taken++) {
+        if (i >= 0 && (j >= n || q - v[i] <= v[j] - q))
+            last = q - v[i--];
+        else
+            last = v[j++] - q;
+    }
+    return last;
 }
 
 typedef struct match_job {
@@ -99,6 +97,7 @@ typedef struct match_job {
     size_t np;
     int *best;
     float *score, *coef;
+    int fail;
 } match_job;
 
 static void match_range(void *arg, size_t begin, size_t end)
@@ -109,26 +108,15 @@ static void match_range(void *arg, size_t begin, size_t end)
     int d = D->d;
     float *dh = malloc(PATCH_TILE * na * sizeof *dh);
     float *du = malloc(PATCH_TILE * na * sizeof *du);
-    double *diff = malloc(na * sizeof *diff);
     const double ln2 = log(2.0);
-    if (!dh || !du || !diff) {
-        /* no memory for tiles: one patch at a time */
+    if (!dh || !du) {
         free(dh);
         free(du);
-        free(diff);
-        dh = du = NULL;
-        diff = NULL;
+        m->fail = 1; /* the caller reports it: never a silently flat patch */
+        return;
     }
     for (b0 = begin; b0 < end; b0 += PATCH_TILE) {
         size_t b1 = b0 + PATCH_TILE < end ? b0 + PATCH_TILE : end;
-        if (!dh) {
-            for (i = b0; i < b1; i++) {
-                m->best[i] = -1;
-                m->score[i] = 0;
-                m->coef[i] = 0;
-            }
-            continue;
-        }
         /* the dot products, tile by tile */
         for (a0 = 0; a0 < na; a0 += ATOM_TILE) {
             size_t a1 = a0 + ATOM_TILE < na ? a0 + ATOM_TILE : na;
@@ -151,12 +139,8 @@ static void match_range(void *arg, size_t begin, size_t end)
                 m->coef[i] = 0;
                 continue;
             }
-            for (k = 0; k < na; k++)
-                diff[k] = fabs(m->pa[i] - D->a[k]);
-            sa = median(diff, na) / sqrt(ln2);
-            for (k = 0; k < na; k++)
-                diff[k] = fabs(m->ps[i] - D->s[k]);
-            ss = median(diff, na) / sqrt(ln2);
+            sa = median_distance(D->a_sorted, na, m->pa[i]) / sqrt(ln2);
+            ss = median_distance(D->s_sorted, na, m->ps[i]) / sqrt(ln2);
             for (k = 0; k < na; k++) {
                 double g;
                 /* the Gaussians are at most 1: an atom that cannot beat the best even
@@ -180,13 +164,13 @@ static void match_range(void *arg, size_t begin, size_t end)
     }
     free(dh);
     free(du);
-    free(diff);
 }
 
-void ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const float *ph, const float *pu,
-                     const double *pa, const double *ps, size_t np, const double w[4], int *best,
-                     float *score, float *coef)
+int ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const float *ph, const float *pu,
+                    const double *pa, const double *ps, size_t np, const double w[4], int *best,
+                    float *score, float *coef)
 {
-    match_job m = {dict, ph, pu, pa, ps, w, np, best, score, coef};
+    match_job m = {dict, ph, pu, pa, ps, w, np, best, score, coef, 0};
     ts__parallel_for(ctx, np, match_range, &m);
+    return m.fail ? -1 : 0;
 }

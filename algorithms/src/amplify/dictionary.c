@@ -87,8 +87,31 @@ static int window_valid(const ts_raster *r, int x, int y, int p)
     return 1;
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+int ts__dict_sort(ts_dictionary *d)
+{
+    free(d->a_sorted);
+    free(d->s_sorted);
+    d->a_sorted = ts__malloc_array(d->n, sizeof *d->a_sorted);
+    d->s_sorted = ts__malloc_array(d->n, sizeof *d->s_sorted);
+    if (!d->a_sorted || !d->s_sorted)
+        return -1;
+    memcpy(d->a_sorted, d->a, d->n * sizeof *d->a);
+    memcpy(d->s_sorted, d->s, d->n * sizeof *d->s);
+    qsort(d->a_sorted, d->n, sizeof *d->a_sorted, cmp_double);
+    qsort(d->s_sorted, d->n, sizeof *d->s_sorted, cmp_double);
+    return 0;
+}
+
 static void dict_free_arrays(ts_dictionary *d)
 {
+    free(d->a_sorted);
+    free(d->s_sorted);
     free(d->dh);
     free(d->du);
     free(d->hh);
@@ -223,6 +246,10 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, in
             }
         if ((st = ts__progress(ctx, 0.3 + 0.7 * (e + 1) / n_exemplars, "dictionary")) != TS_OK)
             goto done;
+    }
+    if (d->n > 0 && ts__dict_sort(d) != 0) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
+        goto done;
     }
     if (d->n == 0) {
         st = ts__fail(ctx, TS_ERR_NUMERIC, "amplify",

@@ -169,6 +169,10 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
                             "altitude or deviation",
                             k);
         }
+    if (ts__dict_sort(d) != 0) {
+        ts_dictionary_free(d);
+        return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory");
+    }
     *out = d;
     return TS_OK;
 }
