@@ -99,14 +99,6 @@ int cli_dictionary(int argc, char **argv)
         goto done;
     }
     out = tsj_get(&v, "output", 0);
-    for (i = 0; i < job.n_exemplars; i++)
-        if (tsio_same_file(out, job.exemplars[i])) {
-            fprintf(stderr,
-                    "terrasynth: %s: is an input (%s): an output never overwrites an "
-                    "input\n",
-                    out, job.exemplars[i]);
-            goto done;
-        }
     ts_ctx_set_threads(ctx, co.threads);
     cli_set_progress(ctx, co.progress, &progress_state);
     tsio_stage_begin();

@@ -968,32 +968,72 @@ int tsjob_amplify_adopt_dictionary(tsjob_amplify *job, tsio_err *err)
     return 0;
 }
 
-int tsjob_dictionary_build(ts_ctx *ctx, const tsjob_amplify *job, const char *path, size_t *n_atoms,
-                           tsio_err *err)
+/* The exemplars read at dx x dy metres per cell (0: as they are), and the
+ * dictionary built from them.  With `warning`, sentinel cells are reported
+ * there and *no_crs gets the index+1 of an exemplar used cell for cell. */
+static int job_build_dictionary(ts_ctx *ctx, const tsjob_amplify *job, double dx, double dy,
+                                const char *what, ts_dictionary **dict, tsio_err *warning,
+                                int *no_crs, double *seconds, tsio_err *err)
 {
     tsio_raster ex[TSJOB_MAX_EXEMPLARS];
     ts_raster exr[TSJOB_MAX_EXEMPLARS];
+    struct timespec t0, t1;
+    int i, rc = -1;
+    memset(ex, 0, sizeof ex);
+    for (i = 0; i < job->n_exemplars; i++) {
+        double f = 1.0;
+        if (tsio_read_raster_resampled(job->exemplars[i], job->band, dx, dy, job->cell_size, &ex[i],
+                                       &f, err) != 0)
+            goto done;
+        if (warning)
+            job_warn_sentinels(warning, job->exemplars[i], &ex[i]);
+        if (no_crs && dx > 0 && !ex[i].dx_m && !*no_crs)
+            *no_crs = i + 1;
+        exr[i] = ex[i].r;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    if (ts_dictionary_build(ctx, exr, job->n_exemplars, &job->params, dict) != TS_OK) {
+        int bad = ts_ctx_failed_input(ctx);
+        tsio_errf(err, bad >= 0 && bad < job->n_exemplars ? job->exemplars[bad] : what, "%s",
+                  ts_ctx_message(ctx));
+        goto done;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    if (seconds)
+        *seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    rc = 0;
+done:
+    for (i = 0; i < job->n_exemplars; i++)
+        tsio_raster_free(&ex[i]);
+    return rc;
+}
+
+/* Every file an amplify (or dictionary) job reads; returns the count. */
+static int job_amplify_inputs(const tsjob_amplify *job, const char **in)
+{
+    int n = 0, i;
+    in[n++] = job->input;
+    in[n++] = job->dictionary;
+    for (i = 0; i < job->n_exemplars; i++)
+        in[n++] = job->exemplars[i];
+    return n;
+}
+
+int tsjob_dictionary_build(ts_ctx *ctx, const tsjob_amplify *job, const char *path, size_t *n_atoms,
+                           tsio_err *err)
+{
+    const char *in[TSJOB_MAX_EXEMPLARS + 2];
+    int n = job_amplify_inputs(job, in), k, rc = -1;
     ts_dictionary *dict = NULL;
     unsigned char head[DICT_FILE_HEAD], *bytes = NULL;
     size_t len = 0;
     uint64_t bits;
-    int i, k, rc = -1;
-    memset(ex, 0, sizeof ex);
-    if (tsio_write_bytes(path, NULL, 0, NULL, 0, 1, err) != 0)
-        return -1; /* the destination, before the work */
-    for (i = 0; i < job->n_exemplars; i++) {
-        double f = 1.0;
-        if (tsio_read_raster_resampled(job->exemplars[i], job->band, job->resolution,
-                                       job->resolution, job->cell_size, &ex[i], &f, err) != 0)
-            goto done;
-        exr[i] = ex[i].r;
-    }
-    if (ts_dictionary_build(ctx, exr, job->n_exemplars, &job->params, &dict) != TS_OK) {
-        int bad = ts_ctx_failed_input(ctx);
-        tsio_errf(err, bad >= 0 && bad < job->n_exemplars ? job->exemplars[bad] : "dictionary",
-                  "%s", ts_ctx_message(ctx));
+    /* the destination, before the work */
+    if (job_not_an_input(path, in, n, err) || tsio_write_bytes(path, NULL, 0, NULL, 0, 1, err) != 0)
+        return -1;
+    if (job_build_dictionary(ctx, job, job->resolution, job->resolution, "dictionary", &dict, NULL,
+                             NULL, NULL, err) != 0)
         goto done;
-    }
     if (ts_dictionary_to_bytes(ctx, dict, &bytes, &len) != TS_OK) {
         tsio_errf(err, path, "%s", ts_ctx_message(ctx));
         goto done;
@@ -1009,21 +1049,15 @@ int tsjob_dictionary_build(ts_ctx *ctx, const tsjob_amplify *job, const char *pa
 done:
     free(bytes);
     ts_dictionary_free(dict);
-    for (i = 0; i < job->n_exemplars; i++)
-        tsio_raster_free(&ex[i]);
     return rc;
 }
 
 int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                         tsio_err *err)
 {
-    tsio_raster ex[TSJOB_MAX_EXEMPLARS];
-    ts_raster exr[TSJOB_MAX_EXEMPLARS];
-    int i, rc = -1, cy = res->in.geo.height / 2, F = job->params.factor;
+    int cy = res->in.geo.height / 2, F = job->params.factor;
     double in_dx = res->in.dx_m ? res->in.dx_m[cy] : job->cell_size;
     double in_dy = res->in.dy_m ? res->in.dy_m[cy] : job->cell_size;
-    struct timespec ts0, ts1;
-    memset(ex, 0, sizeof ex);
     if (job->dictionary) {
         double dres;
         if (tsjob_dictionary_read(ctx, job->dictionary, &res->dict, &dres, err) != 0)
@@ -1038,27 +1072,10 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
         res->n_atoms = ts_dictionary_size(res->dict);
         goto drainage;
     }
-    for (i = 0; i < job->n_exemplars; i++) {
-        double f = 1.0;
-        if (tsio_read_raster_resampled(job->exemplars[i], job->band, in_dx > 0 ? in_dx / F : 0,
-                                       in_dy > 0 ? in_dy / F : 0, job->cell_size, &ex[i], &f,
-                                       err) != 0)
-            goto done;
-        job_warn_sentinels(&res->warning, job->exemplars[i], &ex[i]);
-        if (in_dx > 0 && !ex[i].dx_m && !res->exemplar_no_crs)
-            res->exemplar_no_crs = i + 1;
-        exr[i] = ex[i].r;
-    }
-    clock_gettime(CLOCK_MONOTONIC, &ts0);
-    if (ts_dictionary_build(ctx, exr, job->n_exemplars, &job->params, &res->dict) != TS_OK) {
-        int bad = ts_ctx_failed_input(ctx);
-        tsio_errf(err, bad >= 0 && bad < job->n_exemplars ? job->exemplars[bad] : "amplify", "%s",
-                  ts_ctx_message(ctx));
-        goto done;
-    }
-    clock_gettime(CLOCK_MONOTONIC, &ts1);
-    res->seconds_dictionary =
-        (double)(ts1.tv_sec - ts0.tv_sec) + 1e-9 * (double)(ts1.tv_nsec - ts0.tv_nsec);
+    if (job_build_dictionary(ctx, job, in_dx > 0 ? in_dx / F : 0, in_dy > 0 ? in_dy / F : 0,
+                             "amplify", &res->dict, &res->warning, &res->exemplar_no_crs,
+                             &res->seconds_dictionary, err) != 0)
+        return -1;
     res->n_atoms = ts_dictionary_size(res->dict);
     if (res->n_atoms < 256 && !res->warning.msg[0])
         tsio_errf(&res->warning, job->exemplars[0],
@@ -1069,13 +1086,9 @@ drainage:
     if (ts_raster_alloc(ctx, res->in.r.width, res->in.r.height, &res->drain) != TS_OK ||
         ts_drainage_area(ctx, &res->in.r, &res->drain) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
-        goto done;
+        return -1;
     }
-    rc = 0;
-done:
-    for (i = 0; i < job->n_exemplars; i++)
-        tsio_raster_free(&ex[i]);
-    return rc;
+    return 0;
 }
 
 int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
@@ -1128,11 +1141,7 @@ void tsjob_amplify_result_free(tsjob_amplify_result *res)
 int tsjob_amplify_check_recipe(const tsjob_amplify *job, const char *recipe, tsio_err *err)
 {
     const char *in[TSJOB_MAX_EXEMPLARS + 2];
-    int n = 0, i;
-    in[n++] = job->input;
-    in[n++] = job->dictionary;
-    for (i = 0; i < job->n_exemplars; i++)
-        in[n++] = job->exemplars[i];
+    int n = job_amplify_inputs(job, in);
     return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
 }
 
@@ -1140,7 +1149,7 @@ int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_re
                                 const tsjob_outputs *o, tsio_err *err)
 {
     const char *in[TSJOB_MAX_EXEMPLARS + 2], *outs[2] = {o->output, o->preview};
-    int n = 0, i;
+    int n = job_amplify_inputs(job, in);
     float probe = 0;
     ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
     unsigned char bp = 0;
@@ -1148,10 +1157,6 @@ int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_re
     tsio_write_opts png = {"PNG", NULL, 1};
     tsio_georef g1 = res->geo;
     g1.width = g1.height = 1;
-    in[n++] = job->input;
-    in[n++] = job->dictionary;
-    for (i = 0; i < job->n_exemplars; i++)
-        in[n++] = job->exemplars[i];
     if (job_not_an_input(o->output, in, n, err) || job_not_an_input(o->preview, in, n, err) ||
         job_distinct(outs, 2, err))
         return -1;

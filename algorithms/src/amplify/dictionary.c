@@ -152,7 +152,7 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, in
     ts_raster *low = NULL, *drain = NULL;
     size_t cap = 0;
     int e, F, p, P;
-    float *win = NULL, *hwin = NULL, *lwin = NULL;
+    float *win = NULL, *lwin = NULL;
     ts_status st = TS_OK;
     ts__clear(ctx);
     if (!out)
@@ -170,8 +170,7 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, in
     drain = calloc((size_t)n_exemplars, sizeof *drain);
     win = malloc((size_t)p * p * sizeof *win);
     lwin = malloc((size_t)p * p * sizeof *lwin);
-    hwin = malloc((size_t)P * P * sizeof *hwin);
-    if (!d || !low || !drain || !win || !lwin || !hwin) {
+    if (!d || !low || !drain || !win || !lwin) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
         goto done;
     }
@@ -267,7 +266,6 @@ done:
     free(drain);
     free(win);
     free(lwin);
-    free(hwin);
     if (st != TS_OK) {
         ts_dictionary_free(d);
         return st;
