@@ -590,10 +590,13 @@ TS_API ts_status ts_render_preview(ts_ctx *ctx, const ts_raster *dem, const ts_g
  * g = sum_j w_j g_j / sum_j w_j (section 5): g_h = (1 + P_h . D_h) / 2 on
  * the normalised elevation (orientation kept: no atom is ever inverted),
  * g_a and g_s Gaussians of the mean altitude and of the mean deviation
- * (sigma: the Gaussian is 0.5 at the median difference over the atoms), and
- * g_u = (1 + P_u . D_u) / 2 on the normalised log drainage area.  The
+ * (sigma: the Gaussian is 0.5 at the median difference over the atoms),
+ * g_u = (1 + P_u . D_u) / 2 on the normalised log drainage area,
+ * g_l = (1 + P_l . D_l) / 2 on the normalised mean annual solar irradiance
+ * and g_c = P_c . D_c on the class vectors (scaled to unit length).  The
  * atom's high-resolution counterpart replaces the patch
- * (P~ = (P_h . D_h) P_s D~_h + P_a) and patches are blended with a falloff.
+ * (P~ = (P_h . D_h) P_s D~_h + P_a) and patches are blended with a falloff;
+ * the atom's other layers come with it.
  */
 typedef struct ts_amplify_params {
     int factor;                /* output cells per input cell along each axis, 2..16 */
@@ -602,6 +605,8 @@ typedef struct ts_amplify_params {
     double w_h, w_a, w_s, w_u; /* matching weights (any scale; normalised to sum 1) */
     int refine;                /* back-projection passes: the output, area-averaged, gives back the
                                   input (our addition, 0 = the paper's reconstruction alone) */
+    double w_l;                /* weight of the irradiance term (0: irradiance is not computed) */
+    double w_c;                /* weight of the class term (used where classes are wanted) */
 } ts_amplify_params;
 
 TS_API ts_amplify_params ts_amplify_params_default(void);
@@ -610,14 +615,36 @@ TS_API ts_amplify_params ts_amplify_params_default(void);
  *  one-to-one correspondence, with their descriptors. */
 typedef struct ts_dictionary ts_dictionary;
 
+#define TS_MAX_LAYERS 8   /* extra layers a dictionary carries */
+#define TS_LAYER_NAME 32  /* bytes of a layer's name, with its terminating 0 */
+#define TS_MAX_CLASSES 64 /* class codes are 1..TS_MAX_CLASSES */
+
+/** One exemplar of a dictionary, at the OUTPUT resolution (the caller
+ *  resamples it).  Every raster but lat and north is on dem's grid. */
+typedef struct ts_exemplar {
+    ts_raster dem;
+    double dx, dy; /* ground size of its cells in metres (0: unknown) */
+    /* the dictionary's extra layers (n_layers of them, NaN = no value), or NULL */
+    const ts_raster *layers;
+    /* class codes 1..TS_MAX_CLASSES (0 or NaN: unlabelled), or NULL */
+    const ts_raster *classes;
+    /* latitude, and azimuth of the grid's up direction from true north
+     * (degrees), on the grid of dem area-averaged by the factor (what the
+     * irradiance is computed on); NULL: no irradiance for this exemplar */
+    const ts_raster *lat, *north;
+} ts_exemplar;
+
 /**
- * Build a dictionary from exemplar DEMs given at the OUTPUT resolution (the
- * caller resamples them): each is area-averaged by `factor` into its
- * low-resolution version, and atoms are the windows of `patch` cells of it
- * (all valid, on a regular lattice chosen to give at most `atoms` of them)
- * with the `patch * factor` windows of the exemplar above them.
+ * Build a dictionary from exemplars: each is area-averaged by `factor`
+ * into its low-resolution version, and atoms are the windows of `patch`
+ * cells of it (all valid, on a regular lattice chosen to give at most
+ * `atoms` of them) with the `patch * factor` windows of the exemplar (and
+ * of its layers and classes) above them.  `layer_names` names the n_layers
+ * extra layers every exemplar gives.  The irradiance descriptor is
+ * computed when params->w_l > 0.
  */
-TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, int n_exemplars,
+                                     const char *const *layer_names, int n_layers,
                                      const ts_amplify_params *params, ts_dictionary **out);
 TS_API size_t ts_dictionary_size(const ts_dictionary *dict);
 TS_API void ts_dictionary_free(ts_dictionary *dict);
@@ -632,6 +659,12 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
                                           ts_dictionary **out);
 /** The factor and patch a dictionary was built for. */
 TS_API void ts_dictionary_shape(const ts_dictionary *dict, int *factor, int *patch);
+/** What a dictionary holds besides elevation: its extra layers, the highest
+ *  class code of its classes (0: none), whether it has irradiance. */
+TS_API void ts_dictionary_layers(const ts_dictionary *dict, int *n_layers, int *n_classes,
+                                 int *has_irradiance);
+/** The name of extra layer i (NULL when out of range). */
+TS_API const char *ts_dictionary_layer_name(const ts_dictionary *dict, int i);
 
 /** What ts_amplify did (may be NULL). */
 typedef struct ts_amplify_info {
@@ -641,24 +674,42 @@ typedef struct ts_amplify_info {
     int n_inverted;    /* patches whose best atom had P_h . D_h < 0 (taken as flat) */
 } ts_amplify_info;
 
+/** What the input gives besides its elevation (every raster on its grid). */
+typedef struct ts_amplify_guide {
+    const ts_raster *drainage;   /* ts_drainage_area of the input (ts_amplify: NULL = computed) */
+    const ts_raster *irradiance; /* ts_irradiance of the input; needed when w_l > 0 */
+    const ts_raster *classes;    /* wanted class codes (0 or NaN: any), or NULL */
+} ts_amplify_guide;
+
+/** What ts_amplify writes besides the elevation (caller-allocated, on the
+ *  output's grid or window; NULL = not wanted). */
+typedef struct ts_amplify_layers {
+    ts_raster *layers;  /* the dictionary's n_layers layers (NaN where no atom has a value) */
+    ts_raster *classes; /* class codes (0 = unlabelled) of the atom that weighs most there */
+} ts_amplify_layers;
+
 /**
  * Amplify `coarse` (NaN = nodata) into `out` (caller-allocated,
  * coarse->width * factor x coarse->height * factor).  Cells under a nodata
- * coarse cell stay NaN.  Deterministic; threads from the context.
+ * coarse cell stay NaN.  `guide` and `layers` may be NULL.  Deterministic;
+ * threads from the context.
  */
-TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dictionary *dict,
-                            const ts_amplify_params *params, ts_raster *out, ts_amplify_info *info);
+TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_amplify_guide *guide,
+                            const ts_dictionary *dict, const ts_amplify_params *params,
+                            ts_raster *out, const ts_amplify_layers *layers,
+                            ts_amplify_info *info);
 
 /**
  * One window of what ts_amplify gives: the output cells [x0, x0 + out->width)
  * x [y0, y0 + out->height), byte for byte the same as that window of the
  * whole (amplification is local: only the patches over the window and the
- * margin back-projection needs are computed).  `drainage` is
- * ts_drainage_area of `coarse` (global: computed once, on the coarse grid).
+ * margin back-projection needs are computed).  guide->drainage is required
+ * (global: computed once, on the coarse grid).
  */
-TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raster *drainage,
-                                   const ts_dictionary *dict, const ts_amplify_params *params,
-                                   int x0, int y0, ts_raster *out, ts_amplify_info *info);
+TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse,
+                                   const ts_amplify_guide *guide, const ts_dictionary *dict,
+                                   const ts_amplify_params *params, int x0, int y0, ts_raster *out,
+                                   const ts_amplify_layers *layers, ts_amplify_info *info);
 
 /** Area-average `fine` by `factor` into `coarse` (caller-allocated,
  *  fine->width / factor x fine->height / factor); a coarse cell with any
@@ -670,6 +721,17 @@ TS_API ts_status ts_area_average(ts_ctx *ctx, const ts_raster *fine, int factor,
  *  E, SE, S, SW, W, NW, N, NE), deterministic.  `out` caller-allocated;
  *  NaN where the DEM is nodata. */
 TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *out);
+
+/**
+ * Mean annual direct solar irradiance (W/m^2, nights count as 0) with
+ * self-shadowing (section 5.6): the sun's path over the year at each cell's
+ * latitude `lat` (degrees), the grid turned by `north` (azimuth of the
+ * grid's up direction from true north, degrees; NULL = 0), the terrain's
+ * horizon along 16 directions and a clear-sky beam (Meinel's model).
+ * `metrics` in metres (NULL: cells of 1 m).  NaN where dem or lat is NaN.
+ */
+TS_API ts_status ts_irradiance(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
+                               const ts_raster *lat, const ts_raster *north, ts_raster *out);
 
 #ifdef __cplusplus
 }

@@ -10,7 +10,7 @@
  *
  * Our addition, named as such: back-projection.  The paper's
  * reconstruction keeps only the part of a patch its atom explains; the rest
- * (the input minus the area-averaged output) is upsampled bilinearly and
+ * (the input minus the area-averaged output) is upsampled (cubic convolution) and
  * added back, a few passes, so the output averages back to the input.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -98,6 +98,9 @@ typedef struct amp_work {
     const ts_raster *res; /* the residual on the coarse rectangle rr */
     amp_rect rr;
     int ux0, uy0, ux1, uy1; /* the fine cells it updates (global) */
+    /* the atoms' other layers, on the window */
+    const ts_amplify_layers *lay;
+    int X0, Y0, ww, wh;
     int fail;
 } amp_work;
 
@@ -152,6 +155,75 @@ static void recon_rows(void *arg, size_t begin, size_t end)
     }
     free(acc);
     free(wsum);
+}
+
+/* The atoms' extra layers and classes on the window's rows: layers blended
+ * with the same falloff as the elevation (cells where an atom has no value
+ * left out), classes those of the atom that weighs most at the cell (ties:
+ * the first in patch order). */
+static void layer_rows(void *arg, size_t begin, size_t end)
+{
+    amp_work *r = arg;
+    const ts_dictionary *D = r->dict;
+    int L = r->lay->layers ? D->n_layers : 0, Ww = r->ww, F = r->F, P = r->P, l, X;
+    int want_c = r->lay->classes && D->hc, ncols = r->c1 - r->c0;
+    double *acc = ts__malloc_array((size_t)(L + 1) * (size_t)Ww, 2 * sizeof *acc);
+    double *wsum = acc ? acc + (size_t)(L + 1) * Ww : NULL, *wbest;
+    unsigned char *cbest = malloc((size_t)Ww + 1);
+    size_t k;
+    if (!acc || !cbest) {
+        free(acc);
+        free(cbest);
+        r->fail = 1;
+        return;
+    }
+    wbest = acc + (size_t)L * Ww;
+    for (k = begin; k < end; k++) {
+        int Y = r->Y0 + (int)k, ry, cx;
+        memset(acc, 0, (size_t)(L + 1) * (size_t)Ww * 2 * sizeof *acc);
+        memset(cbest, 0, (size_t)Ww);
+        for (ry = r->r0; ry < r->r1; ry++) {
+            int ty = Y - r->ys[ry] * F;
+            if (ty < 0 || ty >= P)
+                continue;
+            for (cx = r->c0; cx < r->c1; cx++) {
+                size_t pi = (size_t)(ry - r->r0) * (size_t)ncols + (size_t)(cx - r->c0);
+                int a = r->best[pi], x0 = r->xs[cx] * F, tx, t0, t1;
+                double wy = r->window[ty];
+                if (a < 0)
+                    continue;
+                t0 = r->X0 - x0 > 0 ? r->X0 - x0 : 0;
+                t1 = r->X0 + Ww - x0 < P ? r->X0 + Ww - x0 : P;
+                for (tx = t0; tx < t1; tx++) {
+                    double w = wy * r->window[tx];
+                    int o = x0 + tx - r->X0;
+                    for (l = 0; l < L; l++) {
+                        float v = D->ll[((size_t)a * L + l) * D->hd + (size_t)ty * P + tx];
+                        if (!isnan(v)) {
+                            acc[(size_t)l * Ww + o] += w * v;
+                            wsum[(size_t)l * Ww + o] += w;
+                        }
+                    }
+                    if (want_c && w > wbest[o]) {
+                        wbest[o] = w;
+                        cbest[o] = D->hc[(size_t)a * D->hd + (size_t)ty * P + tx];
+                    }
+                }
+            }
+        }
+        for (X = 0; X < Ww; X++) {
+            int nodata = isnan(TS_PIX(r->coarse, (r->X0 + X) / F, Y / F));
+            for (l = 0; l < L; l++) {
+                double ws = wsum[(size_t)l * Ww + X];
+                TS_PIX(&r->lay->layers[l], X, (int)k) =
+                    nodata || !(ws > 0) ? NAN : (float)(acc[(size_t)l * Ww + X] / ws);
+            }
+            if (r->lay->classes)
+                TS_PIX(r->lay->classes, X, (int)k) = nodata ? 0.0f : (float)cbest[X];
+        }
+    }
+    free(acc);
+    free(cbest);
 }
 
 static void bp_rows(void *arg, size_t begin, size_t end)
@@ -231,16 +303,22 @@ static void back_project(ts_ctx *ctx, amp_work *w, amp_rect rr, ts_raster *res)
  * computed, nothing else.  Each cell is computed by the same operations in
  * the same order whatever the window, so a window is byte for byte the same
  * window of the whole. */
-static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raster *drain,
+static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_amplify_guide *guide,
                             const ts_dictionary *dict, const ts_amplify_params *params, int X0,
-                            int Y0, ts_raster *out, ts_amplify_info *info)
+                            int Y0, ts_raster *out, const ts_amplify_layers *lay,
+                            ts_amplify_info *info)
 {
+    const ts_raster *drain = guide->drainage, *irr = guide->irradiance, *cls = guide->classes;
+    int K = dict->n_classes;
+    int use_l = params->w_l > 0 && irr && dict->dl, use_c = params->w_c > 0 && cls && K > 0;
+    float *pl = NULL, *pc = NULL;
+    amp_patches pt;
     int W = coarse->width, H = coarse->height, F = params->factor, p = params->patch;
     int P = p * F, step = p / 2 > 0 ? p / 2 : 1, nx, ny, i, j, cx, cy, pass, R = params->refine;
     int *xs = NULL, *ys = NULL, *best = NULL, c0, c1, r0, r1;
     float *ph = NULL, *pu = NULL, *coef = NULL, *score = NULL, *win = NULL, *window = NULL;
     float *lwin = NULL, *resbuf = NULL;
-    double *pa = NULL, *ps = NULL, *pnorm = NULL, w[4], t0, t1;
+    double *pa = NULL, *ps = NULL, *pnorm = NULL, w[AMP_NW], t0, t1;
     ts_raster buf = {0, 0, 0, NULL}, res;
     amp_rect foot, reg[12], base;
     size_t np, pi;
@@ -288,10 +366,14 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raste
     win = malloc((size_t)p * p * sizeof *win);
     lwin = malloc((size_t)p * p * sizeof *lwin);
     window = malloc((size_t)P * sizeof *window);
+    if (use_l)
+        pl = ts__malloc_array(np * (size_t)p * p, sizeof *pl);
+    if (use_c)
+        pc = ts__malloc_array(np * (size_t)K, sizeof *pc);
     resbuf =
         ts__malloc_array((size_t)(base.x1 - base.x0) * (size_t)(base.y1 - base.y0), sizeof *resbuf);
     if (!ph || !pu || !pa || !ps || !pnorm || !best || !coef || !score || !win || !lwin ||
-        !window || !resbuf) {
+        !window || !resbuf || (use_l && !pl) || (use_c && !pc)) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu patches", np);
         goto done;
     }
@@ -311,11 +393,28 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raste
                         nv++;
                     }
                 }
+            if (pc) { /* the wanted classes' shares, scaled to unit length (0: any) */
+                float *c = pc + pi * (size_t)K;
+                double norm = 0;
+                memset(c, 0, (size_t)K * sizeof *c);
+                for (j = 0; j < p; j++)
+                    for (i = 0; i < p; i++) {
+                        int code = ts__class_code(TS_PIX(cls, xs[cx] + i, ys[cy] + j));
+                        if (code > 0 && code <= K)
+                            c[code - 1] += 1.0f;
+                    }
+                for (i = 0; i < K; i++)
+                    norm += (double)c[i] * c[i];
+                for (i = 0; i < K && norm > 0; i++)
+                    c[i] = (float)(c[i] / sqrt(norm));
+            }
             if (!nv) {
                 pa[pi] = NAN;
                 ps[pi] = pnorm[pi] = 0;
                 memset(ph + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *ph);
                 memset(pu + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *pu);
+                if (pl)
+                    memset(pl + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *pl);
                 continue;
             }
             m /= nv;
@@ -329,13 +428,39 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raste
                 }
             ts__amp_normalise(win, p * p, ph + pi * (size_t)p * p, &pa[pi], &rms);
             ts__amp_normalise(lwin, p * p, pu + pi * (size_t)p * p, &um, &urms);
+            if (pl) { /* the irradiance, described as the drainage is */
+                double lm = 0;
+                int nl = 0;
+                for (j = 0; j < p; j++)
+                    for (i = 0; i < p; i++) {
+                        float v = TS_PIX(irr, xs[cx] + i, ys[cy] + j);
+                        if (!isnan(v)) {
+                            lm += v;
+                            nl++;
+                        }
+                    }
+                lm = nl ? lm / nl : 0.0;
+                for (j = 0; j < p; j++)
+                    for (i = 0; i < p; i++) {
+                        float v = TS_PIX(irr, xs[cx] + i, ys[cy] + j);
+                        lwin[j * p + i] = isnan(v) ? (float)lm : v;
+                    }
+                ts__amp_normalise(lwin, p * p, pl + pi * (size_t)p * p, &um, &urms);
+            }
             ps[pi] = rms;
             pnorm[pi] = rms * p; /* |P_e - P_a| */
         }
     if ((st = ts__progress(ctx, 0.05, "matching")) != TS_OK)
         goto done;
-    ts__amp_weights(params, w);
-    if (ts__match_atoms(ctx, dict, ph, pu, pa, ps, np, w, best, score, coef) != 0) {
+    ts__amp_weights(params, use_l, use_c, w);
+    pt.n = np;
+    pt.ph = ph;
+    pt.pu = pu;
+    pt.pl = pl;
+    pt.pc = pc;
+    pt.pa = pa;
+    pt.ps = ps;
+    if (ts__match_atoms(ctx, dict, &pt, w, best, score, coef) != 0) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for matching");
         goto done;
     }
@@ -405,6 +530,18 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raste
         if ((st = ts__progress(ctx, 0.9 + 0.1 * pass / R, "back-projection")) != TS_OK)
             goto done;
     }
+    if (lay && (lay->layers || lay->classes)) {
+        wk.lay = lay;
+        wk.X0 = X0;
+        wk.Y0 = Y0;
+        wk.ww = out->width;
+        wk.wh = out->height;
+        ts__parallel_for(ctx, (size_t)out->height, layer_rows, &wk);
+        if (wk.fail) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
+            goto done;
+        }
+    }
     if (!whole)
         for (j = 0; j < out->height; j++)
             memcpy(&TS_PIX(out, 0, j), &TS_PIX(&buf, X0 - wk.bx, Y0 + j - wk.by),
@@ -443,14 +580,17 @@ done:
     free(lwin);
     free(window);
     free(resbuf);
+    free(pl);
+    free(pc);
     return st;
 }
 
 /* The checks both entry points share. */
-static ts_status amp_check(ts_ctx *ctx, const ts_raster *coarse, const ts_dictionary *dict,
-                           const ts_amplify_params *params, const ts_raster *out)
+static ts_status amp_check(ts_ctx *ctx, const ts_raster *coarse, const ts_amplify_guide *guide,
+                           const ts_dictionary *dict, const ts_amplify_params *params,
+                           const ts_raster *out, const ts_amplify_layers *lay)
 {
-    int F, p;
+    int F, p, l, x, y;
     if (!coarse || !coarse->data || !dict || !params || !out || !out->data)
         return ts__fail(ctx, TS_ERR_ARG, "amplify", "missing input, dictionary or output");
     if (ts_params_validate(ctx, "amplify", params) != TS_OK)
@@ -465,47 +605,93 @@ static ts_status amp_check(ts_ctx *ctx, const ts_raster *coarse, const ts_dictio
         return ts__fail(ctx, TS_ERR_SIZE, "amplify",
                         "the input (%d x %d cells) is smaller than a patch (%d cells)",
                         coarse->width, coarse->height, p);
+    if (guide) {
+        const ts_raster *r[3] = {guide->drainage, guide->irradiance, guide->classes};
+        for (l = 0; l < 3; l++)
+            if (r[l] && (!r[l]->data || r[l]->width != coarse->width ||
+                         r[l]->height != coarse->height))
+                return ts__fail(ctx, TS_ERR_ARG, "amplify",
+                                "the drainage, irradiance and classes must be on the input's "
+                                "grid");
+        if (guide->classes)
+            for (y = 0; y < coarse->height; y++)
+                for (x = 0; x < coarse->width; x++)
+                    if (ts__class_code(TS_PIX(guide->classes, x, y)) < 0)
+                        return ts__fail(ctx, TS_ERR_ARG, "amplify",
+                                        "class %g at input cell %d,%d is not a code 1..%d (0 or "
+                                        "nodata: any)",
+                                        (double)TS_PIX(guide->classes, x, y), x, y,
+                                        TS_MAX_CLASSES);
+    }
+    if (params->w_l > 0 && !dict->dl)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify",
+                        "the irradiance term (w_l %g) needs a dictionary built with it (w_l > 0)",
+                        params->w_l);
+    if (params->w_l > 0 && !(guide && guide->irradiance))
+        return ts__fail(ctx, TS_ERR_ARG, "amplify",
+                        "the irradiance term (w_l %g) needs the input's irradiance", params->w_l);
+    if (lay && lay->layers)
+        for (l = 0; l < dict->n_layers; l++)
+            if (!lay->layers[l].data || lay->layers[l].width != out->width ||
+                lay->layers[l].height != out->height)
+                return ts__fail(ctx, TS_ERR_ARG, "amplify",
+                                "output layer %s is not on the output's window",
+                                dict->layer_names[l]);
+    if (lay && lay->classes &&
+        (!lay->classes->data || lay->classes->width != out->width ||
+         lay->classes->height != out->height))
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the output classes are not on its window");
     return TS_OK;
 }
 
-TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_dictionary *dict,
-                            const ts_amplify_params *params, ts_raster *out, ts_amplify_info *info)
+TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_amplify_guide *guide,
+                            const ts_dictionary *dict, const ts_amplify_params *params,
+                            ts_raster *out, const ts_amplify_layers *layers,
+                            ts_amplify_info *info)
 {
     ts_raster drain = {0, 0, 0, NULL};
+    ts_amplify_guide g = {NULL, NULL, NULL};
     ts_status st;
     ts__clear(ctx);
     if (info)
         memset(info, 0, sizeof *info);
-    if ((st = amp_check(ctx, coarse, dict, params, out)) != TS_OK)
+    if ((st = amp_check(ctx, coarse, guide, dict, params, out, layers)) != TS_OK)
         return st;
     if (out->width != coarse->width * params->factor ||
         out->height != coarse->height * params->factor)
         return ts__fail(ctx, TS_ERR_ARG, "amplify", "the output must be %d x %d cells",
                         coarse->width * params->factor, coarse->height * params->factor);
-    if (ts_raster_alloc(ctx, coarse->width, coarse->height, &drain) != TS_OK ||
-        ts_drainage_area(ctx, coarse, &drain) != TS_OK)
-        st = ctx->status;
-    else
-        st = amp_window(ctx, coarse, &drain, dict, params, 0, 0, out, info);
+    if (guide)
+        g = *guide;
+    if (!g.drainage) {
+        if (ts_raster_alloc(ctx, coarse->width, coarse->height, &drain) != TS_OK ||
+            ts_drainage_area(ctx, coarse, &drain) != TS_OK) {
+            ts_raster_free(&drain);
+            return ctx->status;
+        }
+        g.drainage = &drain;
+    }
+    st = amp_window(ctx, coarse, &g, dict, params, 0, 0, out, layers, info);
     ts_raster_free(&drain);
     return st;
 }
 
-TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse, const ts_raster *drainage,
-                                   const ts_dictionary *dict, const ts_amplify_params *params,
-                                   int x0, int y0, ts_raster *out, ts_amplify_info *info)
+TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse,
+                                   const ts_amplify_guide *guide, const ts_dictionary *dict,
+                                   const ts_amplify_params *params, int x0, int y0, ts_raster *out,
+                                   const ts_amplify_layers *layers, ts_amplify_info *info)
 {
     ts_status st;
     ts__clear(ctx);
     if (info)
         memset(info, 0, sizeof *info);
-    if ((st = amp_check(ctx, coarse, dict, params, out)) != TS_OK)
+    if ((st = amp_check(ctx, coarse, guide, dict, params, out, layers)) != TS_OK)
         return st;
-    if (!drainage || drainage->width != coarse->width || drainage->height != coarse->height)
+    if (!guide || !guide->drainage)
         return ts__fail(ctx, TS_ERR_ARG, "amplify", "the drainage area must be on the input grid");
     if (x0 < 0 || y0 < 0 || x0 + out->width > coarse->width * params->factor ||
         y0 + out->height > coarse->height * params->factor)
         return ts__fail(ctx, TS_ERR_ARG, "amplify", "the window %d,%d %dx%d is outside the output",
                         x0, y0, out->width, out->height);
-    return amp_window(ctx, coarse, drainage, dict, params, x0, y0, out, info);
+    return amp_window(ctx, coarse, guide, dict, params, x0, y0, out, layers, info);
 }

@@ -21,7 +21,32 @@ struct ts_dictionary {
     double *s;             /* mean deviation D_s (RMS of the centred low-resolution atom) */
     int *exemplar, *x, *y; /* where each atom came from (low-resolution cells) */
     double *a_sorted, *s_sorted; /* a and s in ascending order (the matching's medians) */
+    /* section 5.6: the normalised mean annual solar irradiance D_l (n x d unit
+     * vectors, or 0 where the exemplar had no latitude); NULL when built without */
+    float *dl;
+    /* section 5.4: classes 1..n_classes; dc (n x n_classes) the atom's class
+     * vector (the share of its high-resolution cells in each class, scaled to
+     * unit length; 0 for an unlabelled atom), hc (n x hd) its class codes
+     * (0 = none); both NULL when n_classes is 0 */
+    int n_classes;
+    float *dc;
+    unsigned char *hc;
+    /* extra layers carried by the atoms (vegetation, ...): ll (n x n_layers x hd),
+     * NaN where the exemplar's layer had none */
+    int n_layers;
+    char layer_names[TS_MAX_LAYERS][TS_LAYER_NAME];
+    float *ll;
 };
+
+/* The descriptors of the input's patches, laid out as the atoms' are. */
+typedef struct amp_patches {
+    size_t n;
+    const float *ph, *pu, *pl, *pc; /* n x d, n x d, n x d (or NULL), n x n_classes (or NULL) */
+    const double *pa, *ps;
+} amp_patches;
+
+/* The weights (h, a, s, u, l, c) in this order. */
+enum { AMP_WH, AMP_WA, AMP_WS, AMP_WU, AMP_WL, AMP_WC, AMP_NW };
 
 /* After the atoms are filled: the sorted copies of a and s (0, or -1 when
  * out of memory). */
@@ -32,20 +57,23 @@ int ts__dict_sort(ts_dictionary *d);
  * returns 0, else 1. */
 int ts__amp_normalise(const float *v, int d, float *out, double *mean, double *rms);
 
-/* The matching weights (h, a, s, u) normalised to sum 1. */
-void ts__amp_weights(const ts_amplify_params *p, double w[4]);
+/* The matching weights (h, a, s, u, l, c) normalised to sum 1; l and c
+ * only when use_l and use_c. */
+void ts__amp_weights(const ts_amplify_params *p, int use_l, int use_c, double w[AMP_NW]);
 
-/* For each of the np patches (descriptors ph, pu: np x d; pa, ps), the atom
- * with the highest g (ties: the lowest index), its g and P_h . D_h.  Fast
- * kernel: blocked dot products over tiles of patches and atoms.  0, or -1
- * when out of memory. */
-int ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const float *ph, const float *pu,
-                    const double *pa, const double *ps, size_t np, const double w[4], int *best,
-                    float *score, float *coef);
+/* For each patch, the atom with the highest g (ties: the lowest index), its
+ * g and P_h . D_h.  Fast kernel: blocked dot products over tiles of patches
+ * and atoms.  0, or -1 when out of memory. */
+int ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const amp_patches *pt,
+                    const double w[AMP_NW], int *best, float *score, float *coef);
 
-/* g of one patch against one atom, given the two dot products and the two
- * Gaussian widths (the matching function of section 5). */
-double ts__amp_score(const double w[4], double dot_h, double dot_u, double da, double ds,
-                     double sigma_a, double sigma_s);
+/* g of one patch against one atom, given the dot products (h, u, l, c) and
+ * the two Gaussian widths (the matching function of section 5). */
+double ts__amp_score(const double w[AMP_NW], double dot_h, double dot_u, double dot_l,
+                     double dot_c, double da, double ds, double sigma_a, double sigma_s);
+
+/* A class code as read: 0 for none (0 or NaN), 1..TS_MAX_CLASSES, or -1 for
+ * anything else. */
+int ts__class_code(float v);
 
 #endif

@@ -22,12 +22,13 @@
 #define PATCH_TILE 16
 #define ATOM_TILE 128
 
-double ts__amp_score(const double w[4], double dot_h, double dot_u, double da, double ds,
-                     double sigma_a, double sigma_s)
+double ts__amp_score(const double w[AMP_NW], double dot_h, double dot_u, double dot_l,
+                     double dot_c, double da, double ds, double sigma_a, double sigma_s)
 {
     double ga = sigma_a > 0 ? exp(-(da * da) / (sigma_a * sigma_a)) : (da == 0 ? 1.0 : 0.0);
     double gs = sigma_s > 0 ? exp(-(ds * ds) / (sigma_s * sigma_s)) : (ds == 0 ? 1.0 : 0.0);
-    return w[0] * 0.5 * (1.0 + dot_h) + w[1] * ga + w[2] * gs + w[3] * 0.5 * (1.0 + dot_u);
+    return w[AMP_WH] * 0.5 * (1.0 + dot_h) + w[AMP_WA] * ga + w[AMP_WS] * gs +
+           w[AMP_WU] * 0.5 * (1.0 + dot_u) + w[AMP_WL] * 0.5 * (1.0 + dot_l) + w[AMP_WC] * dot_c;
 }
 
 /* Four lanes of floats (GCC/Clang vector extension: SSE on x86-64, NEON on
@@ -92,9 +93,8 @@ static double median_distance(const double *v, size_t n, double q)
 
 typedef struct match_job {
     const ts_dictionary *dict;
-    const float *ph, *pu;
-    const double *pa, *ps, *w;
-    size_t np;
+    const amp_patches *pt;
+    const double *w;
     int *best;
     float *score, *coef;
     int fail;
@@ -104,14 +104,17 @@ static void match_range(void *arg, size_t begin, size_t end)
 {
     match_job *m = arg;
     const ts_dictionary *D = m->dict;
+    const amp_patches *pt = m->pt;
     size_t na = D->n, b0, a0, i, k;
-    int d = D->d;
+    int d = D->d, K = D->n_classes;
+    int use_u = m->w[AMP_WU] > 0, use_l = m->w[AMP_WL] > 0 && pt->pl && D->dl;
+    int use_c = m->w[AMP_WC] > 0 && pt->pc && D->dc;
     float *dh = malloc(PATCH_TILE * na * sizeof *dh);
-    float *du = malloc(PATCH_TILE * na * sizeof *du);
+    double *dx = malloc(PATCH_TILE * na * sizeof *dx); /* w_u g_u + w_l g_l + w_c g_c */
     const double ln2 = log(2.0);
-    if (!dh || !du) {
+    if (!dh || !dx) {
         free(dh);
-        free(du);
+        free(dx);
         m->fail = 1; /* the caller reports it: never a silently flat patch */
         return;
     }
@@ -121,37 +124,47 @@ static void match_range(void *arg, size_t begin, size_t end)
         for (a0 = 0; a0 < na; a0 += ATOM_TILE) {
             size_t a1 = a0 + ATOM_TILE < na ? a0 + ATOM_TILE : na;
             for (i = b0; i < b1; i++) {
-                const float *ph = m->ph + i * (size_t)d, *pu = m->pu + i * (size_t)d;
-                float *rh = dh + (i - b0) * na, *ru = du + (i - b0) * na;
+                const float *ph = pt->ph + i * (size_t)d, *pu = pt->pu + i * (size_t)d;
+                const float *pl = use_l ? pt->pl + i * (size_t)d : NULL;
+                const float *pc = use_c ? pt->pc + i * (size_t)K : NULL;
+                float *rh = dh + (i - b0) * na;
+                double *rx = dx + (i - b0) * na;
                 for (k = a0; k < a1; k++) {
+                    double du = use_u ? dot(pu, D->du + k * (size_t)d, d) : 0.0;
+                    double dl = use_l ? dot(pl, D->dl + k * (size_t)d, d) : 0.0;
+                    double dc = use_c ? dot(pc, D->dc + k * (size_t)K, K) : 0.0;
                     rh[k] = dot(ph, D->dh + k * (size_t)d, d);
-                    ru[k] = m->w[3] > 0 ? dot(pu, D->du + k * (size_t)d, d) : 0.0f;
+                    rx[k] = m->w[AMP_WU] * 0.5 * (1.0 + du) + m->w[AMP_WL] * 0.5 * (1.0 + dl) +
+                            m->w[AMP_WC] * dc;
                 }
             }
         }
         for (i = b0; i < b1; i++) {
-            const float *rh = dh + (i - b0) * na, *ru = du + (i - b0) * na;
+            const float *rh = dh + (i - b0) * na;
+                double *rx = dx + (i - b0) * na;
             double sa, ss, best = -1.0;
             int bk = -1;
-            if (isnan(m->pa[i])) { /* an all-nodata patch */
+            if (isnan(pt->pa[i])) { /* an all-nodata patch */
                 m->best[i] = -1;
                 m->score[i] = 0;
                 m->coef[i] = 0;
                 continue;
             }
-            sa = median_distance(D->a_sorted, na, m->pa[i]) / sqrt(ln2);
-            ss = median_distance(D->s_sorted, na, m->ps[i]) / sqrt(ln2);
+            sa = median_distance(D->a_sorted, na, pt->pa[i]) / sqrt(ln2);
+            ss = median_distance(D->s_sorted, na, pt->ps[i]) / sqrt(ln2);
             for (k = 0; k < na; k++) {
-                double g;
+                double g, ga, gs, da, ds;
                 /* the Gaussians are at most 1: an atom that cannot beat the best even
                  * with both at 1 is passed without computing them (exact: a tie never
                  * replaces the best) */
-                double bound = m->w[0] * 0.5 * (1.0 + rh[k]) + m->w[3] * 0.5 * (1.0 + ru[k]) +
-                               m->w[1] + m->w[2];
-                if (bound <= best)
+                double base = m->w[AMP_WH] * 0.5 * (1.0 + rh[k]) + rx[k];
+                if (base + m->w[AMP_WA] + m->w[AMP_WS] <= best)
                     continue;
-                g = ts__amp_score(m->w, rh[k], ru[k], m->pa[i] - D->a[k], m->ps[i] - D->s[k], sa,
-                                  ss);
+                da = pt->pa[i] - D->a[k];
+                ds = pt->ps[i] - D->s[k];
+                ga = sa > 0 ? exp(-(da * da) / (sa * sa)) : (da == 0 ? 1.0 : 0.0);
+                gs = ss > 0 ? exp(-(ds * ds) / (ss * ss)) : (ds == 0 ? 1.0 : 0.0);
+                g = base + m->w[AMP_WA] * ga + m->w[AMP_WS] * gs;
                 if (g > best) {
                     best = g;
                     bk = (int)k;
@@ -163,14 +176,13 @@ static void match_range(void *arg, size_t begin, size_t end)
         }
     }
     free(dh);
-    free(du);
+    free(dx);
 }
 
-int ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const float *ph, const float *pu,
-                    const double *pa, const double *ps, size_t np, const double w[4], int *best,
-                    float *score, float *coef)
+int ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const amp_patches *pt,
+                    const double w[AMP_NW], int *best, float *score, float *coef)
 {
-    match_job m = {dict, ph, pu, pa, ps, w, np, best, score, coef, 0};
-    ts__parallel_for(ctx, np, match_range, &m);
+    match_job m = {dict, pt, w, best, score, coef, 0};
+    ts__parallel_for(ctx, pt->n, match_range, &m);
     return m.fail ? -1 : 0;
 }

@@ -39,15 +39,20 @@ int ts__amp_normalise(const float *v, int d, float *out, double *mean, double *r
     return 1;
 }
 
-void ts__amp_weights(const ts_amplify_params *p, double w[4])
+void ts__amp_weights(const ts_amplify_params *p, int use_l, int use_c, double w[AMP_NW])
 {
-    double sum = p->w_h + p->w_a + p->w_s + p->w_u;
-    w[0] = p->w_h;
-    w[1] = p->w_a;
-    w[2] = p->w_s;
-    w[3] = p->w_u;
+    double sum = 0;
+    int i;
+    w[AMP_WH] = p->w_h;
+    w[AMP_WA] = p->w_a;
+    w[AMP_WS] = p->w_s;
+    w[AMP_WU] = p->w_u;
+    w[AMP_WL] = use_l ? p->w_l : 0.0;
+    w[AMP_WC] = use_c ? p->w_c : 0.0;
+    for (i = 0; i < AMP_NW; i++)
+        sum += w[i];
     if (sum > 0)
-        for (int i = 0; i < 4; i++)
+        for (i = 0; i < AMP_NW; i++)
             w[i] /= sum;
 }
 
@@ -110,6 +115,10 @@ int ts__dict_sort(ts_dictionary *d)
 
 static void dict_free_arrays(ts_dictionary *d)
 {
+    free(d->dl);
+    free(d->dc);
+    free(d->hc);
+    free(d->ll);
     free(d->a_sorted);
     free(d->s_sorted);
     free(d->dh);
@@ -135,6 +144,33 @@ TS_API size_t ts_dictionary_size(const ts_dictionary *dict)
     return dict ? dict->n : 0;
 }
 
+TS_API void ts_dictionary_layers(const ts_dictionary *dict, int *n_layers, int *n_classes,
+                                 int *has_irradiance)
+{
+    if (n_layers)
+        *n_layers = dict ? dict->n_layers : 0;
+    if (n_classes)
+        *n_classes = dict ? dict->n_classes : 0;
+    if (has_irradiance)
+        *has_irradiance = dict && dict->dl;
+}
+
+TS_API const char *ts_dictionary_layer_name(const ts_dictionary *dict, int i)
+{
+    return dict && i >= 0 && i < dict->n_layers ? dict->layer_names[i] : NULL;
+}
+
+/* A class code as read: 0 for none (0 or NaN), the code 1..TS_MAX_CLASSES, or
+ * -1 for anything else. */
+int ts__class_code(float v)
+{
+    if (isnan(v) || v == 0.0f)
+        return 0;
+    if (v >= 1.0f && v <= (float)TS_MAX_CLASSES && v == floorf(v))
+        return (int)v;
+    return -1;
+}
+
 /* Lattice step over a low-resolution exemplar so that at most max_atoms
  * windows are taken. */
 static int lattice_step(int nx, int ny, int max_atoms)
@@ -145,13 +181,89 @@ static int lattice_step(int nx, int ny, int max_atoms)
     return step;
 }
 
-TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+/* Check an exemplar's layers, classes and latitude against its DEM; the
+ * highest class code into *max_class.  TS_OK or the failure. */
+static ts_status check_exemplar(ts_ctx *ctx, const ts_exemplar *ex, int e, int n_layers, int F,
+                                int *max_class)
+{
+    const ts_raster *dem = &ex->dem;
+    int l, x, y;
+    if (!dem->data)
+        return ts__fail_input(ctx, TS_ERR_ARG, e, "amplify", "exemplar %d: no DEM", e + 1);
+    if (n_layers > 0 && !ex->layers)
+        return ts__fail_input(ctx, TS_ERR_ARG, e, "amplify",
+                              "exemplar %d: gives none of the dictionary's %d layers", e + 1,
+                              n_layers);
+    for (l = 0; l < n_layers; l++)
+        if (!ex->layers[l].data || ex->layers[l].width != dem->width ||
+            ex->layers[l].height != dem->height)
+            return ts__fail_input(ctx, TS_ERR_ARG, e, "amplify",
+                                  "exemplar %d: layer %d is not on its grid", e + 1, l + 1);
+    if (ex->classes) {
+        if (!ex->classes->data || ex->classes->width != dem->width ||
+            ex->classes->height != dem->height)
+            return ts__fail_input(ctx, TS_ERR_ARG, e, "amplify",
+                                  "exemplar %d: its classes are not on its grid", e + 1);
+        for (y = 0; y < dem->height; y++)
+            for (x = 0; x < dem->width; x++) {
+                float v = TS_PIX(ex->classes, x, y);
+                int c = ts__class_code(v);
+                if (c < 0)
+                    return ts__fail_input(ctx, TS_ERR_ARG, e, "amplify",
+                                          "exemplar %d: class %g at cell %d,%d is not a code "
+                                          "1..%d (0 or nodata: none)",
+                                          e + 1, (double)v, x, y, TS_MAX_CLASSES);
+                if (c > *max_class)
+                    *max_class = c;
+            }
+    }
+    if (ex->lat || ex->north) {
+        const ts_raster *r[2] = {ex->lat, ex->north};
+        for (l = 0; l < 2; l++)
+            if (r[l] && (!r[l]->data || r[l]->width != dem->width / F ||
+                         r[l]->height != dem->height / F))
+                return ts__fail_input(ctx, TS_ERR_ARG, e, "amplify",
+                                      "exemplar %d: its latitude and north must be on its "
+                                      "grid area-averaged by the factor",
+                                      e + 1);
+    }
+    return TS_OK;
+}
+
+/* The mean annual irradiance of a low-resolution exemplar (cells of F dx x F dy). */
+static ts_status low_irradiance(ts_ctx *ctx, const ts_exemplar *ex, const ts_raster *low, int F,
+                                ts_raster *irr)
+{
+    double *mx = ts__malloc_array((size_t)low->height, sizeof *mx);
+    double *my = ts__malloc_array((size_t)low->height, sizeof *my);
+    ts_grid_metrics m;
+    ts_status st;
+    int y;
+    if (!mx || !my) {
+        free(mx);
+        free(my);
+        return ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
+    }
+    for (y = 0; y < low->height; y++) {
+        mx[y] = ex->dx * F;
+        my[y] = ex->dy * F;
+    }
+    m.dx = mx;
+    m.dy = my;
+    st = ts_irradiance(ctx, low, &m, ex->lat, ex->north, irr);
+    free(mx);
+    free(my);
+    return st;
+}
+
+TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, int n_exemplars,
+                                     const char *const *layer_names, int n_layers,
                                      const ts_amplify_params *params, ts_dictionary **out)
 {
     ts_dictionary *d;
-    ts_raster *low = NULL, *drain = NULL;
+    ts_raster *low = NULL, *drain = NULL, *irr = NULL;
     size_t cap = 0;
-    int e, F, p, P;
+    int e, F, p, P, l, K = 0, want_l;
     float *win = NULL, *lwin = NULL;
     ts_status st = TS_OK;
     ts__clear(ctx);
@@ -160,17 +272,36 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, in
     *out = NULL;
     if (!exemplars || n_exemplars < 1 || !params)
         return ts__fail(ctx, TS_ERR_ARG, "amplify", "no exemplars given");
+    if (n_layers < 0 || n_layers > TS_MAX_LAYERS || (n_layers > 0 && !layer_names))
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "at most %d extra layers, each named",
+                        TS_MAX_LAYERS);
+    for (l = 0; l < n_layers; l++) {
+        int m;
+        if (!layer_names[l] || !layer_names[l][0] || strlen(layer_names[l]) >= TS_LAYER_NAME)
+            return ts__fail(ctx, TS_ERR_ARG, "amplify",
+                            "layer %d: a name of 1 to %d characters is needed", l + 1,
+                            TS_LAYER_NAME - 1);
+        for (m = 0; m < l; m++)
+            if (!strcmp(layer_names[m], layer_names[l]))
+                return ts__fail(ctx, TS_ERR_ARG, "amplify", "layer %s is named twice",
+                                layer_names[l]);
+    }
     if (ts_params_validate(ctx, "amplify", params) != TS_OK)
         return ctx->status;
     F = params->factor;
     p = params->patch;
     P = p * F;
+    want_l = params->w_l > 0;
+    for (e = 0; e < n_exemplars; e++)
+        if ((st = check_exemplar(ctx, &exemplars[e], e, n_layers, F, &K)) != TS_OK)
+            return st;
     d = calloc(1, sizeof *d);
     low = calloc((size_t)n_exemplars, sizeof *low);
     drain = calloc((size_t)n_exemplars, sizeof *drain);
+    irr = calloc((size_t)n_exemplars, sizeof *irr);
     win = malloc((size_t)p * p * sizeof *win);
     lwin = malloc((size_t)p * p * sizeof *lwin);
-    if (!d || !low || !drain || !win || !lwin) {
+    if (!d || !low || !drain || !irr || !win || !lwin) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
         goto done;
     }
@@ -178,21 +309,31 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, in
     d->patch = p;
     d->d = p * p;
     d->hd = P * P;
-    /* the low-resolution exemplars and their drainage, and how many atoms */
+    d->n_layers = n_layers;
+    d->n_classes = K;
+    for (l = 0; l < n_layers; l++)
+        strcpy(d->layer_names[l], layer_names[l]);
+    /* the low-resolution exemplars, their drainage and irradiance, and how many atoms */
     for (e = 0; e < n_exemplars; e++) {
-        const ts_raster *ex = &exemplars[e];
-        int lw = ex->width / F, lh = ex->height / F, step;
+        const ts_exemplar *ex = &exemplars[e];
+        int lw = ex->dem.width / F, lh = ex->dem.height / F, step;
         if (lw < p || lh < p) {
             st = ts__fail_input(ctx, TS_ERR_SIZE, e, "amplify",
                                 "exemplar %d: %d x %d cells is smaller than a patch of %d x %d "
                                 "cells at the output's resolution",
-                                e + 1, ex->width, ex->height, P, P);
+                                e + 1, ex->dem.width, ex->dem.height, P, P);
             goto done;
         }
         if (ts_raster_alloc(ctx, lw, lh, &low[e]) != TS_OK ||
             ts_raster_alloc(ctx, lw, lh, &drain[e]) != TS_OK ||
-            ts_area_average(ctx, ex, F, &low[e]) != TS_OK ||
+            ts_area_average(ctx, &ex->dem, F, &low[e]) != TS_OK ||
             ts_drainage_area(ctx, &low[e], &drain[e]) != TS_OK) {
+            st = ctx->status;
+            goto done;
+        }
+        if (want_l && ex->lat && ex->dx > 0 && ex->dy > 0 &&
+            (ts_raster_alloc(ctx, lw, lh, &irr[e]) != TS_OK ||
+             low_irradiance(ctx, ex, &low[e], F, &irr[e]) != TS_OK)) {
             st = ctx->status;
             goto done;
         }
@@ -209,19 +350,28 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, in
     d->exemplar = ts__malloc_array(cap, sizeof *d->exemplar);
     d->x = ts__malloc_array(cap, sizeof *d->x);
     d->y = ts__malloc_array(cap, sizeof *d->y);
-    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y) {
+    if (want_l)
+        d->dl = ts__malloc_array(cap * (size_t)d->d, sizeof *d->dl);
+    if (K > 0) {
+        d->dc = ts__malloc_array(cap * (size_t)K, sizeof *d->dc);
+        d->hc = ts__malloc_array(cap * (size_t)d->hd, sizeof *d->hc);
+    }
+    if (n_layers > 0)
+        d->ll = ts__malloc_array(cap * (size_t)n_layers * (size_t)d->hd, sizeof *d->ll);
+    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y ||
+        (want_l && !d->dl) || (K > 0 && (!d->dc || !d->hc)) || (n_layers > 0 && !d->ll)) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu atoms", cap);
         goto done;
     }
     for (e = 0; e < n_exemplars; e++) {
-        const ts_raster *ex = &exemplars[e];
+        const ts_exemplar *ex = &exemplars[e];
         int lw = low[e].width, lh = low[e].height, x, y, i, j;
         int step = lattice_step(lw - p + 1, lh - p + 1, params->atoms);
         for (y = 0; y + p <= lh; y += step)
             for (x = 0; x + p <= lw; x += step) {
                 size_t k = d->n;
                 double mean, rms, um, urms;
-                if (!window_valid(&low[e], x, y, p) || !window_valid(ex, x * F, y * F, P))
+                if (!window_valid(&low[e], x, y, p) || !window_valid(&ex->dem, x * F, y * F, P))
                     continue;
                 for (j = 0; j < p; j++)
                     for (i = 0; i < p; i++) {
@@ -231,11 +381,53 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_raster *exemplars, in
                 if (!ts__amp_normalise(win, d->d, d->dh + k * (size_t)d->d, &mean, &rms))
                     continue; /* a flat atom has no shape to match or give */
                 ts__amp_normalise(lwin, d->d, d->du + k * (size_t)d->d, &um, &urms);
+                if (d->dl) {
+                    float *dl = d->dl + k * (size_t)d->d;
+                    int ok = irr[e].data != NULL;
+                    for (j = 0; j < p && ok; j++)
+                        for (i = 0; i < p; i++) {
+                            float v = TS_PIX(&irr[e], x + i, y + j);
+                            if (isnan(v)) {
+                                ok = 0; /* no latitude there */
+                                break;
+                            }
+                            lwin[j * p + i] = v;
+                        }
+                    if (ok)
+                        ts__amp_normalise(lwin, d->d, dl, &um, &urms);
+                    else
+                        memset(dl, 0, (size_t)d->d * sizeof *dl);
+                }
                 for (j = 0; j < P; j++)
                     for (i = 0; i < P; i++)
                         d->hh[k * (size_t)d->hd + (size_t)j * P + i] =
-                            (float)((TS_PIX(ex, x * F + i, y * F + j) - mean) /
+                            (float)((TS_PIX(&ex->dem, x * F + i, y * F + j) - mean) /
                                     (rms * sqrt((double)d->d)));
+                if (K > 0) {
+                    unsigned char *hc = d->hc + k * (size_t)d->hd;
+                    float *dc = d->dc + k * (size_t)K;
+                    double norm = 0;
+                    memset(dc, 0, (size_t)K * sizeof *dc);
+                    for (j = 0; j < P; j++)
+                        for (i = 0; i < P; i++) {
+                            int c = ex->classes
+                                        ? ts__class_code(TS_PIX(ex->classes, x * F + i, y * F + j))
+                                        : 0;
+                            hc[j * P + i] = (unsigned char)c;
+                            if (c > 0)
+                                dc[c - 1] += 1.0f;
+                        }
+                    for (i = 0; i < K; i++)
+                        norm += (double)dc[i] * dc[i];
+                    for (i = 0; i < K && norm > 0; i++)
+                        dc[i] = (float)(dc[i] / sqrt(norm));
+                }
+                for (l = 0; l < n_layers; l++) {
+                    float *ll = d->ll + (k * (size_t)n_layers + (size_t)l) * (size_t)d->hd;
+                    for (j = 0; j < P; j++)
+                        for (i = 0; i < P; i++)
+                            ll[j * P + i] = TS_PIX(&ex->layers[l], x * F + i, y * F + j);
+                }
                 d->a[k] = mean;
                 d->s[k] = rms;
                 d->exemplar[k] = e;
@@ -262,8 +454,11 @@ done:
         ts_raster_free(&low[e]);
     for (e = 0; drain && e < n_exemplars; e++)
         ts_raster_free(&drain[e]);
+    for (e = 0; irr && e < n_exemplars; e++)
+        ts_raster_free(&irr[e]);
     free(low);
     free(drain);
+    free(irr);
     free(win);
     free(lwin);
     if (st != TS_OK) {

@@ -5,9 +5,12 @@
  * untrusted data).  The core does no file I/O: the caller writes and reads
  * the bytes.
  *
- *   "TSDICT\r\n" (8 bytes), u32 version (1), u32 factor, u32 patch, u32 d,
- *   u32 hd, u64 n, then f32 dh[n*d], f32 du[n*d], f32 hh[n*hd], f64 a[n],
- *   f64 s[n], i32 exemplar[n], i32 x[n], i32 y[n].
+ *   "TSDICT\r\n" (8 bytes), u32 version (2), u32 factor, u32 patch, u32 d,
+ *   u32 hd, u64 n, u32 flags (bit 0: irradiance), u32 n_classes K,
+ *   u32 n_layers L, then L names of TS_LAYER_NAME bytes (0-padded), then
+ *   f32 dh[n*d], f32 du[n*d], f32 hh[n*hd], f64 a[n], f64 s[n],
+ *   i32 exemplar[n], i32 x[n], i32 y[n], then f32 dl[n*d] (with the
+ *   irradiance), f32 dc[n*K] and u8 hc[n*hd] (with classes), f32 ll[n*L*hd].
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -18,8 +21,8 @@
 #include "amplify.h"
 
 #define DICT_MAGIC "TSDICT\r\n"
-#define DICT_VERSION 1u
-#define DICT_HEADER 40
+#define DICT_VERSION 2u
+#define DICT_HEADER 52
 
 static int host_little(void)
 {
@@ -59,9 +62,11 @@ static uint64_t get_u64(const unsigned char *p)
     return (uint64_t)get_u32(p) | (uint64_t)get_u32(p + 4) << 32;
 }
 
-static size_t dict_bytes(uint64_t n, uint32_t d, uint32_t hd)
+static size_t dict_bytes(uint64_t n, uint32_t d, uint32_t hd, int irr, uint32_t K, uint32_t L)
 {
-    return DICT_HEADER + (size_t)n * ((size_t)d * 8 + (size_t)hd * 4 + 16 + 12);
+    return DICT_HEADER + (size_t)L * TS_LAYER_NAME +
+           (size_t)n * ((size_t)d * 8 + (size_t)hd * 4 + 16 + 12 + (irr ? (size_t)d * 4 : 0) +
+                        (size_t)K * 4 + (K ? (size_t)hd : 0) + (size_t)L * hd * 4);
 }
 
 TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
@@ -73,7 +78,8 @@ TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
     if (!dict || !bytes || !len)
         return ts__fail(ctx, TS_ERR_ARG, "dictionary", "missing dictionary or output");
     n = dict->n;
-    total = dict_bytes(n, (uint32_t)dict->d, (uint32_t)dict->hd);
+    total = dict_bytes(n, (uint32_t)dict->d, (uint32_t)dict->hd, dict->dl != NULL,
+                       (uint32_t)dict->n_classes, (uint32_t)dict->n_layers);
     b = malloc(total);
     if (!b)
         return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory (%zu bytes)", total);
@@ -86,7 +92,15 @@ TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
     put_u32(b + 28, (uint32_t)(n & 0xffffffffu));
     put_u32(b + 32, (uint32_t)((uint64_t)n >> 32));
     put_u32(b + 36, 0);
+    put_u32(b + 40, dict->dl ? 1u : 0u);
+    put_u32(b + 44, (uint32_t)dict->n_classes);
+    put_u32(b + 48, (uint32_t)dict->n_layers);
     p = b + DICT_HEADER;
+    for (int l = 0; l < dict->n_layers; l++) {
+        memset(p, 0, TS_LAYER_NAME);
+        memcpy(p, dict->layer_names[l], strlen(dict->layer_names[l]));
+        p += TS_LAYER_NAME;
+    }
     le_copy(p, dict->dh, n * dict->d, 4), p += n * dict->d * 4;
     le_copy(p, dict->du, n * dict->d, 4), p += n * dict->d * 4;
     le_copy(p, dict->hh, n * dict->hd, 4), p += n * dict->hd * 4;
@@ -94,7 +108,15 @@ TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
     le_copy(p, dict->s, n, 8), p += n * 8;
     le_copy(p, dict->exemplar, n, 4), p += n * 4;
     le_copy(p, dict->x, n, 4), p += n * 4;
-    le_copy(p, dict->y, n, 4);
+    le_copy(p, dict->y, n, 4), p += n * 4;
+    if (dict->dl)
+        le_copy(p, dict->dl, n * dict->d, 4), p += n * dict->d * 4;
+    if (dict->n_classes) {
+        le_copy(p, dict->dc, n * dict->n_classes, 4), p += n * dict->n_classes * 4;
+        memcpy(p, dict->hc, n * dict->hd), p += n * dict->hd;
+    }
+    if (dict->n_layers)
+        le_copy(p, dict->ll, n * dict->n_layers * dict->hd, 4);
     *bytes = b;
     *len = total;
     return TS_OK;
@@ -105,9 +127,10 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
 {
     ts_dictionary *d;
     const unsigned char *p;
-    uint32_t version, factor, patch, dd, hd;
+    uint32_t version, factor, patch, dd, hd, flags, K, L;
     uint64_t n;
     size_t k;
+    int l;
     ts__clear(ctx);
     if (!out)
         return ts__fail(ctx, TS_ERR_ARG, "dictionary", "no output given");
@@ -123,9 +146,12 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     dd = get_u32(bytes + 20);
     hd = get_u32(bytes + 24);
     n = get_u64(bytes + 28);
+    flags = get_u32(bytes + 40);
+    K = get_u32(bytes + 44);
+    L = get_u32(bytes + 48);
     if (factor < 2 || factor > 16 || patch < 4 || patch > 64 || dd != patch * patch ||
-        hd != dd * factor * factor || n < 1 || n > ((uint64_t)1 << 31) ||
-        dict_bytes(n, dd, hd) != len)
+        hd != dd * factor * factor || n < 1 || n > ((uint64_t)1 << 31) || flags > 1 ||
+        K > TS_MAX_CLASSES || L > TS_MAX_LAYERS || dict_bytes(n, dd, hd, (int)flags, K, L) != len)
         return ts__fail(ctx, TS_ERR_ARG, "dictionary",
                         "damaged: its header (factor %u, patch %u, %llu atoms) does not match "
                         "its %zu bytes",
@@ -138,6 +164,25 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     d->d = (int)dd;
     d->hd = (int)hd;
     d->n = (size_t)n;
+    d->n_classes = (int)K;
+    d->n_layers = (int)L;
+    p = bytes + DICT_HEADER;
+    for (l = 0; l < (int)L; l++, p += TS_LAYER_NAME) {
+        memcpy(d->layer_names[l], p, TS_LAYER_NAME);
+        if (d->layer_names[l][TS_LAYER_NAME - 1] != 0 || !d->layer_names[l][0]) {
+            ts_dictionary_free(d);
+            return ts__fail(ctx, TS_ERR_ARG, "dictionary", "damaged: layer %d has no name",
+                            l + 1);
+        }
+    }
+    if (flags & 1)
+        d->dl = ts__malloc_array(d->n * dd, 4);
+    if (K) {
+        d->dc = ts__malloc_array(d->n * K, 4);
+        d->hc = ts__malloc_array(d->n * hd, 1);
+    }
+    if (L)
+        d->ll = ts__malloc_array(d->n * L * hd, 4);
     d->dh = ts__malloc_array(d->n * dd, 4);
     d->du = ts__malloc_array(d->n * dd, 4);
     d->hh = ts__malloc_array(d->n * hd, 4);
@@ -146,11 +191,11 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     d->exemplar = ts__malloc_array(d->n, 4);
     d->x = ts__malloc_array(d->n, 4);
     d->y = ts__malloc_array(d->n, 4);
-    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y) {
+    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y ||
+        ((flags & 1) && !d->dl) || (K && (!d->dc || !d->hc)) || (L && !d->ll)) {
         ts_dictionary_free(d);
         return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory for %zu atoms", d->n);
     }
-    p = bytes + DICT_HEADER;
     le_copy((unsigned char *)d->dh, p, d->n * dd, 4), p += d->n * dd * 4;
     le_copy((unsigned char *)d->du, p, d->n * dd, 4), p += d->n * dd * 4;
     le_copy((unsigned char *)d->hh, p, d->n * hd, 4), p += d->n * hd * 4;
@@ -158,7 +203,21 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     le_copy((unsigned char *)d->s, p, d->n, 8), p += d->n * 8;
     le_copy((unsigned char *)d->exemplar, p, d->n, 4), p += d->n * 4;
     le_copy((unsigned char *)d->x, p, d->n, 4), p += d->n * 4;
-    le_copy((unsigned char *)d->y, p, d->n, 4);
+    le_copy((unsigned char *)d->y, p, d->n, 4), p += d->n * 4;
+    if (d->dl)
+        le_copy((unsigned char *)d->dl, p, d->n * dd, 4), p += d->n * dd * 4;
+    if (K) {
+        le_copy((unsigned char *)d->dc, p, d->n * K, 4), p += d->n * K * 4;
+        memcpy(d->hc, p, d->n * hd), p += d->n * hd;
+        for (k = 0; k < d->n * hd; k++)
+            if (d->hc[k] > K) {
+                ts_dictionary_free(d);
+                return ts__fail(ctx, TS_ERR_ARG, "dictionary", "damaged: a class code past %u",
+                                K);
+            }
+    }
+    if (L)
+        le_copy((unsigned char *)d->ll, p, d->n * L * hd, 4);
     /* what matching relies on: finite descriptors, a positive deviation */
     for (k = 0; k < d->n; k++)
         if (!(d->s[k] > 0) || !(d->a[k] == d->a[k]) || d->a[k] > 1e7 || d->a[k] < -1e7 ||

@@ -124,6 +124,14 @@ static const ts_param_desc amplify_desc[] = {
      "and the area-averaged output is added back, so the output averages to the input "
      "(0 = the paper's reconstruction alone).",
      offsetof(ts_amplify_params, refine)},
+    {"w_l", TS_PARAM_DOUBLE, 0.0, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Weight of the irradiance term g_l: (1 + P_l . D_l) / 2 on the normalised mean annual "
+     "solar irradiance with self-shadowing, from each cell's latitude (0: not computed).",
+     offsetof(ts_amplify_params, w_l)},
+    {"w_c", TS_PARAM_DOUBLE, 0.4, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Weight of the class term g_c: P_c . D_c on the class vectors, where the input gives "
+     "wanted classes.",
+     offsetof(ts_amplify_params, w_c)},
 };
 
 static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", NULL};
