@@ -26,11 +26,11 @@ static void amplify_help(FILE *out)
         "\n"
         "Make a coarse DEM `factor` times finer with the detail of real terrain: a\n"
         "dictionary of atoms (windows of the exemplars, area-averaged, with the windows\n"
-        "above them) is matched to the input's patches by shape, altitude, slope and\n"
-        "drainage, and each patch is replaced by its atom's fine counterpart (Argudo et\n"
-        "al. 2017). OUTPUT covers the input's extent in its CRS, factor times finer,\n"
-        "nodata where the input is nodata; averaged back by the factor it gives the\n"
-        "input.\n"
+        "above them) is matched to the input's patches by shape, altitude, slope,\n"
+        "drainage, irradiance and classes, and each patch is replaced by its atom's\n"
+        "fine counterpart, its other layers with it (Argudo et al. 2017). OUTPUT covers\n"
+        "the input's extent in its CRS, factor times finer, nodata where the input is\n"
+        "nodata; averaged back by the factor it gives the input.\n"
         "\n");
     tsj_help(out, tsj_find("amplify"));
     fprintf(out,
@@ -47,7 +47,8 @@ int cli_amplify(int argc, char **argv)
 {
     common_opts co = {"amplify", NULL, NULL, PROGRESS_BAR, 0};
     const char *recipe_path;
-    tsjob_outputs outs = {NULL, NULL, NULL, NULL, NULL, NULL};
+    tsjob_outputs outs = {0};
+    const char *out_layers[TS_MAX_LAYERS + 1] = {NULL};
     int i, rc = EXIT_RUN, progress_state = -1, staged = 0;
     ts_ctx *ctx = ts_ctx_new();
     tsjob_amplify job;
@@ -81,6 +82,10 @@ int cli_amplify(int argc, char **argv)
     }
     outs.output = tsj_get(&v, "output", 0);
     outs.preview = tsj_get(&v, "preview", 0);
+    for (i = 0; i < TS_MAX_LAYERS && (out_layers[i] = tsj_get(&v, "out_layer", i)); i++)
+        ;
+    outs.out_layers = out_layers;
+    outs.out_classes = tsj_get(&v, "out_classes", 0);
     outs.format = co.format;
     outs.create_options = (const char *const *)co.create_options;
     recipe_path = tsj_get(&v, "recipe", 0);

@@ -50,10 +50,17 @@ static int dictionary_info(const char *path)
     if (tsjob_dictionary_read(ctx, path, &d, &res, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
     } else {
+        int L, K, irr, l;
         ts_dictionary_shape(d, &factor, &patch);
-        printf("{\"file\": \"%s\", \"version\": 1, \"factor\": %d, \"patch\": %d, \"atoms\": %zu, "
-               "\"resolution_m\": %.17g, \"input_cell_m\": %.17g}\n",
-               path, factor, patch, ts_dictionary_size(d), res, res * factor);
+        ts_dictionary_layers(d, &L, &K, &irr);
+        printf("{\"file\": \"%s\", \"version\": 2, \"factor\": %d, \"patch\": %d, \"atoms\": %zu, "
+               "\"resolution_m\": %.17g, \"input_cell_m\": %.17g, \"irradiance\": %s, "
+               "\"classes\": %d, \"layers\": [",
+               path, factor, patch, ts_dictionary_size(d), res, res * factor,
+               irr ? "true" : "false", K);
+        for (l = 0; l < L; l++) /* names of letters, digits, _ and - */
+            printf("%s\"%s\"", l ? ", " : "", ts_dictionary_layer_name(d, l));
+        printf("]}\n");
         rc = 0;
     }
     ts_dictionary_free(d);

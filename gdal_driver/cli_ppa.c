@@ -45,7 +45,7 @@ int cli_ppa(int argc, char **argv)
 {
     common_opts co = {"ppa", NULL, NULL, PROGRESS_BAR, 0};
     const char *input = NULL, *recipe_path = NULL;
-    tsjob_outputs outs = {NULL, NULL, NULL, NULL, NULL, NULL};
+    tsjob_outputs outs = {0};
     int i, rc = EXIT_RUN, progress_state = -1, staged = 0;
     ts_ctx *ctx = ts_ctx_new();
     tsjob_ppa job;

@@ -54,7 +54,7 @@ int cli_synth(int argc, char **argv)
 {
     common_opts co = {"synth", NULL, NULL, PROGRESS_BAR, 0};
     const char *recipe_path = NULL;
-    tsjob_outputs outs = {NULL, NULL, NULL, NULL, NULL, NULL};
+    tsjob_outputs outs = {0};
     int i, rc = EXIT_RUN, progress_state = -1, staged = 0;
     uint64_t seed = 0;
     tsjob_synth job;

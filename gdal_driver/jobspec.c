@@ -160,6 +160,15 @@ static const tsj_option amplify_opts[] = {
      "a real DEM whose detail the output takes (resampled to the output's ground "
      "resolution); repeatable",
      "Exemplar", 0, NULL},
+    {"exemplar_layer", TSJ_NAMED, TSJOB_MAX_EXEMPLARS *TS_MAX_LAYERS, 0, 0, "NAME=FILE", G_IN,
+     "an extra layer of an exemplar (vegetation, soil, ...: any raster on its grid) that the "
+     "atoms carry to the output; the k-th FILE given for a NAME belongs to the k-th exemplar, "
+     "and every exemplar gives every NAME",
+     "ExemplarLayer", 0, NULL},
+    {"exemplar_classes", TSJ_FILE, TSJOB_MAX_EXEMPLARS, 0, 0, "CL.tif", G_IN,
+     "class codes 1..64 of an exemplar (a raster on its grid; 0 or nodata: unlabelled), one "
+     "per exemplar in order: the atoms' classes (section 5.4)",
+     "ExemplarClasses", 0, NULL},
     {"dictionary", TSJ_FILE, 1, 0, 0, "D.tsd", G_IN,
      "a dictionary built once by `terrasynth dictionary build` (instead of exemplars): "
      "its factor, patch and cell size are the job's",
@@ -170,10 +179,20 @@ static const tsj_option amplify_opts[] = {
      "ground size of a cell in metres of every raster without a CRS (without it such "
      "rasters are used cell for cell)",
      "CellSize", 0, NULL},
+    {"classes", TSJ_FILE, 1, 0, 0, "WANT.tif", G_CONS,
+     "wanted classes on the input's grid (codes of the exemplars' classes; 0 or nodata: any): "
+     "each patch prefers atoms of its classes, weighed by w_c",
+     "Classes", 0, NULL},
     {"output", TSJ_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
      "the amplified DEM: Float32 on the input's extent and CRS, factor times finer, "
      "nodata -9999 where the input is nodata",
      NULL, 2, NULL},
+    {"out_layer", TSJ_OUTPUT, TS_MAX_LAYERS, 0, 0, "NAME=FILE", G_OUT,
+     "an extra layer the atoms carry (exemplar_layer NAME), on the output's grid (Float32, "
+     "nodata -9999); repeatable",
+     NULL, 0, NULL},
+    {"out_classes", TSJ_OUTPUT, 1, 0, 0, "FILE", G_OUT,
+     "the atoms' classes on the output's grid (Byte, 0 = unlabelled)", NULL, 0, NULL},
     {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0, NULL},
     {"recipe", TSJ_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,
      "write a recipe for this job instead of running it: gdal_translate FILE.tsyn out.tif", NULL, 0,
@@ -184,8 +203,14 @@ static const tsj_rule amplify_rules[] = {
     {TSJ_ONE_OF, "exemplar", {"dictionary", NULL}, "give at least one exemplar, or a dictionary"},
     {TSJ_EXCLUDES,
      "recipe",
-     {"output", "preview", NULL},
+     {"output", "preview", "out_layer", "out_classes", NULL},
      "recipe writes the recipe instead of running the job: give no %s"},
+    {TSJ_EXCLUDES,
+     "dictionary",
+     {"exemplar_layer", "exemplar_classes", NULL},
+     "the dictionary holds the exemplars' layers and classes: give no %s"},
+    {TSJ_REQUIRES, "exemplar_layer", {"exemplar", NULL}, "exemplar_layer needs exemplars"},
+    {TSJ_REQUIRES, "exemplar_classes", {"exemplar", NULL}, "exemplar_classes needs exemplars"},
     {TSJ_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
 };
 
@@ -197,6 +222,15 @@ static const tsj_option dictionary_opts[] = {
      0, NULL},
     {"cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
      "ground size of a cell in metres of every exemplar without a CRS", "CellSize", 0, NULL},
+    {"exemplar_layer", TSJ_NAMED, TSJOB_MAX_EXEMPLARS *TS_MAX_LAYERS, 0, 0, "NAME=FILE", G_IN,
+     "an extra layer of an exemplar (vegetation, soil, ...: any raster on its grid) that the "
+     "atoms carry to the output; the k-th FILE given for a NAME belongs to the k-th exemplar, "
+     "and every exemplar gives every NAME",
+     "ExemplarLayer", 0, NULL},
+    {"exemplar_classes", TSJ_FILE, TSJOB_MAX_EXEMPLARS, 0, 0, "CL.tif", G_IN,
+     "class codes 1..64 of an exemplar (a raster on its grid; 0 or nodata: unlabelled), one "
+     "per exemplar in order: the atoms' classes (section 5.4)",
+     "ExemplarClasses", 0, NULL},
     {"resolution", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
      "ground size in metres of the cells of the amplified DEMs the dictionary is for (the "
      "input's cell divided by the factor); required",
@@ -544,6 +578,16 @@ static int check_value(const tsj_option *o, const char *s, char *msg, size_t len
         }
         return 0;
     }
+    case TSJ_NAMED: {
+        size_t n =
+            s ? strspn(s, "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-") : 0;
+        if (!s || n == 0 || n >= TS_LAYER_NAME || s[n] != '=' || !s[n + 1]) {
+            msgf(msg, len, "%s takes NAME=FILE (NAME: 1 to %d letters, digits, _ or -), not '%s'",
+                 o->name, TS_LAYER_NAME - 1, s ? s : "");
+            return -1;
+        }
+        return 0;
+    }
     case TSJ_CHOICE:
         return 0;
     }
@@ -763,6 +807,65 @@ int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len)
         }
         job->exemplars[job->n_exemplars++] = s;
     }
+    /* the exemplars' layers: the k-th FILE of a NAME is the k-th exemplar's */
+    for (i = 0; (s = tsj_get(v, "exemplar_layer", i)); i++) {
+        const char *eq = strchr(s, '=');
+        int l, k;
+        for (l = 0; l < job->n_layers; l++)
+            if (strlen(job->layer_names[l]) == (size_t)(eq - s) &&
+                !strncmp(job->layer_names[l], s, (size_t)(eq - s)))
+                break;
+        if (l == job->n_layers) {
+            if (l == TS_MAX_LAYERS) {
+                msgf(msg, len, "exemplar_layer: at most %d names", TS_MAX_LAYERS);
+                return -1;
+            }
+            snprintf(job->layer_names[l], TS_LAYER_NAME, "%.*s", (int)(eq - s), s);
+            job->n_layers++;
+        }
+        for (k = 0; k < TSJOB_MAX_EXEMPLARS && job->layer_files[k][l]; k++)
+            ;
+        if (k >= job->n_exemplars) {
+            msgf(msg, len, "exemplar_layer %s: more files than the %d exemplars",
+                 job->layer_names[l], job->n_exemplars);
+            return -1;
+        }
+        job->layer_files[k][l] = eq + 1;
+    }
+    for (i = 0; i < job->n_layers; i++)
+        if (!job->layer_files[job->n_exemplars - 1][i]) {
+            msgf(msg, len, "exemplar_layer %s: one file for each of the %d exemplars",
+                 job->layer_names[i], job->n_exemplars);
+            return -1;
+        }
+    for (i = 0; (s = tsj_get(v, "exemplar_classes", i)); i++) {
+        if (i >= job->n_exemplars) {
+            msgf(msg, len, "exemplar_classes: more files than the %d exemplars", job->n_exemplars);
+            return -1;
+        }
+        job->exemplar_classes[i] = s;
+    }
+    if (i && i != job->n_exemplars) {
+        msgf(msg, len, "exemplar_classes: one file for each of the %d exemplars", job->n_exemplars);
+        return -1;
+    }
+    job->classes = tsj_get(v, "classes", 0);
+    for (i = 0; (s = tsj_get(v, "out_layer", i)); i++) {
+        size_t n = strspn(s, "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-");
+        int l;
+        if (n == 0 || n >= TS_LAYER_NAME || s[n] != '=' || !s[n + 1]) {
+            msgf(msg, len, "out_layer takes NAME=FILE, not '%s'", s);
+            return -1;
+        }
+        snprintf(job->out_layer_names[i], TS_LAYER_NAME, "%.*s", (int)n, s);
+        for (l = 0; l < i; l++)
+            if (!strcmp(job->out_layer_names[l], job->out_layer_names[i])) {
+                msgf(msg, len, "out_layer %s is given twice", job->out_layer_names[i]);
+                return -1;
+            }
+        job->n_out_layers++;
+    }
+    job->want_classes = tsj_count(v, "out_classes") > 0;
     job->dictionary = tsj_get(v, "dictionary", 0);
     job->shape_given = tsj_count(v, "factor") || tsj_count(v, "patch");
     if (!job->n_exemplars && !job->dictionary) {
@@ -1002,8 +1105,9 @@ int tsj_from_xml(tsj_values *v, const CPLXMLNode *node,
                 snprintf(buf, sizeof buf, "%s:%ld,%ld,%ld,%ld@%ld,%ld",
                          CPLGetXMLValue(c, NULL, ""), n[0], n[1], n[2], n[3], n[4], n[5]);
                 val = buf;
-            } else if (o->kind == TSJ_RULE) {
-                snprintf(buf, sizeof buf, "%s=%s", CPLGetXMLValue(c, "id", ""),
+            } else if (o->kind == TSJ_RULE || o->kind == TSJ_NAMED) {
+                snprintf(buf, sizeof buf, "%s=%s",
+                         CPLGetXMLValue(c, o->kind == TSJ_RULE ? "id" : "name", ""),
                          CPLGetXMLValue(c, NULL, ""));
                 val = buf;
             } else if (parts == 0) {
@@ -1020,11 +1124,12 @@ int tsj_from_xml(tsj_values *v, const CPLXMLNode *node,
             }
             if (!val)
                 continue;
-            if (o->kind == TSJ_FILE || o->kind == TSJ_PIN || o->kind == TSJ_RULE) {
+            if (o->kind == TSJ_FILE || o->kind == TSJ_PIN || o->kind == TSJ_RULE ||
+                o->kind == TSJ_NAMED) {
                 /* the file names relative to the recipe, and never the recipe itself */
                 const char *file = val, *sep = NULL;
                 char head[64] = "";
-                if (o->kind == TSJ_RULE) {
+                if (o->kind == TSJ_RULE || o->kind == TSJ_NAMED) {
                     sep = strchr(val, '=');
                     snprintf(head, sizeof head, "%.*s=", sep ? (int)(sep - val) : 0, val);
                     file = sep ? sep + 1 : "";
@@ -1046,8 +1151,9 @@ int tsj_from_xml(tsj_values *v, const CPLXMLNode *node,
                     continue;
                 }
                 if (!*file) {
-                    if (o->kind == TSJ_RULE) {
-                        msgf(msg, len, "<%s id=\"N\">FILE</%s> has no file", elem, elem);
+                    if (o->kind == TSJ_RULE || o->kind == TSJ_NAMED) {
+                        msgf(msg, len, "<%s %s>FILE</%s> has no file", elem,
+                             o->kind == TSJ_RULE ? "id=\"N\"" : "name=\"NAME\"", elem);
                         return -1;
                     }
                     continue; /* an empty element names nothing */
@@ -1124,12 +1230,13 @@ void tsj_to_xml(const tsj_values *v, CPLXMLNode *root,
                 CPLAddXMLAttributeAndValue(e, "height", CPLSPrintf("%d", pin.height));
                 CPLAddXMLAttributeAndValue(e, "x", CPLSPrintf("%d", pin.x));
                 CPLAddXMLAttributeAndValue(e, "y", CPLSPrintf("%d", pin.y));
-            } else if (o->kind == TSJ_RULE) {
+            } else if (o->kind == TSJ_RULE || o->kind == TSJ_NAMED) {
                 const char *eq = strchr(val, '=');
                 if (!eq)
                     continue;
                 e = CPLCreateXMLElementAndValue(node, elem, rel(user, eq + 1));
-                CPLAddXMLAttributeAndValue(e, "id", CPLSPrintf("%.*s", (int)(eq - val), val));
+                CPLAddXMLAttributeAndValue(e, o->kind == TSJ_RULE ? "id" : "name",
+                                           CPLSPrintf("%.*s", (int)(eq - val), val));
             } else if (parts == 0) {
                 CPLCreateXMLElementAndValue(node, elem,
                                             o->kind == TSJ_FILE ? rel(user, val) : val);
@@ -1186,8 +1293,8 @@ static void json_str(FILE *out, const char *s)
 
 void tsj_describe(FILE *out)
 {
-    static const char *const kinds[] = {"file", "output", "number", "int", "seed", "text",
-                                        "size", "xy", "pin", "rule", "choice"};
+    static const char *const kinds[] = {"file", "output", "number", "int",  "seed",   "text",
+                                        "size", "xy",     "pin",    "rule", "choice", "named"};
     static const char *const rkinds[] = {"requires", "excludes", "together", "one_of"};
     size_t j, k;
     int i;

@@ -44,7 +44,8 @@ typedef enum tsj_kind {
     TSJ_XY,     /* X,Y */
     TSJ_PIN,    /* FILE:XOFF,YOFF,W,H@X,Y */
     TSJ_RULE,   /* ID=FILE */
-    TSJ_CHOICE  /* one of `choices` ("ridges|valleys|both") */
+    TSJ_CHOICE, /* one of `choices` ("ridges|valleys|both") */
+    TSJ_NAMED   /* NAME=FILE: an input file under a name (letters, digits, _ and -) */
 } tsj_kind;
 
 typedef struct tsj_option {
@@ -57,8 +58,8 @@ typedef struct tsj_option {
     const char *help;
     /* the recipe form: "Element" (its text), "Element@attr", "@attr" (of
      * the job's element), "Element@a@b" (TSJ_SIZE, TSJ_XY: two attributes);
-     * NULL: not in recipes.  TSJ_PIN and TSJ_RULE use the element's text and
-     * attributes of their own. */
+     * NULL: not in recipes.  TSJ_PIN, TSJ_RULE (id="N") and TSJ_NAMED
+     * (name="NAME") use the element's text and attributes of their own. */
     const char *xml;
     int positional;       /* > 0: also the n-th plain argument of the command line */
     const char *choices;  /* TSJ_CHOICE */

@@ -54,6 +54,7 @@ struct ts_recipe {
     tsjob_amplify amplify;
     tsjob_amplify_result amplify_res;
     int map; /* synth: -1 the terrain, else the TSJOB_MAP_* served (open option MAP) */
+    char layer[TS_LAYER_NAME]; /* amplify: the carried layer or "classes" served (LAYER), or "" */
     int computed;
 };
 
@@ -162,8 +163,21 @@ static int recipe_options(ts_recipe *r, const char *const *oo, tsio_err *err)
             CPLFree(key);
             continue;
         }
+        if (!strcmp(key, "layer") && r->method == RECIPE_AMPLIFY) {
+            size_t n = strspn(value, "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                     "0123456789_-");
+            if (!value[0] || value[n] || n >= TS_LAYER_NAME) {
+                tsio_errf(err, r->path, "open option LAYER=%s: not a layer name", value);
+                CPLFree(key);
+                return -1;
+            }
+            snprintf(r->layer, sizeof r->layer, "%s", EQUAL(value, "dem") ? "" : value);
+            CPLFree(key);
+            continue;
+        }
         o = tsj_option_find(r->values.job, key);
-        if (o ? (!o->xml || o->kind == TSJ_FILE || o->kind == TSJ_PIN || o->kind == TSJ_RULE)
+        if (o ? (!o->xml || o->kind == TSJ_FILE || o->kind == TSJ_PIN || o->kind == TSJ_RULE ||
+                 o->kind == TSJ_NAMED)
               : !tsj_param_stage(r->values.job, key)) {
             tsio_errf(err, r->path, "open option %s: not an option of %s recipes", oo[i],
                       r->values.job->name);
@@ -206,6 +220,13 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
             return -1;
         }
         r->amplify.lazy = 1; /* computed block by block: recipe_read_window */
+        /* a carried layer or the classes instead of the DEM (LAYER) */
+        if (!strcmp(r->layer, "classes")) {
+            r->amplify.want_classes = 1;
+        } else if (r->layer[0]) {
+            snprintf(r->amplify.out_layer_names[0], TS_LAYER_NAME, "%s", r->layer);
+            r->amplify.n_out_layers = 1;
+        }
         if (tsjob_amplify_adopt_dictionary(&r->amplify, err) != 0) {
             tsio_errf(err, r->path, "%s", err->msg);
             return -1;
@@ -570,7 +591,11 @@ int recipe_read_window(const ts_recipe *r, int x0, int y0, int w, int h, float *
         tsio_errf(err, r->path, "out of memory");
         return -1;
     }
-    rc = tsjob_amplify_window(ctx, &r->amplify, &r->amplify_res, x0, y0, w, h, out, err);
+    rc = tsjob_amplify_window(ctx, &r->amplify, &r->amplify_res, x0, y0, w, h,
+                              !strcmp(r->layer, "classes") ? TSJOB_SERVE_CLASSES
+                              : r->layer[0]                ? 0
+                                                           : TSJOB_SERVE_DEM,
+                              out, err);
     ts_ctx_free(ctx);
     for (i = 0; rc == 0 && i < n; i++)
         if (isnan(out[i]))
@@ -712,7 +737,8 @@ char *recipe_open_option_list(void)
         for (k = 0; k < job->n_opts; k++) {
             const tsj_option *op = &job->opts[k];
             CPLXMLNode *o;
-            if (!op->xml || op->kind == TSJ_FILE || op->kind == TSJ_PIN || op->kind == TSJ_RULE)
+            if (!op->xml || op->kind == TSJ_FILE || op->kind == TSJ_PIN || op->kind == TSJ_RULE ||
+                op->kind == TSJ_NAMED)
                 continue;
             o = option_add(list, op->name,
                            op->kind == TSJ_INT                             ? "int"
@@ -726,6 +752,9 @@ char *recipe_open_option_list(void)
             }
         }
     }
+    option_add(list, "LAYER", "string",
+               "what an amplify recipe serves: the DEM (dem, the default), a layer the atoms "
+               "carry (its name), or their classes (classes)");
     {
         /* what a synth recipe serves: the terrain, or one of its synthesis maps */
         CPLXMLNode *o = option_add(list, "MAP", "string-select",

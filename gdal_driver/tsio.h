@@ -168,6 +168,10 @@ int tsio_write_features(const char *path, const tsio_georef *geo, const ts_featu
 int tsio_read_raster_resampled(const char *path, int band, double target_dx_m,
                                double target_dy_m, double no_crs_cell_m, tsio_raster *out,
                                double *factor, tsio_err *err);
+/** The same for class codes (as tsio_read_raster: no elevation checks):
+ *  the nearest cell when finer, the most common code when coarser. */
+int tsio_read_classes_resampled(const char *path, int band, double target_dx_m, double target_dy_m,
+                                double no_crs_cell_m, tsio_raster *out, tsio_err *err);
 
 /** Georeferencing of a raster without reading its cells. */
 int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err);
@@ -180,6 +184,13 @@ int tsio_georef_make(int width, int height, double origin_x, double origin_y, do
 
 /** Per-row ground metrics (metres) of a grid, as tsio_read_raster computes
  *  them; *dx = *dy = NULL without CRS.  Caller frees both with free(). */
+/** For the sun (ts_irradiance): the latitude and the azimuth of the grid's
+ *  up direction from true north (degrees) of each cell of `geo`'s grid
+ *  area-averaged by `factor` (lat->width x lat->height cells; north may be
+ *  NULL), NaN where the CRS cannot say.  0; 1 when geo has no CRS (nothing
+ *  written); -1 on error. */
+int tsio_georef_sun_frame(const tsio_georef *geo, int factor, ts_raster *lat, ts_raster *north,
+                          tsio_err *err);
 int tsio_georef_metrics(const tsio_georef *geo, double **dx, double **dy, tsio_err *err);
 
 /**

@@ -592,8 +592,8 @@ fail:
 /* A raster without CRS whose cells are cell_m metres: its metrics set to
  * that and, when the target's cells differ by more than 1 %, resampled to
  * them in its own pixel space (cubic when finer, average when coarser). */
-static int resample_no_crs(const char *path, double cell_m, double target_dx_m, double target_dy_m,
-                           tsio_raster *out, double *factor, tsio_err *err)
+static int resample_no_crs(const char *path, int categorical, double cell_m, double target_dx_m,
+                           double target_dy_m, tsio_raster *out, double *factor, tsio_err *err)
 {
     int w = out->geo.width, h = out->geo.height, nw, nh, y, rc = -1, usage = 0;
     double f = sqrt((cell_m * cell_m) / (target_dx_m * target_dy_m));
@@ -617,7 +617,7 @@ static int resample_no_crs(const char *path, double cell_m, double target_dx_m, 
         }
         snprintf(sw, sizeof sw, "%d", nw);
         snprintf(sh, sizeof sh, "%d", nh);
-        argv[6] = f > 1.0 ? "cubicspline" : "average";
+        argv[6] = categorical ? (f > 1.0 ? "near" : "mode") : f > 1.0 ? "cubicspline" : "average";
         CPLPushErrorHandler(CPLQuietErrorHandler);
         src = mem_from_raster(out);
         to = src ? GDALTranslateOptionsNew(argv, NULL) : NULL;
@@ -681,9 +681,26 @@ done:
     return rc;
 }
 
+static int read_resampled(const char *path, int band, int categorical, double target_dx_m,
+                          double target_dy_m, double no_crs_cell_m, tsio_raster *out,
+                          double *factor, tsio_err *err);
+
 int tsio_read_raster_resampled(const char *path, int band, double target_dx_m, double target_dy_m,
                                double no_crs_cell_m, tsio_raster *out, double *factor,
                                tsio_err *err)
+{
+    return read_resampled(path, band, 0, target_dx_m, target_dy_m, no_crs_cell_m, out, factor, err);
+}
+
+int tsio_read_classes_resampled(const char *path, int band, double target_dx_m, double target_dy_m,
+                                double no_crs_cell_m, tsio_raster *out, tsio_err *err)
+{
+    return read_resampled(path, band, 1, target_dx_m, target_dy_m, no_crs_cell_m, out, NULL, err);
+}
+
+static int read_resampled(const char *path, int band, int categorical, double target_dx_m,
+                          double target_dy_m, double no_crs_cell_m, tsio_raster *out,
+                          double *factor, tsio_err *err)
 {
     GDALDatasetH src = NULL, dst = NULL;
     GDALWarpAppOptions *wo = NULL;
@@ -694,13 +711,14 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m, d
     int rc = -1, usage = 0, geographic;
     if (factor)
         *factor = 1.0;
-    if (tsio_read_dem(path, band, out, err) != 0)
+    if ((categorical ? tsio_read_raster(path, band, out, err)
+                     : tsio_read_dem(path, band, out, err)) != 0)
         return -1;
     if (!(target_dx_m > 0) || !(target_dy_m > 0))
         return 0; /* nothing asked: cells as they are */
     if (!out->dx_m)
-        return no_crs_cell_m > 0 ? resample_no_crs(path, no_crs_cell_m, target_dx_m, target_dy_m,
-                                                   out, factor, err)
+        return no_crs_cell_m > 0 ? resample_no_crs(path, categorical, no_crs_cell_m, target_dx_m,
+                                                   target_dy_m, out, factor, err)
                                  : 0; /* no CRS and no cell size: cells as they are */
     gdx = out->dx_m[out->geo.height / 2];
     gdy = out->dy_m[out->geo.height / 2];
@@ -742,7 +760,8 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m, d
         snprintf(trx, sizeof trx, "%.17g", target_dx_m / unit);
         snprintf(try_, sizeof try_, "%.17g", target_dy_m / unit);
     }
-    alg = f > 1.0 ? "cubicspline" : "average"; /* finer target: interpolate; coarser: average */
+    /* finer target: interpolate; coarser: average (classes: the nearest, the most common) */
+    alg = categorical ? (f > 1.0 ? "near" : "mode") : f > 1.0 ? "cubicspline" : "average";
     {
         char *argv[] = {"-of", "MEM",       "-t_srs",     t_srs, "-tr", trx,       try_,
                         "-r",  (char *)alg, "-dstnodata", "nan", "-ot", "Float32", NULL};
@@ -883,4 +902,88 @@ int tsio_georef_make(int width, int height, double origin_x, double origin_y, do
         OSRDestroySpatialReference(srs);
     }
     return 0;
+}
+
+/* ------------------------------------------------------------------ */
+/* Latitude and grid north, for the sun                                */
+/* ------------------------------------------------------------------ */
+
+int tsio_georef_sun_frame(const tsio_georef *geo, int factor, ts_raster *lat, ts_raster *north,
+                          tsio_err *err)
+{
+    OGRSpatialReferenceH srs = NULL, geog = NULL;
+    OGRCoordinateTransformationH ct = NULL;
+    struct geod_geodesic g;
+    double a, invf, f, *xs = NULL, *ys = NULL;
+    int *okv = NULL;
+    OGRErr e1 = OGRERR_NONE, e2 = OGRERR_NONE;
+    int w = lat->width, h = lat->height, x, y, rc = -1;
+    if (!geo->wkt || !geo->has_gt)
+        return 1; /* no CRS: no latitude */
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    srs = tsio__srs_from_wkt(geo->wkt);
+    geog = srs ? OSRCloneGeogCS(srs) : NULL;
+    if (!geog) {
+        tsio_errf(err, "grid", "cannot find the geographic CRS of its CRS");
+        goto done;
+    }
+    OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
+    OSRSetAxisMappingStrategy(geog, OAMS_TRADITIONAL_GIS_ORDER);
+    a = OSRGetSemiMajor(geog, &e1);
+    invf = OSRGetInvFlattening(geog, &e2);
+    f = (e2 == OGRERR_NONE && invf != 0.0 && isfinite(invf)) ? 1.0 / invf : 0.0;
+    if (e1 != OGRERR_NONE || !(a > 0) || !(f < 1.0)) {
+        tsio_errf(err, "grid", "the CRS has no usable ellipsoid");
+        goto done;
+    }
+    geod_init(&g, a, f);
+    ct = OCTNewCoordinateTransformation(srs, geog);
+    xs = malloc((size_t)w * 2 * sizeof *xs);
+    ys = malloc((size_t)w * 2 * sizeof *ys);
+    okv = malloc((size_t)w * 2 * sizeof *okv);
+    if (!ct || !xs || !ys || !okv) {
+        tsio_errf(err, "grid", "cannot find the latitude of its cells");
+        goto done;
+    }
+    for (y = 0; y < h; y++) {
+        /* each cell's centre, and a point half a cell above it */
+        for (x = 0; x < w; x++) {
+            double px = ((double)x + 0.5) * factor, py = ((double)y + 0.5) * factor;
+            xs[x] = geo->gt[0] + px * geo->gt[1] + py * geo->gt[2];
+            ys[x] = geo->gt[3] + px * geo->gt[4] + py * geo->gt[5];
+            xs[w + x] = geo->gt[0] + px * geo->gt[1] + (py - 0.5 * factor) * geo->gt[2];
+            ys[w + x] = geo->gt[3] + px * geo->gt[4] + (py - 0.5 * factor) * geo->gt[5];
+        }
+        if (!OCTTransformEx(ct, 2 * w, xs, ys, NULL, okv))
+            for (x = 0; x < 2 * w; x++)
+                okv[x] = 0;
+        for (x = 0; x < w; x++) {
+            double azi1 = 0, azi2 = 0, s12 = 0;
+            if (!okv[x] || !okv[w + x] || !isfinite(ys[x]) || fabs(ys[x]) > 90.0) {
+                TS_PIX(lat, x, y) = NAN;
+                if (north)
+                    TS_PIX(north, x, y) = NAN;
+                continue;
+            }
+            TS_PIX(lat, x, y) = (float)ys[x];
+            if (north) {
+                geod_inverse(&g, ys[x], xs[x], ys[w + x], xs[w + x], &s12, &azi1, &azi2);
+                TS_PIX(north, x, y) = s12 > 0 && isfinite(azi1) ? (float)azi1 : 0.0f;
+            }
+        }
+    }
+    rc = 0;
+done:
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    free(xs);
+    free(ys);
+    free(okv);
+    if (ct)
+        OCTDestroyCoordinateTransformation(ct);
+    if (geog)
+        OSRDestroySpatialReference(geog);
+    if (srs)
+        OSRDestroySpatialReference(srs);
+    return rc;
 }

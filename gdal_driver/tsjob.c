@@ -824,6 +824,25 @@ static void job_progress_range(ts_ctx *ctx, job_progress *p, double lo, double h
     ts_ctx_set_progress(ctx, job_progress_cb, p);
 }
 
+/* Every cell of a class raster a code 1..TS_MAX_CLASSES, 0 or nodata. */
+static int job_check_class_codes(const char *path, const ts_raster *r, tsio_err *err)
+{
+    int x, y;
+    for (y = 0; y < r->height; y++)
+        for (x = 0; x < r->width; x++) {
+            float v = TS_PIX(r, x, y);
+            if (!isnan(v) && v != 0.0f &&
+                !(v >= 1.0f && v <= (float)TS_MAX_CLASSES && v == floorf(v))) {
+                tsio_errf(err, path,
+                          "%g at column %d, row %d is not a class code 1..%d (0 or nodata: "
+                          "unlabelled)",
+                          (double)v, x, y, TS_MAX_CLASSES);
+                return -1;
+            }
+        }
+    return 0;
+}
+
 int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, tsio_err *err)
 {
     tsio_georef g;
@@ -837,6 +856,11 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
     cells_out = (uint64_t)g.width * F * (uint64_t)g.height * F;
     /* served window by window, the output is never whole in memory */
     need = JOB_MEM_BASE + (uint64_t)g.width * g.height * 48 + (job->lazy ? 0 : cells_out * 8);
+    /* the carried layers and classes on the output (at most every layer a dictionary holds) */
+    if (!job->lazy && job->n_out_layers)
+        need += cells_out * 4 * (uint64_t)(job->dictionary ? TS_MAX_LAYERS : job->n_layers);
+    if (!job->lazy && job->want_classes)
+        need += cells_out * 5;
     /* the ground size of an output cell, to count the exemplars' cells at it */
     if (tsio_georef_metrics(&g, &dx, &dy, err) == 0 && dx)
         out_area = dx[g.height / 2] * dy[g.height / 2] / ((double)F * F);
@@ -860,6 +884,9 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
         tgt = (uint64_t)((double)src * ratio + 1.0);
         atoms_total += (uint64_t)p->atoms;
         need += src * 4 + tgt * 16; /* as read, and at the output's resolution */
+        need += (src * 4 + tgt * 8) * (uint64_t)job->n_layers; /* its layers, read one by one */
+        if (job->exemplar_classes[i])
+            need += src * 4 + tgt * 8;
         if (src > biggest)
             biggest = src;
         if (ratio > 4.0 && !res->warning.msg[0])
@@ -871,6 +898,8 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
     }
     need += biggest * JOB_MEM_EX_SOURCE_CELL;
     need += atoms_total * ((uint64_t)p->patch * p->patch * ((uint64_t)F * F + 2) * 4 + 64);
+    need += atoms_total * (uint64_t)p->patch * p->patch * (uint64_t)F * F *
+            (4 * (uint64_t)job->n_layers + (job->exemplar_classes[0] ? 1 : 0));
     if (tsio_check_memory(need, "amplify",
                           "a smaller input, a smaller factor, fewer atoms or "
                           "exemplars nearer the output's resolution",
@@ -897,6 +926,30 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
         return -1;
     }
     res->geo.has_gt = res->in.geo.has_gt;
+    if (p->w_l > 0 && !res->in.dx_m) {
+        tsio_errf(err, job->input,
+                  "has no CRS: the irradiance term (w_l) needs each cell's latitude");
+        tsjob_amplify_result_free(res);
+        return -1;
+    }
+    if (job->classes) {
+        if (tsio_read_raster(job->classes, 1, &res->classes, err) != 0) {
+            tsjob_amplify_result_free(res);
+            return -1;
+        }
+        if (res->classes.geo.width != res->in.geo.width ||
+            res->classes.geo.height != res->in.geo.height) {
+            tsio_errf(err, job->classes, "the classes are %d x %d cells, the input %d x %d",
+                      res->classes.geo.width, res->classes.geo.height, res->in.geo.width,
+                      res->in.geo.height);
+            tsjob_amplify_result_free(res);
+            return -1;
+        }
+        if (job_check_class_codes(job->classes, &res->classes.r, err) != 0) {
+            tsjob_amplify_result_free(res);
+            return -1;
+        }
+    }
     return 0;
 }
 
@@ -968,6 +1021,112 @@ int tsjob_amplify_adopt_dictionary(tsjob_amplify *job, tsio_err *err)
     return 0;
 }
 
+/* Is `layer` on the grid of `exemplar` (as the files are, before any resampling)? */
+static int job_same_grid(const char *layer, const char *exemplar, tsio_err *err)
+{
+    tsio_georef a, b;
+    int same, k;
+    if (tsio_read_georef(layer, &a, err) != 0)
+        return -1;
+    if (tsio_read_georef(exemplar, &b, err) != 0) {
+        tsio_georef_free(&a);
+        return -1;
+    }
+    same = a.width == b.width && a.height == b.height && a.has_gt == b.has_gt;
+    for (k = 0; k < 6 && same; k++)
+        same = fabs(a.gt[k] - b.gt[k]) <= 1e-9 * (fabs(b.gt[k]) + fabs(b.gt[1]) + 1e-300);
+    if (!same)
+        tsio_errf(err, layer, "is not on the grid of its exemplar %s (%d x %d cells)", exemplar,
+                  b.width, b.height);
+    tsio_georef_free(&a);
+    tsio_georef_free(&b);
+    return same ? 0 : -1;
+}
+
+/* One exemplar with everything the dictionary takes from it. */
+typedef struct job_exemplar {
+    tsio_raster dem, classes, layers[TS_MAX_LAYERS];
+    ts_raster layer_views[TS_MAX_LAYERS], lat, north;
+} job_exemplar;
+
+static void job_exemplar_free(job_exemplar *e)
+{
+    int l;
+    tsio_raster_free(&e->dem);
+    tsio_raster_free(&e->classes);
+    for (l = 0; l < TS_MAX_LAYERS; l++)
+        tsio_raster_free(&e->layers[l]);
+    ts_raster_free(&e->lat);
+    ts_raster_free(&e->north);
+}
+
+/* Exemplar i of the job read at dx x dy metres per cell (0: as it is), its
+ * layers and classes on the same cells, and with the irradiance term its
+ * latitude and north on the grid the dictionary averages it to. */
+static int job_read_exemplar(ts_ctx *ctx, const tsjob_amplify *job, int i, double dx, double dy,
+                             job_exemplar *je, ts_exemplar *te, tsio_err *err)
+{
+    const char *path = job->exemplars[i];
+    int l, F = job->params.factor;
+    double f = 1.0;
+    memset(te, 0, sizeof *te);
+    if (tsio_read_raster_resampled(path, job->band, dx, dy, job->cell_size, &je->dem, &f, err) != 0)
+        return -1;
+    te->dem = je->dem.r;
+    if (je->dem.dx_m) {
+        te->dx = je->dem.dx_m[je->dem.geo.height / 2];
+        te->dy = je->dem.dy_m[je->dem.geo.height / 2];
+    }
+    for (l = 0; l < job->n_layers; l++) {
+        const char *lp = job->layer_files[i][l];
+        if (job_same_grid(lp, path, err) != 0 ||
+            tsio_read_raster_resampled(lp, 1, dx, dy, job->cell_size, &je->layers[l], &f, err) != 0)
+            return -1;
+        if (je->layers[l].geo.width != je->dem.geo.width ||
+            je->layers[l].geo.height != je->dem.geo.height) {
+            tsio_errf(err, lp, "is not on the grid of its exemplar %s", path);
+            return -1;
+        }
+        je->layer_views[l] = je->layers[l].r;
+    }
+    if (job->n_layers)
+        te->layers = je->layer_views;
+    if (job->exemplar_classes[i]) {
+        const char *cp = job->exemplar_classes[i];
+        if (job_same_grid(cp, path, err) != 0 ||
+            tsio_read_classes_resampled(cp, 1, dx, dy, job->cell_size, &je->classes, err) != 0)
+            return -1;
+        if (je->classes.geo.width != je->dem.geo.width ||
+            je->classes.geo.height != je->dem.geo.height) {
+            tsio_errf(err, cp, "is not on the grid of its exemplar %s", path);
+            return -1;
+        }
+        if (job_check_class_codes(cp, &je->classes.r, err) != 0)
+            return -1;
+        te->classes = &je->classes.r;
+    }
+    if (job->params.w_l > 0 && je->dem.dx_m) {
+        int lw = je->dem.geo.width / F, lh = je->dem.geo.height / F, rc;
+        if (lw < 1 || lh < 1)
+            return 0; /* too small: the core says so */
+        if (ts_raster_alloc(ctx, lw, lh, &je->lat) != TS_OK ||
+            ts_raster_alloc(ctx, lw, lh, &je->north) != TS_OK) {
+            tsio_errf(err, path, "%s", ts_ctx_message(ctx));
+            return -1;
+        }
+        rc = tsio_georef_sun_frame(&je->dem.geo, F, &je->lat, &je->north, err);
+        if (rc < 0) {
+            tsio_errf(err, path, "%s", err->msg);
+            return -1;
+        }
+        if (rc == 0) {
+            te->lat = &je->lat;
+            te->north = &je->north;
+        }
+    }
+    return 0;
+}
+
 /* The exemplars read at dx x dy metres per cell (0: as they are), and the
  * dictionary built from them.  With `warning`, sentinel cells are reported
  * there and *no_crs gets the index+1 of an exemplar used cell for cell. */
@@ -975,24 +1134,28 @@ static int job_build_dictionary(ts_ctx *ctx, const tsjob_amplify *job, double dx
                                 const char *what, ts_dictionary **dict, tsio_err *warning,
                                 int *no_crs, double *seconds, tsio_err *err)
 {
-    tsio_raster ex[TSJOB_MAX_EXEMPLARS];
-    ts_raster exr[TSJOB_MAX_EXEMPLARS];
+    job_exemplar *ex = calloc(TSJOB_MAX_EXEMPLARS, sizeof *ex);
+    ts_exemplar te[TSJOB_MAX_EXEMPLARS];
+    const char *names[TS_MAX_LAYERS];
     struct timespec t0, t1;
     int i, rc = -1;
-    memset(ex, 0, sizeof ex);
+    if (!ex) {
+        tsio_errf(err, what, "out of memory");
+        return -1;
+    }
+    for (i = 0; i < job->n_layers; i++)
+        names[i] = job->layer_names[i];
     for (i = 0; i < job->n_exemplars; i++) {
-        double f = 1.0;
-        if (tsio_read_raster_resampled(job->exemplars[i], job->band, dx, dy, job->cell_size, &ex[i],
-                                       &f, err) != 0)
+        if (job_read_exemplar(ctx, job, i, dx, dy, &ex[i], &te[i], err) != 0)
             goto done;
         if (warning)
-            job_warn_sentinels(warning, job->exemplars[i], &ex[i]);
-        if (no_crs && dx > 0 && !ex[i].dx_m && !*no_crs)
+            job_warn_sentinels(warning, job->exemplars[i], &ex[i].dem);
+        if (no_crs && dx > 0 && !ex[i].dem.dx_m && !*no_crs)
             *no_crs = i + 1;
-        exr[i] = ex[i].r;
     }
     clock_gettime(CLOCK_MONOTONIC, &t0);
-    if (ts_dictionary_build(ctx, exr, job->n_exemplars, &job->params, dict) != TS_OK) {
+    if (ts_dictionary_build(ctx, te, job->n_exemplars, names, job->n_layers, &job->params, dict) !=
+        TS_OK) {
         int bad = ts_ctx_failed_input(ctx);
         tsio_errf(err, bad >= 0 && bad < job->n_exemplars ? job->exemplars[bad] : what, "%s",
                   ts_ctx_message(ctx));
@@ -1004,25 +1167,32 @@ static int job_build_dictionary(ts_ctx *ctx, const tsjob_amplify *job, double dx
     rc = 0;
 done:
     for (i = 0; i < job->n_exemplars; i++)
-        tsio_raster_free(&ex[i]);
+        job_exemplar_free(&ex[i]);
+    free(ex);
     return rc;
 }
 
 /* Every file an amplify (or dictionary) job reads; returns the count. */
+#define JOB_AMP_MAX_INPUTS (TSJOB_MAX_EXEMPLARS * (2 + TS_MAX_LAYERS) + 3)
 static int job_amplify_inputs(const tsjob_amplify *job, const char **in)
 {
-    int n = 0, i;
+    int n = 0, i, l;
     in[n++] = job->input;
     in[n++] = job->dictionary;
-    for (i = 0; i < job->n_exemplars; i++)
+    in[n++] = job->classes;
+    for (i = 0; i < job->n_exemplars; i++) {
         in[n++] = job->exemplars[i];
+        in[n++] = job->exemplar_classes[i];
+        for (l = 0; l < job->n_layers; l++)
+            in[n++] = job->layer_files[i][l];
+    }
     return n;
 }
 
 int tsjob_dictionary_build(ts_ctx *ctx, const tsjob_amplify *job, const char *path, size_t *n_atoms,
                            tsio_err *err)
 {
-    const char *in[TSJOB_MAX_EXEMPLARS + 2];
+    const char *in[JOB_AMP_MAX_INPUTS];
     int n = job_amplify_inputs(job, in), k, rc = -1;
     ts_dictionary *dict = NULL;
     unsigned char head[DICT_FILE_HEAD], *bytes = NULL;
@@ -1050,6 +1220,67 @@ done:
     free(bytes);
     ts_dictionary_free(dict);
     return rc;
+}
+
+/* After the dictionary: the input's irradiance (with w_l), the layers and
+ * classes asked for found in the dictionary. */
+static int job_amplify_frame(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
+                             tsio_err *err)
+{
+    int L, K, has_l, i, l;
+    ts_dictionary_layers(res->dict, &L, &K, &has_l);
+    if (job->params.w_l > 0) {
+        ts_raster lat = {0, 0, 0, NULL}, north = {0, 0, 0, NULL};
+        ts_grid_metrics m;
+        int rc = -1;
+        if (!has_l) {
+            tsio_errf(err, job->dictionary ? job->dictionary : job->input,
+                      "the dictionary was built without the irradiance: build it with w_l > 0");
+            return -1;
+        }
+        if (ts_raster_alloc(ctx, res->in.r.width, res->in.r.height, &lat) != TS_OK ||
+            ts_raster_alloc(ctx, res->in.r.width, res->in.r.height, &north) != TS_OK ||
+            ts_raster_alloc(ctx, res->in.r.width, res->in.r.height, &res->irr) != TS_OK)
+            tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
+        else if (tsio_georef_sun_frame(&res->in.geo, 1, &lat, &north, err) != 0)
+            tsio_errf(err, job->input, "%s", err->msg[0] ? err->msg : "has no CRS: no latitude");
+        else if (ts_irradiance(ctx, &res->in.r, tsio_metrics(&res->in, &m), &lat, &north,
+                               &res->irr) != TS_OK)
+            tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
+        else
+            rc = 0;
+        ts_raster_free(&lat);
+        ts_raster_free(&north);
+        if (rc != 0)
+            return -1;
+    }
+    for (i = 0; i < job->n_out_layers; i++) {
+        for (l = 0; l < L; l++)
+            if (!strcmp(ts_dictionary_layer_name(res->dict, l), job->out_layer_names[i]))
+                break;
+        if (l == L) {
+            char have[TS_MAX_LAYERS * (TS_LAYER_NAME + 2) + 8] = "";
+            for (l = 0; l < L; l++)
+                snprintf(have + strlen(have), sizeof have - strlen(have), "%s%s", l ? ", " : "",
+                         ts_dictionary_layer_name(res->dict, l));
+            tsio_errf(err, job->dictionary ? job->dictionary : job->exemplars[0],
+                      "out_layer %s: the atoms carry no layer %s (they carry: %s)",
+                      job->out_layer_names[i], job->out_layer_names[i], L ? have : "none");
+            return -1;
+        }
+        res->layer_of[i] = l;
+    }
+    if (job->want_classes && K == 0) {
+        tsio_errf(err, job->dictionary ? job->dictionary : job->exemplars[0],
+                  "out_classes: the atoms have no classes (give exemplar_classes)");
+        return -1;
+    }
+    if (job->classes && K == 0) {
+        tsio_errf(err, job->classes,
+                  "wanted classes, but the atoms have none (give exemplar_classes)");
+        return -1;
+    }
+    return 0;
 }
 
 int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
@@ -1088,25 +1319,64 @@ drainage:
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
         return -1;
     }
-    return 0;
+    return job_amplify_frame(ctx, job, res, err);
+}
+
+static ts_amplify_guide job_amplify_guide(const tsjob_amplify *job, const tsjob_amplify_result *res)
+{
+    ts_amplify_guide g;
+    g.drainage = &res->drain;
+    g.irradiance = job->params.w_l > 0 ? &res->irr : NULL;
+    g.classes = res->classes.r.data ? &res->classes.r : NULL;
+    return g;
 }
 
 int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
-                         int x0, int y0, int w, int h, float *out, tsio_err *err)
+                         int x0, int y0, int w, int h, int serve, float *out, tsio_err *err)
 {
-    ts_raster o = ts_raster_wrap(out, w, h, w);
-    if (ts_amplify_window(ctx, &res->in.r, &res->drain, res->dict, &job->params, x0, y0, &o,
-                          NULL) != TS_OK) {
-        tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
-        return -1;
+    ts_raster o = ts_raster_wrap(out, w, h, w), dem = {0, 0, 0, NULL}, cls = {0, 0, 0, NULL};
+    ts_raster layers[TS_MAX_LAYERS];
+    ts_amplify_guide g = job_amplify_guide(job, res);
+    ts_amplify_layers lay = {NULL, NULL};
+    int L = 0, l, rc = -1;
+    memset(layers, 0, sizeof layers);
+    if (serve != TSJOB_SERVE_DEM) {
+        /* the DEM computed aside, the layers (every one the atoms carry) or classes kept */
+        ts_dictionary_layers(res->dict, &L, NULL, NULL);
+        if (ts_raster_alloc(ctx, w, h, &dem) != TS_OK)
+            goto done;
+        if (serve == TSJOB_SERVE_CLASSES) {
+            cls = o;
+            lay.classes = &cls;
+        } else {
+            for (l = 0; l < L; l++)
+                if (l == res->layer_of[serve])
+                    layers[l] = o;
+                else if (ts_raster_alloc(ctx, w, h, &layers[l]) != TS_OK)
+                    goto done;
+            lay.layers = layers;
+        }
     }
-    return 0;
+    if (ts_amplify_window(ctx, &res->in.r, &g, res->dict, &job->params, x0, y0,
+                          serve == TSJOB_SERVE_DEM ? &o : &dem, &lay, NULL) != TS_OK)
+        goto done;
+    rc = 0;
+done:
+    if (rc != 0)
+        tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
+    ts_raster_free(&dem);
+    for (l = 0; l < L; l++)
+        if (serve < 0 || l != res->layer_of[serve])
+            ts_raster_free(&layers[l]);
+    return rc;
 }
 
 int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                           tsio_err *err)
 {
     job_progress jp;
+    ts_amplify_layers lay = {NULL, NULL};
+    ts_amplify_guide g;
     int rc = -1;
     ts_ctx_get_progress(ctx, &jp.fn, &jp.user);
     job_progress_range(ctx, &jp, 0.0, 0.2);
@@ -1116,8 +1386,26 @@ int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_r
         tsio_errf(err, "amplify", "%s", ts_ctx_message(ctx));
         goto done;
     }
+    if (job->n_out_layers) {
+        int L, l;
+        ts_dictionary_layers(res->dict, &L, NULL, NULL);
+        for (l = 0; l < L; l++)
+            if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->layers[l]) != TS_OK) {
+                tsio_errf(err, "amplify", "%s", ts_ctx_message(ctx));
+                goto done;
+            }
+        lay.layers = res->layers;
+    }
+    if (job->want_classes) {
+        if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out_classes) != TS_OK) {
+            tsio_errf(err, "amplify", "%s", ts_ctx_message(ctx));
+            goto done;
+        }
+        lay.classes = &res->out_classes;
+    }
+    g = job_amplify_guide(job, res);
     job_progress_range(ctx, &jp, 0.2, 1.0);
-    if (ts_amplify_window(ctx, &res->in.r, &res->drain, res->dict, &job->params, 0, 0, &res->out,
+    if (ts_amplify_window(ctx, &res->in.r, &g, res->dict, &job->params, 0, 0, &res->out, &lay,
                           &res->info) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
         goto done;
@@ -1130,6 +1418,12 @@ done:
 
 void tsjob_amplify_result_free(tsjob_amplify_result *res)
 {
+    int l;
+    for (l = 0; l < TS_MAX_LAYERS; l++)
+        ts_raster_free(&res->layers[l]);
+    ts_raster_free(&res->out_classes);
+    ts_raster_free(&res->irr);
+    tsio_raster_free(&res->classes);
     ts_dictionary_free(res->dict);
     ts_raster_free(&res->drain);
     tsio_raster_free(&res->in);
@@ -1140,7 +1434,7 @@ void tsjob_amplify_result_free(tsjob_amplify_result *res)
 
 int tsjob_amplify_check_recipe(const tsjob_amplify *job, const char *recipe, tsio_err *err)
 {
-    const char *in[TSJOB_MAX_EXEMPLARS + 2];
+    const char *in[JOB_AMP_MAX_INPUTS];
     int n = job_amplify_inputs(job, in);
     return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
 }
@@ -1148,8 +1442,9 @@ int tsjob_amplify_check_recipe(const tsjob_amplify *job, const char *recipe, tsi
 int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_result *res,
                                 const tsjob_outputs *o, tsio_err *err)
 {
-    const char *in[TSJOB_MAX_EXEMPLARS + 2], *outs[2] = {o->output, o->preview};
-    int n = job_amplify_inputs(job, in);
+    const char *in[JOB_AMP_MAX_INPUTS],
+        *outs[3 + TS_MAX_LAYERS] = {o->output, o->preview, o->out_classes};
+    int n = job_amplify_inputs(job, in), n_out = 3, l;
     float probe = 0;
     ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
     unsigned char bp = 0;
@@ -1157,12 +1452,20 @@ int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_re
     tsio_write_opts png = {"PNG", NULL, 1};
     tsio_georef g1 = res->geo;
     g1.width = g1.height = 1;
-    if (job_not_an_input(o->output, in, n, err) || job_not_an_input(o->preview, in, n, err) ||
-        job_distinct(outs, 2, err))
+    for (l = 0; o->out_layers && o->out_layers[l] && l < TS_MAX_LAYERS; l++)
+        outs[n_out++] = strchr(o->out_layers[l], '=') + 1;
+    for (l = 0; l < n_out; l++)
+        if (job_not_an_input(outs[l], in, n, err))
+            return -1;
+    if (job_distinct(outs, n_out, err))
         return -1;
     if (tsio_write_float(o->output, &wo, &g1, &pr, -9999.0, err) != 0 ||
-        (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
+        (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0) ||
+        (o->out_classes && tsio_write_byte(o->out_classes, &wo, &g1, &bp, -1, err) != 0))
         return -1;
+    for (l = 3; l < n_out; l++)
+        if (tsio_write_float(outs[l], &wo, &g1, &pr, -9999.0, err) != 0)
+            return -1;
     return 0;
 }
 
@@ -1170,8 +1473,28 @@ int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjo
                         tsio_err *err)
 {
     tsio_write_opts wo = {o->format, o->create_options, 0};
+    int l;
     if (tsio_write_float(o->output, &wo, &res->geo, &res->out, -9999.0, err) != 0)
         return -1;
+    for (l = 0; o->out_layers && o->out_layers[l] && l < TS_MAX_LAYERS; l++)
+        if (tsio_write_float(strchr(o->out_layers[l], '=') + 1, &wo, &res->geo,
+                             &res->layers[res->layer_of[l]], -9999.0, err) != 0)
+            return -1;
+    if (o->out_classes) {
+        size_t n = (size_t)res->geo.width * (size_t)res->geo.height, k;
+        unsigned char *b = malloc(n ? n : 1);
+        int rc;
+        if (!b) {
+            tsio_errf(err, o->out_classes, "out of memory");
+            return -1;
+        }
+        for (k = 0; k < n; k++)
+            b[k] = (unsigned char)res->out_classes.data[k];
+        rc = tsio_write_byte(o->out_classes, &wo, &res->geo, b, -1, err);
+        free(b);
+        if (rc != 0)
+            return -1;
+    }
     if (o->preview) {
         /* the hillshade on the ground: cell sizes in metres (a geographic grid's too) */
         double *dx = NULL, *dy = NULL;

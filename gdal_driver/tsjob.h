@@ -31,6 +31,10 @@ typedef struct tsjob_outputs {
     const char *preview;               /* hillshade PNG (ppa: with the axes), or NULL */
     const char *lines;                 /* ppa: the axes as vector lines, or NULL */
     const char *debug_dir;             /* synth: the synthesis maps, or NULL */
+    /* amplify: "NAME=FILE" of the carried layers wanted (NULL-terminated, or NULL),
+     * and the atoms' classes */
+    const char *const *out_layers;
+    const char *out_classes;
 } tsjob_outputs;
 
 /* ---- ppa ---- */
@@ -182,6 +186,15 @@ typedef struct tsjob_amplify {
     const char *dictionary; /* a dictionary file instead of exemplars */
     int shape_given;        /* factor or patch given: they must be the dictionary's */
     double resolution;      /* `terrasynth dictionary build`: metres per output cell */
+    /* the exemplars' extra layers: layer_files[k][l] is exemplar k's layer l */
+    char layer_names[TS_MAX_LAYERS][TS_LAYER_NAME];
+    int n_layers;
+    const char *layer_files[TSJOB_MAX_EXEMPLARS][TS_MAX_LAYERS];
+    const char *exemplar_classes[TSJOB_MAX_EXEMPLARS]; /* NULL: none */
+    const char *classes; /* wanted classes on the input's grid, or NULL */
+    /* the carried layers and the classes wanted on the output (out_layer, out_classes) */
+    char out_layer_names[TS_MAX_LAYERS][TS_LAYER_NAME];
+    int n_out_layers, want_classes;
 } tsjob_amplify;
 
 typedef struct tsjob_amplify_result {
@@ -195,6 +208,11 @@ typedef struct tsjob_amplify_result {
     tsio_err warning;
     ts_dictionary *dict; /* after tsjob_amplify_setup (owned) */
     ts_raster drain;     /* the input's drainage area (owned) */
+    ts_raster irr;       /* the input's irradiance, with w_l > 0 (owned) */
+    tsio_raster classes; /* the wanted classes, on the input's grid */
+    ts_raster layers[TS_MAX_LAYERS]; /* every carried layer, when one is asked for (owned) */
+    int layer_of[TS_MAX_LAYERS];     /* out_layer i is the dictionary's layer layer_of[i] */
+    ts_raster out_classes;           /* with out_classes (owned) */
 } tsjob_amplify_result;
 
 /** Read and check the input, resolve the output grid, estimate the memory. */
@@ -203,10 +221,15 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
  *  dictionary and the input's drainage area (what every window shares). */
 int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                         tsio_err *err);
-/** After setup: output cells [x0, x0+w) x [y0, y0+h) into out (w*h floats,
- *  NaN = nodata), the same bytes as that window of the whole. */
+/** What tsjob_amplify_window serves: the DEM, the atoms' classes, or (>= 0)
+ *  the job's out layer of that index. */
+#define TSJOB_SERVE_DEM (-1)
+#define TSJOB_SERVE_CLASSES (-2)
+/** After setup: output cells [x0, x0+w) x [y0, y0+h) of what `serve` says
+ *  into out (w*h floats, NaN = nodata), the same bytes as that window of the
+ *  whole. */
 int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
-                         int x0, int y0, int w, int h, float *out, tsio_err *err);
+                         int x0, int y0, int w, int h, int serve, float *out, tsio_err *err);
 /** Setup, then the whole output into res->out. */
 int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                           tsio_err *err);

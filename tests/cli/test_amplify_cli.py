@@ -247,3 +247,253 @@ def test_multi_step_by_chaining(tmp_path):
     a = gdal.Open(str(tmp_path / "r.tif")).ReadAsArray()
     b = gdal.Open(str(tmp_path / "c2.tif")).ReadAsArray()
     assert a.shape == (344 * 4, 403 * 4) and a.tobytes() == b.tobytes()
+
+
+def jacksboro_pair(tmp_path, factor):
+    """Jacksboro cut to whole blocks and its block means on cells `factor` times larger: an
+    exemplar at exactly the output's resolution and a coarse input."""
+    s = gdal.Open(JACKSBORO)
+    z = s.ReadAsArray().astype(np.float64)
+    h, w = (z.shape[0] // factor) * factor, (z.shape[1] // factor) * factor
+    z = z[:h, :w]
+    gt = list(s.GetGeoTransform())
+    c = z.reshape(h // factor, factor, w // factor, factor).mean(axis=(1, 3))
+    write(tmp_path / "ex.tif", z.astype(np.float32), gt, s.GetProjection())
+    cgt = [gt[0], gt[1] * factor, 0, gt[3], 0, gt[5] * factor]
+    write(tmp_path / "coarse.tif", c.astype(np.float32), cgt, s.GetProjection())
+    return z, c, gt, cgt, s.GetProjection()
+
+
+def stripe_power(a):
+    """The rows' spectral line at a period of 4 cells: the power there over the median power
+    of the frequencies around it (about 1 without ripples)."""
+    a = a[:, :(a.shape[1] // 4) * 4]
+    p = (np.abs(np.fft.rfft(a - a.mean(axis=1, keepdims=True), axis=1)) ** 2).sum(axis=0)
+    k = a.shape[1] // 4
+    return p[k] / np.median(np.r_[p[k - 24:k - 2], p[k + 3:k + 25]])
+
+
+def test_class_control_chooses_the_exemplar(tmp_path):
+    """Section 5.4: two exemplars whose area averages are the same (the second has ripples of
+    a 4-cell period, which averaging by 4 removes) labelled 1 and 2; wanted classes on the
+    input's left and right halves choose which one each half's detail comes from, judged by
+    the ripples' share of the output's spectrum (numpy), then with the halves swapped."""
+    f = 4
+    z, c, gt, cgt, wkt = jacksboro_pair(tmp_path, f)
+    x = np.arange(z.shape[1])
+    write(tmp_path / "ripples.tif", (z + 10.0 * np.sin(2 * np.pi * x / 4 + 0.3)).astype(np.float32),
+          gt, wkt)
+    for name, v in (("c1.tif", 1), ("c2.tif", 2)):
+        write(tmp_path / name, np.full(z.shape, v, np.float32), gt, wkt)
+    half = c.shape[1] // 2
+    for left in (1, 2):
+        want = np.full(c.shape, 3 - left, np.float32)
+        want[:, :half] = left
+        write(tmp_path / "want.tif", want, cgt, wkt)
+        run("amplify", tmp_path / "coarse.tif", tmp_path / "o.tif", "--exemplar",
+            tmp_path / "ex.tif", "--exemplar", tmp_path / "ripples.tif", "--exemplar-classes",
+            tmp_path / "c1.tif", "--exemplar-classes", tmp_path / "c2.tif", "--classes",
+            tmp_path / "want.tif", "--factor", str(f), "--out-classes", tmp_path / "oc.tif", "-q")
+        a = gdal.Open(str(tmp_path / "o.tif")).ReadAsArray().astype(np.float64)
+        oc = gdal.Open(str(tmp_path / "oc.tif")).ReadAsArray()
+        m = half * f
+        lpow, rpow = stripe_power(a[:, :m - 24]), stripe_power(a[:, m + 24:])
+        rip, plain = (lpow, rpow) if left == 2 else (rpow, lpow)
+        assert rip > 4 and plain < 2, (left, lpow, rpow)
+        assert np.mean(oc[:, :m - 24] == left) > 0.97 and np.mean(oc[:, m + 24:] == 3 - left) > 0.97
+    # without wanted classes both exemplars are used (ties go to the first: exemplar 1)
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "n.tif", "--exemplar", tmp_path / "ex.tif",
+        "--exemplar", tmp_path / "ripples.tif", "--exemplar-classes", tmp_path / "c1.tif",
+        "--exemplar-classes", tmp_path / "c2.tif", "--factor", str(f), "--out-classes",
+        tmp_path / "nc.tif", "-q")
+    assert set(np.unique(gdal.Open(str(tmp_path / "nc.tif")).ReadAsArray())) <= {1, 2}
+
+
+def laplacian(z, d):
+    """The Laplacian (curvature) by plain central differences, edges repeated."""
+    p = np.pad(z, 1, mode="edge")
+    return (p[:-2, 1:-1] + p[2:, 1:-1] + p[1:-1, :-2] + p[1:-1, 2:] - 4 * z) / d ** 2
+
+
+@pytest.mark.skipif(not os.path.isdir(SHARED), reason="../shared DEMs not present")
+@pytest.mark.parametrize("fine,win,exemplar", [
+    ("mountains_bigtujunga_ca_30m.tif", (300, 60, 512, 512), "mountains_mackay_id_30m.tif"),
+    ("mountains_mackay_id_30m.tif", (100, 200, 512, 512), "mountains_bigtujunga_ca_30m.tif"),
+    ("volcano_st_helens_30m.tif", None, "mountains_mackay_id_30m.tif"),
+])
+def test_carried_layer_is_coherent(tmp_path, fine, win, exemplar):
+    """A layer that is a known function of the terrain (its curvature, numpy) carried by the
+    atoms agrees with the same function recomputed on the amplified DEM better than the
+    function of the coarse input resampled by gdalwarp -r cubic does (Pearson correlation)."""
+    f = 4
+
+    def read(path):
+        ds = gdal.Open(path)
+        a = ds.ReadAsArray().astype(np.float64)
+        nd = ds.GetRasterBand(1).GetNoDataValue()
+        if nd is not None:
+            a[a == nd] = np.nan
+        a[a == -9999] = np.nan
+        return ds, a
+
+    s, z = read(os.path.join(SHARED, fine))
+    if win:
+        x0, y0, w, h = win
+        z = z[y0:y0 + h, x0:x0 + w]
+    h, w = (z.shape[0] // f) * f, (z.shape[1] // f) * f
+    z = z[:h, :w]
+    gt = list(s.GetGeoTransform())
+    if win:
+        gt[0] += win[0] * gt[1]
+        gt[3] += win[1] * gt[5]
+    c = z.reshape(h // f, f, w // f, f).mean(axis=(1, 3))  # NaN where any cell is nodata
+    cgt = [gt[0], gt[1] * f, 0, gt[3], 0, gt[5] * f]
+    write(tmp_path / "coarse.tif", np.nan_to_num(c, nan=-9999).astype(np.float32), cgt,
+          s.GetProjection(), nodata=-9999)
+    e, ez = read(os.path.join(SHARED, exemplar))
+    write(tmp_path / "ex_curv.tif", np.nan_to_num(laplacian(ez, 30.0), nan=-9999).astype(
+        np.float32), e.GetGeoTransform(), e.GetProjection(), nodata=-9999)
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "amp.tif", "--exemplar",
+        os.path.join(SHARED, exemplar), "--exemplar-layer", "curv=%s" % (tmp_path / "ex_curv.tif"),
+        "--out-layer", "curv=%s" % (tmp_path / "o_curv.tif"), "--factor", str(f), "-q")
+    amp = read(str(tmp_path / "amp.tif"))[1]
+    carried = read(str(tmp_path / "o_curv.tif"))[1]
+    write(tmp_path / "c_curv.tif", np.nan_to_num(laplacian(c, 30.0 * f), nan=-9999).astype(
+        np.float32), cgt, s.GetProjection(), nodata=-9999)
+    subprocess.run(["gdalwarp", "-q", "-r", "cubic", "-tr", "30", "30",
+                    str(tmp_path / "c_curv.tif"), str(tmp_path / "cubic.tif")], check=True)
+    cubic = read(str(tmp_path / "cubic.tif"))[1]
+    truth = laplacian(amp, 30.0)
+    inner = (slice(4, -4), slice(4, -4))
+    t, a, b = truth[inner].ravel(), carried[inner].ravel(), cubic[inner].ravel()
+    ok = np.isfinite(t) & np.isfinite(a) & np.isfinite(b)
+    assert ok.mean() > 0.5
+    r_carried = np.corrcoef(t[ok], a[ok])[0, 1]
+    r_cubic = np.corrcoef(t[ok], b[ok])[0, 1]
+    print("curvature: carried r=%.3f, cubic r=%.3f" % (r_carried, r_cubic))
+    assert r_carried > r_cubic, (r_carried, r_cubic)
+
+
+def test_layers_and_classes_through_a_dictionary_file(tmp_path):
+    """A dictionary built with layers and classes holds them (info), and amplify with it
+    gives the same bytes for the DEM, the layer and the classes as with the exemplars; the
+    mistakes a user makes with layers are refused with one line."""
+    import json as js
+    f = 4
+    # a projected exemplar of 90 m cells and a coarse input of 360 m cells: exact resolutions
+    subprocess.run(["gdalwarp", "-q", "-t_srs", "EPSG:32616", "-tr", "90", "90", "-r", "cubic",
+                    "-dstnodata", "-9999", JACKSBORO, str(tmp_path / "utm.tif")], check=True)
+    u = gdal.Open(str(tmp_path / "utm.tif"))
+    gt, wkt = list(u.GetGeoTransform()), u.GetProjection()
+    z = u.ReadAsArray().astype(np.float64)
+    h, w = (z.shape[0] // f) * f, (z.shape[1] // f) * f
+    z = z[:h, :w]
+    z[z == -9999] = np.nan
+    write(tmp_path / "ex.tif", np.nan_to_num(z, nan=-9999).astype(np.float32), gt, wkt,
+          nodata=-9999)
+    c = z.reshape(h // f, f, w // f, f).mean(axis=(1, 3))
+    write(tmp_path / "coarse.tif", np.nan_to_num(c, nan=-9999).astype(np.float32),
+          [gt[0], 360, 0, gt[3], 0, -360], wkt, nodata=-9999)
+    med = np.nanmedian(z)
+    write(tmp_path / "veg.tif", (z > med).astype(np.float32) * 0.8, gt, wkt)
+    write(tmp_path / "cl.tif", np.where(z > med, 2, 1).astype(np.float32), gt, wkt)
+    d = tmp_path / "d.tsd"
+    res = 90
+    lay = ["--exemplar-layer", "veg=%s" % (tmp_path / "veg.tif"), "--exemplar-classes",
+           tmp_path / "cl.tif"]
+    run("dictionary", "build", d, "--exemplar", tmp_path / "ex.tif", *lay, "--factor", str(f),
+        "--resolution", "%.6f" % res, "-q")
+    info = js.loads(run("dictionary", "info", d).stdout)
+    assert info["layers"] == ["veg"] and info["classes"] == 2 and info["version"] == 2
+    outs = lambda p: ["--out-layer", "veg=%s" % (tmp_path / (p + "v.tif")), "--out-classes",  # noqa
+                      tmp_path / (p + "c.tif")]
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "a.tif", "--exemplar", tmp_path / "ex.tif",
+        *lay, "--factor", str(f), *outs("a"), "-q")
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "b.tif", "--dictionary", d, *outs("b"),
+        "-q")
+    for suffix in (".tif", "v.tif", "c.tif"):
+        a = gdal.Open(str(tmp_path / ("a" + suffix))).ReadAsArray()
+        b = gdal.Open(str(tmp_path / ("b" + suffix))).ReadAsArray()
+        assert a.tobytes() == b.tobytes(), suffix
+    v = gdal.Open(str(tmp_path / "av.tif"))
+    assert v.GetGeoTransform() == gdal.Open(str(tmp_path / "a.tif")).GetGeoTransform()
+    assert v.GetRasterBand(1).GetNoDataValue() == -9999
+    # the carried classes follow the terrain they came with: class 2 (the upper half of the
+    # exemplar's elevations) mostly where the output is high
+    a = gdal.Open(str(tmp_path / "a.tif")).ReadAsArray()
+    cls = gdal.Open(str(tmp_path / "ac.tif")).ReadAsArray()
+    valid = a != -9999
+    assert np.mean(cls[valid & (a > med)] == 2) > 0.8
+    assert np.mean(cls[valid & (a < med)] == 1) > 0.8
+    # mistakes
+    bad = [
+        (["--exemplar", tmp_path / "ex.tif", "--out-layer", "soil=%s" % (tmp_path / "s.tif")],
+         1, "out_layer soil: the atoms carry no layer soil (they carry: none)"),
+        (["--exemplar", tmp_path / "ex.tif", "--exemplar", tmp_path / "ex.tif", "--exemplar-layer",
+          "veg=%s" % (tmp_path / "veg.tif")], 2, "exemplar_layer veg: one file for each of the 2"),
+        (["--exemplar", JACKSBORO, "--exemplar-layer", "veg=%s" % (tmp_path / "veg.tif")], 1,
+         "is not on the grid of its exemplar"),
+        (["--exemplar", tmp_path / "ex.tif", "--exemplar-layer", "a b=x.tif"], 2,
+         "exemplar_layer takes NAME=FILE"),
+        (["--dictionary", d, "--classes", tmp_path / "veg.tif"], 1, "the classes are"),
+        (["--dictionary", d, "--w-l", "0.3"], 1, "built without the irradiance"),
+        (["--dictionary", d, "--exemplar-layer", "veg=%s" % (tmp_path / "veg.tif")], 2,
+         "the dictionary holds the exemplars' layers and classes"),
+        (["--exemplar", tmp_path / "ex.tif", "--out-classes", tmp_path / "x.tif"], 1,
+         "out_classes: the atoms have no classes"),
+    ]
+    for args, code, words in bad:
+        p = run("amplify", tmp_path / "coarse.tif", tmp_path / "o.tif", *args, "--factor", str(f),
+                check=False)
+        assert p.returncode == code and words in p.stderr, (args, p.stderr)
+        assert len(p.stderr.strip().splitlines()) == 1, p.stderr
+        assert not (tmp_path / "o.tif").exists()
+
+
+def test_irradiance_term(tmp_path):
+    """With w_l the atoms and the input are matched on their mean annual irradiance too (each
+    cell's latitude from the CRS); an input without a CRS is refused; the weight changes the
+    choice of atoms but not the averaging back."""
+    f = 4
+    z, c, gt, cgt, wkt = jacksboro_pair(tmp_path, f)
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "a.tif", "--exemplar", tmp_path / "ex.tif",
+        "--factor", str(f), "-q")
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "l.tif", "--exemplar", tmp_path / "ex.tif",
+        "--factor", str(f), "--w-l", "1", "-q")
+    a = gdal.Open(str(tmp_path / "a.tif")).ReadAsArray().astype(np.float64)
+    b = gdal.Open(str(tmp_path / "l.tif")).ReadAsArray().astype(np.float64)
+    assert a.tobytes() != b.tobytes()
+    av = b.reshape(c.shape[0], f, c.shape[1], f).mean(axis=(1, 3))
+    assert np.abs(av - c).max() < 0.01 * (c.max() - c.min())
+    write(tmp_path / "nocrs.tif", c.astype(np.float32), [0, 1, 0, 0, 0, -1], "")
+    p = run("amplify", tmp_path / "nocrs.tif", tmp_path / "n.tif", "--exemplar",
+            tmp_path / "ex.tif", "--factor", str(f), "--w-l", "1", check=False)
+    assert p.returncode == 1 and "needs each cell's latitude" in p.stderr, p.stderr
+
+
+def test_recipe_serves_layers_and_classes(tmp_path):
+    """An amplify recipe with exemplar layers and classes serves, with -oo LAYER=NAME or
+    LAYER=classes, the same values as --out-layer and --out-classes, window by window."""
+    f = 3
+    z, c, gt, cgt, wkt = jacksboro_pair(tmp_path, f)
+    med = np.median(z)
+    write(tmp_path / "veg.tif", np.where(z > med, 0.2, 0.9).astype(np.float32), gt, wkt)
+    write(tmp_path / "cl.tif", np.where(z > med, 2, 1).astype(np.float32), gt, wkt)
+    args = ["--exemplar", tmp_path / "ex.tif", "--exemplar-layer", "veg=%s" % (tmp_path / "veg.tif"),
+            "--exemplar-classes", tmp_path / "cl.tif", "--factor", str(f)]
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "a.tif", *args, "--out-layer",
+        "veg=%s" % (tmp_path / "av.tif"), "--out-classes", tmp_path / "ac.tif", "-q")
+    run("amplify", tmp_path / "coarse.tif", *args, "--recipe", tmp_path / "r.tsyn")
+    text = (tmp_path / "r.tsyn").read_text()
+    assert '<ExemplarLayer name="veg">' in text and "<ExemplarClasses>" in text
+    env = plugin_env(PLUGINS)
+    for layer, ref in (("veg", "av.tif"), ("classes", "ac.tif"), ("dem", "a.tif")):
+        subprocess.run(["gdal_translate", "-q", "-oo", "LAYER=" + layer, "-srcwin", "37", "51",
+                        "300", "211", str(tmp_path / "r.tsyn"), str(tmp_path / "w.tif")],
+                       check=True, env=env)
+        got = gdal.Open(str(tmp_path / "w.tif")).ReadAsArray().astype(np.float64)
+        want = gdal.Open(str(tmp_path / ref)).ReadAsArray()[51:262, 37:337].astype(np.float64)
+        assert np.array_equal(got, want), layer
+    p = subprocess.run(["gdal_translate", "-q", "-oo", "LAYER=soil", str(tmp_path / "r.tsyn"),
+                        str(tmp_path / "s.tif")], env=env, capture_output=True, text=True)
+    assert p.returncode != 0 and "the atoms carry no layer soil" in p.stderr, p.stderr

@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 
+import numpy as np
 import pytest
 
 pytest.importorskip("qgis.core", reason="qgis is not importable (python3-qgis)")
@@ -52,10 +53,14 @@ OTHER_FLAGS = {
               "ALPHA_H": "--alpha-h"},
     "amplify": {"INPUT": None, "EXEMPLARS": "--exemplar", "BAND": "--band",
                 "CELL_SIZE": "--cell-size", "THREADS": "--threads", "OUTPUT": None,
-                "PREVIEW": "--preview"},
+                "PREVIEW": "--preview", "EXEMPLAR_CLASSES": "--exemplar-classes",
+                "EXEMPLAR_LAYERS": "--exemplar-layer", "CLASSES": "--classes",
+                "OUT_LAYER_NAME": "--out-layer", "OUT_LAYER": "--out-layer",
+                "OUT_CLASSES": "--out-classes"},
 }
 # parameters whose flag is not --<name in kebab case>
-IRREGULAR_FLAGS = ("--size", "--origin", "--resolution", "--exemplar", "--pin", "--water", "--region-exemplar")
+IRREGULAR_FLAGS = ("--size", "--origin", "--resolution", "--exemplar", "--pin", "--water",
+                   "--region-exemplar", "--exemplar-layer", "--out-layer")
 
 
 def processing_run(alg_id, params, feedback=None):
@@ -750,6 +755,38 @@ def test_amplify_command_line_and_run(jacksboro, cli, tmp_path):
     assert (ds.RasterXSize, ds.RasterYSize) == (2 * src.RasterXSize, 2 * src.RasterYSize)
     gt, sg = ds.GetGeoTransform(), src.GetGeoTransform()
     assert gt == pytest.approx((sg[0], sg[1] / 2, 0, sg[3], 0, sg[5] / 2))
+
+
+def test_amplify_layers_and_classes(jacksboro, cli, tmp_path):
+    """The exemplars' classes and a layer, wanted classes, the carried layer and the classes
+    out: the same flags as the command line, and the files written."""
+    src = gdal.Open(jacksboro)
+    z = src.ReadAsArray().astype(np.float64)
+    for name, a in (("cl.tif", np.where(z > np.median(z), 2, 1)), ("veg.tif", z / z.max()),
+                    ("want.tif", np.full(z.shape, 2))):
+        d = gdal.GetDriverByName("GTiff").Create(str(tmp_path / name), z.shape[1], z.shape[0],
+                                                 1, gdal.GDT_Float32)
+        d.SetGeoTransform(src.GetGeoTransform())
+        d.SetProjection(src.GetProjection())
+        d.GetRasterBand(1).WriteArray(a.astype(np.float32))
+        d = None
+    out, lay, cls = tmp_path / "o.tif", tmp_path / "veg_out.tif", tmp_path / "cls_out.tif"
+    params = {"INPUT": jacksboro, "EXEMPLARS": [jacksboro], "FACTOR": 2,
+              "EXEMPLAR_CLASSES": [str(tmp_path / "cl.tif")],
+              "EXEMPLAR_LAYERS": "veg=%s\n" % (tmp_path / "veg.tif"),
+              "CLASSES": str(tmp_path / "want.tif"), "W_C": 2.0,
+              "OUT_LAYER_NAME": "veg", "OUT_LAYER": str(lay), "OUT_CLASSES": str(cls),
+              "OUTPUT": str(out)}
+    argv, _ = build("terrasynth:amplify", params)
+    kv = pairs(argv)
+    assert kv["--exemplar-classes"] == str(tmp_path / "cl.tif")
+    assert kv["--exemplar-layer"] == "veg=%s" % (tmp_path / "veg.tif")
+    assert kv["--out-layer"] == "veg=%s" % lay and kv["--out-classes"] == str(cls)
+    assert kv["--classes"] == str(tmp_path / "want.tif") and kv["--w-c"] == "2"
+    res = processing_run("terrasynth:amplify", params)
+    assert res["OUT_LAYER"] == str(lay) and res["OUT_CLASSES"] == str(cls)
+    c = gdal.Open(str(cls)).ReadAsArray()
+    assert c.shape == (2 * z.shape[0], 2 * z.shape[1]) and np.mean(c == 2) > 0.9
 
 
 # --------------------------------------------------------------------------- cancel

@@ -277,9 +277,11 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
                         TS_MAX_LAYERS);
     for (l = 0; l < n_layers; l++) {
         int m;
-        if (!layer_names[l] || !layer_names[l][0] || strlen(layer_names[l]) >= TS_LAYER_NAME)
+        if (!layer_names[l] || !layer_names[l][0] || strlen(layer_names[l]) >= TS_LAYER_NAME ||
+            layer_names[l][strspn(layer_names[l], "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstu"
+                                                  "vwxyz0123456789_-")] != 0)
             return ts__fail(ctx, TS_ERR_ARG, "amplify",
-                            "layer %d: a name of 1 to %d characters is needed", l + 1,
+                            "layer %d: a name of 1 to %d letters, digits, _ or - is needed", l + 1,
                             TS_LAYER_NAME - 1);
         for (m = 0; m < l; m++)
             if (!strcmp(layer_names[m], layer_names[l]))

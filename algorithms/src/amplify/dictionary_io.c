@@ -169,7 +169,9 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     p = bytes + DICT_HEADER;
     for (l = 0; l < (int)L; l++, p += TS_LAYER_NAME) {
         memcpy(d->layer_names[l], p, TS_LAYER_NAME);
-        if (d->layer_names[l][TS_LAYER_NAME - 1] != 0 || !d->layer_names[l][0]) {
+        if (d->layer_names[l][TS_LAYER_NAME - 1] != 0 || !d->layer_names[l][0] ||
+            d->layer_names[l][strspn(d->layer_names[l], "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmn"
+                                                        "opqrstuvwxyz0123456789_-")] != 0) {
             ts_dictionary_free(d);
             return ts__fail(ctx, TS_ERR_ARG, "dictionary", "damaged: layer %d has no name",
                             l + 1);
