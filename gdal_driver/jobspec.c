@@ -173,6 +173,11 @@ static const tsj_option amplify_opts[] = {
      "a dictionary built once by `terrasynth dictionary build` (instead of exemplars): "
      "its factor, patch and cell size are the job's",
      "Dictionary", 0, NULL},
+    {"biome", TSJ_PAIR, TSJOB_MAX_BIOMES, 0, 0, "W.tif=D.tsd", G_IN,
+     "a biome (section 5.5): dictionary D (terrasynth dictionary build) weighs W, a raster "
+     "on the input's grid painted by the user (shares: each biome's weight over their sum); "
+     "repeatable, instead of exemplars or a dictionary",
+     "Biome", 0, "weights"},
     {"band", TSJ_INT, 1, 1, 65535, "N", G_IN, "band read from every input (default 1)", "Band", 0,
      NULL},
     {"cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
@@ -200,7 +205,14 @@ static const tsj_option amplify_opts[] = {
 };
 
 static const tsj_rule amplify_rules[] = {
-    {TSJ_ONE_OF, "exemplar", {"dictionary", NULL}, "give at least one exemplar, or a dictionary"},
+    {TSJ_ONE_OF,
+     "exemplar",
+     {"dictionary", "biome", NULL},
+     "give at least one exemplar, or a dictionary, or biomes"},
+    {TSJ_EXCLUDES,
+     "biome",
+     {"classes", "out_layer", "out_classes", NULL},
+     "biomes blend dictionaries: give no %s"},
     {TSJ_EXCLUDES,
      "recipe",
      {"output", "preview", "out_layer", "out_classes", NULL},
@@ -588,6 +600,14 @@ static int check_value(const tsj_option *o, const char *s, char *msg, size_t len
         }
         return 0;
     }
+    case TSJ_PAIR: {
+        const char *eq = s ? strchr(s, '=') : NULL;
+        if (!eq || eq == s || !eq[1]) {
+            msgf(msg, len, "%s takes FILE=FILE, not '%s'", o->name, s ? s : "");
+            return -1;
+        }
+        return 0;
+    }
     case TSJ_CHOICE:
         return 0;
     }
@@ -850,6 +870,21 @@ int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len)
         return -1;
     }
     job->classes = tsj_get(v, "classes", 0);
+    for (i = 0; (s = tsj_get(v, "biome", i)); i++) {
+        const char *eq = strchr(s, '=');
+        char *w;
+        if (i == TSJOB_MAX_BIOMES) {
+            msgf(msg, len, "biome: at most %d", TSJOB_MAX_BIOMES);
+            return -1;
+        }
+        w = CPLStrdup(s);
+        w[eq - s] = '\0';
+        v->keep = CSLAddString(v->keep, w);
+        CPLFree(w);
+        job->biome_weights[i] = v->keep[CSLCount(v->keep) - 1];
+        job->biome_dicts[i] = eq + 1;
+        job->n_biomes++;
+    }
     for (i = 0; (s = tsj_get(v, "out_layer", i)); i++) {
         size_t n = strspn(s, "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-");
         int l;
@@ -868,8 +903,8 @@ int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len)
     job->want_classes = tsj_count(v, "out_classes") > 0;
     job->dictionary = tsj_get(v, "dictionary", 0);
     job->shape_given = tsj_count(v, "factor") || tsj_count(v, "patch");
-    if (!job->n_exemplars && !job->dictionary) {
-        msgf(msg, len, "give at least one exemplar, or a dictionary");
+    if (!job->n_exemplars && !job->dictionary && !job->n_biomes) {
+        msgf(msg, len, "give at least one exemplar, or a dictionary, or biomes");
         return -1;
     }
     if ((s = tsj_get(v, "resolution", 0)))
@@ -1110,6 +1145,31 @@ int tsj_from_xml(tsj_values *v, const CPLXMLNode *node,
                          CPLGetXMLValue(c, o->kind == TSJ_RULE ? "id" : "name", ""),
                          CPLGetXMLValue(c, NULL, ""));
                 val = buf;
+            } else if (o->kind == TSJ_PAIR) {
+                /* both files relative to the recipe */
+                const char *first = CPLGetXMLValue(c, o->choices, ""), *res;
+                char a_abs[1024];
+                if (!*first || !*CPLGetXMLValue(c, NULL, "")) {
+                    msgf(msg, len, "<%s %s=\"FILE\">FILE</%s> needs both files", elem, o->choices,
+                         elem);
+                    return -1;
+                }
+                if (strchr(first, '=')) {
+                    msgf(msg, len, "<%s %s=\"%s\">: a name with '='", elem, o->choices, first);
+                    return -1;
+                }
+                if (!(res = resolve(user, first, msg, len)))
+                    return -1;
+                snprintf(a_abs, sizeof a_abs, "%s", res);
+                if (!(res = resolve(user, CPLGetXMLValue(c, NULL, ""), msg, len)))
+                    return -1;
+                snprintf(buf, sizeof buf, "%s=%s", a_abs, res);
+                if (o->max_count > 1 && tsj_count(v, o->name) >= o->max_count) {
+                    msgf(msg, len, "more than %d <%s> elements", o->max_count, elem);
+                    return -1;
+                }
+                tsj_set(v, o->name, buf);
+                continue;
             } else if (parts == 0) {
                 val = CPLGetXMLValue(c, NULL, "");
             } else if (parts == 1) {
@@ -1237,6 +1297,14 @@ void tsj_to_xml(const tsj_values *v, CPLXMLNode *root,
                 e = CPLCreateXMLElementAndValue(node, elem, rel(user, eq + 1));
                 CPLAddXMLAttributeAndValue(e, o->kind == TSJ_RULE ? "id" : "name",
                                            CPLSPrintf("%.*s", (int)(eq - val), val));
+            } else if (o->kind == TSJ_PAIR) {
+                const char *eq = strchr(val, '=');
+                char first[1024];
+                if (!eq)
+                    continue;
+                snprintf(first, sizeof first, "%.*s", (int)(eq - val), val);
+                e = CPLCreateXMLElementAndValue(node, elem, rel(user, eq + 1));
+                CPLAddXMLAttributeAndValue(e, o->choices, rel(user, first));
             } else if (parts == 0) {
                 CPLCreateXMLElementAndValue(node, elem,
                                             o->kind == TSJ_FILE ? rel(user, val) : val);

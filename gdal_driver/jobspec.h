@@ -45,7 +45,9 @@ typedef enum tsj_kind {
     TSJ_PIN,    /* FILE:XOFF,YOFF,W,H@X,Y */
     TSJ_RULE,   /* ID=FILE */
     TSJ_CHOICE, /* one of `choices` ("ridges|valleys|both") */
-    TSJ_NAMED   /* NAME=FILE: an input file under a name (letters, digits, _ and -) */
+    TSJ_NAMED,  /* NAME=FILE: an input file under a name (letters, digits, _ and -) */
+    TSJ_PAIR    /* FILE=FILE: two input files (the first without '='); in recipes the
+                 * element's text is the second, attribute `choices` the first */
 } tsj_kind;
 
 typedef struct tsj_option {

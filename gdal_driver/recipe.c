@@ -177,7 +177,7 @@ static int recipe_options(ts_recipe *r, const char *const *oo, tsio_err *err)
         }
         o = tsj_option_find(r->values.job, key);
         if (o ? (!o->xml || o->kind == TSJ_FILE || o->kind == TSJ_PIN || o->kind == TSJ_RULE ||
-                 o->kind == TSJ_NAMED)
+                 o->kind == TSJ_NAMED || o->kind == TSJ_PAIR)
               : !tsj_param_stage(r->values.job, key)) {
             tsio_errf(err, r->path, "open option %s: not an option of %s recipes", oo[i],
                       r->values.job->name);
@@ -738,7 +738,7 @@ char *recipe_open_option_list(void)
             const tsj_option *op = &job->opts[k];
             CPLXMLNode *o;
             if (!op->xml || op->kind == TSJ_FILE || op->kind == TSJ_PIN || op->kind == TSJ_RULE ||
-                op->kind == TSJ_NAMED)
+                op->kind == TSJ_NAMED || op->kind == TSJ_PAIR)
                 continue;
             o = option_add(list, op->name,
                            op->kind == TSJ_INT                             ? "int"

@@ -861,6 +861,9 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
         need += cells_out * 4 * (uint64_t)(job->dictionary ? TS_MAX_LAYERS : job->n_layers);
     if (!job->lazy && job->want_classes)
         need += cells_out * 5;
+    need += (uint64_t)g.width * g.height * 4 * (uint64_t)job->n_biomes; /* their weights */
+    if (job->n_biomes > 1 && !job->lazy) /* a reconstruction per biome */
+        need += cells_out * 4 * (uint64_t)job->n_biomes;
     /* the ground size of an output cell, to count the exemplars' cells at it */
     if (tsio_georef_metrics(&g, &dx, &dy, err) == 0 && dx)
         out_area = dx[g.height / 2] * dy[g.height / 2] / ((double)F * F);
@@ -995,29 +998,35 @@ done:
 int tsjob_amplify_adopt_dictionary(tsjob_amplify *job, tsio_err *err)
 {
     unsigned char h[DICT_FILE_HEAD + 24];
-    int got, factor, patch;
-    if (!job->dictionary)
+    int got, factor, patch, b, n = job->n_biomes ? job->n_biomes : 1;
+    int shape_given = job->shape_given;
+    if (!job->dictionary && !job->n_biomes)
         return 0;
-    got = tsio_read_head(job->dictionary, h, sizeof h, err);
-    if (got < 0)
-        return -1;
-    if (got < (int)sizeof h || memcmp(h, DICT_FILE_MAGIC, 8) != 0 ||
-        memcmp(h + DICT_FILE_HEAD, "TSDICT\r\n", 8) != 0) {
-        tsio_errf(err, job->dictionary,
-                  "not a TerraSynth dictionary (made by terrasynth dictionary build)");
-        return -1;
+    for (b = 0; b < n; b++) {
+        const char *path = job->n_biomes ? job->biome_dicts[b] : job->dictionary;
+        got = tsio_read_head(path, h, sizeof h, err);
+        if (got < 0)
+            return -1;
+        if (got < (int)sizeof h || memcmp(h, DICT_FILE_MAGIC, 8) != 0 ||
+            memcmp(h + DICT_FILE_HEAD, "TSDICT\r\n", 8) != 0) {
+            tsio_errf(err, path,
+                      "not a TerraSynth dictionary (made by terrasynth dictionary build)");
+            return -1;
+        }
+        factor = h[DICT_FILE_HEAD + 12] | h[DICT_FILE_HEAD + 13] << 8;
+        patch = h[DICT_FILE_HEAD + 16] | h[DICT_FILE_HEAD + 17] << 8;
+        if (shape_given && (factor != job->params.factor || patch != job->params.patch)) {
+            tsio_errf(err, path,
+                      "was built for factor %d and patch %d, not %d and %d: give %s, or "
+                      "build another",
+                      factor, patch, job->params.factor, job->params.patch,
+                      b ? "dictionaries of one factor and patch" : "neither");
+            return -1;
+        }
+        job->params.factor = factor;
+        job->params.patch = patch;
+        shape_given = 1; /* the other biomes' must be the same */
     }
-    factor = h[DICT_FILE_HEAD + 12] | h[DICT_FILE_HEAD + 13] << 8;
-    patch = h[DICT_FILE_HEAD + 16] | h[DICT_FILE_HEAD + 17] << 8;
-    if (job->shape_given && (factor != job->params.factor || patch != job->params.patch)) {
-        tsio_errf(err, job->dictionary,
-                  "was built for factor %d and patch %d, not %d and %d: give neither, or "
-                  "build another",
-                  factor, patch, job->params.factor, job->params.patch);
-        return -1;
-    }
-    job->params.factor = factor;
-    job->params.patch = patch;
     return 0;
 }
 
@@ -1173,13 +1182,17 @@ done:
 }
 
 /* Every file an amplify (or dictionary) job reads; returns the count. */
-#define JOB_AMP_MAX_INPUTS (TSJOB_MAX_EXEMPLARS * (2 + TS_MAX_LAYERS) + 3)
+#define JOB_AMP_MAX_INPUTS (TSJOB_MAX_EXEMPLARS * (2 + TS_MAX_LAYERS) + 2 * TSJOB_MAX_BIOMES + 3)
 static int job_amplify_inputs(const tsjob_amplify *job, const char **in)
 {
     int n = 0, i, l;
     in[n++] = job->input;
     in[n++] = job->dictionary;
     in[n++] = job->classes;
+    for (i = 0; i < job->n_biomes; i++) {
+        in[n++] = job->biome_dicts[i];
+        in[n++] = job->biome_weights[i];
+    }
     for (i = 0; i < job->n_exemplars; i++) {
         in[n++] = job->exemplars[i];
         in[n++] = job->exemplar_classes[i];
@@ -1289,6 +1302,42 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
     int cy = res->in.geo.height / 2, F = job->params.factor;
     double in_dx = res->in.dx_m ? res->in.dx_m[cy] : job->cell_size;
     double in_dy = res->in.dy_m ? res->in.dy_m[cy] : job->cell_size;
+    if (job->n_biomes) {
+        int b;
+        for (b = 0; b < job->n_biomes; b++) {
+            double dres;
+            if (tsjob_dictionary_read(ctx, job->biome_dicts[b], &res->biome_dicts[b], &dres, err) !=
+                0)
+                return -1;
+            if (in_dx > 0 && fabs(sqrt(in_dx * in_dy) / F / dres - 1.0) > 0.02) {
+                tsio_errf(err, job->biome_dicts[b],
+                          "was built for cells of %.6g m; this input at factor %d gives cells "
+                          "of %.6g m: build one for them (terrasynth dictionary build "
+                          "--resolution)",
+                          dres, F, sqrt(in_dx * in_dy) / F);
+                return -1;
+            }
+            res->n_atoms += ts_dictionary_size(res->biome_dicts[b]);
+            if (tsio_read_raster(job->biome_weights[b], 1, &res->biome_w[b], err) != 0)
+                return -1;
+            if (res->biome_w[b].geo.width != res->in.geo.width ||
+                res->biome_w[b].geo.height != res->in.geo.height) {
+                tsio_errf(err, job->biome_weights[b],
+                          "the weights are %d x %d cells, the input %d x %d",
+                          res->biome_w[b].geo.width, res->biome_w[b].geo.height, res->in.geo.width,
+                          res->in.geo.height);
+                return -1;
+            }
+            {
+                size_t k, n = (size_t)res->in.geo.width * (size_t)res->in.geo.height;
+                for (k = 0; k < n; k++) /* nodata: no weight */
+                    if (isnan(res->biome_w[b].r.data[k]))
+                        res->biome_w[b].r.data[k] = 0.0f;
+            }
+        }
+        res->dict = res->biome_dicts[0];
+        goto drainage;
+    }
     if (job->dictionary) {
         double dres;
         if (tsjob_dictionary_read(ctx, job->dictionary, &res->dict, &dres, err) != 0)
@@ -1331,6 +1380,23 @@ static ts_amplify_guide job_amplify_guide(const tsjob_amplify *job, const tsjob_
     return g;
 }
 
+/* The biomes' amplification of the window at x0, y0 (NaN in weights: 0). */
+static ts_status job_amplify_biomes(ts_ctx *ctx, const tsjob_amplify *job,
+                                    const tsjob_amplify_result *res, int x0, int y0, ts_raster *out,
+                                    ts_amplify_info *info)
+{
+    ts_raster w[TSJOB_MAX_BIOMES];
+    const ts_dictionary *d[TSJOB_MAX_BIOMES];
+    ts_amplify_guide g = job_amplify_guide(job, res);
+    int b;
+    for (b = 0; b < job->n_biomes; b++) {
+        w[b] = res->biome_w[b].r;
+        d[b] = res->biome_dicts[b];
+    }
+    return ts_amplify_biomes(ctx, &res->in.r, &g, d, w, job->n_biomes, &job->params, x0, y0, out,
+                             info);
+}
+
 int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
                          int x0, int y0, int w, int h, int serve, float *out, tsio_err *err)
 {
@@ -1357,8 +1423,9 @@ int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_ampl
             lay.layers = layers;
         }
     }
-    if (ts_amplify_window(ctx, &res->in.r, &g, res->dict, &job->params, x0, y0,
-                          serve == TSJOB_SERVE_DEM ? &o : &dem, &lay, NULL) != TS_OK)
+    if (job->n_biomes ? job_amplify_biomes(ctx, job, res, x0, y0, &o, NULL)
+                      : ts_amplify_window(ctx, &res->in.r, &g, res->dict, &job->params, x0, y0,
+                                          serve == TSJOB_SERVE_DEM ? &o : &dem, &lay, NULL))
         goto done;
     rc = 0;
 done:
@@ -1405,8 +1472,9 @@ int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_r
     }
     g = job_amplify_guide(job, res);
     job_progress_range(ctx, &jp, 0.2, 1.0);
-    if (ts_amplify_window(ctx, &res->in.r, &g, res->dict, &job->params, 0, 0, &res->out, &lay,
-                          &res->info) != TS_OK) {
+    if ((job->n_biomes ? job_amplify_biomes(ctx, job, res, 0, 0, &res->out, &res->info)
+                       : ts_amplify_window(ctx, &res->in.r, &g, res->dict, &job->params, 0, 0,
+                                           &res->out, &lay, &res->info)) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
         goto done;
     }
@@ -1424,6 +1492,12 @@ void tsjob_amplify_result_free(tsjob_amplify_result *res)
     ts_raster_free(&res->out_classes);
     ts_raster_free(&res->irr);
     tsio_raster_free(&res->classes);
+    for (l = 0; l < TSJOB_MAX_BIOMES; l++) {
+        if (res->biome_dicts[l] == res->dict)
+            res->dict = NULL;
+        ts_dictionary_free(res->biome_dicts[l]);
+        tsio_raster_free(&res->biome_w[l]);
+    }
     ts_dictionary_free(res->dict);
     ts_raster_free(&res->drain);
     tsio_raster_free(&res->in);

@@ -76,6 +76,7 @@ int tsjob_ppa_write(ts_ctx *ctx, const tsjob_ppa_result *res, const tsjob_output
 /* ---- synth ---- */
 
 #define TSJOB_MAX_EXEMPLARS 64
+#define TSJOB_MAX_BIOMES 8
 
 typedef struct tsjob_grid {
     const char *like;    /* raster whose grid to use, or NULL */
@@ -192,6 +193,9 @@ typedef struct tsjob_amplify {
     const char *layer_files[TSJOB_MAX_EXEMPLARS][TS_MAX_LAYERS];
     const char *exemplar_classes[TSJOB_MAX_EXEMPLARS]; /* NULL: none */
     const char *classes; /* wanted classes on the input's grid, or NULL */
+    /* biomes: dictionary files and their weight rasters (instead of exemplars) */
+    const char *biome_dicts[TSJOB_MAX_BIOMES], *biome_weights[TSJOB_MAX_BIOMES];
+    int n_biomes;
     /* the carried layers and the classes wanted on the output (out_layer, out_classes) */
     char out_layer_names[TS_MAX_LAYERS][TS_LAYER_NAME];
     int n_out_layers, want_classes;
@@ -213,6 +217,8 @@ typedef struct tsjob_amplify_result {
     ts_raster layers[TS_MAX_LAYERS]; /* every carried layer, when one is asked for (owned) */
     int layer_of[TS_MAX_LAYERS];     /* out_layer i is the dictionary's layer layer_of[i] */
     ts_raster out_classes;           /* with out_classes (owned) */
+    ts_dictionary *biome_dicts[TSJOB_MAX_BIOMES]; /* with biomes (owned; dict is the first) */
+    tsio_raster biome_w[TSJOB_MAX_BIOMES];
 } tsjob_amplify_result;
 
 /** Read and check the input, resolve the output grid, estimate the memory. */

@@ -711,6 +711,24 @@ TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse,
                                    const ts_amplify_params *params, int x0, int y0, ts_raster *out,
                                    const ts_amplify_layers *layers, ts_amplify_info *info);
 
+/**
+ * Several biomes (section 5.5): dictionary b weighs `weights[b]` (a raster
+ * on the input's grid, >= 0; shares are the weights over their sum, equal
+ * where all are 0).  Each patch is matched in every dictionary whose share
+ * reaches it, and the reconstructions are blended by the shares
+ * interpolated bilinearly to the output's cells, then back-projected.
+ * Simplified, and named as such: a patch is matched whole in each
+ * dictionary (the paper weighs the patch and the atoms by the shares cell
+ * by cell, the Hadamard product: the same where a patch's shares are
+ * uniform, not at a biome's edge).  A window of the output, as
+ * ts_amplify_window (guide->drainage required; no layers or classes).
+ */
+TS_API ts_status ts_amplify_biomes(ts_ctx *ctx, const ts_raster *coarse,
+                                   const ts_amplify_guide *guide, const ts_dictionary *const *dicts,
+                                   const ts_raster *weights, int n_biomes,
+                                   const ts_amplify_params *params, int x0, int y0, ts_raster *out,
+                                   ts_amplify_info *info);
+
 /** Area-average `fine` by `factor` into `coarse` (caller-allocated,
  *  fine->width / factor x fine->height / factor); a coarse cell with any
  *  nodata below it is nodata. */

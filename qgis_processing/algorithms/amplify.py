@@ -8,6 +8,7 @@ from qgis.core import (
     QgsProcessing,
     QgsProcessingException,
     QgsProcessingParameterDefinition,
+    QgsProcessingParameterFile,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterMultipleLayers,
     QgsProcessingParameterNumber,
@@ -78,6 +79,8 @@ class AmplifyAlgorithm(TerraSynthAlgorithm):
     THREADS = "THREADS"
     OUTPUT = "OUTPUT"
     PREVIEW = "PREVIEW"
+    DICTIONARY = "DICTIONARY"
+    BIOMES = "BIOMES"
     EXEMPLAR_CLASSES = "EXEMPLAR_CLASSES"
     EXEMPLAR_LAYERS = "EXEMPLAR_LAYERS"
     CLASSES = "CLASSES"
@@ -89,11 +92,21 @@ class AmplifyAlgorithm(TerraSynthAlgorithm):
         self.addParameter(QgsProcessingParameterRasterLayer(self.INPUT,
                                                             self.tr("Coarse DEM")))
         ex = QgsProcessingParameterMultipleLayers(self.EXEMPLARS, self.tr("Exemplar DEMs"),
-                                                  QgsProcessing.TypeRaster)
-        ex.setMinimumNumberInputs(1)
+                                                  QgsProcessing.TypeRaster, optional=True)
         ex.setHelp("Real DEMs whose detail the output takes (--exemplar), best at the "
-                   "output's resolution or finer.")
+                   "output's resolution or finer. Give exemplars, a dictionary, or biomes.")
         self.addParameter(ex)
+        dic = QgsProcessingParameterFile(self.DICTIONARY, self.tr("Dictionary (instead of "
+                                                                  "exemplars)"),
+                                         extension="tsd", optional=True)
+        dic.setHelp("A dictionary built once by terrasynth dictionary build (--dictionary).")
+        self.addParameter(dic)
+        bio = QgsProcessingParameterString(self.BIOMES,
+                                           self.tr("Biomes (WEIGHTS=DICTIONARY per line)"),
+                                           multiLine=True, optional=True)
+        bio.setHelp("Several dictionaries, each with a weight raster on the input's grid "
+                    "painted where it should go (--biome W.tif=D.tsd), one per line.")
+        self.addParameter(bio)
         exc = QgsProcessingParameterMultipleLayers(self.EXEMPLAR_CLASSES,
                                                    self.tr("Exemplar classes"),
                                                    QgsProcessing.TypeRaster, optional=True)
@@ -140,6 +153,12 @@ class AmplifyAlgorithm(TerraSynthAlgorithm):
             createByDefault=False))
 
     def checkJob(self, parameters, context):  # noqa: N802
+        given = [is_set(parameters, self.EXEMPLARS) and bool(
+                     self.parameterAsLayerList(parameters, self.EXEMPLARS, context)),
+                 bool(self.parameterAsFile(parameters, self.DICTIONARY, context)),
+                 bool(self.parameterAsString(parameters, self.BIOMES, context).strip())]
+        if sum(given) != 1:
+            raise QgsProcessingException("give exemplars, a dictionary, or biomes (one of them)")
         if is_set(parameters, self.CELL_SIZE) and \
                 self.parameterAsDouble(parameters, self.CELL_SIZE, context) <= 0:
             raise QgsProcessingException("CELL_SIZE must be a positive number of metres")
@@ -170,7 +189,13 @@ class AmplifyAlgorithm(TerraSynthAlgorithm):
         out_layer = self.parameterAsOutputLayer(parameters, self.OUT_LAYER, context) or ""
         out_name = self.parameterAsString(parameters, self.OUT_LAYER_NAME, context).strip()
         out_classes = self.parameterAsOutputLayer(parameters, self.OUT_CLASSES, context) or ""
-        options = [("exemplar", exemplars),
+        biomes = [line.strip() for line in
+                  self.parameterAsString(parameters, self.BIOMES, context).splitlines()
+                  if line.strip()]
+        options = [("exemplar", exemplars or None),
+                   ("dictionary", self.parameterAsFile(parameters, self.DICTIONARY, context)
+                    or None),
+                   ("biome", biomes or None),
                    ("exemplar_classes", ex_classes or None),
                    ("exemplar_layer", ex_layers or None),
                    ("classes", gdal_source(wanted, self.CLASSES) if wanted else None),

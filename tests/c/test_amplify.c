@@ -779,6 +779,86 @@ static void test_class_control(void)
     ts_ctx_free(ctx);
 }
 
+/* Biomes (section 5.5): two dictionaries painted left and right give, away
+ * from their edge, byte for byte what each gives alone; one dictionary
+ * twice at equal weights is that dictionary alone; windows are the whole's;
+ * a negative weight is refused. */
+static void test_biomes(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_amplify_params p = ts_amplify_params_default();
+    ts_raster exa = make_terrain(ctx, 300, 260, 71), exb = make_terrain(ctx, 280, 300, 72);
+    ts_raster in = make_terrain(ctx, 60, 40, 73), drain, wts[2], outa, outb, both, win;
+    ts_dictionary *D[2] = {NULL, NULL};
+    ts_amplify_guide g = {&drain, NULL, NULL};
+    const ts_dictionary *dd[2];
+    int x, y, same_a = 1, same_b = 1, same = 1, margin;
+    p.factor = 4;
+    p.patch = 6;
+    CHECK(build1(ctx, &exa, &p, &D[0]) == TS_OK);
+    CHECK(build1(ctx, &exb, &p, &D[1]) == TS_OK);
+    ts_raster_alloc(ctx, 60, 40, &drain);
+    CHECK(ts_drainage_area(ctx, &in, &drain) == TS_OK);
+    ts_raster_alloc(ctx, 60, 40, &wts[0]);
+    ts_raster_alloc(ctx, 60, 40, &wts[1]);
+    for (y = 0; y < 40; y++)
+        for (x = 0; x < 60; x++) {
+            TS_PIX(&wts[0], x, y) = x < 30 ? 1.0f : 0.0f;
+            TS_PIX(&wts[1], x, y) = x < 30 ? 0.0f : 3.0f; /* any scale: shares */
+        }
+    ts_raster_alloc(ctx, 240, 160, &outa);
+    ts_raster_alloc(ctx, 240, 160, &outb);
+    ts_raster_alloc(ctx, 240, 160, &both);
+    CHECK(ts_amplify(ctx, &in, &g, D[0], &p, &outa, NULL, NULL) == TS_OK);
+    CHECK(ts_amplify(ctx, &in, &g, D[1], &p, &outb, NULL, NULL) == TS_OK);
+    dd[0] = D[0];
+    dd[1] = D[1];
+    CHECK(ts_amplify_biomes(ctx, &in, &g, dd, wts, 2, &p, 0, 0, &both, NULL) == TS_OK);
+    /* the edge reaches a patch, a cell of interpolation and two cells per pass */
+    margin = (p.patch + 1 + 2 * p.refine + 1) * p.factor;
+    for (y = 0; y < 160; y++)
+        for (x = 0; x < 240; x++) {
+            if (x < 120 - margin)
+                same_a &= memcmp(&TS_PIX(&both, x, y), &TS_PIX(&outa, x, y), 4) == 0;
+            if (x >= 120 + margin)
+                same_b &= memcmp(&TS_PIX(&both, x, y), &TS_PIX(&outb, x, y), 4) == 0;
+        }
+    CHECK(same_a && same_b);
+    /* near the edge, a blend of the two */
+    CHECK(memcmp(&TS_PIX(&both, 120, 80), &TS_PIX(&outa, 120, 80), 4) != 0 &&
+          memcmp(&TS_PIX(&both, 120, 80), &TS_PIX(&outb, 120, 80), 4) != 0);
+    /* a window of the biomes is the whole's */
+    ts_raster_alloc(ctx, 57, 43, &win);
+    CHECK(ts_amplify_biomes(ctx, &in, &g, dd, wts, 2, &p, 93, 61, &win, NULL) == TS_OK);
+    for (y = 0; y < 43; y++)
+        for (x = 0; x < 57; x++)
+            same &= memcmp(&TS_PIX(&win, x, y), &TS_PIX(&both, 93 + x, 61 + y), 4) == 0;
+    CHECK(same);
+    /* one dictionary twice, equal weights: that dictionary alone */
+    dd[1] = D[0];
+    for (y = 0; y < 40; y++)
+        for (x = 0; x < 60; x++)
+            TS_PIX(&wts[0], x, y) = TS_PIX(&wts[1], x, y) = 0.5f;
+    CHECK(ts_amplify_biomes(ctx, &in, &g, dd, wts, 2, &p, 0, 0, &both, NULL) == TS_OK);
+    CHECK(memcmp(both.data, outa.data, sizeof(float) * 240 * 160) == 0);
+    TS_PIX(&wts[1], 7, 9) = -1.0f;
+    CHECK(ts_amplify_biomes(ctx, &in, &g, dd, wts, 2, &p, 0, 0, &both, NULL) == TS_ERR_ARG);
+    CHECK(strstr(ts_ctx_message(ctx), "biome 2: weight -1 at cell 7,9") != NULL);
+    ts_dictionary_free(D[0]);
+    ts_dictionary_free(D[1]);
+    ts_raster_free(&exa);
+    ts_raster_free(&exb);
+    ts_raster_free(&in);
+    ts_raster_free(&drain);
+    ts_raster_free(&wts[0]);
+    ts_raster_free(&wts[1]);
+    ts_raster_free(&outa);
+    ts_raster_free(&outb);
+    ts_raster_free(&both);
+    ts_raster_free(&win);
+    ts_ctx_free(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -794,6 +874,7 @@ int main(int argc, char **argv)
         {"irradiance_self_shadowing", test_irradiance_self_shadowing},
         {"layers_and_classes_come_back", test_layers_and_classes_come_back},
         {"class_control", test_class_control},
+        {"biomes", test_biomes},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

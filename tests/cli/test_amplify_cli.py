@@ -497,3 +497,74 @@ def test_recipe_serves_layers_and_classes(tmp_path):
     p = subprocess.run(["gdal_translate", "-q", "-oo", "LAYER=soil", str(tmp_path / "r.tsyn"),
                         str(tmp_path / "s.tif")], env=env, capture_output=True, text=True)
     assert p.returncode != 0 and "the atoms carry no layer soil" in p.stderr, p.stderr
+
+
+def utm_pair(tmp_path, f):
+    """Jacksboro in UTM at 90 m (an exemplar at the output's resolution) and its block means
+    on cells of 90 f m (the coarse input)."""
+    subprocess.run(["gdalwarp", "-q", "-t_srs", "EPSG:32616", "-tr", "90", "90", "-r", "cubic",
+                    "-dstnodata", "-9999", JACKSBORO, str(tmp_path / "utm.tif")], check=True)
+    u = gdal.Open(str(tmp_path / "utm.tif"))
+    gt, wkt = list(u.GetGeoTransform()), u.GetProjection()
+    z = u.ReadAsArray().astype(np.float64)
+    h, w = (z.shape[0] // f) * f, (z.shape[1] // f) * f
+    z = z[:h, :w]
+    z[z == -9999] = np.nan
+    write(tmp_path / "ex.tif", np.nan_to_num(z, nan=-9999).astype(np.float32), gt, wkt,
+          nodata=-9999)
+    c = z.reshape(h // f, f, w // f, f).mean(axis=(1, 3))
+    cgt = [gt[0], 90.0 * f, 0, gt[3], 0, -90.0 * f]
+    write(tmp_path / "coarse.tif", np.nan_to_num(c, nan=-9999).astype(np.float32), cgt, wkt,
+          nodata=-9999)
+    return z, c, gt, cgt, wkt
+
+
+def test_biomes_paint_where_each_dictionary_goes(tmp_path):
+    """Section 5.5: two dictionaries (one of them with 4-cell ripples that area-averaging
+    removes) and painted weights, left and right: each half of the output has the detail of
+    its biome, judged by the ripples' spectral line (numpy); the recipe serves the same
+    bytes; mistakes are refused."""
+    f = 4
+    z, c, gt, cgt, wkt = utm_pair(tmp_path, f)
+    x = np.arange(z.shape[1])
+    rip = np.where(np.isnan(z), -9999, z + 10.0 * np.sin(2 * np.pi * x / 4 + 0.3))
+    write(tmp_path / "ripples.tif", rip.astype(np.float32), gt, wkt, nodata=-9999)
+    for name, ex in (("a.tsd", "ex.tif"), ("b.tsd", "ripples.tif")):
+        run("dictionary", "build", tmp_path / name, "--exemplar", tmp_path / ex, "--resolution",
+            "90", "--factor", str(f), "-q")
+    half = c.shape[1] // 2
+    wa = np.zeros(c.shape, np.float32)
+    wa[:, :half] = 1
+    write(tmp_path / "wa.tif", wa, cgt, wkt)
+    write(tmp_path / "wb.tif", 1 - wa, cgt, wkt)
+    bio = ["--biome", "%s=%s" % (tmp_path / "wa.tif", tmp_path / "a.tsd"), "--biome",
+           "%s=%s" % (tmp_path / "wb.tif", tmp_path / "b.tsd")]
+    run("amplify", tmp_path / "coarse.tif", tmp_path / "o.tif", *bio, "-q")
+    a = gdal.Open(str(tmp_path / "o.tif")).ReadAsArray().astype(np.float64)
+    m = half * f
+    rows = slice(a.shape[0] // 4, 3 * a.shape[0] // 4)  # away from the warped edges' nodata
+    left, right = a[rows, 24:m - 24], a[rows, m + 24:-24]
+    assert (left != -9999).all() and (right != -9999).all()
+    lp, rp = stripe_power(left), stripe_power(right)
+    assert rp > 4 and lp < 2, (lp, rp)
+    run("amplify", tmp_path / "coarse.tif", *bio, "--recipe", tmp_path / "b.tsyn")
+    assert '<Biome weights="wa.tif">a.tsd</Biome>' in (tmp_path / "b.tsyn").read_text()
+    subprocess.run(["gdal_translate", "-q", str(tmp_path / "b.tsyn"), str(tmp_path / "r.tif")],
+                   check=True, env=plugin_env(PLUGINS))
+    assert gdal.Open(str(tmp_path / "r.tif")).ReadAsArray().tobytes() == \
+        gdal.Open(str(tmp_path / "o.tif")).ReadAsArray().tobytes()
+    run("dictionary", "build", tmp_path / "a2.tsd", "--exemplar", tmp_path / "ex.tif",
+        "--resolution", "45", "--factor", "8", "-q")
+    bad = [
+        (["--biome", "%s=%s" % (tmp_path / "ex.tif", tmp_path / "a.tsd")], 1,
+         "the weights are"),
+        (bio + ["--biome", "%s=%s" % (tmp_path / "wa.tif", tmp_path / "a2.tsd")], 1,
+         "was built for factor 8 and patch 6, not 4 and 6"),
+        (bio + ["--exemplar", tmp_path / "ex.tif"], 2, "give at least one exemplar"),
+        (bio + ["--out-classes", tmp_path / "x.tif"], 2, "biomes blend dictionaries"),
+        (["--biome", "=%s" % (tmp_path / "a.tsd")], 2, "biome takes FILE=FILE"),
+    ]
+    for args, code, words in bad:
+        p = run("amplify", tmp_path / "coarse.tif", tmp_path / "n.tif", *args, check=False)
+        assert p.returncode == code and words in p.stderr, (args, p.stderr)
+        assert not (tmp_path / "n.tif").exists()

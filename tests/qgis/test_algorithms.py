@@ -56,11 +56,12 @@ OTHER_FLAGS = {
                 "PREVIEW": "--preview", "EXEMPLAR_CLASSES": "--exemplar-classes",
                 "EXEMPLAR_LAYERS": "--exemplar-layer", "CLASSES": "--classes",
                 "OUT_LAYER_NAME": "--out-layer", "OUT_LAYER": "--out-layer",
-                "OUT_CLASSES": "--out-classes"},
+                "OUT_CLASSES": "--out-classes", "DICTIONARY": "--dictionary",
+                "BIOMES": "--biome"},
 }
 # parameters whose flag is not --<name in kebab case>
 IRREGULAR_FLAGS = ("--size", "--origin", "--resolution", "--exemplar", "--pin", "--water",
-                   "--region-exemplar", "--exemplar-layer", "--out-layer")
+                   "--region-exemplar", "--exemplar-layer", "--out-layer", "--biome")
 
 
 def processing_run(alg_id, params, feedback=None):
@@ -893,3 +894,24 @@ def test_synth_help_lists_every_sketch_parameter():
     alg = registry().algorithmById("terrasynth:synth")
     assert alg.parameterDefinition("WIDTH").maximum() == hi
     assert alg.parameterDefinition("HEIGHT").minimum() == lo
+
+
+def test_amplify_dictionary_and_biomes(jacksboro, cli, tmp_path):
+    """A dictionary file, or biomes (WEIGHTS=DICTIONARY lines): the same flags as the
+    command line; exemplars and a dictionary together are refused before anything runs."""
+    d = tmp_path / "j.tsd"
+    res = 45.0
+    subprocess.run([cli, "dictionary", "build", str(d), "--exemplar", jacksboro,
+                    "--resolution", str(res), "--factor", "2", "-q"], check=True)
+    w = tmp_path / "w.tif"
+    gdal.Translate(str(w), jacksboro, outputType=gdal.GDT_Float32)
+    params = {"INPUT": jacksboro, "BIOMES": "%s=%s\n%s=%s" % (w, d, w, d),
+              "OUTPUT": str(tmp_path / "o.tif")}
+    argv, _ = build("terrasynth:amplify", params)
+    assert argv.count("--biome") == 2 and "%s=%s" % (w, d) in argv
+    argv, _ = build("terrasynth:amplify", {"INPUT": jacksboro, "DICTIONARY": str(d),
+                                           "OUTPUT": str(tmp_path / "o.tif")})
+    assert pairs(argv)["--dictionary"] == str(d)
+    with pytest.raises(Exception, match="give exemplars, a dictionary, or biomes"):
+        build("terrasynth:amplify", {"INPUT": jacksboro, "DICTIONARY": str(d),
+                                     "EXEMPLARS": [jacksboro], "OUTPUT": str(tmp_path / "o.tif")})

@@ -303,14 +303,77 @@ static void back_project(ts_ctx *ctx, amp_work *w, amp_rect rr, ts_raster *res)
  * computed, nothing else.  Each cell is computed by the same operations in
  * the same order whatever the window, so a window is byte for byte the same
  * window of the whole. */
-static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_amplify_guide *guide,
-                            const ts_dictionary *dict, const ts_amplify_params *params, int X0,
-                            int Y0, ts_raster *out, const ts_amplify_layers *lay,
-                            ts_amplify_info *info)
+/* Biome b's share of coarse cell (x, y): its weight over the sum of all
+ * (equal shares where every weight is 0). */
+static double biome_share(const ts_raster *wts, int nd, int b, int x, int y)
 {
+    double sum = 0;
+    int k;
+    for (k = 0; k < nd; k++)
+        sum += TS_PIX(&wts[k], x, y);
+    return sum > 0 ? TS_PIX(&wts[b], x, y) / sum : 1.0 / nd;
+}
+
+/* Biome b's share at fine cell (X, Y): the coarse shares interpolated
+ * bilinearly between cell centres. */
+static double biome_weight(const ts_raster *wts, int nd, int b, int W, int H, int F, int X, int Y)
+{
+    double u = ((double)X + 0.5) / F - 0.5, v = ((double)Y + 0.5) / F - 0.5;
+    int x0 = (int)floor(u), y0 = (int)floor(v);
+    double fx = u - x0, fy = v - y0;
+    int xa = clampi(x0, 0, W - 1), xb = clampi(x0 + 1, 0, W - 1);
+    int ya = clampi(y0, 0, H - 1), yb = clampi(y0 + 1, 0, H - 1);
+    return (1 - fy) *
+               ((1 - fx) * biome_share(wts, nd, b, xa, ya) + fx * biome_share(wts, nd, b, xb, ya)) +
+           fy * ((1 - fx) * biome_share(wts, nd, b, xa, yb) + fx * biome_share(wts, nd, b, xb, yb));
+}
+
+/* Blending the biomes' reconstructions (section 5.5). */
+typedef struct amp_blend {
+    const ts_raster *coarse, *wts;
+    ts_raster *bufs; /* nd reconstructions, on the working raster */
+    ts_raster *buf;
+    int nd, F, bx, by;
+} amp_blend;
+
+static void blend_rows(void *arg, size_t begin, size_t end)
+{
+    amp_blend *bl = arg;
+    int W = bl->coarse->width, H = bl->coarse->height, X, b;
+    size_t k;
+    for (k = begin; k < end; k++)
+        for (X = 0; X < bl->buf->width; X++) {
+            int gx = bl->bx + X, gy = bl->by + (int)k;
+            double acc = 0, ws = 0, any = 0;
+            int n = 0;
+            for (b = 0; b < bl->nd; b++) {
+                float v = TS_PIX(&bl->bufs[b], X, (int)k);
+                double a;
+                if (isnan(v))
+                    continue;
+                a = biome_weight(bl->wts, bl->nd, b, W, H, bl->F, gx, gy);
+                acc += a * v;
+                ws += a;
+                any += v;
+                n++;
+            }
+            TS_PIX(bl->buf, X, (int)k) = !n ? NAN : ws > 0 ? (float)(acc / ws) : (float)(any / n);
+        }
+}
+
+static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_amplify_guide *guide,
+                            const ts_dictionary *const *dicts, const ts_raster *wts, int nd,
+                            const ts_amplify_params *params, int X0, int Y0, ts_raster *out,
+                            const ts_amplify_layers *lay, ts_amplify_info *info)
+{
+    const ts_dictionary *dict = dicts[0];
     const ts_raster *drain = guide->drainage, *irr = guide->irradiance, *cls = guide->classes;
+    ts_raster *bufs = NULL;
+    double *pab = NULL;
+    int b;
     int K = dict->n_classes;
-    int use_l = params->w_l > 0 && irr && dict->dl, use_c = params->w_c > 0 && cls && K > 0;
+    int use_l = params->w_l > 0 && irr && dict->dl;
+    int use_c = params->w_c > 0 && cls && K > 0 && nd == 1;
     float *pl = NULL, *pc = NULL;
     amp_patches pt;
     int W = coarse->width, H = coarse->height, F = params->factor, p = params->patch;
@@ -360,9 +423,13 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
     pa = ts__malloc_array(np, sizeof *pa);
     ps = ts__malloc_array(np, sizeof *ps);
     pnorm = ts__malloc_array(np, sizeof *pnorm);
-    best = ts__malloc_array(np, sizeof *best);
-    coef = ts__malloc_array(np, sizeof *coef);
-    score = ts__malloc_array(np, sizeof *score);
+    best = ts__malloc_array(np * (size_t)nd, sizeof *best);
+    coef = ts__malloc_array(np * (size_t)nd, sizeof *coef);
+    score = ts__malloc_array(np * (size_t)nd, sizeof *score);
+    if (nd > 1) {
+        pab = ts__malloc_array(np, sizeof *pab);
+        bufs = calloc((size_t)nd, sizeof *bufs);
+    }
     win = malloc((size_t)p * p * sizeof *win);
     lwin = malloc((size_t)p * p * sizeof *lwin);
     window = malloc((size_t)P * sizeof *window);
@@ -373,7 +440,7 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
     resbuf =
         ts__malloc_array((size_t)(base.x1 - base.x0) * (size_t)(base.y1 - base.y0), sizeof *resbuf);
     if (!ph || !pu || !pa || !ps || !pnorm || !best || !coef || !score || !win || !lwin ||
-        !window || !resbuf || (use_l && !pl) || (use_c && !pc)) {
+        !window || !resbuf || (use_l && !pl) || (use_c && !pc) || (nd > 1 && (!pab || !bufs))) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu patches", np);
         goto done;
     }
@@ -460,9 +527,30 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
     pt.pc = pc;
     pt.pa = pa;
     pt.ps = ps;
-    if (ts__match_atoms(ctx, dict, &pt, w, best, score, coef) != 0) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for matching");
-        goto done;
+    for (b = 0; b < nd; b++) {
+        if (nd > 1) {
+            /* the patches this biome weighs on (within a cell of them: what the
+             * interpolated shares reach); the others are not matched */
+            for (cy = r0; cy < r1; cy++)
+                for (cx = c0; cx < c1; cx++) {
+                    int on = 0, x, y;
+                    pi = (size_t)(cy - r0) * (size_t)ncols + (size_t)(cx - c0);
+                    for (y = ys[cy] - 1; y <= ys[cy] + p && !on; y++)
+                        for (x = xs[cx] - 1; x <= xs[cx] + p; x++)
+                            if (x >= 0 && y >= 0 && x < W && y < H &&
+                                biome_share(wts, nd, b, x, y) > 0) {
+                                on = 1;
+                                break;
+                            }
+                    pab[pi] = on ? pa[pi] : NAN;
+                }
+            pt.pa = pab;
+        }
+        if (ts__match_atoms(ctx, dicts[b], &pt, w, best + (size_t)b * np, score + (size_t)b * np,
+                            coef + (size_t)b * np) != 0) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for matching");
+            goto done;
+        }
     }
     if ((st = ts__check_cancel(ctx)) != TS_OK)
         goto done;
@@ -503,7 +591,36 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
     wk.buf = &buf;
     wk.bx = base.x0 * F;
     wk.by = base.y0 * F;
-    ts__parallel_for(ctx, (size_t)buf.height, recon_rows, &wk);
+    if (nd == 1) {
+        ts__parallel_for(ctx, (size_t)buf.height, recon_rows, &wk);
+    } else {
+        /* each biome's reconstruction, then blended by the shares (section 5.5) */
+        amp_blend bl;
+        for (b = 0; b < nd && !wk.fail; b++) {
+            if (ts_raster_alloc(ctx, buf.width, buf.height, &bufs[b]) != TS_OK) {
+                st = ctx->status;
+                goto done;
+            }
+            wk.dict = dicts[b];
+            wk.best = best + (size_t)b * np;
+            wk.coef = coef + (size_t)b * np;
+            wk.buf = &bufs[b];
+            ts__parallel_for(ctx, (size_t)buf.height, recon_rows, &wk);
+        }
+        bl.coarse = coarse;
+        bl.wts = wts;
+        bl.bufs = bufs;
+        bl.buf = &buf;
+        bl.nd = nd;
+        bl.F = F;
+        bl.bx = wk.bx;
+        bl.by = wk.by;
+        ts__parallel_for(ctx, (size_t)buf.height, blend_rows, &bl);
+        wk.dict = dict;
+        wk.best = best;
+        wk.coef = coef;
+        wk.buf = &buf;
+    }
     if (wk.fail) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
         goto done;
@@ -550,10 +667,11 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
         double sum = 0;
         size_t used = 0;
         info->n_patches = np;
-        info->n_atoms = dict->n;
+        for (b = 0; b < nd; b++)
+            info->n_atoms += dicts[b]->n;
         info->seconds_match = t1 - t0;
         info->seconds_synthesis = now_s() - t1;
-        for (pi = 0; pi < np; pi++)
+        for (pi = 0; pi < np * (size_t)nd; pi++)
             if (best[pi] >= 0) {
                 sum += score[pi];
                 used++;
@@ -582,6 +700,10 @@ done:
     free(resbuf);
     free(pl);
     free(pc);
+    free(pab);
+    for (b = 0; bufs && b < nd; b++)
+        ts_raster_free(&bufs[b]);
+    free(bufs);
     return st;
 }
 
@@ -671,7 +793,7 @@ TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
         }
         g.drainage = &drain;
     }
-    st = amp_window(ctx, coarse, &g, dict, params, 0, 0, out, layers, info);
+    st = amp_window(ctx, coarse, &g, &dict, NULL, 1, params, 0, 0, out, layers, info);
     ts_raster_free(&drain);
     return st;
 }
@@ -693,5 +815,47 @@ TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse,
         y0 + out->height > coarse->height * params->factor)
         return ts__fail(ctx, TS_ERR_ARG, "amplify", "the window %d,%d %dx%d is outside the output",
                         x0, y0, out->width, out->height);
-    return amp_window(ctx, coarse, guide, dict, params, x0, y0, out, layers, info);
+    return amp_window(ctx, coarse, guide, &dict, NULL, 1, params, x0, y0, out, layers, info);
+}
+
+TS_API ts_status ts_amplify_biomes(ts_ctx *ctx, const ts_raster *coarse,
+                                   const ts_amplify_guide *guide, const ts_dictionary *const *dicts,
+                                   const ts_raster *weights, int n_biomes,
+                                   const ts_amplify_params *params, int x0, int y0, ts_raster *out,
+                                   ts_amplify_info *info)
+{
+    ts_status st;
+    int b, x, y;
+    ts__clear(ctx);
+    if (info)
+        memset(info, 0, sizeof *info);
+    if (n_biomes < 1 || !dicts || !weights)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "no biomes given");
+    for (b = 0; b < n_biomes; b++) {
+        if ((st = amp_check(ctx, coarse, guide, dicts[b], params, out, NULL)) != TS_OK)
+            return st;
+        if (!weights[b].data || weights[b].width != coarse->width ||
+            weights[b].height != coarse->height)
+            return ts__fail(ctx, TS_ERR_ARG, "amplify",
+                            "biome %d: its weights are not on the input's grid", b + 1);
+        for (y = 0; y < coarse->height; y++)
+            for (x = 0; x < coarse->width; x++) {
+                float v = TS_PIX(&weights[b], x, y);
+                if (!(v >= 0.0f) || !(v <= 1e30f))
+                    return ts__fail_input(ctx, TS_ERR_ARG, b, "amplify",
+                                          "biome %d: weight %g at cell %d,%d is not a number "
+                                          ">= 0",
+                                          b + 1, (double)v, x, y);
+            }
+    }
+    if (guide && guide->classes && n_biomes > 1)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "wanted classes go with one dictionary");
+    if (!guide || !guide->drainage)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the drainage area must be on the input grid");
+    if (x0 < 0 || y0 < 0 || x0 + out->width > coarse->width * params->factor ||
+        y0 + out->height > coarse->height * params->factor)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the window %d,%d %dx%d is outside the output",
+                        x0, y0, out->width, out->height);
+    return amp_window(ctx, coarse, guide, dicts, weights, n_biomes, params, x0, y0, out, NULL,
+                      info);
 }
