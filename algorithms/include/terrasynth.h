@@ -592,8 +592,10 @@ TS_API ts_status ts_render_preview(ts_ctx *ctx, const ts_raster *dem, const ts_g
  * g_a and g_s Gaussians of the mean altitude and of the mean deviation
  * (sigma: the Gaussian is 0.5 at the median difference over the atoms),
  * g_u = (1 + P_u . D_u) / 2 on the normalised log drainage area,
- * g_l = (1 + P_l . D_l) / 2 on the normalised mean annual solar irradiance
- * and g_c = P_c . D_c on the class vectors (scaled to unit length).  The
+ * g_l = (1 + P_l . D_l) / 2 on the normalised mean annual solar irradiance,
+ * g_c = P_c . D_c on the class vectors (scaled to unit length) and
+ * g_x = (1 + P_x . D_x) / 2 on the normalised context (the 3p x 3p
+ * neighbourhood block-averaged to p x p).  The
  * atom's high-resolution counterpart replaces the patch
  * (P~ = (P_h . D_h) P_s D~_h + P_a) and patches are blended with a falloff;
  * the atom's other layers come with it.
@@ -607,6 +609,7 @@ typedef struct ts_amplify_params {
                                   input (our addition, 0 = the paper's reconstruction alone) */
     double w_l;                /* weight of the irradiance term (0: irradiance is not computed) */
     double w_c;                /* weight of the class term (used where classes are wanted) */
+    double w_x;                /* weight of the context term (section 5.3) */
 } ts_amplify_params;
 
 TS_API ts_amplify_params ts_amplify_params_default(void);

@@ -96,15 +96,17 @@ def main():
                             "-dstnodata", "-9999", coarse, cub], check=True)
             fa, fc = figures(amp, fine, coarse, factor), figures(cub, fine, coarse, factor)
             rows.append((fine_name, ex_name, factor, fa, fc))
-    print("%-34s %-30s %3s | %-22s | %-22s | %s" % ("real fine DEM", "exemplar", "x",
-                                                    "slope W1 amp / cubic", "RMSE amp / cubic",
-                                                    "averages back"))
+    print("%-34s %-30s %3s | %-22s | %-13s | %-22s | %s" % (
+        "real fine DEM", "exemplar", "x", "slope W1 amp / cubic", "PSD dbeta a/c",
+        "RMSE amp / cubic", "averages back"))
     ok = True
     for fine_name, ex_name, factor, fa, fc in rows:
         r1, r2 = fa["slope_w1"] / fc["slope_w1"], fa["rmse"] / fc["rmse"]
-        print("%-34s %-30s %3d | %5.2f / %5.2f (%.2f) | %6.2f / %6.2f (%.2f) | %.4f" % (
-            fine_name, ex_name, factor, fa["slope_w1"], fc["slope_w1"], r1, fa["rmse"],
-            fc["rmse"], r2, fa["averages_back"]))
+        pa, pc = fa["psd_beta_diff"], fc["psd_beta_diff"]
+        print("%-34s %-30s %3d | %5.2f / %5.2f (%.2f) | %5s / %5s | %6.2f / %6.2f (%.2f) | %.4f"
+              % (fine_name, ex_name, factor, fa["slope_w1"], fc["slope_w1"], r1,
+                 "-" if pa is None else "%.2f" % pa, "-" if pc is None else "%.2f" % pc,
+                 fa["rmse"], fc["rmse"], r2, fa["averages_back"]))
         ok &= r1 <= 0.5 and r2 <= 1.2 and fa["averages_back"] <= 0.01
     print("goals (W1 <= 0.5 x cubic, RMSE <= 1.2 x cubic, averages back within 1 %%): %s"
           % ("met" if ok else "NOT met"))

@@ -60,7 +60,7 @@ static void test_matching_equals_brute_force(void)
     ts_dictionary *D = NULL;
     size_t np = 150, i, k;
     int d, K, diff = 0, x, y;
-    float *ph, *pu, *pl, *pc, *coef, *score;
+    float *ph, *pu, *pl, *pc, *px, *coef, *score;
     double *pa, *ps, w[AMP_NW];
     int *best;
     uint64_t rng = 3;
@@ -70,6 +70,7 @@ static void test_matching_equals_brute_force(void)
     p.atoms = 700;
     p.w_l = 0.15;
     p.w_c = 0.3;
+    p.w_x = 0.25;
     /* an exemplar with its latitude (irradiance) and three classes in bands */
     ts_raster_alloc(ctx, 80, 64, &lat);
     ts_raster_alloc(ctx, 320, 256, &cls);
@@ -92,6 +93,7 @@ static void test_matching_equals_brute_force(void)
     pu = malloc(np * d * sizeof *pu);
     pl = malloc(np * d * sizeof *pl);
     pc = malloc(np * K * sizeof *pc);
+    px = malloc(np * d * sizeof *px);
     coef = malloc(np * sizeof *coef);
     score = malloc(np * sizeof *score);
     pa = malloc(np * sizeof *pa);
@@ -117,6 +119,7 @@ static void test_matching_equals_brute_force(void)
         ts__amp_normalise(win, d, ph + i * d, &pa[i], &ps[i]);
         ts__amp_normalise(uw, d, pu + i * d, &um, &urms);
         ts__amp_normalise(lw, d, pl + i * d, &um, &urms);
+        ts__amp_context(&other, x0, y0, 8, px + i * d); /* the real context there */
     }
     ts__amp_weights(&p, 1, 1, w);
     ts_ctx_set_threads(ctx, 3);
@@ -125,6 +128,7 @@ static void test_matching_equals_brute_force(void)
     pt.pu = pu;
     pt.pl = pl;
     pt.pc = pc;
+    pt.px = px;
     pt.pa = pa;
     pt.ps = ps;
     CHECK(ts__match_atoms(ctx, D, &pt, w, best, score, coef) == 0);
@@ -152,15 +156,16 @@ static void test_matching_equals_brute_force(void)
         sa = da[na / 2] / sqrt(log(2.0));
         ss = ds[na / 2] / sqrt(log(2.0));
         for (k = 0; k < na; k++) {
-            double dh = 0, du = 0, dl = 0, dc = 0, g;
+            double dh = 0, du = 0, dl = 0, dc = 0, dx = 0, g;
             for (int j = 0; j < d; j++) {
                 dh += (double)ph[i * d + j] * D->dh[k * d + j];
                 du += (double)pu[i * d + j] * D->du[k * d + j];
                 dl += (double)pl[i * d + j] * D->dl[k * d + j];
+                dx += (double)px[i * d + j] * D->dx[k * d + j];
             }
             for (int j = 0; j < K; j++)
                 dc += (double)pc[i * K + j] * D->dc[k * K + j];
-            g = ts__amp_score(w, dh, du, dl, dc, pa[i] - D->a[k], ps[i] - D->s[k], sa, ss);
+            g = ts__amp_score(w, dh, du, dl, dc, dx, pa[i] - D->a[k], ps[i] - D->s[k], sa, ss);
             if (g > bg) {
                 bg = g;
                 bk = (int)k;
@@ -180,6 +185,7 @@ static void test_matching_equals_brute_force(void)
     free(pu);
     free(pl);
     free(pc);
+    free(px);
     ts_raster_free(&lat);
     ts_raster_free(&cls);
     free(coef);
@@ -268,6 +274,14 @@ static void test_exemplar_comes_back(void)
             err = fmax(err, fabs(TS_PIX(&out, x, y) - TS_PIX(&ex, x, y)));
     CHECK_MSG(err < 0.01, "max error %g m", err);
     CHECK(info.n_inverted == 0 && info.mean_score > 0.999);
+    /* with the context term too: the atom's neighbourhood is the patch's */
+    p.w_x = 0.3;
+    CHECK(ts_amplify(ctx, &coarse, NULL, D, &p, &out, NULL, &info) == TS_OK);
+    err = 0;
+    for (y = 0; y < 160; y++)
+        for (x = 0; x < 192; x++)
+            err = fmax(err, fabs(TS_PIX(&out, x, y) - TS_PIX(&ex, x, y)));
+    CHECK_MSG(err < 0.01, "with context: max error %g m", err);
     ts_dictionary_free(D);
     ts_raster_free(&ex);
     ts_raster_free(&coarse);
@@ -859,6 +873,50 @@ static void test_biomes(void)
     ts_ctx_free(ctx);
 }
 
+/* The context descriptor (section 5.3) against block means written out:
+ * inside, and at a corner where the neighbourhood is clamped to the edge. */
+static void test_context_descriptor(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster r = make_terrain(ctx, 40, 30, 81);
+    float got[36];
+    int cases[2][2] = {{12, 9}, {0, 0}}, c, i, j, a, b;
+    TS_PIX(&r, 14, 10) = NAN; /* left out of its block */
+    for (c = 0; c < 2; c++) {
+        double want[36], m = 0, ss = 0;
+        int x = cases[c][0], y = cases[c][1];
+        for (j = 0; j < 6; j++)
+            for (i = 0; i < 6; i++) {
+                double s = 0;
+                int n = 0;
+                for (b = 0; b < 3; b++)
+                    for (a = 0; a < 3; a++) {
+                        int cx = x - 6 + 3 * i + a, cy = y - 6 + 3 * j + b;
+                        float v;
+                        if (cx < 0)
+                            cx = 0;
+                        if (cy < 0)
+                            cy = 0;
+                        v = TS_PIX(&r, cx, cy);
+                        if (v == v) {
+                            s += v;
+                            n++;
+                        }
+                    }
+                want[j * 6 + i] = s / n;
+            }
+        for (i = 0; i < 36; i++)
+            m += want[i] / 36;
+        for (i = 0; i < 36; i++)
+            ss += (want[i] - m) * (want[i] - m);
+        ts__amp_context(&r, x, y, 6, got);
+        for (i = 0; i < 36; i++)
+            CHECK_NEAR(got[i], (want[i] - m) / sqrt(ss), 1e-5);
+    }
+    ts_raster_free(&r);
+    ts_ctx_free(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -875,6 +933,7 @@ int main(int argc, char **argv)
         {"layers_and_classes_come_back", test_layers_and_classes_come_back},
         {"class_control", test_class_control},
         {"biomes", test_biomes},
+        {"context_descriptor", test_context_descriptor},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

@@ -374,7 +374,7 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
     int K = dict->n_classes;
     int use_l = params->w_l > 0 && irr && dict->dl;
     int use_c = params->w_c > 0 && cls && K > 0 && nd == 1;
-    float *pl = NULL, *pc = NULL;
+    float *pl = NULL, *pc = NULL, *px = NULL;
     amp_patches pt;
     int W = coarse->width, H = coarse->height, F = params->factor, p = params->patch;
     int P = p * F, step = p / 2 > 0 ? p / 2 : 1, nx, ny, i, j, cx, cy, pass, R = params->refine;
@@ -437,10 +437,13 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
         pl = ts__malloc_array(np * (size_t)p * p, sizeof *pl);
     if (use_c)
         pc = ts__malloc_array(np * (size_t)K, sizeof *pc);
+    if (params->w_x > 0)
+        px = ts__malloc_array(np * (size_t)p * p, sizeof *px);
     resbuf =
         ts__malloc_array((size_t)(base.x1 - base.x0) * (size_t)(base.y1 - base.y0), sizeof *resbuf);
     if (!ph || !pu || !pa || !ps || !pnorm || !best || !coef || !score || !win || !lwin ||
-        !window || !resbuf || (use_l && !pl) || (use_c && !pc) || (nd > 1 && (!pab || !bufs))) {
+        !window || !resbuf || (use_l && !pl) || (use_c && !pc) || (params->w_x > 0 && !px) ||
+        (nd > 1 && (!pab || !bufs))) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu patches", np);
         goto done;
     }
@@ -482,6 +485,8 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
                 memset(pu + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *pu);
                 if (pl)
                     memset(pl + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *pl);
+                if (px)
+                    memset(px + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *px);
                 continue;
             }
             m /= nv;
@@ -495,6 +500,8 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
                 }
             ts__amp_normalise(win, p * p, ph + pi * (size_t)p * p, &pa[pi], &rms);
             ts__amp_normalise(lwin, p * p, pu + pi * (size_t)p * p, &um, &urms);
+            if (px)
+                ts__amp_context(coarse, xs[cx], ys[cy], p, px + pi * (size_t)p * p);
             if (pl) { /* the irradiance, described as the drainage is */
                 double lm = 0;
                 int nl = 0;
@@ -525,6 +532,7 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
     pt.pu = pu;
     pt.pl = pl;
     pt.pc = pc;
+    pt.px = px;
     pt.pa = pa;
     pt.ps = ps;
     for (b = 0; b < nd; b++) {
@@ -700,6 +708,7 @@ done:
     free(resbuf);
     free(pl);
     free(pc);
+    free(px);
     free(pab);
     for (b = 0; bufs && b < nd; b++)
         ts_raster_free(&bufs[b]);

@@ -24,6 +24,9 @@ struct ts_dictionary {
     /* section 5.6: the normalised mean annual solar irradiance D_l (n x d unit
      * vectors, or 0 where the exemplar had no latitude); NULL when built without */
     float *dl;
+    /* section 5.3: the normalised context D_x (n x d): the 3p x 3p neighbourhood of
+     * the atom in the low-resolution exemplar, block-averaged by 3 to p x p */
+    float *dx;
     /* section 5.4: classes 1..n_classes; dc (n x n_classes) the atom's class
      * vector (the share of its high-resolution cells in each class, scaled to
      * unit length; 0 for an unlabelled atom), hc (n x hd) its class codes
@@ -42,11 +45,12 @@ struct ts_dictionary {
 typedef struct amp_patches {
     size_t n;
     const float *ph, *pu, *pl, *pc; /* n x d, n x d, n x d (or NULL), n x n_classes (or NULL) */
+    const float *px;                /* n x d context (or NULL) */
     const double *pa, *ps;
 } amp_patches;
 
-/* The weights (h, a, s, u, l, c) in this order. */
-enum { AMP_WH, AMP_WA, AMP_WS, AMP_WU, AMP_WL, AMP_WC, AMP_NW };
+/* The weights (h, a, s, u, l, c, x) in this order. */
+enum { AMP_WH, AMP_WA, AMP_WS, AMP_WU, AMP_WL, AMP_WC, AMP_WX, AMP_NW };
 
 /* After the atoms are filled: the sorted copies of a and s (0, or -1 when
  * out of memory). */
@@ -69,8 +73,14 @@ int ts__match_atoms(const ts_ctx *ctx, const ts_dictionary *dict, const amp_patc
 
 /* g of one patch against one atom, given the dot products (h, u, l, c) and
  * the two Gaussian widths (the matching function of section 5). */
-double ts__amp_score(const double w[AMP_NW], double dot_h, double dot_u, double dot_l,
-                     double dot_c, double da, double ds, double sigma_a, double sigma_s);
+double ts__amp_score(const double w[AMP_NW], double dot_h, double dot_u, double dot_l, double dot_c,
+                     double dot_x, double da, double ds, double sigma_a, double sigma_s);
+
+/* The context of the p x p window at (x, y) of r (section 5.3): the 3p x 3p
+ * window around it (cells past the edge: the nearest inside), block-averaged
+ * by 3 to p x p (nodata left out; a block without data takes the mean of the
+ * others) and normalised into out (p * p values; zeros when flat). */
+void ts__amp_context(const ts_raster *r, int x, int y, int p, float *out);
 
 /* A class code as read: 0 for none (0 or NaN), 1..TS_MAX_CLASSES, or -1 for
  * anything else. */

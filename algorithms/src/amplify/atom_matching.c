@@ -22,13 +22,14 @@
 #define PATCH_TILE 16
 #define ATOM_TILE 128
 
-double ts__amp_score(const double w[AMP_NW], double dot_h, double dot_u, double dot_l,
-                     double dot_c, double da, double ds, double sigma_a, double sigma_s)
+double ts__amp_score(const double w[AMP_NW], double dot_h, double dot_u, double dot_l, double dot_c,
+                     double dot_x, double da, double ds, double sigma_a, double sigma_s)
 {
     double ga = sigma_a > 0 ? exp(-(da * da) / (sigma_a * sigma_a)) : (da == 0 ? 1.0 : 0.0);
     double gs = sigma_s > 0 ? exp(-(ds * ds) / (sigma_s * sigma_s)) : (ds == 0 ? 1.0 : 0.0);
     return w[AMP_WH] * 0.5 * (1.0 + dot_h) + w[AMP_WA] * ga + w[AMP_WS] * gs +
-           w[AMP_WU] * 0.5 * (1.0 + dot_u) + w[AMP_WL] * 0.5 * (1.0 + dot_l) + w[AMP_WC] * dot_c;
+           w[AMP_WU] * 0.5 * (1.0 + dot_u) + w[AMP_WL] * 0.5 * (1.0 + dot_l) + w[AMP_WC] * dot_c +
+           w[AMP_WX] * 0.5 * (1.0 + dot_x);
 }
 
 /* Four lanes of floats (GCC/Clang vector extension: SSE on x86-64, NEON on
@@ -109,6 +110,7 @@ static void match_range(void *arg, size_t begin, size_t end)
     int d = D->d, K = D->n_classes;
     int use_u = m->w[AMP_WU] > 0, use_l = m->w[AMP_WL] > 0 && pt->pl && D->dl;
     int use_c = m->w[AMP_WC] > 0 && pt->pc && D->dc;
+    int use_x = m->w[AMP_WX] > 0 && pt->px;
     float *dh = malloc(PATCH_TILE * na * sizeof *dh);
     double *dx = malloc(PATCH_TILE * na * sizeof *dx); /* w_u g_u + w_l g_l + w_c g_c */
     const double ln2 = log(2.0);
@@ -127,15 +129,17 @@ static void match_range(void *arg, size_t begin, size_t end)
                 const float *ph = pt->ph + i * (size_t)d, *pu = pt->pu + i * (size_t)d;
                 const float *pl = use_l ? pt->pl + i * (size_t)d : NULL;
                 const float *pc = use_c ? pt->pc + i * (size_t)K : NULL;
+                const float *px = use_x ? pt->px + i * (size_t)d : NULL;
                 float *rh = dh + (i - b0) * na;
                 double *rx = dx + (i - b0) * na;
                 for (k = a0; k < a1; k++) {
                     double du = use_u ? dot(pu, D->du + k * (size_t)d, d) : 0.0;
                     double dl = use_l ? dot(pl, D->dl + k * (size_t)d, d) : 0.0;
                     double dc = use_c ? dot(pc, D->dc + k * (size_t)K, K) : 0.0;
+                    double dxc = use_x ? dot(px, D->dx + k * (size_t)d, d) : 0.0;
                     rh[k] = dot(ph, D->dh + k * (size_t)d, d);
                     rx[k] = m->w[AMP_WU] * 0.5 * (1.0 + du) + m->w[AMP_WL] * 0.5 * (1.0 + dl) +
-                            m->w[AMP_WC] * dc;
+                            m->w[AMP_WC] * dc + m->w[AMP_WX] * 0.5 * (1.0 + dxc);
                 }
             }
         }

@@ -39,6 +39,39 @@ int ts__amp_normalise(const float *v, int d, float *out, double *mean, double *r
     return 1;
 }
 
+void ts__amp_context(const ts_raster *r, int x, int y, int p, float *out)
+{
+    int i, j, a, b, nb = 0;
+    double m = 0, mean, rms;
+    for (j = 0; j < p; j++)
+        for (i = 0; i < p; i++) {
+            double s = 0;
+            int n = 0;
+            for (b = 0; b < 3; b++)
+                for (a = 0; a < 3; a++) {
+                    int cx = x - p + 3 * i + a, cy = y - p + 3 * j + b;
+                    float v;
+                    cx = cx < 0 ? 0 : cx >= r->width ? r->width - 1 : cx;
+                    cy = cy < 0 ? 0 : cy >= r->height ? r->height - 1 : cy;
+                    v = TS_PIX(r, cx, cy);
+                    if (!isnan(v)) {
+                        s += v;
+                        n++;
+                    }
+                }
+            out[j * p + i] = n ? (float)(s / n) : NAN;
+            if (n) {
+                m += s / n;
+                nb++;
+            }
+        }
+    m = nb ? m / nb : 0.0;
+    for (i = 0; i < p * p; i++)
+        if (isnan(out[i]))
+            out[i] = (float)m;
+    ts__amp_normalise(out, p * p, out, &mean, &rms);
+}
+
 void ts__amp_weights(const ts_amplify_params *p, int use_l, int use_c, double w[AMP_NW])
 {
     double sum = 0;
@@ -49,6 +82,7 @@ void ts__amp_weights(const ts_amplify_params *p, int use_l, int use_c, double w[
     w[AMP_WU] = p->w_u;
     w[AMP_WL] = use_l ? p->w_l : 0.0;
     w[AMP_WC] = use_c ? p->w_c : 0.0;
+    w[AMP_WX] = p->w_x;
     for (i = 0; i < AMP_NW; i++)
         sum += w[i];
     if (sum > 0)
@@ -115,6 +149,7 @@ int ts__dict_sort(ts_dictionary *d)
 
 static void dict_free_arrays(ts_dictionary *d)
 {
+    free(d->dx);
     free(d->dl);
     free(d->dc);
     free(d->hc);
@@ -352,6 +387,7 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
     d->exemplar = ts__malloc_array(cap, sizeof *d->exemplar);
     d->x = ts__malloc_array(cap, sizeof *d->x);
     d->y = ts__malloc_array(cap, sizeof *d->y);
+    d->dx = ts__malloc_array(cap * (size_t)d->d, sizeof *d->dx);
     if (want_l)
         d->dl = ts__malloc_array(cap * (size_t)d->d, sizeof *d->dl);
     if (K > 0) {
@@ -360,7 +396,7 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
     }
     if (n_layers > 0)
         d->ll = ts__malloc_array(cap * (size_t)n_layers * (size_t)d->hd, sizeof *d->ll);
-    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y ||
+    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y || !d->dx ||
         (want_l && !d->dl) || (K > 0 && (!d->dc || !d->hc)) || (n_layers > 0 && !d->ll)) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu atoms", cap);
         goto done;
@@ -383,6 +419,7 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
                 if (!ts__amp_normalise(win, d->d, d->dh + k * (size_t)d->d, &mean, &rms))
                     continue; /* a flat atom has no shape to match or give */
                 ts__amp_normalise(lwin, d->d, d->du + k * (size_t)d->d, &um, &urms);
+                ts__amp_context(&low[e], x, y, p, d->dx + k * (size_t)d->d);
                 if (d->dl) {
                     float *dl = d->dl + k * (size_t)d->d;
                     int ok = irr[e].data != NULL;

@@ -9,7 +9,7 @@
  *   u32 hd, u64 n, u32 flags (bit 0: irradiance), u32 n_classes K,
  *   u32 n_layers L, then L names of TS_LAYER_NAME bytes (0-padded), then
  *   f32 dh[n*d], f32 du[n*d], f32 hh[n*hd], f64 a[n], f64 s[n],
- *   i32 exemplar[n], i32 x[n], i32 y[n], then f32 dl[n*d] (with the
+ *   i32 exemplar[n], i32 x[n], i32 y[n], f32 dx[n*d] (context), then f32 dl[n*d] (with the
  *   irradiance), f32 dc[n*K] and u8 hc[n*hd] (with classes), f32 ll[n*L*hd].
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -65,7 +65,7 @@ static uint64_t get_u64(const unsigned char *p)
 static size_t dict_bytes(uint64_t n, uint32_t d, uint32_t hd, int irr, uint32_t K, uint32_t L)
 {
     return DICT_HEADER + (size_t)L * TS_LAYER_NAME +
-           (size_t)n * ((size_t)d * 8 + (size_t)hd * 4 + 16 + 12 + (irr ? (size_t)d * 4 : 0) +
+           (size_t)n * ((size_t)d * 12 + (size_t)hd * 4 + 16 + 12 + (irr ? (size_t)d * 4 : 0) +
                         (size_t)K * 4 + (K ? (size_t)hd : 0) + (size_t)L * hd * 4);
 }
 
@@ -109,6 +109,7 @@ TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
     le_copy(p, dict->exemplar, n, 4), p += n * 4;
     le_copy(p, dict->x, n, 4), p += n * 4;
     le_copy(p, dict->y, n, 4), p += n * 4;
+    le_copy(p, dict->dx, n * dict->d, 4), p += n * dict->d * 4;
     if (dict->dl)
         le_copy(p, dict->dl, n * dict->d, 4), p += n * dict->d * 4;
     if (dict->n_classes) {
@@ -186,6 +187,7 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     if (L)
         d->ll = ts__malloc_array(d->n * L * hd, 4);
     d->dh = ts__malloc_array(d->n * dd, 4);
+    d->dx = ts__malloc_array(d->n * dd, 4);
     d->du = ts__malloc_array(d->n * dd, 4);
     d->hh = ts__malloc_array(d->n * hd, 4);
     d->a = ts__malloc_array(d->n, 8);
@@ -193,7 +195,7 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     d->exemplar = ts__malloc_array(d->n, 4);
     d->x = ts__malloc_array(d->n, 4);
     d->y = ts__malloc_array(d->n, 4);
-    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y ||
+    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y || !d->dx ||
         ((flags & 1) && !d->dl) || (K && (!d->dc || !d->hc)) || (L && !d->ll)) {
         ts_dictionary_free(d);
         return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory for %zu atoms", d->n);
@@ -206,6 +208,7 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     le_copy((unsigned char *)d->exemplar, p, d->n, 4), p += d->n * 4;
     le_copy((unsigned char *)d->x, p, d->n, 4), p += d->n * 4;
     le_copy((unsigned char *)d->y, p, d->n, 4), p += d->n * 4;
+    le_copy((unsigned char *)d->dx, p, d->n * dd, 4), p += d->n * dd * 4;
     if (d->dl)
         le_copy((unsigned char *)d->dl, p, d->n * dd, 4), p += d->n * dd * 4;
     if (K) {

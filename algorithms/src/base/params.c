@@ -132,6 +132,10 @@ static const ts_param_desc amplify_desc[] = {
      "Weight of the class term g_c: P_c . D_c on the class vectors, where the input gives "
      "wanted classes.",
      offsetof(ts_amplify_params, w_c)},
+    {"w_x", TS_PARAM_DOUBLE, 0.0, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Weight of the context term g_x (section 5.3): (1 + P_x . D_x) / 2 on the normalised "
+     "neighbourhood three patches wide, block-averaged to a patch.",
+     offsetof(ts_amplify_params, w_x)},
 };
 
 static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", NULL};
