@@ -1361,8 +1361,11 @@ static void json_str(FILE *out, const char *s)
 
 void tsj_describe(FILE *out)
 {
-    static const char *const kinds[] = {"file", "output", "number", "int",  "seed",   "text",
-                                        "size", "xy",     "pin",    "rule", "choice", "named"};
+    static const char *const kinds[] = {"file", "output", "number", "int",    "seed",
+                                        "text", "size",   "xy",     "pin",    "rule",
+                                        "choice", "named", "pair"};
+    /* one name per kind: a kind added without its name does not compile */
+    _Static_assert(sizeof kinds / sizeof kinds[0] == TSJ_PAIR + 1, "a name for every tsj_kind");
     static const char *const rkinds[] = {"requires", "excludes", "together", "one_of"};
     size_t j, k;
     int i;

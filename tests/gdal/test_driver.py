@@ -85,9 +85,9 @@ def test_open_option_list_declares_every_parameter():
                     assert float(o.get("default")) == pytest.approx(p["default"])
         for op in job["options"]:
             named = op["name"].upper() in opts
-            if op["recipe"] and op["kind"] not in ("file", "pin", "rule", "named"):
+            if op["recipe"] and op["kind"] not in ("file", "pin", "rule", "named", "pair"):
                 assert named, op["name"]
-            elif op["kind"] in ("file", "pin", "rule", "named", "output"):
+            elif op["kind"] in ("file", "pin", "rule", "named", "pair", "output"):
                 assert not named or op["name"] in ("band", "cell_size"), op["name"]
 
 
