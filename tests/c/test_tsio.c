@@ -761,6 +761,95 @@ static void test_features(void)
     CPLFree(wkt);
 }
 
+/* The sun's frame of a grid (tsio_georef_sun_frame) against formulas written
+ * here: a geographic grid's cell latitudes and north 0; on a UTM grid, the
+ * latitude on the central meridian from the meridian arc (WGS 84, k0 0.9996)
+ * solved by bisection, north 0 there, and off it the first-order meridian
+ * convergence dlon sin(lat) (grid north east of true north, east of the
+ * central meridian in the north). */
+static double meridian_arc(double phi)
+{
+    const double a = 6378137.0, f = 1 / 298.257223563, e2 = f * (2 - f), e4 = e2 * e2, e6 = e4 * e2;
+    return a * ((1 - e2 / 4 - 3 * e4 / 64 - 5 * e6 / 256) * phi -
+                (3 * e2 / 8 + 3 * e4 / 32 + 45 * e6 / 1024) * sin(2 * phi) +
+                (15 * e4 / 256 + 45 * e6 / 1024) * sin(4 * phi) - (35 * e6 / 3072) * sin(6 * phi));
+}
+
+static void test_sun_frame(void)
+{
+    tsio_georef g;
+    tsio_err err;
+    ts_raster lat, north;
+    float lat_d[12], north_d[12];
+    int x, y;
+    memset(&g, 0, sizeof g);
+    lat = ts_raster_wrap(lat_d, 4, 3, 4);
+    north = ts_raster_wrap(north_d, 4, 3, 4);
+    /* geographic: 0.5 degree cells from 10E 50N, averaged by 2 -> 1 degree cells */
+    {
+        OGRSpatialReferenceH srs = OSRNewSpatialReference(NULL);
+        char *wkt = NULL;
+        OSRSetFromUserInput(srs, "EPSG:4326");
+        OSRExportToWkt(srs, &wkt);
+        g.width = 8;
+        g.height = 6;
+        g.has_gt = 1;
+        g.gt[0] = 10.0, g.gt[1] = 0.5, g.gt[2] = 0, g.gt[3] = 50.0, g.gt[4] = 0, g.gt[5] = -0.5;
+        free(g.wkt);
+        g.wkt = strdup(wkt);
+        CPLFree(wkt);
+        OSRDestroySpatialReference(srs);
+    }
+    CHECK(tsio_georef_sun_frame(&g, 2, &lat, &north, &err) == 0);
+    for (y = 0; y < 3; y++)
+        for (x = 0; x < 4; x++) {
+            CHECK_NEAR(TS_PIX(&lat, x, y), 50.0 - (y + 0.5), 1e-5);
+            CHECK_NEAR(TS_PIX(&north, x, y), 0.0, 1e-6);
+        }
+    /* UTM 32N: the central meridian (9E) at x = 500000 */
+    {
+        OGRSpatialReferenceH srs = OSRNewSpatialReference(NULL);
+        char *wkt = NULL;
+        OSRSetFromUserInput(srs, "EPSG:32632");
+        OSRExportToWkt(srs, &wkt);
+        free(g.wkt);
+        g.wkt = strdup(wkt);
+        CPLFree(wkt);
+        OSRDestroySpatialReference(srs);
+    }
+    g.width = 4;
+    g.height = 3;
+    g.gt[0] = 500000.0 - 500.0; /* cell 0's centre on the central meridian */
+    g.gt[1] = 1000.0;
+    g.gt[3] = 5000000.0 + 1500.0;
+    g.gt[5] = -1000.0;
+    CHECK(tsio_georef_sun_frame(&g, 1, &lat, &north, &err) == 0);
+    for (y = 0; y < 3; y++) {
+        double northing = 5000000.0 + 1500.0 - (y + 0.5) * 1000.0, lo = 0, hi = 1.5, phi;
+        int it;
+        for (it = 0; it < 200; it++) { /* M(phi) = northing / k0 */
+            double mid = 0.5 * (lo + hi);
+            if (meridian_arc(mid) < northing / 0.9996)
+                lo = mid;
+            else
+                hi = mid;
+        }
+        phi = 0.5 * (lo + hi);
+        CHECK_NEAR(TS_PIX(&lat, 0, y), phi * 180 / TEST_PI, 1e-5);
+        CHECK_NEAR(TS_PIX(&north, 0, y), 0.0, 1e-4);
+        /* 3 km east: convergence dlon sin(lat), dlon = 3 km over the parallel's radius */
+        {
+            double dlon = 3000.0 / 0.9996 / (6378137.0 * cos(phi)) * 180 / TEST_PI;
+            CHECK_NEAR(TS_PIX(&north, 3, y), dlon * sin(phi), 0.002);
+            CHECK(TS_PIX(&north, 3, y) > 0);
+        }
+    }
+    /* no CRS: nothing known */
+    free(g.wkt);
+    g.wkt = NULL;
+    CHECK(tsio_georef_sun_frame(&g, 1, &lat, &north, &err) == 1);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/test_tsio.XXXXXX");
@@ -778,6 +867,7 @@ int main(void)
     test_read_errors();
     test_write_raster();
     test_features();
+    test_sun_frame();
 
     CPLPopErrorHandler();
     VSIRmdirRecursive(tmpdir);
