@@ -78,7 +78,8 @@ static void irr_rows(void *arg, size_t begin, size_t end)
         double dxm = cell_dx(j, y), dym = cell_dy(j, y);
         for (x = 0; x < W; x++) {
             float z0 = TS_PIX(z, x, y);
-            double hz[N_DIRS + 1], gx, gy, nx, ny, nz, nn, phi, rot, sp, cp, sr, cr, sum = 0.0;
+            double hz[N_DIRS + 1], hmax = -1e30, gx, gy, nx, ny, nz, nn, phi, rot, sp, cp, sr, cr;
+            double sum = 0.0;
             float zl, zr, zu, zd;
             if (isnan(z0) || isnan(TS_PIX(j->lat, x, y))) {
                 TS_PIX(j->out, x, y) = NAN;
@@ -105,6 +106,8 @@ static void irr_rows(void *arg, size_t begin, size_t end)
                         best = t;
                 }
                 hz[k] = best;
+                if (best > hmax)
+                    hmax = best;
             }
             hz[N_DIRS] = hz[0];
             /* the slope's normal from central differences (one-sided at edges and nodata) */
@@ -153,6 +156,11 @@ static void irr_rows(void *arg, size_t begin, size_t end)
                     if (inc <= 0.0)
                         continue;
                     horiz_len = sqrt(gr * gr + gu * gu);
+                    /* above every horizon: lit whatever its direction (the same test) */
+                    if (U > hmax * horiz_len) {
+                        sum += SOLAR_CONSTANT * transmittance(j, U) * inc;
+                        continue;
+                    }
                     az = atan2(gr, gu); /* clockwise from the grid's up */
                     if (az < 0)
                         az += 2.0 * PI_D;
