@@ -173,6 +173,10 @@ static const tsj_option amplify_opts[] = {
      "a dictionary built once by `terrasynth dictionary build` (instead of exemplars): "
      "its factor, patch and cell size are the job's",
      "Dictionary", 0, NULL},
+    {"weights", TSJ_TEXT, 1, 0, 0, "h=W,a=W,s=W,u=W,l=W,c=W,x=W", G_IN,
+     "the matching weights in one option (any of them; the others keep their values): the same "
+     "as --w-h, --w-a, ... (not both)",
+     NULL, 0, NULL},
     {"biome", TSJ_PAIR, TSJOB_MAX_BIOMES, 0, 0, "W.tif=D.tsd", G_IN,
      "a biome (section 5.5): dictionary D (terrasynth dictionary build) weighs W, a raster "
      "on the input's grid painted by the user (shares: each biome's weight over their sum); "
@@ -804,6 +808,39 @@ int tsj_build_ppa(tsj_values *v, tsjob_ppa *job, char *msg, size_t len)
     return 0;
 }
 
+/* --weights h=0.4,a=0.2,...: into the parameters w_h, w_a, ... */
+static int expand_weights(tsj_values *v, char *msg, size_t len)
+{
+    const char *s = tsj_get(v, "weights", 0);
+    char **items;
+    int i, rc = 0;
+    if (!s)
+        return 0;
+    items = CSLTokenizeString2(s, ",", 0);
+    for (i = 0; items && items[i] && rc == 0; i++) {
+        const char *eq = strchr(items[i], '=');
+        char name[8];
+        if (!eq || eq - items[i] != 1 || !strchr("haculsx", items[i][0]) || !eq[1]) {
+            msgf(msg, len, "weights takes h=W,a=W,s=W,u=W,l=W,c=W,x=W, not '%s'", items[i]);
+            rc = -1;
+            break;
+        }
+        snprintf(name, sizeof name, "w_%c", items[i][0]);
+        if (tsj_count(v, name)) {
+            msgf(msg, len, "give weights or %s, not both", name);
+            rc = -1;
+            break;
+        }
+        tsj_set(v, name, eq + 1);
+    }
+    if (!items || !items[0]) {
+        msgf(msg, len, "weights is empty");
+        rc = -1;
+    }
+    CSLDestroy(items);
+    return rc;
+}
+
 int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len)
 {
     const char *s;
@@ -811,7 +848,8 @@ int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len)
     memset(job, 0, sizeof *job);
     job->params = ts_amplify_params_default();
     job->band = 1;
-    if (check_values(v, msg, len) || check_rules(v, v->cli, msg, len))
+    if (expand_weights(v, msg, len) || check_values(v, msg, len) ||
+        check_rules(v, v->cli, msg, len))
         return -1;
     if (apply_params(v, "amplify", &job->params, msg, len))
         return -1;

@@ -76,6 +76,20 @@ def test_recipe_equals_cli_and_open_options(tmp_path):
     assert (r3.RasterXSize, r3.RasterYSize) == (403 * 3, 344 * 3)
 
 
+def test_weights_in_one_option(tmp_path):
+    """--weights h=..,u=.. is --w-h and --w-u: the same bytes, and a recipe keeps them."""
+    base = [JACKSBORO, "--exemplar", JACKSBORO, "--factor", "2", "-q"]
+    run("amplify", base[0], tmp_path / "a.tif", *base[1:], "--weights", "h=1,a=0,s=0.5,u=0")
+    run("amplify", base[0], tmp_path / "b.tif", *base[1:], "--w-h", "1", "--w-a", "0", "--w-s",
+        "0.5", "--w-u", "0")
+    run("amplify", base[0], tmp_path / "c.tif", *base[1:])
+    a, b, c = (gdal.Open(str(tmp_path / n)).ReadAsArray().tobytes() for n in ("a.tif", "b.tif",
+                                                                              "c.tif"))
+    assert a == b and a != c
+    run("amplify", *base[:-1], "--weights", "h=1,a=0,s=0.5,u=0", "--recipe", tmp_path / "r.tsyn")
+    assert '<Param name="w_s">0.5</Param>' in (tmp_path / "r.tsyn").read_text()
+
+
 def test_deterministic_across_threads(tmp_path):
     for t in ("1", "0"):
         run("amplify", JACKSBORO, tmp_path / ("t%s.tif" % t), "--exemplar", JACKSBORO,
@@ -87,6 +101,9 @@ def test_deterministic_across_threads(tmp_path):
 
 @pytest.mark.parametrize("args,words", [
     (["--factor", "4"], "give at least one exemplar"),
+    (["--exemplar", JACKSBORO, "--weights", "h=1,q=2"], "weights takes h=W"),
+    (["--exemplar", JACKSBORO, "--weights", "h=1", "--w-h", "2"], "give weights or w_h, not both"),
+    (["--exemplar", JACKSBORO, "--weights", "a=-1"], "w_a = -1 is out of range"),
     (["--exemplar", JACKSBORO, "--factor", "20"], "factor"),
     (["--exemplar", JACKSBORO, "--patch", "2"], "patch"),
 ])
