@@ -917,6 +917,53 @@ static void test_context_descriptor(void)
     ts_ctx_free(ctx);
 }
 
+/* An exemplar with fewer windows than the atoms asked for gives atoms from
+ * several phases of its area average (fractions of a low-resolution cell
+ * apart): as many as the phases allow, each atom's fine window the exemplar's
+ * at its recorded origin, its mean altitude the block means there (written
+ * out here). */
+static void test_atoms_from_phases(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_amplify_params p = ts_amplify_params_default();
+    ts_raster ex = make_terrain(ctx, 48, 40, 91);
+    ts_dictionary *D = NULL;
+    size_t k;
+    int phases = 0;
+    p.factor = 4;
+    p.patch = 6;
+    p.atoms = 100;
+    /* phase 0: 12 x 10 low cells, 7 x 5 = 35 windows < 100: more phases */
+    CHECK(build1(ctx, &ex, &p, &D) == TS_OK);
+    for (k = 0; k < D->n; k++) {
+        int fx = D->x[k], fy = D->y[k], i, j, P = 24, bad = 0;
+        double m = 0;
+        phases |= 1 << ((fx % 4) * 4 + fy % 4);
+        for (j = 0; j < 6; j++)
+            for (i = 0; i < 6; i++) {
+                double b = 0;
+                for (int bj = 0; bj < 4; bj++)
+                    for (int bi = 0; bi < 4; bi++)
+                        b += TS_PIX(&ex, fx + 4 * i + bi, fy + 4 * j + bj);
+                m += b / 16 / 36;
+            }
+        CHECK_NEAR(D->a[k], m, 1e-3);
+        for (j = 0; j < P; j++)
+            for (i = 0; i < P; i++) {
+                double v = D->hh[k * D->hd + j * P + i] * D->s[k] * 6 + D->a[k];
+                bad += fabs(v - TS_PIX(&ex, fx + i, fy + j)) > 1e-2;
+            }
+        CHECK(bad == 0);
+    }
+    /* phases (0,0), (2,2), (2,0) whole (35 + 24 + 30 windows), then others thinned to the
+     * budget of 100 */
+    CHECK((phases & ((1 << 0) | (1 << 10) | (1 << 8))) == ((1 << 0) | (1 << 10) | (1 << 8)));
+    CHECK_MSG(D->n >= 90 && D->n <= 100, "%zu atoms", D->n);
+    ts_dictionary_free(D);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -934,6 +981,7 @@ int main(int argc, char **argv)
         {"class_control", test_class_control},
         {"biomes", test_biomes},
         {"context_descriptor", test_context_descriptor},
+        {"atoms_from_phases", test_atoms_from_phases},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

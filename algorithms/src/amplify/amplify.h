@@ -19,7 +19,7 @@ struct ts_dictionary {
     float *hh;             /* n x hd: high-resolution D~_h = (H - a) / (s p), with a, s of D */
     double *a;             /* mean altitude D_a */
     double *s;             /* mean deviation D_s (RMS of the centred low-resolution atom) */
-    int *exemplar, *x, *y; /* where each atom came from (low-resolution cells) */
+    int *exemplar, *x, *y; /* where each atom came from (its fine window's origin) */
     double *a_sorted, *s_sorted; /* a and s in ascending order (the matching's medians) */
     /* section 5.6: the normalised mean annual solar irradiance D_l (n x d unit
      * vectors, or 0 where the exemplar had no latitude); NULL when built without */

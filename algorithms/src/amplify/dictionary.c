@@ -291,12 +291,61 @@ static ts_status low_irradiance(ts_ctx *ctx, const ts_exemplar *ex, const ts_ras
     return st;
 }
 
+/* One source of atoms: an exemplar area-averaged from a phase (ox, oy) of
+ * its cells.  An exemplar whose every window (lattice step 1) gives fewer
+ * atoms than asked for is averaged from more phases while the budget lasts:
+ * the atoms then overlap by fractions of a low-resolution cell too (section
+ * 4's "partially overlapping"). */
+typedef struct amp_source {
+    int e, ox, oy, step;
+    ts_raster low, drain, irr;
+} amp_source;
+
+/* The k-th phase of an F x F cell: (0,0), the centre, the two half
+ * shifts, then the rest in raster order. */
+static void phase_offset(int F, int k, int *ox, int *oy)
+{
+    int first[4][2] = {{0, 0}, {F / 2, F / 2}, {F / 2, 0}, {0, F / 2}}, n = 0, i, j, q;
+    for (q = 0; q < 4; q++)
+        if (k == q) {
+            *ox = first[q][0];
+            *oy = first[q][1];
+            return;
+        }
+    for (j = 0; j < F; j++)
+        for (i = 0; i < F; i++) {
+            int used = 0;
+            for (q = 0; q < 4; q++)
+                used |= first[q][0] == i && first[q][1] == j;
+            if (used)
+                continue;
+            if (n++ == k - 4) {
+                *ox = i;
+                *oy = j;
+                return;
+            }
+        }
+    *ox = *oy = 0;
+}
+
+/* A view of r from cell (x, y) on. */
+static ts_raster raster_from(const ts_raster *r, int x, int y, int w, int h)
+{
+    ts_raster v;
+    v.width = w;
+    v.height = h;
+    v.stride = r->stride;
+    v.data = r->data + (size_t)y * (size_t)r->stride + (size_t)x;
+    return v;
+}
+
 TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, int n_exemplars,
                                      const char *const *layer_names, int n_layers,
                                      const ts_amplify_params *params, ts_dictionary **out)
 {
     ts_dictionary *d;
-    ts_raster *low = NULL, *drain = NULL, *irr = NULL;
+    amp_source *src = NULL;
+    int n_src = 0, si;
     size_t cap = 0;
     int e, F, p, P, l, K = 0, want_l;
     float *win = NULL, *lwin = NULL;
@@ -333,12 +382,10 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
         if ((st = check_exemplar(ctx, &exemplars[e], e, n_layers, F, &K)) != TS_OK)
             return st;
     d = calloc(1, sizeof *d);
-    low = calloc((size_t)n_exemplars, sizeof *low);
-    drain = calloc((size_t)n_exemplars, sizeof *drain);
-    irr = calloc((size_t)n_exemplars, sizeof *irr);
+    src = calloc((size_t)n_exemplars * (size_t)F * (size_t)F, sizeof *src);
     win = malloc((size_t)p * p * sizeof *win);
     lwin = malloc((size_t)p * p * sizeof *lwin);
-    if (!d || !low || !drain || !irr || !win || !lwin) {
+    if (!d || !src || !win || !lwin) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
         goto done;
     }
@@ -350,10 +397,11 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
     d->n_classes = K;
     for (l = 0; l < n_layers; l++)
         strcpy(d->layer_names[l], layer_names[l]);
-    /* the low-resolution exemplars, their drainage and irradiance, and how many atoms */
+    /* the low-resolution exemplars (a phase or several), their drainage and irradiance,
+     * and how many atoms */
     for (e = 0; e < n_exemplars; e++) {
         const ts_exemplar *ex = &exemplars[e];
-        int lw = ex->dem.width / F, lh = ex->dem.height / F, step;
+        int lw = ex->dem.width / F, lh = ex->dem.height / F, ph, budget;
         if (lw < p || lh < p) {
             st = ts__fail_input(ctx, TS_ERR_SIZE, e, "amplify",
                                 "exemplar %d: %d x %d cells is smaller than a patch of %d x %d "
@@ -361,21 +409,52 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
                                 e + 1, ex->dem.width, ex->dem.height, P, P);
             goto done;
         }
-        if (ts_raster_alloc(ctx, lw, lh, &low[e]) != TS_OK ||
-            ts_raster_alloc(ctx, lw, lh, &drain[e]) != TS_OK ||
-            ts_area_average(ctx, &ex->dem, F, &low[e]) != TS_OK ||
-            ts_drainage_area(ctx, &low[e], &drain[e]) != TS_OK) {
-            st = ctx->status;
-            goto done;
+        /* phase 0; when it gives every window and fewer than the atoms asked for, more
+         * phases while the budget lasts */
+        budget = params->atoms;
+        for (ph = 0; ph < F * F && budget > 0; ph++) {
+            amp_source *s_ = &src[n_src];
+            ts_raster shifted;
+            int w, h;
+            size_t count;
+            if (ph == 1 && src[n_src - 1].step > 1)
+                break;
+            s_->e = e;
+            phase_offset(F, ph, &s_->ox, &s_->oy);
+            w = (ex->dem.width - s_->ox) / F;
+            h = (ex->dem.height - s_->oy) / F;
+            if (w < p || h < p)
+                continue;
+            shifted = raster_from(&ex->dem, s_->ox, s_->oy, w * F, h * F);
+            if (ts_raster_alloc(ctx, w, h, &s_->low) != TS_OK ||
+                ts_raster_alloc(ctx, w, h, &s_->drain) != TS_OK ||
+                ts_area_average(ctx, &shifted, F, &s_->low) != TS_OK ||
+                ts_drainage_area(ctx, &s_->low, &s_->drain) != TS_OK) {
+                st = ctx->status;
+                goto done;
+            }
+            if (want_l && ex->lat && ex->dx > 0 && ex->dy > 0) {
+                /* the phase's cells are within a cell of phase 0's: its latitudes */
+                ts_exemplar exv = *ex;
+                ts_raster latv = raster_from(ex->lat, 0, 0, w, h), northv;
+                exv.lat = &latv;
+                if (ex->north) {
+                    northv = raster_from(ex->north, 0, 0, w, h);
+                    exv.north = &northv;
+                }
+                if (ts_raster_alloc(ctx, w, h, &s_->irr) != TS_OK ||
+                    low_irradiance(ctx, &exv, &s_->low, F, &s_->irr) != TS_OK) {
+                    st = ctx->status;
+                    goto done;
+                }
+            }
+            s_->step = lattice_step(w - p + 1, h - p + 1, budget);
+            count =
+                (size_t)((w - p + s_->step) / s_->step) * (size_t)((h - p + s_->step) / s_->step);
+            cap += count;
+            budget -= (int)count;
+            n_src++;
         }
-        if (want_l && ex->lat && ex->dx > 0 && ex->dy > 0 &&
-            (ts_raster_alloc(ctx, lw, lh, &irr[e]) != TS_OK ||
-             low_irradiance(ctx, ex, &low[e], F, &irr[e]) != TS_OK)) {
-            st = ctx->status;
-            goto done;
-        }
-        step = lattice_step(lw - p + 1, lh - p + 1, params->atoms);
-        cap += (size_t)((lw - p + step) / step) * (size_t)((lh - p + step) / step);
         if ((st = ts__progress(ctx, 0.3 * (e + 1) / n_exemplars, "dictionary")) != TS_OK)
             goto done;
     }
@@ -401,31 +480,33 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
         st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu atoms", cap);
         goto done;
     }
-    for (e = 0; e < n_exemplars; e++) {
-        const ts_exemplar *ex = &exemplars[e];
-        int lw = low[e].width, lh = low[e].height, x, y, i, j;
-        int step = lattice_step(lw - p + 1, lh - p + 1, params->atoms);
+    for (si = 0; si < n_src; si++) {
+        const amp_source *sr = &src[si];
+        const ts_exemplar *ex = &exemplars[sr->e];
+        const ts_raster *lowr = &sr->low;
+        int lw = lowr->width, lh = lowr->height, x, y, i, j, step = sr->step;
         for (y = 0; y + p <= lh; y += step)
             for (x = 0; x + p <= lw; x += step) {
                 size_t k = d->n;
                 double mean, rms, um, urms;
-                if (!window_valid(&low[e], x, y, p) || !window_valid(&ex->dem, x * F, y * F, P))
+                int fx = x * F + sr->ox, fy = y * F + sr->oy; /* its fine window */
+                if (!window_valid(lowr, x, y, p) || !window_valid(&ex->dem, fx, fy, P))
                     continue;
                 for (j = 0; j < p; j++)
                     for (i = 0; i < p; i++) {
-                        win[j * p + i] = TS_PIX(&low[e], x + i, y + j);
-                        lwin[j * p + i] = (float)log1p(TS_PIX(&drain[e], x + i, y + j));
+                        win[j * p + i] = TS_PIX(lowr, x + i, y + j);
+                        lwin[j * p + i] = (float)log1p(TS_PIX(&sr->drain, x + i, y + j));
                     }
                 if (!ts__amp_normalise(win, d->d, d->dh + k * (size_t)d->d, &mean, &rms))
                     continue; /* a flat atom has no shape to match or give */
                 ts__amp_normalise(lwin, d->d, d->du + k * (size_t)d->d, &um, &urms);
-                ts__amp_context(&low[e], x, y, p, d->dx + k * (size_t)d->d);
+                ts__amp_context(lowr, x, y, p, d->dx + k * (size_t)d->d);
                 if (d->dl) {
                     float *dl = d->dl + k * (size_t)d->d;
-                    int ok = irr[e].data != NULL;
+                    int ok = sr->irr.data != NULL;
                     for (j = 0; j < p && ok; j++)
                         for (i = 0; i < p; i++) {
-                            float v = TS_PIX(&irr[e], x + i, y + j);
+                            float v = TS_PIX(&sr->irr, x + i, y + j);
                             if (isnan(v)) {
                                 ok = 0; /* no latitude there */
                                 break;
@@ -440,7 +521,7 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
                 for (j = 0; j < P; j++)
                     for (i = 0; i < P; i++)
                         d->hh[k * (size_t)d->hd + (size_t)j * P + i] =
-                            (float)((TS_PIX(&ex->dem, x * F + i, y * F + j) - mean) /
+                            (float)((TS_PIX(&ex->dem, fx + i, fy + j) - mean) /
                                     (rms * sqrt((double)d->d)));
                 if (K > 0) {
                     unsigned char *hc = d->hc + k * (size_t)d->hd;
@@ -450,7 +531,7 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
                     for (j = 0; j < P; j++)
                         for (i = 0; i < P; i++) {
                             int c = ex->classes
-                                        ? ts__class_code(TS_PIX(ex->classes, x * F + i, y * F + j))
+                                        ? ts__class_code(TS_PIX(ex->classes, fx + i, fy + j))
                                         : 0;
                             hc[j * P + i] = (unsigned char)c;
                             if (c > 0)
@@ -465,16 +546,16 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
                     float *ll = d->ll + (k * (size_t)n_layers + (size_t)l) * (size_t)d->hd;
                     for (j = 0; j < P; j++)
                         for (i = 0; i < P; i++)
-                            ll[j * P + i] = TS_PIX(&ex->layers[l], x * F + i, y * F + j);
+                            ll[j * P + i] = TS_PIX(&ex->layers[l], fx + i, fy + j);
                 }
                 d->a[k] = mean;
                 d->s[k] = rms;
-                d->exemplar[k] = e;
-                d->x[k] = x;
-                d->y[k] = y;
+                d->exemplar[k] = sr->e;
+                d->x[k] = fx;
+                d->y[k] = fy;
                 d->n++;
             }
-        if ((st = ts__progress(ctx, 0.3 + 0.7 * (e + 1) / n_exemplars, "dictionary")) != TS_OK)
+        if ((st = ts__progress(ctx, 0.3 + 0.7 * (si + 1) / n_src, "dictionary")) != TS_OK)
             goto done;
     }
     if (d->n > 0 && ts__dict_sort(d) != 0) {
@@ -489,15 +570,12 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
         goto done;
     }
 done:
-    for (e = 0; low && e < n_exemplars; e++)
-        ts_raster_free(&low[e]);
-    for (e = 0; drain && e < n_exemplars; e++)
-        ts_raster_free(&drain[e]);
-    for (e = 0; irr && e < n_exemplars; e++)
-        ts_raster_free(&irr[e]);
-    free(low);
-    free(drain);
-    free(irr);
+    for (si = 0; src && si < n_exemplars * F * F; si++) {
+        ts_raster_free(&src[si].low);
+        ts_raster_free(&src[si].drain);
+        ts_raster_free(&src[si].irr);
+    }
+    free(src);
     free(win);
     free(lwin);
     if (st != TS_OK) {
