@@ -754,6 +754,41 @@ TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *
 TS_API ts_status ts_irradiance(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
                                const ts_raster *lat, const ts_raster *north, ts_raster *out);
 
+/* ------------------------------------------------------------------ */
+/* Multiresolution pixel synthesis (Lefebvre and Hoppe 2005; Cruz et al.) */
+/* ------------------------------------------------------------------ */
+
+/** Parameters of `terrasynth pixel` (stage "pixel"). */
+typedef struct ts_pixel_params {
+    int levels;    /* L: levels of the Gaussian stacks above the finest (0: as many as fit) */
+    int passes;    /* correction passes per level */
+    int window;    /* k: neighbourhoods of k x k cells (odd) */
+    double jitter; /* jitter of the upsampled coordinates, in the level's spacings */
+} ts_pixel_params;
+
+TS_API ts_pixel_params ts_pixel_params_default(void);
+
+/** The exemplars' Gaussian stacks, prepared once for many windows. */
+typedef struct ts_pixel_exemplars ts_pixel_exemplars;
+
+/** Prepare the stacks of exemplars (at the output's resolution; NaN =
+ *  nodata, never matched). */
+TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
+                                  const ts_pixel_params *params, ts_pixel_exemplars **out);
+TS_API void ts_pixel_exemplars_free(ts_pixel_exemplars *ex);
+/** The number of levels L the stacks have. */
+TS_API int ts_pixel_levels(const ts_pixel_exemplars *ex);
+
+/**
+ * The output cells [x0, x0 + out->width) x [y0, y0 + out->height) of the
+ * endless terrain the exemplars and the context's seed define (any
+ * coordinates, negative too, within 2^40): byte for byte the same window of
+ * any larger run, whatever the thread count.
+ */
+TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
+                                     const ts_pixel_params *params, int64_t x0, int64_t y0,
+                                     ts_raster *out);
+
 #ifdef __cplusplus
 }
 #endif

@@ -138,7 +138,24 @@ static const ts_param_desc amplify_desc[] = {
      offsetof(ts_amplify_params, w_x)},
 };
 
-static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", NULL};
+static const ts_param_desc pixel_desc[] = {
+    {"levels", TS_PARAM_INT, 0, 0, 10, TS_UNIT_CELLS, "", NULL,
+     "Levels of the exemplars' Gaussian stacks above the finest (the coarsest spacing is "
+     "2^levels cells); 0: as many as leave a coarsest neighbourhood half the smallest exemplar.",
+     offsetof(ts_pixel_params, levels)},
+    {"passes", TS_PARAM_INT, 2, 0, 8, TS_UNIT_CELLS, "", NULL,
+     "Correction passes per level (each of 4 sub-passes over the cells of one parity).",
+     offsetof(ts_pixel_params, passes)},
+    {"window", TS_PARAM_INT, 5, 3, 9, TS_UNIT_CELLS, "", NULL,
+     "Side k of the k x k neighbourhoods compared in the corrections (odd).",
+     offsetof(ts_pixel_params, window)},
+    {"jitter", TS_PARAM_DOUBLE, 0.4, 0.0, 2.0, TS_UNIT_CELLS, "", NULL,
+     "Jitter of the upsampled coordinates, in spacings of the level (from a hash of the "
+     "absolute position and the seed).",
+     offsetof(ts_pixel_params, jitter)},
+};
+
+static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", "pixel", NULL};
 
 TS_API const char *const *ts_params_stages(void)
 {
@@ -162,6 +179,10 @@ TS_API const ts_param_desc *ts_params_describe(const char *stage, size_t *n)
     if (stage && strcmp(stage, "amplify") == 0) {
         *n = sizeof amplify_desc / sizeof amplify_desc[0];
         return amplify_desc;
+    }
+    if (stage && strcmp(stage, "pixel") == 0) {
+        *n = sizeof pixel_desc / sizeof pixel_desc[0];
+        return pixel_desc;
     }
     *n = 0;
     return NULL;
@@ -414,6 +435,13 @@ TS_API ts_sketch_params ts_sketch_params_default(void)
 {
     ts_sketch_params p;
     params_fill_defaults("sketch", &p, sizeof p);
+    return p;
+}
+
+TS_API ts_pixel_params ts_pixel_params_default(void)
+{
+    ts_pixel_params p;
+    params_fill_defaults("pixel", &p, sizeof p);
     return p;
 }
 

@@ -1,0 +1,399 @@
+/*
+ * coordinate_synthesis.c - multiresolution synthesis of exemplar
+ * coordinates (Lefebvre and Hoppe 2005; Cruz et al. section II.A), coarse
+ * to fine over the exemplars' Gaussian stacks:
+ *
+ *   level 0    every cell a usable coordinate of an exemplar chosen by a
+ *              hash of its absolute position and the seed;
+ *   upsample   a cell's coordinate is its parent's plus the child's offset
+ *              at the level's spacing h = 2^(L-l);
+ *   jitter     plus a displacement of up to `jitter` x h in each axis, from
+ *              a hash of the absolute position (kept only if usable);
+ *   correct    `passes` passes of 4 sub-passes (the cells of one parity of
+ *              x and y each): a cell takes, among the k-coherence candidates
+ *              S(p + d) - h d of its k x k neighbours (and its own), the one
+ *              whose k x k neighbourhood in the level's stack is nearest
+ *              (sum of squared differences) to the heights its neighbours'
+ *              coordinates give.  Each sub-pass reads the state before it,
+ *              so the result does not depend on the order or the threads.
+ *
+ * Every cell is a function of the seed and its absolute position: a window
+ * is computed on its own, with at each level the margin the corrections
+ * read (passes x 4 x k/2 cells) and its parents' cover, and equals the same
+ * window of any larger run byte for byte.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "pixel.h"
+
+uint64_t ts__pix_hash(int64_t x, int64_t y, int level, int stream, uint64_t seed)
+{
+    uint64_t z = seed ^ 0x9e3779b97f4a7c15ull;
+    uint64_t words[4] = {(uint64_t)x, (uint64_t)y, (uint64_t)level, (uint64_t)stream};
+    int i;
+    for (i = 0; i < 4; i++) {
+        z += words[i] * 0xbf58476d1ce4e5b9ull + 0x9e3779b97f4a7c15ull;
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+        z ^= z >> 31;
+    }
+    return z;
+}
+
+double ts__pix_ssd(const float *level, int width, int u, int v, int k, int h, const float *t)
+{
+    int r = k / 2, a, b;
+    double s = 0;
+    for (b = -r; b <= r; b++) {
+        const float *row = level + (size_t)(v + b * h) * width + u;
+        const float *tr = t + (size_t)(b + r) * k + r;
+        for (a = -r; a <= r; a++) {
+            double d = (double)tr[a] - row[a * h];
+            s += d * d;
+        }
+    }
+    return s;
+}
+
+/* [x0, x1) x [y0, y1) of absolute cells of a level. */
+typedef struct pix_region {
+    int64_t x0, y0, x1, y1;
+} pix_region;
+
+static int64_t floor_half(int64_t a)
+{
+    return a >= 0 ? a / 2 : -((-a + 1) / 2);
+}
+
+static pix_region grow(pix_region r, int64_t m)
+{
+    pix_region g = {r.x0 - m, r.y0 - m, r.x1 + m, r.y1 + m};
+    return g;
+}
+
+static pix_region parent_cover(pix_region r)
+{
+    pix_region p = {floor_half(r.x0), floor_half(r.y0), floor_half(r.x1 - 1) + 1,
+                    floor_half(r.y1 - 1) + 1};
+    return p;
+}
+
+/* The coordinates of a level over a region. */
+typedef struct pix_level {
+    pix_region reg;
+    int w, h;
+    pix_coord *s, *tmp;
+} pix_level;
+
+typedef struct corr_job {
+    const ts_pixel_exemplars *ex;
+    pix_level *lv;
+    int l, hsp, k, px, py;
+    int fail;
+} corr_job;
+
+static int usable(const ts_pixel_exemplars *ex, int l, pix_coord c)
+{
+    const pix_stack *s = &ex->stacks[c.e];
+    return c.u >= 0 && c.v >= 0 && c.u < s->width && c.v < s->height &&
+           s->usable[l][(size_t)c.v * s->width + c.u];
+}
+
+static float height_at(const ts_pixel_exemplars *ex, int l, pix_coord c)
+{
+    const pix_stack *s = &ex->stacks[c.e];
+    return s->level[l][(size_t)c.v * s->width + c.u];
+}
+
+/* One sub-pass on the rows [begin, end) of the level's region: new values
+ * into tmp for the cells of parity (px, py) whose neighbourhood lies in the
+ * region. */
+static void correct_rows(void *arg, size_t begin, size_t end)
+{
+    corr_job *j = arg;
+    pix_level *lv = j->lv;
+    int k = j->k, r = k / 2, hsp = j->hsp, l = j->l, x;
+    float *t = malloc((size_t)k * k * sizeof *t);
+    size_t y;
+    if (!t) {
+        j->fail = 1;
+        return;
+    }
+    for (y = begin; y < end; y++) {
+        int64_t ay = lv->reg.y0 + (int64_t)y;
+        if ((ay & 1) != j->py)
+            continue;
+        for (x = 0; x < lv->w; x++) {
+            int64_t ax = lv->reg.x0 + x;
+            pix_coord cur = lv->s[y * (size_t)lv->w + x], best = cur;
+            double bc;
+            int a, b;
+            if ((ax & 1) != j->px)
+                continue;
+            if (x < r || x + r >= lv->w || (int)y < r || (int)y + r >= lv->h)
+                continue; /* at the region's edge: outside every exact window */
+            for (b = -r; b <= r; b++)
+                for (a = -r; a <= r; a++)
+                    t[(b + r) * k + a + r] =
+                        height_at(j->ex, l, lv->s[(y + b) * (size_t)lv->w + x + a]);
+            bc = usable(j->ex, l, cur)
+                     ? ts__pix_ssd(j->ex->stacks[cur.e].level[l], j->ex->stacks[cur.e].width, cur.u,
+                                   cur.v, k, hsp, t)
+                     : INFINITY;
+            for (b = -r; b <= r; b++)
+                for (a = -r; a <= r; a++) {
+                    pix_coord c = lv->s[(y + b) * (size_t)lv->w + x + a];
+                    double cost;
+                    if (!a && !b)
+                        continue;
+                    c.u -= a * hsp;
+                    c.v -= b * hsp;
+                    if (!usable(j->ex, l, c))
+                        continue;
+                    cost = ts__pix_ssd(j->ex->stacks[c.e].level[l], j->ex->stacks[c.e].width, c.u,
+                                       c.v, k, hsp, t);
+                    if (cost < bc) {
+                        bc = cost;
+                        best = c;
+                    }
+                }
+            lv->tmp[y * (size_t)lv->w + x] = best;
+        }
+    }
+    free(t);
+}
+
+static void commit_rows(void *arg, size_t begin, size_t end)
+{
+    corr_job *j = arg;
+    pix_level *lv = j->lv;
+    int r = j->k / 2, x;
+    size_t y;
+    for (y = begin; y < end; y++) {
+        int64_t ay = lv->reg.y0 + (int64_t)y;
+        if ((ay & 1) != j->py || (int)y < r || (int)y + r >= lv->h)
+            continue;
+        for (x = r; x + r < lv->w; x++)
+            if (((lv->reg.x0 + x) & 1) == j->px)
+                lv->s[y * (size_t)lv->w + x] = lv->tmp[y * (size_t)lv->w + x];
+    }
+}
+
+/* A usable coordinate chosen by the hash h. */
+static pix_coord random_coord(const ts_pixel_exemplars *ex, int l, uint64_t h)
+{
+    pix_coord c;
+    const pix_stack *s;
+    int32_t idx;
+    c.e = (int32_t)(h % (uint64_t)ex->n);
+    s = &ex->stacks[c.e];
+    idx = s->usable_list[l][(h >> 20) % s->n_usable[l]];
+    c.u = idx % s->width;
+    c.v = idx / s->width;
+    return c;
+}
+
+static int level_alloc(pix_level *lv, pix_region reg)
+{
+    lv->reg = reg;
+    lv->w = (int)(reg.x1 - reg.x0);
+    lv->h = (int)(reg.y1 - reg.y0);
+    lv->s = ts__malloc_array((size_t)lv->w * (size_t)lv->h, sizeof *lv->s);
+    lv->tmp = ts__malloc_array((size_t)lv->w * (size_t)lv->h, sizeof *lv->tmp);
+    return lv->s && lv->tmp ? 0 : -1;
+}
+
+static void level_free(pix_level *lv)
+{
+    free(lv->s);
+    free(lv->tmp);
+    lv->s = lv->tmp = NULL;
+}
+
+TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
+                                  const ts_pixel_params *params, ts_pixel_exemplars **out)
+{
+    ts_pixel_exemplars *ex;
+    int i, L, k, minside = 1 << 30;
+    ts__clear(ctx);
+    if (!out)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "no output given");
+    *out = NULL;
+    if (!exemplars || n < 1 || !params)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "no exemplars given");
+    if (ts_params_validate(ctx, "pixel", params) != TS_OK)
+        return ctx->status;
+    k = params->window;
+    if (k % 2 == 0)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "window must be odd, not %d", k);
+    for (i = 0; i < n; i++) {
+        if (!exemplars[i].data)
+            return ts__fail_input(ctx, TS_ERR_ARG, i, "pixel", "exemplar %d: no data", i + 1);
+        if (exemplars[i].width < minside)
+            minside = exemplars[i].width;
+        if (exemplars[i].height < minside)
+            minside = exemplars[i].height;
+    }
+    L = params->levels;
+    if (L == 0) { /* as many as leave a coarsest neighbourhood half the smallest exemplar */
+        L = 1;
+        while (L < 10 && (1 << (L + 1)) * (k - 1) + 1 <= minside / 2)
+            L++;
+    }
+    ex = calloc(1, sizeof *ex);
+    if (!ex || !(ex->stacks = calloc((size_t)n, sizeof *ex->stacks))) {
+        free(ex);
+        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
+    }
+    ex->n = n;
+    ex->levels = L;
+    ex->window = k;
+    for (i = 0; i < n; i++) {
+        int l;
+        if (ts__pix_stack_build(&exemplars[i], L, k, &ex->stacks[i]) != 0) {
+            ex->n = i;
+            ts_pixel_exemplars_free(ex);
+            return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the stacks");
+        }
+        for (l = 0; l <= L; l++)
+            if (ex->stacks[i].n_usable[l] == 0) {
+                ex->n = i + 1;
+                ts_pixel_exemplars_free(ex);
+                return ts__fail_input(ctx, TS_ERR_SIZE, i, "pixel",
+                                      "exemplar %d (%d x %d cells) has no valid %d x %d "
+                                      "neighbourhood at spacing %d: fewer levels or a larger "
+                                      "exemplar",
+                                      i + 1, exemplars[i].width, exemplars[i].height, k, k,
+                                      1 << (L - l));
+            }
+        if (ts__progress(ctx, (i + 1.0) / n, "stacks") != TS_OK) {
+            ex->n = i + 1;
+            ts_pixel_exemplars_free(ex);
+            return ctx->status;
+        }
+    }
+    *out = ex;
+    return TS_OK;
+}
+
+TS_API void ts_pixel_exemplars_free(ts_pixel_exemplars *ex)
+{
+    int i;
+    if (!ex)
+        return;
+    for (i = 0; i < ex->n; i++)
+        ts__pix_stack_free(&ex->stacks[i], ex->levels);
+    free(ex->stacks);
+    free(ex);
+}
+
+TS_API int ts_pixel_levels(const ts_pixel_exemplars *ex)
+{
+    return ex ? ex->levels : 0;
+}
+
+TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
+                                     const ts_pixel_params *params, int64_t x0, int64_t y0,
+                                     ts_raster *out)
+{
+    int L, k, r, l, pass, sub, x, y;
+    int64_t M;
+    pix_region need[12], pre[12];
+    pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL}, prev = cur;
+    static const int order[4][2] = {{0, 0}, {1, 1}, {1, 0}, {0, 1}};
+    uint64_t seed;
+    ts_status st = TS_OK;
+    ts__clear(ctx);
+    if (!ex || !params || !out || !out->data || out->width < 1 || out->height < 1)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "missing exemplars, parameters or output");
+    if (ts_params_validate(ctx, "pixel", params) != TS_OK)
+        return ctx->status;
+    if (params->window != ex->window || (params->levels && params->levels != ex->levels))
+        return ts__fail(ctx, TS_ERR_ARG, "pixel",
+                        "the stacks were prepared for window %d and %d levels", ex->window,
+                        ex->levels);
+    if (x0 < -((int64_t)1 << 40) || y0 < -((int64_t)1 << 40) || x0 > ((int64_t)1 << 40) ||
+        y0 > ((int64_t)1 << 40))
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "the window's origin is beyond 2^40 cells");
+    L = ex->levels;
+    k = ex->window;
+    r = k / 2;
+    seed = ctx->seed;
+    M = (int64_t)params->passes * 4 * r;
+    /* the regions each level computes, finest to coarsest */
+    need[L].x0 = x0;
+    need[L].y0 = y0;
+    need[L].x1 = x0 + out->width;
+    need[L].y1 = y0 + out->height;
+    for (l = L; l >= 0; l--) {
+        pre[l] = grow(need[l], M);
+        if (l > 0)
+            need[l - 1] = parent_cover(pre[l]);
+    }
+    for (l = 0; l <= L; l++) {
+        int hsp = 1 << (L - l);
+        if (level_alloc(&cur, pre[l]) != 0) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for level %d", l);
+            goto done;
+        }
+        /* initialise (level 0) or upsample and jitter */
+        for (y = 0; y < cur.h; y++)
+            for (x = 0; x < cur.w; x++) {
+                int64_t ax = cur.reg.x0 + x, ay = cur.reg.y0 + y;
+                pix_coord c;
+                if (l == 0) {
+                    c = random_coord(ex, 0, ts__pix_hash(ax, ay, 0, 0, seed));
+                } else {
+                    int64_t qx = floor_half(ax), qy = floor_half(ay);
+                    pix_coord j;
+                    uint64_t hh = ts__pix_hash(ax, ay, l, 1, seed);
+                    double ju = ((double)(hh & 0xffffff) / 16777215.0) * 2 - 1;
+                    double jv = ((double)((hh >> 24) & 0xffffff) / 16777215.0) * 2 - 1;
+                    c = prev.s[(size_t)(qy - prev.reg.y0) * prev.w + (size_t)(qx - prev.reg.x0)];
+                    c.u += (int32_t)((ax - 2 * qx) * hsp);
+                    c.v += (int32_t)((ay - 2 * qy) * hsp);
+                    j = c;
+                    j.u += (int32_t)lround(params->jitter * hsp * ju);
+                    j.v += (int32_t)lround(params->jitter * hsp * jv);
+                    if (usable(ex, l, j))
+                        c = j;
+                    else if (!usable(ex, l, c))
+                        c = random_coord(ex, l, ts__pix_hash(ax, ay, l, 2, seed));
+                }
+                cur.s[(size_t)y * cur.w + x] = c;
+            }
+        level_free(&prev);
+        /* correction */
+        for (pass = 0; pass < params->passes; pass++)
+            for (sub = 0; sub < 4; sub++) {
+                corr_job j = {ex, &cur, l, hsp, k, order[sub][0], order[sub][1], 0};
+                ts__parallel_for(ctx, (size_t)cur.h, correct_rows, &j);
+                if (j.fail) {
+                    st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
+                    goto done;
+                }
+                ts__parallel_for(ctx, (size_t)cur.h, commit_rows, &j);
+            }
+        if ((st = ts__check_cancel(ctx)) != TS_OK)
+            goto done;
+        if ((st = ts__progress(ctx, (l + 1.0) / (L + 1), "synthesis")) != TS_OK)
+            goto done;
+        prev = cur;
+        cur.s = cur.tmp = NULL;
+    }
+    /* the window: the finest level's heights */
+    for (y = 0; y < out->height; y++)
+        for (x = 0; x < out->width; x++) {
+            pix_coord c =
+                prev.s[(size_t)(y + (need[L].y0 - prev.reg.y0)) * prev.w + (size_t)(x + M)];
+            TS_PIX(out, x, y) = height_at(ex, L, c);
+        }
+done:
+    level_free(&cur);
+    level_free(&prev);
+    return st;
+}

@@ -1,0 +1,52 @@
+/*
+ * pixel.h - private to multiresolution pixel synthesis (Lefebvre and Hoppe
+ * 2005, as used for terrain by Cruz et al.): the exemplars' Gaussian stacks
+ * and the correction kernel its tests compare with a plain loop.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#ifndef TS_PIXEL_H
+#define TS_PIXEL_H
+
+#include "internal.h"
+
+/* One exemplar's Gaussian stack: levels 0..L, each the exemplar's size
+ * (level L the exemplar itself, level l blurred by a Gaussian of sigma
+ * 2^(L-l-1)), and per level the cells a coordinate may take (its k x k
+ * neighbourhood at the level's spacing inside the exemplar and valid). */
+typedef struct pix_stack {
+    int width, height;
+    float **level;          /* L + 1 rasters, width * height (NaN = nodata) */
+    unsigned char **usable; /* L + 1 masks */
+    int32_t **usable_list;  /* L + 1 lists of usable cell indices (y * width + x) */
+    size_t *n_usable;
+} pix_stack;
+
+struct ts_pixel_exemplars {
+    int n, levels, window;
+    pix_stack *stacks;
+};
+
+/* A coordinate of the synthesis: exemplar e, cell (u, v). */
+typedef struct pix_coord {
+    int32_t e, u, v;
+} pix_coord;
+
+/* Fill stack s for exemplar ex (levels 0..L, window k).  0, or -1 when out
+ * of memory. */
+int ts__pix_stack_build(const ts_raster *ex, int L, int k, pix_stack *s);
+void ts__pix_stack_free(pix_stack *s, int L);
+
+/* The Gaussian blur of a raster with sigma (NaN left out, weights
+ * renormalised; the kernel cut at 3 sigma, never wrapping). */
+int ts__pix_blur(const float *in, int w, int h, double sigma, float *out);
+
+/* The sum of squared differences between the target neighbourhood t (k*k
+ * values) and the k x k neighbourhood of (u, v) in `level` at spacing h. */
+double ts__pix_ssd(const float *level, int width, int u, int v, int k, int h, const float *t);
+
+/* A 64-bit hash of an absolute position, a level, a stream and the seed
+ * (SplitMix64 finaliser over the mixed words). */
+uint64_t ts__pix_hash(int64_t x, int64_t y, int level, int stream, uint64_t seed);
+
+#endif
