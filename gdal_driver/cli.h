@@ -41,6 +41,7 @@ void cli_set_progress(ts_ctx *ctx, progress_mode mode, int *state);
 int cli_ppa(int argc, char **argv);
 int cli_synth(int argc, char **argv);
 int cli_amplify(int argc, char **argv);
+int cli_pixel(int argc, char **argv);
 int cli_dictionary(int argc, char **argv);
 int cli_describe(int argc, char **argv);
 

@@ -156,6 +156,7 @@ static void main_help(FILE *out)
             "  synth      grow a new terrain from real DEMs, free or following a sketch\n"
             "  amplify    make a coarse DEM finer with the detail of real terrain\n"
             "  dictionary build an amplification dictionary once (build), or show one (info)\n"
+            "  pixel      grow a terrain cell by cell, coarse to fine (any window on its own)\n"
             "  describe   print every stage's parameters as JSON (for front ends)\n"
             "\n"
             "'terrasynth COMMAND --help' lists a command's options with defaults and units.\n"
@@ -187,6 +188,8 @@ int main(int argc, char **argv)
         rc = cli_synth(argc, argv);
     else if (!strcmp(argv[1], "amplify"))
         rc = cli_amplify(argc, argv);
+    else if (!strcmp(argv[1], "pixel"))
+        rc = cli_pixel(argc, argv);
     else if (!strcmp(argv[1], "dictionary"))
         rc = cli_dictionary(argc, argv);
     else if (!strcmp(argv[1], "describe"))

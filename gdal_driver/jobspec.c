@@ -261,6 +261,55 @@ static const tsj_rule dictionary_rules[] = {
      "a dictionary needs exemplars and the resolution"},
 };
 
+static const tsj_option pixel_opts[] = {
+    {"exemplar", TSJ_FILE, TSJOB_MAX_EXEMPLARS, 0, 0, "EX.tif", G_IN,
+     "a real DEM (any GDAL raster) whose style the terrain takes, resampled to the output's "
+     "ground resolution; repeatable",
+     "Exemplar", 0, NULL},
+    {"band", TSJ_INT, 1, 1, 65535, "N", G_IN, "band read from every input (default 1)", "Band", 0,
+     NULL},
+    {"cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
+     "ground size of a cell in metres of every raster without a CRS (a target grid without "
+     "one too); without it such rasters are used cell for cell",
+     "CellSize", 0, NULL},
+    {"like", TSJ_FILE, 1, 0, 0, "GRID.tif", G_GRID, "size, geotransform and CRS of a raster",
+     "Grid@like", 0, NULL},
+    {"size", TSJ_SIZE, 1, 1, 1048576, "WxH", G_GRID,
+     "size in cells; the grid takes the first exemplar's CRS, resolution and origin unless "
+     "origin, resolution and crs are given",
+     "Grid@width@height", 0, NULL},
+    {"origin", TSJ_XY, 1, 0, 0, "X,Y", G_GRID, "top-left corner in CRS units (with size)",
+     "Grid@originX@originY", 0, NULL},
+    {"resolution", TSJ_NUMBER, 1, 1e-12, 1e12, "R", G_GRID, "cell size in CRS units (with size)",
+     "Grid@resolution", 0, NULL},
+    {"crs", TSJ_TEXT, 1, 0, 0, "CRS", G_GRID,
+     "EPSG:code, WKT or PROJ string (with size, origin and resolution)", "Grid@crs", 0, NULL},
+    {"seed", TSJ_SEED, 1, 0, 0, "S", G_RUN,
+     "random seed (default 0); same inputs and seed give the same bytes", "@seed", 0, NULL},
+    {"output", TSJ_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
+     "the terrain: a Float32 DEM on the target grid, nodata -9999", NULL, 1, NULL},
+    {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0, NULL},
+    {"recipe", TSJ_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,
+     "write a recipe for this job instead of running it: gdal_translate FILE.tsyn out.tif", NULL, 0,
+     NULL},
+};
+
+static const tsj_rule pixel_rules[] = {
+    {TSJ_EXCLUDES,
+     "like",
+     {"size", "origin", "resolution", "crs", NULL},
+     "like sets the output grid: give no %s"},
+    {TSJ_ONE_OF, "like", {"size", NULL}, "give the target grid: like or size"},
+    {TSJ_REQUIRES, "crs", {"origin", "resolution", NULL}, "a CRS needs an origin and a resolution"},
+    {TSJ_REQUIRES, "origin", {"size", NULL}, "origin goes with size"},
+    {TSJ_REQUIRES, "resolution", {"size", NULL}, "resolution goes with size"},
+    {TSJ_EXCLUDES,
+     "recipe",
+     {"output", "preview", NULL},
+     "recipe writes the recipe instead of running the job: give no %s"},
+    {TSJ_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
+};
+
 static const tsj_job jobs[] = {
     {"ppa",
      ppa_opts,
@@ -290,6 +339,13 @@ static const tsj_job jobs[] = {
      sizeof dictionary_rules / sizeof dictionary_rules[0],
      {"amplify", NULL, NULL},
      "Dictionary"},
+    {"pixel",
+     pixel_opts,
+     sizeof pixel_opts / sizeof pixel_opts[0],
+     pixel_rules,
+     sizeof pixel_rules / sizeof pixel_rules[0],
+     {"pixel", NULL, NULL},
+     "Pixel"},
 };
 
 const tsj_job *tsj_find(const char *name)
@@ -955,6 +1011,55 @@ int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len)
         job->band = atoi(s);
     if ((s = tsj_get(v, "cell_size", 0)))
         job->cell_size = atof(s);
+    return 0;
+}
+
+/* The target grid options (like, size, origin, resolution, crs). */
+static void build_grid(tsj_values *v, tsjob_grid *g)
+{
+    const char *s;
+    double x, y;
+    g->like = tsj_get(v, "like", 0);
+    if ((s = tsj_get(v, "size", 0)) && !parse_pair(s, 'x', &x, &y)) {
+        g->width = (int)x;
+        g->height = (int)y;
+    }
+    if ((s = tsj_get(v, "origin", 0)) && !parse_pair(s, ',', &x, &y)) {
+        g->origin_x = x;
+        g->origin_y = y;
+        g->has_origin = 1;
+    }
+    if ((s = tsj_get(v, "resolution", 0))) {
+        g->res = atof(s);
+        g->has_res = 1;
+    }
+    g->crs = tsj_get(v, "crs", 0);
+}
+
+int tsj_build_pixel(tsj_values *v, tsjob_pixel *job, uint64_t *seed, char *msg, size_t len)
+{
+    const char *s;
+    int i;
+    memset(job, 0, sizeof *job);
+    job->params = ts_pixel_params_default();
+    job->band = 1;
+    *seed = 0;
+    if (check_values(v, msg, len) || check_rules(v, v->cli, msg, len) ||
+        apply_params(v, "pixel", &job->params, msg, len))
+        return -1;
+    for (i = 0; (s = tsj_get(v, "exemplar", i)); i++)
+        job->exemplars[job->n_exemplars++] = s;
+    if (!job->n_exemplars) {
+        msgf(msg, len, "needs at least one exemplar");
+        return -1;
+    }
+    if ((s = tsj_get(v, "band", 0)))
+        job->band = atoi(s);
+    if ((s = tsj_get(v, "cell_size", 0)))
+        job->cell_size = atof(s);
+    build_grid(v, &job->grid);
+    if ((s = tsj_get(v, "seed", 0)))
+        *seed = strtoull(s, NULL, 10);
     return 0;
 }
 

@@ -130,6 +130,7 @@ const char *tsj_get(const tsj_values *v, const char *name, int k);
 int tsj_build_synth(tsj_values *v, tsjob_synth *job, uint64_t *seed, char *msg, size_t len);
 int tsj_build_ppa(tsj_values *v, tsjob_ppa *job, char *msg, size_t len);
 int tsj_build_amplify(tsj_values *v, tsjob_amplify *job, char *msg, size_t len);
+int tsj_build_pixel(tsj_values *v, tsjob_pixel *job, uint64_t *seed, char *msg, size_t len);
 
 /* Command line.  Parse argv[first..argc) into v: flags of the options
  * (--name VALUE or --name=VALUE), of the stage parameters, and positional

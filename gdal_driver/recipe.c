@@ -53,6 +53,8 @@ struct ts_recipe {
     tsjob_synth_result synth_res;
     tsjob_amplify amplify;
     tsjob_amplify_result amplify_res;
+    tsjob_pixel pixel;
+    tsjob_pixel_result pixel_res;
     int map; /* synth: -1 the terrain, else the TSJOB_MAP_* served (open option MAP) */
     char layer[TS_LAYER_NAME]; /* amplify: the carried layer or "classes" served (LAYER), or "" */
     int computed;
@@ -197,6 +199,7 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
     char msg[1024];
     tsj_values_init(&r->values, tsj_find(r->method == RECIPE_PPA     ? "ppa"
                                          : r->method == RECIPE_SYNTH ? "synth"
+                                         : r->method == RECIPE_PIXEL ? "pixel"
                                                                      : "amplify"));
     if (tsj_from_xml(&r->values, node, recipe_resolve, r, msg, sizeof msg) != 0) {
         tsio_errf(err, r->path, "%s", msg);
@@ -213,6 +216,18 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
         if (tsio_read_georef(r->ppa.input, &r->geo, err) != 0)
             return -1;
         return tsjob_ppa_check_memory(&r->geo, r->ppa.input, err);
+    }
+    if (r->method == RECIPE_PIXEL) {
+        if (tsj_build_pixel(&r->values, &r->pixel, &r->seed, msg, sizeof msg) != 0) {
+            tsio_errf(err, r->path, "%s", msg);
+            return -1;
+        }
+        if (r->pixel.grid.crs && tsio_crs_offline(r->pixel.grid.crs, err) != 0) {
+            tsio_errf(err, r->path, "%s", err->msg);
+            return -1;
+        }
+        r->pixel.lazy = 1; /* computed block by block: recipe_read_window */
+        return tsjob_pixel_prepare(&r->pixel, &r->pixel_res, err);
     }
     if (r->method == RECIPE_AMPLIFY) {
         if (tsj_build_amplify(&r->values, &r->amplify, msg, sizeof msg) != 0) {
@@ -451,12 +466,18 @@ int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_e
         const tsj_job *job = tsj_find_element(top, &cn);
         node = (CPLXMLNode *)cn;
         if (job) {
-            r->method = !strcmp(job->name, "ppa")     ? RECIPE_PPA
-                        : !strcmp(job->name, "synth") ? RECIPE_SYNTH
-                                                      : RECIPE_AMPLIFY;
-            rc = recipe_job(r, node, oo, err);
+            r->method = !strcmp(job->name, "ppa")       ? RECIPE_PPA
+                        : !strcmp(job->name, "synth")   ? RECIPE_SYNTH
+                        : !strcmp(job->name, "pixel")   ? RECIPE_PIXEL
+                        : !strcmp(job->name, "amplify") ? RECIPE_AMPLIFY
+                                                        : 0;
+            if (r->method)
+                rc = recipe_job(r, node, oo, err);
+            else
+                tsio_errf(err, path, "<%s> is not a job a recipe runs", job->element);
         } else {
-            tsio_errf(err, path, "<TerraSynth> needs a <PPA>, a <Synth> or an <Amplify> element");
+            tsio_errf(err, path,
+                      "<TerraSynth> needs a <PPA>, a <Synth>, an <Amplify> or a <Pixel> element");
         }
     }
     recipe_depth--;
@@ -477,6 +498,7 @@ void recipe_free(ts_recipe *r)
     tsjob_ppa_result_free(&r->ppa_res);
     tsjob_synth_result_free(&r->synth_res);
     tsjob_amplify_result_free(&r->amplify_res);
+    tsjob_pixel_result_free(&r->pixel_res);
     tsio_georef_free(&r->geo);
     tsj_values_free(&r->values);
     CSLDestroy(r->strings);
@@ -488,6 +510,8 @@ const tsio_georef *recipe_georef(const ts_recipe *r)
 {
     if (r->method == RECIPE_AMPLIFY)
         return &r->amplify_res.geo;
+    if (r->method == RECIPE_PIXEL)
+        return &r->pixel_res.geo;
     return r->method == RECIPE_PPA ? &r->geo : &r->synth_res.geo;
 }
 
@@ -534,6 +558,11 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
             CPLError(CE_Warning, CPLE_AppDefined, "%s", r->ppa_res.warning.msg);
         if (rc == 0)
             rc = tsjob_ppa_compute(ctx, &r->ppa, &r->ppa_res, err);
+    } else if (r->method == RECIPE_PIXEL) {
+        /* the stacks every block shares; the blocks themselves: recipe_read_window */
+        rc = tsjob_pixel_setup(ctx, &r->pixel, &r->pixel_res, err);
+        if (rc == 0 && r->pixel_res.warning.msg[0])
+            CPLError(CE_Warning, CPLE_AppDefined, "%s", r->pixel_res.warning.msg);
     } else if (r->method == RECIPE_AMPLIFY) {
         /* what every block shares; the blocks themselves: recipe_read_window */
         rc = tsjob_amplify_setup(ctx, &r->amplify, &r->amplify_res, err);
@@ -563,7 +592,7 @@ const void *recipe_data(const ts_recipe *r)
         return NULL;
     if (r->method == RECIPE_PPA)
         return r->ppa_res.codes;
-    if (r->method == RECIPE_AMPLIFY)
+    if (r->method == RECIPE_AMPLIFY || r->method == RECIPE_PIXEL)
         return NULL; /* lazy: recipe_read_window */
     if (r->map == TSJOB_MAP_SEAMS)
         return r->synth_res.maps.seams;
@@ -574,7 +603,7 @@ const void *recipe_data(const ts_recipe *r)
 
 int recipe_lazy(const ts_recipe *r)
 {
-    return r->method == RECIPE_AMPLIFY;
+    return r->method == RECIPE_AMPLIFY || r->method == RECIPE_PIXEL;
 }
 
 int recipe_read_window(const ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err)
@@ -582,7 +611,7 @@ int recipe_read_window(const ts_recipe *r, int x0, int y0, int w, int h, float *
     ts_ctx *ctx;
     size_t i, n = (size_t)w * (size_t)h;
     int rc;
-    if (!r->computed || r->method != RECIPE_AMPLIFY) {
+    if (!r->computed || (r->method != RECIPE_AMPLIFY && r->method != RECIPE_PIXEL)) {
         tsio_errf(err, r->path, "not computed");
         return -1;
     }
@@ -590,6 +619,12 @@ int recipe_read_window(const ts_recipe *r, int x0, int y0, int w, int h, float *
     if (!ctx) {
         tsio_errf(err, r->path, "out of memory");
         return -1;
+    }
+    if (r->method == RECIPE_PIXEL) {
+        ts_ctx_set_seed(ctx, r->seed);
+        rc = tsjob_pixel_window(ctx, &r->pixel, &r->pixel_res, x0, y0, w, h, out, err);
+        ts_ctx_free(ctx);
+        return rc;
     }
     rc = tsjob_amplify_window(ctx, &r->amplify, &r->amplify_res, x0, y0, w, h,
                               !strcmp(r->layer, "classes") ? TSJOB_SERVE_CLASSES
@@ -695,10 +730,10 @@ static CPLXMLNode *option_add(CPLXMLNode *list, const char *name, const char *ty
 char *recipe_open_option_list(void)
 {
     CPLXMLNode *list = CPLCreateXMLNode(NULL, CXT_Element, "OpenOptionList");
-    const char *jobs[3] = {"ppa", "synth", "amplify"};
+    const char *jobs[4] = {"ppa", "synth", "amplify", "pixel"};
     char *out, *xml;
     int j, s;
-    for (j = 0; j < 3; j++) {
+    for (j = 0; j < 4; j++) {
         const tsj_job *job = tsj_find(jobs[j]);
         size_t k;
         /* the stages' parameters, as GDAL drivers declare them */

@@ -18,7 +18,7 @@
 extern "C" {
 #endif
 
-enum { RECIPE_PPA = 1, RECIPE_SYNTH = 2, RECIPE_AMPLIFY = 3 };
+enum { RECIPE_PPA = 1, RECIPE_SYNTH = 2, RECIPE_AMPLIFY = 3, RECIPE_PIXEL = 4 };
 
 typedef struct ts_recipe ts_recipe;
 

@@ -162,6 +162,59 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
 
 /* The job's rules live in jobspec.c (tsj_build_synth), which every front end
  * goes through; here only the guard that a job came that way. */
+/* The ground metrics of a grid (NULL without CRS unless cell_size > 0:
+ * then every cell is cell_size metres). */
+static int job_grid_metrics(const tsio_georef *geo, double cell_size, double **dx, double **dy,
+                            tsio_err *err)
+{
+    int y;
+    if (tsio_georef_metrics(geo, dx, dy, err) != 0)
+        return -1;
+    if (*dx || !(cell_size > 0))
+        return 0;
+    *dx = malloc((size_t)geo->height * sizeof **dx);
+    *dy = malloc((size_t)geo->height * sizeof **dy);
+    if (!*dx || !*dy) {
+        free(*dx);
+        free(*dy);
+        *dx = *dy = NULL;
+        tsio_errf(err, "grid", "out of memory");
+        return -1;
+    }
+    for (y = 0; y < geo->height; y++)
+        (*dx)[y] = (*dy)[y] = cell_size;
+    return 0;
+}
+
+/* The target grid of a job (like; size with origin, resolution and CRS, or
+ * the first exemplar's), and its ground metrics. */
+static int job_target_grid(const tsjob_grid *g, const char *first_exemplar, double cell_size,
+                           tsio_georef *geo, double **dx, double **dy, tsio_err *err)
+{
+    if (g->like) {
+        if (tsio_read_georef(g->like, geo, err) != 0)
+            return -1;
+    } else if (g->crs) {
+        if (tsio_georef_make(g->width, g->height, g->origin_x, g->origin_y, g->res, g->res, g->crs,
+                             geo, err) != 0)
+            return -1;
+    } else {
+        /* the first exemplar's CRS, resolution and origin unless given */
+        tsio_georef g0;
+        int rc;
+        if (tsio_read_georef(first_exemplar, &g0, err) != 0)
+            return -1;
+        rc = tsio_georef_make(g->width, g->height, g->has_origin ? g->origin_x : g0.gt[0],
+                              g->has_origin ? g->origin_y : g0.gt[3],
+                              g->has_res ? g->res : fabs(g0.gt[1]),
+                              g->has_res ? g->res : fabs(g0.gt[5]), g0.wkt, geo, err);
+        tsio_georef_free(&g0);
+        if (rc != 0)
+            return -1;
+    }
+    return job_grid_metrics(geo, cell_size, dx, dy, err);
+}
+
 static int job_synth_built(const tsjob_synth *job)
 {
     const tsjob_grid *g = &job->grid;
@@ -193,43 +246,14 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
     if (job->sketch) {
         if (tsio_read_georef(job->sketch, &res->geo, err) != 0)
             return -1;
-    } else if (g->like) {
-        if (tsio_read_georef(g->like, &res->geo, err) != 0)
-            return -1;
-    } else if (g->crs) {
-        if (tsio_georef_make(g->width, g->height, g->origin_x, g->origin_y, g->res, g->res, g->crs,
-                             &res->geo, err) != 0)
-            return -1;
-    } else {
-        /* the first exemplar's CRS, resolution and origin unless given */
-        tsio_georef g0;
-        int rc;
-        if (tsio_read_georef(job->exemplars[0], &g0, err) != 0)
-            return -1;
-        rc = tsio_georef_make(g->width, g->height, g->has_origin ? g->origin_x : g0.gt[0],
-                              g->has_origin ? g->origin_y : g0.gt[3],
-                              g->has_res ? g->res : fabs(g0.gt[1]),
-                              g->has_res ? g->res : fabs(g0.gt[5]), g0.wkt, &res->geo, err);
-        tsio_georef_free(&g0);
-        if (rc != 0)
-            return -1;
-    }
-    if (tsio_georef_metrics(&res->geo, &res->dx_m, &res->dy_m, err) != 0) {
-        tsjob_synth_result_free(res);
-        return -1;
-    }
-    if (!res->dx_m && job->cell_size > 0) {
-        /* a target grid without CRS: its cells are cell_size metres */
-        int y;
-        res->dx_m = malloc((size_t)res->geo.height * sizeof *res->dx_m);
-        res->dy_m = malloc((size_t)res->geo.height * sizeof *res->dy_m);
-        if (!res->dx_m || !res->dy_m) {
-            tsio_errf(err, "synth", "out of memory");
+        if (job_grid_metrics(&res->geo, job->cell_size, &res->dx_m, &res->dy_m, err) != 0) {
             tsjob_synth_result_free(res);
             return -1;
         }
-        for (y = 0; y < res->geo.height; y++)
-            res->dx_m[y] = res->dy_m[y] = job->cell_size;
+    } else if (job_target_grid(g, job->exemplars[0], job->cell_size, &res->geo, &res->dx_m,
+                               &res->dy_m, err) != 0) {
+        tsjob_synth_result_free(res);
+        return -1;
     }
     if (res->dx_m) {
         res->mstore.dx = res->dx_m;
@@ -1582,6 +1606,189 @@ int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjo
         free(dx);
         free(dy);
         if (rc != 0)
+            return -1;
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------ */
+/* pixel                                                               */
+/* ------------------------------------------------------------------ */
+
+int tsjob_pixel_prepare(const tsjob_pixel *job, tsjob_pixel_result *res, tsio_err *err)
+{
+    uint64_t need, cells;
+    int i, L = job->params.levels ? job->params.levels : 10;
+    double out_area = 0;
+    memset(res, 0, sizeof *res);
+    if (job_target_grid(&job->grid, job->exemplars[0], job->cell_size, &res->geo, &res->dx_m,
+                        &res->dy_m, err) != 0) {
+        tsjob_pixel_result_free(res);
+        return -1;
+    }
+    cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
+    /* the output (none when served window by window), the levels' coordinates over a
+     * window with its margins, and each exemplar's stack at the grid's resolution */
+    need = JOB_MEM_BASE + (job->lazy ? 0 : cells * 4) +
+           (uint64_t)(job->lazy ? 300 * 300 : (cells < 4096 * 4096 ? cells : 4096 * 4096)) * 40;
+    if (res->dx_m)
+        out_area = res->dx_m[0] * res->dy_m[0];
+    for (i = 0; i < job->n_exemplars; i++) {
+        tsio_georef e;
+        double *ex = NULL, *ey = NULL, ratio = 1.0;
+        uint64_t src, tgt;
+        if (tsio_read_georef(job->exemplars[i], &e, err) != 0) {
+            tsjob_pixel_result_free(res);
+            return -1;
+        }
+        src = (uint64_t)e.width * (uint64_t)e.height;
+        if (out_area > 0 && tsio_georef_metrics(&e, &ex, &ey, err) == 0 && ex)
+            ratio = ex[e.height / 2] * ey[e.height / 2] / out_area;
+        free(ex);
+        free(ey);
+        tsio_georef_free(&e);
+        tgt = (uint64_t)((double)src * ratio + 1.0);
+        need += src * JOB_MEM_EX_SOURCE_CELL + tgt * (uint64_t)(L + 1) * 12;
+    }
+    if (tsio_check_memory(need, "pixel", "a smaller grid, fewer levels or smaller exemplars",
+                          err) != 0) {
+        tsjob_pixel_result_free(res);
+        return -1;
+    }
+    return 0;
+}
+
+int tsjob_pixel_setup(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *res, tsio_err *err)
+{
+    tsio_raster ex[TSJOB_MAX_EXEMPLARS];
+    ts_raster exr[TSJOB_MAX_EXEMPLARS];
+    int i, rc = -1;
+    /* the ground size of the grid's top row: a terrain whose cells do not depend on how far
+     * the grid goes down (a geographic grid's cells shrink towards the pole) */
+    double dx = res->dx_m ? res->dx_m[0] : 0, dy = res->dy_m ? res->dy_m[0] : 0;
+    struct timespec t0, t1;
+    memset(ex, 0, sizeof ex);
+    for (i = 0; i < job->n_exemplars; i++) {
+        double f = 1.0;
+        if (tsio_read_raster_resampled(job->exemplars[i], job->band, dx, dy, job->cell_size, &ex[i],
+                                       &f, err) != 0)
+            goto done;
+        job_warn_sentinels(&res->warning, job->exemplars[i], &ex[i]);
+        if (dx > 0 && !ex[i].dx_m && !res->exemplar_no_crs)
+            res->exemplar_no_crs = i + 1;
+        exr[i] = ex[i].r;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    if (ts_pixel_prepare(ctx, exr, job->n_exemplars, &job->params, &res->stacks) != TS_OK) {
+        int bad = ts_ctx_failed_input(ctx);
+        tsio_errf(err, bad >= 0 && bad < job->n_exemplars ? job->exemplars[bad] : "pixel", "%s",
+                  ts_ctx_message(ctx));
+        goto done;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    res->seconds_stacks =
+        (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    rc = 0;
+done:
+    for (i = 0; i < job->n_exemplars; i++)
+        tsio_raster_free(&ex[i]);
+    return rc;
+}
+
+int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res, int x0,
+                       int y0, int w, int h, float *out, tsio_err *err)
+{
+    ts_raster o = ts_raster_wrap(out, w, h, w);
+    if (ts_pixel_synthesize(ctx, res->stacks, &job->params, x0, y0, &o) != TS_OK) {
+        tsio_errf(err, job->exemplars[0], "%s", ts_ctx_message(ctx));
+        return -1;
+    }
+    return 0;
+}
+
+int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *res, tsio_err *err)
+{
+    job_progress jp;
+    struct timespec t0, t1;
+    int rc = -1;
+    ts_ctx_get_progress(ctx, &jp.fn, &jp.user);
+    job_progress_range(ctx, &jp, 0.0, 0.1);
+    if (tsjob_pixel_setup(ctx, job, res, err) != 0)
+        goto done;
+    if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
+        tsio_errf(err, "pixel", "%s", ts_ctx_message(ctx));
+        goto done;
+    }
+    job_progress_range(ctx, &jp, 0.1, 1.0);
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    if (tsjob_pixel_window(ctx, job, res, 0, 0, res->geo.width, res->geo.height, res->out.data,
+                           err) != 0)
+        goto done;
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    res->seconds_synthesis =
+        (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    rc = 0;
+done:
+    ts_ctx_set_progress(ctx, jp.fn, jp.user);
+    return rc;
+}
+
+void tsjob_pixel_result_free(tsjob_pixel_result *res)
+{
+    ts_pixel_exemplars_free(res->stacks);
+    tsio_georef_free(&res->geo);
+    free(res->dx_m);
+    free(res->dy_m);
+    ts_raster_free(&res->out);
+    memset(res, 0, sizeof *res);
+}
+
+int tsjob_pixel_check_recipe(const tsjob_pixel *job, const char *recipe, tsio_err *err)
+{
+    const char *in[TSJOB_MAX_EXEMPLARS + 1];
+    int n = 0, i;
+    for (i = 0; i < job->n_exemplars; i++)
+        in[n++] = job->exemplars[i];
+    in[n++] = job->grid.like;
+    return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
+}
+
+int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *res,
+                              const tsjob_outputs *o, tsio_err *err)
+{
+    const char *in[TSJOB_MAX_EXEMPLARS + 1], *outs[2] = {o->output, o->preview};
+    int n = 0, i;
+    float probe = 0;
+    ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
+    unsigned char bp = 0;
+    tsio_write_opts wo = {o->format, o->create_options, 1};
+    tsio_write_opts png = {"PNG", NULL, 1};
+    tsio_georef g1 = res->geo;
+    for (i = 0; i < job->n_exemplars; i++)
+        in[n++] = job->exemplars[i];
+    in[n++] = job->grid.like;
+    g1.width = g1.height = 1;
+    if (job_not_an_input(o->output, in, n, err) || job_not_an_input(o->preview, in, n, err) ||
+        job_distinct(outs, 2, err))
+        return -1;
+    if (tsio_write_float(o->output, &wo, &g1, &pr, -9999.0, err) != 0 ||
+        (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
+        return -1;
+    return 0;
+}
+
+int tsjob_pixel_write(ts_ctx *ctx, const tsjob_pixel_result *res, const tsjob_outputs *o,
+                      tsio_err *err)
+{
+    tsio_write_opts wo = {o->format, o->create_options, 0};
+    if (tsio_write_float(o->output, &wo, &res->geo, &res->out, -9999.0, err) != 0)
+        return -1;
+    if (o->preview) {
+        ts_grid_metrics m;
+        m.dx = res->dx_m;
+        m.dy = res->dy_m;
+        if (job_preview(ctx, o->preview, &res->out, &res->geo, res->dx_m ? &m : NULL, NULL, err) !=
+            0)
             return -1;
     }
     return 0;

@@ -257,6 +257,48 @@ int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_re
 int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjob_outputs *o,
                         tsio_err *err);
 
+/* ------------------------------------------------------------------ */
+/* pixel                                                               */
+/* ------------------------------------------------------------------ */
+
+typedef struct tsjob_pixel {
+    const char *exemplars[TSJOB_MAX_EXEMPLARS];
+    int n_exemplars;
+    int band;
+    double cell_size;
+    tsjob_grid grid;
+    ts_pixel_params params;
+    int lazy; /* served window by window (the driver): no whole output */
+} tsjob_pixel;
+
+typedef struct tsjob_pixel_result {
+    tsio_georef geo; /* the target grid */
+    double *dx_m, *dy_m;
+    ts_pixel_exemplars *stacks; /* after setup (owned) */
+    ts_raster out;              /* the terrain (owned) */
+    double seconds_stacks, seconds_synthesis;
+    int exemplar_no_crs;
+    tsio_err warning;
+} tsjob_pixel_result;
+
+/** Resolve the target grid, estimate the memory. */
+int tsjob_pixel_prepare(const tsjob_pixel *job, tsjob_pixel_result *res, tsio_err *err);
+/** Read the exemplars at the grid's ground resolution and build their stacks. */
+int tsjob_pixel_setup(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *res, tsio_err *err);
+/** After setup: cells [x0, x0+w) x [y0, y0+h) of the grid into out (the seed
+ *  is the context's), the same bytes as that window of the whole. */
+int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res, int x0,
+                       int y0, int w, int h, float *out, tsio_err *err);
+/** Setup, then the whole grid into res->out. */
+int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *res,
+                        tsio_err *err);
+void tsjob_pixel_result_free(tsjob_pixel_result *res);
+int tsjob_pixel_check_recipe(const tsjob_pixel *job, const char *recipe, tsio_err *err);
+int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *res,
+                              const tsjob_outputs *o, tsio_err *err);
+int tsjob_pixel_write(ts_ctx *ctx, const tsjob_pixel_result *res, const tsjob_outputs *o,
+                      tsio_err *err);
+
 #ifdef __cplusplus
 }
 #endif

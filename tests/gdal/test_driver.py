@@ -194,7 +194,7 @@ def test_relative_and_vsimem_recipes(tmp_path):
         ("<TerraSynth version='1'><PPA><Input>dem.tif</Input>", "XML"),
         ("<Other/>", "root element"),
         ("<TerraSynth version='9'><PPA/></TerraSynth>", "version"),
-        ("<TerraSynth version='1'/>", "<PPA>, a <Synth> or an <Amplify>"),
+        ("<TerraSynth version='1'/>", "<PPA>, a <Synth>, an <Amplify> or a <Pixel>"),
         ("<TerraSynth version='1'><PPA/></TerraSynth>", "input"),
         ("<TerraSynth version='1'><PPA><Input>missing.tif</Input></PPA></TerraSynth>", "no such file"),
         ("<TerraSynth version='1'><PPA><Input>dem.tif</Input><Param name='profile_length'>abc</Param></PPA></TerraSynth>",
