@@ -272,6 +272,10 @@ static const tsj_option pixel_opts[] = {
      "ground size of a cell in metres of every raster without a CRS (a target grid without "
      "one too); without it such rasters are used cell for cell",
      "CellSize", 0, NULL},
+    {"guide", TSJ_FILE, 1, 0, 0, "G.tif", G_GRID,
+     "a DEM in the exemplars' units (a sketch, a synth output, a coarse real DEM) that the "
+     "terrain follows at every level; its grid is the output's",
+     "Guide", 0, NULL},
     {"like", TSJ_FILE, 1, 0, 0, "GRID.tif", G_GRID, "size, geotransform and CRS of a raster",
      "Grid@like", 0, NULL},
     {"size", TSJ_SIZE, 1, 1, 1048576, "WxH", G_GRID,
@@ -296,10 +300,15 @@ static const tsj_option pixel_opts[] = {
 
 static const tsj_rule pixel_rules[] = {
     {TSJ_EXCLUDES,
+     "guide",
+     {"like", "size", "origin", "resolution", "crs", NULL},
+     "a guide sets the output grid: give no %s"},
+    {TSJ_EXCLUDES,
      "like",
      {"size", "origin", "resolution", "crs", NULL},
      "like sets the output grid: give no %s"},
-    {TSJ_ONE_OF, "like", {"size", NULL}, "give the target grid: like or size"},
+    {TSJ_ONE_OF, "guide", {"like", "size", NULL}, "give the target grid: a guide, like or size"},
+    {TSJ_REQUIRES, "guide_weight", {"guide", NULL}, "guide_weight weighs a guide: give guide"},
     {TSJ_REQUIRES, "crs", {"origin", "resolution", NULL}, "a CRS needs an origin and a resolution"},
     {TSJ_REQUIRES, "origin", {"size", NULL}, "origin goes with size"},
     {TSJ_REQUIRES, "resolution", {"size", NULL}, "resolution goes with size"},
@@ -1058,6 +1067,7 @@ int tsj_build_pixel(tsj_values *v, tsjob_pixel *job, uint64_t *seed, char *msg, 
     if ((s = tsj_get(v, "cell_size", 0)))
         job->cell_size = atof(s);
     build_grid(v, &job->grid);
+    job->guide = tsj_get(v, "guide", 0);
     if ((s = tsj_get(v, "seed", 0)))
         *seed = strtoull(s, NULL, 10);
     return 0;

@@ -1617,20 +1617,25 @@ int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjo
 
 int tsjob_pixel_prepare(const tsjob_pixel *job, tsjob_pixel_result *res, tsio_err *err)
 {
-    uint64_t need, cells;
+    uint64_t need, cells, need_guide = 0;
     int i, L = job->params.levels ? job->params.levels : 10;
     double out_area = 0;
     memset(res, 0, sizeof *res);
-    if (job_target_grid(&job->grid, job->exemplars[0], job->cell_size, &res->geo, &res->dx_m,
-                        &res->dy_m, err) != 0) {
+    if (job->guide ? tsio_read_georef(job->guide, &res->geo, err) != 0 ||
+                         job_grid_metrics(&res->geo, job->cell_size, &res->dx_m, &res->dy_m, err)
+                   : job_target_grid(&job->grid, job->exemplars[0], job->cell_size, &res->geo,
+                                     &res->dx_m, &res->dy_m, err) != 0) {
         tsjob_pixel_result_free(res);
         return -1;
     }
     cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
+    if (job->guide) /* as read, and its stack */
+        need_guide = cells * 4 * (uint64_t)(L + 3);
     /* the output (none when served window by window), the levels' coordinates over a
      * window with its margins, and each exemplar's stack at the grid's resolution */
     need = JOB_MEM_BASE + (job->lazy ? 0 : cells * 4) +
-           (uint64_t)(job->lazy ? 300 * 300 : (cells < 4096 * 4096 ? cells : 4096 * 4096)) * 40;
+           (uint64_t)(job->lazy ? 300 * 300 : (cells < 4096 * 4096 ? cells : 4096 * 4096)) * 40 +
+           need_guide;
     if (res->dx_m)
         out_area = res->dx_m[0] * res->dy_m[0];
     for (i = 0; i < job->n_exemplars; i++) {
@@ -1685,6 +1690,24 @@ int tsjob_pixel_setup(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *r
                   ts_ctx_message(ctx));
         goto done;
     }
+    if (job->guide) {
+        tsio_raster g;
+        ts_status st;
+        if (tsio_read_dem(job->guide, 1, &g, err) != 0)
+            goto done;
+        job_warn_sentinels(&res->warning, job->guide, &g);
+        if (g.geo.width != res->geo.width || g.geo.height != res->geo.height) {
+            tsio_errf(err, job->guide, "changed size since the job was prepared");
+            tsio_raster_free(&g);
+            goto done;
+        }
+        st = ts_pixel_guide_prepare(ctx, &g.r, res->stacks, &res->guide);
+        tsio_raster_free(&g);
+        if (st != TS_OK) {
+            tsio_errf(err, job->guide, "%s", ts_ctx_message(ctx));
+            goto done;
+        }
+    }
     clock_gettime(CLOCK_MONOTONIC, &t1);
     res->seconds_stacks =
         (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
@@ -1699,7 +1722,9 @@ int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_re
                        int y0, int w, int h, float *out, tsio_err *err)
 {
     ts_raster o = ts_raster_wrap(out, w, h, w);
-    if (ts_pixel_synthesize(ctx, res->stacks, &job->params, x0, y0, &o) != TS_OK) {
+    if ((res->guide
+             ? ts_pixel_synthesize_guided(ctx, res->stacks, res->guide, &job->params, x0, y0, &o)
+             : ts_pixel_synthesize(ctx, res->stacks, &job->params, x0, y0, &o)) != TS_OK) {
         tsio_errf(err, job->exemplars[0], "%s", ts_ctx_message(ctx));
         return -1;
     }
@@ -1735,6 +1760,7 @@ done:
 
 void tsjob_pixel_result_free(tsjob_pixel_result *res)
 {
+    ts_pixel_guide_free(res->guide);
     ts_pixel_exemplars_free(res->stacks);
     tsio_georef_free(&res->geo);
     free(res->dx_m);
@@ -1745,18 +1771,19 @@ void tsjob_pixel_result_free(tsjob_pixel_result *res)
 
 int tsjob_pixel_check_recipe(const tsjob_pixel *job, const char *recipe, tsio_err *err)
 {
-    const char *in[TSJOB_MAX_EXEMPLARS + 1];
+    const char *in[TSJOB_MAX_EXEMPLARS + 2];
     int n = 0, i;
     for (i = 0; i < job->n_exemplars; i++)
         in[n++] = job->exemplars[i];
     in[n++] = job->grid.like;
+    in[n++] = job->guide;
     return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
 }
 
 int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *res,
                               const tsjob_outputs *o, tsio_err *err)
 {
-    const char *in[TSJOB_MAX_EXEMPLARS + 1], *outs[2] = {o->output, o->preview};
+    const char *in[TSJOB_MAX_EXEMPLARS + 2], *outs[2] = {o->output, o->preview};
     int n = 0, i;
     float probe = 0;
     ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
@@ -1767,6 +1794,7 @@ int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *
     for (i = 0; i < job->n_exemplars; i++)
         in[n++] = job->exemplars[i];
     in[n++] = job->grid.like;
+    in[n++] = job->guide;
     g1.width = g1.height = 1;
     if (job_not_an_input(o->output, in, n, err) || job_not_an_input(o->preview, in, n, err) ||
         job_distinct(outs, 2, err))

@@ -267,6 +267,7 @@ typedef struct tsjob_pixel {
     int band;
     double cell_size;
     tsjob_grid grid;
+    const char *guide; /* a DEM on the output grid the terrain follows, or NULL */
     ts_pixel_params params;
     int lazy; /* served window by window (the driver): no whole output */
 } tsjob_pixel;
@@ -275,6 +276,7 @@ typedef struct tsjob_pixel_result {
     tsio_georef geo; /* the target grid */
     double *dx_m, *dy_m;
     ts_pixel_exemplars *stacks; /* after setup (owned) */
+    ts_pixel_guide *guide;      /* after setup, with a guide (owned) */
     ts_raster out;              /* the terrain (owned) */
     double seconds_stacks, seconds_synthesis;
     int exemplar_no_crs;

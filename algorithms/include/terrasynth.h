@@ -764,6 +764,9 @@ typedef struct ts_pixel_params {
     int passes;    /* correction passes per level */
     int window;    /* k: neighbourhoods of k x k cells (odd) */
     double jitter; /* jitter of the upsampled coordinates, in the level's spacings */
+    double guide_weight; /* weight of the guide in the corrections' target, 0..1 */
+    int rotations;       /* 0: the exemplars as given; 4: also turned by 90, 180, 270 degrees;
+                            8: and mirrored */
 } ts_pixel_params;
 
 TS_API ts_pixel_params ts_pixel_params_default(void);
@@ -788,6 +791,27 @@ TS_API int ts_pixel_levels(const ts_pixel_exemplars *ex);
 TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
                                      const ts_pixel_params *params, int64_t x0, int64_t y0,
                                      ts_raster *out);
+
+/** A guide (Cruz et al. section II.B): a DEM on the output grid, in the
+ *  exemplars' units, prepared as a Gaussian stack with the exemplars'
+ *  levels (NaN = no guidance there). */
+typedef struct ts_pixel_guide ts_pixel_guide;
+TS_API ts_status ts_pixel_guide_prepare(ts_ctx *ctx, const ts_raster *guide,
+                                        const ts_pixel_exemplars *ex, ts_pixel_guide **out);
+TS_API void ts_pixel_guide_free(ts_pixel_guide *g);
+
+/**
+ * ts_pixel_synthesize following a guide whose cell (0, 0) is output cell
+ * (0, 0): at each level the corrections' target neighbourhood is
+ * (1 - params->guide_weight) x the heights the neighbours' coordinates give plus
+ * params->guide_weight x the guide blurred to the level (our formulation of the
+ * paper's "add the level of the guide's Laplacian pyramid, then correct").
+ * Cells past the guide's edge take its nearest cell.
+ */
+TS_API ts_status ts_pixel_synthesize_guided(ts_ctx *ctx, const ts_pixel_exemplars *ex,
+                                            const ts_pixel_guide *guide,
+                                            const ts_pixel_params *params, int64_t x0, int64_t y0,
+                                            ts_raster *out);
 
 #ifdef __cplusplus
 }

@@ -81,3 +81,65 @@ def test_a_window_of_an_endless_terrain(tmp_path):
     t_run = time.monotonic() - t0
     print("window of the 100 000^2 recipe: %.2f s; a 512^2 run: %.2f s" % (t_win, t_run))
     assert read(tmp_path / "big.tif").tobytes() == read(tmp_path / "mid.tif").tobytes()
+
+
+def test_guide_sets_the_layout(tmp_path):
+    """A guide (a DEM in the exemplar's units, another part of the same real DEM) sets the
+    grid and the layout: the band-passed correlation with it (structure_r of
+    ../shared/eval/terrain_metrics.py, none of our code) is high; without it, it is not."""
+    metrics = os.path.join(ROOT, "..", "shared", "eval", "terrain_metrics.py")
+    if not os.path.exists(metrics):
+        import pytest
+        pytest.skip("../shared/eval not present")
+    import json
+    guide, ex = tmp_path / "guide.tif", tmp_path / "ex.tif"
+    subprocess.run(["gdal_translate", "-q", "-srcwin", "0", "0", "200", "200", JACKSBORO,
+                    str(guide)], check=True)
+    subprocess.run(["gdal_translate", "-q", "-srcwin", "200", "140", "203", "200", JACKSBORO,
+                    str(ex)], check=True)
+    run("pixel", "--exemplar", ex, "--guide", guide, "--seed", "1", tmp_path / "g.tif", "-q")
+    run("pixel", "--exemplar", ex, "--like", guide, "--seed", "1", tmp_path / "f.tif", "-q")
+    assert gdal.Open(str(tmp_path / "g.tif")).GetGeoTransform() == \
+        gdal.Open(str(guide)).GetGeoTransform()
+    r = {}
+    for n in ("g", "f"):
+        out = subprocess.run([sys.executable, metrics, "--out", str(tmp_path / (n + ".tif")),
+                              "--exemplar", str(ex), "--sketch", str(guide)], check=True,
+                             capture_output=True, text=True).stdout
+        r[n] = json.loads(out)["structure_r"]
+    print("structure_r guided %.3f, free %.3f" % (r["g"], r["f"]))
+    assert r["g"] >= 0.6 and r["f"] < 0.3, r
+    p = run("pixel", "--exemplar", ex, "--guide", guide, "--size", "10x10", tmp_path / "x.tif",
+            check=False)
+    assert p.returncode == 2 and "a guide sets the output grid" in p.stderr
+    p = run("pixel", "--exemplar", ex, "--size", "10x10", "--guide-weight", "0.3",
+            tmp_path / "x.tif", check=False)
+    assert p.returncode == 2 and "guide_weight weighs a guide" in p.stderr
+
+
+def patterns(a):
+    """The set of 3 x 3 height patterns of a raster (each as bytes)."""
+    h, w = a.shape
+    win = np.stack([a[j:h - 2 + j, i:w - 2 + i] for j in range(3) for i in range(3)], axis=-1)
+    return set(map(bytes, np.ascontiguousarray(win).reshape(-1, 9 * a.itemsize).view(np.uint8)))
+
+
+def test_rotations_add_matches(tmp_path):
+    """--rotations 4 and 8 add turned and mirrored candidates: the output's 3 x 3 height
+    patterns come less often from the exemplar as given, and there are more distinct ones
+    (sets of patterns, numpy)."""
+    ex = crop(tmp_path)
+    given = patterns(read(ex).astype(np.float32))
+    share, distinct = {}, {}
+    for rot in ("0", "4", "8"):
+        run("pixel", "--exemplar", ex, "--size", "256x256", "--seed", "3", "--rotations", rot,
+            tmp_path / ("r%s.tif" % rot), "-q")
+        pats = patterns(read(tmp_path / ("r%s.tif" % rot)).astype(np.float32))
+        share[rot] = len(pats & given) / len(pats)
+        distinct[rot] = len(pats)
+    print("share of patterns of the exemplar as given:", share, "distinct:", distinct)
+    assert share["4"] < 0.6 * share["0"] and share["8"] < 0.6 * share["0"], share
+    assert distinct["4"] > distinct["0"] and distinct["8"] > distinct["0"], distinct
+    p = run("pixel", "--exemplar", ex, "--size", "64x64", "--rotations", "3", tmp_path / "x.tif",
+            check=False)
+    assert p.returncode == 1 and "rotations must be 0, 4 or 8" in p.stderr, p.stderr

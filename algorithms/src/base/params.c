@@ -153,6 +153,14 @@ static const ts_param_desc pixel_desc[] = {
      "Jitter of the upsampled coordinates, in spacings of the level (from a hash of the "
      "absolute position and the seed).",
      offsetof(ts_pixel_params, jitter)},
+    {"guide_weight", TS_PARAM_DOUBLE, 0.5, 0.0, 1.0, TS_UNIT_CELLS, "", NULL,
+     "Weight of the guide in the corrections' target neighbourhoods (with a guide): 0 ignores "
+     "it, 1 matches the guide's heights alone.",
+     offsetof(ts_pixel_params, guide_weight)},
+    {"rotations", TS_PARAM_INT, 4, 0, 8, TS_UNIT_CELLS, "", NULL,
+     "Candidates turned and mirrored (Cruz et al.): 0 the exemplars as given, 4 also turned "
+     "by 90, 180 and 270 degrees, 8 those and their mirror images.",
+     offsetof(ts_pixel_params, rotations)},
 };
 
 static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", "pixel", NULL};

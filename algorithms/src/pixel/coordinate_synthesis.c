@@ -93,8 +93,21 @@ typedef struct corr_job {
     const ts_pixel_exemplars *ex;
     pix_level *lv;
     int l, hsp, k, px, py;
+    const ts_pixel_guide *guide;
+    double gw; /* the guide's weight */
     int fail;
 } corr_job;
+
+/* The guide at level l, cell (ax, ay) of the level (spacing hsp output
+ * cells): the blurred guide at the cell's centre, the nearest guide cell
+ * past its edge. */
+static float guide_at(const ts_pixel_guide *g, int l, int hsp, int64_t ax, int64_t ay)
+{
+    int64_t x = ax * hsp + hsp / 2, y = ay * hsp + hsp / 2;
+    x = x < 0 ? 0 : x >= g->width ? g->width - 1 : x;
+    y = y < 0 ? 0 : y >= g->height ? g->height - 1 : y;
+    return g->level[l][(size_t)y * g->width + (size_t)x];
+}
 
 static int usable(const ts_pixel_exemplars *ex, int l, pix_coord c)
 {
@@ -137,9 +150,15 @@ static void correct_rows(void *arg, size_t begin, size_t end)
             if (x < r || x + r >= lv->w || (int)y < r || (int)y + r >= lv->h)
                 continue; /* at the region's edge: outside every exact window */
             for (b = -r; b <= r; b++)
-                for (a = -r; a <= r; a++)
-                    t[(b + r) * k + a + r] =
-                        height_at(j->ex, l, lv->s[(y + b) * (size_t)lv->w + x + a]);
+                for (a = -r; a <= r; a++) {
+                    float hv = height_at(j->ex, l, lv->s[(y + b) * (size_t)lv->w + x + a]);
+                    if (j->guide) {
+                        float gv = guide_at(j->guide, l, hsp, ax + a, ay + b);
+                        if (!isnan(gv))
+                            hv = (float)((1.0 - j->gw) * hv + j->gw * gv);
+                    }
+                    t[(b + r) * k + a + r] = hv;
+                }
             bc = usable(j->ex, l, cur)
                      ? ts__pix_ssd(j->ex->stacks[cur.e].level[l], j->ex->stacks[cur.e].width, cur.u,
                                    cur.v, k, hsp, t)
@@ -197,6 +216,34 @@ static pix_coord random_coord(const ts_pixel_exemplars *ex, int l, uint64_t h)
     return c;
 }
 
+/* With a guide, level 0 starts from coordinates of the guide's heights: in
+ * an exemplar chosen by the hash, one of the 16 usable cells of level 0
+ * nearest in height to g (chosen by the hash too). */
+static pix_coord guided_coord(const ts_pixel_exemplars *ex, float g, uint64_t h)
+{
+    pix_coord c;
+    const pix_stack *s;
+    size_t lo = 0, hi, n, pick;
+    c.e = (int32_t)(h % (uint64_t)ex->n);
+    s = &ex->stacks[c.e];
+    n = s->n_usable[0];
+    hi = n;
+    while (lo < hi) { /* the first cell not below g */
+        size_t mid = lo + (hi - lo) / 2;
+        if (s->level[0][s->by_height[mid]] < g)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    lo = lo >= 8 ? lo - 8 : 0;
+    if (lo + 16 > n)
+        lo = n > 16 ? n - 16 : 0;
+    pick = lo + (size_t)((h >> 24) % (uint64_t)(n - lo < 16 ? n - lo : 16));
+    c.u = s->by_height[pick] % s->width;
+    c.v = s->by_height[pick] / s->width;
+    return c;
+}
+
 static int level_alloc(pix_level *lv, pix_region reg)
 {
     lv->reg = reg;
@@ -214,8 +261,79 @@ static void level_free(pix_level *lv)
     lv->s = lv->tmp = NULL;
 }
 
+/* Exemplar `ex` turned by q quarter turns (counter-clockwise), mirrored
+ * left-right first when `mirror`, into a new raster. */
+static int turned(ts_ctx *ctx, const ts_raster *ex, int q, int mirror, ts_raster *out)
+{
+    int w = ex->width, h = ex->height, x, y;
+    int ow = q % 2 ? h : w, oh = q % 2 ? w : h;
+    if (ts_raster_alloc(ctx, ow, oh, out) != TS_OK)
+        return -1;
+    for (y = 0; y < oh; y++)
+        for (x = 0; x < ow; x++) {
+            int sx, sy;
+            switch (q) {
+            case 0:
+                sx = x, sy = y;
+                break;
+            case 1:
+                sx = w - 1 - y, sy = x;
+                break;
+            case 2:
+                sx = w - 1 - x, sy = h - 1 - y;
+                break;
+            default:
+                sx = y, sy = h - 1 - x;
+                break;
+            }
+            if (mirror)
+                sx = w - 1 - sx;
+            TS_PIX(out, x, y) = TS_PIX(ex, sx, sy);
+        }
+    return 0;
+}
+
+static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
+                             const ts_pixel_params *params, ts_pixel_exemplars **out);
+
 TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
                                   const ts_pixel_params *params, ts_pixel_exemplars **out)
+{
+    ts_raster *all;
+    int m, i, v, nv;
+    ts_status st;
+    ts__clear(ctx);
+    if (!params || !exemplars || n < 1)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "no exemplars given");
+    if (params->rotations != 0 && params->rotations != 4 && params->rotations != 8)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "rotations must be 0, 4 or 8, not %d",
+                        params->rotations);
+    nv = params->rotations ? params->rotations : 1;
+    if (nv == 1)
+        return pix_prepare(ctx, exemplars, n, params, out);
+    all = calloc((size_t)n * (size_t)nv, sizeof *all);
+    if (!all)
+        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
+    for (i = 0, m = 0; i < n; i++)
+        for (v = 0; v < nv; v++, m++)
+            if (!exemplars[i].data || turned(ctx, &exemplars[i], v % 4, v >= 4, &all[m]) != 0) {
+                st = exemplars[i].data ? ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory")
+                                       : ts__fail_input(ctx, TS_ERR_ARG, i, "pixel",
+                                                        "exemplar %d: no data", i + 1);
+                goto done;
+            }
+    st = pix_prepare(ctx, all, n * nv, params, out);
+    if (st != TS_OK && ctx->input >= 0)
+        ctx->input /= nv; /* the exemplar as given */
+done:
+    for (i = 0; i < n * nv; i++)
+        ts_raster_free(&all[i]);
+    free(all);
+    return st;
+}
+
+static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
+                             const ts_pixel_params *params, ts_pixel_exemplars **out)
 {
     ts_pixel_exemplars *ex;
     int i, L, k, minside = 1 << 30;
@@ -296,9 +414,80 @@ TS_API int ts_pixel_levels(const ts_pixel_exemplars *ex)
     return ex ? ex->levels : 0;
 }
 
+TS_API ts_status ts_pixel_guide_prepare(ts_ctx *ctx, const ts_raster *guide,
+                                        const ts_pixel_exemplars *ex, ts_pixel_guide **out)
+{
+    ts_pixel_guide *g;
+    float *base;
+    int l, y, L;
+    ts__clear(ctx);
+    if (!out)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "no output given");
+    *out = NULL;
+    if (!guide || !guide->data || !ex)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "missing guide or exemplars");
+    L = ex->levels;
+    g = calloc(1, sizeof *g);
+    base = ts__malloc_array((size_t)guide->width * (size_t)guide->height, sizeof *base);
+    if (!g || !base || !(g->level = calloc((size_t)L + 1, sizeof *g->level))) {
+        free(g);
+        free(base);
+        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the guide");
+    }
+    g->width = guide->width;
+    g->height = guide->height;
+    g->levels = L;
+    for (y = 0; y < guide->height; y++)
+        memcpy(base + (size_t)y * guide->width, &TS_PIX(guide, 0, y),
+               (size_t)guide->width * sizeof *base);
+    for (l = 0; l <= L; l++) {
+        g->level[l] = ts__malloc_array((size_t)g->width * (size_t)g->height, sizeof **g->level);
+        if (!g->level[l] || ts__pix_blur(base, g->width, g->height,
+                                         l == L ? 0.0 : 0.5 * (1 << (L - l)), g->level[l]) != 0) {
+            free(base);
+            ts_pixel_guide_free(g);
+            return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the guide");
+        }
+    }
+    free(base);
+    *out = g;
+    return TS_OK;
+}
+
+TS_API void ts_pixel_guide_free(ts_pixel_guide *g)
+{
+    int l;
+    if (!g)
+        return;
+    for (l = 0; g->level && l <= g->levels; l++)
+        free(g->level[l]);
+    free(g->level);
+    free(g);
+}
+
+static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pixel_guide *guide,
+                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out);
+
 TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
                                      const ts_pixel_params *params, int64_t x0, int64_t y0,
                                      ts_raster *out)
+{
+    return pix_run(ctx, ex, NULL, params, x0, y0, out);
+}
+
+TS_API ts_status ts_pixel_synthesize_guided(ts_ctx *ctx, const ts_pixel_exemplars *ex,
+                                            const ts_pixel_guide *guide,
+                                            const ts_pixel_params *params, int64_t x0, int64_t y0,
+                                            ts_raster *out)
+{
+    ts__clear(ctx);
+    if (!guide || (ex && guide->levels != ex->levels))
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "the guide was prepared for other stacks");
+    return pix_run(ctx, ex, guide, params, x0, y0, out);
+}
+
+static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pixel_guide *guide,
+                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out)
 {
     int L, k, r, l, pass, sub, x, y;
     int64_t M;
@@ -346,7 +535,10 @@ TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
                 int64_t ax = cur.reg.x0 + x, ay = cur.reg.y0 + y;
                 pix_coord c;
                 if (l == 0) {
-                    c = random_coord(ex, 0, ts__pix_hash(ax, ay, 0, 0, seed));
+                    float gv = guide ? guide_at(guide, 0, hsp, ax, ay) : NAN;
+                    uint64_t h0 = ts__pix_hash(ax, ay, 0, 0, seed);
+                    c = isnan(gv) || !(params->guide_weight > 0) ? random_coord(ex, 0, h0)
+                                                                 : guided_coord(ex, gv, h0);
                 } else {
                     int64_t qx = floor_half(ax), qy = floor_half(ay);
                     pix_coord j;
@@ -370,7 +562,9 @@ TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
         /* correction */
         for (pass = 0; pass < params->passes; pass++)
             for (sub = 0; sub < 4; sub++) {
-                corr_job j = {ex, &cur, l, hsp, k, order[sub][0], order[sub][1], 0};
+                corr_job j = {
+                    ex, &cur, l, hsp, k, order[sub][0], order[sub][1], guide, params->guide_weight,
+                    0};
                 ts__parallel_for(ctx, (size_t)cur.h, correct_rows, &j);
                 if (j.fail) {
                     st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");

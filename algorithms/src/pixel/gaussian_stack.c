@@ -73,8 +73,19 @@ int ts__pix_blur(const float *in, int w, int h, double sigma, float *out)
     return 0;
 }
 
+/* qsort context: level 0's heights (qsort has none; one build at a time per thread) */
+static _Thread_local const float *sort_level;
+
+static int by_height_cmp(const void *a, const void *b)
+{
+    int32_t i = *(const int32_t *)a, j = *(const int32_t *)b;
+    float x = sort_level[i], y = sort_level[j];
+    return x < y ? -1 : x > y ? 1 : (i > j) - (i < j);
+}
+
 void ts__pix_stack_free(pix_stack *s, int L)
 {
+    free(s->by_height);
     int l;
     for (l = 0; l <= L; l++) {
         if (s->level)
@@ -147,5 +158,14 @@ int ts__pix_stack_build(const ts_raster *ex, int L, int k, pix_stack *s)
                     s->usable_list[l][n++] = (int32_t)((size_t)y * w + x);
     }
     free(base);
+    /* level 0's usable cells by height: where a guide's coarsest heights are found */
+    s->by_height = ts__malloc_array(s->n_usable[0] ? s->n_usable[0] : 1, sizeof *s->by_height);
+    if (!s->by_height) {
+        ts__pix_stack_free(s, L);
+        return -1;
+    }
+    memcpy(s->by_height, s->usable_list[0], s->n_usable[0] * sizeof *s->by_height);
+    sort_level = s->level[0];
+    qsort(s->by_height, s->n_usable[0], sizeof *s->by_height, by_height_cmp);
     return 0;
 }

@@ -20,11 +20,17 @@ typedef struct pix_stack {
     unsigned char **usable; /* L + 1 masks */
     int32_t **usable_list;  /* L + 1 lists of usable cell indices (y * width + x) */
     size_t *n_usable;
+    int32_t *by_height; /* level 0's usable cells in ascending order of height */
 } pix_stack;
 
 struct ts_pixel_exemplars {
     int n, levels, window;
     pix_stack *stacks;
+};
+
+struct ts_pixel_guide {
+    int width, height, levels;
+    float **level; /* levels + 1 rasters: the guide blurred as the exemplars' stacks */
 };
 
 /* A coordinate of the synthesis: exemplar e, cell (u, v). */
