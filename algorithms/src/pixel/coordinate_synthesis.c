@@ -17,6 +17,15 @@
  *              coordinates give.  Each sub-pass reads the state before it,
  *              so the result does not depend on the order or the threads.
  *
+ * The heights: not the finest level's exemplar heights (a seam between two
+ * coherent regions would step by the whole height difference) but the sum
+ * over the levels of each level's band (its stack level less the coarser
+ * one), read at the cell's own place in the frames of the four level cells
+ * around it and blended with smoothstep weights: where they agree, the sum
+ * is the exemplar's height there; across a seam each band blends.  (Our
+ * reconstruction, named as such: the papers copy the finest level's
+ * colours.)
+ *
  * Every cell is a function of the seed and its absolute position: a window
  * is computed on its own, with at each level the margin the corrections
  * read (passes x 4 x k/2 cells) and its parents' cover, and equals the same
@@ -493,6 +502,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
     int64_t M;
     pix_region need[12], pre[12];
     pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL}, prev = cur;
+    pix_coord *band[12] = {NULL};
     static const int order[4][2] = {{0, 0}, {1, 1}, {1, 0}, {0, 1}};
     uint64_t seed;
     ts_status st = TS_OK;
@@ -512,7 +522,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
     k = ex->window;
     r = k / 2;
     seed = ctx->seed;
-    M = (int64_t)params->passes * 4 * r;
+    /* what the corrections read, and a cell more for the bands' interpolation */
+    M = (int64_t)params->passes * 4 * r + 2;
     /* the regions each level computes, finest to coarsest */
     need[L].x0 = x0;
     need[L].y0 = y0;
@@ -576,18 +587,72 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
             goto done;
         if ((st = ts__progress(ctx, (l + 1.0) / (L + 1), "synthesis")) != TS_OK)
             goto done;
+        /* the level's coordinates, kept for the output's bands */
+        band[l] = ts__malloc_array((size_t)cur.w * (size_t)cur.h, sizeof *band[l]);
+        if (!band[l]) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for level %d", l);
+            goto done;
+        }
+        memcpy(band[l], cur.s, (size_t)cur.w * (size_t)cur.h * sizeof *band[l]);
         prev = cur;
         cur.s = cur.tmp = NULL;
     }
-    /* the window: the finest level's heights */
+    /* the window: the sum of the levels' bands (a level's stack less the coarser one),
+     * each at the output cell's own place in the frames of the four level cells around
+     * it (a cell's coordinate plus the cell's offset from it), weighed bilinearly: where
+     * the four agree this is the exemplar's band there; across a seam between coherent
+     * regions it blends, and the step is one band's, not the whole heights' */
     for (y = 0; y < out->height; y++)
         for (x = 0; x < out->width; x++) {
-            pix_coord c =
-                prev.s[(size_t)(y + (need[L].y0 - prev.reg.y0)) * prev.w + (size_t)(x + M)];
-            TS_PIX(out, x, y) = height_at(ex, L, c);
+            double hsum = 0;
+            int64_t ax = x0 + x, ay = y0 + y;
+            for (l = 0; l <= L; l++) {
+                int64_t sp = (int64_t)1 << (L - l);
+                double fx = ((double)ax + 0.5) / (double)sp - 0.5;
+                double fy = ((double)ay + 0.5) / (double)sp - 0.5;
+                int64_t qx = (int64_t)floor(fx), qy = (int64_t)floor(fy);
+                double tx = fx - (double)qx, ty = fy - (double)qy, acc = 0, wsum = 0;
+                /* smoothstep weights: no crease at the cells' borders in a hillshade */
+                tx = tx * tx * (3 - 2 * tx);
+                ty = ty * ty * (3 - 2 * ty);
+                int w = (int)(pre[l].x1 - pre[l].x0), a, b;
+                for (b = 0; b < 2; b++)
+                    for (a = 0; a < 2; a++) {
+                        size_t i =
+                            (size_t)(qy + b - pre[l].y0) * (size_t)w + (size_t)(qx + a - pre[l].x0);
+                        pix_coord c = band[l][i];
+                        const pix_stack *st_ = &ex->stacks[c.e];
+                        int64_t u = c.u + (ax - (qx + a) * sp), v = c.v + (ay - (qy + b) * sp);
+                        size_t o;
+                        double wgt = (a ? tx : 1 - tx) * (b ? ty : 1 - ty), val;
+                        u = u < 0 ? 0 : u >= st_->width ? st_->width - 1 : u;
+                        v = v < 0 ? 0 : v >= st_->height ? st_->height - 1 : v;
+                        o = (size_t)v * (size_t)st_->width + (size_t)u;
+                        val = l ? (double)st_->level[l][o] - st_->level[l - 1][o]
+                                : (double)st_->level[0][o];
+                        if (isnan(val))
+                            continue; /* past the valid cells: the others' */
+                        acc += wgt * val;
+                        wsum += wgt;
+                    }
+                if (!(wsum > 0)) { /* all past: the nearest cell's own (always valid) */
+                    size_t i = (size_t)(qy + (ty >= 0.5) - pre[l].y0) * (size_t)w +
+                               (size_t)(qx + (tx >= 0.5) - pre[l].x0);
+                    pix_coord c = band[l][i];
+                    const pix_stack *st_ = &ex->stacks[c.e];
+                    size_t o = (size_t)c.v * (size_t)st_->width + (size_t)c.u;
+                    acc = l ? (double)st_->level[l][o] - st_->level[l - 1][o]
+                            : (double)st_->level[0][o];
+                    wsum = 1;
+                }
+                hsum += acc / wsum;
+            }
+            TS_PIX(out, x, y) = (float)hsum;
         }
 done:
     level_free(&cur);
     level_free(&prev);
+    for (l = 0; l < 12; l++)
+        free(band[l]);
     return st;
 }
