@@ -601,6 +601,11 @@ const void *recipe_data(const ts_recipe *r)
     return r->synth_res.out.data;
 }
 
+int recipe_block_size(const ts_recipe *r)
+{
+    return r->method == RECIPE_PIXEL ? 512 : 256;
+}
+
 int recipe_lazy(const ts_recipe *r)
 {
     return r->method == RECIPE_AMPLIFY || r->method == RECIPE_PIXEL;

@@ -23,8 +23,6 @@
 namespace
 {
 
-constexpr int kBlock = 256;
-
 class TSYNDataset final : public GDALPamDataset
 {
     friend class TSYNRasterBand;
@@ -54,8 +52,8 @@ class TSYNRasterBand final : public GDALPamRasterBand
         poDS = ds;
         nBand = 1;
         eDataType = type;
-        nBlockXSize = kBlock;
-        nBlockYSize = kBlock;
+        nBlockXSize = recipe_block_size(ds->m_recipe);
+        nBlockYSize = nBlockXSize;
     }
     CPLErr IReadBlock(int bx, int by, void *image) override;
     double GetNoDataValue(int *success) override

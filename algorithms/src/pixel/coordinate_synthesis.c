@@ -341,6 +341,23 @@ done:
     return st;
 }
 
+typedef struct stack_job {
+    const ts_raster *exemplars;
+    ts_pixel_exemplars *ex;
+    int L, k, fail;
+} stack_job;
+
+static void stack_levels(void *arg, size_t begin, size_t end)
+{
+    stack_job *j = arg;
+    size_t t;
+    for (t = begin; t < end; t++) {
+        int e = (int)(t / (size_t)(j->L + 1)), l = (int)(t % (size_t)(j->L + 1));
+        if (ts__pix_stack_level(&j->exemplars[e], j->L, j->k, j->L - l, &j->ex->stacks[e]) != 0)
+            j->fail = 1;
+    }
+}
+
 static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
                              const ts_pixel_params *params, ts_pixel_exemplars **out)
 {
@@ -379,16 +396,26 @@ static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
     ex->n = n;
     ex->levels = L;
     ex->window = k;
-    for (i = 0; i < n; i++) {
-        int l;
-        if (ts__pix_stack_build(&exemplars[i], L, k, &ex->stacks[i]) != 0) {
-            ex->n = i;
+    /* every exemplar's every level in parallel (the coarsest blur is the longest) */
+    {
+        stack_job sj = {exemplars, ex, L, k, 0};
+        for (i = 0; i < n; i++)
+            if (ts__pix_stack_alloc(&exemplars[i], L, &ex->stacks[i]) != 0)
+                sj.fail = 1;
+        if (!sj.fail)
+            ts__parallel_for(ctx, (size_t)n * (size_t)(L + 1), stack_levels, &sj);
+        for (i = 0; i < n && !sj.fail; i++)
+            if (ts__pix_stack_finish(&ex->stacks[i]) != 0)
+                sj.fail = 1;
+        if (sj.fail) {
             ts_pixel_exemplars_free(ex);
             return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the stacks");
         }
+    }
+    for (i = 0; i < n; i++) {
+        int l;
         for (l = 0; l <= L; l++)
             if (ex->stacks[i].n_usable[l] == 0) {
-                ex->n = i + 1;
                 ts_pixel_exemplars_free(ex);
                 return ts__fail_input(ctx, TS_ERR_SIZE, i, "pixel",
                                       "exemplar %d (%d x %d cells) has no valid %d x %d "
@@ -397,11 +424,10 @@ static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
                                       i + 1, exemplars[i].width, exemplars[i].height, k, k,
                                       1 << (L - l));
             }
-        if (ts__progress(ctx, (i + 1.0) / n, "stacks") != TS_OK) {
-            ex->n = i + 1;
-            ts_pixel_exemplars_free(ex);
-            return ctx->status;
-        }
+    }
+    if (ts__progress(ctx, 1.0, "stacks") != TS_OK) {
+        ts_pixel_exemplars_free(ex);
+        return ctx->status;
     }
     *out = ex;
     return TS_OK;

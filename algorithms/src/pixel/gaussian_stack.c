@@ -102,70 +102,89 @@ void ts__pix_stack_free(pix_stack *s, int L)
     memset(s, 0, sizeof *s);
 }
 
-int ts__pix_stack_build(const ts_raster *ex, int L, int k, pix_stack *s)
+int ts__pix_stack_alloc(const ts_raster *ex, int L, pix_stack *s)
 {
-    int w = ex->width, h = ex->height, l, x, y, r = k / 2;
-    float *base;
     memset(s, 0, sizeof *s);
-    s->width = w;
-    s->height = h;
+    s->width = ex->width;
+    s->height = ex->height;
     s->level = calloc((size_t)L + 1, sizeof *s->level);
     s->usable = calloc((size_t)L + 1, sizeof *s->usable);
     s->usable_list = calloc((size_t)L + 1, sizeof *s->usable_list);
     s->n_usable = calloc((size_t)L + 1, sizeof *s->n_usable);
-    base = ts__malloc_array((size_t)w * (size_t)h, sizeof *base);
-    if (!s->level || !s->usable || !s->usable_list || !s->n_usable || !base) {
-        free(base);
+    if (!s->level || !s->usable || !s->usable_list || !s->n_usable) {
         ts__pix_stack_free(s, L);
+        return -1;
+    }
+    return 0;
+}
+
+int ts__pix_stack_level(const ts_raster *ex, int L, int k, int l, pix_stack *s)
+{
+    int w = ex->width, h = ex->height, x, y, r = k / 2, sp = 1 << (L - l), a, b;
+    float *base = ts__malloc_array((size_t)w * (size_t)h, sizeof *base);
+    size_t n = 0;
+    s->level[l] = ts__malloc_array((size_t)w * (size_t)h, sizeof **s->level);
+    s->usable[l] = calloc((size_t)w * (size_t)h, 1);
+    if (!base || !s->level[l] || !s->usable[l]) {
+        free(base);
         return -1;
     }
     for (y = 0; y < h; y++)
         memcpy(base + (size_t)y * w, &TS_PIX(ex, 0, y), (size_t)w * sizeof *base);
-    for (l = 0; l <= L; l++) {
-        int sp = 1 << (L - l), a, b;
-        size_t n = 0;
-        s->level[l] = ts__malloc_array((size_t)w * (size_t)h, sizeof **s->level);
-        s->usable[l] = calloc((size_t)w * (size_t)h, 1);
-        if (!s->level[l] || !s->usable[l] ||
-            ts__pix_blur(base, w, h, l == L ? 0.0 : 0.5 * sp, s->level[l]) != 0) {
-            free(base);
-            ts__pix_stack_free(s, L);
-            return -1;
-        }
-        for (y = r * sp; y < h - r * sp; y++)
-            for (x = r * sp; x < w - r * sp; x++) {
-                int ok = 1;
-                for (b = -r; b <= r && ok; b++)
-                    for (a = -r; a <= r; a++)
-                        if (isnan(s->level[l][(size_t)(y + b * sp) * w + x + a * sp])) {
-                            ok = 0;
-                            break;
-                        }
-                s->usable[l][(size_t)y * w + x] = (unsigned char)ok;
-                n += (size_t)ok;
-            }
-        s->n_usable[l] = n;
-        s->usable_list[l] = ts__malloc_array(n ? n : 1, sizeof **s->usable_list);
-        if (!s->usable_list[l]) {
-            free(base);
-            ts__pix_stack_free(s, L);
-            return -1;
-        }
-        n = 0;
-        for (y = 0; y < h; y++)
-            for (x = 0; x < w; x++)
-                if (s->usable[l][(size_t)y * w + x])
-                    s->usable_list[l][n++] = (int32_t)((size_t)y * w + x);
-    }
-    free(base);
-    /* level 0's usable cells by height: where a guide's coarsest heights are found */
-    s->by_height = ts__malloc_array(s->n_usable[0] ? s->n_usable[0] : 1, sizeof *s->by_height);
-    if (!s->by_height) {
-        ts__pix_stack_free(s, L);
+    if (ts__pix_blur(base, w, h, l == L ? 0.0 : 0.5 * sp, s->level[l]) != 0) {
+        free(base);
         return -1;
     }
+    free(base);
+    for (y = r * sp; y < h - r * sp; y++)
+        for (x = r * sp; x < w - r * sp; x++) {
+            int ok = 1;
+            for (b = -r; b <= r && ok; b++)
+                for (a = -r; a <= r; a++)
+                    if (isnan(s->level[l][(size_t)(y + b * sp) * w + x + a * sp])) {
+                        ok = 0;
+                        break;
+                    }
+            s->usable[l][(size_t)y * w + x] = (unsigned char)ok;
+            n += (size_t)ok;
+        }
+    s->n_usable[l] = n;
+    s->usable_list[l] = ts__malloc_array(n ? n : 1, sizeof **s->usable_list);
+    if (!s->usable_list[l])
+        return -1;
+    n = 0;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++)
+            if (s->usable[l][(size_t)y * w + x])
+                s->usable_list[l][n++] = (int32_t)((size_t)y * w + x);
+    return 0;
+}
+
+int ts__pix_stack_finish(pix_stack *s)
+{
+    /* level 0's usable cells by height: where a guide's coarsest heights are found */
+    s->by_height = ts__malloc_array(s->n_usable[0] ? s->n_usable[0] : 1, sizeof *s->by_height);
+    if (!s->by_height)
+        return -1;
     memcpy(s->by_height, s->usable_list[0], s->n_usable[0] * sizeof *s->by_height);
     sort_level = s->level[0];
     qsort(s->by_height, s->n_usable[0], sizeof *s->by_height, by_height_cmp);
+    return 0;
+}
+
+int ts__pix_stack_build(const ts_raster *ex, int L, int k, pix_stack *s)
+{
+    int l;
+    if (ts__pix_stack_alloc(ex, L, s) != 0)
+        return -1;
+    for (l = 0; l <= L; l++)
+        if (ts__pix_stack_level(ex, L, k, l, s) != 0) {
+            ts__pix_stack_free(s, L);
+            return -1;
+        }
+    if (ts__pix_stack_finish(s) != 0) {
+        ts__pix_stack_free(s, L);
+        return -1;
+    }
     return 0;
 }

@@ -41,6 +41,11 @@ typedef struct pix_coord {
 /* Fill stack s for exemplar ex (levels 0..L, window k).  0, or -1 when out
  * of memory. */
 int ts__pix_stack_build(const ts_raster *ex, int L, int k, pix_stack *s);
+/* The same in three steps, so levels can be built in parallel: the arrays,
+ * one level (blur, usable cells), then the by-height order. */
+int ts__pix_stack_alloc(const ts_raster *ex, int L, pix_stack *s);
+int ts__pix_stack_level(const ts_raster *ex, int L, int k, int l, pix_stack *s);
+int ts__pix_stack_finish(pix_stack *s);
 void ts__pix_stack_free(pix_stack *s, int L);
 
 /* The Gaussian blur of a raster with sigma (NaN left out, weights
