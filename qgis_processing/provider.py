@@ -8,6 +8,7 @@ from qgis.PyQt.QtGui import QIcon
 
 from . import descriptors, runner
 from .algorithms.amplify import AmplifyAlgorithm
+from .algorithms.pixel import PixelAlgorithm
 from .algorithms.ppa import PpaAlgorithm
 from .algorithms.synth import SynthAlgorithm
 
@@ -17,7 +18,7 @@ except ImportError:  # pragma: no cover
     ProcessingConfig = Setting = None
 
 # The explicit list of algorithms; a new `terrasynth` stage adds its class here.
-ALGORITHMS = (PpaAlgorithm, SynthAlgorithm, AmplifyAlgorithm)
+ALGORITHMS = (PpaAlgorithm, SynthAlgorithm, AmplifyAlgorithm, PixelAlgorithm)
 
 ICON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "icon.svg")
 

@@ -32,9 +32,11 @@ pytestmark = pytest.mark.usefixtures("qgis_app")
 
 ALGORITHMS = {"ppa": ("Extract ridges and valleys (PPA)", "Terrain analysis"),
               "synth": ("Synthesize terrain", "Terrain synthesis"),
-              "amplify": ("Amplify a coarse DEM", "Terrain synthesis")}
+              "amplify": ("Amplify a coarse DEM", "Terrain synthesis"),
+              "pixel": ("Grow terrain cell by cell (pixel synthesis)", "Terrain synthesis")}
 # the descriptor tables of `terrasynth describe` each algorithm shows
-DESCRIPTOR_STAGES = {"ppa": ("ppa",), "synth": ("synth", "sketch"), "amplify": ("amplify",)}
+DESCRIPTOR_STAGES = {"ppa": ("ppa",), "synth": ("synth", "sketch"), "amplify": ("amplify",),
+                     "pixel": ("pixel",)}
 ALG_STAGES = [(alg, st) for alg in sorted(DESCRIPTOR_STAGES) for st in DESCRIPTOR_STAGES[alg]]
 # parameters that are not the core's descriptors, and the CLI flag each maps to
 # (None: a positional file or an output QGIS reports, not a CLI option)
@@ -58,6 +60,10 @@ OTHER_FLAGS = {
                 "OUT_LAYER_NAME": "--out-layer", "OUT_LAYER": "--out-layer",
                 "OUT_CLASSES": "--out-classes", "DICTIONARY": "--dictionary",
                 "BIOMES": "--biome"},
+    "pixel": {"EXEMPLARS": "--exemplar", "GUIDE": "--guide", "LIKE": "--like",
+              "WIDTH": "--size", "HEIGHT": "--size", "SEED": "--seed", "BAND": "--band",
+              "CELL_SIZE": "--cell-size", "THREADS": "--threads", "OUTPUT": None,
+              "PREVIEW": "--preview"},
 }
 # parameters whose flag is not --<name in kebab case>
 IRREGULAR_FLAGS = ("--size", "--origin", "--resolution", "--exemplar", "--pin", "--water",
@@ -915,3 +921,23 @@ def test_amplify_dictionary_and_biomes(jacksboro, cli, tmp_path):
     with pytest.raises(Exception, match="give exemplars, a dictionary, or biomes"):
         build("terrasynth:amplify", {"INPUT": jacksboro, "DICTIONARY": str(d),
                                      "EXEMPLARS": [jacksboro], "OUTPUT": str(tmp_path / "o.tif")})
+
+
+def test_pixel_command_line_and_run(jacksboro, cli, tmp_path):
+    """terrasynth:pixel: the same flags as the command line; a run writes the terrain on the
+    guide's grid; a grid must be given once."""
+    out = tmp_path / "p.tif"
+    guide = tmp_path / "g.tif"
+    gdal.Translate(str(guide), jacksboro, srcWin=[0, 0, 120, 100], outputType=gdal.GDT_Float32)
+    params = {"EXEMPLARS": [jacksboro], "GUIDE": str(guide), "SEED": 4, "PASSES": 1,
+              "OUTPUT": str(out)}
+    argv, _ = build("terrasynth:pixel", params)
+    kv = pairs(argv)
+    assert argv[:2] == ["/x/terrasynth", "pixel"] and argv[-1] == str(out)
+    assert kv["--guide"] == str(guide) and kv["--seed"] == "4" and kv["--passes"] == "1"
+    res = processing_run("terrasynth:pixel", params)
+    assert res["OUTPUT"] == str(out)
+    ds = gdal.Open(str(out))
+    assert (ds.RasterXSize, ds.RasterYSize) == (120, 100)
+    with pytest.raises(Exception, match="give the target grid"):
+        build("terrasynth:pixel", {"EXEMPLARS": [jacksboro], "OUTPUT": str(out)})
