@@ -1062,6 +1062,14 @@ int tsj_build_pixel(tsj_values *v, tsjob_pixel *job, uint64_t *seed, char *msg, 
         msgf(msg, len, "needs at least one exemplar");
         return -1;
     }
+    if (job->params.window % 2 == 0) {
+        msgf(msg, len, "window must be odd, not %d", job->params.window);
+        return -1;
+    }
+    if (job->params.rotations != 0 && job->params.rotations != 4 && job->params.rotations != 8) {
+        msgf(msg, len, "rotations must be 0, 4 or 8, not %d", job->params.rotations);
+        return -1;
+    }
     if ((s = tsj_get(v, "band", 0)))
         job->band = atoi(s);
     if ((s = tsj_get(v, "cell_size", 0)))

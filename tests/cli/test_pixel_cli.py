@@ -151,4 +151,4 @@ def test_rotations_add_matches(tmp_path):
     assert an["0"] > 5 and an["4"] < 0.3 * an["0"] and an["8"] < 0.3 * an["0"], an
     p = run("pixel", "--exemplar", tmp_path / "ridged.tif", "--size", "64x64", "--rotations",
             "3", tmp_path / "x.tif", check=False)
-    assert p.returncode == 1 and "rotations must be 0, 4 or 8" in p.stderr, p.stderr
+    assert p.returncode == 2 and "rotations must be 0, 4 or 8" in p.stderr, p.stderr
