@@ -141,7 +141,8 @@ static const ts_param_desc amplify_desc[] = {
 static const ts_param_desc pixel_desc[] = {
     {"levels", TS_PARAM_INT, 0, 0, 10, TS_UNIT_CELLS, "", NULL,
      "Levels of the exemplars' Gaussian stacks above the finest (the coarsest spacing is "
-     "2^levels cells); 0: as many as leave a coarsest neighbourhood half the smallest exemplar.",
+     "2^levels cells); 0: as many as leave a coarsest neighbourhood half the smallest exemplar, "
+     "at most 4.",
      offsetof(ts_pixel_params, levels)},
     {"passes", TS_PARAM_INT, 2, 0, 8, TS_UNIT_CELLS, "", NULL,
      "Correction passes per level (each of 4 sub-passes over the cells of one parity).",

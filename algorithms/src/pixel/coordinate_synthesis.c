@@ -383,9 +383,12 @@ static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
             minside = exemplars[i].height;
     }
     L = params->levels;
-    if (L == 0) { /* as many as leave a coarsest neighbourhood half the smallest exemplar */
+    if (L == 0) {
+        /* as many as leave a coarsest neighbourhood half the smallest exemplar, at most 4:
+         * with more, the coarsest level's safety margin leaves only the exemplar's centre
+         * to start from (measured: St Helens' and Mackay's slopes went wrong at 5 and 6) */
         L = 1;
-        while (L < 10 && (1 << (L + 1)) * (k - 1) + 1 <= minside / 2)
+        while (L < 4 && (1 << (L + 1)) * (k - 1) + 1 <= minside / 2)
             L++;
     }
     ex = calloc(1, sizeof *ex);
