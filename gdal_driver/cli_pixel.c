@@ -80,6 +80,8 @@ int cli_pixel(int argc, char **argv)
     }
     outs.output = tsj_get(&v, "output", 0);
     outs.preview = tsj_get(&v, "preview", 0);
+    outs.debug_dir = tsj_get(&v, "debug_dir", 0);
+    job.keep_sources = outs.debug_dir != NULL;
     outs.format = co.format;
     outs.create_options = (const char *const *)co.create_options;
     recipe_path = tsj_get(&v, "recipe", 0);

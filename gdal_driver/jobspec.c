@@ -293,6 +293,10 @@ static const tsj_option pixel_opts[] = {
     {"output", TSJ_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
      "the terrain: a Float32 DEM on the target grid, nodata -9999", NULL, 1, NULL},
     {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0, NULL},
+    {"debug_dir", TSJ_OUTPUT, 1, 0, 0, "DIR", G_OUT,
+     "source_exemplar.tif, source_x.tif, source_y.tif: where each cell's finest coordinate "
+     "points (the candidate exemplar: index x rotations + turn; the cell in it)",
+     NULL, 0, NULL},
     {"recipe", TSJ_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,
      "write a recipe for this job instead of running it: gdal_translate FILE.tsyn out.tif", NULL, 0,
      NULL},
@@ -314,7 +318,7 @@ static const tsj_rule pixel_rules[] = {
     {TSJ_REQUIRES, "resolution", {"size", NULL}, "resolution goes with size"},
     {TSJ_EXCLUDES,
      "recipe",
-     {"output", "preview", NULL},
+     {"output", "preview", "debug_dir", NULL},
      "recipe writes the recipe instead of running the job: give no %s"},
     {TSJ_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
 };

@@ -1746,8 +1746,26 @@ int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result 
     }
     job_progress_range(ctx, &jp, 0.1, 1.0);
     clock_gettime(CLOCK_MONOTONIC, &t0);
-    if (tsjob_pixel_window(ctx, job, res, 0, 0, res->geo.width, res->geo.height, res->out.data,
-                           err) != 0)
+    if (job->keep_sources) {
+        size_t n = (size_t)res->geo.width * (size_t)res->geo.height;
+        ts_pixel_sources src;
+        res->src_e = malloc(n * sizeof *res->src_e);
+        res->src_x = malloc(n * sizeof *res->src_x);
+        res->src_y = malloc(n * sizeof *res->src_y);
+        if (!res->src_e || !res->src_x || !res->src_y) {
+            tsio_errf(err, "pixel", "out of memory for the source maps");
+            goto done;
+        }
+        src.exemplar = res->src_e;
+        src.x = res->src_x;
+        src.y = res->src_y;
+        if (ts_pixel_synthesize_sources(ctx, res->stacks, res->guide, &job->params, 0, 0, &res->out,
+                                        &src) != TS_OK) {
+            tsio_errf(err, job->exemplars[0], "%s", ts_ctx_message(ctx));
+            goto done;
+        }
+    } else if (tsjob_pixel_window(ctx, job, res, 0, 0, res->geo.width, res->geo.height,
+                                  res->out.data, err) != 0)
         goto done;
     clock_gettime(CLOCK_MONOTONIC, &t1);
     res->seconds_synthesis =
@@ -1760,6 +1778,9 @@ done:
 
 void tsjob_pixel_result_free(tsjob_pixel_result *res)
 {
+    free(res->src_e);
+    free(res->src_x);
+    free(res->src_y);
     ts_pixel_guide_free(res->guide);
     ts_pixel_exemplars_free(res->stacks);
     tsio_georef_free(&res->geo);
@@ -1779,6 +1800,8 @@ int tsjob_pixel_check_recipe(const tsjob_pixel *job, const char *recipe, tsio_er
     in[n++] = job->guide;
     return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
 }
+
+static const char *const pixel_map_names[3] = {"source_exemplar", "source_x", "source_y"};
 
 int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *res,
                               const tsjob_outputs *o, tsio_err *err)
@@ -1802,6 +1825,20 @@ int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *
     if (tsio_write_float(o->output, &wo, &g1, &pr, -9999.0, err) != 0 ||
         (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
         return -1;
+    if (o->debug_dir) {
+        char paths[3][4096];
+        const char *all[5] = {o->output, o->preview, paths[0], paths[1], paths[2]};
+        if (tsio_make_dir(o->debug_dir, err) != 0)
+            return -1;
+        for (i = 0; i < 3; i++)
+            if (tsio_path(paths[i], sizeof paths[i], o->debug_dir, pixel_map_names[i], "tif",
+                          err) != 0 ||
+                job_not_an_input(paths[i], in, n, err) != 0 ||
+                tsio_check_output_file(paths[i], err) != 0)
+                return -1;
+        if (job_distinct(all, 5, err) != 0)
+            return -1;
+    }
     return 0;
 }
 
@@ -1811,6 +1848,19 @@ int tsjob_pixel_write(ts_ctx *ctx, const tsjob_pixel_result *res, const tsjob_ou
     tsio_write_opts wo = {o->format, o->create_options, 0};
     if (tsio_write_float(o->output, &wo, &res->geo, &res->out, -9999.0, err) != 0)
         return -1;
+    if (o->debug_dir && res->src_e) {
+        const int32_t *maps[3] = {res->src_e, res->src_x, res->src_y};
+        float *tmp = malloc((size_t)res->geo.width * (size_t)res->geo.height * sizeof *tmp);
+        int i, bad = !tmp;
+        for (i = 0; i < 3 && !bad; i++)
+            bad = job_int_map(o->debug_dir, pixel_map_names[i], &res->geo, maps[i], tmp, err);
+        free(tmp);
+        if (bad) {
+            if (!tmp)
+                tsio_errf(err, o->debug_dir, "out of memory");
+            return -1;
+        }
+    }
     if (o->preview) {
         ts_grid_metrics m;
         m.dx = res->dx_m;

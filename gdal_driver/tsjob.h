@@ -269,7 +269,8 @@ typedef struct tsjob_pixel {
     tsjob_grid grid;
     const char *guide; /* a DEM on the output grid the terrain follows, or NULL */
     ts_pixel_params params;
-    int lazy; /* served window by window (the driver): no whole output */
+    int lazy;         /* served window by window (the driver): no whole output */
+    int keep_sources; /* compute keeps where each cell's coordinate points (debug_dir) */
 } tsjob_pixel;
 
 typedef struct tsjob_pixel_result {
@@ -279,6 +280,7 @@ typedef struct tsjob_pixel_result {
     ts_pixel_guide *guide;      /* after setup, with a guide (owned) */
     ts_raster out;              /* the terrain (owned) */
     double seconds_stacks, seconds_synthesis;
+    int32_t *src_e, *src_x, *src_y; /* with keep_sources (owned) */
     int exemplar_no_crs;
     tsio_err warning;
 } tsjob_pixel_result;

@@ -792,6 +792,14 @@ TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
                                      const ts_pixel_params *params, int64_t x0, int64_t y0,
                                      ts_raster *out);
 
+/** Where each output cell's finest coordinate points (caller-allocated,
+ *  width * height of the window, row-major; any may be NULL): the candidate
+ *  exemplar (exemplar index x rotations + the turn, mirrored ones after)
+ *  and the cell in it. */
+typedef struct ts_pixel_sources {
+    int32_t *exemplar, *x, *y;
+} ts_pixel_sources;
+
 /** A guide (Cruz et al. section II.B): a DEM on the output grid, in the
  *  exemplars' units, prepared as a Gaussian stack with the exemplars'
  *  levels (NaN = no guidance there). */
@@ -808,6 +816,13 @@ TS_API void ts_pixel_guide_free(ts_pixel_guide *g);
  * paper's "add the level of the guide's Laplacian pyramid, then correct").
  * Cells past the guide's edge take its nearest cell.
  */
+/** ts_pixel_synthesize(_guided) (guide may be NULL) with the sources of
+ *  the window's cells. */
+TS_API ts_status ts_pixel_synthesize_sources(ts_ctx *ctx, const ts_pixel_exemplars *ex,
+                                             const ts_pixel_guide *guide,
+                                             const ts_pixel_params *params, int64_t x0, int64_t y0,
+                                             ts_raster *out, const ts_pixel_sources *src);
+
 TS_API ts_status ts_pixel_synthesize_guided(ts_ctx *ctx, const ts_pixel_exemplars *ex,
                                             const ts_pixel_guide *guide,
                                             const ts_pixel_params *params, int64_t x0, int64_t y0,

@@ -504,13 +504,14 @@ TS_API void ts_pixel_guide_free(ts_pixel_guide *g)
 }
 
 static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pixel_guide *guide,
-                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out);
+                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out,
+                         const ts_pixel_sources *src);
 
 TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
                                      const ts_pixel_params *params, int64_t x0, int64_t y0,
                                      ts_raster *out)
 {
-    return pix_run(ctx, ex, NULL, params, x0, y0, out);
+    return pix_run(ctx, ex, NULL, params, x0, y0, out, NULL);
 }
 
 TS_API ts_status ts_pixel_synthesize_guided(ts_ctx *ctx, const ts_pixel_exemplars *ex,
@@ -521,11 +522,23 @@ TS_API ts_status ts_pixel_synthesize_guided(ts_ctx *ctx, const ts_pixel_exemplar
     ts__clear(ctx);
     if (!guide || (ex && guide->levels != ex->levels))
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "the guide was prepared for other stacks");
-    return pix_run(ctx, ex, guide, params, x0, y0, out);
+    return pix_run(ctx, ex, guide, params, x0, y0, out, NULL);
+}
+
+TS_API ts_status ts_pixel_synthesize_sources(ts_ctx *ctx, const ts_pixel_exemplars *ex,
+                                             const ts_pixel_guide *guide,
+                                             const ts_pixel_params *params, int64_t x0, int64_t y0,
+                                             ts_raster *out, const ts_pixel_sources *src)
+{
+    ts__clear(ctx);
+    if (guide && ex && guide->levels != ex->levels)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "the guide was prepared for other stacks");
+    return pix_run(ctx, ex, guide, params, x0, y0, out, src);
 }
 
 static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pixel_guide *guide,
-                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out)
+                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out,
+                         const ts_pixel_sources *src)
 {
     int L, k, r, l, pass, sub, x, y;
     int64_t M;
@@ -677,6 +690,17 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                 hsum += acc / wsum;
             }
             TS_PIX(out, x, y) = (float)hsum;
+            if (src) { /* where the finest level's coordinate points */
+                pix_coord c =
+                    band[L][(size_t)(y + M) * (size_t)(pre[L].x1 - pre[L].x0) + (size_t)(x + M)];
+                size_t o = (size_t)y * (size_t)out->width + (size_t)x;
+                if (src->exemplar)
+                    src->exemplar[o] = c.e;
+                if (src->x)
+                    src->x[o] = c.u;
+                if (src->y)
+                    src->y[o] = c.v;
+            }
         }
 done:
     level_free(&cur);
