@@ -290,6 +290,10 @@ static const tsj_option pixel_opts[] = {
      "EPSG:code, WKT or PROJ string (with size, origin and resolution)", "Grid@crs", 0, NULL},
     {"seed", TSJ_SEED, 1, 0, 0, "S", G_RUN,
      "random seed (default 0); same inputs and seed give the same bytes", "@seed", 0, NULL},
+    {"jitter_levels", TSJ_TEXT, 1, 0, 0, "J1,J2,...", G_RUN,
+     "jitter per level, coarse to fine, from level 1 (levels past the list take its last "
+     "value), in spacings 0..2; instead of the one jitter",
+     "JitterLevels", 0, NULL},
     {"output", TSJ_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
      "the terrain: a Float32 DEM on the target grid, nodata -9999", NULL, 1, NULL},
     {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0, NULL},
@@ -313,6 +317,7 @@ static const tsj_rule pixel_rules[] = {
      "like sets the output grid: give no %s"},
     {TSJ_ONE_OF, "guide", {"like", "size", NULL}, "give the target grid: a guide, like or size"},
     {TSJ_REQUIRES, "guide_weight", {"guide", NULL}, "guide_weight weighs a guide: give guide"},
+    {TSJ_EXCLUDES, "jitter_levels", {"jitter", NULL}, "give jitter or jitter_levels, not both"},
     {TSJ_REQUIRES, "crs", {"origin", "resolution", NULL}, "a CRS needs an origin and a resolution"},
     {TSJ_REQUIRES, "origin", {"size", NULL}, "origin goes with size"},
     {TSJ_REQUIRES, "resolution", {"size", NULL}, "resolution goes with size"},
@@ -1080,6 +1085,21 @@ int tsj_build_pixel(tsj_values *v, tsjob_pixel *job, uint64_t *seed, char *msg, 
         job->cell_size = atof(s);
     build_grid(v, &job->grid);
     job->guide = tsj_get(v, "guide", 0);
+    if ((s = tsj_get(v, "jitter_levels", 0))) {
+        char **items = CSLTokenizeString2(s, ",", 0);
+        int n = CSLCount(items), bad = n < 1 || n > 10;
+        for (i = 0; !bad && i < n; i++) {
+            double j = -1;
+            bad = parse_number(items[i], &j) || j < 0 || j > 2;
+            job->params.jitter_levels[i] = j;
+        }
+        CSLDestroy(items);
+        if (bad) {
+            msgf(msg, len, "jitter_levels takes 1 to 10 numbers in 0..2, not '%s'", s);
+            return -1;
+        }
+        job->params.n_jitter_levels = n;
+    }
     if ((s = tsj_get(v, "seed", 0)))
         *seed = strtoull(s, NULL, 10);
     return 0;

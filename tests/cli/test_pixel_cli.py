@@ -182,3 +182,21 @@ def test_sources_and_repetition(tmp_path):
                 (oy[j:H - n + 1 + j, i:W - n + 1 + i] == oy[:H - n + 1, :W - n + 1])
     print("16 x 16 windows copied whole: %.4f" % whole.mean())
     assert whole.mean() < 0.05
+
+
+def test_jitter_per_level(tmp_path):
+    """--jitter-levels J1,J2,...: one value is --jitter for every level (the same bytes); a
+    list changes the terrain; a recipe keeps it; out-of-range values are refused."""
+    ex = crop(tmp_path)
+    base = ["--exemplar", ex, "--size", "160x120", "--seed", "7", "-q"]
+    run("pixel", *base, "--jitter", "0.3", tmp_path / "a.tif")
+    run("pixel", *base, "--jitter-levels", "0.3", tmp_path / "b.tif")
+    run("pixel", *base, "--jitter-levels", "1,0.5,0.2,0", tmp_path / "c.tif")
+    a, b, c = read(tmp_path / "a.tif"), read(tmp_path / "b.tif"), read(tmp_path / "c.tif")
+    assert a.tobytes() == b.tobytes() and a.tobytes() != c.tobytes()
+    run("pixel", *base[:-1], "--jitter-levels", "1,0.5,0.2,0", "--recipe", tmp_path / "r.tsyn")
+    subprocess.run(["gdal_translate", "-q", str(tmp_path / "r.tsyn"), str(tmp_path / "r.tif")],
+                   check=True, env=plugin_env(PLUGINS))
+    assert read(tmp_path / "r.tif").tobytes() == c.tobytes()
+    p = run("pixel", *base, "--jitter-levels", "0.5,7", tmp_path / "x.tif", check=False)
+    assert p.returncode == 2 and "jitter_levels takes 1 to 10 numbers" in p.stderr

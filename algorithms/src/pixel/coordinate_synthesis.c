@@ -557,6 +557,13 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
         return ts__fail(ctx, TS_ERR_ARG, "pixel",
                         "the stacks were prepared for window %d and %d levels", ex->window,
                         ex->levels);
+    if (params->n_jitter_levels < 0 || params->n_jitter_levels > 10)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "at most 10 per-level jitters, not %d",
+                        params->n_jitter_levels);
+    for (l = 0; l < params->n_jitter_levels; l++)
+        if (!(params->jitter_levels[l] >= 0 && params->jitter_levels[l] <= 2))
+            return ts__fail(ctx, TS_ERR_ARG, "pixel", "per-level jitter %d is %g, not in 0..2",
+                            l + 1, params->jitter_levels[l]);
     if (x0 < -((int64_t)1 << 40) || y0 < -((int64_t)1 << 40) || x0 > ((int64_t)1 << 40) ||
         y0 > ((int64_t)1 << 40))
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "the window's origin is beyond 2^40 cells");
@@ -578,6 +585,11 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
     }
     for (l = 0; l <= L; l++) {
         int hsp = 1 << (L - l);
+        double jit = params->n_jitter_levels > 0
+                         ? params->jitter_levels[l - 1 < params->n_jitter_levels - 1
+                                                     ? (l > 0 ? l - 1 : 0)
+                                                     : params->n_jitter_levels - 1]
+                         : params->jitter;
         if (level_alloc(&cur, pre[l]) != 0) {
             st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for level %d", l);
             goto done;
@@ -602,8 +614,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                     c.u += (int32_t)((ax - 2 * qx) * hsp);
                     c.v += (int32_t)((ay - 2 * qy) * hsp);
                     j = c;
-                    j.u += (int32_t)lround(params->jitter * hsp * ju);
-                    j.v += (int32_t)lround(params->jitter * hsp * jv);
+                    j.u += (int32_t)lround(jit * hsp * ju);
+                    j.v += (int32_t)lround(jit * hsp * jv);
                     if (usable(ex, l, j))
                         c = j;
                     else if (!usable(ex, l, c))
