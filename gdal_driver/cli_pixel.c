@@ -124,8 +124,9 @@ int cli_pixel(int argc, char **argv)
     if (co.progress != PROGRESS_QUIET)
         printf("pixel: %d x %d cells, %d levels, window %d, seed %llu; stacks %.2f s, synthesis "
                "%.2f s\n",
-               res.geo.width, res.geo.height, ts_pixel_levels(res.stacks), job.params.window,
-               (unsigned long long)seed, res.seconds_stacks, res.seconds_synthesis);
+               res.geo.width, res.geo.height, ts_pixel_levels(res.stacks),
+               ts_pixel_window(res.stacks), (unsigned long long)seed, res.seconds_stacks,
+               res.seconds_synthesis);
     rc = 0;
 done:
     if (staged)

@@ -1071,7 +1071,7 @@ int tsj_build_pixel(tsj_values *v, tsjob_pixel *job, uint64_t *seed, char *msg, 
         msgf(msg, len, "needs at least one exemplar");
         return -1;
     }
-    if (job->params.window % 2 == 0) {
+    if (job->params.window && job->params.window % 2 == 0) {
         msgf(msg, len, "window must be odd, not %d", job->params.window);
         return -1;
     }

@@ -762,7 +762,7 @@ TS_API ts_status ts_irradiance(ts_ctx *ctx, const ts_raster *dem, const ts_grid_
 typedef struct ts_pixel_params {
     int levels;    /* L: levels of the Gaussian stacks above the finest (0: as many as fit) */
     int passes;    /* correction passes per level */
-    int window;    /* k: neighbourhoods of k x k cells (odd) */
+    int window;    /* k: neighbourhoods of k x k cells (odd; 0: chosen from the exemplars) */
     double jitter; /* jitter of the upsampled coordinates, in the level's spacings */
     double guide_weight; /* weight of the guide in the corrections' target, 0..1 */
     int rotations;       /* 0: the exemplars as given; 4: also turned by 90, 180, 270 degrees;
@@ -785,6 +785,8 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
 TS_API void ts_pixel_exemplars_free(ts_pixel_exemplars *ex);
 /** The number of levels L the stacks have. */
 TS_API int ts_pixel_levels(const ts_pixel_exemplars *ex);
+/** The neighbourhood side k the stacks were prepared for (chosen when params->window is 0). */
+TS_API int ts_pixel_window(const ts_pixel_exemplars *ex);
 
 /**
  * The output cells [x0, x0 + out->width) x [y0, y0 + out->height) of the

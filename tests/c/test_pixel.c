@@ -187,6 +187,51 @@ static void test_errors(void)
     ts_ctx_free(ctx);
 }
 
+/* The Jacobi eigenvalues keep the matrix's invariants (trace, Frobenius
+ * norm) and give a 2 x 2 matrix's by the formula; the window choice takes 3
+ * for white noise (every direction carries variance) and 9 for a smooth
+ * wave (a few components hold it all). */
+static void test_window_choice(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    double a[25 * 25], b[25 * 25], ev[25], tr = 0, fro = 0, s1 = 0, s2 = 0;
+    double m2[4] = {2, 1, 1, 3}, e2[2];
+    uint64_t rng = 11;
+    ts_raster noise, wave;
+    int i, j;
+    for (i = 0; i < 25; i++)
+        for (j = 0; j <= i; j++)
+            a[i * 25 + j] = a[j * 25 + i] = th_uniform(&rng) - 0.5;
+    memcpy(b, a, sizeof a);
+    for (i = 0; i < 25; i++) {
+        tr += a[i * 25 + i];
+        for (j = 0; j < 25; j++)
+            fro += a[i * 25 + j] * a[i * 25 + j];
+    }
+    CHECK(ts__pix_eigenvalues(b, 25, ev) == 0);
+    for (i = 0; i < 25; i++) {
+        s1 += ev[i];
+        s2 += ev[i] * ev[i];
+    }
+    CHECK_NEAR(s1, tr, 1e-9);
+    CHECK_NEAR(s2, fro, 1e-9);
+    CHECK(ts__pix_eigenvalues(m2, 2, e2) == 0);
+    CHECK_NEAR(fmin(e2[0], e2[1]), 2.5 - sqrt(1.25), 1e-12);
+    CHECK_NEAR(fmax(e2[0], e2[1]), 2.5 + sqrt(1.25), 1e-12);
+    ts_raster_alloc(ctx, 120, 100, &noise);
+    ts_raster_alloc(ctx, 120, 100, &wave);
+    for (j = 0; j < 100; j++)
+        for (i = 0; i < 120; i++) {
+            TS_PIX(&noise, i, j) = (float)th_uniform(&rng);
+            TS_PIX(&wave, i, j) = (float)(100 * sin(0.05 * i + 0.03 * j));
+        }
+    CHECK(ts__pix_choose_window(&noise, 1) == 3);
+    CHECK(ts__pix_choose_window(&wave, 1) == 9);
+    ts_raster_free(&noise);
+    ts_raster_free(&wave);
+    ts_ctx_free(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -194,6 +239,7 @@ int main(int argc, char **argv)
         {"ssd_plain", test_ssd_plain},
         {"windows_anywhere", test_windows_anywhere},
         {"errors", test_errors},
+        {"window_choice", test_window_choice},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

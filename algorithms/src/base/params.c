@@ -147,8 +147,10 @@ static const ts_param_desc pixel_desc[] = {
     {"passes", TS_PARAM_INT, 2, 0, 8, TS_UNIT_CELLS, "", NULL,
      "Correction passes per level (each of 4 sub-passes over the cells of one parity).",
      offsetof(ts_pixel_params, passes)},
-    {"window", TS_PARAM_INT, 5, 3, 9, TS_UNIT_CELLS, "", NULL,
-     "Side k of the k x k neighbourhoods compared in the corrections (odd).",
+    {"window", TS_PARAM_INT, 5, 0, 9, TS_UNIT_CELLS, "", NULL,
+     "Side k of the k x k neighbourhoods compared in the corrections (odd); 0: the k in "
+     "3, 5, 7, 9 whose principal components holding 95 % of the neighbourhoods' variance are "
+     "the smallest share of k x k (Cruz et al.).",
      offsetof(ts_pixel_params, window)},
     {"jitter", TS_PARAM_DOUBLE, 0.4, 0.0, 2.0, TS_UNIT_CELLS, "", NULL,
      "Jitter of the upsampled coordinates, in spacings of the level (from a hash of the "

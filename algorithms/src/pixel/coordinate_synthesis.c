@@ -371,12 +371,14 @@ static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "no exemplars given");
     if (ts_params_validate(ctx, "pixel", params) != TS_OK)
         return ctx->status;
-    k = params->window;
+    for (i = 0; i < n; i++)
+        if (!exemplars[i].data)
+            return ts__fail_input(ctx, TS_ERR_ARG, i, "pixel", "exemplar %d: no data", i + 1);
+    /* 0: chosen as Cruz et al. do, by the neighbourhoods' principal components */
+    k = params->window ? params->window : ts__pix_choose_window(exemplars, n);
     if (k % 2 == 0)
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "window must be odd, not %d", k);
     for (i = 0; i < n; i++) {
-        if (!exemplars[i].data)
-            return ts__fail_input(ctx, TS_ERR_ARG, i, "pixel", "exemplar %d: no data", i + 1);
         if (exemplars[i].width < minside)
             minside = exemplars[i].width;
         if (exemplars[i].height < minside)
@@ -450,6 +452,11 @@ TS_API void ts_pixel_exemplars_free(ts_pixel_exemplars *ex)
 TS_API int ts_pixel_levels(const ts_pixel_exemplars *ex)
 {
     return ex ? ex->levels : 0;
+}
+
+TS_API int ts_pixel_window(const ts_pixel_exemplars *ex)
+{
+    return ex ? ex->window : 0;
 }
 
 TS_API ts_status ts_pixel_guide_prepare(ts_ctx *ctx, const ts_raster *guide,
@@ -553,7 +560,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "missing exemplars, parameters or output");
     if (ts_params_validate(ctx, "pixel", params) != TS_OK)
         return ctx->status;
-    if (params->window != ex->window || (params->levels && params->levels != ex->levels))
+    if ((params->window && params->window != ex->window) ||
+        (params->levels && params->levels != ex->levels))
         return ts__fail(ctx, TS_ERR_ARG, "pixel",
                         "the stacks were prepared for window %d and %d levels", ex->window,
                         ex->levels);

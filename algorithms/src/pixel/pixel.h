@@ -60,4 +60,14 @@ double ts__pix_ssd(const float *level, int width, int u, int v, int k, int h, co
  * (SplitMix64 finaliser over the mixed words). */
 uint64_t ts__pix_hash(int64_t x, int64_t y, int level, int stream, uint64_t seed);
 
+/* The eigenvalues of the symmetric n x n matrix a (destroyed) by cyclic
+ * Jacobi rotations, into ev (unordered); 0, or -1 when they did not converge. */
+int ts__pix_eigenvalues(double *a, int n, double *ev);
+/* The share of the principal components that hold 95 % of the variance of
+ * the exemplars' mean-removed k x k neighbourhoods (at most about 4000 per
+ * exemplar, on a lattice); -1 on failure. */
+double ts__pix_pca_ratio(const ts_raster *ex, int n, int k);
+/* The k in {3, 5, 7, 9} with the smallest ratio (Cruz et al.). */
+int ts__pix_choose_window(const ts_raster *ex, int n);
+
 #endif
