@@ -28,39 +28,109 @@
 #define G_RUN "Run"
 #define G_OUT "Outputs"
 
+/* Options and rules several jobs declare alike. */
+#define OPT_BAND_EVERY                                                                             \
+    {                                                                                              \
+        "band", TSJ_INT, 1, 1, 65535, "N", G_IN, "band read from every input (default 1)", "Band", \
+            0, NULL                                                                                \
+    }
+#define OPT_CELL_SIZE_GRID                                                                         \
+    {                                                                                              \
+        "cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,                                          \
+            "ground size of a cell in metres of every raster without a CRS (a target grid "        \
+            "without "                                                                             \
+            "one too); without it such rasters are used cell for cell",                            \
+            "CellSize", 0, NULL                                                                    \
+    }
+/* the target grid: like a raster, or a size (at most size_max cells a side) */
+#define OPT_GRID(size_max)                                                                         \
+    {                                                                                              \
+        "like",      TSJ_FILE,   1,      0,                                                        \
+        0,           "GRID.tif", G_GRID, "size, geotransform and CRS of a raster",                 \
+        "Grid@like", 0,          NULL},                                                            \
+        {"size",                                                                                   \
+         TSJ_SIZE,                                                                                 \
+         1,                                                                                        \
+         1,                                                                                        \
+         size_max,                                                                                 \
+         "WxH",                                                                                    \
+         G_GRID,                                                                                   \
+         "size in cells; the grid takes the first exemplar's CRS, resolution and origin "          \
+         "unless origin, resolution and crs are given",                                            \
+         "Grid@width@height",                                                                      \
+         0,                                                                                        \
+         NULL},                                                                                    \
+        {"origin",                                                                                 \
+         TSJ_XY,                                                                                   \
+         1,                                                                                        \
+         0,                                                                                        \
+         0,                                                                                        \
+         "X,Y",                                                                                    \
+         G_GRID,                                                                                   \
+         "top-left corner in CRS units (with size)",                                               \
+         "Grid@originX@originY",                                                                   \
+         0,                                                                                        \
+         NULL},                                                                                    \
+        {"resolution",                                                                             \
+         TSJ_NUMBER,                                                                               \
+         1,                                                                                        \
+         1e-12,                                                                                    \
+         1e12,                                                                                     \
+         "R",                                                                                      \
+         G_GRID,                                                                                   \
+         "cell size in CRS units (with size)",                                                     \
+         "Grid@resolution",                                                                        \
+         0,                                                                                        \
+         NULL},                                                                                    \
+    {                                                                                              \
+        "crs", TSJ_TEXT, 1, 0, 0, "CRS", G_GRID,                                                   \
+            "EPSG:code, WKT or PROJ string (with size, origin and resolution)", "Grid@crs", 0,     \
+            NULL                                                                                   \
+    }
+#define OPT_SEED                                                                                   \
+    {                                                                                              \
+        "seed", TSJ_SEED, 1, 0, 0, "S", G_RUN,                                                     \
+            "random seed (default 0); same inputs and seed give the same bytes", "@seed", 0, NULL  \
+    }
+#define OPT_PREVIEW                                                                                \
+    {                                                                                              \
+        "preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0,     \
+            NULL                                                                                   \
+    }
+#define OPT_RECIPE                                                                                 \
+    {                                                                                              \
+        "recipe", TSJ_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,                                         \
+            "write a recipe for this job instead of running it: gdal_translate FILE.tsyn out.tif", \
+            NULL, 0, NULL                                                                          \
+    }
+/* what a grid given by its size needs */
+#define RULES_GRID_SIZE                                                                            \
+    {TSJ_REQUIRES,                                                                                 \
+     "crs",                                                                                        \
+     {"origin", "resolution", NULL},                                                               \
+     "a CRS needs an origin and a resolution"},                                                    \
+        {TSJ_REQUIRES, "origin", {"size", NULL}, "origin goes with size"},                         \
+    {                                                                                              \
+        TSJ_REQUIRES, "resolution", {"size", NULL}, "resolution goes with size"                    \
+    }
+
 static const tsj_option synth_opts[] = {
     {"exemplar", TSJ_FILE, TSJOB_MAX_EXEMPLARS, 0, 0, "EX.tif", G_IN,
-     "a real DEM (any GDAL raster) whose style the terrain takes; repeatable", "Exemplar", 0,
-     NULL},
-    {"band", TSJ_INT, 1, 1, 65535, "N", G_IN, "band read from every input (default 1)", "Band",
-     0, NULL},
-    {"cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
-     "ground size of a cell in metres of every raster without a CRS (a target grid without "
-     "one too); without it such rasters are used cell for cell",
-     "CellSize", 0, NULL},
+     "a real DEM (any GDAL raster) whose style the terrain takes; repeatable", "Exemplar", 0, NULL},
+    OPT_BAND_EVERY,
+    OPT_CELL_SIZE_GRID,
     {"sketch", TSJ_FILE, 1, 0, 0, "SK.tif", G_GRID,
      "a sketch (any single-band raster): the terrain follows it (bright strokes are ridges, "
      "dark strokes valleys) on its grid, nodata where it is nodata",
      "Sketch", 0, NULL},
-    {"like", TSJ_FILE, 1, 0, 0, "GRID.tif", G_GRID, "size, geotransform and CRS of a raster",
-     "Grid@like", 0, NULL},
-    {"size", TSJ_SIZE, 1, 1, 65536, "WxH", G_GRID,
-     "size in cells; the grid takes the first exemplar's CRS, resolution and origin unless "
-     "origin, resolution and crs are given",
-     "Grid@width@height", 0, NULL},
-    {"origin", TSJ_XY, 1, 0, 0, "X,Y", G_GRID, "top-left corner in CRS units (with size)",
-     "Grid@originX@originY", 0, NULL},
-    {"resolution", TSJ_NUMBER, 1, 1e-12, 1e12, "R", G_GRID, "cell size in CRS units (with size)",
-     "Grid@resolution", 0, NULL},
-    {"crs", TSJ_TEXT, 1, 0, 0, "CRS", G_GRID,
-     "EPSG:code, WKT or PROJ string (with size, origin and resolution)", "Grid@crs", 0, NULL},
+    OPT_GRID(65536),
     {"pin", TSJ_PIN, TSJOB_MAX_PINS, 0, 0, "FILE:XOFF,YOFF,W,H@X,Y", G_CONS,
      "keep a window of a DEM (its own cells) unchanged with its top-left at output cell X,Y; "
      "repeatable",
      "Pin", 0, NULL},
     {"water", TSJ_FILE, 1, 0, 0, "MASK", G_CONS,
-     "cells where MASK (a raster on the output grid) is non-zero keep water_level",
-     "Water", 0, NULL},
+     "cells where MASK (a raster on the output grid) is non-zero keep water_level", "Water", 0,
+     NULL},
     {"water_level", TSJ_NUMBER, 1, -1e7, 1e7, "H", G_CONS, "the level of the water cells",
      "Water@level", 0, NULL},
     {"heights", TSJ_FILE, 1, 0, 0, "H.tif", G_CONS,
@@ -73,40 +143,37 @@ static const tsj_option synth_opts[] = {
      "integer field 'region'",
      "Regions", 0, NULL},
     {"region_exemplar", TSJ_RULE, TSJOB_MAX_EXEMPLARS, 0, 0, "ID=EX", G_CONS,
-     "region ID takes exemplar EX (repeatable; other regions take any exemplar)",
-     "RegionExemplar", 0, NULL},
-    {"seed", TSJ_SEED, 1, 0, 0, "S", G_RUN,
-     "random seed (default 0); same inputs and seed give the same bytes", "@seed", 0, NULL},
+     "region ID takes exemplar EX (repeatable; other regions take any exemplar)", "RegionExemplar",
+     0, NULL},
+    OPT_SEED,
     {"output", TSJ_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
      "the terrain: a Float32 DEM on the target grid, nodata -9999", NULL, 1, NULL},
-    {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0,
-     NULL},
+    OPT_PREVIEW,
     {"debug_dir", TSJ_OUTPUT, 1, 0, 0, "DIR", G_OUT,
      "seams.tif, source_exemplar.tif, source_x.tif, source_y.tif, order.tif (georeferenced); "
      "with a sketch also its features and the output's (GeoPackage)",
      NULL, 0, NULL},
-    {"recipe", TSJ_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,
-     "write a recipe for this job instead of running it: gdal_translate FILE.tsyn out.tif",
-     NULL, 0, NULL},
+    OPT_RECIPE,
 };
 
 static const tsj_rule synth_rules[] = {
-    {TSJ_EXCLUDES, "sketch", {"like", "size", "origin", "resolution", "crs", NULL},
+    {TSJ_EXCLUDES,
+     "sketch",
+     {"like", "size", "origin", "resolution", "crs", NULL},
      "a sketch sets the output grid: give no %s"},
-    {TSJ_EXCLUDES, "like", {"size", "origin", "resolution", "crs", NULL},
+    {TSJ_EXCLUDES,
+     "like",
+     {"size", "origin", "resolution", "crs", NULL},
      "like sets the output grid: give no %s"},
-    {TSJ_ONE_OF, "sketch", {"like", "size", NULL},
-     "give the target grid: a sketch, like or size"},
-    {TSJ_REQUIRES, "crs", {"origin", "resolution", NULL},
-     "a CRS needs an origin and a resolution"},
-    {TSJ_REQUIRES, "origin", {"size", NULL}, "origin goes with size"},
-    {TSJ_REQUIRES, "resolution", {"size", NULL}, "resolution goes with size"},
+    {TSJ_ONE_OF, "sketch", {"like", "size", NULL}, "give the target grid: a sketch, like or size"},
+    RULES_GRID_SIZE,
     {TSJ_TOGETHER, "water", {"water_level", NULL}, "water and water_level go together"},
-    {TSJ_TOGETHER, "regions", {"region_exemplar", NULL},
-     "regions and region_exemplar go together"},
+    {TSJ_TOGETHER, "regions", {"region_exemplar", NULL}, "regions and region_exemplar go together"},
     {TSJ_REQUIRES, "alpha_h", {"heights", NULL}, "alpha_h weighs heights: give heights"},
     {TSJ_REQUIRES, "@sketch", {"sketch", NULL}, "%s applies to a sketch: give sketch"},
-    {TSJ_EXCLUDES, "recipe", {"output", "preview", "debug_dir", NULL},
+    {TSJ_EXCLUDES,
+     "recipe",
+     {"output", "preview", "debug_dir", NULL},
      "recipe writes the recipe instead of running the job: give no %s"},
     {TSJ_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
 };
@@ -122,8 +189,7 @@ static const tsj_option ppa_opts[] = {
      "features=ridges"},
     {"valleys", TSJ_CHOICE, 1, 0, 0, NULL, G_IN, "map valleys (features valleys)", NULL, 0,
      "features=valleys"},
-    {"both", TSJ_CHOICE, 1, 0, 0, NULL, G_IN, "map both (features both)", NULL, 0,
-     "features=both"},
+    {"both", TSJ_CHOICE, 1, 0, 0, NULL, G_IN, "map both (features both)", NULL, 0, "features=both"},
     {"output", TSJ_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
      "Byte raster on the input's grid: 1 ridge, 2 valley, 3 both, 0 none, 255 nodata", NULL, 2,
      NULL},
@@ -133,9 +199,7 @@ static const tsj_option ppa_opts[] = {
      NULL, 0, NULL},
     {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT,
      "hillshade with ridges (red) and valleys (blue)", NULL, 0, NULL},
-    {"recipe", TSJ_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,
-     "write a recipe for this job instead of running it: gdal_translate FILE.tsyn out.tif",
-     NULL, 0, NULL},
+    OPT_RECIPE,
 };
 
 static const tsj_rule ppa_rules[] = {
@@ -182,8 +246,7 @@ static const tsj_option amplify_opts[] = {
      "on the input's grid painted by the user (shares: each biome's weight over their sum); "
      "repeatable, instead of exemplars or a dictionary",
      "Biome", 0, "weights"},
-    {"band", TSJ_INT, 1, 1, 65535, "N", G_IN, "band read from every input (default 1)", "Band", 0,
-     NULL},
+    OPT_BAND_EVERY,
     {"cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
      "ground size of a cell in metres of every raster without a CRS (without it such "
      "rasters are used cell for cell)",
@@ -202,10 +265,8 @@ static const tsj_option amplify_opts[] = {
      NULL, 0, NULL},
     {"out_classes", TSJ_OUTPUT, 1, 0, 0, "FILE", G_OUT,
      "the atoms' classes on the output's grid (Byte, 0 = unlabelled)", NULL, 0, NULL},
-    {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0, NULL},
-    {"recipe", TSJ_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,
-     "write a recipe for this job instead of running it: gdal_translate FILE.tsyn out.tif", NULL, 0,
-     NULL},
+    OPT_PREVIEW,
+    OPT_RECIPE,
 };
 
 static const tsj_rule amplify_rules[] = {
@@ -266,44 +327,26 @@ static const tsj_option pixel_opts[] = {
      "a real DEM (any GDAL raster) whose style the terrain takes, resampled to the output's "
      "ground resolution; repeatable",
      "Exemplar", 0, NULL},
-    {"band", TSJ_INT, 1, 1, 65535, "N", G_IN, "band read from every input (default 1)", "Band", 0,
-     NULL},
-    {"cell_size", TSJ_NUMBER, 1, 1e-6, 1e7, "M", G_IN,
-     "ground size of a cell in metres of every raster without a CRS (a target grid without "
-     "one too); without it such rasters are used cell for cell",
-     "CellSize", 0, NULL},
+    OPT_BAND_EVERY,
+    OPT_CELL_SIZE_GRID,
     {"guide", TSJ_FILE, 1, 0, 0, "G.tif", G_GRID,
      "a DEM in the exemplars' units (a sketch, a synth output, a coarse real DEM) that the "
      "terrain follows at every level; its grid is the output's",
      "Guide", 0, NULL},
-    {"like", TSJ_FILE, 1, 0, 0, "GRID.tif", G_GRID, "size, geotransform and CRS of a raster",
-     "Grid@like", 0, NULL},
-    {"size", TSJ_SIZE, 1, 1, 1048576, "WxH", G_GRID,
-     "size in cells; the grid takes the first exemplar's CRS, resolution and origin unless "
-     "origin, resolution and crs are given",
-     "Grid@width@height", 0, NULL},
-    {"origin", TSJ_XY, 1, 0, 0, "X,Y", G_GRID, "top-left corner in CRS units (with size)",
-     "Grid@originX@originY", 0, NULL},
-    {"resolution", TSJ_NUMBER, 1, 1e-12, 1e12, "R", G_GRID, "cell size in CRS units (with size)",
-     "Grid@resolution", 0, NULL},
-    {"crs", TSJ_TEXT, 1, 0, 0, "CRS", G_GRID,
-     "EPSG:code, WKT or PROJ string (with size, origin and resolution)", "Grid@crs", 0, NULL},
-    {"seed", TSJ_SEED, 1, 0, 0, "S", G_RUN,
-     "random seed (default 0); same inputs and seed give the same bytes", "@seed", 0, NULL},
+    OPT_GRID(1048576),
+    OPT_SEED,
     {"jitter_levels", TSJ_TEXT, 1, 0, 0, "J1,J2,...", G_RUN,
      "jitter per level, coarse to fine, from level 1 (levels past the list take its last "
      "value), in spacings 0..2; instead of the one jitter",
      "JitterLevels", 0, NULL},
     {"output", TSJ_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
      "the terrain: a Float32 DEM on the target grid, nodata -9999", NULL, 1, NULL},
-    {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0, NULL},
+    OPT_PREVIEW,
     {"debug_dir", TSJ_OUTPUT, 1, 0, 0, "DIR", G_OUT,
      "source_exemplar.tif, source_x.tif, source_y.tif: where each cell's finest coordinate "
      "points (the candidate exemplar: index x rotations + turn; the cell in it)",
      NULL, 0, NULL},
-    {"recipe", TSJ_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,
-     "write a recipe for this job instead of running it: gdal_translate FILE.tsyn out.tif", NULL, 0,
-     NULL},
+    OPT_RECIPE,
 };
 
 static const tsj_rule pixel_rules[] = {
@@ -318,9 +361,7 @@ static const tsj_rule pixel_rules[] = {
     {TSJ_ONE_OF, "guide", {"like", "size", NULL}, "give the target grid: a guide, like or size"},
     {TSJ_REQUIRES, "guide_weight", {"guide", NULL}, "guide_weight weighs a guide: give guide"},
     {TSJ_EXCLUDES, "jitter_levels", {"jitter", NULL}, "give jitter or jitter_levels, not both"},
-    {TSJ_REQUIRES, "crs", {"origin", "resolution", NULL}, "a CRS needs an origin and a resolution"},
-    {TSJ_REQUIRES, "origin", {"size", NULL}, "origin goes with size"},
-    {TSJ_REQUIRES, "resolution", {"size", NULL}, "resolution goes with size"},
+    RULES_GRID_SIZE,
     {TSJ_EXCLUDES,
      "recipe",
      {"output", "preview", "debug_dir", NULL},

@@ -115,26 +115,28 @@ void tsjob_ppa_result_free(tsjob_ppa_result *res)
 /* synth                                                               */
 /* ------------------------------------------------------------------ */
 
-/* Cells of an exemplar, as read and at the target grid's ground size. */
-static int job_exemplar_cells(const char *path, const tsjob_synth_result *res, double cell_size,
-                              uint64_t *source, uint64_t *target, tsio_err *err)
+/* Cells of an exemplar, as read and resampled to cells of target_area square
+ * metres (0: as they are); *ratio (may be NULL) is the one between the two.  An
+ * exemplar without CRS has cells of cell_size metres when that is given. */
+static int job_exemplar_cells(const char *path, double target_area, double cell_size,
+                              uint64_t *source, uint64_t *target, double *ratio, tsio_err *err)
 {
     tsio_georef g;
-    double *dx = NULL, *dy = NULL, ratio = 1.0;
-    int cy = res->geo.height / 2;
+    double *dx = NULL, *dy = NULL, r = 1.0;
     if (tsio_read_georef(path, &g, err) != 0)
         return -1;
     *source = (uint64_t)g.width * (uint64_t)g.height;
-    if (tsio_georef_metrics(&g, &dx, &dy, err) == 0 && res->dx_m) {
+    if (target_area > 0 && tsio_georef_metrics(&g, &dx, &dy, err) == 0) {
         double ex_area = dx ? dx[g.height / 2] * dy[g.height / 2] : cell_size * cell_size;
-        double t_area = res->dx_m[cy] * res->dy_m[cy];
-        if (ex_area > 0 && t_area > 0)
-            ratio = ex_area / t_area;
+        if (ex_area > 0)
+            r = ex_area / target_area;
     }
     free(dx);
     free(dy);
     tsio_georef_free(&g);
-    *target = (uint64_t)((double)*source * ratio + 1.0);
+    *target = (uint64_t)((double)*source * r + 1.0);
+    if (ratio)
+        *ratio = r;
     return 0;
 }
 
@@ -147,9 +149,12 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
     int i;
     need +=
         cells * (JOB_MEM_SYNTH_CELL + JOB_MEM_MAPS_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0));
+    int cy = res->geo.height / 2;
+    double t_area = res->dx_m ? res->dx_m[cy] * res->dy_m[cy] : 0.0;
     for (i = 0; i < job->n_exemplars; i++) {
         uint64_t src, tgt;
-        if (job_exemplar_cells(job->exemplars[i], res, job->cell_size, &src, &tgt, err) != 0)
+        if (job_exemplar_cells(job->exemplars[i], t_area, job->cell_size, &src, &tgt, NULL, err) !=
+            0)
             return -1;
         need += tgt * JOB_MEM_EX_CELL;
         if (src > biggest)
@@ -897,18 +902,11 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
     free(dy);
     tsio_georef_free(&g);
     for (i = 0; i < job->n_exemplars; i++) {
-        tsio_georef e;
         uint64_t src, tgt;
-        double *ex = NULL, *ey = NULL, ratio = 1.0;
-        if (tsio_read_georef(job->exemplars[i], &e, err) != 0)
+        double ratio;
+        if (job_exemplar_cells(job->exemplars[i], out_area, job->cell_size, &src, &tgt, &ratio,
+                               err) != 0)
             return -1;
-        src = (uint64_t)e.width * (uint64_t)e.height;
-        if (out_area > 0 && tsio_georef_metrics(&e, &ex, &ey, err) == 0 && ex)
-            ratio = ex[e.height / 2] * ey[e.height / 2] / out_area;
-        free(ex);
-        free(ey);
-        tsio_georef_free(&e);
-        tgt = (uint64_t)((double)src * ratio + 1.0);
         atoms_total += (uint64_t)p->atoms;
         need += src * 4 + tgt * 16; /* as read, and at the output's resolution */
         need += (src * 4 + tgt * 8) * (uint64_t)job->n_layers; /* its layers, read one by one */
@@ -1639,20 +1637,12 @@ int tsjob_pixel_prepare(const tsjob_pixel *job, tsjob_pixel_result *res, tsio_er
     if (res->dx_m)
         out_area = res->dx_m[0] * res->dy_m[0];
     for (i = 0; i < job->n_exemplars; i++) {
-        tsio_georef e;
-        double *ex = NULL, *ey = NULL, ratio = 1.0;
         uint64_t src, tgt;
-        if (tsio_read_georef(job->exemplars[i], &e, err) != 0) {
+        if (job_exemplar_cells(job->exemplars[i], out_area, job->cell_size, &src, &tgt, NULL,
+                               err) != 0) {
             tsjob_pixel_result_free(res);
             return -1;
         }
-        src = (uint64_t)e.width * (uint64_t)e.height;
-        if (out_area > 0 && tsio_georef_metrics(&e, &ex, &ey, err) == 0 && ex)
-            ratio = ex[e.height / 2] * ey[e.height / 2] / out_area;
-        free(ex);
-        free(ey);
-        tsio_georef_free(&e);
-        tgt = (uint64_t)((double)src * ratio + 1.0);
         need += src * JOB_MEM_EX_SOURCE_CELL + tgt * (uint64_t)(L + 1) * 12;
     }
     if (tsio_check_memory(need, "pixel", "a smaller grid, fewer levels or smaller exemplars",
@@ -1790,14 +1780,21 @@ void tsjob_pixel_result_free(tsjob_pixel_result *res)
     memset(res, 0, sizeof *res);
 }
 
-int tsjob_pixel_check_recipe(const tsjob_pixel *job, const char *recipe, tsio_err *err)
+/* Every file a pixel job reads; returns the count. */
+static int job_pixel_inputs(const tsjob_pixel *job, const char **in)
 {
-    const char *in[TSJOB_MAX_EXEMPLARS + 2];
     int n = 0, i;
     for (i = 0; i < job->n_exemplars; i++)
         in[n++] = job->exemplars[i];
     in[n++] = job->grid.like;
     in[n++] = job->guide;
+    return n;
+}
+
+int tsjob_pixel_check_recipe(const tsjob_pixel *job, const char *recipe, tsio_err *err)
+{
+    const char *in[TSJOB_MAX_EXEMPLARS + 2];
+    int n = job_pixel_inputs(job, in);
     return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
 }
 
@@ -1807,17 +1804,13 @@ int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *
                               const tsjob_outputs *o, tsio_err *err)
 {
     const char *in[TSJOB_MAX_EXEMPLARS + 2], *outs[2] = {o->output, o->preview};
-    int n = 0, i;
+    int n = job_pixel_inputs(job, in), i;
     float probe = 0;
     ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
     unsigned char bp = 0;
     tsio_write_opts wo = {o->format, o->create_options, 1};
     tsio_write_opts png = {"PNG", NULL, 1};
     tsio_georef g1 = res->geo;
-    for (i = 0; i < job->n_exemplars; i++)
-        in[n++] = job->exemplars[i];
-    in[n++] = job->grid.like;
-    in[n++] = job->guide;
     g1.width = g1.height = 1;
     if (job_not_an_input(o->output, in, n, err) || job_not_an_input(o->preview, in, n, err) ||
         job_distinct(outs, 2, err))

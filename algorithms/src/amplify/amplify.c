@@ -807,6 +807,20 @@ TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
     return st;
 }
 
+/* What a window needs besides amp_check: the drainage, and to lie in the output. */
+static ts_status amp_window_check(ts_ctx *ctx, const ts_raster *coarse,
+                                  const ts_amplify_guide *guide, const ts_amplify_params *params,
+                                  int x0, int y0, const ts_raster *out)
+{
+    if (!guide || !guide->drainage)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the drainage area must be on the input grid");
+    if (x0 < 0 || y0 < 0 || x0 + out->width > coarse->width * params->factor ||
+        y0 + out->height > coarse->height * params->factor)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the window %d,%d %dx%d is outside the output",
+                        x0, y0, out->width, out->height);
+    return TS_OK;
+}
+
 TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse,
                                    const ts_amplify_guide *guide, const ts_dictionary *dict,
                                    const ts_amplify_params *params, int x0, int y0, ts_raster *out,
@@ -818,12 +832,8 @@ TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse,
         memset(info, 0, sizeof *info);
     if ((st = amp_check(ctx, coarse, guide, dict, params, out, layers)) != TS_OK)
         return st;
-    if (!guide || !guide->drainage)
-        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the drainage area must be on the input grid");
-    if (x0 < 0 || y0 < 0 || x0 + out->width > coarse->width * params->factor ||
-        y0 + out->height > coarse->height * params->factor)
-        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the window %d,%d %dx%d is outside the output",
-                        x0, y0, out->width, out->height);
+    if ((st = amp_window_check(ctx, coarse, guide, params, x0, y0, out)) != TS_OK)
+        return st;
     return amp_window(ctx, coarse, guide, &dict, NULL, 1, params, x0, y0, out, layers, info);
 }
 
@@ -859,12 +869,8 @@ TS_API ts_status ts_amplify_biomes(ts_ctx *ctx, const ts_raster *coarse,
     }
     if (guide && guide->classes && n_biomes > 1)
         return ts__fail(ctx, TS_ERR_ARG, "amplify", "wanted classes go with one dictionary");
-    if (!guide || !guide->drainage)
-        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the drainage area must be on the input grid");
-    if (x0 < 0 || y0 < 0 || x0 + out->width > coarse->width * params->factor ||
-        y0 + out->height > coarse->height * params->factor)
-        return ts__fail(ctx, TS_ERR_ARG, "amplify", "the window %d,%d %dx%d is outside the output",
-                        x0, y0, out->width, out->height);
+    if ((st = amp_window_check(ctx, coarse, guide, params, x0, y0, out)) != TS_OK)
+        return st;
     return amp_window(ctx, coarse, guide, dicts, weights, n_biomes, params, x0, y0, out, NULL,
                       info);
 }

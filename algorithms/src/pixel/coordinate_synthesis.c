@@ -550,8 +550,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
     int L, k, r, l, pass, sub, x, y;
     int64_t M;
     pix_region need[12], pre[12];
-    pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL}, prev = cur;
-    pix_coord *band[12] = {NULL};
+    pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL};
+    pix_coord *coords[12] = {NULL}; /* each level's corrected coordinates over pre[l] */
     static const int order[4][2] = {{0, 0}, {1, 1}, {1, 0}, {0, 1}};
     uint64_t seed;
     ts_status st = TS_OK;
@@ -618,7 +618,9 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                     uint64_t hh = ts__pix_hash(ax, ay, l, 1, seed);
                     double ju = ((double)(hh & 0xffffff) / 16777215.0) * 2 - 1;
                     double jv = ((double)((hh >> 24) & 0xffffff) / 16777215.0) * 2 - 1;
-                    c = prev.s[(size_t)(qy - prev.reg.y0) * prev.w + (size_t)(qx - prev.reg.x0)];
+                    c = coords[l - 1][(size_t)(qy - pre[l - 1].y0) *
+                                          (size_t)(pre[l - 1].x1 - pre[l - 1].x0) +
+                                      (size_t)(qx - pre[l - 1].x0)];
                     c.u += (int32_t)((ax - 2 * qx) * hsp);
                     c.v += (int32_t)((ay - 2 * qy) * hsp);
                     j = c;
@@ -631,7 +633,6 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                 }
                 cur.s[(size_t)y * cur.w + x] = c;
             }
-        level_free(&prev);
         /* correction */
         for (pass = 0; pass < params->passes; pass++)
             for (sub = 0; sub < 4; sub++) {
@@ -649,14 +650,9 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
             goto done;
         if ((st = ts__progress(ctx, (l + 1.0) / (L + 1), "synthesis")) != TS_OK)
             goto done;
-        /* the level's coordinates, kept for the output's bands */
-        band[l] = ts__malloc_array((size_t)cur.w * (size_t)cur.h, sizeof *band[l]);
-        if (!band[l]) {
-            st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for level %d", l);
-            goto done;
-        }
-        memcpy(band[l], cur.s, (size_t)cur.w * (size_t)cur.h * sizeof *band[l]);
-        prev = cur;
+        /* the level's coordinates, kept for the next level and the output's bands */
+        coords[l] = cur.s;
+        free(cur.tmp);
         cur.s = cur.tmp = NULL;
     }
     /* the window: the sum of the levels' bands (a level's stack less the coarser one),
@@ -682,7 +678,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                     for (a = 0; a < 2; a++) {
                         size_t i =
                             (size_t)(qy + b - pre[l].y0) * (size_t)w + (size_t)(qx + a - pre[l].x0);
-                        pix_coord c = band[l][i];
+                        pix_coord c = coords[l][i];
                         const pix_stack *st_ = &ex->stacks[c.e];
                         int64_t u = c.u + (ax - (qx + a) * sp), v = c.v + (ay - (qy + b) * sp);
                         size_t o;
@@ -700,7 +696,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                 if (!(wsum > 0)) { /* all past: the nearest cell's own (always valid) */
                     size_t i = (size_t)(qy + (ty >= 0.5) - pre[l].y0) * (size_t)w +
                                (size_t)(qx + (tx >= 0.5) - pre[l].x0);
-                    pix_coord c = band[l][i];
+                    pix_coord c = coords[l][i];
                     const pix_stack *st_ = &ex->stacks[c.e];
                     size_t o = (size_t)c.v * (size_t)st_->width + (size_t)c.u;
                     acc = l ? (double)st_->level[l][o] - st_->level[l - 1][o]
@@ -712,7 +708,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
             TS_PIX(out, x, y) = (float)hsum;
             if (src) { /* where the finest level's coordinate points */
                 pix_coord c =
-                    band[L][(size_t)(y + M) * (size_t)(pre[L].x1 - pre[L].x0) + (size_t)(x + M)];
+                    coords[L][(size_t)(y + M) * (size_t)(pre[L].x1 - pre[L].x0) + (size_t)(x + M)];
                 size_t o = (size_t)y * (size_t)out->width + (size_t)x;
                 if (src->exemplar)
                     src->exemplar[o] = c.e;
@@ -724,8 +720,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
         }
 done:
     level_free(&cur);
-    level_free(&prev);
     for (l = 0; l < 12; l++)
-        free(band[l]);
+        free(coords[l]);
     return st;
 }
