@@ -767,6 +767,8 @@ typedef struct ts_pixel_params {
     double guide_weight; /* weight of the guide in the corrections' target, 0..1 */
     int rotations;       /* 0: the exemplars as given; 4: also turned by 90, 180, 270 degrees;
                             8: and mirrored */
+    double pca_energy;   /* share of the neighbourhoods' shape variance the compared
+                            appearance vectors keep (Cruz et al.: 0.95; 1: all, plain SSD) */
     /* per-level jitter (not a declared parameter: a list): with n_jitter_levels > 0,
      * level l >= 1 is jittered by jitter_levels[min(l - 1, n - 1)] instead of jitter */
     int n_jitter_levels;

@@ -47,8 +47,9 @@ class PixelAlgorithm(TerraSynthAlgorithm):
     HELP = HELP
     LABELS = {"levels": "Levels (0 = as many as fit)", "passes": "Correction passes",
               "window": "Neighbourhood (cells)", "jitter": "Jitter (spacings)",
-              "guide_weight": "Guide weight", "rotations": "Rotations (0, 4 or 8)"}
-    ADVANCED = ("levels", "passes", "window", "jitter")
+              "guide_weight": "Guide weight", "rotations": "Rotations (0, 4 or 8)",
+              "pca_energy": "Share of the neighbourhoods' variance compared (PCA)"}
+    ADVANCED = ("levels", "passes", "window", "jitter", "pca_energy")
 
     EXEMPLARS = "EXEMPLARS"
     GUIDE = "GUIDE"

@@ -96,6 +96,7 @@ typedef struct pix_level {
     pix_region reg;
     int w, h;
     pix_coord *s, *tmp;
+    float *hc; /* the level's heights at s (the corrections' targets read them k x k times) */
 } pix_level;
 
 typedef struct corr_job {
@@ -118,17 +119,129 @@ static float guide_at(const ts_pixel_guide *g, int l, int hsp, int64_t ax, int64
     return g->level[l][(size_t)y * g->width + (size_t)x];
 }
 
-static int usable(const ts_pixel_exemplars *ex, int l, pix_coord c)
+/* The cell of exemplar w x h's copy turned by q quarter turns (counter-
+ * clockwise), mirrored left-right first when `mirror`, that the exemplar's
+ * cell (sx, sy) goes to. */
+static void turned_target(int w, int h, int q, int mirror, int sx, int sy, int *x, int *y)
 {
-    const pix_stack *s = &ex->stacks[c.e];
-    return c.u >= 0 && c.v >= 0 && c.u < s->width && c.v < s->height &&
-           s->usable[l][(size_t)c.v * s->width + c.u];
+    if (mirror)
+        sx = w - 1 - sx;
+    switch (q) {
+    case 0:
+        *x = sx, *y = sy;
+        break;
+    case 1:
+        *x = sy, *y = w - 1 - sx;
+        break;
+    case 2:
+        *x = w - 1 - sx, *y = h - 1 - sy;
+        break;
+    default:
+        *x = h - 1 - sy, *y = sx;
+        break;
+    }
 }
 
+/* The offset (a, b) of the turned copy as an offset of the source. */
+static void turned_offset(int q, int mirror, int a, int b, int *sa, int *sb)
+{
+    static const int m[4][4] = {{1, 0, 0, 1}, {0, -1, 1, 0}, {-1, 0, 0, -1}, {0, 1, -1, 0}};
+    *sa = m[q][0] * a + m[q][1] * b;
+    *sb = m[q][2] * a + m[q][3] * b;
+    if (mirror)
+        *sa = -*sa;
+}
+
+/* Candidate e's size (exemplar e / nv turned by variant e % nv). */
+static void variant_size(const ts_pixel_exemplars *ex, int e, int *w, int *h)
+{
+    *w = ex->turn[e].w;
+    *h = ex->turn[e].h;
+}
+
+/* Where coordinate c (in its candidate's frame) lies in its exemplar's
+ * stack; -1 past the edge.  The turned and mirrored candidates are the
+ * exemplar's stack read turned: a Gaussian blur and the usable test are
+ * symmetric under these turns, so they need no stacks of their own. */
+static inline ptrdiff_t cell_of(const ts_pixel_exemplars *ex, pix_coord c)
+{
+    const pix_turn *t = &ex->turn[c.e];
+    if (c.u < 0 || c.v < 0 || c.u >= t->w || c.v >= t->h)
+        return -1;
+    return (ptrdiff_t)(t->oy + t->myu * c.u + t->myv * c.v) * t->sw + t->ox + t->mxu * c.u +
+           t->mxv * c.v;
+}
+
+float ts__pix_candidate_height(const ts_pixel_exemplars *ex, int l, int e, int u, int v)
+{
+    pix_coord c = {e, u, v};
+    ptrdiff_t i = cell_of(ex, c);
+    return i < 0 ? NAN : ex->stacks[e / ex->nv].level[l][i];
+}
+
+int ts__pix_candidate_usable(const ts_pixel_exemplars *ex, int l, int e, int u, int v)
+{
+    pix_coord c = {e, u, v};
+    ptrdiff_t i = cell_of(ex, c);
+    return i >= 0 && ex->stacks[e / ex->nv].usable[l][i];
+}
+
+static int usable(const ts_pixel_exemplars *ex, int l, pix_coord c)
+{
+    ptrdiff_t i = cell_of(ex, c);
+    return i >= 0 && ex->stacks[c.e / ex->nv].usable[l][i];
+}
+
+/* Level l at c, c's cell clamped to its candidate's edges first. */
 static float height_at(const ts_pixel_exemplars *ex, int l, pix_coord c)
 {
-    const pix_stack *s = &ex->stacks[c.e];
-    return s->level[l][(size_t)c.v * s->width + c.u];
+    int w, h;
+    variant_size(ex, c.e, &w, &h);
+    c.u = c.u < 0 ? 0 : c.u >= w ? w - 1 : c.u;
+    c.v = c.v < 0 ? 0 : c.v >= h ? h - 1 : c.v;
+    return ex->stacks[c.e / ex->nv].level[l][cell_of(ex, c)];
+}
+
+/* Level l's band at c (the level less the coarser one; level 0 itself), c's
+ * cell clamped to its candidate's edges first. */
+static double band_at(const ts_pixel_exemplars *ex, int l, pix_coord c)
+{
+    const pix_stack *s = &ex->stacks[c.e / ex->nv];
+    int w, h;
+    ptrdiff_t i;
+    variant_size(ex, c.e, &w, &h);
+    c.u = c.u < 0 ? 0 : c.u >= w ? w - 1 : c.u;
+    c.v = c.v < 0 ? 0 : c.v >= h ? h - 1 : c.v;
+    i = cell_of(ex, c);
+    return l ? (double)s->level[l][i] - s->level[l - 1][i] : (double)s->level[0][i];
+}
+
+/* The squared distance between the appearance vector at (of the target
+ * turned back into the exemplar's frame) and usable coordinate c's at level l. */
+static double app_distance(const ts_pixel_exemplars *ex, int l, pix_coord c, const float *at)
+{
+    const pix_stack *s = &ex->stacks[c.e / ex->nv];
+    int dim = ex->dim[l], i;
+    const float *a = s->app[l] + (size_t)cell_of(ex, c) * (size_t)dim;
+    double d = 0;
+    for (i = 0; i < dim; i++) {
+        double e = (double)at[i] - a[i];
+        d += e * e;
+    }
+    return d;
+}
+
+/* The appearance vector of target t turned back for variant v (into at's
+ * slot v, marked in have). */
+static const float *target_turned(const ts_pixel_exemplars *ex, int l, const float *t, float *tv,
+                                  const int *perm, int v, int *have, float *at)
+{
+    int k = ex->window, i, dim = ex->dim[l];
+    for (i = 0; i < k * k; i++)
+        tv[perm[v * k * k + i]] = t[i];
+    ts__pix_appearance(ex->basis[l], dim - 1, k, tv, at + (size_t)v * dim);
+    have[v] = 1;
+    return at + (size_t)v * dim;
 }
 
 /* One sub-pass on the rows [begin, end) of the level's region: new values
@@ -138,12 +251,26 @@ static void correct_rows(void *arg, size_t begin, size_t end)
 {
     corr_job *j = arg;
     pix_level *lv = j->lv;
-    int k = j->k, r = k / 2, hsp = j->hsp, l = j->l, x;
-    float *t = malloc((size_t)k * k * sizeof *t);
+    int k = j->k, r = k / 2, hsp = j->hsp, l = j->l, x, dim = j->ex->dim[l], nv = j->ex->nv;
+    int v, have[8], *perm = malloc((size_t)nv * (size_t)k * k * sizeof *perm);
+    float *t = malloc(((size_t)k * k * 2 + (size_t)nv * dim) * sizeof *t), *tv = t + k * k;
+    float *at = tv + k * k;
     size_t y;
-    if (!t) {
+    if (!t || !perm) {
+        free(t);
+        free(perm);
         j->fail = 1;
         return;
+    }
+    /* perm[v]: where each cell of a target neighbourhood lands in exemplar's frame when
+     * compared with candidate variant v (|R N - t| = |N - R^-1 t|) */
+    for (v = 0; v < nv; v++) {
+        int a, b, sa, sb;
+        for (b = -r; b <= r; b++)
+            for (a = -r; a <= r; a++) {
+                turned_offset(v % 4, v >= 4, a, b, &sa, &sb);
+                perm[(v * k + b + r) * k + a + r] = (sb + r) * k + sa + r;
+            }
     }
     for (y = begin; y < end; y++) {
         int64_t ay = lv->reg.y0 + (int64_t)y;
@@ -160,7 +287,7 @@ static void correct_rows(void *arg, size_t begin, size_t end)
                 continue; /* at the region's edge: outside every exact window */
             for (b = -r; b <= r; b++)
                 for (a = -r; a <= r; a++) {
-                    float hv = height_at(j->ex, l, lv->s[(y + b) * (size_t)lv->w + x + a]);
+                    float hv = lv->hc[(y + b) * (size_t)lv->w + x + a];
                     if (j->guide) {
                         float gv = guide_at(j->guide, l, hsp, ax + a, ay + b);
                         if (!isnan(gv))
@@ -168,10 +295,11 @@ static void correct_rows(void *arg, size_t begin, size_t end)
                     }
                     t[(b + r) * k + a + r] = hv;
                 }
-            bc = usable(j->ex, l, cur)
-                     ? ts__pix_ssd(j->ex->stacks[cur.e].level[l], j->ex->stacks[cur.e].width, cur.u,
-                                   cur.v, k, hsp, t)
-                     : INFINITY;
+            memset(have, 0, sizeof have);
+#define TARGET_FOR(cand)                                                                           \
+    (v = (cand).e % nv,                                                                            \
+     have[v] ? at + (size_t)v * dim : target_turned(j->ex, l, t, tv, perm, v, have, at))
+            bc = usable(j->ex, l, cur) ? app_distance(j->ex, l, cur, TARGET_FOR(cur)) : INFINITY;
             for (b = -r; b <= r; b++)
                 for (a = -r; a <= r; a++) {
                     pix_coord c = lv->s[(y + b) * (size_t)lv->w + x + a];
@@ -182,8 +310,7 @@ static void correct_rows(void *arg, size_t begin, size_t end)
                     c.v -= b * hsp;
                     if (!usable(j->ex, l, c))
                         continue;
-                    cost = ts__pix_ssd(j->ex->stacks[c.e].level[l], j->ex->stacks[c.e].width, c.u,
-                                       c.v, k, hsp, t);
+                    cost = app_distance(j->ex, l, c, TARGET_FOR(c));
                     if (cost < bc) {
                         bc = cost;
                         best = c;
@@ -192,7 +319,18 @@ static void correct_rows(void *arg, size_t begin, size_t end)
             lv->tmp[y * (size_t)lv->w + x] = best;
         }
     }
+#undef TARGET_FOR
     free(t);
+    free(perm);
+}
+
+static void height_rows(void *arg, size_t begin, size_t end)
+{
+    corr_job *j = arg;
+    pix_level *lv = j->lv;
+    size_t i;
+    for (i = begin * (size_t)lv->w; i < end * (size_t)lv->w; i++)
+        lv->hc[i] = height_at(j->ex, j->l, lv->s[i]);
 }
 
 static void commit_rows(void *arg, size_t begin, size_t end)
@@ -218,10 +356,10 @@ static pix_coord random_coord(const ts_pixel_exemplars *ex, int l, uint64_t h)
     const pix_stack *s;
     int32_t idx;
     c.e = (int32_t)(h % (uint64_t)ex->n);
-    s = &ex->stacks[c.e];
+    s = &ex->stacks[c.e / ex->nv];
     idx = s->usable_list[l][(h >> 20) % s->n_usable[l]];
-    c.u = idx % s->width;
-    c.v = idx / s->width;
+    turned_target(s->width, s->height, c.e % ex->nv % 4, c.e % ex->nv >= 4, idx % s->width,
+                  idx / s->width, &c.u, &c.v);
     return c;
 }
 
@@ -234,7 +372,7 @@ static pix_coord guided_coord(const ts_pixel_exemplars *ex, float g, uint64_t h)
     const pix_stack *s;
     size_t lo = 0, hi, n, pick;
     c.e = (int32_t)(h % (uint64_t)ex->n);
-    s = &ex->stacks[c.e];
+    s = &ex->stacks[c.e / ex->nv];
     n = s->n_usable[0];
     hi = n;
     while (lo < hi) { /* the first cell not below g */
@@ -248,8 +386,8 @@ static pix_coord guided_coord(const ts_pixel_exemplars *ex, float g, uint64_t h)
     if (lo + 16 > n)
         lo = n > 16 ? n - 16 : 0;
     pick = lo + (size_t)((h >> 24) % (uint64_t)(n - lo < 16 ? n - lo : 16));
-    c.u = s->by_height[pick] % s->width;
-    c.v = s->by_height[pick] / s->width;
+    turned_target(s->width, s->height, c.e % ex->nv % 4, c.e % ex->nv >= 4,
+                  s->by_height[pick] % s->width, s->by_height[pick] / s->width, &c.u, &c.v);
     return c;
 }
 
@@ -260,85 +398,17 @@ static int level_alloc(pix_level *lv, pix_region reg)
     lv->h = (int)(reg.y1 - reg.y0);
     lv->s = ts__malloc_array((size_t)lv->w * (size_t)lv->h, sizeof *lv->s);
     lv->tmp = ts__malloc_array((size_t)lv->w * (size_t)lv->h, sizeof *lv->tmp);
-    return lv->s && lv->tmp ? 0 : -1;
+    lv->hc = ts__malloc_array((size_t)lv->w * (size_t)lv->h, sizeof *lv->hc);
+    return lv->s && lv->tmp && lv->hc ? 0 : -1;
 }
 
 static void level_free(pix_level *lv)
 {
     free(lv->s);
     free(lv->tmp);
+    free(lv->hc);
     lv->s = lv->tmp = NULL;
-}
-
-/* Exemplar `ex` turned by q quarter turns (counter-clockwise), mirrored
- * left-right first when `mirror`, into a new raster. */
-static int turned(ts_ctx *ctx, const ts_raster *ex, int q, int mirror, ts_raster *out)
-{
-    int w = ex->width, h = ex->height, x, y;
-    int ow = q % 2 ? h : w, oh = q % 2 ? w : h;
-    if (ts_raster_alloc(ctx, ow, oh, out) != TS_OK)
-        return -1;
-    for (y = 0; y < oh; y++)
-        for (x = 0; x < ow; x++) {
-            int sx, sy;
-            switch (q) {
-            case 0:
-                sx = x, sy = y;
-                break;
-            case 1:
-                sx = w - 1 - y, sy = x;
-                break;
-            case 2:
-                sx = w - 1 - x, sy = h - 1 - y;
-                break;
-            default:
-                sx = y, sy = h - 1 - x;
-                break;
-            }
-            if (mirror)
-                sx = w - 1 - sx;
-            TS_PIX(out, x, y) = TS_PIX(ex, sx, sy);
-        }
-    return 0;
-}
-
-static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
-                             const ts_pixel_params *params, ts_pixel_exemplars **out);
-
-TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
-                                  const ts_pixel_params *params, ts_pixel_exemplars **out)
-{
-    ts_raster *all;
-    int m, i, v, nv;
-    ts_status st;
-    ts__clear(ctx);
-    if (!params || !exemplars || n < 1)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "no exemplars given");
-    if (params->rotations != 0 && params->rotations != 4 && params->rotations != 8)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "rotations must be 0, 4 or 8, not %d",
-                        params->rotations);
-    nv = params->rotations ? params->rotations : 1;
-    if (nv == 1)
-        return pix_prepare(ctx, exemplars, n, params, out);
-    all = calloc((size_t)n * (size_t)nv, sizeof *all);
-    if (!all)
-        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
-    for (i = 0, m = 0; i < n; i++)
-        for (v = 0; v < nv; v++, m++)
-            if (!exemplars[i].data || turned(ctx, &exemplars[i], v % 4, v >= 4, &all[m]) != 0) {
-                st = exemplars[i].data ? ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory")
-                                       : ts__fail_input(ctx, TS_ERR_ARG, i, "pixel",
-                                                        "exemplar %d: no data", i + 1);
-                goto done;
-            }
-    st = pix_prepare(ctx, all, n * nv, params, out);
-    if (st != TS_OK && ctx->input >= 0)
-        ctx->input /= nv; /* the exemplar as given */
-done:
-    for (i = 0; i < n * nv; i++)
-        ts_raster_free(&all[i]);
-    free(all);
-    return st;
+    lv->hc = NULL;
 }
 
 typedef struct stack_job {
@@ -347,6 +417,7 @@ typedef struct stack_job {
     int L, k, fail;
 } stack_job;
 
+/* Task t: exemplar t / (L + 1), level t % (L + 1), of the exemplars as given. */
 static void stack_levels(void *arg, size_t begin, size_t end)
 {
     stack_job *j = arg;
@@ -358,11 +429,11 @@ static void stack_levels(void *arg, size_t begin, size_t end)
     }
 }
 
-static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
-                             const ts_pixel_params *params, ts_pixel_exemplars **out)
+TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
+                                  const ts_pixel_params *params, ts_pixel_exemplars **out)
 {
     ts_pixel_exemplars *ex;
-    int i, L, k, minside = 1 << 30;
+    int i, L, k, nv, minside = 1 << 30;
     ts__clear(ctx);
     if (!out)
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "no output given");
@@ -371,6 +442,10 @@ static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "no exemplars given");
     if (ts_params_validate(ctx, "pixel", params) != TS_OK)
         return ctx->status;
+    if (params->rotations != 0 && params->rotations != 4 && params->rotations != 8)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "rotations must be 0, 4 or 8, not %d",
+                        params->rotations);
+    nv = params->rotations ? params->rotations : 1;
     for (i = 0; i < n; i++)
         if (!exemplars[i].data)
             return ts__fail_input(ctx, TS_ERR_ARG, i, "pixel", "exemplar %d: no data", i + 1);
@@ -398,7 +473,37 @@ static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
         free(ex);
         return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
     }
-    ex->n = n;
+    ex->n = n * nv;
+    ex->n_given = n;
+    ex->nv = nv;
+    if (!(ex->turn = calloc((size_t)n * (size_t)nv, sizeof *ex->turn))) {
+        free(ex->stacks);
+        free(ex);
+        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
+    }
+    for (i = 0; i < n * nv; i++) {  /* the inverse of turned_target, an affine map */
+        static const int m[4][6] = {/* ox, oy (in units of w - 1, h - 1), mxu, mxv, myu, myv */
+                                    {0, 0, 1, 0, 0, 1},
+                                    {1, 0, 0, -1, 1, 0},
+                                    {1, 1, -1, 0, 0, -1},
+                                    {0, 1, 0, 1, -1, 0}};
+        int w = exemplars[i / nv].width, h = exemplars[i / nv].height, q = i % nv % 4;
+        pix_turn *t = &ex->turn[i];
+        t->w = q % 2 ? h : w;
+        t->h = q % 2 ? w : h;
+        t->sw = w;
+        t->ox = m[q][0] * (w - 1);
+        t->oy = m[q][1] * (h - 1);
+        t->mxu = m[q][2];
+        t->mxv = m[q][3];
+        t->myu = m[q][4];
+        t->myv = m[q][5];
+        if (i % nv >= 4) { /* mirrored left-right first */
+            t->ox = w - 1 - t->ox;
+            t->mxu = -t->mxu;
+            t->mxv = -t->mxv;
+        }
+    }
     ex->levels = L;
     ex->window = k;
     /* every exemplar's every level in parallel (the coarsest blur is the longest) */
@@ -430,6 +535,10 @@ static ts_status pix_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
                                       1 << (L - l));
             }
     }
+    if (ts__pix_appearance_build(ctx, ex, params->pca_energy) != 0) {
+        ts_pixel_exemplars_free(ex);
+        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the appearance space");
+    }
     if (ts__progress(ctx, 1.0, "stacks") != TS_OK) {
         ts_pixel_exemplars_free(ex);
         return ctx->status;
@@ -443,9 +552,12 @@ TS_API void ts_pixel_exemplars_free(ts_pixel_exemplars *ex)
     int i;
     if (!ex)
         return;
-    for (i = 0; i < ex->n; i++)
+    for (i = 0; i < ex->n_given; i++)
         ts__pix_stack_free(&ex->stacks[i], ex->levels);
+    for (i = 0; i < 12; i++)
+        free(ex->basis[i]);
     free(ex->stacks);
+    free(ex->turn);
     free(ex);
 }
 
@@ -550,7 +662,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
     int L, k, r, l, pass, sub, x, y;
     int64_t M;
     pix_region need[12], pre[12];
-    pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL};
+    pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL, NULL};
     pix_coord *coords[12] = {NULL}; /* each level's corrected coordinates over pre[l] */
     static const int order[4][2] = {{0, 0}, {1, 1}, {1, 0}, {0, 1}};
     uint64_t seed;
@@ -639,6 +751,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                 corr_job j = {
                     ex, &cur, l, hsp, k, order[sub][0], order[sub][1], guide, params->guide_weight,
                     0};
+                ts__parallel_for(ctx, (size_t)cur.h, height_rows, &j);
                 ts__parallel_for(ctx, (size_t)cur.h, correct_rows, &j);
                 if (j.fail) {
                     st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
@@ -653,7 +766,9 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
         /* the level's coordinates, kept for the next level and the output's bands */
         coords[l] = cur.s;
         free(cur.tmp);
+        free(cur.hc);
         cur.s = cur.tmp = NULL;
+        cur.hc = NULL;
     }
     /* the window: the sum of the levels' bands (a level's stack less the coarser one),
      * each at the output cell's own place in the frames of the four level cells around
@@ -679,15 +794,10 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                         size_t i =
                             (size_t)(qy + b - pre[l].y0) * (size_t)w + (size_t)(qx + a - pre[l].x0);
                         pix_coord c = coords[l][i];
-                        const pix_stack *st_ = &ex->stacks[c.e];
-                        int64_t u = c.u + (ax - (qx + a) * sp), v = c.v + (ay - (qy + b) * sp);
-                        size_t o;
                         double wgt = (a ? tx : 1 - tx) * (b ? ty : 1 - ty), val;
-                        u = u < 0 ? 0 : u >= st_->width ? st_->width - 1 : u;
-                        v = v < 0 ? 0 : v >= st_->height ? st_->height - 1 : v;
-                        o = (size_t)v * (size_t)st_->width + (size_t)u;
-                        val = l ? (double)st_->level[l][o] - st_->level[l - 1][o]
-                                : (double)st_->level[0][o];
+                        c.u = (int32_t)(c.u + (ax - (qx + a) * sp));
+                        c.v = (int32_t)(c.v + (ay - (qy + b) * sp));
+                        val = band_at(ex, l, c);
                         if (isnan(val))
                             continue; /* past the valid cells: the others' */
                         acc += wgt * val;
@@ -697,10 +807,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                     size_t i = (size_t)(qy + (ty >= 0.5) - pre[l].y0) * (size_t)w +
                                (size_t)(qx + (tx >= 0.5) - pre[l].x0);
                     pix_coord c = coords[l][i];
-                    const pix_stack *st_ = &ex->stacks[c.e];
-                    size_t o = (size_t)c.v * (size_t)st_->width + (size_t)c.u;
-                    acc = l ? (double)st_->level[l][o] - st_->level[l - 1][o]
-                            : (double)st_->level[0][o];
+                    acc = band_at(ex, l, c);
                     wsum = 1;
                 }
                 hsum += acc / wsum;

@@ -94,7 +94,10 @@ void ts__pix_stack_free(pix_stack *s, int L)
             free(s->usable[l]);
         if (s->usable_list)
             free(s->usable_list[l]);
+        if (s->app)
+            free(s->app[l]);
     }
+    free(s->app);
     free(s->level);
     free(s->usable);
     free(s->usable_list);

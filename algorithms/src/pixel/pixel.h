@@ -21,11 +21,27 @@ typedef struct pix_stack {
     int32_t **usable_list;  /* L + 1 lists of usable cell indices (y * width + x) */
     size_t *n_usable;
     int32_t *by_height; /* level 0's usable cells in ascending order of height */
+    float **app;        /* L + 1 arrays: each cell's appearance vector (dim[l] floats; 0 where not
+                           usable) */
 } pix_stack;
 
+/* Candidate e as a map into its exemplar's stack: cell (u, v) of the
+ * candidate (w x h) is cell (ox + mxu u + mxv v, oy + myu u + myv v) of the
+ * exemplar (sw cells wide). */
+typedef struct pix_turn {
+    int w, h, sw, ox, oy, mxu, mxv, myu, myv;
+} pix_turn;
+
 struct ts_pixel_exemplars {
-    int n, levels, window;
-    pix_stack *stacks;
+    int n;       /* candidates: the exemplars given x nv (coordinate e: exemplar e / nv, variant
+                    e % nv, turned by (e % nv) % 4 quarter turns, mirrored when (e % nv) >= 4) */
+    int n_given; /* the exemplars given, each with a stack */
+    int nv;      /* variants per exemplar: 1, 4 or 8 */
+    int levels, window;
+    pix_stack *stacks; /* n_given */
+    pix_turn *turn;    /* n */
+    int dim[12];       /* each level's appearance dimension: 1 + principal directions kept */
+    float *basis[12];  /* each level's principal directions, (dim - 1) rows of k * k */
 };
 
 struct ts_pixel_guide {
@@ -37,6 +53,11 @@ struct ts_pixel_guide {
 typedef struct pix_coord {
     int32_t e, u, v;
 } pix_coord;
+
+/* Candidate e's level l and usable mask at its cell (u, v) (NaN and 0 past
+ * its edges): the exemplar's stack read turned. */
+float ts__pix_candidate_height(const ts_pixel_exemplars *ex, int l, int e, int u, int v);
+int ts__pix_candidate_usable(const ts_pixel_exemplars *ex, int l, int e, int u, int v);
 
 /* Fill stack s for exemplar ex (levels 0..L, window k).  0, or -1 when out
  * of memory. */
@@ -60,9 +81,19 @@ double ts__pix_ssd(const float *level, int width, int u, int v, int k, int h, co
  * (SplitMix64 finaliser over the mixed words). */
 uint64_t ts__pix_hash(int64_t x, int64_t y, int level, int stream, uint64_t seed);
 
+/* The appearance vector of the k x k heights t (appearance_space.c): k x
+ * their mean, then their shape (less the mean) on the m rows of basis. */
+void ts__pix_appearance(const float *basis, int m, int k, const float *t, float *out);
+/* Every level's principal directions holding `energy` of the shapes'
+ * variance (1: all) and every usable cell's appearance vector.  0, or -1
+ * when out of memory. */
+int ts__pix_appearance_build(const ts_ctx *ctx, ts_pixel_exemplars *ex, double energy);
+
 /* The eigenvalues of the symmetric n x n matrix a (destroyed) by cyclic
  * Jacobi rotations, into ev (unordered); 0, or -1 when they did not converge. */
 int ts__pix_eigenvalues(double *a, int n, double *ev);
+/* The same with the eigenvectors: column j of vec (n x n) belongs to ev[j]. */
+int ts__pix_eigen(double *a, int n, double *ev, double *vec);
 /* The share of the principal components that hold 95 % of the variance of
  * the exemplars' mean-removed k x k neighbourhoods (at most about 4000 per
  * exemplar, on a lattice); -1 on failure. */

@@ -16,7 +16,16 @@
 
 int ts__pix_eigenvalues(double *a, int n, double *ev)
 {
+    return ts__pix_eigen(a, n, ev, NULL);
+}
+
+int ts__pix_eigen(double *a, int n, double *ev, double *vec)
+{
     int sweep, p, q, i;
+    if (vec)
+        for (p = 0; p < n; p++)
+            for (q = 0; q < n; q++)
+                vec[p * n + q] = p == q;
     for (sweep = 0; sweep < 100; sweep++) {
         double off = 0, tot = 0;
         for (p = 0; p < n; p++)
@@ -43,6 +52,12 @@ int ts__pix_eigenvalues(double *a, int n, double *ev)
                     a[i * n + p] = c * aip - s * aiq;
                     a[i * n + q] = s * aip + c * aiq;
                 }
+                if (vec)
+                    for (i = 0; i < n; i++) { /* the rotations' product, column by column */
+                        double vip = vec[i * n + p], viq = vec[i * n + q];
+                        vec[i * n + p] = c * vip - s * viq;
+                        vec[i * n + q] = s * vip + c * viq;
+                    }
                 for (i = 0; i < n; i++) { /* rows p and q */
                     double api = a[p * n + i], aqi = a[q * n + i];
                     a[p * n + i] = c * api - s * aqi;
