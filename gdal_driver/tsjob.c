@@ -1646,8 +1646,13 @@ int tsjob_pixel_prepare(const tsjob_pixel *job, tsjob_pixel_result *res, tsio_er
             return -1;
         }
         /* per level and cell: the level, the usable mask and list, the appearance vector
-         * (measured 4 to 13 floats at pca_energy 0.95 on ../shared/data/dem; 1 + k^2 at 1) */
-        need += src * JOB_MEM_EX_SOURCE_CELL + tgt * (uint64_t)(L + 1) * (9 + 4 * (uint64_t)dim);
+         * (measured 4 to 13 floats at pca_energy 0.95 on ../shared/data/dem; 1 + k^2 at 1),
+         * the similarity sets (coherence - 1 cells) */
+        need += src * JOB_MEM_EX_SOURCE_CELL +
+                tgt * (uint64_t)(L + 1) *
+                    (9 + 4 * (uint64_t)dim + 4 * (uint64_t)(job->params.coherence - 1)) +
+                /* the similarity sets' search: a level's points and kd-tree at a time */
+                (job->params.coherence > 1 ? tgt * (4 * (uint64_t)dim + 20) : 0);
     }
     if (tsio_check_memory(need, "pixel", "a smaller grid, fewer levels or smaller exemplars",
                           err) != 0) {

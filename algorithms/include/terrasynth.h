@@ -767,6 +767,8 @@ typedef struct ts_pixel_params {
     double guide_weight; /* weight of the guide in the corrections' target, 0..1 */
     int rotations;       /* 0: the exemplars as given; 4: also turned by 90, 180, 270 degrees;
                             8: and mirrored */
+    int coherence;       /* K of the k-coherence similarity sets: candidates also the K - 1
+                            exemplar cells most like each neighbour's (1: none) */
     double pca_energy;   /* share of the neighbourhoods' shape variance the compared
                             appearance vectors keep (Cruz et al.: 0.95; 1: all, plain SSD) */
     /* per-level jitter (not a declared parameter: a list): with n_jitter_levels > 0,

@@ -50,7 +50,7 @@ def main():
     ap.add_argument("--variant", action="append", default=None)
     ap.add_argument("--guided", action="store_true",
                     help="also guided runs (structure_r against the guide)")
-    ap.add_argument("--only", default="")
+    ap.add_argument("--only", default="", help="DEMs whose names hold one of these (A,B,...)")
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
     if not os.path.isdir(DEM) or not os.path.exists(METRICS):
@@ -63,7 +63,7 @@ def main():
     for var in variants:
         rows = []
         for f in dems():
-            if a.only not in f:
+            if a.only and not any(o in f for o in a.only.split(",")):
                 continue
             ex = os.path.join(DEM, f)
             # a DEM without a CRS: its cell size from its name (..._20m_nocrs.tif)

@@ -99,7 +99,7 @@ static void test_ssd_plain(void)
 }
 
 /* Windows alone equal the windows of a larger run. */
-static void test_windows_anywhere(void)
+static void windows_anywhere(int coherence, int rotations)
 {
     ts_ctx *ctx = ts_ctx_new();
     ts_pixel_params p = ts_pixel_params_default();
@@ -112,6 +112,8 @@ static void test_windows_anywhere(void)
     size_t o;
     TS_PIX(&ex, 40, 40) = NAN; /* nodata: never matched */
     p.levels = 3;
+    p.coherence = coherence;
+    p.rotations = rotations;
     CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
     CHECK(ts_pixel_levels(E) == 3);
     ts_ctx_set_seed(ctx, 42);
@@ -168,6 +170,267 @@ static void test_windows_anywhere(void)
     ts_pixel_exemplars_free(E);
     ts_raster_free(&ex);
     ts_raster_free(&big);
+    ts_ctx_free(ctx);
+}
+
+static void test_windows_anywhere(void)
+{
+    windows_anywhere(1, 4);
+    windows_anywhere(3, 8); /* similarity sets, mirrored candidates */
+}
+
+/* Appearance vectors: with every direction kept their distance is the SSD
+ * written out; with 95 % it is at most the SSD and at least the means' part. */
+static void test_appearance_space(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_terrain(ctx, 70, 64, 9);
+    int energy;
+    for (energy = 0; energy < 2; energy++) {
+        ts_pixel_params p = ts_pixel_params_default();
+        ts_pixel_exemplars *E = NULL;
+        uint64_t rng = 11;
+        int n, l, bad = 0;
+        p.levels = 2;
+        p.rotations = 0;
+        p.pca_energy = energy ? 1.0 : 0.95;
+        CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
+        for (l = 0; l <= 2; l++) {
+            const pix_stack *s = &E->stacks[0];
+            int dim = E->dim[l], sp = 1 << (2 - l), k = E->window;
+            CHECK(dim >= 1 && dim <= 1 + k * k);
+            if (energy)
+                CHECK(dim == 1 + k * k);
+            for (n = 0; n < 200; n++) {
+                int32_t i = s->usable_list[l][(size_t)(th_uniform(&rng) * s->n_usable[l])];
+                int32_t j = s->usable_list[l][(size_t)(th_uniform(&rng) * s->n_usable[l])];
+                const float *a = s->app[l] + (size_t)i * dim, *b = s->app[l] + (size_t)j * dim;
+                float t[81];
+                double ssd, app = 0, mu = 0;
+                int c, x, y, u = i % s->width, v = i / s->width;
+                for (y = -k / 2; y <= k / 2; y++)
+                    for (x = -k / 2; x <= k / 2; x++) {
+                        t[(y + k / 2) * k + x + k / 2] =
+                            s->level[l][(size_t)(j / s->width + y * sp) * s->width +
+                                        (size_t)(j % s->width + x * sp)];
+                        mu += s->level[l][(size_t)(v + y * sp) * s->width + (size_t)(u + x * sp)] -
+                              t[(y + k / 2) * k + x + k / 2];
+                    }
+                ssd = ts__pix_ssd(s->level[l], s->width, u, v, k, sp, t);
+                /* a target's vector (ts__pix_appearance) = the stored one of the same heights */
+                {
+                    float tv[82];
+                    ts__pix_appearance(E->basis[l], dim - 1, k, t, tv);
+                    for (c = 0; c < dim; c++)
+                        bad += fabsf(tv[c] - b[c]) > 1e-3f * (1 + fabsf(b[c]));
+                }
+                for (c = 0; c < dim; c++)
+                    app += ((double)a[c] - b[c]) * ((double)a[c] - b[c]);
+                mu /= k * k;
+                if (energy)
+                    bad += fabs(app - ssd) > 1e-3 * ssd + 1e-2;
+                else
+                    bad +=
+                        app > ssd * (1 + 1e-3) + 1e-2 || app < k * k * mu * mu * (1 - 1e-3) - 1e-2;
+            }
+        }
+        CHECK_MSG(bad == 0, "%d appearance distances off (energy %s)", bad, energy ? "1" : "0.95");
+        ts_pixel_exemplars_free(E);
+    }
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
+/* A turned or mirrored candidate reads the exemplar's stack turned: the same
+ * as the stack of the exemplar turned by a plain loop (blurred on its own). */
+static void test_turned_candidates(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_terrain(ctx, 41, 30, 12);
+    ts_pixel_params p = ts_pixel_params_default();
+    ts_pixel_exemplars *E = NULL;
+    int v, bad = 0, badu = 0;
+    TS_PIX(&ex, 7, 20) = NAN;
+    p.levels = 2;
+    p.rotations = 8;
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
+    for (v = 0; v < 8; v++) {
+        int q = v % 4, ow = q % 2 ? 30 : 41, oh = q % 2 ? 41 : 30, x, y, l;
+        float *turned = malloc((size_t)ow * oh * sizeof *turned);
+        float *blur = malloc((size_t)ow * oh * sizeof *blur);
+        for (y = 0; y < oh; y++)
+            for (x = 0; x < ow; x++) {
+                /* the turn by q quarter turns counter-clockwise, written out */
+                int sx = q == 0 ? x : q == 1 ? 40 - y : q == 2 ? 40 - x : y;
+                int sy = q == 0 ? y : q == 1 ? x : q == 2 ? 29 - y : 29 - x;
+                if (v >= 4)
+                    sx = 40 - sx;
+                turned[(size_t)y * ow + x] = TS_PIX(&ex, sx, sy);
+            }
+        for (l = 0; l <= 2; l++) {
+            CHECK(ts__pix_blur(turned, ow, oh, l == 2 ? 0.0 : 0.5 * (1 << (2 - l)), blur) == 0);
+            for (y = 0; y < oh; y++)
+                for (x = 0; x < ow; x++) {
+                    float want = blur[(size_t)y * ow + x];
+                    float got = ts__pix_candidate_height(E, l, v, x, y);
+                    if (isnan(want) != isnan(got) || (!isnan(want) && fabsf(want - got) > 1e-3f))
+                        bad++;
+                }
+        }
+        /* the usable mask: every k x k neighbourhood valid, read from the plain turn */
+        for (y = 0; y < oh; y++)
+            for (x = 0; x < ow; x++) {
+                int r = E->window / 2, sp = 1,
+                    ok = x - r * sp >= 0 && y - r * sp >= 0 && x + r * sp < ow && y + r * sp < oh;
+                int a, b;
+                for (b = -r; ok && b <= r; b++)
+                    for (a = -r; a <= r; a++)
+                        ok &= !isnan(turned[(size_t)(y + b * sp) * ow + x + a * sp]);
+                badu += ok != ts__pix_candidate_usable(E, 2, v, x, y);
+            }
+        free(turned);
+        free(blur);
+    }
+    CHECK_MSG(bad == 0, "%d turned heights differ", bad);
+    CHECK_MSG(badu == 0, "%d turned usable cells differ", badu);
+    CHECK(isnan(ts__pix_candidate_height(E, 0, 1, 30, 0)) &&
+          isnan(ts__pix_candidate_height(E, 0, 1, -1, 0)));
+    ts_pixel_exemplars_free(E);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
+typedef struct keep_test {
+    int parity;
+} keep_test;
+
+static int keep_parity(void *arg, int32_t i)
+{
+    return (i & 1) == ((keep_test *)arg)->parity;
+}
+
+/* The kd-tree's K nearest against a plain scan: random points with ties and
+ * duplicates, in 1 to 13 dimensions, with and without a filter. */
+static void test_kdtree_against_scan(void)
+{
+    uint64_t rng = 21;
+    int round, bad = 0;
+    for (round = 0; round < 60; round++) {
+        int dim = 1 + round % 13, K = 1 + round % 8, n = round % 5 == 0 ? 7 : 300 + 97 * round;
+        float *pts = malloc((size_t)n * dim * sizeof *pts), q[13];
+        int32_t got[8], want[8];
+        float gd[8], wd[8];
+        pix_kdtree *t;
+        int i, a, qn;
+        keep_test kt = {round % 2};
+        for (i = 0; i < n * dim; i++) /* coarse values: many ties */
+            pts[i] = round % 3 ? (float)th_uniform(&rng) : (float)(int)(th_uniform(&rng) * 4);
+        if (n > 20)
+            memcpy(pts + 10 * dim, pts + 3 * dim, (size_t)dim * sizeof *pts); /* a duplicate */
+        t = ts__pix_kdtree_build(pts, (size_t)n, dim);
+        CHECK(t != NULL);
+        for (qn = 0; qn < 40; qn++) {
+            int use_filter = qn % 2, found, m = 0, j;
+            for (a = 0; a < dim; a++)
+                q[a] = qn < 5 ? pts[(size_t)qn * dim + a] : (float)(th_uniform(&rng) * 4 - 1);
+            found = ts__pix_kdtree_knn(t, q, K, use_filter ? keep_parity : NULL, &kt, got, gd);
+            /* the plain scan: every point, sorted by (distance, index) */
+            for (i = 0; i < n; i++) {
+                float d = 0;
+                if (use_filter && !keep_parity(&kt, i))
+                    continue;
+                for (a = 0; a < dim; a++) {
+                    float e = pts[(size_t)i * dim + a] - q[a];
+                    d += e * e;
+                }
+                for (j = m < K ? m++ : K;
+                     j > 0 && (wd[j - 1] > d || (wd[j - 1] == d && want[j - 1] > i)); j--)
+                    if (j < K) {
+                        wd[j] = wd[j - 1];
+                        want[j] = want[j - 1];
+                    }
+                if (j < K) {
+                    wd[j] = d;
+                    want[j] = i;
+                }
+            }
+            if (found != m)
+                bad++;
+            else
+                for (j = 0; j < m; j++)
+                    bad += got[j] != want[j] || gd[j] != wd[j];
+        }
+        ts__pix_kdtree_free(t);
+        free(pts);
+    }
+    CHECK_MSG(bad == 0, "%d kd-tree answers differ from the scan", bad);
+}
+
+/* Similarity sets: each usable cell's K - 1 against a plain scan of every
+ * usable cell of every exemplar (its own exemplar's cells within one level
+ * spacing left out). */
+static void test_similarity_sets(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex[2];
+    ts_pixel_params p = ts_pixel_params_default();
+    ts_pixel_exemplars *E = NULL;
+    int l, bad = 0, checked = 0;
+    ex[0] = make_terrain(ctx, 48, 40, 13);
+    ex[1] = make_terrain(ctx, 36, 44, 14);
+    p.levels = 2;
+    p.rotations = 4;
+    p.coherence = 3;
+    CHECK(ts_pixel_prepare(ctx, ex, 2, &p, &E) == TS_OK);
+    for (l = 0; l <= 2; l++) {
+        int dim = E->dim[l], reach = 1 << (2 - l), e;
+        for (e = 0; e < 2; e++) {
+            const pix_stack *s = &E->stacks[e];
+            size_t c;
+            for (c = 0; c < s->n_usable[l]; c += 7) {
+                int32_t cell = s->usable_list[l][c], want[2] = {-1, -1};
+                float wd[2] = {INFINITY, INFINITY};
+                const float *q = s->app[l] + (size_t)cell * dim;
+                int e2, i;
+                for (e2 = 0; e2 < 2; e2++) {
+                    const pix_stack *s2 = &E->stacks[e2];
+                    size_t c2;
+                    for (c2 = 0; c2 < s2->n_usable[l]; c2++) {
+                        int32_t cell2 = s2->usable_list[l][c2];
+                        int32_t id = (int32_t)(e2 ? 48 * 40 : 0) + cell2;
+                        float d = 0;
+                        int a;
+                        if (e2 == e && abs(cell2 % s->width - cell % s->width) < reach &&
+                            abs(cell2 / s->width - cell / s->width) < reach)
+                            continue;
+                        for (a = 0; a < dim; a++) {
+                            float x = s2->app[l][(size_t)cell2 * dim + a] - q[a];
+                            d += x * x;
+                        }
+                        if (d < wd[1] || (d == wd[1] && id < want[1])) {
+                            if (d < wd[0] || (d == wd[0] && id < want[0])) {
+                                wd[1] = wd[0];
+                                want[1] = want[0];
+                                wd[0] = d;
+                                want[0] = id;
+                            } else {
+                                wd[1] = d;
+                                want[1] = id;
+                            }
+                        }
+                    }
+                }
+                for (i = 0; i < 2; i++)
+                    bad += s->sim[l][(size_t)cell * 2 + i] != want[i];
+                checked++;
+            }
+        }
+    }
+    CHECK(checked > 100);
+    CHECK_MSG(bad == 0, "%d similarity-set members differ from the scan", bad);
+    ts_pixel_exemplars_free(E);
+    ts_raster_free(&ex[0]);
+    ts_raster_free(&ex[1]);
     ts_ctx_free(ctx);
 }
 
@@ -238,6 +501,10 @@ int main(int argc, char **argv)
         {"blur_against_convolution", test_blur_against_convolution},
         {"ssd_plain", test_ssd_plain},
         {"windows_anywhere", test_windows_anywhere},
+        {"appearance_space", test_appearance_space},
+        {"turned_candidates", test_turned_candidates},
+        {"kdtree_against_scan", test_kdtree_against_scan},
+        {"similarity_sets", test_similarity_sets},
         {"errors", test_errors},
         {"window_choice", test_window_choice},
     };

@@ -200,3 +200,28 @@ def test_jitter_per_level(tmp_path):
     assert read(tmp_path / "r.tif").tobytes() == c.tobytes()
     p = run("pixel", *base, "--jitter-levels", "0.5,7", tmp_path / "x.tif", check=False)
     assert p.returncode == 2 and "jitter_levels takes 1 to 10 numbers" in p.stderr
+
+
+def test_appearance_space_and_similarity_sets(tmp_path):
+    """--pca-energy and --coherence reach the core from the command line and from recipes (a
+    window of the recipe equals the same window of the command line's output), change the
+    terrain, and are range-checked.  (Their correctness: tests/c/test_pixel.c against a
+    plain SSD and a plain nearest-neighbour scan.)"""
+    ex = crop(tmp_path, 120, 110)
+    base = ["pixel", "--exemplar", ex, "--size", "200x160", "--seed", "3", "-q"]
+    run(*base, tmp_path / "d.tif")
+    run(*base, "--pca-energy", "1", "--coherence", "2", tmp_path / "k.tif")
+    run("pixel", "--exemplar", ex, "--size", "200x160", "--seed", "3", "--pca-energy", "1",
+        "--coherence", "2", "--recipe", tmp_path / "k.tsyn")
+    text = (tmp_path / "k.tsyn").read_text()
+    assert 'name="coherence">2<' in text and 'name="pca_energy">1<' in text, text
+    k = read(tmp_path / "k.tif")
+    assert k.tobytes() != read(tmp_path / "d.tif").tobytes()
+    subprocess.run(["gdal_translate", "-q", "-srcwin", "37", "21", "90", "70",
+                    str(tmp_path / "k.tsyn"), str(tmp_path / "w.tif")], check=True,
+                   env=plugin_env(PLUGINS))
+    assert read(tmp_path / "w.tif").tobytes() == k[21:91, 37:127].tobytes()
+    for bad in (("--coherence", "9"), ("--pca-energy", "0.2")):
+        p = run(*base, *bad, tmp_path / "x.tif", check=False)
+        assert p.returncode != 0 and bad[0][2:] in p.stderr.replace("_", "-"), p.stderr
+        assert not os.path.exists(tmp_path / "x.tif")

@@ -164,6 +164,11 @@ static const ts_param_desc pixel_desc[] = {
      "Candidates turned and mirrored (Cruz et al.): 0 the exemplars as given, 4 also turned "
      "by 90, 180 and 270 degrees, 8 those and their mirror images.",
      offsetof(ts_pixel_params, rotations)},
+    {"coherence", TS_PARAM_INT, 1, 1, 8, TS_UNIT_CELLS, "", NULL,
+     "K of the k-coherence search (Lefebvre and Hoppe): besides each neighbour's coherent "
+     "coordinate, the corrections try the K - 1 exemplar cells whose neighbourhoods are "
+     "nearest to its own (found once by a kd-tree); 1: coherent candidates only.",
+     offsetof(ts_pixel_params, coherence)},
     {"pca_energy", TS_PARAM_DOUBLE, 0.95, 0.5, 1.0, TS_UNIT_CELLS, "", NULL,
      "Share of the variance of the neighbourhoods' shapes (each less its mean) kept by the "
      "principal directions the corrections compare (Cruz et al.: 0.95); the mean is always "

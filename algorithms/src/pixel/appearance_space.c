@@ -207,19 +207,16 @@ static void project_rows(void *arg, size_t begin, size_t end)
                 mu[x] /= (float)d;
             for (i = 0; i < dim - 1; i++) {
                 const float *row = basis + (size_t)i * d;
-                float *ai = acc + (size_t)i * maxw, wsum = 0;
+                float *ai = acc + (size_t)i * maxw;
                 for (x = 0; x < n; x++)
                     ai[x] = 0;
                 for (b = -r; b <= r; b++)
                     for (a = -r; a <= r; a++) {
                         const float *src = s->level[l] + (size_t)(y + b * sp) * w + x0 + a * sp;
                         float wt = row[(b + r) * k + a + r];
-                        wsum += wt;
-                        for (x = 0; x < n; x++)
-                            ai[x] += wt * src[x];
+                        for (x = 0; x < n; x++) /* less the mean first: no cancellation */
+                            ai[x] += wt * (src[x] - mu[x]);
                     }
-                for (x = 0; x < n; x++)
-                    ai[x] -= wsum * mu[x];
             }
             for (x = 0; x < n; x++) {
                 float *o = out + (size_t)(x0 + x) * dim;

@@ -252,6 +252,7 @@ static void correct_rows(void *arg, size_t begin, size_t end)
     corr_job *j = arg;
     pix_level *lv = j->lv;
     int k = j->k, r = k / 2, hsp = j->hsp, l = j->l, x, dim = j->ex->dim[l], nv = j->ex->nv;
+    int K1 = j->ex->coherence - 1;
     int v, have[8], *perm = malloc((size_t)nv * (size_t)k * k * sizeof *perm);
     float *t = malloc(((size_t)k * k * 2 + (size_t)nv * dim) * sizeof *t), *tv = t + k * k;
     float *at = tv + k * k;
@@ -302,18 +303,39 @@ static void correct_rows(void *arg, size_t begin, size_t end)
             bc = usable(j->ex, l, cur) ? app_distance(j->ex, l, cur, TARGET_FOR(cur)) : INFINITY;
             for (b = -r; b <= r; b++)
                 for (a = -r; a <= r; a++) {
-                    pix_coord c = lv->s[(y + b) * (size_t)lv->w + x + a];
+                    pix_coord n = lv->s[(y + b) * (size_t)lv->w + x + a], c = n;
                     double cost;
-                    if (!a && !b)
-                        continue;
+                    int i;
                     c.u -= a * hsp;
                     c.v -= b * hsp;
-                    if (!usable(j->ex, l, c))
-                        continue;
-                    cost = app_distance(j->ex, l, c, TARGET_FOR(c));
-                    if (cost < bc) {
-                        bc = cost;
-                        best = c;
+                    if ((a || b) && usable(j->ex, l, c)) {
+                        cost = app_distance(j->ex, l, c, TARGET_FOR(c));
+                        if (cost < bc) {
+                            bc = cost;
+                            best = c;
+                        }
+                    }
+                    /* the neighbour's similarity set, shifted alike (k-coherence) */
+                    for (i = 0; i < K1; i++) {
+                        const pix_stack *ns = &j->ex->stacks[n.e / nv];
+                        int32_t id = ns->sim[l][(size_t)cell_of(j->ex, n) * K1 + i], cell;
+                        int e2, q = n.e % nv;
+                        if (id < 0)
+                            break;
+                        ts__pix_similar(j->ex, id, &e2, &cell);
+                        ns = &j->ex->stacks[e2];
+                        c.e = e2 * nv + q;
+                        turned_target(ns->width, ns->height, q % 4, q >= 4, cell % ns->width,
+                                      cell / ns->width, &c.u, &c.v);
+                        c.u -= a * hsp;
+                        c.v -= b * hsp;
+                        if (!usable(j->ex, l, c))
+                            continue;
+                        cost = app_distance(j->ex, l, c, TARGET_FOR(c));
+                        if (cost < bc) {
+                            bc = cost;
+                            best = c;
+                        }
                     }
                 }
             lv->tmp[y * (size_t)lv->w + x] = best;
@@ -539,6 +561,22 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
         ts_pixel_exemplars_free(ex);
         return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the appearance space");
     }
+    if (!(ex->cell_base = calloc((size_t)n, sizeof *ex->cell_base))) {
+        ts_pixel_exemplars_free(ex);
+        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
+    }
+    switch (ts__pix_similarity_build(ctx, ex, params->coherence)) {
+    case 0:
+        break;
+    case -2:
+        ts_pixel_exemplars_free(ex);
+        return ts__fail(ctx, TS_ERR_SIZE, "pixel",
+                        "the exemplars hold 2^31 cells or more: too many for similarity sets "
+                        "(coherence 1 or smaller exemplars)");
+    default:
+        ts_pixel_exemplars_free(ex);
+        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the similarity sets");
+    }
     if (ts__progress(ctx, 1.0, "stacks") != TS_OK) {
         ts_pixel_exemplars_free(ex);
         return ctx->status;
@@ -558,6 +596,7 @@ TS_API void ts_pixel_exemplars_free(ts_pixel_exemplars *ex)
         free(ex->basis[i]);
     free(ex->stacks);
     free(ex->turn);
+    free(ex->cell_base);
     free(ex);
 }
 

@@ -96,8 +96,11 @@ void ts__pix_stack_free(pix_stack *s, int L)
             free(s->usable_list[l]);
         if (s->app)
             free(s->app[l]);
+        if (s->sim)
+            free(s->sim[l]);
     }
     free(s->app);
+    free(s->sim);
     free(s->level);
     free(s->usable);
     free(s->usable_list);

@@ -21,6 +21,8 @@ typedef struct pix_stack {
     int32_t **usable_list;  /* L + 1 lists of usable cell indices (y * width + x) */
     size_t *n_usable;
     int32_t *by_height; /* level 0's usable cells in ascending order of height */
+    int32_t **sim;      /* with coherence K > 1: L + 1 arrays of K - 1 similar cells per cell
+                           (ids of ts__pix_similar; -1: none), usable cells only */
     float **app;        /* L + 1 arrays: each cell's appearance vector (dim[l] floats; 0 where not
                            usable) */
 } pix_stack;
@@ -40,6 +42,8 @@ struct ts_pixel_exemplars {
     int levels, window;
     pix_stack *stacks; /* n_given */
     pix_turn *turn;    /* n */
+    int coherence;     /* K of the k-coherence similarity sets (1: none) */
+    int64_t *cell_base; /* n_given: the first id of each exemplar's cells in the sets */
     int dim[12];       /* each level's appearance dimension: 1 + principal directions kept */
     float *basis[12];  /* each level's principal directions, (dim - 1) rows of k * k */
 };
@@ -88,6 +92,22 @@ void ts__pix_appearance(const float *basis, int m, int k, const float *t, float 
  * variance (1: all) and every usable cell's appearance vector.  0, or -1
  * when out of memory. */
 int ts__pix_appearance_build(const ts_ctx *ctx, ts_pixel_exemplars *ex, double energy);
+
+/* A kd-tree over n points of dim floats (pts kept by the caller). */
+typedef struct pix_kdtree pix_kdtree;
+pix_kdtree *ts__pix_kdtree_build(const float *pts, size_t n, int dim);
+void ts__pix_kdtree_free(pix_kdtree *t);
+/* The K points nearest to q (squared Euclidean distance, ties by index)
+ * among those `keep` accepts (NULL: all), ascending into out and d2; the
+ * number found. */
+int ts__pix_kdtree_knn(const pix_kdtree *t, const float *q, int K,
+                       int (*keep)(void *arg, int32_t i), void *arg, int32_t *out, float *d2);
+
+/* The k-coherence similarity sets of every level (K = coherence; 1: none):
+ * 0, -1 when out of memory, -2 when the exemplars hold 2^31 cells or more. */
+int ts__pix_similarity_build(const ts_ctx *ctx, ts_pixel_exemplars *ex, int coherence);
+/* A similarity set's id as exemplar and cell. */
+void ts__pix_similar(const ts_pixel_exemplars *ex, int32_t id, int *e, int32_t *cell);
 
 /* The eigenvalues of the symmetric n x n matrix a (destroyed) by cyclic
  * Jacobi rotations, into ev (unordered); 0, or -1 when they did not converge. */
