@@ -74,7 +74,7 @@ static int by_value_desc(const void *x, const void *y)
 /* Level l's principal directions: basis (m x k^2, rows) and m. */
 static int level_basis(const ts_pixel_exemplars *ex, int l, double energy, float **basis, int *m)
 {
-    int k = ex->window, d = k * k, sp = 1 << (ex->levels - l), e, i, j;
+    int k = ex->kl[l], d = k * k, sp = 1 << (ex->levels - l), e, i, j;
     double *cov = calloc((size_t)d * d, sizeof *cov), *sum = calloc((size_t)d, sizeof *sum);
     double *ev = malloc((size_t)d * sizeof *ev), *vec = malloc((size_t)d * d * sizeof *vec);
     float *t = malloc((size_t)d * sizeof *t);
@@ -171,7 +171,7 @@ static void project_rows(void *arg, size_t begin, size_t end)
 {
     app_job *j = arg;
     ts_pixel_exemplars *ex = j->ex;
-    int k = ex->window, r = k / 2, d = k * k, maxw = 0, e;
+    int k = ex->window, r, d = k * k, maxw = 0, e; /* the widest window */
     float *acc, *mu;
     size_t task;
     for (e = 0; e < ex->n_given; e++)
@@ -187,6 +187,9 @@ static void project_rows(void *arg, size_t begin, size_t end)
         size_t per_stack = (size_t)(ex->levels + 1) * j->per_level;
         int l = (int)(task % per_stack / j->per_level), band = (int)(task % j->per_level);
         int sp = 1 << (ex->levels - l), dim = ex->dim[l], x, y, i, a, b;
+        k = ex->kl[l];
+        r = k / 2;
+        d = k * k;
         pix_stack *s = &ex->stacks[task / per_stack];
         int w = s->width, x0 = r * sp, x1 = w - r * sp, n = x1 - x0;
         const float *basis = ex->basis[l];

@@ -223,9 +223,9 @@ static double app_distance(const ts_pixel_exemplars *ex, int l, pix_coord c, con
     const pix_stack *s = &ex->stacks[c.e / ex->nv];
     int dim = ex->dim[l], i;
     const float *a = s->app[l] + (size_t)cell_of(ex, c) * (size_t)dim;
-    double d = 0;
+    float d = 0;
     for (i = 0; i < dim; i++) {
-        double e = (double)at[i] - a[i];
+        float e = at[i] - a[i];
         d += e * e;
     }
     return d;
@@ -236,7 +236,7 @@ static double app_distance(const ts_pixel_exemplars *ex, int l, pix_coord c, con
 static const float *target_turned(const ts_pixel_exemplars *ex, int l, const float *t, float *tv,
                                   const int *perm, int v, int *have, float *at)
 {
-    int k = ex->window, i, dim = ex->dim[l];
+    int k = ex->kl[l], i, dim = ex->dim[l];
     for (i = 0; i < k * k; i++)
         tv[perm[v * k * k + i]] = t[i];
     ts__pix_appearance(ex->basis[l], dim - 1, k, tv, at + (size_t)v * dim);
@@ -286,6 +286,21 @@ static void correct_rows(void *arg, size_t begin, size_t end)
                 continue;
             if (x < r || x + r >= lv->w || (int)y < r || (int)y + r >= lv->h)
                 continue; /* at the region's edge: outside every exact window */
+            if (!K1) {    /* every candidate the cell's own (a coherent region): it stays */
+                int other = 0;
+                for (b = -r; b <= r && !other; b++)
+                    for (a = -r; a <= r; a++) {
+                        pix_coord n = lv->s[(y + b) * (size_t)lv->w + x + a];
+                        if (n.e != cur.e || n.u - a * hsp != cur.u || n.v - b * hsp != cur.v) {
+                            other = 1;
+                            break;
+                        }
+                    }
+                if (!other) {
+                    lv->tmp[y * (size_t)lv->w + x] = cur;
+                    continue;
+                }
+            }
             for (b = -r; b <= r; b++)
                 for (a = -r; a <= r; a++) {
                     float hv = lv->hc[(y + b) * (size_t)lv->w + x + a];
@@ -308,7 +323,9 @@ static void correct_rows(void *arg, size_t begin, size_t end)
                     int i;
                     c.u -= a * hsp;
                     c.v -= b * hsp;
-                    if ((a || b) && usable(j->ex, l, c)) {
+#define SAME(p, q) ((p).e == (q).e && (p).u == (q).u && (p).v == (q).v)
+                    /* in a coherent region most candidates are the cell's own coordinate */
+                    if ((a || b) && !SAME(c, cur) && !SAME(c, best) && usable(j->ex, l, c)) {
                         cost = app_distance(j->ex, l, c, TARGET_FOR(c));
                         if (cost < bc) {
                             bc = cost;
@@ -329,7 +346,7 @@ static void correct_rows(void *arg, size_t begin, size_t end)
                                       cell / ns->width, &c.u, &c.v);
                         c.u -= a * hsp;
                         c.v -= b * hsp;
-                        if (!usable(j->ex, l, c))
+                        if (SAME(c, cur) || SAME(c, best) || !usable(j->ex, l, c))
                             continue;
                         cost = app_distance(j->ex, l, c, TARGET_FOR(c));
                         if (cost < bc) {
@@ -342,6 +359,7 @@ static void correct_rows(void *arg, size_t begin, size_t end)
         }
     }
 #undef TARGET_FOR
+#undef SAME
     free(t);
     free(perm);
 }
@@ -446,10 +464,20 @@ static void stack_levels(void *arg, size_t begin, size_t end)
     size_t t;
     for (t = begin; t < end; t++) {
         int e = (int)(t / (size_t)(j->L + 1)), l = (int)(t % (size_t)(j->L + 1));
-        if (ts__pix_stack_level(&j->exemplars[e], j->L, j->k, j->L - l, &j->ex->stacks[e]) != 0)
+        if (ts__pix_stack_level(&j->exemplars[e], j->L, j->ex->kl[j->L - l], j->L - l,
+                                &j->ex->stacks[e]) != 0)
             j->fail = 1;
     }
 }
+
+/* The window of a level of spacing sp: 3 x 3 from a spacing of 16 cells.
+ * The coarse levels' neighbourhoods then reach as far as 5 x 5 at half the
+ * spacing, so a fifth level fits the exemplar's safety margin and large
+ * structures (a plain, a mountain front) come from coarser levels.
+ * Measured on nine DEMs x three seeds: slope W1 2.2 degrees on average,
+ * 21 of 27 within 3, against 2.6 and 19 of 27 with 5 x 5 at every level
+ * and at most four levels. */
+#define COARSE_WINDOW(k, sp) ((sp) >= 16 && (k) > 3 ? 3 : (k))
 
 TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
                                   const ts_pixel_params *params, ts_pixel_exemplars **out)
@@ -483,11 +511,12 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
     }
     L = params->levels;
     if (L == 0) {
-        /* as many as leave a coarsest neighbourhood half the smallest exemplar, at most 4:
+        /* as many as leave a coarsest neighbourhood half the smallest exemplar, at most 5:
          * with more, the coarsest level's safety margin leaves only the exemplar's centre
-         * to start from (measured: St Helens' and Mackay's slopes went wrong at 5 and 6) */
+         * to start from (measured: with 6, slope W1 3.6 degrees on average over nine DEMs,
+         * against 2.2 with 5) */
         L = 1;
-        while (L < 4 && (1 << (L + 1)) * (k - 1) + 1 <= minside / 2)
+        while (L < 5 && (1 << (L + 1)) * (COARSE_WINDOW(k, 1 << (L + 1)) - 1) + 1 <= minside / 2)
             L++;
     }
     ex = calloc(1, sizeof *ex);
@@ -498,6 +527,8 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
     ex->n = n * nv;
     ex->n_given = n;
     ex->nv = nv;
+    for (i = 0; i <= L; i++)
+        ex->kl[i] = COARSE_WINDOW(k, 1 << (L - i));
     if (!(ex->turn = calloc((size_t)n * (size_t)nv, sizeof *ex->turn))) {
         free(ex->stacks);
         free(ex);
@@ -694,127 +725,81 @@ TS_API ts_status ts_pixel_synthesize_sources(ts_ctx *ctx, const ts_pixel_exempla
     return pix_run(ctx, ex, guide, params, x0, y0, out, src);
 }
 
-static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pixel_guide *guide,
-                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out,
-                         const ts_pixel_sources *src)
-{
-    int L, k, r, l, pass, sub, x, y;
-    int64_t M;
-    pix_region need[12], pre[12];
-    pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL, NULL};
-    pix_coord *coords[12] = {NULL}; /* each level's corrected coordinates over pre[l] */
-    static const int order[4][2] = {{0, 0}, {1, 1}, {1, 0}, {0, 1}};
+/* What a level's initialisation and the output's rows read. */
+typedef struct run_job {
+    const ts_pixel_exemplars *ex;
+    const ts_pixel_guide *guide;
+    const ts_pixel_params *params;
+    pix_coord **coords;
+    const pix_region *pre;
+    pix_level *lv;
+    ts_raster *out;
+    int l, L, hsp;
+    double jit;
     uint64_t seed;
-    ts_status st = TS_OK;
-    ts__clear(ctx);
-    if (!ex || !params || !out || !out->data || out->width < 1 || out->height < 1)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "missing exemplars, parameters or output");
-    if (ts_params_validate(ctx, "pixel", params) != TS_OK)
-        return ctx->status;
-    if ((params->window && params->window != ex->window) ||
-        (params->levels && params->levels != ex->levels))
-        return ts__fail(ctx, TS_ERR_ARG, "pixel",
-                        "the stacks were prepared for window %d and %d levels", ex->window,
-                        ex->levels);
-    if (params->n_jitter_levels < 0 || params->n_jitter_levels > 10)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "at most 10 per-level jitters, not %d",
-                        params->n_jitter_levels);
-    for (l = 0; l < params->n_jitter_levels; l++)
-        if (!(params->jitter_levels[l] >= 0 && params->jitter_levels[l] <= 2))
-            return ts__fail(ctx, TS_ERR_ARG, "pixel", "per-level jitter %d is %g, not in 0..2",
-                            l + 1, params->jitter_levels[l]);
-    if (x0 < -((int64_t)1 << 40) || y0 < -((int64_t)1 << 40) || x0 > ((int64_t)1 << 40) ||
-        y0 > ((int64_t)1 << 40))
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "the window's origin is beyond 2^40 cells");
-    L = ex->levels;
-    k = ex->window;
-    r = k / 2;
-    seed = ctx->seed;
-    /* what the corrections read, and a cell more for the bands' interpolation */
-    M = (int64_t)params->passes * 4 * r + 2;
-    /* the regions each level computes, finest to coarsest */
-    need[L].x0 = x0;
-    need[L].y0 = y0;
-    need[L].x1 = x0 + out->width;
-    need[L].y1 = y0 + out->height;
-    for (l = L; l >= 0; l--) {
-        pre[l] = grow(need[l], M);
-        if (l > 0)
-            need[l - 1] = parent_cover(pre[l]);
-    }
-    for (l = 0; l <= L; l++) {
-        int hsp = 1 << (L - l);
-        double jit = params->n_jitter_levels > 0
-                         ? params->jitter_levels[l - 1 < params->n_jitter_levels - 1
-                                                     ? (l > 0 ? l - 1 : 0)
-                                                     : params->n_jitter_levels - 1]
-                         : params->jitter;
-        if (level_alloc(&cur, pre[l]) != 0) {
-            st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for level %d", l);
-            goto done;
+    int64_t x0, y0, M;
+    const ts_pixel_sources *src;
+} run_job;
+
+/* Rows [begin, end) of level l: level 0 from the hash (or the guide), finer
+ * levels from the parent's coordinate upsampled and jittered. */
+static void init_rows(void *arg, size_t begin, size_t end)
+{
+    run_job *j = arg;
+    const ts_pixel_exemplars *ex = j->ex;
+    const ts_pixel_guide *guide = j->guide;
+    const ts_pixel_params *params = j->params;
+    pix_coord **coords = j->coords;
+    const pix_region *pre = j->pre;
+    pix_level cur = *j->lv;
+    int l = j->l, hsp = j->hsp, x;
+    double jit = j->jit;
+    uint64_t seed = j->seed;
+    size_t y;
+    for (y = begin; y < end; y++)
+        for (x = 0; x < cur.w; x++) {
+            int64_t ax = cur.reg.x0 + x, ay = cur.reg.y0 + y;
+            pix_coord c;
+            if (l == 0) {
+                float gv = guide ? guide_at(guide, 0, hsp, ax, ay) : NAN;
+                uint64_t h0 = ts__pix_hash(ax, ay, 0, 0, seed);
+                c = isnan(gv) || !(params->guide_weight > 0) ? random_coord(ex, 0, h0)
+                                                             : guided_coord(ex, gv, h0);
+            } else {
+                int64_t qx = floor_half(ax), qy = floor_half(ay);
+                pix_coord j;
+                uint64_t hh = ts__pix_hash(ax, ay, l, 1, seed);
+                double ju = ((double)(hh & 0xffffff) / 16777215.0) * 2 - 1;
+                double jv = ((double)((hh >> 24) & 0xffffff) / 16777215.0) * 2 - 1;
+                c = coords[l - 1]
+                          [(size_t)(qy - pre[l - 1].y0) * (size_t)(pre[l - 1].x1 - pre[l - 1].x0) +
+                           (size_t)(qx - pre[l - 1].x0)];
+                c.u += (int32_t)((ax - 2 * qx) * hsp);
+                c.v += (int32_t)((ay - 2 * qy) * hsp);
+                j = c;
+                j.u += (int32_t)lround(jit * hsp * ju);
+                j.v += (int32_t)lround(jit * hsp * jv);
+                if (usable(ex, l, j))
+                    c = j;
+                else if (!usable(ex, l, c))
+                    c = random_coord(ex, l, ts__pix_hash(ax, ay, l, 2, seed));
+            }
+            cur.s[y * (size_t)cur.w + (size_t)x] = c;
         }
-        /* initialise (level 0) or upsample and jitter */
-        for (y = 0; y < cur.h; y++)
-            for (x = 0; x < cur.w; x++) {
-                int64_t ax = cur.reg.x0 + x, ay = cur.reg.y0 + y;
-                pix_coord c;
-                if (l == 0) {
-                    float gv = guide ? guide_at(guide, 0, hsp, ax, ay) : NAN;
-                    uint64_t h0 = ts__pix_hash(ax, ay, 0, 0, seed);
-                    c = isnan(gv) || !(params->guide_weight > 0) ? random_coord(ex, 0, h0)
-                                                                 : guided_coord(ex, gv, h0);
-                } else {
-                    int64_t qx = floor_half(ax), qy = floor_half(ay);
-                    pix_coord j;
-                    uint64_t hh = ts__pix_hash(ax, ay, l, 1, seed);
-                    double ju = ((double)(hh & 0xffffff) / 16777215.0) * 2 - 1;
-                    double jv = ((double)((hh >> 24) & 0xffffff) / 16777215.0) * 2 - 1;
-                    c = coords[l - 1][(size_t)(qy - pre[l - 1].y0) *
-                                          (size_t)(pre[l - 1].x1 - pre[l - 1].x0) +
-                                      (size_t)(qx - pre[l - 1].x0)];
-                    c.u += (int32_t)((ax - 2 * qx) * hsp);
-                    c.v += (int32_t)((ay - 2 * qy) * hsp);
-                    j = c;
-                    j.u += (int32_t)lround(jit * hsp * ju);
-                    j.v += (int32_t)lround(jit * hsp * jv);
-                    if (usable(ex, l, j))
-                        c = j;
-                    else if (!usable(ex, l, c))
-                        c = random_coord(ex, l, ts__pix_hash(ax, ay, l, 2, seed));
-                }
-                cur.s[(size_t)y * cur.w + x] = c;
-            }
-        /* correction */
-        for (pass = 0; pass < params->passes; pass++)
-            for (sub = 0; sub < 4; sub++) {
-                corr_job j = {
-                    ex, &cur, l, hsp, k, order[sub][0], order[sub][1], guide, params->guide_weight,
-                    0};
-                ts__parallel_for(ctx, (size_t)cur.h, height_rows, &j);
-                ts__parallel_for(ctx, (size_t)cur.h, correct_rows, &j);
-                if (j.fail) {
-                    st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
-                    goto done;
-                }
-                ts__parallel_for(ctx, (size_t)cur.h, commit_rows, &j);
-            }
-        if ((st = ts__check_cancel(ctx)) != TS_OK)
-            goto done;
-        if ((st = ts__progress(ctx, (l + 1.0) / (L + 1), "synthesis")) != TS_OK)
-            goto done;
-        /* the level's coordinates, kept for the next level and the output's bands */
-        coords[l] = cur.s;
-        free(cur.tmp);
-        free(cur.hc);
-        cur.s = cur.tmp = NULL;
-        cur.hc = NULL;
-    }
-    /* the window: the sum of the levels' bands (a level's stack less the coarser one),
-     * each at the output cell's own place in the frames of the four level cells around
-     * it (a cell's coordinate plus the cell's offset from it), weighed bilinearly: where
-     * the four agree this is the exemplar's band there; across a seam between coherent
-     * regions it blends, and the step is one band's, not the whole heights' */
-    for (y = 0; y < out->height; y++)
+}
+
+/* Rows [begin, end) of the output (and the sources' maps). */
+static void output_rows(void *arg, size_t begin, size_t end)
+{
+    run_job *j = arg;
+    const ts_pixel_exemplars *ex = j->ex;
+    pix_coord **coords = j->coords;
+    const pix_region *pre = j->pre;
+    ts_raster *out = j->out;
+    const ts_pixel_sources *src = j->src;
+    int L = j->L, l, x, y;
+    int64_t x0 = j->x0, y0 = j->y0, M = j->M;
+    for (y = (int)begin; y < (int)end; y++)
         for (x = 0; x < out->width; x++) {
             double hsum = 0;
             int64_t ax = x0 + x, ay = y0 + y;
@@ -834,6 +819,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                             (size_t)(qy + b - pre[l].y0) * (size_t)w + (size_t)(qx + a - pre[l].x0);
                         pix_coord c = coords[l][i];
                         double wgt = (a ? tx : 1 - tx) * (b ? ty : 1 - ty), val;
+                        if (wgt == 0)
+                            continue; /* (the finest level: one corner) */
                         c.u = (int32_t)(c.u + (ax - (qx + a) * sp));
                         c.v = (int32_t)(c.v + (ay - (qy + b) * sp));
                         val = band_at(ex, l, c);
@@ -864,6 +851,112 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                     src->y[o] = c.v;
             }
         }
+}
+
+static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pixel_guide *guide,
+                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out,
+                         const ts_pixel_sources *src)
+{
+    int L, l, pass, sub;
+    int64_t M;
+    pix_region need[12], pre[12];
+    pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL, NULL};
+    pix_coord *coords[12] = {NULL}; /* each level's corrected coordinates over pre[l] */
+    static const int order[4][2] = {{0, 0}, {1, 1}, {1, 0}, {0, 1}};
+    uint64_t seed;
+    ts_status st = TS_OK;
+    ts__clear(ctx);
+    if (!ex || !params || !out || !out->data || out->width < 1 || out->height < 1)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "missing exemplars, parameters or output");
+    if (ts_params_validate(ctx, "pixel", params) != TS_OK)
+        return ctx->status;
+    if ((params->window && params->window != ex->window) ||
+        (params->levels && params->levels != ex->levels))
+        return ts__fail(ctx, TS_ERR_ARG, "pixel",
+                        "the stacks were prepared for window %d and %d levels", ex->window,
+                        ex->levels);
+    if (params->n_jitter_levels < 0 || params->n_jitter_levels > 10)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "at most 10 per-level jitters, not %d",
+                        params->n_jitter_levels);
+    for (l = 0; l < params->n_jitter_levels; l++)
+        if (!(params->jitter_levels[l] >= 0 && params->jitter_levels[l] <= 2))
+            return ts__fail(ctx, TS_ERR_ARG, "pixel", "per-level jitter %d is %g, not in 0..2",
+                            l + 1, params->jitter_levels[l]);
+    if (x0 < -((int64_t)1 << 40) || y0 < -((int64_t)1 << 40) || x0 > ((int64_t)1 << 40) ||
+        y0 > ((int64_t)1 << 40))
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "the window's origin is beyond 2^40 cells");
+    L = ex->levels;
+    seed = ctx->seed;
+    /* what the corrections read, and a cell more for the bands' interpolation */
+    M = (int64_t)params->passes * 4 * (ex->kl[L] / 2) + 2;
+    /* the regions each level computes, finest to coarsest */
+    need[L].x0 = x0;
+    need[L].y0 = y0;
+    need[L].x1 = x0 + out->width;
+    need[L].y1 = y0 + out->height;
+    for (l = L; l >= 0; l--) {
+        pre[l] = grow(need[l], (int64_t)params->passes * 4 * (ex->kl[l] / 2) + 2);
+        if (l > 0)
+            need[l - 1] = parent_cover(pre[l]);
+    }
+    for (l = 0; l <= L; l++) {
+        int hsp = 1 << (L - l);
+        double jit = params->n_jitter_levels > 0
+                         ? params->jitter_levels[l - 1 < params->n_jitter_levels - 1
+                                                     ? (l > 0 ? l - 1 : 0)
+                                                     : params->n_jitter_levels - 1]
+                         : params->jitter;
+        if (level_alloc(&cur, pre[l]) != 0) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for level %d", l);
+            goto done;
+        }
+        /* initialise (level 0) or upsample and jitter */
+        {
+            run_job rj = {ex, guide, params, coords, pre, &cur, NULL, l,
+                          L,  hsp,   jit,    seed,   0,   0,    0,    NULL};
+            ts__parallel_for(ctx, (size_t)cur.h, init_rows, &rj);
+        }
+        /* correction */
+        for (pass = 0; pass < params->passes; pass++)
+            for (sub = 0; sub < 4; sub++) {
+                corr_job j = {ex,
+                              &cur,
+                              l,
+                              hsp,
+                              ex->kl[l],
+                              order[sub][0],
+                              order[sub][1],
+                              guide,
+                              params->guide_weight,
+                              0};
+                ts__parallel_for(ctx, (size_t)cur.h, height_rows, &j);
+                ts__parallel_for(ctx, (size_t)cur.h, correct_rows, &j);
+                if (j.fail) {
+                    st = ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
+                    goto done;
+                }
+                ts__parallel_for(ctx, (size_t)cur.h, commit_rows, &j);
+            }
+        if ((st = ts__check_cancel(ctx)) != TS_OK)
+            goto done;
+        if ((st = ts__progress(ctx, (l + 1.0) / (L + 1), "synthesis")) != TS_OK)
+            goto done;
+        /* the level's coordinates, kept for the next level and the output's bands */
+        coords[l] = cur.s;
+        free(cur.tmp);
+        free(cur.hc);
+        cur.s = cur.tmp = NULL;
+        cur.hc = NULL;
+    }
+    /* the window: the sum of the levels' bands (a level's stack less the coarser one),
+     * each at the output cell's own place in the frames of the four level cells around
+     * it (a cell's coordinate plus the cell's offset from it), weighed bilinearly: where
+     * the four agree this is the exemplar's band there; across a seam between coherent
+     * regions it blends, and the step is one band's, not the whole heights' */
+    {
+        run_job rj = {ex, guide, params, coords, pre, &cur, out, L, L, 1, 0, seed, x0, y0, M, src};
+        ts__parallel_for(ctx, (size_t)out->height, output_rows, &rj);
+    }
 done:
     level_free(&cur);
     for (l = 0; l < 12; l++)

@@ -40,6 +40,7 @@ struct ts_pixel_exemplars {
     int n_given; /* the exemplars given, each with a stack */
     int nv;      /* variants per exemplar: 1, 4 or 8 */
     int levels, window;
+    int kl[12];        /* each level's window (the coarsest may be narrower) */
     pix_stack *stacks; /* n_given */
     pix_turn *turn;    /* n */
     int coherence;     /* K of the k-coherence similarity sets (1: none) */
