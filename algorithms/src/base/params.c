@@ -142,13 +142,14 @@ static const ts_param_desc pixel_desc[] = {
     {"levels", TS_PARAM_INT, 0, 0, 10, TS_UNIT_CELLS, "", NULL,
      "Levels of the exemplars' Gaussian stacks above the finest (the coarsest spacing is "
      "2^levels cells); 0: as many as leave a coarsest neighbourhood half the smallest exemplar, "
-     "at most 4.",
+     "at most 5.",
      offsetof(ts_pixel_params, levels)},
     {"passes", TS_PARAM_INT, 2, 0, 8, TS_UNIT_CELLS, "", NULL,
      "Correction passes per level (each of 4 sub-passes over the cells of one parity).",
      offsetof(ts_pixel_params, passes)},
     {"window", TS_PARAM_INT, 5, 0, 9, TS_UNIT_CELLS, "", NULL,
-     "Side k of the k x k neighbourhoods compared in the corrections (odd); 0: the k in "
+     "Side k of the k x k neighbourhoods compared in the corrections (odd; 3 at the levels of a "
+     "spacing of 16 cells or more); 0: the k in "
      "3, 5, 7, 9 whose principal components holding 95 % of the neighbourhoods' variance are "
      "the smallest share of k x k (Cruz et al.).",
      offsetof(ts_pixel_params, window)},
