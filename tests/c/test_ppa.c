@@ -5,6 +5,7 @@
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include "harness.h"
+#include "ppa_internal.h"
 #include "terrasynth.h"
 
 typedef double (*surface_fn)(double x, double y);
@@ -525,7 +526,8 @@ static void test_kruskal_equals_naive(void)
     int trial;
     for (trial = 0; trial < 40; trial++) {
         uint64_t s = 1000 + (uint64_t)trial;
-        int w = 6 + trial % 7, h = 5 + trial % 5, x, y;
+        int w = 6 + trial % 7 + (trial >= 30 ? 20 : 0), h = 5 + trial % 5 + (trial >= 30 ? 15 : 0);
+        int x, y, kind = trial % 4 < 2 ? TS_RIDGE : TS_VALLEY;
         ts_raster dem;
         unsigned char *targets = malloc((size_t)w * h), *keep;
         ts_ppa_segment *segs = NULL;
@@ -537,11 +539,11 @@ static void test_kruskal_equals_naive(void)
             for (x = 0; x < w; x++) {
                 /* quantised heights make ties, which the order must break the same way */
                 TS_PIX(&dem, x, y) = (float)(int)(th_uniform(&s) * (trial % 2 ? 5 : 1000));
-                targets[y * w + x] = th_uniform(&s) < 0.75 ? TS_RIDGE : 0;
+                targets[y * w + x] = th_uniform(&s) < (trial % 5 ? 0.75 : 0.97) ? kind : 0;
             }
         if (trial % 3 == 0)
             TS_PIX(&dem, w / 2, h / 2) = NAN, targets[(h / 2) * w + w / 2] = 0;
-        CHECK(ts_ppa_target_connection(ctx, &dem, targets, TS_RIDGE, &segs, &n) == TS_OK);
+        CHECK(ts_ppa_target_connection(ctx, &dem, targets, kind, &segs, &n) == TS_OK);
         keep = malloc(n ? n : 1);
         CHECK(ts_ppa_polygon_breaking(ctx, segs, n, (size_t)w * h, keep) == TS_OK);
         g.n_cells = (size_t)w * h;
@@ -554,6 +556,27 @@ static void test_kruskal_equals_naive(void)
         for (i = 0; i < n; i++)
             CHECK_MSG(g.alive[i] == keep[i], "trial %d segment %zu: naive %d kruskal %d", trial,
                       i, g.alive[i], keep[i]);
+        /* the lean way (triangles' least segments left out, straight into neighbour bits,
+         * on 1 to 3 threads): the naive forest's bits */
+        {
+            unsigned char *want = calloc((size_t)w * h, 1), *got = calloc((size_t)w * h, 1);
+            int bad = 0;
+            for (i = 0; i < n; i++)
+                if (g.alive[i]) {
+                    int dx = (int)(segs[i].b % (uint32_t)w) - (int)(segs[i].a % (uint32_t)w);
+                    int dy = (int)(segs[i].b / (uint32_t)w) - (int)(segs[i].a / (uint32_t)w);
+                    int d = ppa_dir_of(dx, dy);
+                    want[segs[i].a] |= (unsigned char)(1u << d);
+                    want[segs[i].b] |= (unsigned char)(1u << ((d + 4) & 7));
+                }
+            ts_ctx_set_threads(ctx, 1 + trial % 3);
+            CHECK(ppa_spanning_forest(ctx, &dem, targets, kind, got) == TS_OK);
+            for (i = 0; i < (size_t)w * h; i++)
+                bad += want[i] != got[i];
+            CHECK_MSG(bad == 0, "trial %d: the lean forest differs at %d cells", trial, bad);
+            free(want);
+            free(got);
+        }
         free(g.alive);
         free(keep);
         free(segs);

@@ -53,6 +53,17 @@ static ts_status ppa_one_kind(ts_ctx *ctx, const ts_raster *dem, const ts_grid_m
     ts_progress_saved sv;
     ts_status st;
 
+    if (n < ((size_t)1 << 30)) { /* the lean way, in one pass: the same forest */
+        adj = ts__calloc_array(n, 1);
+        if (!adj)
+            return ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory");
+        sv = ts__progress_push(ctx, 0.0, 0.7);
+        st = ppa_spanning_forest(ctx, dem, targets, kind, adj);
+        ts__progress_pop(ctx, sv);
+        if (st != TS_OK)
+            goto done;
+        goto reduce;
+    }
     sv = ts__progress_push(ctx, 0.0, 0.3);
     st = ts_ppa_target_connection(ctx, dem, targets, kind, &segs, &n_segs);
     ts__progress_pop(ctx, sv);
@@ -83,6 +94,7 @@ static ts_status ppa_one_kind(ts_ctx *ctx, const ts_raster *dem, const ts_grid_m
     segs = NULL;
     free(keep);
     keep = NULL;
+reduce:
     sv = ts__progress_push(ctx, 0.7, 0.9);
     st = ppa_branch_reduction(ctx, dem->width, dem->height, adj, m, min_length);
     ts__progress_pop(ctx, sv);

@@ -16,7 +16,8 @@
 #include "internal.h"
 
 /* Neighbour steps in segment order from cell a: E, SW, S, SE. */
-static const int connect_step[4][2] = {{1, 0}, {-1, 1}, {0, 1}, {1, 1}};
+const int ppa_connect_step[4][2] = {{1, 0}, {-1, 1}, {0, 1}, {1, 1}};
+#define connect_step ppa_connect_step
 
 static int connect_is_target(const unsigned char *t, int w, int h, int x, int y, int kind)
 {
@@ -24,8 +25,8 @@ static int connect_is_target(const unsigned char *t, int w, int h, int x, int y,
 }
 
 /* Does segment k from (x, y) exist (before/after the crossing rule)? */
-static int connect_segment_exists(const ts_raster *dem, const unsigned char *t, int kind, int x,
-                                  int y, int k, float sign)
+int ppa_segment_exists(const ts_raster *dem, const unsigned char *t, int kind, int x, int y, int k,
+                       float sign)
 {
     int w = dem->width, h = dem->height;
     int nx = x + connect_step[k][0], ny = y + connect_step[k][1];
@@ -72,7 +73,7 @@ TS_API ts_status ts_ppa_target_connection(ts_ctx *ctx, const ts_raster *dem,
         for (x = 0; x < w; x++)
             if (targets[(size_t)y * (size_t)w + (size_t)x] & kind)
                 for (k = 0; k < 4; k++)
-                    n += (size_t)connect_segment_exists(dem, targets, kind, x, y, k, sign);
+                    n += (size_t)ppa_segment_exists(dem, targets, kind, x, y, k, sign);
     out = ts__malloc_array(n, sizeof *out);
     if (!out)
         return ts__fail(ctx, TS_ERR_NOMEM, "ppa target connection", "cannot allocate %zu segments",
@@ -81,7 +82,7 @@ TS_API ts_status ts_ppa_target_connection(ts_ctx *ctx, const ts_raster *dem,
         for (x = 0; x < w; x++)
             if (targets[(size_t)y * (size_t)w + (size_t)x] & kind)
                 for (k = 0; k < 4; k++)
-                    if (connect_segment_exists(dem, targets, kind, x, y, k, sign)) {
+                    if (ppa_segment_exists(dem, targets, kind, x, y, k, sign)) {
                         int nx = x + connect_step[k][0], ny = y + connect_step[k][1];
                         out[i].a = (uint32_t)((size_t)y * (size_t)w + (size_t)x);
                         out[i].b = (uint32_t)((size_t)ny * (size_t)w + (size_t)nx);

@@ -35,6 +35,23 @@ static inline double ppa_step_length(const ts_grid_metrics *m, int y, int d)
     return ts_step_length(m, dy < 0 ? y - 1 : y, ppa_dir[d][0] != 0, dy != 0);
 }
 
+/* Target connection's segments from a cell: k = 0..3 for E, SW, S, SE
+ * (ppa_connect_step); does segment k from target (x, y) exist (neighbour a
+ * target, diagonals not over nodata, the crossing rule)?  sign: 1 for
+ * ridges, -1 for valleys. */
+extern const int ppa_connect_step[4][2];
+int ppa_segment_exists(const ts_raster *dem, const unsigned char *t, int kind, int x, int y, int k,
+                       float sign);
+
+/* Steps 2 and 3 at once, lean (ppa_polygon.c): the maximum spanning forest
+ * of the kind's segments straight into adj (one byte of neighbour bits per
+ * cell, zeroed by the caller), without the segments that are the least
+ * important of a triangle (never in the forest).  The same forest as
+ * ts_ppa_target_connection + ts_ppa_polygon_breaking; DEMs under 2^30
+ * cells. */
+ts_status ppa_spanning_forest(ts_ctx *ctx, const ts_raster *dem, const unsigned char *targets,
+                              int kind, unsigned char *adj);
+
 /* PPA step 4, branch reduction: remove branches shorter than min_length
  * (in metres when m != NULL, else cells) from the forest `adj`. */
 ts_status ppa_branch_reduction(ts_ctx *ctx, int width, int height, unsigned char *adj,
