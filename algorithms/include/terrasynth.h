@@ -190,6 +190,7 @@ typedef struct ts_ppa_params {
     double threshold;        /* elevation units: the dip on each side must exceed */
     double threshold_fraction; /* ... and this fraction of the elevation range */
     ts_length min_branch_length; /* branches shorter than this are removed */
+    double min_drainage;         /* cells: valley targets draining fewer are dropped (0: none) */
 } ts_ppa_params;
 
 /** Defaults that work on mountains, canyons, hills and volcanoes. */

@@ -31,6 +31,10 @@ static const ts_param_desc ppa_desc[] = {
      "Branches shorter than this are removed (branch reduction); a plain number is cells, "
      "a number with suffix m is metres.",
      offsetof(ts_ppa_params, min_branch_length)},
+    {"min_drainage", TS_PARAM_DOUBLE, 0.0, 0.0, 1e9, TS_UNIT_CELLS, "cells", NULL,
+     "Valley cells draining fewer cells than this are not valley targets (hollows above the "
+     "channel heads; drainage routed by priority-flood, D8); 0 keeps them all.",
+     offsetof(ts_ppa_params, min_drainage)},
 };
 
 static const ts_param_desc synth_desc[] = {

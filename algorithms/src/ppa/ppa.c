@@ -265,6 +265,20 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
     ts__progress_pop(ctx, sv);
     if (st != TS_OK)
         goto fail;
+    if ((kinds & TS_VALLEY) && params->min_drainage > 0) {
+        /* valleys where the water runs: hollows above the channel heads are not targets */
+        float *area = ts__malloc_array(n, sizeof *area);
+        size_t i;
+        if (!area || ppa_drainage_area(dem, area) != 0) {
+            free(area);
+            st = ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory for the drainage area");
+            goto fail;
+        }
+        for (i = 0; i < n; i++)
+            if (!(area[i] >= params->min_drainage))
+                targets[i] &= (unsigned char)~TS_VALLEY;
+        free(area);
+    }
     if (kinds == (TS_RIDGE | TS_VALLEY) && ts__thread_count(ctx, 2) >= 2) {
         sv = ts__progress_push(ctx, 0.3, 1.0);
         st = ppa_both_parallel(ctx, dem, metrics, targets, min_length, f);

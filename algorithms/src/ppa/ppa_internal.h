@@ -52,6 +52,10 @@ int ppa_segment_exists(const ts_raster *dem, const unsigned char *t, int kind, i
 ts_status ppa_spanning_forest(ts_ctx *ctx, const ts_raster *dem, const unsigned char *targets,
                               int kind, unsigned char *adj);
 
+/* The drainage area of every valid cell, in cells (NaN on nodata): flow
+ * routed by priority-flood (drainage_area.c).  0, or -1 when out of memory. */
+int ppa_drainage_area(const ts_raster *dem, float *area);
+
 /* PPA step 4, branch reduction: remove branches shorter than min_length
  * (in metres when m != NULL, else cells) from the forest `adj`. */
 ts_status ppa_branch_reduction(ts_ctx *ctx, int width, int height, unsigned char *adj,
