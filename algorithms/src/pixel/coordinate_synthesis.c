@@ -142,23 +142,6 @@ static void turned_target(int w, int h, int q, int mirror, int sx, int sy, int *
     }
 }
 
-/* The offset (a, b) of the turned copy as an offset of the source. */
-static void turned_offset(int q, int mirror, int a, int b, int *sa, int *sb)
-{
-    static const int m[4][4] = {{1, 0, 0, 1}, {0, -1, 1, 0}, {-1, 0, 0, -1}, {0, 1, -1, 0}};
-    *sa = m[q][0] * a + m[q][1] * b;
-    *sb = m[q][2] * a + m[q][3] * b;
-    if (mirror)
-        *sa = -*sa;
-}
-
-/* Candidate e's size (exemplar e / nv turned by variant e % nv). */
-static void variant_size(const ts_pixel_exemplars *ex, int e, int *w, int *h)
-{
-    *w = ex->turn[e].w;
-    *h = ex->turn[e].h;
-}
-
 /* Where coordinate c (in its candidate's frame) lies in its exemplar's
  * stack; -1 past the edge.  The turned and mirrored candidates are the
  * exemplar's stack read turned: a Gaussian blur and the usable test are
@@ -188,31 +171,29 @@ int ts__pix_candidate_usable(const ts_pixel_exemplars *ex, int l, int e, int u, 
 
 static int usable(const ts_pixel_exemplars *ex, int l, pix_coord c)
 {
-    ptrdiff_t i = cell_of(ex, c);
-    return i >= 0 && ex->stacks[c.e / ex->nv].usable[l][i];
+    return ts__pix_candidate_usable(ex, l, c.e, c.u, c.v);
 }
 
-/* Level l at c, c's cell clamped to its candidate's edges first. */
+/* The stack cell of c, c clamped to its candidate's edges first. */
+static ptrdiff_t clamped_cell(const ts_pixel_exemplars *ex, pix_coord c)
+{
+    const pix_turn *t = &ex->turn[c.e];
+    c.u = c.u < 0 ? 0 : c.u >= t->w ? t->w - 1 : c.u;
+    c.v = c.v < 0 ? 0 : c.v >= t->h ? t->h - 1 : c.v;
+    return cell_of(ex, c);
+}
+
+/* Level l at c, clamped. */
 static float height_at(const ts_pixel_exemplars *ex, int l, pix_coord c)
 {
-    int w, h;
-    variant_size(ex, c.e, &w, &h);
-    c.u = c.u < 0 ? 0 : c.u >= w ? w - 1 : c.u;
-    c.v = c.v < 0 ? 0 : c.v >= h ? h - 1 : c.v;
-    return ex->stacks[c.e / ex->nv].level[l][cell_of(ex, c)];
+    return ex->stacks[c.e / ex->nv].level[l][clamped_cell(ex, c)];
 }
 
-/* Level l's band at c (the level less the coarser one; level 0 itself), c's
- * cell clamped to its candidate's edges first. */
+/* Level l's band at c (the level less the coarser one; level 0 itself), clamped. */
 static double band_at(const ts_pixel_exemplars *ex, int l, pix_coord c)
 {
     const pix_stack *s = &ex->stacks[c.e / ex->nv];
-    int w, h;
-    ptrdiff_t i;
-    variant_size(ex, c.e, &w, &h);
-    c.u = c.u < 0 ? 0 : c.u >= w ? w - 1 : c.u;
-    c.v = c.v < 0 ? 0 : c.v >= h ? h - 1 : c.v;
-    i = cell_of(ex, c);
+    ptrdiff_t i = clamped_cell(ex, c);
     return l ? (double)s->level[l][i] - s->level[l - 1][i] : (double)s->level[0][i];
 }
 
@@ -269,7 +250,10 @@ static void correct_rows(void *arg, size_t begin, size_t end)
         int a, b, sa, sb;
         for (b = -r; b <= r; b++)
             for (a = -r; a <= r; a++) {
-                turned_offset(v % 4, v >= 4, a, b, &sa, &sb);
+                /* the turn's linear part: an offset of the candidate as one of the exemplar */
+                const pix_turn *tn = &j->ex->turn[v];
+                sa = tn->mxu * a + tn->mxv * b;
+                sb = tn->myu * a + tn->myv * b;
                 perm[(v * k + b + r) * k + a + r] = (sb + r) * k + sa + r;
             }
     }
