@@ -253,6 +253,28 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem,
                                 const ts_grid_metrics *metrics,
                                 const ts_ppa_params *params, ts_features **out);
 
+/** Fill `buf` (w x h floats, row-major; NaN = nodata) with the DEM window
+ *  at column x0, row y0.  Returns TS_OK, or an error (after setting it on
+ *  the context, or not: the caller then reports a read error). */
+typedef ts_status (*ts_window_read_fn)(void *user, int x0, int y0, int w, int h, float *buf);
+/** Take the finished window at (x0, y0): w x h bytes, row-major. */
+typedef ts_status (*ts_window_write_fn)(void *user, int x0, int y0, int w, int h,
+                                        const unsigned char *bytes);
+
+/**
+ * ts_ppa_extract for a DEM too large for memory: the DEM (width x height)
+ * is read through `read` in windows of tile_size cells (16..16384) plus a
+ * margin, three times, and the axes are handed to `write` tile by tile, as
+ * the codes of ts_features_codes; no feature graph.  The codes are those
+ * of ts_ppa_extract on the whole DEM.  What is held for the whole raster
+ * grows with the tile borders and the feature junctions, not the cells.
+ * min_drainage (valleys) needs the whole DEM: TS_ERR_ARG.
+ */
+TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
+                                      const ts_grid_metrics *metrics, const ts_ppa_params *params,
+                                      int tile_size, ts_window_read_fn read,
+                                      ts_window_write_fn write, void *user);
+
 /* The PPA stages, exposed for tests and for callers that want the
  * intermediate results.  Masks are width*height bytes, stride width. */
 

@@ -587,6 +587,238 @@ static void test_kruskal_equals_naive(void)
 }
 
 /* ---- crossing diagonals: the lower one is dropped ---- */
+/* Drainage area by the same priority-flood rule, the slow way: every step scans all
+ * frontier cells for the lowest (raised height, arrival counter); the area of a cell is
+ * counted by walking every cell's path down to its seed. */
+static void naive_drainage(const ts_raster *dem, float *area)
+{
+    int w = dem->width, h = dem->height, x, y, d;
+    size_t n = (size_t)w * h, c, k;
+    float *level = malloc(n * sizeof *level);
+    long *count = malloc(n * sizeof *count), *parent = malloc(n * sizeof *parent);
+    unsigned char *state = calloc(n, 1); /* 0 unseen, 1 frontier, 2 taken */
+    long counter = 0;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            int edge = x == 0 || y == 0 || x == w - 1 || y == h - 1;
+            c = (size_t)y * w + x;
+            if (isnan(TS_PIX(dem, x, y)))
+                continue;
+            for (d = 0; d < 8 && !edge; d++)
+                edge = isnan(TS_PIX(dem, x + ppa_dir[d][0], y + ppa_dir[d][1]));
+            if (edge)
+                state[c] = 1, level[c] = TS_PIX(dem, x, y), count[c] = counter++, parent[c] = -1;
+        }
+    for (;;) {
+        long best = -1;
+        for (c = 0; c < n; c++)
+            if (state[c] == 1 && (best < 0 || level[c] < level[best] ||
+                                  (level[c] == level[best] && count[c] < count[best])))
+                best = (long)c;
+        if (best < 0)
+            break;
+        state[best] = 2;
+        for (d = 0; d < 8; d++) {
+            int nx = (int)(best % w) + ppa_dir[d][0], ny = (int)(best / w) + ppa_dir[d][1];
+            if (nx < 0 || ny < 0 || nx >= w || ny >= h || isnan(TS_PIX(dem, nx, ny)))
+                continue;
+            c = (size_t)ny * w + nx;
+            if (state[c])
+                continue;
+            state[c] = 1;
+            level[c] = TS_PIX(dem, nx, ny) > level[best] ? TS_PIX(dem, nx, ny) : level[best];
+            count[c] = counter++;
+            parent[c] = best;
+        }
+    }
+    for (c = 0; c < n; c++)
+        area[c] = state[c] ? 0.0f : NAN;
+    for (c = 0; c < n; c++)
+        if (state[c])
+            for (k = c;; k = (size_t)parent[k]) {
+                area[k] += 1.0f;
+                if (parent[k] < 0)
+                    break;
+            }
+    free(level);
+    free(count);
+    free(parent);
+    free(state);
+}
+
+static void test_drainage_area_equals_naive(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int trial;
+    for (trial = 0; trial < 24; trial++) {
+        uint64_t s = 7000 + (uint64_t)trial;
+        int w = 5 + trial % 9 + (trial >= 18 ? 25 : 0), h = 4 + trial % 6 + (trial >= 18 ? 20 : 0);
+        int x, y;
+        size_t n = (size_t)w * h, c, valid = 0;
+        double seeds_sum = 0;
+        ts_raster dem;
+        float *fast = malloc(n * sizeof *fast), *slow = malloc(n * sizeof *slow);
+        ts_raster_alloc(ctx, w, h, &dem);
+        for (y = 0; y < h; y++)
+            for (x = 0; x < w; x++) {
+                /* a valley with noise; quantised heights make flats and ties, pits fill */
+                double v = fabs(x - w / 2.0) + 0.3 * y + th_uniform(&s) * (trial % 2 ? 3 : 0.2);
+                TS_PIX(&dem, x, y) = (float)(trial % 3 == 0 ? (int)v : v);
+            }
+        if (trial % 4 == 1)
+            TS_PIX(&dem, w / 2, h / 2) = NAN, TS_PIX(&dem, w / 3, h / 2) = NAN;
+        CHECK(ppa_drainage_area(&dem, fast) == 0);
+        naive_drainage(&dem, slow);
+        for (c = 0; c < n; c++) {
+            CHECK_MSG((isnan(fast[c]) && isnan(slow[c])) || fast[c] == slow[c],
+                      "trial %d cell %zu: fast %g naive %g", trial, c, fast[c], slow[c]);
+            if (!isnan(slow[c]))
+                valid++;
+        }
+        /* every valid cell drains to exactly one seed: the seeds' areas add up to them all */
+        for (y = 0; y < h; y++)
+            for (x = 0; x < w; x++)
+                if ((x == 0 || y == 0 || x == w - 1 || y == h - 1) && !isnan(TS_PIX(&dem, x, y)) &&
+                    trial % 4 != 1)
+                    seeds_sum += fast[(size_t)y * w + x];
+        if (trial % 4 != 1)
+            CHECK_MSG(seeds_sum == (double)valid, "trial %d: seeds drain %g of %zu cells", trial,
+                      seeds_sum, valid);
+        ts_raster_free(&dem);
+        free(fast);
+        free(slow);
+    }
+    /* the parameter at work: with every cell asked to drain more than the DEM holds, no
+     * valley survives; with 0 the V valley is mapped */
+    {
+        ts_raster dem = make_dem(ctx, 80, 60, valley_v);
+        ts_ppa_params p = ts_ppa_params_default();
+        ts_features *f = NULL;
+        p.features = TS_VALLEY;
+        CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f) == TS_OK);
+        CHECK(count_mask(f, TS_VALLEY) > 0);
+        ts_features_free(f);
+        f = NULL;
+        p.min_drainage = 80.0 * 60.0 + 1.0;
+        CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f) == TS_OK);
+        CHECK(count_mask(f, TS_VALLEY) == 0);
+        ts_features_free(f);
+        ts_raster_free(&dem);
+    }
+    ts_ctx_free(ctx);
+}
+
+/* The tiled run reads windows of a DEM held here and writes codes back. */
+typedef struct tiled_io {
+    const ts_raster *dem;
+    unsigned char *codes;
+    int reads, writes;
+} tiled_io;
+
+static ts_status tiled_read(void *user, int x0, int y0, int w, int h, float *buf)
+{
+    tiled_io *io = user;
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++)
+            buf[(size_t)y * w + x] = TS_PIX(io->dem, x0 + x, y0 + y);
+    io->reads++;
+    return TS_OK;
+}
+
+static ts_status tiled_write(void *user, int x0, int y0, int w, int h, const unsigned char *b)
+{
+    tiled_io *io = user;
+    int y;
+    for (y = 0; y < h; y++)
+        memcpy(io->codes + (size_t)(y0 + y) * io->dem->width + x0, b + (size_t)y * w, (size_t)w);
+    io->writes++;
+    return TS_OK;
+}
+
+static void test_tiled_equals_whole(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    static const int tiles[] = {16, 23, 41, 64, 1000};
+    int trial;
+    for (trial = 0; trial < 6; trial++) {
+        uint64_t s = 900 + (uint64_t)trial;
+        int w = 150 + 17 * trial, h = 130 + 9 * trial, x, y, ti;
+        double *dx = malloc((size_t)h * sizeof *dx), *dy = malloc((size_t)h * sizeof *dy);
+        ts_grid_metrics m;
+        ts_ppa_params p = ts_ppa_params_default();
+        ts_raster dem;
+        ts_features *f = NULL;
+        unsigned char *whole = malloc((size_t)w * h), *codes = malloc((size_t)w * h);
+        double ph = th_uniform(&s) * 6.0;
+        ts_raster_alloc(ctx, w, h, &dem);
+        for (y = 0; y < h; y++) {
+            dx[y] = 30.0 * cos((40.0 + 0.05 * y) * 3.14159265358979 / 180.0); /* narrowing rows */
+            dy[y] = 30.0;
+            for (x = 0; x < w; x++)
+                TS_PIX(&dem, x, y) =
+                    (float)(40.0 * sin(0.11 * x + ph) * cos(0.07 * y) + 25.0 * sin(0.23 * (x + y)) +
+                            (trial % 2 ? 8.0 : 2.0) * th_uniform(&s) +
+                            (trial == 4 ? 0.0 : 0.2 * x));
+        }
+        if (trial % 3 == 1) /* a nodata hole across tile borders */
+            for (y = h / 3; y < h / 3 + 20; y++)
+                for (x = w / 3; x < w / 3 + 30; x++)
+                    TS_PIX(&dem, x, y) = NAN;
+        m.dx = dx;
+        m.dy = dy;
+        p.features = trial % 3 == 0 ? TS_PPA_BOTH : trial % 3 == 1 ? TS_PPA_RIDGES : TS_PPA_VALLEYS;
+        p.min_branch_length.value = trial < 3 ? 12 : 400;
+        p.min_branch_length.unit = trial < 3 ? TS_UNIT_CELLS : TS_UNIT_METRES;
+        if (trial == 5)
+            p.profile_length = 21, p.threshold_fraction = 0.01;
+        CHECK(ts_ppa_extract(ctx, &dem, &m, &p, &f) == TS_OK);
+        CHECK(ts_features_codes(ctx, f, &dem, whole) == TS_OK);
+        for (ti = 0; ti < (int)(sizeof tiles / sizeof tiles[0]); ti++) {
+            tiled_io io = {&dem, codes, 0, 0};
+            size_t i, diff = 0;
+            memset(codes, 77, (size_t)w * h);
+            CHECK_MSG(ts_ppa_extract_tiled(ctx, w, h, &m, &p, tiles[ti], tiled_read, tiled_write,
+                                           &io) == TS_OK,
+                      "%s", ts_ctx_message(ctx));
+            for (i = 0; i < (size_t)w * h; i++)
+                diff += codes[i] != whole[i];
+            CHECK_MSG(diff == 0, "trial %d tile %d: %zu of %d cells differ", trial, tiles[ti], diff,
+                      w * h);
+            CHECK(io.writes ==
+                  ((w + tiles[ti] - 1) / tiles[ti]) * ((h + tiles[ti] - 1) / tiles[ti]));
+        }
+        {
+            size_t i, feat = 0;
+            for (i = 0; i < (size_t)w * h; i++)
+                feat += whole[i] != 0 && whole[i] != 255;
+            CHECK_MSG(feat > (size_t)(w + h), "trial %d: only %zu axis cells", trial, feat);
+        }
+        ts_features_free(f);
+        ts_raster_free(&dem);
+        free(dx);
+        free(dy);
+        free(whole);
+        free(codes);
+    }
+    /* refused: valleys with min_drainage, a tile too small */
+    {
+        ts_ppa_params p = ts_ppa_params_default();
+        ts_raster dem = make_dem(ctx, 40, 40, valley_v);
+        unsigned char codes[1600];
+        tiled_io io = {&dem, codes, 0, 0};
+        p.features = TS_PPA_VALLEYS;
+        p.min_drainage = 10;
+        CHECK(ts_ppa_extract_tiled(ctx, 40, 40, NULL, &p, 16, tiled_read, tiled_write, &io) ==
+              TS_ERR_ARG);
+        p.min_drainage = 0;
+        CHECK(ts_ppa_extract_tiled(ctx, 40, 40, NULL, &p, 8, tiled_read, tiled_write, &io) ==
+              TS_ERR_ARG);
+        ts_raster_free(&dem);
+    }
+    ts_ctx_free(ctx);
+}
+
 static void test_crossing_diagonals(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -710,6 +942,8 @@ int main(int argc, char **argv)
         {"noise_forest_and_threads", test_noise_forest_and_threads},
         {"kruskal_equals_naive", test_kruskal_equals_naive},
         {"profile_recognition_equals_naive", test_profile_recognition_equals_naive},
+        {"drainage_area_equals_naive", test_drainage_area_equals_naive},
+        {"tiled_equals_whole", test_tiled_equals_whole},
         {"crossing_diagonals", test_crossing_diagonals},
         {"errors_and_cancel", test_errors_and_cancel},
         {"metric_branch_length", test_metric_branch_length},

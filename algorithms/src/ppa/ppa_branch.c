@@ -20,18 +20,18 @@
 typedef struct branch {
     uint32_t start;    /* the endpoint */
     uint32_t junction; /* first cell of degree != 2, or UINT32_MAX for an isolated path */
-    double length;
+    int64_t length;    /* fixed point: ppa_length_q */
     int remove;
 } branch;
 
 /* Walk from endpoint `start` until a cell of degree != 2.  Returns the last
  * cell; *length gets the ground length. */
 static uint32_t branch_walk(const unsigned char *adj, int w, uint32_t start,
-                            const ts_grid_metrics *m, double *length)
+                            const ts_grid_metrics *m, int64_t *length)
 {
     uint32_t cur = start;
     int from = -1; /* direction we came in through, seen from cur */
-    double len = 0.0;
+    int64_t len = 0;
     for (;;) {
         unsigned char bits = adj[cur];
         int d, x = (int)(cur % (uint32_t)w), y = (int)(cur / (uint32_t)w);
@@ -42,7 +42,7 @@ static uint32_t branch_walk(const unsigned char *adj, int w, uint32_t start,
         if (!bits)
             break;
         d = __builtin_ctz(bits);
-        len += ppa_step_length(m, y, d);
+        len += ppa_step_q(m, y, d);
         cur = (uint32_t)((y + ppa_dir[d][1]) * w + x + ppa_dir[d][0]);
         from = (d + 4) & 7;
     }
@@ -106,6 +106,7 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
     branch *br = NULL;
     uint32_t *ends = NULL, *next = NULL;
     int changed = 1, pass = 0;
+    int64_t min_q = ppa_length_q(min_length);
     /* the endpoints; later passes only revisit endpoints and the junctions
      * that removals touched */
     for (i = 0; i < n; i++)
@@ -116,7 +117,7 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
         nb = 0;
         n_next = 0;
         for (i = 0; i < n_ends; i++) {
-            double len;
+            int64_t len;
             uint32_t end, start = ends[i];
             if (ppa_degree(adj[start]) != 1)
                 continue;
@@ -125,7 +126,7 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
                 /* isolated path: handle once, from its lower end */
                 if (end < start)
                     continue;
-                if (len < min_length) {
+                if (len < min_q) {
                     branch_remove(adj, w, start, end);
                     adj[end] = 0;
                     changed = 1;
@@ -161,7 +162,7 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
             other = degree - (int)leaves;
             for (k = i; k < j; k++) {
                 size_t rank = k - i; /* 0 = longest */
-                if (br[k].length >= min_length)
+                if (br[k].length >= min_q)
                     continue;
                 if (other <= 0 && rank < 2)
                     continue;

@@ -7,6 +7,9 @@
 #ifndef TS_PPA_INTERNAL_H
 #define TS_PPA_INTERNAL_H
 
+#include <math.h>
+#include <string.h>
+
 #include "internal.h"
 
 /* Neighbour directions: bit d of a cell's byte links it to the neighbour at
@@ -34,6 +37,36 @@ static inline double ppa_step_length(const ts_grid_metrics *m, int y, int d)
     int dy = ppa_dir[d][1];
     return ts_step_length(m, dy < 0 ? y - 1 : y, ppa_dir[d][0] != 0, dy != 0);
 }
+
+/* Branch lengths are sums of steps in fixed point (1/1024 of a cell or a
+ * metre): integer sums do not depend on the order of the steps, so a
+ * branch measured in pieces (ppa_tiled.c) has the very length of the same
+ * branch walked cell by cell (ppa_branch.c). */
+#define PPA_LENGTH_SCALE 1024.0
+static inline int64_t ppa_length_q(double len)
+{
+    return (int64_t)llround(len * PPA_LENGTH_SCALE);
+}
+static inline int64_t ppa_step_q(const ts_grid_metrics *m, int y, int d)
+{
+    return ppa_length_q(ppa_step_length(m, y, d));
+}
+
+/* Order-preserving map of a segment weight to an unsigned key, inverted so
+ * that ascending keys mean descending weights (more important first). */
+static inline uint32_t ppa_weight_key(float w)
+{
+    uint32_t u;
+    memcpy(&u, &w, sizeof u);
+    u = (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+    return ~u;
+}
+
+/* Segment k (ppa_connect_step) from a cell is ppa_dir direction
+ * ppa_dir_of_k[k]; the other way round, direction d (0..3) is segment
+ * ppa_k_of_dir[d]. */
+static const int ppa_dir_of_k[4] = {0, 3, 2, 1};
+static const int ppa_k_of_dir[4] = {0, 3, 2, 1};
 
 /* Target connection's segments from a cell: k = 0..3 for E, SW, S, SE
  * (ppa_connect_step); does segment k from target (x, y) exist (neighbour a

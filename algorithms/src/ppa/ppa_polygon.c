@@ -18,15 +18,7 @@
 
 #include "ppa_internal.h"
 
-/* Order-preserving map of a float to an unsigned key, inverted so that
- * ascending keys mean descending weights. */
-static uint32_t polygon_key(float w)
-{
-    uint32_t u;
-    memcpy(&u, &w, sizeof u);
-    u = (u & 0x80000000u) ? ~u : (u | 0x80000000u);
-    return ~u;
-}
+#define polygon_key ppa_weight_key
 
 /* Stable LSD radix sort of segment indices by key, 4 passes of 8 bits. */
 static ts_status polygon_sort(const ts_ppa_segment *segs, size_t n, uint32_t *order)
