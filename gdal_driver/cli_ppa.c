@@ -121,7 +121,9 @@ int cli_ppa(int argc, char **argv)
         goto done;
     }
     f = res.features;
-    if (co.progress != PROGRESS_QUIET) {
+    if (co.progress != PROGRESS_QUIET && !f)
+        printf("ppa: mapped in tiles of %d cells\n", res.tile_size);
+    if (co.progress != PROGRESS_QUIET && f) {
         size_t nb = 0, ne = 0, np[3] = {0, 0, 0};
         for (k = 0; k < f->n_nodes; k++) {
             if (f->nodes[k].degree == 1)

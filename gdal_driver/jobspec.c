@@ -199,6 +199,12 @@ static const tsj_option ppa_opts[] = {
      NULL, 0, NULL},
     {"preview", TSJ_OUTPUT, 1, 0, 0, "FILE.png", G_OUT,
      "hillshade with ridges (red) and valleys (blue)", NULL, 0, NULL},
+    {"tile_size", TSJ_INT, 1, 0, 16384, "N", G_RUN,
+     "map the DEM in tiles of N x N cells (16..16384), read three times: the same raster as in "
+     "one piece, in the memory of a tile (DEMs larger than memory; not with lines, preview or "
+     "min_drainage for valleys). 0 (default): in tiles of 2048 only when the whole DEM would "
+     "not fit",
+     "TileSize", 0, NULL},
     OPT_RECIPE,
 };
 
@@ -920,6 +926,8 @@ int tsj_build_ppa(tsj_values *v, tsjob_ppa *job, char *msg, size_t len)
         job->band = atoi(s);
     if ((s = tsj_get(v, "cell_size", 0)))
         job->cell_size = atof(s);
+    if ((s = tsj_get(v, "tile_size", 0)))
+        job->tile_size = atoi(s);
     return 0;
 }
 

@@ -96,6 +96,18 @@ int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err
 int tsio_read_dem(const char *path, int band, tsio_raster *out, tsio_err *err);
 void tsio_raster_free(tsio_raster *r);
 
+/** A DEM read window by window (rasters larger than memory). */
+typedef struct tsio_reader tsio_reader;
+/** Open band `band` of a DEM: out gets what tsio_read_dem gives but the
+ *  cells (out->r.data NULL; free with tsio_raster_free). */
+tsio_reader *tsio_dem_open(const char *path, int band, tsio_raster *out, tsio_err *err);
+/** Cells [x0, x0 + w) x [y0, y0 + h) into dst (w x h, row-major), with the
+ *  conversions and checks of tsio_read_dem (sentinels counted into
+ *  *n_sentinels, valid cells into *n_valid). */
+int tsio_dem_window(tsio_reader *rd, int x0, int y0, int w, int h, float *dst, size_t *n_valid,
+                    size_t *n_sentinels, tsio_err *err);
+void tsio_reader_close(tsio_reader *rd);
+
 /** Ground metrics view of a read raster; NULL when it has no CRS. */
 const ts_grid_metrics *tsio_metrics(const tsio_raster *r, ts_grid_metrics *storage);
 
@@ -119,6 +131,18 @@ typedef struct tsio_write_opts {
  */
 int tsio_write_float(const char *path, const tsio_write_opts *opts, const tsio_georef *geo,
                      const ts_raster *data, double nodata_value, tsio_err *err);
+
+/** Where a producer hands its windows: 0, or -1 with the error set. */
+typedef int (*tsio_window_sink_fn)(void *sink, int x0, int y0, int w, int h,
+                                   const unsigned char *bytes);
+/** Make every cell of the raster, window by window, through sink. */
+typedef int (*tsio_byte_producer)(void *user, tsio_window_sink_fn sink, void *sink_arg,
+                                  tsio_err *err);
+/** As tsio_write_byte, the cells made by `produce` window by window while
+ *  the file is open (a raster larger than memory; formats that can only
+ *  copy a whole dataset hold it in memory at one byte per cell). */
+int tsio_write_byte_windows(const char *path, const tsio_write_opts *opts, const tsio_georef *geo,
+                            int nodata, tsio_byte_producer produce, void *user, tsio_err *err);
 
 /** Write a Byte raster (w*h bytes, stride w) with nodata value `nodata`
  *  (pass -1 for none), CRS and geotransform. */

@@ -147,21 +147,50 @@ static int compute_metrics(OGRSpatialReferenceH srs, const double gt[6], int hei
     return 0;
 }
 
-static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *err)
+/* An open raster band and how its values become metres with NaN nodata. */
+struct tsio_reader { /* tsio.h: tsio_reader */
+    GDALDatasetH ds;
+    GDALRasterBandH band, mask_band;
+    char *path;
+    int width, height;
+    double scale, offset, vscale, nodata;
+    float nodata_f;
+    int has_nodata, compare_float;
+    double *buf;
+    unsigned char *mask;
+    size_t buf_cells;
+};
+
+static void reader_close(struct tsio_reader *rd)
 {
+    if (!rd)
+        return;
+    if (rd->ds)
+        GDALClose(rd->ds);
+    free(rd->buf);
+    free(rd->mask);
+    free(rd->path);
+    free(rd);
+}
+
+/* Open band band_no of path: georeferencing, CRS and ground metrics into
+ * out (no cells), the conversion into the reader. */
+static struct tsio_reader *open_impl(const char *path, int band_no, tsio_raster *out, tsio_err *err)
+{
+    struct tsio_reader *rd = calloc(1, sizeof *rd);
     GDALDatasetH ds = NULL;
-    GDALRasterBandH band, mask_band = NULL;
+    GDALRasterBandH band;
     OGRSpatialReferenceH srs = NULL;
-    double *buf = NULL;
-    unsigned char *mask = NULL;
-    int rc = -1, w, h, nbands, ok = 0, mask_flags, y0, rows;
-    double scale, offset, vscale = 1.0, nodata = 0.0;
-    float nodata_f = 0.0f;
-    int has_nodata = 0, compare_float = 0, known_unit;
-    size_t ncells, chunk_rows, n_valid = 0;
+    int w, h, nbands, ok = 0, mask_flags, known_unit;
+    double nodata = 0.0;
     GDALDataType dt;
     const char *unit;
 
+    if (!rd || !(rd->path = tsio__str_dup(path))) {
+        tsio_errf(err, path, "out of memory");
+        reader_close(rd);
+        return NULL;
+    }
     CPLErrorReset();
     ds = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, NULL, NULL,
                     NULL);
@@ -176,33 +205,34 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
             tsio_errf(err, path, "not a raster GDAL can open (%s)", g);
         else
             tsio_errf(err, path, "not a raster GDAL can open");
-        return -1;
+        reader_close(rd);
+        return NULL;
     }
+    rd->ds = ds;
 
     nbands = GDALGetRasterCount(ds);
     if (nbands < 1) {
         tsio_errf(err, path, "the file has no raster bands");
-        goto done;
+        goto fail;
     }
     if (band_no < 1 || band_no > nbands) {
         tsio_errf(err, path, "band %d does not exist (the file has %d band%s)", band_no, nbands,
                   nbands == 1 ? "" : "s");
-        goto done;
+        goto fail;
     }
     w = GDALGetRasterXSize(ds);
     h = GDALGetRasterYSize(ds);
     if (w <= 0 || h <= 0) {
         tsio_errf(err, path, "empty raster (%d x %d cells)", w, h);
-        goto done;
+        goto fail;
     }
     if ((size_t)w > SIZE_MAX / (size_t)h ||
         (size_t)w * (size_t)h > (size_t)PTRDIFF_MAX / sizeof(double)) {
         tsio_errf(err, path, "raster too large (%d x %d cells)", w, h);
-        goto done;
+        goto fail;
     }
-    ncells = (size_t)w * (size_t)h;
-    out->geo.width = w;
-    out->geo.height = h;
+    rd->width = out->geo.width = w;
+    rd->height = out->geo.height = h;
 
     /* geotransform */
     if (GDALGetGeoTransform(ds, out->geo.gt) == CE_None) {
@@ -210,16 +240,16 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
         out->geo.has_gt = 1;
         if (out->geo.gt[2] != 0.0 || out->geo.gt[4] != 0.0) {
             tsio_errf(err, path, "rotated geotransforms are not supported");
-            goto done;
+            goto fail;
         }
         for (i = 0; i < 6; i++)
             if (!isfinite(out->geo.gt[i])) {
                 tsio_errf(err, path, "the geotransform is not finite");
-                goto done;
+                goto fail;
             }
         if (out->geo.gt[1] == 0.0 || out->geo.gt[5] == 0.0) {
             tsio_errf(err, path, "the geotransform has a zero cell size");
-            goto done;
+            goto fail;
         }
     } else {
         static const double identity[6] = {0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
@@ -235,20 +265,20 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
             srs = OSRClone(s);
             if (!srs) {
                 tsio_errf(err, path, "out of memory");
-                goto done;
+                goto fail;
             }
             OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
             out->geo.wkt = tsio__srs_to_wkt2(srs);
             if (!out->geo.wkt) {
                 tsio__set_err_gdal(err, path, "cannot export the CRS as WKT");
-                goto done;
+                goto fail;
             }
             out->geo.is_geographic = OSRIsGeographic(srs) ? 1 : 0;
         }
     }
 
     /* band properties */
-    band = GDALGetRasterBand(ds, band_no);
+    band = rd->band = GDALGetRasterBand(ds, band_no);
     dt = GDALGetRasterDataType(band);
     if (dt == GDT_Int64) {
         int64_t v = GDALGetRasterNoDataValueAsInt64(band, &ok);
@@ -259,106 +289,42 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
     } else {
         nodata = GDALGetRasterNoDataValue(band, &ok);
     }
-    has_nodata = ok ? 1 : 0;
-    if (has_nodata) {
+    rd->has_nodata = ok ? 1 : 0;
+    rd->nodata = nodata;
+    if (rd->has_nodata) {
         out->has_nodata = 1;
         out->nodata = nodata;
         /* Float32 files store the nodata value as a float: compare as floats */
         if ((dt == GDT_Float32 || dt == GDT_CFloat32) && isfinite(nodata) &&
             fabs(nodata) <= FLT_MAX) {
-            compare_float = 1;
-            nodata_f = (float)nodata;
+            rd->compare_float = 1;
+            rd->nodata_f = (float)nodata;
         }
     }
-    scale = GDALGetRasterScale(band, &ok);
-    if (!ok || !isfinite(scale))
-        scale = 1.0;
-    offset = GDALGetRasterOffset(band, &ok);
-    if (!ok || !isfinite(offset))
-        offset = 0.0;
+    rd->scale = GDALGetRasterScale(band, &ok);
+    if (!ok || !isfinite(rd->scale))
+        rd->scale = 1.0;
+    rd->offset = GDALGetRasterOffset(band, &ok);
+    if (!ok || !isfinite(rd->offset))
+        rd->offset = 0.0;
     unit = GDALGetRasterUnitType(band);
     if (!unit)
         unit = "";
     while (*unit == ' ')
         unit++;
-    vscale = vertical_unit_factor(unit, &known_unit);
+    rd->vscale = vertical_unit_factor(unit, &known_unit);
     if (!unit[0] && srs && OSRIsCompound(srs)) {
         double f = OSRGetTargetLinearUnits(srs, "VERT_CS", NULL);
         if (f > 0.0 && isfinite(f))
-            vscale = f;
+            rd->vscale = f;
     }
-    out->vertical_scale = vscale;
+    out->vertical_scale = rd->vscale;
     CPLErrorReset();
-
-    /* buffers */
-    out->r.data = malloc(ncells * sizeof(float));
-    chunk_rows = TSIO_CHUNK_CELLS / (size_t)w;
-    if (chunk_rows < 1)
-        chunk_rows = 1;
-    if (chunk_rows > (size_t)h)
-        chunk_rows = (size_t)h;
-    buf = malloc(chunk_rows * (size_t)w * sizeof(double));
     mask_flags = GDALGetMaskFlags(band);
     /* A mask derived only from the nodata value adds nothing to the nodata
-     * test below (and would read the data twice); any other mask is read. */
-    if (!(mask_flags & GMF_ALL_VALID) && !(mask_flags == GMF_NODATA && has_nodata)) {
-        mask_band = GDALGetMaskBand(band);
-        if (mask_band)
-            mask = malloc(chunk_rows * (size_t)w);
-    }
-    if (!out->r.data || !buf || (mask_band && !mask)) {
-        tsio_errf(err, path, "out of memory (%d x %d cells)", w, h);
-        goto done;
-    }
-    out->r.width = w;
-    out->r.height = h;
-    out->r.stride = w;
-
-    for (y0 = 0; y0 < h; y0 += rows) {
-        size_t i, n;
-        float *dst;
-        rows = (int)((size_t)(h - y0) < chunk_rows ? (size_t)(h - y0) : chunk_rows);
-        n = (size_t)rows * (size_t)w;
-        if (GDALRasterIOEx(band, GF_Read, 0, y0, w, rows, buf, w, rows, GDT_Float64,
-                           (GSpacing)sizeof(double), (GSpacing)sizeof(double) * w,
-                           NULL) != CE_None) {
-            tsio__set_err_gdal(err, path, "read error");
-            goto done;
-        }
-        if (mask_band && GDALRasterIOEx(mask_band, GF_Read, 0, y0, w, rows, mask, w, rows, GDT_Byte,
-                                        1, (GSpacing)w, NULL) != CE_None) {
-            tsio__set_err_gdal(err, path, "cannot read the mask band");
-            goto done;
-        }
-        dst = out->r.data + (size_t)y0 * (size_t)w;
-        for (i = 0; i < n; i++) {
-            double v = buf[i];
-            int bad = !isfinite(v);
-            if (!bad && has_nodata) {
-                if (compare_float)
-                    bad = fabs(v) <= FLT_MAX && (float)v == nodata_f;
-                else
-                    bad = (v == nodata);
-            }
-            if (!bad && mask && mask[i] == 0)
-                bad = 1;
-            if (!bad) {
-                v = (v * scale + offset) * vscale;
-                if (!isfinite(v) || fabs(v) > FLT_MAX)
-                    bad = 1;
-            }
-            if (bad) {
-                dst[i] = NAN;
-            } else {
-                dst[i] = (float)v;
-                n_valid++;
-            }
-        }
-    }
-    if (n_valid == 0) {
-        tsio_errf(err, path, "every cell is nodata");
-        goto done;
-    }
+     * test (and would read the data twice); any other mask is read. */
+    if (!(mask_flags & GMF_ALL_VALID) && !(mask_flags == GMF_NODATA && rd->has_nodata))
+        rd->mask_band = GDALGetMaskBand(band);
 
     /* ground metrics */
     if (srs && out->geo.has_gt) {
@@ -367,22 +333,114 @@ static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *
         out->dy_m = malloc((size_t)h * sizeof(double));
         if (!out->dx_m || !out->dy_m) {
             tsio_errf(err, path, "out of memory");
-            goto done;
+            goto fail;
         }
         if (compute_metrics(srs, out->geo.gt, h, out->dx_m, out->dy_m, why, sizeof why) != 0) {
             tsio_errf(err, path, "%s", why);
-            goto done;
+            goto fail;
         }
     }
-    rc = 0;
-
-done:
-    free(buf);
-    free(mask);
     if (srs)
         OSRDestroySpatialReference(srs);
-    if (ds)
-        GDALClose(ds);
+    return rd;
+fail:
+    if (srs)
+        OSRDestroySpatialReference(srs);
+    reader_close(rd);
+    return NULL;
+}
+
+/* Cells [x0, x0 + w) x [y0, y0 + h) as metres with NaN nodata into dst
+ * (w x h, row-major), read in chunks of rows; *n_valid counts the others. */
+static int reader_window(struct tsio_reader *rd, int x0, int y0, int w, int h, float *dst,
+                         size_t *n_valid, tsio_err *err)
+{
+    size_t chunk_rows = TSIO_CHUNK_CELLS / (size_t)w;
+    int r0, rows;
+    if (chunk_rows < 1)
+        chunk_rows = 1;
+    if (chunk_rows > (size_t)h)
+        chunk_rows = (size_t)h;
+    if (chunk_rows * (size_t)w > rd->buf_cells) {
+        free(rd->buf);
+        free(rd->mask);
+        rd->buf_cells = chunk_rows * (size_t)w;
+        rd->buf = malloc(rd->buf_cells * sizeof(double));
+        rd->mask = rd->mask_band ? malloc(rd->buf_cells) : NULL;
+        if (!rd->buf || (rd->mask_band && !rd->mask)) {
+            rd->buf_cells = 0;
+            tsio_errf(err, rd->path, "out of memory (%d x %d cells)", w, h);
+            return -1;
+        }
+    }
+    for (r0 = 0; r0 < h; r0 += rows) {
+        size_t i, n;
+        float *out;
+        rows = (int)((size_t)(h - r0) < chunk_rows ? (size_t)(h - r0) : chunk_rows);
+        n = (size_t)rows * (size_t)w;
+        if (GDALRasterIOEx(rd->band, GF_Read, x0, y0 + r0, w, rows, rd->buf, w, rows, GDT_Float64,
+                           (GSpacing)sizeof(double), (GSpacing)sizeof(double) * w,
+                           NULL) != CE_None) {
+            tsio__set_err_gdal(err, rd->path, "read error");
+            return -1;
+        }
+        if (rd->mask_band && GDALRasterIOEx(rd->mask_band, GF_Read, x0, y0 + r0, w, rows, rd->mask,
+                                            w, rows, GDT_Byte, 1, (GSpacing)w, NULL) != CE_None) {
+            tsio__set_err_gdal(err, rd->path, "cannot read the mask band");
+            return -1;
+        }
+        out = dst + (size_t)r0 * (size_t)w;
+        for (i = 0; i < n; i++) {
+            double v = rd->buf[i];
+            int bad = !isfinite(v);
+            if (!bad && rd->has_nodata) {
+                if (rd->compare_float)
+                    bad = fabs(v) <= FLT_MAX && (float)v == rd->nodata_f;
+                else
+                    bad = (v == rd->nodata);
+            }
+            if (!bad && rd->mask && rd->mask[i] == 0)
+                bad = 1;
+            if (!bad) {
+                v = (v * rd->scale + rd->offset) * rd->vscale;
+                if (!isfinite(v) || fabs(v) > FLT_MAX)
+                    bad = 1;
+            }
+            if (bad) {
+                out[i] = NAN;
+            } else {
+                out[i] = (float)v;
+                (*n_valid)++;
+            }
+        }
+    }
+    return 0;
+}
+
+static int read_impl(const char *path, int band_no, tsio_raster *out, tsio_err *err)
+{
+    struct tsio_reader *rd = open_impl(path, band_no, out, err);
+    size_t n_valid = 0;
+    int rc = -1;
+    if (!rd)
+        return -1;
+    out->r.data = malloc((size_t)rd->width * (size_t)rd->height * sizeof(float));
+    if (!out->r.data) {
+        tsio_errf(err, path, "out of memory (%d x %d cells)", rd->width, rd->height);
+        goto done;
+    }
+    out->r.width = rd->width;
+    out->r.height = rd->height;
+    out->r.stride = rd->width;
+    if (reader_window(rd, 0, 0, rd->width, rd->height, out->r.data, &n_valid, err) != 0)
+        goto done;
+    if (n_valid == 0) {
+        tsio_errf(err, path, "every cell is nodata");
+        goto done;
+    }
+    rc = 0;
+done:
+    reader_close(rd);
     return rc;
 }
 
@@ -419,33 +477,45 @@ int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err
 /* A float's extreme values (+-3.4e38) stored as an undeclared nodata. */
 #define TSIO_SENTINEL 1e38
 
-int tsio_read_dem(const char *path, int band, tsio_raster *out, tsio_err *err)
+/* The DEM checks on cells of a window (x0, y0, w wide): sentinels become
+ * NaN (counted), elevations no terrain has are an error naming the first. */
+static int dem_filter(const char *path, float *v, size_t n, int x0, int y0, int w,
+                      size_t *n_sentinels, size_t *n_valid, tsio_err *err)
 {
-    size_t i, n, n_bad = 0, n_valid = 0, first = 0;
-    if (tsio_read_raster(path, band, out, err) != 0)
-        return -1;
-    n = (size_t)out->r.width * (size_t)out->r.height;
-    out->n_sentinels = 0;
+    size_t i, n_bad = 0, first = 0;
     for (i = 0; i < n; i++) {
-        float v = out->r.data[i];
-        if (isnan(v))
+        if (isnan(v[i]))
             continue;
-        if (fabs(v) >= TSIO_SENTINEL) {
-            out->r.data[i] = NAN;
-            out->n_sentinels++;
-        } else if (v < TSIO_MIN_ELEVATION || v > TSIO_MAX_ELEVATION) {
+        if (fabs(v[i]) >= TSIO_SENTINEL) {
+            v[i] = NAN;
+            (*n_sentinels)++;
+        } else if (v[i] < TSIO_MIN_ELEVATION || v[i] > TSIO_MAX_ELEVATION) {
             if (!n_bad++)
                 first = i;
         } else
-            n_valid++;
+            (*n_valid)++;
     }
     if (n_bad) {
         tsio_errf(err, path,
                   "%zu cells hold elevations no terrain has (%.6g m at column %zu, row %zu; "
                   "the Earth's are %g..%g m): declare them nodata (gdal_edit.py -a_nodata) or "
                   "check the units",
-                  n_bad, (double)out->r.data[first], first % (size_t)out->r.width,
-                  first / (size_t)out->r.width, TSIO_MIN_ELEVATION, TSIO_MAX_ELEVATION);
+                  n_bad, (double)v[first], (size_t)x0 + first % (size_t)w,
+                  (size_t)y0 + first / (size_t)w, TSIO_MIN_ELEVATION, TSIO_MAX_ELEVATION);
+        return -1;
+    }
+    return 0;
+}
+
+int tsio_read_dem(const char *path, int band, tsio_raster *out, tsio_err *err)
+{
+    size_t n, n_valid = 0;
+    if (tsio_read_raster(path, band, out, err) != 0)
+        return -1;
+    n = (size_t)out->r.width * (size_t)out->r.height;
+    out->n_sentinels = 0;
+    if (dem_filter(path, out->r.data, n, 0, 0, out->r.width, &out->n_sentinels, &n_valid, err) !=
+        0) {
         tsio_raster_free(out);
         return -1;
     }
@@ -456,6 +526,51 @@ int tsio_read_dem(const char *path, int band, tsio_raster *out, tsio_err *err)
         return -1;
     }
     return 0;
+}
+
+tsio_reader *tsio_dem_open(const char *path, int band, tsio_raster *out, tsio_err *err)
+{
+    tsio_reader *rd;
+    if (err)
+        err->msg[0] = '\0';
+    memset(out, 0, sizeof *out);
+    out->vertical_scale = 1.0;
+    out->geo.gt[1] = out->geo.gt[5] = 1.0;
+    if (!path || !path[0]) {
+        tsio_errf(err, "(empty path)", "no input file given");
+        return NULL;
+    }
+    tsio__ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    rd = open_impl(path, band, out, err);
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    if (!rd)
+        tsio_raster_free(out);
+    return rd;
+}
+
+int tsio_dem_window(tsio_reader *rd, int x0, int y0, int w, int h, float *dst, size_t *n_valid,
+                    size_t *n_sentinels, tsio_err *err)
+{
+    size_t seen = 0;
+    int rc;
+    if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > rd->width || y0 + h > rd->height) {
+        tsio_errf(err, rd->path, "window %d,%d %dx%d outside the raster", x0, y0, w, h);
+        return -1;
+    }
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    rc = reader_window(rd, x0, y0, w, h, dst, &seen, err);
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    if (rc != 0)
+        return -1;
+    return dem_filter(rd->path, dst, (size_t)w * (size_t)h, x0, y0, w, n_sentinels, n_valid, err);
+}
+
+void tsio_reader_close(tsio_reader *rd)
+{
+    reader_close(rd);
 }
 
 void tsio_raster_free(tsio_raster *r)

@@ -44,7 +44,28 @@ typedef struct raster_src {
     const ts_raster *fdata;     /* Float32 source */
     float nodata_f;             /* NaN is replaced by this */
     const unsigned char *bytes; /* Byte source, stride width*nbands */
+    tsio_byte_producer produce; /* or one Byte band made window by window */
+    void *produce_user;
 } raster_src;
+
+/* A window of a producer's cells into band 1 of the dataset. */
+typedef struct window_sink {
+    GDALDatasetH ds;
+    const char *path;
+    tsio_err *err;
+} window_sink;
+
+static int sink_window(void *arg, int x0, int y0, int w, int h, const unsigned char *bytes)
+{
+    window_sink *k = arg;
+    CPLErrorReset();
+    if (GDALRasterIOEx(GDALGetRasterBand(k->ds, 1), GF_Write, x0, y0, w, h,
+                       (void *)(uintptr_t)bytes, w, h, GDT_Byte, 1, (GSpacing)w, NULL) != CE_None) {
+        tsio__set_err_gdal(k->err, k->path, "write error");
+        return -1;
+    }
+    return 0;
+}
 
 /* Output driver from the extension; NULL for ".vrt" (refused).  Unknown
  * extensions get GTiff: guessing from every driver's extension list picks
@@ -136,6 +157,13 @@ static int fill_dataset(GDALDatasetH ds, const raster_src *src, const char *path
     int w = src->width, h = src->height, y0, rows;
     size_t chunk_rows = TSIO_CHUNK_CELLS / (size_t)w;
     float *fbuf = NULL;
+    if (src->produce) {
+        window_sink k;
+        k.ds = ds;
+        k.path = path;
+        k.err = err;
+        return src->produce(src->produce_user, sink_window, &k, err);
+    }
     if (chunk_rows < 1)
         chunk_rows = 1;
     if (chunk_rows > (size_t)h)
@@ -463,6 +491,25 @@ int tsio_write_byte(const char *path, const tsio_write_opts *opts, const tsio_ge
     src.nbands = 1;
     src.type = GDT_Byte;
     src.bytes = data;
+    return write_raster(path, opts, NULL, geo, &src, nodata >= 0, (double)nodata, 0, err);
+}
+
+int tsio_write_byte_windows(const char *path, const tsio_write_opts *opts, const tsio_georef *geo,
+                            int nodata, tsio_byte_producer produce, void *user, tsio_err *err)
+{
+    raster_src src;
+    if (!produce || !geo || nodata < -1 || nodata > 255) {
+        if (err)
+            tsio_errf(err, path, "no producer, georeferencing or valid nodata given");
+        return -1;
+    }
+    memset(&src, 0, sizeof src);
+    src.width = geo->width;
+    src.height = geo->height;
+    src.nbands = 1;
+    src.type = GDT_Byte;
+    src.produce = produce;
+    src.produce_user = user;
     return write_raster(path, opts, NULL, geo, &src, nodata >= 0, (double)nodata, 0, err);
 }
 

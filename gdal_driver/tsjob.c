@@ -30,6 +30,9 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
  * the CLI with a margin: bench/README.md).  Libraries and buffers: */
 #define JOB_MEM_BASE ((uint64_t)96 << 20)
 #define JOB_MEM_PPA_CELL 24       /* per input cell: the DEM, profiles, masks, codes */
+#define JOB_MEM_PPA_TILE_CELL 48  /* per cell of a tile with its margin (tiled ppa) */
+#define JOB_MEM_PPA_CHAINS 4      /* per DEM cell: the forest's chain graph (tiled ppa) */
+#define JOB_PPA_AUTO_TILE 2048
 #define JOB_MEM_SYNTH_CELL 16     /* per output cell: terrain, flags, fill state */
 #define JOB_MEM_MAPS_CELL 20      /* per output cell with the synthesis maps */
 #define JOB_MEM_SKETCH_CELL 96    /* per output cell with a sketch: PPA, features, guides */
@@ -52,13 +55,39 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
     /* the size before the cells: a huge raster is refused, not read */
     if (tsio_read_georef(job->input, &g, err) != 0)
         return -1;
-    y = tsjob_ppa_check_memory(&g, job->input, err);
+    res->band = job->band;
+    res->tile_size = job->tile_size;
+    if (res->tile_size == 0 && tsjob_ppa_check_memory(&g, job->input, err) != 0) {
+        /* too large in one piece: in tiles, the same raster */
+        res->tile_size = JOB_PPA_AUTO_TILE;
+        err->msg[0] = '\0';
+    }
+    if (res->tile_size > 0 && (res->tile_size < g.width || res->tile_size < g.height)) {
+        uint64_t side = (uint64_t)res->tile_size + 2 * (uint64_t)job->params.profile_length;
+        y = tsio_check_memory(JOB_MEM_BASE + side * side * JOB_MEM_PPA_TILE_CELL +
+                                  (uint64_t)g.width * (uint64_t)g.height * JOB_MEM_PPA_CHAINS,
+                              job->input, "give a smaller tile size (--tile-size)", err);
+    } else {
+        res->tile_size = 0; /* one tile: in one piece */
+        y = tsjob_ppa_check_memory(&g, job->input, err);
+    }
     tsio_georef_free(&g);
     if (y != 0)
         return -1;
-    if (tsio_read_dem(job->input, job->band, &res->in, err) != 0)
-        return -1;
-    job_warn_sentinels(&res->warning, job->input, &res->in);
+    if (res->tile_size > 0) {
+        if (job->params.min_drainage > 0 && job->params.features != TS_PPA_RIDGES) {
+            tsio_errf(err, job->input,
+                      "min_drainage routes water over the whole DEM, which does not fit in "
+                      "memory (or tiles were asked for): give min_drainage 0");
+            return -1;
+        }
+        if (!(res->reader = tsio_dem_open(job->input, job->band, &res->in, err)))
+            return -1;
+    } else {
+        if (tsio_read_dem(job->input, job->band, &res->in, err) != 0)
+            return -1;
+        job_warn_sentinels(&res->warning, job->input, &res->in);
+    }
     if (!res->in.dx_m && job->cell_size > 0) {
         res->in.dx_m = malloc((size_t)res->in.geo.height * sizeof *res->in.dx_m);
         res->in.dy_m = malloc((size_t)res->in.geo.height * sizeof *res->in.dy_m);
@@ -85,6 +114,12 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
 int tsjob_ppa_compute(ts_ctx *ctx, const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err)
 {
     size_t n = (size_t)res->in.geo.width * (size_t)res->in.geo.height;
+    if (res->tile_size > 0) { /* made tile by tile while the output is written */
+        res->ctx = ctx;
+        res->params = job->params;
+        res->input = job->input;
+        return 0;
+    }
     if (ts_ppa_extract(ctx, &res->in.r, res->metrics, &job->params, &res->features) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
         return -1;
@@ -107,6 +142,7 @@ void tsjob_ppa_result_free(tsjob_ppa_result *res)
         return;
     ts_features_free(res->features);
     free(res->codes);
+    tsio_reader_close(res->reader);
     tsio_raster_free(&res->in);
     memset(res, 0, sizeof *res);
 }
@@ -626,6 +662,14 @@ int tsjob_ppa_check_outputs(const tsjob_ppa *job, const tsjob_ppa_result *res,
     tsio_write_opts wo = {o->format, o->create_options, 1};
     tsio_write_opts png = {"PNG", NULL, 1};
     const char *outs[3] = {o->output, o->lines, o->preview};
+    if (res->tile_size > 0 && (o->lines || o->preview)) {
+        tsio_errf(err, job->input,
+                  "mapped in tiles of %d cells (%s): lines and preview need the whole DEM in "
+                  "memory; give neither",
+                  res->tile_size,
+                  job->tile_size ? "as asked" : "too large for memory in one piece");
+        return -1;
+    }
     if (job_not_an_input(o->output, in, 1, err) || job_not_an_input(o->lines, in, 1, err) ||
         job_not_an_input(o->preview, in, 1, err) || job_distinct(outs, 3, err))
         return -1;
@@ -636,9 +680,63 @@ int tsjob_ppa_check_outputs(const tsjob_ppa *job, const tsjob_ppa_result *res,
     return 0;
 }
 
+/* The tiled PPA: windows read from the open DEM, tiles into the output. */
+typedef struct ppa_tiles_io {
+    const tsjob_ppa_result *res;
+    tsio_window_sink_fn sink;
+    void *sink_arg;
+    tsio_err *err;
+    int failed; /* err holds the reason */
+    size_t n_valid, n_sentinels;
+} ppa_tiles_io;
+
+static ts_status ppa_tile_read(void *user, int x0, int y0, int w, int h, float *buf)
+{
+    ppa_tiles_io *io = user;
+    if (tsio_dem_window(io->res->reader, x0, y0, w, h, buf, &io->n_valid, &io->n_sentinels,
+                        io->err) != 0) {
+        io->failed = 1;
+        return TS_ERR_NUMERIC;
+    }
+    return TS_OK;
+}
+
+static ts_status ppa_tile_write(void *user, int x0, int y0, int w, int h,
+                                const unsigned char *bytes)
+{
+    ppa_tiles_io *io = user;
+    if (io->sink(io->sink_arg, x0, y0, w, h, bytes) != 0) {
+        io->failed = 1;
+        return TS_ERR_NUMERIC;
+    }
+    return TS_OK;
+}
+
+static int ppa_tiles_produce(void *user, tsio_window_sink_fn sink, void *sink_arg, tsio_err *err)
+{
+    ppa_tiles_io io;
+    const tsjob_ppa_result *res = user;
+    memset(&io, 0, sizeof io);
+    io.res = res;
+    io.sink = sink;
+    io.sink_arg = sink_arg;
+    io.err = err;
+    if (ts_ppa_extract_tiled(res->ctx, res->in.geo.width, res->in.geo.height, res->metrics,
+                             &res->params, res->tile_size, ppa_tile_read, ppa_tile_write,
+                             &io) != TS_OK) {
+        if (!io.failed)
+            tsio_errf(err, res->input, "%s", ts_ctx_message(res->ctx));
+        return -1;
+    }
+    return 0;
+}
+
 int tsjob_ppa_write(ts_ctx *ctx, const tsjob_ppa_result *res, const tsjob_outputs *o, tsio_err *err)
 {
     tsio_write_opts wo = {o->format, o->create_options, 0};
+    if (res->tile_size > 0)
+        return tsio_write_byte_windows(o->output, &wo, &res->in.geo, 255, ppa_tiles_produce,
+                                       (void *)(uintptr_t)res, err);
     if (tsio_write_byte(o->output, &wo, &res->in.geo, res->codes, 255, err) != 0)
         return -1;
     if (o->lines &&

@@ -43,6 +43,7 @@ typedef struct tsjob_ppa {
     const char *input;
     int band;            /* 1-based */
     double cell_size;    /* > 0: metres per cell for a raster without CRS */
+    int tile_size;       /* > 0: in tiles of this many cells; 0: tiles only when too large */
     ts_ppa_params params;
 } tsjob_ppa;
 
@@ -54,6 +55,13 @@ typedef struct tsjob_ppa_result {
     const ts_grid_metrics *metrics; /* NULL without CRS */
     int no_crs;              /* the input has no CRS (lengths in cells) */
     tsio_err warning;        /* "" or one line a front end shows as a warning */
+    int tile_size;           /* > 0: the DEM is read and mapped in tiles (no features,
+                                no codes: tsjob_ppa_write makes the raster tile by tile) */
+    tsio_reader *reader;     /* the DEM, open, when in tiles */
+    int band;
+    ts_ctx *ctx; /* borrowed for the tiled write */
+    ts_ppa_params params;
+    const char *input;
 } tsjob_ppa_result;
 
 /** The memory a ppa of a grid takes, against the limit (tsio_check_memory). */
