@@ -58,9 +58,24 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
     res->band = job->band;
     res->tile_size = job->tile_size;
     if (res->tile_size == 0 && tsjob_ppa_check_memory(&g, job->input, err) != 0) {
-        /* too large in one piece: in tiles, the same raster */
-        res->tile_size = JOB_PPA_AUTO_TILE;
-        err->msg[0] = '\0';
+        /* too large in one piece: in tiles (the same raster) that fit, up to 2048 cells */
+        uint64_t limit, cells = (uint64_t)g.width * (uint64_t)g.height,
+                        fixed = JOB_MEM_BASE + cells * JOB_MEM_PPA_CHAINS;
+        int from_option;
+        tsio_err why = *err;
+        if (tsio_memory_limit(&limit, &from_option, err) == 0 && limit > fixed) {
+            double side = sqrt((double)(limit - fixed) / JOB_MEM_PPA_TILE_CELL) -
+                          2.0 * job->params.profile_length;
+            if (side >= 64) {
+                res->tile_size = side > JOB_PPA_AUTO_TILE ? JOB_PPA_AUTO_TILE : (int)side;
+                err->msg[0] = '\0';
+            }
+        }
+        if (res->tile_size == 0) {
+            *err = why;
+            tsio_georef_free(&g);
+            return -1;
+        }
     }
     if (res->tile_size > 0 && (res->tile_size < g.width || res->tile_size < g.height)) {
         uint64_t side = (uint64_t)res->tile_size + 2 * (uint64_t)job->params.profile_length;

@@ -298,3 +298,51 @@ def test_describe_json_matches_help():
     one = json.loads(run("describe", "ppa").stdout)
     assert list(one["stages"]) == ["ppa"]
     assert run("describe", "nosuchstage", check=False).returncode == 2
+
+
+# ---------------------------------------------------------------- in tiles
+
+
+def test_tiles_give_the_raster_of_one_piece(tmp_path):
+    """--tile-size: the same cells as the run in one piece (the oracle), with nodata across
+    tile borders, a geographic grid (metres per row) and a branch length in metres."""
+    z = gdal.Open(JACKSBORO).ReadAsArray().astype(np.float32)
+    z[120:170, 90:260] = -9999
+    inp = tmp_path / "holes.tif"
+    write_tif(inp, z, nodata=-9999, srs="EPSG:4326", gt=gdal.Open(JACKSBORO).GetGeoTransform())
+    whole = tmp_path / "whole.tif"
+    run("ppa", inp, whole, "--both", "-q", "--min-branch-length", "600m")
+    ref = read(whole)[1]
+    assert (ref == 1).sum() > 500 and (ref == 2).sum() > 500 and (ref == 255).sum() == 50 * 170
+    for tile in ("100", "64", "37"):  # 4 x 4 tiles and more, uneven last tiles
+        out = tmp_path / ("t%s.tif" % tile)
+        p = run("ppa", inp, out, "--both", "--min-branch-length", "600m", "--tile-size", tile)
+        assert "tiles of %s cells" % tile in p.stdout
+        ds, a = read(out)
+        assert np.array_equal(a, ref), "tile %s: %d cells differ" % (tile, (a != ref).sum())
+        assert ds.GetGeoTransform() == gdal.Open(str(whole)).GetGeoTransform()
+        assert ds.GetRasterBand(1).GetNoDataValue() == 255
+    assert not leftovers(tmp_path)
+
+
+def test_tiles_refuse_what_needs_the_whole(tmp_path):
+    out = tmp_path / "o.tif"
+    for extra, words in ((["--lines", tmp_path / "l.gpkg"], "lines and preview"),
+                         (["--preview", tmp_path / "p.png"], "lines and preview"),
+                         (["--valleys", "--min-drainage", "50"], "min_drainage"),
+                         ([], "16..16384")):
+        tile = "8" if not extra else "64"
+        p = run("ppa", JACKSBORO, out, "--tile-size", tile, *extra, check=False)
+        assert p.returncode != 0 and words in p.stderr, p.stderr
+        assert len(p.stderr.strip().splitlines()) == 1
+        assert not out.exists() and not leftovers(tmp_path)
+
+
+def test_too_large_for_memory_goes_in_tiles(tmp_path):
+    """A DEM over the memory limit is mapped in tiles (the same raster), not refused."""
+    whole = tmp_path / "w.tif"
+    run("ppa", JACKSBORO, whole, "-q")
+    out = tmp_path / "o.tif"
+    p = run("ppa", JACKSBORO, out, "--max-memory", "98M")
+    assert "mapped in tiles of" in p.stdout
+    assert np.array_equal(read(out)[1], read(whole)[1])
