@@ -31,8 +31,7 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
 #define JOB_MEM_BASE ((uint64_t)96 << 20)
 #define JOB_MEM_PPA_CELL 24       /* per input cell: the DEM, profiles, masks, codes */
 #define JOB_MEM_PPA_TILE_CELL 48  /* per cell of a tile with its margin (tiled ppa) */
-#define JOB_MEM_PPA_CHAINS 4      /* per DEM cell: the forest's chain graph (tiled ppa) */
-#define JOB_PPA_AUTO_TILE 2048
+#define JOB_MEM_PPA_CHAINS 26     /* per DEM cell: the forest's chain graph (tiled ppa; measured) */
 #define JOB_MEM_SYNTH_CELL 16     /* per output cell: terrain, flags, fill state */
 #define JOB_MEM_MAPS_CELL 20      /* per output cell with the synthesis maps */
 #define JOB_MEM_SKETCH_CELL 96    /* per output cell with a sketch: PPA, features, guides */
@@ -57,26 +56,6 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
         return -1;
     res->band = job->band;
     res->tile_size = job->tile_size;
-    if (res->tile_size == 0 && tsjob_ppa_check_memory(&g, job->input, err) != 0) {
-        /* too large in one piece: in tiles (the same raster) that fit, up to 2048 cells */
-        uint64_t limit, cells = (uint64_t)g.width * (uint64_t)g.height,
-                        fixed = JOB_MEM_BASE + cells * JOB_MEM_PPA_CHAINS;
-        int from_option;
-        tsio_err why = *err;
-        if (tsio_memory_limit(&limit, &from_option, err) == 0 && limit > fixed) {
-            double side = sqrt((double)(limit - fixed) / JOB_MEM_PPA_TILE_CELL) -
-                          2.0 * job->params.profile_length;
-            if (side >= 64) {
-                res->tile_size = side > JOB_PPA_AUTO_TILE ? JOB_PPA_AUTO_TILE : (int)side;
-                err->msg[0] = '\0';
-            }
-        }
-        if (res->tile_size == 0) {
-            *err = why;
-            tsio_georef_free(&g);
-            return -1;
-        }
-    }
     if (res->tile_size > 0 && (res->tile_size < g.width || res->tile_size < g.height)) {
         uint64_t side = (uint64_t)res->tile_size + 2 * (uint64_t)job->params.profile_length;
         y = tsio_check_memory(JOB_MEM_BASE + side * side * JOB_MEM_PPA_TILE_CELL +

@@ -266,8 +266,9 @@ typedef ts_status (*ts_window_write_fn)(void *user, int x0, int y0, int w, int h
  * is read through `read` in windows of tile_size cells (16..16384) plus a
  * margin, three times, and the axes are handed to `write` tile by tile, as
  * the codes of ts_features_codes; no feature graph.  The codes are those
- * of ts_ppa_extract on the whole DEM.  What is held for the whole raster
- * grows with the tile borders and the feature junctions, not the cells.
+ * of ts_ppa_extract on the whole DEM.  Held for the whole raster: the
+ * border-contracted forests (small) and the chain graph of the forest
+ * before branch reduction (about a quarter of a chain per cell per kind).
  * min_drainage (valleys) needs the whole DEM: TS_ERR_ARG.
  */
 TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,

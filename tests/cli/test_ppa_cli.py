@@ -336,13 +336,3 @@ def test_tiles_refuse_what_needs_the_whole(tmp_path):
         assert p.returncode != 0 and words in p.stderr, p.stderr
         assert len(p.stderr.strip().splitlines()) == 1
         assert not out.exists() and not leftovers(tmp_path)
-
-
-def test_too_large_for_memory_goes_in_tiles(tmp_path):
-    """A DEM over the memory limit is mapped in tiles (the same raster), not refused."""
-    whole = tmp_path / "w.tif"
-    run("ppa", JACKSBORO, whole, "-q")
-    out = tmp_path / "o.tif"
-    p = run("ppa", JACKSBORO, out, "--max-memory", "98M")
-    assert "mapped in tiles of" in p.stdout
-    assert np.array_equal(read(out)[1], read(whole)[1])

@@ -20,7 +20,10 @@
  *      chains between them, with their lengths in fixed point), pass by
  *      pass exactly as ppa_branch.c walks cells.
  * Tiles are read three times (forest, chains, output); what is held for
- * the whole raster is O(border cells + chain vertices), not O(cells).
+ * the whole raster is the contracted forests (O(border cells)) and the
+ * chain graph (O(chains): about 0.27 per cell per kind before branch
+ * reduction, so still O(cells); running the first reduction pass inside
+ * the tiles is the next step).
  * tests/c/test_ppa.c compares the output with ts_ppa_extract.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -1006,6 +1009,8 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
             st = ts__fail(ctx, TS_ERR_SIZE, "ppa", "too many feature chains");
         else
             st = global_branches(&t, &t.ks[k], min_q);
+        free(t.ks[k].chains); /* phase 3 needs only which chains died */
+        t.ks[k].chains = NULL;
     }
     /* 3: every tile's axes, written */
     sv = ts__progress_push(ctx, 0.7, 1.0);
