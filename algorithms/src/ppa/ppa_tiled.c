@@ -392,7 +392,8 @@ static ts_status global_forest(tiled *t, kind_state *ks)
         goto nomem;
     for (i = 0; i < nv; i++)
         parent[i] = (uint32_t)i;
-    qsort(ks->edges, ks->n_edges, sizeof *ks->edges, edge_cmp);
+    if (ks->n_edges)
+        qsort(ks->edges, ks->n_edges, sizeof *ks->edges, edge_cmp);
     for (i = 0; i < ks->n_edges; i++) {
         cut_edge e = ks->edges[i];
         uint32_t ra = uf_find(parent, (uint32_t)u64_lower(verts, nv, e.u));
@@ -417,7 +418,8 @@ static ts_status global_forest(tiled *t, kind_state *ks)
             ks->edges[n_keep++] = e;
     }
     ks->n_edges = n_keep;
-    qsort(ks->edges, n_keep, sizeof *ks->edges, edge_cmp_idx);
+    if (n_keep)
+        qsort(ks->edges, n_keep, sizeof *ks->edges, edge_cmp_idx);
     if (ks->n_dropped)
         qsort(ks->dropped, ks->n_dropped, sizeof *ks->dropped, u64_cmp);
     ks->border_chain = ts__malloc_array(n_keep + 1, sizeof *ks->border_chain);
