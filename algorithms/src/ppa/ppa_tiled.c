@@ -33,6 +33,12 @@
 
 #include "ppa_internal.h"
 
+/* Passes of branch reduction run inside the tiles (each on the tile with a
+ * halo of half a tile), when every tile's are certain; fewer otherwise. */
+#ifndef PPA_TILE_PASSES
+#define PPA_TILE_PASSES 3
+#endif
+
 /* An edge of the global Kruskal: a contracted path of one tile's forest,
  * or a segment crossing a tile border. */
 typedef struct cut_edge {
@@ -62,6 +68,14 @@ typedef struct kind_state {
     unsigned char *dead;
 } kind_state;
 
+typedef struct window {
+    int x0, y0, w, h; /* in the raster */
+    unsigned char *adj, *unc;
+    const ts_grid_metrics *m;
+    uint32_t *visit;
+    size_t n_visit, cap_visit;
+} window;
+
 typedef struct tiled {
     ts_ctx *ctx;
     int W, H, T, ntx, nty, margin, half;
@@ -80,6 +94,10 @@ typedef struct tiled {
     uint32_t *queue;
     struct chain_clear *clears;
     size_t n_clears, cap_clears;
+    /* the first passes of branch reduction, in tiles */
+    int halo, passes;
+    unsigned char *strip[2][3], *strip_nd[3]; /* three tile rows of the whole's forest */
+    struct window wn;
 } tiled;
 
 static uint64_t gcell(const tiled *t, int x, int y)
@@ -852,6 +870,377 @@ done:
 }
 
 /* ------------------------------------------------------------------ */
+/* The first passes of branch reduction inside the tiles               */
+/* ------------------------------------------------------------------ */
+
+/* A window (a tile with a halo) of the whole forest, and which of its
+ * cells are uncertain: their state after a pass may depend on the forest
+ * outside the window.  Cells with a link out of the window start
+ * uncertain; a chain (a path of degree-2 cells between cells of other
+ * degrees) with an uncertain cell is uncertain with both its ends; a
+ * branch or a junction whose walks meet an uncertain cell decides
+ * nothing.  What is certain after the passes is what the whole run has
+ * after the same passes (every decision taken was taken on the same
+ * cells as the whole run takes it). */
+
+typedef struct win_branch {
+    uint32_t start, junction;
+    int64_t length;
+    int remove;
+} win_branch;
+
+static int win_cmp(const void *pa, const void *pb)
+{
+    const win_branch *a = pa, *b = pb;
+    if (a->junction != b->junction)
+        return a->junction < b->junction ? -1 : 1;
+    if (a->length != b->length)
+        return a->length > b->length ? -1 : 1;
+    return a->start < b->start ? -1 : (a->start > b->start);
+}
+
+/* Walk from cell c out through direction d over degree-2 cells to the
+ * first cell of another degree (returned; UINT32_MAX when the walk leaves
+ * the window).  The cells left behind (c first) are listed in wn->visit
+ * when record; *bad is set when any cell met is uncertain. */
+static uint32_t win_walk(window *wn, uint32_t c, int d, int record, int64_t *len, int *bad)
+{
+    int w = wn->w;
+    *len = 0;
+    *bad = wn->unc[c] != 0;
+    wn->n_visit = 0;
+    for (;;) {
+        int x = (int)(c % (uint32_t)w), y = (int)(c / (uint32_t)w);
+        int nx = x + ppa_dir[d][0], ny = y + ppa_dir[d][1];
+        if (record) {
+            if (wn->n_visit == wn->cap_visit) {
+                size_t ncap = wn->cap_visit ? 2 * wn->cap_visit : 4096;
+                uint32_t *nv = realloc(wn->visit, ncap * sizeof *nv);
+                if (!nv) {
+                    *bad = 2; /* out of memory */
+                    return UINT32_MAX;
+                }
+                wn->visit = nv;
+                wn->cap_visit = ncap;
+            }
+            wn->visit[wn->n_visit++] = c;
+        }
+        *len += ppa_step_q(wn->m, wn->y0 + y, d);
+        if (nx < 0 || ny < 0 || nx >= w || ny >= wn->h) {
+            *bad = 1;
+            return UINT32_MAX;
+        }
+        c = (uint32_t)(ny * w + nx);
+        if (wn->unc[c])
+            *bad = 1;
+        if (ppa_degree(wn->adj[c]) != 2)
+            return c;
+        d = __builtin_ctz(wn->adj[c] & (unsigned char)~(1u << ((d + 4) & 7)));
+    }
+}
+
+/* Clear the walk from start up to (not including) stop, as ppa_branch.c. */
+static void win_remove(window *wn, uint32_t start, uint32_t stop)
+{
+    int w = wn->w;
+    uint32_t cur = start;
+    while (cur != stop) {
+        unsigned char bits = wn->adj[cur];
+        int x = (int)(cur % (uint32_t)w), y = (int)(cur / (uint32_t)w), d;
+        uint32_t next;
+        if (!bits)
+            break;
+        d = __builtin_ctz(bits);
+        next = (uint32_t)((y + ppa_dir[d][1]) * w + x + ppa_dir[d][0]);
+        wn->adj[cur] = 0;
+        wn->adj[next] &= (unsigned char)~(1u << ((d + 4) & 7));
+        cur = next;
+    }
+}
+
+/* A chain with an uncertain cell is uncertain, with its two ends. */
+static int win_closure(window *wn)
+{
+    size_t n = (size_t)wn->w * (size_t)wn->h, i, j;
+    for (i = 0; i < n; i++) {
+        unsigned char bits = wn->adj[i];
+        int d;
+        if (!bits || ppa_degree(bits) == 2)
+            continue;
+        for (d = 0; d < 8; d++) {
+            int64_t len;
+            int bad;
+            uint32_t end;
+            if (!(bits >> d & 1))
+                continue;
+            end = win_walk(wn, (uint32_t)i, d, 1, &len, &bad);
+            if (bad == 2)
+                return -1;
+            /* uncertain: leaves the window, or an interior cell is (visit[0] is this end) */
+            bad = end == UINT32_MAX;
+            for (j = 1; j < wn->n_visit && !bad; j++)
+                bad = wn->unc[wn->visit[j]] != 0;
+            if (!bad)
+                continue;
+            for (j = 0; j < wn->n_visit; j++)
+                wn->unc[wn->visit[j]] = 1;
+            if (end != UINT32_MAX)
+                wn->unc[end] = 1;
+        }
+    }
+    return 0;
+}
+
+/* `passes` passes of branch reduction on the window; 0, or -1 out of memory. */
+static int win_passes(window *wn, int passes, int64_t min_q)
+{
+    size_t n = (size_t)wn->w * (size_t)wn->h, i, nb = 0, cap = 0;
+    win_branch *br = NULL;
+    int pass, x, y, d;
+    /* cells linked out of the window */
+    for (y = 0; y < wn->h; y++)
+        for (x = 0; x < wn->w; x++) {
+            unsigned char bits = wn->adj[(size_t)y * (size_t)wn->w + (size_t)x];
+            wn->unc[(size_t)y * (size_t)wn->w + (size_t)x] = 0;
+            if (x > 0 && y > 0 && x < wn->w - 1 && y < wn->h - 1)
+                continue;
+            for (d = 0; d < 8; d++)
+                if ((bits >> d & 1) && (x + ppa_dir[d][0] < 0 || y + ppa_dir[d][1] < 0 ||
+                                        x + ppa_dir[d][0] >= wn->w || y + ppa_dir[d][1] >= wn->h))
+                    wn->unc[(size_t)y * (size_t)wn->w + (size_t)x] = 1;
+        }
+    if (win_closure(wn))
+        return -1;
+    for (pass = 0; pass < passes; pass++) {
+        int changed = 0;
+        nb = 0;
+        for (i = 0; i < n; i++) {
+            int64_t len;
+            int bad;
+            uint32_t end;
+            size_t j;
+            if (ppa_degree(wn->adj[i]) != 1 || wn->unc[i])
+                continue;
+            end = win_walk(wn, (uint32_t)i, __builtin_ctz(wn->adj[i]), 1, &len, &bad);
+            if (bad == 2)
+                goto nomem;
+            if (bad || end == UINT32_MAX) {
+                /* its fate depends on what is uncertain: so is it */
+                for (j = 0; j < wn->n_visit; j++)
+                    wn->unc[wn->visit[j]] = 1;
+                if (end != UINT32_MAX)
+                    wn->unc[end] = 1;
+                continue;
+            }
+            if (ppa_degree(wn->adj[end]) == 1) { /* isolated path */
+                if (end < i)
+                    continue;
+                if (len < min_q) {
+                    win_remove(wn, (uint32_t)i, end);
+                    wn->adj[end] = 0;
+                    changed = 1;
+                }
+                continue;
+            }
+            if (nb == cap) {
+                size_t ncap = cap ? 2 * cap : 1024;
+                win_branch *nbr = realloc(br, ncap * sizeof *nbr);
+                if (!nbr)
+                    goto nomem;
+                br = nbr;
+                cap = ncap;
+            }
+            br[nb].start = (uint32_t)i;
+            br[nb].junction = end;
+            br[nb].length = len;
+            br[nb].remove = 0;
+            nb++;
+        }
+        if (nb)
+            qsort(br, nb, sizeof *br, win_cmp);
+        for (i = 0; i < nb;) {
+            size_t j = i, k;
+            uint32_t J = br[i].junction;
+            int other, sure = !wn->unc[J];
+            while (j < nb && br[j].junction == J)
+                j++;
+            /* every arm of J must be seen whole */
+            for (d = 0; d < 8 && sure; d++) {
+                int64_t len;
+                int bad;
+                if (!(wn->adj[J] >> d & 1))
+                    continue;
+                if (win_walk(wn, J, d, 0, &len, &bad) == UINT32_MAX || bad)
+                    sure = 0;
+            }
+            other = ppa_degree(wn->adj[J]) - (int)(j - i);
+            for (k = i; k < j; k++) {
+                size_t rank = k - i;
+                if (br[k].length >= min_q)
+                    continue;
+                if (!sure) {
+                    int64_t len;
+                    int bad;
+                    size_t v;
+                    win_walk(wn, br[k].start, __builtin_ctz(wn->adj[br[k].start]), 1, &len, &bad);
+                    if (bad == 2)
+                        goto nomem;
+                    for (v = 0; v < wn->n_visit; v++)
+                        wn->unc[wn->visit[v]] = 1;
+                    wn->unc[J] = 1;
+                    continue;
+                }
+                if (other <= 0 && rank < 2)
+                    continue;
+                if (other == 1 && rank == 0)
+                    continue;
+                br[k].remove = 1;
+            }
+            i = j;
+        }
+        for (i = 0; i < nb; i++)
+            if (br[i].remove) {
+                win_remove(wn, br[i].start, br[i].junction);
+                changed = 1;
+            }
+        if (win_closure(wn))
+            goto nomem;
+        (void)changed; /* no early stop: what is uncertain may still change */
+    }
+    free(br);
+    return 0;
+nomem:
+    free(br);
+    return -1;
+}
+
+static void tile_rect(tiled *t, int ti)
+{
+    t->x0 = (ti % t->ntx) * t->T;
+    t->y0 = (ti / t->ntx) * t->T;
+    t->w = TS_MIN(t->T, t->W - t->x0);
+    t->h = TS_MIN(t->T, t->H - t->y0);
+}
+
+/* Row y of the raster in a cache of three tile rows. */
+static unsigned char *strip_row(const tiled *t, unsigned char *const *strips, int y)
+{
+    int r = y / t->T;
+    return strips[r % 3] + (size_t)(y - r * t->T) * (size_t)t->W;
+}
+
+/* The whole's forest (and nodata) of tile row r into the cache. */
+static ts_status strip_fill(tiled *t, int nk, int r)
+{
+    int tx, k, x, y;
+    ts_status st;
+    for (tx = 0; tx < t->ntx; tx++) {
+        if ((st = tile_load(t, r * t->ntx + tx)) != TS_OK)
+            return st;
+        for (y = 0; y < t->h; y++) {
+            unsigned char *nd = strip_row(t, t->strip_nd, t->y0 + y) + t->x0;
+            for (x = 0; x < t->w; x++)
+                nd[x] = isnan(t->core[(size_t)y * (size_t)t->w + (size_t)x]) ? 1 : 0;
+        }
+        for (k = 0; k < nk; k++) {
+            if ((st = tile_whole_forest(t, &t->ks[k])) != TS_OK)
+                return st;
+            for (y = 0; y < t->h; y++)
+                memcpy(strip_row(t, t->strip[k], t->y0 + y) + t->x0,
+                       t->adj + (size_t)y * (size_t)t->w, (size_t)t->w);
+        }
+    }
+    return TS_OK;
+}
+
+/* The tile's forest of kind k after t->passes passes of branch reduction
+ * (on a window with a halo) into t->adj; *exact = 0 when a core cell of it
+ * is uncertain. */
+static ts_status tile_after_passes(tiled *t, int k, int64_t min_q, int *exact)
+{
+    window *wn = &t->wn;
+    int y, x;
+    if (t->passes == 0) {
+        for (y = 0; y < t->h; y++)
+            memcpy(t->adj + (size_t)y * (size_t)t->w, strip_row(t, t->strip[k], t->y0 + y) + t->x0,
+                   (size_t)t->w);
+        return TS_OK;
+    }
+    wn->x0 = TS_MAX(0, t->x0 - t->halo);
+    wn->y0 = TS_MAX(0, t->y0 - t->halo);
+    wn->w = TS_MIN(t->W, t->x0 + t->w + t->halo) - wn->x0;
+    wn->h = TS_MIN(t->H, t->y0 + t->h + t->halo) - wn->y0;
+    wn->m = t->m;
+    for (y = 0; y < wn->h; y++)
+        memcpy(wn->adj + (size_t)y * (size_t)wn->w, strip_row(t, t->strip[k], wn->y0 + y) + wn->x0,
+               (size_t)wn->w);
+    if (win_passes(wn, t->passes, min_q) != 0)
+        return ts__fail(t->ctx, TS_ERR_NOMEM, "ppa", "out of memory for the branch reduction");
+    for (y = 0; y < t->h; y++) {
+        size_t o = (size_t)(t->y0 - wn->y0 + y) * (size_t)wn->w + (size_t)(t->x0 - wn->x0);
+        for (x = 0; x < t->w; x++)
+            if (wn->unc[o + (size_t)x])
+                *exact = 0;
+        memcpy(t->adj + (size_t)y * (size_t)t->w, wn->adj + o, (size_t)t->w);
+    }
+    return TS_OK;
+}
+
+/* Phases 2 (remove 0: the chains of the forest after the first passes,
+ * for the whole's branch reduction) and 3 (remove 1: the dead chains
+ * cleared, the codes written), tile row by tile row with the whole's forest
+ * of three tile rows at hand.  *exact = 0: a tile's passes were uncertain
+ * (phase 2 stops: the caller tries fewer passes). */
+static ts_status sweep(tiled *t, int nk, int64_t min_q, int remove, int *exact,
+                       ts_window_write_fn write, void *user)
+{
+    int r, tx, k, n_tiles = t->ntx * t->nty;
+    size_t i;
+    ts_status st = TS_OK;
+    for (r = 0; r < t->nty && st == TS_OK; r++) {
+        if (r == 0 && (st = strip_fill(t, nk, 0)) != TS_OK)
+            break;
+        if (r + 1 < t->nty && (st = strip_fill(t, nk, r + 1)) != TS_OK)
+            break;
+        for (tx = 0; tx < t->ntx && st == TS_OK; tx++) {
+            int ti = r * t->ntx + tx, y;
+            unsigned char *codes = t->work;
+            tile_rect(t, ti);
+            if (remove)
+                memset(codes, 0, (size_t)t->w * (size_t)t->h);
+            for (k = 0; k < nk && st == TS_OK; k++) {
+                if (!remove)
+                    t->ks[k].chain_base[ti] = t->ks[k].n_chains;
+                if ((st = tile_after_passes(t, k, min_q, exact)) != TS_OK || !*exact)
+                    return st;
+                if ((st = tile_chains(t, &t->ks[k], ti, remove)) != TS_OK)
+                    return st;
+                if (remove)
+                    for (i = 0; i < (size_t)t->w * (size_t)t->h; i++)
+                        if (t->adj[i])
+                            codes[i] |= (unsigned char)t->ks[k].kind;
+            }
+            if (remove) {
+                for (y = 0; y < t->h; y++) {
+                    const unsigned char *nd = strip_row(t, t->strip_nd, t->y0 + y) + t->x0;
+                    for (i = 0; i < (size_t)t->w; i++)
+                        if (nd[i])
+                            codes[(size_t)y * (size_t)t->w + i] = 255;
+                }
+                if ((st = write(user, t->x0, t->y0, t->w, t->h, codes)) != TS_OK) {
+                    if (t->ctx->status == TS_OK)
+                        ts__fail(t->ctx, st, "ppa", "cannot write the axes");
+                    return t->ctx->status;
+                }
+            }
+            st = ts__progress(t->ctx, (double)(ti + 1) / n_tiles,
+                              remove ? "axes" : "branch reduction in tiles");
+        }
+    }
+    return st;
+}
+
+/* ------------------------------------------------------------------ */
 /* The pipeline                                                        */
 /* ------------------------------------------------------------------ */
 
@@ -867,6 +1256,14 @@ static void tiled_free(tiled *t)
     free(t->term);
     free(t->queue);
     free(t->clears);
+    free(t->wn.adj);
+    free(t->wn.unc);
+    free(t->wn.visit);
+    for (k = 0; k < 3; k++) {
+        free(t->strip[0][k]);
+        free(t->strip[1][k]);
+        free(t->strip_nd[k]);
+    }
     for (k = 0; k < 2; k++) {
         free(t->ks[k].edges);
         free(t->ks[k].dropped);
@@ -883,7 +1280,7 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
                                       ts_window_write_fn write, void *user)
 {
     tiled t;
-    int ti, n_tiles, k, nk = 0, x, y;
+    int ti, n_tiles, k, nk = 0;
     size_t wcap, tcap;
     double lo = INFINITY, hi = -INFINITY, min_length, threshold;
     int64_t min_q;
@@ -992,18 +1389,34 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
     ts__progress_pop(ctx, sv);
     for (k = 0; k < nk && st == TS_OK; k++)
         st = global_forest(&t, &t.ks[k]);
-    /* 2: the chain graph of the whole forest; branch reduction on it */
-    sv = ts__progress_push(ctx, 0.4, 0.7);
-    for (ti = 0; ti < n_tiles && st == TS_OK; ti++) {
-        if ((st = tile_load(&t, ti)) != TS_OK)
-            break;
-        for (k = 0; k < nk && st == TS_OK; k++) {
-            t.ks[k].chain_base[ti] = t.ks[k].n_chains;
-            if ((st = tile_whole_forest(&t, &t.ks[k])) == TS_OK)
-                st = tile_chains(&t, &t.ks[k], ti, 0);
+    /* 2: the forest after the first passes of branch reduction (exact in
+     * every tile, else fewer passes), its chain graph, the rest of the
+     * reduction on it */
+    if (st == TS_OK) {
+        size_t scap = (size_t)TS_MIN(tile_size, height) * (size_t)width, wcap2;
+        t.halo = TS_MIN(tile_size, TS_MAX(64, tile_size / 2));
+        wcap2 = (size_t)TS_MIN(width, tile_size + 2 * t.halo) *
+                (size_t)TS_MIN(height, tile_size + 2 * t.halo);
+        for (k = 0; k < 3 && st == TS_OK; k++) {
+            t.strip_nd[k] = ts__malloc_array(scap, 1);
+            t.strip[0][k] = ts__malloc_array(scap, 1);
+            t.strip[1][k] = nk > 1 ? ts__malloc_array(scap, 1) : NULL;
+            if (!t.strip_nd[k] || !t.strip[0][k] || (nk > 1 && !t.strip[1][k]))
+                st = ts__fail(ctx, TS_ERR_NOMEM, "ppa", "cannot allocate three rows of tiles");
         }
-        if (st == TS_OK)
-            st = ts__progress(ctx, (double)(ti + 1) / n_tiles, "branch reduction in tiles");
+        t.wn.adj = ts__malloc_array(wcap2, 1);
+        t.wn.unc = ts__malloc_array(wcap2, 1);
+        if (st == TS_OK && (!t.wn.adj || !t.wn.unc))
+            st = ts__fail(ctx, TS_ERR_NOMEM, "ppa", "cannot allocate for a tile with its halo");
+    }
+    sv = ts__progress_push(ctx, 0.4, 0.7);
+    for (t.passes = PPA_TILE_PASSES; st == TS_OK; t.passes--) {
+        int exact = 1;
+        for (k = 0; k < nk; k++)
+            t.ks[k].n_chains = 0;
+        st = sweep(&t, nk, min_q, 0, &exact, NULL, NULL);
+        if (st != TS_OK || exact)
+            break;
     }
     ts__progress_pop(ctx, sv);
     for (k = 0; k < nk && st == TS_OK; k++) {
@@ -1016,33 +1429,11 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
     }
     /* 3: every tile's axes, written */
     sv = ts__progress_push(ctx, 0.7, 1.0);
-    for (ti = 0; ti < n_tiles && st == TS_OK; ti++) {
-        unsigned char *codes = t.work;
-        if ((st = tile_load(&t, ti)) != TS_OK)
-            break;
-        memset(codes, 0, (size_t)t.w * (size_t)t.h);
-        for (k = 0; k < nk && st == TS_OK; k++) {
-            size_t i;
-            if ((st = tile_whole_forest(&t, &t.ks[k])) != TS_OK ||
-                (st = tile_chains(&t, &t.ks[k], ti, 1)) != TS_OK)
-                break;
-            for (i = 0; i < (size_t)t.w * (size_t)t.h; i++)
-                if (t.adj[i])
-                    codes[i] |= (unsigned char)t.ks[k].kind;
-        }
-        if (st != TS_OK)
-            break;
-        for (y = 0; y < t.h; y++)
-            for (x = 0; x < t.w; x++)
-                if (isnan(t.core[(size_t)y * (size_t)t.w + (size_t)x]))
-                    codes[(size_t)y * (size_t)t.w + (size_t)x] = 255;
-        if ((st = write(user, t.x0, t.y0, t.w, t.h, codes)) != TS_OK) {
-            if (ctx->status == TS_OK)
-                ts__fail(ctx, st, "ppa", "cannot write the axes");
-            st = ctx->status;
-            break;
-        }
-        st = ts__progress(ctx, (double)(ti + 1) / n_tiles, "axes");
+    if (st == TS_OK) {
+        int exact = 1;
+        st = sweep(&t, nk, min_q, 1, &exact, write, user);
+        if (st == TS_OK && !exact)
+            st = ts__fail(ctx, TS_ERR_INTERNAL, "ppa", "tiles: the passes changed between sweeps");
     }
     ts__progress_pop(ctx, sv);
     tiled_free(&t);
