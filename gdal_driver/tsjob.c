@@ -716,8 +716,8 @@ static int ppa_tiles_produce(void *user, tsio_window_sink_fn sink, void *sink_ar
     io.sink_arg = sink_arg;
     io.err = err;
     if (ts_ppa_extract_tiled(res->ctx, res->in.geo.width, res->in.geo.height, res->metrics,
-                             &res->params, res->tile_size, ppa_tile_read, ppa_tile_write,
-                             &io) != TS_OK) {
+                             &res->params, res->tile_size, ppa_tile_read, ppa_tile_write, &io,
+                             &((tsjob_ppa_result *)(uintptr_t)res)->tiled) != TS_OK) {
         if (!io.failed)
             tsio_errf(err, res->input, "%s", ts_ctx_message(res->ctx));
         return -1;

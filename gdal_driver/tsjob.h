@@ -60,6 +60,7 @@ typedef struct tsjob_ppa_result {
     tsio_reader *reader;     /* the DEM, open, when in tiles */
     int band;
     ts_ctx *ctx; /* borrowed for the tiled write */
+    ts_ppa_tiled_stats tiled; /* how the tiled run split the work */
     ts_ppa_params params;
     const char *input;
 } tsjob_ppa_result;

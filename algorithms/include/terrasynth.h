@@ -271,10 +271,15 @@ typedef ts_status (*ts_window_write_fn)(void *user, int x0, int y0, int w, int h
  * before branch reduction (about a quarter of a chain per cell per kind).
  * min_drainage (valleys) needs the whole DEM: TS_ERR_ARG.
  */
+typedef struct ts_ppa_tiled_stats {
+    int passes_in_tiles; /* branch reduction passes run inside the tiles (0..3) */
+    size_t chains_held;  /* chains of the whole held for the rest of the reduction */
+} ts_ppa_tiled_stats;
 TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
                                       const ts_grid_metrics *metrics, const ts_ppa_params *params,
                                       int tile_size, ts_window_read_fn read,
-                                      ts_window_write_fn write, void *user);
+                                      ts_window_write_fn write, void *user,
+                                      ts_ppa_tiled_stats *stats);
 
 /* The PPA stages, exposed for tests and for callers that want the
  * intermediate results.  Masks are width*height bytes, stride width. */

@@ -779,7 +779,7 @@ static void test_tiled_equals_whole(void)
             size_t i, diff = 0;
             memset(codes, 77, (size_t)w * h);
             CHECK_MSG(ts_ppa_extract_tiled(ctx, w, h, &m, &p, tiles[ti], tiled_read, tiled_write,
-                                           &io) == TS_OK,
+                                           &io, NULL) == TS_OK,
                       "%s", ts_ctx_message(ctx));
             for (i = 0; i < (size_t)w * h; i++)
                 diff += codes[i] != whole[i];
@@ -809,10 +809,10 @@ static void test_tiled_equals_whole(void)
         tiled_io io = {&dem, codes, 0, 0};
         p.features = TS_PPA_VALLEYS;
         p.min_drainage = 10;
-        CHECK(ts_ppa_extract_tiled(ctx, 40, 40, NULL, &p, 16, tiled_read, tiled_write, &io) ==
+        CHECK(ts_ppa_extract_tiled(ctx, 40, 40, NULL, &p, 16, tiled_read, tiled_write, &io, NULL) ==
               TS_ERR_ARG);
         p.min_drainage = 0;
-        CHECK(ts_ppa_extract_tiled(ctx, 40, 40, NULL, &p, 8, tiled_read, tiled_write, &io) ==
+        CHECK(ts_ppa_extract_tiled(ctx, 40, 40, NULL, &p, 8, tiled_read, tiled_write, &io, NULL) ==
               TS_ERR_ARG);
         ts_raster_free(&dem);
     }
