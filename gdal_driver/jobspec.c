@@ -201,9 +201,9 @@ static const tsj_option ppa_opts[] = {
      "hillshade with ridges (red) and valleys (blue)", NULL, 0, NULL},
     {"tile_size", TSJ_INT, 1, 0, 16384, "N", G_RUN,
      "map the DEM in tiles of N x N cells (16..16384), read window by window three times: the "
-     "same raster as in one piece (not with lines, preview or min_drainage for valleys). The "
-     "memory of a tile plus the forest's chain graph, which still grows with the cells: no "
-     "saving over one piece yet. 0 (default): in one piece",
+     "same raster as in one piece, in the memory of three rows of tiles and the axes' chains "
+     "(DEMs larger than memory; not with lines, preview or min_drainage for valleys). 0 "
+     "(default): in one piece",
      "TileSize", 0, NULL},
     OPT_RECIPE,
 };

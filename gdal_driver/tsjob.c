@@ -31,7 +31,8 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
 #define JOB_MEM_BASE ((uint64_t)96 << 20)
 #define JOB_MEM_PPA_CELL 24       /* per input cell: the DEM, profiles, masks, codes */
 #define JOB_MEM_PPA_TILE_CELL 48  /* per cell of a tile with its margin (tiled ppa) */
-#define JOB_MEM_PPA_CHAINS 26     /* per DEM cell: the forest's chain graph (tiled ppa; measured) */
+#define JOB_MEM_PPA_STRIP 9  /* per cell of three tile rows: both forests, nodata (tiled ppa) */
+#define JOB_MEM_PPA_CHAINS 1 /* per DEM cell: the chains held (76 k at 4096^2: far less) */
 #define JOB_MEM_SYNTH_CELL 16     /* per output cell: terrain, flags, fill state */
 #define JOB_MEM_MAPS_CELL 20      /* per output cell with the synthesis maps */
 #define JOB_MEM_SKETCH_CELL 96    /* per output cell with a sketch: PPA, features, guides */
@@ -59,6 +60,7 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
     if (res->tile_size > 0 && (res->tile_size < g.width || res->tile_size < g.height)) {
         uint64_t side = (uint64_t)res->tile_size + 2 * (uint64_t)job->params.profile_length;
         y = tsio_check_memory(JOB_MEM_BASE + side * side * JOB_MEM_PPA_TILE_CELL +
+                                  (uint64_t)res->tile_size * (uint64_t)g.width * JOB_MEM_PPA_STRIP +
                                   (uint64_t)g.width * (uint64_t)g.height * JOB_MEM_PPA_CHAINS,
                               job->input, "give a smaller tile size (--tile-size)", err);
     } else {

@@ -325,6 +325,12 @@ def test_tiles_give_the_raster_of_one_piece(tmp_path):
     assert not leftovers(tmp_path)
 
 
+def test_tiles_progress_goes_one_way(tmp_path):
+    p = run("ppa", JACKSBORO, tmp_path / "o.tif", "--progress-lines", "--both", "--tile-size", "64")
+    pcts = [int(l.split()[1]) for l in p.stdout.splitlines() if l.startswith("PROGRESS ")]
+    assert pcts and pcts == sorted(pcts) and pcts[-1] == 100
+
+
 def test_tiles_refuse_what_needs_the_whole(tmp_path):
     out = tmp_path / "o.tif"
     for extra, words in ((["--lines", tmp_path / "l.gpkg"], "lines and preview"),

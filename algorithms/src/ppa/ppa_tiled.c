@@ -96,6 +96,7 @@ typedef struct tiled {
     size_t n_clears, cap_clears;
     /* the first passes of branch reduction, in tiles */
     int halo, passes;
+    double frac; /* the progress of the phase at hand, which the stages' own hold at */
     unsigned char *strip[2][3], *strip_nd[3]; /* three tile rows of the whole's forest */
     struct window wn;
 } tiled;
@@ -133,6 +134,7 @@ static ts_status tile_load(tiled *t, int ti)
     int tx = ti % t->ntx, ty = ti / t->ntx, y;
     ts_raster wr;
     ts_status st;
+    ts_progress_saved sv;
     t->x0 = tx * t->T;
     t->y0 = ty * t->T;
     t->w = TS_MIN(t->T, t->W - t->x0);
@@ -148,8 +150,11 @@ static ts_status tile_load(tiled *t, int ti)
     wr.height = t->wh;
     wr.stride = t->ww;
     wr.data = t->win;
-    if ((st = ts_ppa_profile_recognition(t->ctx, &wr, 2 * t->half + 1, t->threshold, t->kinds,
-                                         t->wt)) != TS_OK)
+    /* the stages' own progress holds still at the tiles' */
+    sv = ts__progress_push(t->ctx, t->frac, t->frac);
+    st = ts_ppa_profile_recognition(t->ctx, &wr, 2 * t->half + 1, t->threshold, t->kinds, t->wt);
+    ts__progress_pop(t->ctx, sv);
+    if (st != TS_OK)
         return st;
     for (y = 0; y < t->h; y++) {
         size_t o = (size_t)(t->y0 - t->wy0 + y) * (size_t)t->ww + (size_t)(t->x0 - t->wx0);
@@ -168,12 +173,17 @@ static float win_h(const tiled *t, int x, int y)
 static ts_status tile_forest(tiled *t, const kind_state *ks)
 {
     ts_raster cr;
+    ts_progress_saved sv;
+    ts_status st;
     cr.width = t->w;
     cr.height = t->h;
     cr.stride = t->w;
     cr.data = t->core;
     memset(t->adj, 0, (size_t)t->w * (size_t)t->h);
-    return ppa_spanning_forest(t->ctx, &cr, t->ct, ks->kind, t->adj);
+    sv = ts__progress_push(t->ctx, t->frac, t->frac);
+    st = ppa_spanning_forest(t->ctx, &cr, t->ct, ks->kind, t->adj);
+    ts__progress_pop(t->ctx, sv);
+    return st;
 }
 
 /* Does the segment between core cell (x, y) and outside cell (x, y) +
@@ -1198,6 +1208,7 @@ static ts_status sweep(tiled *t, int nk, int64_t min_q, int remove, int *exact,
     size_t i;
     ts_status st = TS_OK;
     for (r = 0; r < t->nty && st == TS_OK; r++) {
+        t->frac = (double)(r * t->ntx) / n_tiles;
         if (r == 0 && (st = strip_fill(t, nk, 0)) != TS_OK)
             break;
         if (r + 1 < t->nty && (st = strip_fill(t, nk, r + 1)) != TS_OK)
@@ -1205,6 +1216,7 @@ static ts_status sweep(tiled *t, int nk, int64_t min_q, int remove, int *exact,
         for (tx = 0; tx < t->ntx && st == TS_OK; tx++) {
             int ti = r * t->ntx + tx, y;
             unsigned char *codes = t->work;
+            t->frac = (double)ti / n_tiles;
             tile_rect(t, ti);
             if (remove)
                 memset(codes, 0, (size_t)t->w * (size_t)t->h);
@@ -1380,6 +1392,7 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
     /* 1: tile forests contracted to their borders, one Kruskal for the whole */
     sv = ts__progress_push(ctx, 0.1, 0.4);
     for (ti = 0; ti < n_tiles && st == TS_OK; ti++) {
+        t.frac = (double)ti / n_tiles;
         if ((st = tile_load(&t, ti)) != TS_OK)
             break;
         for (k = 0; k < nk && st == TS_OK; k++)
