@@ -527,6 +527,7 @@ typedef struct ts_sketch_params {
     double alpha_p;  /* weight of the crest prominence c_p (sketched strokes read as main features) */
     double alpha_r;  /* weight of the relief guide (sketched ridges stand high) */
     double layout;   /* 0..1: how far the sketch sets the relief above a third of a patch */
+    double slope_style; /* 0..1: how far the output's slopes take the exemplars' distribution */
 } ts_sketch_params;
 
 TS_API ts_sketch_params ts_sketch_params_default(void);

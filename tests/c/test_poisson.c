@@ -8,6 +8,7 @@
 #include <time.h>
 
 #include "harness.h"
+#include "internal.h"
 #include "terrasynth.h"
 
 static double now_ms(void)
@@ -217,6 +218,79 @@ static void test_dense_reference(void)
     for (k = 0; k < sizeof sizes / sizeof sizes[0]; k++)
         run_dense_case(ctx, sizes[k][0], sizes[k][1], 2.0, &seed, &worst);
     printf("     dense reference: worst relative error %.2e\n", worst);
+    ts_ctx_free(ctx);
+}
+
+/* ---- NaN cells left out (ts__poisson_solve_valid) against the oracle ---- */
+
+/* Unknowns, known cells and NaN cells at random: the NaN cells are REF_OUT
+ * in the dense system (no equation, no term in their neighbours'). */
+static void test_nan_cells_reference(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t seed = 23;
+    static const int sizes[][2] = {{7, 6}, {9, 9}, {1, 8}, {12, 10}, {5, 11}};
+    size_t k;
+    int t;
+    double worst = 0.0;
+    for (k = 0; k < sizeof sizes / sizeof sizes[0]; k++)
+        for (t = 0; t < 10; t++) {
+            int w = sizes[k][0], h = sizes[k][1];
+            size_t n = (size_t)w * h, c;
+            unsigned char *mask = malloc(n), *cls = malloc(n);
+            float *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy);
+            float *u = malloc(n * sizeof *u), *u0 = malloc(n * sizeof *u0);
+            double *gr = malloc(n * sizeof *gr), *gd = malloc(n * sizeof *gd);
+            double *ref = malloc(n * sizeof *ref), scale = 1.0, err = 0.0;
+            double p_nan = 0.05 * t, p_known = t % 2 ? 0.0 : 0.25; /* odd: pure Neumann */
+            for (c = 0; c < n; c++) {
+                double r = th_uniform(&seed);
+                cls[c] = r < p_nan ? REF_OUT : r < p_nan + p_known ? REF_KNOWN : REF_UNKNOWN;
+                mask[c] = cls[c] != REF_KNOWN; /* a NaN cell may be in the mask: left out */
+                gx[c] = (float)(4.0 * th_uniform(&seed) - 2.0);
+                gy[c] = (float)(4.0 * th_uniform(&seed) - 2.0);
+                u[c] = cls[c] == REF_OUT ? NAN : (float)(200.0 + 50.0 * th_uniform(&seed));
+                if (cls[c] == REF_OUT && th_uniform(&seed) < 0.5)
+                    gx[c] = gy[c] = NAN; /* guidance on edges to NaN cells is not read */
+                u0[c] = u[c];
+                gr[c] = gx[c];
+                gd[c] = gy[c];
+                ref[c] = u[c];
+            }
+            /* the oracle reads guidance only on edges between used cells */
+            for (c = 0; c < n; c++) {
+                if (isnan(gr[c]))
+                    gr[c] = 0.0;
+                if (isnan(gd[c]))
+                    gd[c] = 0.0;
+            }
+            CHECK(ref_solve(w, h, cls, gr, gd, ref));
+            CHECK_MSG(ts__poisson_solve_valid(ctx, w, h, mask, gx, gy, u, 1e-10, 1000) == TS_OK,
+                      "%s", ts_ctx_message(ctx));
+            for (c = 0; c < n; c++)
+                if (!isnan(ref[c]))
+                    scale = fmax(scale, fabs(ref[c]));
+            for (c = 0; c < n; c++) {
+                if (cls[c] == REF_OUT)
+                    CHECK(isnan(u[c]));
+                else if (cls[c] == REF_KNOWN)
+                    CHECK(u[c] == u0[c]);
+                else
+                    err = fmax(err, fabs(u[c] - ref[c]));
+            }
+            CHECK_MSG(err <= 1e-5 * scale, "%dx%d case %d: max error %g", w, h, t, err);
+            worst = fmax(worst, err / scale);
+            free(mask);
+            free(cls);
+            free(gx);
+            free(gy);
+            free(u);
+            free(u0);
+            free(gr);
+            free(gd);
+            free(ref);
+        }
+    printf("     NaN cells left out: worst relative error %.2e\n", worst);
     ts_ctx_free(ctx);
 }
 
@@ -769,6 +843,7 @@ int main(int argc, char **argv)
 {
     static const th_case cases[] = {
         {"dense_reference", test_dense_reference},
+        {"nan_cells_reference", test_nan_cells_reference},
         {"manufactured", test_manufactured},
         {"iterations_and_time", test_iterations_and_time},
         {"trivial_and_empty", test_trivial_and_empty},

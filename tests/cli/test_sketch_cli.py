@@ -45,14 +45,14 @@ def lambda_runs(tmp_path_factory):
         run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--order", order,
             d / f"{order}.tif", "-q")
     run("synth", "--like", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", d / "unguided.tif", "-q")
-    # the feature-patch constraints are measured on the patches alone (--layout 0): the
-    # layout stage would reshape the crest after them
+    # the feature-patch constraints are measured on the patches alone (--layout 0
+    # --slope-style 0): the layout and slope stages would reshape the crest after them
     run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--alpha-r", "0",
-        "--layout", "0", d / "no_guide.tif", "-q")
+        "--layout", "0", "--slope-style", "0", d / "no_guide.tif", "-q")
     run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--layout", "0",
-        d / "patches.tif", "-q")
+        "--slope-style", "0", d / "patches.tif", "-q")
     run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--alpha-s", "3",
-        "--layout", "0", d / "smooth.tif", "-q")
+        "--layout", "0", "--slope-style", "0", d / "smooth.tif", "-q")
     run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", d / "dbg.tif",
         "--debug-dir", d / "debug", "--preview", d / "lambda.png")
     return d

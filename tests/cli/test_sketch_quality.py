@@ -4,8 +4,9 @@
 ../shared/eval/terrain_metrics.py (none of our code) scores terrains synthesised on the
 sketches ../shared/eval/make_sketches.py draws, with real DEMs of ../shared/data/dem, over
 several seeds: a valley network (degree-3 forks), a five-way and a four-way ridge junction, a
-long meandering valley on a grid without CRS, concentric ridges on a geographic grid and a comb
-of valleys.  Every case must meet the goal of the sketch-fidelity issue: structure_r >= 0.6,
+long meandering valley on a grid without CRS, concentric ridges on a geographic grid, a comb
+of valleys, an exemplar three times finer than the sketch (a 10 m volcano) and one three times
+coarser (a 90 m canyon).  Every case must meet the goal of the sketch-fidelity issue: structure_r >= 0.6,
 feature_recall >= 0.7, seam_lap and seam_grad <= 1.2, slope_w1 <= 3 degrees.  The whole matrix
 (more sketches, more DEMs) is bench/quality.  Skips when ../shared or scipy is absent.
 """
@@ -44,6 +45,10 @@ CASES = [  # class, sketch, exemplar, cell size of CRS-less rasters
     ("geographic grid", "arcs_ridges_geo1s.tif", "mountains_mackay_id_30m.tif", None),
     ("parallel valleys", "comb_valleys_640.tif", "mountains_aiguestortes_pyrenees_20m_nocrs.tif",
      20),
+    ("exemplar finer than the sketch", "fork_valleys_800.tif", "volcano_st_helens_10m_nocrs.tif",
+     10),
+    ("exemplar coarser than the sketch", "meander_valley_900.tif", "canyon_zion_ut_srtm90m.tif",
+     30),
 ]
 
 
@@ -83,6 +88,45 @@ def test_layout_off_does_not_follow(sketches, tmp_path):
                         str(sketches / "fork_valleys_800.tif"), "--patch", "64"],
                        capture_output=True, text=True, check=True)
     assert json.loads(p.stdout)["structure_r"] < 0.6
+
+
+def _figures(out, ex, sketch, cell):
+    extra = ["--cell-size", str(cell)] if cell else []
+    p = subprocess.run([sys.executable, METRICS, "--out", str(out), "--exemplar", ex, "--sketch",
+                        str(sketch), "--patch", "64", *extra],
+                       capture_output=True, text=True, check=True)
+    return json.loads(p.stdout)
+
+
+def test_slope_style_gives_the_exemplars_slopes(sketches, tmp_path):
+    """The slope style (on by default) brings the mix of slopes to the exemplar's: a volcano
+    whose flat crater floors and lava plains the layout turns into ramps (slope W1 over 3
+    degrees without it).  The oracle can fail: --slope-style 0 misses."""
+    ex = os.path.join(SHARED, "volcano_st_helens_10m_nocrs.tif")
+    if not os.path.exists(ex):
+        pytest.skip(f"{ex} absent")
+    sk = sketches / "fork_valleys_800.tif"
+    w = {}
+    for style in (0, 1):
+        out = tmp_path / f"out{style}.tif"
+        run("synth", "-q", "--sketch", sk, "--exemplar", ex, "--seed", 1, "--cell-size", 10,
+            "--slope-style", style, out)
+        w[style] = _figures(out, ex, sk, 10)["slope_w1_deg"]
+    assert w[0] > 3.0 and w[1] <= 3.0 and w[1] < 0.6 * w[0], w
+
+
+def test_no_crease_sharper_than_the_exemplars(sketches, tmp_path):
+    """A 90 m canyon DEM under a 30 m meander: the valley floors the layout carves were
+    sharper than any crease of the exemplar (seam_lap 1.22 with the slopes matched but no
+    crease limit); the output's P99.9 |Laplacian| per square metre stays within the goal."""
+    ex = os.path.join(SHARED, "canyon_zion_ut_srtm90m.tif")
+    if not os.path.exists(ex):
+        pytest.skip(f"{ex} absent")
+    sk = sketches / "meander_valley_900.tif"
+    out = tmp_path / "out.tif"
+    run("synth", "-q", "--sketch", sk, "--exemplar", ex, "--seed", 2, "--cell-size", 30, out)
+    m = _figures(out, ex, sk, 30)
+    assert m["seam_lap"] <= 1.0 and m["feature_recall"] >= 0.9, m
 
 
 @pytest.mark.parametrize("seed", SEEDS)

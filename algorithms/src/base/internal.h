@@ -149,6 +149,13 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
 ts_status ts__matcher_set_allowed(ts_ctx *ctx, ts_matcher *m, const unsigned char *allowed);
 int ts__matcher_restrict(ts_matcher *m, int on);
 
+/* poisson.c: ts_poisson_solve with NaN cells of u left out (neither
+ * unknowns nor boundary: the edges to them carry no guidance), so a grid
+ * with nodata can be solved whole.  Does not clear ctx. */
+ts_status ts__poisson_solve_valid(ts_ctx *ctx, int w, int h, const unsigned char *mask,
+                                  const float *gx, const float *gy, float *u, double tolerance,
+                                  int max_iter);
+
 /* Seconds on a monotonic clock (for stage timings). */
 double ts__now(void);
 

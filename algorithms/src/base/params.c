@@ -96,6 +96,11 @@ static const ts_param_desc sketch_desc[] = {
      "the land rises to sketched ridges and falls to sketched valleys as steeply, at that "
      "scale, as the exemplars' land; smaller scales keep the patches' detail (0 = off).",
      offsetof(ts_sketch_params, layout)},
+    {"slope_style", TS_PARAM_DOUBLE, 1.0, 0.0, 1.0, TS_UNIT_CELLS, "fraction", NULL,
+     "How far the output's slopes take the exemplars' distribution of slopes at the "
+     "output's resolution, after the layout: gradients rescaled by quantile mapping, "
+     "directions kept, heights refitted by a Poisson solve (0 = off).",
+     offsetof(ts_sketch_params, slope_style)},
 };
 
 static const ts_param_desc amplify_desc[] = {

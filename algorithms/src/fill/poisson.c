@@ -36,6 +36,7 @@ typedef struct poisson_grid {
     const float *gx, *gy;
     const unsigned char *labels;
     const float *seam_gx, *seam_gy; /* seam mode: guidance across the seam, or NULL = 0 */
+    int skip_nan;                   /* solve mode: NaN cells left out, as in seam mode */
 } poisson_grid;
 
 /* A pinned pure-Neumann component: queue[start .. start+len-1], target mean. */
@@ -80,7 +81,7 @@ static inline int poisson_is_unknown(const poisson_grid *g, int x, int y)
 {
     if (!g->mask[(size_t)y * (size_t)g->w + (size_t)x])
         return 0;
-    return !g->labels || !isnan(*poisson_u(g, x, y));
+    return !(g->labels || g->skip_nan) || !isnan(*poisson_u(g, x, y));
 }
 
 /* Wanted u(x+1, y) - u(x, y) (dir 0) or u(x, y+1) - u(x, y) (dir 1). */
@@ -175,7 +176,7 @@ static ts_status poisson_assemble(ts_ctx *ctx, const poisson_grid *g, poisson_sy
                 s->x[n] = u0;
                 init_sum += u0;
                 *id = n++;
-            } else if (g->labels && isnan(*poisson_u(g, x, y))) {
+            } else if ((g->labels || g->skip_nan) && isnan(*poisson_u(g, x, y))) {
                 *id = POISSON_EXCLUDED;
             } else {
                 *id = POISSON_KNOWN;
@@ -553,6 +554,26 @@ TS_API ts_status ts_poisson_solve(ts_ctx *ctx, int w, int h, const unsigned char
     g.mask = mask;
     g.gx = gx;
     g.gy = gy;
+    return poisson_run(ctx, &g, tolerance, max_iter);
+}
+
+ts_status ts__poisson_solve_valid(ts_ctx *ctx, int w, int h, const unsigned char *mask,
+                                  const float *gx, const float *gy, float *u, double tolerance,
+                                  int max_iter)
+{
+    poisson_grid g;
+    if (w <= 0 || h <= 0 || !mask || !gx || !gy || !u || !(tolerance > 0.0) ||
+        !isfinite(tolerance) || max_iter < 0)
+        return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "invalid grid or solver settings");
+    memset(&g, 0, sizeof g);
+    g.w = w;
+    g.h = h;
+    g.u = u;
+    g.stride = w;
+    g.mask = mask;
+    g.gx = gx;
+    g.gy = gy;
+    g.skip_nan = 1;
     return poisson_run(ctx, &g, tolerance, max_iter);
 }
 

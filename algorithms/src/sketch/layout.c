@@ -27,7 +27,8 @@
  * G is chosen so that the guide, blurred at its scale, is on average as
  * steep as the exemplar blurred at that scale: the layout carries the
  * exemplar's steepness, no more; G_c likewise, measured within P/2 of the
- * features.  Both are then scaled together by the factor (0.35..2.5) that
+ * features.  Both are then scaled together by the factor (0.35..2.5, or
+ * 1..2.5 when the slope style follows) that
  * brings the output's distribution of slopes closest to the exemplars'
  * (patch merging flattens a little; a steep exemplar's guide adds to its
  * own slopes).  For valleys, the layout's level along the features is the
@@ -706,6 +707,86 @@ static double layout_misfit(const float *r0, const float *diff, int W, int H, do
     return sum / LAYOUT_QUANTILES;
 }
 
+/* The land's large-scale heights (out blurred at sigma) stay within the
+ * exemplars' 1st to 99th percentile: beyond, they are pressed smoothly into
+ * a margin of a tenth of that range, as a far lowland levels out; the
+ * detail above them is kept; the change fades out within 2 sigma of fixed
+ * cells (fixd: distance to them, or NULL).  work, blurred: W * H floats. */
+static ts_status layout_press(ts_ctx *ctx, const layout_ws *ws, const ts_raster *exemplars,
+                              int n_exemplars, ts_raster *out, const float *fixd, double sigma,
+                              float *work, float *blurred)
+{
+    int W = out->width, H = out->height, e, x, y;
+    double lo = INFINITY, hi = -INFINITY, margin;
+    ts_status st = TS_OK;
+    for (e = 0; e < n_exemplars; e++) {
+        const ts_raster *ex = &exemplars[e];
+        float *wk = ts__malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
+        if (!wk)
+            return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        lo = fmin(lo, layout_percentile(ex, 1.0, wk));
+        hi = fmax(hi, layout_percentile(ex, 99.0, wk));
+        free(wk);
+    }
+    margin = 0.1 * (hi - lo);
+    for (y = 0; y < H; y++)
+        memcpy(work + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+               (size_t)W * sizeof(float));
+    if (isfinite(lo) && isfinite(hi) && margin > 0 &&
+        (st = lblur(ctx, ws, work, W, W, H, sigma, blurred)) == TS_OK)
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                double L, w = 1.0, want;
+                size_t i = (size_t)y * (size_t)W + (size_t)x;
+                L = blurred[i];
+                if (isnan(TS_PIX(out, x, y)) || isnan(L) || (L >= lo && L <= hi))
+                    continue;
+                want = L < lo ? lo - margin * (1.0 - exp((L - lo) / margin))
+                              : hi + margin * (1.0 - exp((hi - L) / margin));
+                if (fixd) {
+                    double t = fixd[i] / (2.0 * sigma);
+                    t = t > 1.0 ? 1.0 : t;
+                    w = t * t * (3.0 - 2.0 * t);
+                }
+                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * (want - L));
+            }
+    return st;
+}
+
+ts_status ts__layout_press_range(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                 ts_raster *out, const unsigned char *flags, int patch)
+{
+    size_t n = (size_t)out->width * (size_t)out->height, i;
+    float *work = ts__malloc_array(n, sizeof(float)), *blurred = ts__malloc_array(n, sizeof(float));
+    float *fixd = NULL;
+    unsigned char *m = NULL;
+    int any_fixed = 0;
+    ts_status st = TS_OK;
+    for (i = 0; flags && i < n; i++)
+        any_fixed |= (flags[i] & TS_CELL_FIXED) != 0;
+    if (any_fixed) {
+        fixd = ts__malloc_array(n, sizeof(float));
+        m = ts__malloc_array(n, 1);
+    }
+    if (!work || !blurred || (any_fixed && (!fixd || !m))) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        goto done;
+    }
+    if (any_fixed) {
+        for (i = 0; i < n; i++)
+            m[i] = (flags[i] & TS_CELL_FIXED) != 0;
+        if ((st = ts__distance_transform(ctx, m, out->width, out->height, fixd)) != TS_OK)
+            goto done;
+    }
+    st = layout_press(ctx, NULL, exemplars, n_exemplars, out, fixd, patch / 3.0, work, blurred);
+done:
+    free(work);
+    free(blurred);
+    free(fixd);
+    free(m);
+    return st;
+}
+
 ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
                            const unsigned char *flags, double strength)
 {
@@ -826,7 +907,10 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
      * gradient distributions, golden-section search over 0.35..2.5 times
      * the calibrated steepness.  Above 1 the layout and the crest steepen
      * together; below 1 only the layout gentles: the sketched features keep
-     * standing out over an exemplar whose land is mostly flat */
+     * standing out over an exemplar whose land is mostly flat.  With the
+     * slope style after it (slope_style.c, which matches the distribution
+     * itself and never gentles near the strokes) the search starts at 1:
+     * the layout is never gentler than the exemplar at its scale */
     for (i = 0; i < n; i++) { /* the parts the steepness scales */
         float o = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
         corr[i] = o - r0[i];
@@ -835,7 +919,8 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     {
         double target[LAYOUT_QUANTILES], q[LAYOUT_QUANTILES];
         int k, n_t = 0, it;
-        double lo = log(0.35), hi = log(2.5), g = 0.5 * (sqrt(5.0) - 1.0), x1, x2, f1, f2;
+        double lo = log(s->steep_lo > 0 ? s->steep_lo : 0.35), hi = log(2.5);
+        double g = 0.5 * (sqrt(5.0) - 1.0), x1, x2, f1, f2;
         memset(target, 0, sizeof target);
         for (e = 0; e < s->n_exemplars; e++) {
             const ts_raster *ex = &s->exemplars[e];
@@ -915,48 +1000,9 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
                 TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * shift);
             }
     }
-    /* the land's large-scale heights (blurred at the layout scale) stay
-     * within the exemplars' 1st to 99th percentile: beyond, they are pressed
-     * smoothly into a margin of a tenth of that range, as a far lowland
-     * levels out; the detail above them is kept */
-    {
-        double lo = INFINITY, hi = -INFINITY, margin;
-        for (e = 0; e < s->n_exemplars; e++) {
-            const ts_raster *ex = &s->exemplars[e];
-            float *wk = ts__malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
-            if (!wk) {
-                st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-                goto done;
-            }
-            lo = fmin(lo, layout_percentile(ex, 1.0, wk));
-            hi = fmax(hi, layout_percentile(ex, 99.0, wk));
-            free(wk);
-        }
-        margin = 0.1 * (hi - lo);
-        for (y = 0; y < H; y++)
-            memcpy(work + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
-                   (size_t)W * sizeof(float));
-        if (isfinite(lo) && isfinite(hi) && margin > 0 &&
-            (st = lblur(ctx, &ws, work, W, W, H, d.sig_l, corr)) == TS_OK)
-            for (y = 0; y < H; y++)
-                for (x = 0; x < W; x++) {
-                    double L, w = 1.0, want;
-                    i = (size_t)y * (size_t)W + (size_t)x;
-                    L = corr[i];
-                    if (isnan(TS_PIX(out, x, y)) || isnan(L) || (L >= lo && L <= hi))
-                        continue;
-                    want = L < lo ? lo - margin * (1.0 - exp((L - lo) / margin))
-                                  : hi + margin * (1.0 - exp((hi - L) / margin));
-                    if (fixd) {
-                        double t = fixd[i] / (2.0 * d.sig_l);
-                        t = t > 1.0 ? 1.0 : t;
-                        w = t * t * (3.0 - 2.0 * t);
-                    }
-                    TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * (want - L));
-                }
-        if (st != TS_OK)
-            goto done;
-    }
+    if ((st = layout_press(ctx, &ws, s->exemplars, s->n_exemplars, out, fixd, d.sig_l, work,
+                           corr)) != TS_OK)
+        goto done;
     /* valleys: the floor along the sketch's features descends to the
      * outlet cell by cell, the change fading out across the valley over an
      * eighth of a patch (as a river would cut or fill its bed) */

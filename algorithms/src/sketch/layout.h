@@ -39,6 +39,7 @@ typedef struct ts_layout_spec {
     int patch;                      /* the patch size, cells: sets both scales */
     const ts_features *features;    /* the sketch's feature graph (valleys descend along
                                        its paths), or NULL */
+    double steep_lo;                /* least steepness factor searched (0 = 0.35) */
 } ts_layout_spec;
 
 /* Along the paths of spec->features of spec->kind (level: width*height,
@@ -52,5 +53,12 @@ ts_status layout_descend(ts_ctx *ctx, const ts_layout_spec *spec, float *level);
  * cells never change and the corrections fade out near them. */
 ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *spec, ts_raster *out,
                            const unsigned char *flags, double strength);
+
+/* The range press of the layout alone (its last step before valley floors
+ * descend): the land's heights blurred at a third of `patch` pressed into
+ * the exemplars' 1st..99th percentiles with a margin; flags as above.  For
+ * a stage that moves heights after the layout (slope_style.c). */
+ts_status ts__layout_press_range(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                 ts_raster *out, const unsigned char *flags, int patch);
 
 #endif

@@ -1,0 +1,378 @@
+/*
+ * slope_style.c - the exemplars' distribution of slopes given to a sketched
+ * terrain (a TerraSynth addition to Zhou et al. 2007, named as such).
+ *
+ * The feature patches, the fill and the layout stage place the exemplars'
+ * landforms where the sketch wants them, but the mix of slopes drifts from
+ * the exemplars': merging keeps gradients only, the layout adds regional
+ * tilts (a volcano's flat crater floors and lava plains become gentle
+ * ramps) and its single steepness factor matches the mean, not the shape.
+ * This stage matches the shape, in the gradient domain (as histogram
+ * matching is done on gradients rather than heights, so that the layout
+ * stays where it is):
+ *
+ *   1. g(x) = |grad u|(x) (central differences, per cell), and F its
+ *      distribution over the output's valid cells (per exemplar region
+ *      when a region map chose the exemplars); G the distribution of the
+ *      exemplar's gradient magnitude at the output's ground resolution;
+ *   2. every cell's wanted magnitude is G^-1(F(g(x))) (quantile mapping),
+ *      its factor f(x) = (G^-1(F(g)) / g)^strength, clamped to 1/4..4;
+ *   3. each edge's wanted difference is the edge's own difference times the
+ *      mean factor of its two cells: directions are kept, only steepness
+ *      changes;
+ *   4. the heights whose differences fit those best in least squares: the
+ *      Poisson equation, solved by poisson.c (nodata cells left out, fixed
+ *      cells as boundary values, the mean height of a free region kept).
+ *
+ * One pass moves the distribution most of the way (the least-squares fit
+ * cannot honour every edge); SLOPE_STYLE_PASSES passes get within the
+ * resampling floor on the cases measured (sketch.md).  Cost: one Poisson
+ * solve per pass, to a loose relative residual (1e-3), started from the
+ * current heights: the figures of the quality matrix are the same as at
+ * 1e-5 for half the time, but a change at the scale of the whole grid
+ * lags (all slopes doubled: 2.4 % of the relief off, 0.005 % at 1e-6).
+ *
+ * Then no crease sharper than the exemplars' sharpest: a cell whose
+ * |Laplacian| passes the exemplar's 99.99th percentile moves half-way
+ * towards it, for at most CREASE_PASSES Jacobi sweeps.  Feature patches
+ * warped and carved by the layout along the sketch's strokes made V-shaped
+ * thalwegs sharper than any in an exemplar coarser than the output (a
+ * 90 m canyon DEM on a 30 m grid); real valley floors are not.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "slope_style.h"
+
+#define SLOPE_STAGE "slope style"
+#define SLOPE_Q 1001          /* quantiles 0, 0.1, ..., 100 % */
+#define SLOPE_SAMPLES 1048576 /* at most about this many cells sampled per distribution */
+#define SLOPE_FACTOR_MAX 4.0
+#define SLOPE_KEEP_Q 995 /* the quantile (of SLOPE_Q) near features: 99.5 % */
+#define CREASE_QUANTILE 0.9999 /* no crease sharper than the exemplars' sharpest 0.01 % */
+#define CREASE_PASSES 40
+
+static int slope_float_cmp(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* One component of the gradient at p along a step of `d` elements: the
+ * central difference, or the one-sided one where the grid or the data end
+ * on one side (NaN where they end on both). */
+static inline double slope_axis(const float *p, ptrdiff_t d, int lo_ok, int hi_ok)
+{
+    double a = lo_ok ? (double)p[-d] : NAN, b = hi_ok ? (double)p[d] : NAN;
+    if (!isnan(a) && !isnan(b))
+        return 0.5 * (b - a);
+    if (!isnan(b))
+        return b - (double)p[0];
+    if (!isnan(a))
+        return (double)p[0] - a;
+    return NAN;
+}
+
+/* Gradient magnitude per cell (central differences, one-sided at the
+ * edges of the grid and of the data; NaN on nodata). */
+static inline double slope_at(const float *a, ptrdiff_t stride, int w, int h, int x, int y)
+{
+    const float *p = a + (ptrdiff_t)y * stride + x;
+    double gx, gy;
+    if (isnan(p[0]))
+        return NAN;
+    gx = slope_axis(p, 1, x > 0, x + 1 < w);
+    gy = slope_axis(p, stride, y > 0, y + 1 < h);
+    if (isnan(gx) && isnan(gy))
+        return NAN;
+    gx = isnan(gx) ? 0.0 : gx;
+    gy = isnan(gy) ? 0.0 : gy;
+    return sqrt(gx * gx + gy * gy);
+}
+
+/* SLOPE_Q quantiles of the gradient magnitude of a (w x h at stride) over
+ * the cells where `sel` (w*h, stride w; NULL = all) equals `group`, sampled
+ * on a lattice of at most about SLOPE_SAMPLES cells.  Returns the number of
+ * cells sampled (0: no distribution).  work: room for the samples. */
+static size_t slope_quantiles(const float *a, ptrdiff_t stride, int w, int h, const int32_t *sel,
+                              int32_t group, float *work, double *q)
+{
+    double cells = (double)w * (double)h;
+    int step = cells > SLOPE_SAMPLES ? (int)ceil(sqrt(cells / SLOPE_SAMPLES)) : 1, x, y, k;
+    size_t n = 0;
+    for (y = 0; y < h; y += step)
+        for (x = 0; x < w; x += step) {
+            double g;
+            if (sel && sel[(size_t)y * (size_t)w + (size_t)x] != group)
+                continue;
+            g = slope_at(a, stride, w, h, x, y);
+            if (!isnan(g))
+                work[n++] = (float)g;
+        }
+    if (n < 16)
+        return 0;
+    qsort(work, n, sizeof *work, slope_float_cmp);
+    for (k = 0; k < SLOPE_Q; k++) {
+        double pos = (double)k / (SLOPE_Q - 1) * (double)(n - 1);
+        size_t i0 = (size_t)pos;
+        double f = pos - (double)i0;
+        q[k] = i0 + 1 < n ? (1.0 - f) * work[i0] + f * work[i0 + 1] : work[n - 1];
+    }
+    return n;
+}
+
+/* G^-1(F(g)): g placed among the quantiles qo, the same place among qe. */
+static double slope_map(double g, const double *qo, const double *qe)
+{
+    int lo = 0, hi = SLOPE_Q - 1;
+    double t;
+    if (g <= qo[0])
+        return qe[0];
+    if (g >= qo[SLOPE_Q - 1])
+        return qe[SLOPE_Q - 1];
+    /* the first k with qo[k] > g; ties (a flat share) take the middle of
+     * their run, so that equal slopes map to one value */
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (qo[mid] > g)
+            hi = mid;
+        else
+            lo = mid;
+    }
+    if (qo[lo] == g) {
+        int a = lo;
+        while (a > 0 && qo[a - 1] == g)
+            a--;
+        return 0.5 * (qe[a] + qe[lo]);
+    }
+    t = (g - qo[lo]) / (qo[hi] - qo[lo]);
+    return qe[lo] + t * (qe[hi] - qe[lo]);
+}
+
+/* An edge's factor from its two cells': the one nearer 1 when both scale
+ * alike (so that a steepened wall does not sharpen the crease at its foot),
+ * 1 across a change of direction. */
+static inline double slope_edge(float a, float b)
+{
+    if (a >= 1.0f && b >= 1.0f)
+        return TS_MIN(a, b);
+    if (a <= 1.0f && b <= 1.0f)
+        return TS_MAX(a, b);
+    return 1.0;
+}
+
+/* Discrete Laplacian (5 points, per cell) at (x, y); NaN without four
+ * valid neighbours. */
+static inline double crease_at(const float *a, int w, int h, int x, int y)
+{
+    const float *p = a + (size_t)y * (size_t)w + (size_t)x;
+    if (x < 1 || y < 1 || x + 1 >= w || y + 1 >= h)
+        return NAN;
+    return (double)p[1] + p[-1] + p[w] + p[-w] - 4.0 * (double)p[0];
+}
+
+/* The CREASE_QUANTILE quantile of |Laplacian| of a (w x h, stride w) over a
+ * lattice of at most about SLOPE_SAMPLES cells; NaN when too few. */
+static double crease_cap(const float *a, ptrdiff_t stride, int w, int h, float *work)
+{
+    double cells = (double)w * (double)h, pos;
+    int step = cells > SLOPE_SAMPLES ? (int)ceil(sqrt(cells / SLOPE_SAMPLES)) : 1, x, y;
+    size_t n = 0, i0;
+    for (y = 1; y + 1 < h; y += step)
+        for (x = 1; x + 1 < w; x += step) {
+            const float *p = a + (ptrdiff_t)y * stride + x;
+            double l = (double)p[1] + p[-1] + p[stride] + p[-stride] - 4.0 * (double)p[0];
+            if (!isnan(l))
+                work[n++] = (float)fabs(l);
+        }
+    if (n < 1024)
+        return NAN;
+    qsort(work, n, sizeof *work, slope_float_cmp);
+    pos = CREASE_QUANTILE * (double)(n - 1);
+    i0 = (size_t)pos;
+    return i0 + 1 < n ? work[i0] + (pos - (double)i0) * (work[i0 + 1] - work[i0]) : work[n - 1];
+}
+
+ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *out)
+{
+    int W = out->width, H = out->height, n_groups, grp, pass, x, y;
+    size_t n = (size_t)W * (size_t)H, i, ex_cap = 0;
+    float *u = NULL, *gx = NULL, *gy = NULL, *fac = NULL, *work = NULL, *exwork = NULL;
+    float *keep = NULL;
+    unsigned char *mask = NULL;
+    int32_t *group = NULL;
+    double *qe = NULL, *qo = NULL, *cap = NULL;
+    char *has = NULL;
+    ts_status st = TS_OK;
+    if (!(s->strength > 0) || W < 3 || H < 3 || s->n_exemplars < 1)
+        return TS_OK;
+    /* one group per exemplar when a region map chose them, else one */
+    n_groups = (s->cell_exemplar && s->n_exemplars > 1) ? s->n_exemplars : 1;
+    for (grp = 0; grp < s->n_exemplars; grp++) {
+        const ts_raster *e = &s->exemplars[grp];
+        ex_cap = TS_MAX(ex_cap, (size_t)e->width * (size_t)e->height);
+    }
+    ex_cap = TS_MIN(ex_cap, (size_t)SLOPE_SAMPLES * 2 + 4096);
+    u = ts__malloc_array(n, sizeof *u);
+    gx = ts__malloc_array(n, sizeof *gx);
+    gy = ts__malloc_array(n, sizeof *gy);
+    fac = ts__malloc_array(n, sizeof *fac);
+    work = ts__malloc_array(TS_MIN(n, (size_t)SLOPE_SAMPLES * 2 + 4096), sizeof *work);
+    exwork = ts__malloc_array(ex_cap, sizeof *exwork);
+    mask = ts__malloc_array(n, 1);
+    qe = ts__calloc_array((size_t)n_groups * SLOPE_Q, sizeof *qe);
+    qo = ts__calloc_array((size_t)n_groups * SLOPE_Q, sizeof *qo);
+    has = ts__calloc_array((size_t)n_groups, 1);
+    cap = ts__calloc_array((size_t)n_groups, sizeof *cap);
+    if (n_groups > 1)
+        group = ts__malloc_array(n, sizeof *group);
+    if (!u || !gx || !gy || !fac || !work || !exwork || !mask || !qe || !qo || !has || !cap ||
+        (n_groups > 1 && !group)) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, SLOPE_STAGE, "out of memory");
+        goto done;
+    }
+    if (s->features && s->keep_radius > 0) { /* distances to the sketch's features */
+        if (!(keep = ts__malloc_array(n, sizeof *keep))) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, SLOPE_STAGE, "out of memory");
+            goto done;
+        }
+        for (i = 0; i < n; i++)
+            mask[i] = s->features[i] != 0;
+        if ((st = ts__distance_transform(ctx, mask, W, H, keep)) != TS_OK)
+            goto done;
+    }
+    for (y = 0; y < H; y++)
+        memcpy(u + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+               (size_t)W * sizeof *u);
+    for (i = 0; i < n; i++) {
+        mask[i] = !isnan(u[i]) && !(s->flags && (s->flags[i] & TS_CELL_FIXED));
+        if (group)
+            group[i] = s->cell_exemplar[i] >= 0 && s->cell_exemplar[i] < s->n_exemplars
+                           ? s->cell_exemplar[i]
+                           : -1;
+    }
+    /* the wanted distributions: per exemplar, or all exemplars pooled */
+    for (grp = 0; grp < n_groups; grp++) {
+        double q[SLOPE_Q];
+        int e, k, cnt = 0;
+        for (e = 0; e < s->n_exemplars; e++) {
+            const ts_raster *ex = &s->exemplars[e];
+            if (n_groups > 1 && e != grp)
+                continue;
+            if (slope_quantiles(ex->data, ex->stride, ex->width, ex->height, NULL, 0, exwork, q)) {
+                for (k = 0; k < SLOPE_Q; k++)
+                    qe[(size_t)grp * SLOPE_Q + (size_t)k] += q[k];
+                cnt++;
+            }
+        }
+        for (e = 0; e < s->n_exemplars; e++) {
+            const ts_raster *ex = &s->exemplars[e];
+            double c;
+            if (n_groups > 1 && e != grp)
+                continue;
+            c = crease_cap(ex->data, ex->stride, ex->width, ex->height, exwork);
+            if (!isnan(c))
+                cap[grp] = TS_MAX(cap[grp], c);
+        }
+        if (cnt) {
+            for (k = 0; k < SLOPE_Q; k++)
+                qe[(size_t)grp * SLOPE_Q + (size_t)k] /= cnt;
+            has[grp] = 1;
+        }
+    }
+    for (pass = 0; pass < SLOPE_STYLE_PASSES; pass++) {
+        ts_progress_saved sv;
+        for (grp = 0; grp < n_groups; grp++)
+            if (has[grp] && !slope_quantiles(u, W, W, H, group, grp, work,
+                                             qo + (size_t)grp * SLOPE_Q))
+                has[grp] = 2; /* no cell of the region has a gradient: left as it is */
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                double g = slope_at(u, W, W, H, x, y), f = 1.0;
+                int32_t gi;
+                i = (size_t)y * (size_t)W + (size_t)x;
+                gi = group ? group[i] : 0;
+                if (!isnan(g) && gi >= 0 && has[gi] == 1 && g > 1e-9) {
+                    f = slope_map(g, qo + (size_t)gi * SLOPE_Q, qe + (size_t)gi * SLOPE_Q) / g;
+                    f = pow(TS_MAX(f, 1e-300), s->strength);
+                    f = TS_MIN(TS_MAX(f, 1.0 / SLOPE_FACTOR_MAX), SLOPE_FACTOR_MAX);
+                    if (keep && keep[i] < s->keep_radius && f < 1.0) {
+                        /* the sketch's features keep standing out: near them
+                         * slopes are gentled only down to the exemplar's
+                         * steepest half percent */
+                        double top = qe[(size_t)gi * SLOPE_Q + SLOPE_KEEP_Q];
+                        f = g > top ? TS_MAX(f, top / g) : 1.0;
+                    }
+                }
+                fac[i] = (float)f;
+            }
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                i = (size_t)y * (size_t)W + (size_t)x;
+                gx[i] = x + 1 < W && !isnan(u[i]) && !isnan(u[i + 1])
+                            ? (float)(((double)u[i + 1] - u[i]) * slope_edge(fac[i], fac[i + 1]))
+                            : 0.0f;
+                gy[i] = y + 1 < H && !isnan(u[i]) && !isnan(u[i + (size_t)W])
+                            ? (float)(((double)u[i + (size_t)W] - u[i]) *
+                                      slope_edge(fac[i], fac[i + (size_t)W]))
+                            : 0.0f;
+            }
+        sv = ts__progress_push(ctx, (double)pass / SLOPE_STYLE_PASSES,
+                               (double)(pass + 1) / SLOPE_STYLE_PASSES);
+        st = ts__poisson_solve_valid(ctx, W, H, mask, gx, gy, u,
+                                     s->tolerance > 0 ? s->tolerance : SLOPE_STYLE_TOLERANCE,
+                                     1000 + 20 * (W + H));
+        ts__progress_pop(ctx, sv);
+        if (st == TS_ERR_NUMERIC) { /* not converged: u is as it was; keep it */
+            ts__clear(ctx);
+            st = TS_OK;
+            break;
+        }
+        if (st != TS_OK)
+            goto done;
+    }
+    /* no crease sharper than the exemplars' sharpest: a cell whose |Laplacian|
+     * passes its exemplar's CREASE_QUANTILE moves half-way towards it, all
+     * cells at once (Jacobi: the same result on any thread count) */
+    for (pass = 0; pass < CREASE_PASSES; pass++) {
+        size_t changed = 0;
+        memcpy(gx, u, n * sizeof *u);
+        for (y = 1; y + 1 < H; y++)
+            for (x = 1; x + 1 < W; x++) {
+                double l;
+                int32_t gi;
+                i = (size_t)y * (size_t)W + (size_t)x;
+                gi = group ? group[i] : 0;
+                if (!mask[i] || gi < 0 || !(cap[gi] > 0))
+                    continue;
+                l = crease_at(u, W, H, x, y);
+                if (isnan(l) || fabs(l) <= cap[gi])
+                    continue;
+                gx[i] = (float)(u[i] + 0.5 * (l - copysign(cap[gi], l)) / 4.0);
+                changed++;
+            }
+        memcpy(u, gx, n * sizeof *u);
+        if (!changed)
+            break;
+    }
+    for (y = 0; y < H; y++)
+        memcpy(out->data + (size_t)y * (size_t)out->stride, u + (size_t)y * (size_t)W,
+               (size_t)W * sizeof *u);
+done:
+    free(u);
+    free(gx);
+    free(gy);
+    free(fac);
+    free(work);
+    free(exwork);
+    free(mask);
+    free(group);
+    free(qe);
+    free(qo);
+    free(has);
+    free(cap);
+    free(keep);
+    return st;
+}
