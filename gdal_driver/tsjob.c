@@ -35,7 +35,8 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
 #define JOB_MEM_PPA_CHAINS 1 /* per DEM cell: the chains held (76 k at 4096^2: far less) */
 #define JOB_MEM_SYNTH_CELL 16     /* per output cell: terrain, flags, fill state */
 #define JOB_MEM_MAPS_CELL 20      /* per output cell with the synthesis maps */
-#define JOB_MEM_SKETCH_CELL 96    /* per output cell with a sketch: PPA, features, guides */
+#define JOB_MEM_SKETCH_CELL 128   /* per output cell with a sketch: PPA, features, guides, the
+                                     slope style's Poisson system (~110 B/cell at its peak) */
 #define JOB_MEM_EX_SOURCE_CELL 12 /* per exemplar cell as read */
 #define JOB_MEM_EX_CELL 24        /* per exemplar cell at the target resolution: pyramid, FFT */
 

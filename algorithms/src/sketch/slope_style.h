@@ -12,7 +12,7 @@
 #include "relief_guide.h"
 
 #define SLOPE_STYLE_PASSES 3
-#define SLOPE_STYLE_TOLERANCE 1e-3
+#define SLOPE_STYLE_TOLERANCE 3e-3
 
 typedef struct ts_slope_style_spec {
     const ts_raster *exemplars; /* at the output's ground resolution */
