@@ -98,6 +98,82 @@ static int fail_ts(ts_ctx *ctx, const char *what)
     return 1;
 }
 
+/* Amdahl's parallel fraction from the seconds on one thread and on n
+ * (clamped to 0..1; 0 when n is 1). */
+static double parallel_fraction(double t1, double tn, long n)
+{
+    double p;
+    if (n <= 1 || !(t1 > 0.0))
+        return 0.0;
+    p = (1.0 - tn / t1) / (1.0 - 1.0 / (double)n);
+    return p < 0.0 ? 0.0 : p > 1.0 ? 1.0 : p;
+}
+
+typedef struct stage_times {
+    double prof, conn, poly;
+    size_t nseg, nkept;
+} stage_times;
+
+/* The public PPA stages one by one (ridges and valleys) on `threads`
+ * threads (0 = all); 0 on success. */
+static int stage_pass(ts_ctx *ctx, const ts_raster *dem, size_t ncells, int profile_length,
+                      double threshold, int threads, stage_times *t)
+{
+    const int kinds[2] = {TS_RIDGE, TS_VALLEY};
+    unsigned char *targets = malloc(ncells);
+    ts_status st;
+    double t0;
+    memset(t, 0, sizeof *t);
+    if (targets == NULL) {
+        fprintf(stderr, "bench_ppa: out of memory for the stage pass\n");
+        return 1;
+    }
+    ts_ctx_set_threads(ctx, threads);
+    t0 = now_s();
+    st = ts_ppa_profile_recognition(ctx, dem, profile_length, threshold, TS_RIDGE | TS_VALLEY,
+                                    targets);
+    t->prof = now_s() - t0;
+    if (st != TS_OK) {
+        free(targets);
+        return fail_ts(ctx, "ts_ppa_profile_recognition");
+    }
+    for (int k = 0; k < 2; k++) {
+        ts_ppa_segment *segs = NULL;
+        size_t nseg = 0;
+        unsigned char *keep;
+        t0 = now_s();
+        st = ts_ppa_target_connection(ctx, dem, targets, kinds[k], &segs, &nseg);
+        t->conn += now_s() - t0;
+        if (st != TS_OK) {
+            free(targets);
+            return fail_ts(ctx, "ts_ppa_target_connection");
+        }
+        keep = malloc(nseg > 0 ? nseg : 1);
+        if (keep == NULL) {
+            free(segs);
+            free(targets);
+            fprintf(stderr, "bench_ppa: out of memory for the stage pass\n");
+            return 1;
+        }
+        t0 = now_s();
+        st = ts_ppa_polygon_breaking(ctx, segs, nseg, ncells, keep);
+        t->poly += now_s() - t0;
+        if (st != TS_OK) {
+            free(keep);
+            free(segs);
+            free(targets);
+            return fail_ts(ctx, "ts_ppa_polygon_breaking");
+        }
+        for (size_t i = 0; i < nseg; i++)
+            t->nkept += keep[i] != 0;
+        t->nseg += nseg;
+        free(keep);
+        free(segs);
+    }
+    free(targets);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     char default_path[4096];
@@ -246,71 +322,58 @@ int main(int argc, char **argv)
            "(threshold used %.2f)\n",
            n_ridge, n_valley, f->n_paths, f->n_nodes, f->threshold_used);
 
-    /* ---- the public stages, one by one (second pass, same parameters) ---- */
+    /* ---- the public stages, one by one, on one thread and on all ---- */
     {
         const double threshold = f->threshold_used;
-        const int kinds[2] = {TS_RIDGE, TS_VALLEY};
-        double t_prof = 0.0, t_conn = 0.0, t_poly = 0.0;
-        size_t nseg_total = 0, nkept_total = 0;
-        unsigned char *targets = malloc(ncells);
-
+        stage_times one, all;
+        double t1_total;
+        ts_features *f1 = NULL;
         ts_features_free(f);
         f = NULL;
-        if (targets == NULL) {
-            fprintf(stderr, "bench_ppa: out of memory for the stage pass\n");
+        if (stage_pass(ctx, &dem, ncells, params.profile_length, threshold, 0, &all) != 0) {
             rc = 1;
             goto done;
         }
-        t0 = now_s();
-        st = ts_ppa_profile_recognition(ctx, &dem, params.profile_length, threshold,
-                                        TS_RIDGE | TS_VALLEY, targets);
-        t_prof = now_s() - t0;
-        if (st != TS_OK) {
-            free(targets);
-            rc = fail_ts(ctx, "ts_ppa_profile_recognition");
-            goto done;
-        }
-        for (int k = 0; k < 2; k++) {
-            ts_ppa_segment *segs = NULL;
-            size_t nseg = 0;
-            t0 = now_s();
-            st = ts_ppa_target_connection(ctx, &dem, targets, kinds[k], &segs, &nseg);
-            t_conn += now_s() - t0;
-            if (st != TS_OK) {
-                free(targets);
-                rc = fail_ts(ctx, "ts_ppa_target_connection");
-                goto done;
-            }
-            unsigned char *keep = malloc(nseg > 0 ? nseg : 1);
-            if (keep == NULL) {
-                free(segs);
-                free(targets);
-                fprintf(stderr, "bench_ppa: out of memory for the stage pass\n");
-                rc = 1;
-                goto done;
-            }
-            t0 = now_s();
-            st = ts_ppa_polygon_breaking(ctx, segs, nseg, ncells, keep);
-            t_poly += now_s() - t0;
-            if (st != TS_OK) {
-                free(keep);
-                free(segs);
-                free(targets);
-                rc = fail_ts(ctx, "ts_ppa_polygon_breaking");
-                goto done;
-            }
-            for (size_t i = 0; i < nseg; i++)
-                nkept_total += keep[i] != 0;
-            nseg_total += nseg;
-            free(keep);
-            free(segs);
-        }
-        free(targets);
-        double rest = t_total - (t_prof + t_conn + t_poly);
-        printf("stages: profile recognition %.2f s, target connection %.2f s, "
+        printf("stages (all cores): profile recognition %.2f s, target connection %.2f s, "
                "polygon breaking %.2f s (%zu segments, %zu kept); "
                "rest of total (branch removal, graph) ~%.2f s\n",
-               t_prof, t_conn, t_poly, nseg_total, nkept_total, rest > 0.0 ? rest : 0.0);
+               all.prof, all.conn, all.poly, all.nseg, all.nkept,
+               t_total - (all.prof + all.conn + all.poly) > 0.0
+                   ? t_total - (all.prof + all.conn + all.poly)
+                   : 0.0);
+        /* the parallel fraction p of each stage (Amdahl: T_N = T_1 ((1 - p) + p / N)),
+         * from the same work on one thread and on N */
+        ts_ctx_set_threads(ctx, 1);
+        t0 = now_s();
+        st = ts_ppa_extract(ctx, &dem, metrics, &params, &f1);
+        t1_total = now_s() - t0;
+        ts_features_free(f1);
+        if (st != TS_OK) {
+            rc = fail_ts(ctx, "ts_ppa_extract (one thread)");
+            goto done;
+        }
+        if (stage_pass(ctx, &dem, ncells, params.profile_length, threshold, 1, &one) != 0) {
+            rc = 1;
+            goto done;
+        }
+        ts_ctx_set_threads(ctx, 0);
+        printf("threads 1 -> %ld: whole %.2f -> %.2f s (p = %.2f), profile recognition "
+               "%.2f -> %.2f s (p = %.2f), target connection %.2f -> %.2f s (p = %.2f), "
+               "polygon breaking %.2f -> %.2f s (p = %.2f), rest %.2f -> %.2f s (p = %.2f)\n",
+               ncpu, t1_total, t_total, parallel_fraction(t1_total, t_total, ncpu), one.prof,
+               all.prof, parallel_fraction(one.prof, all.prof, ncpu), one.conn, all.conn,
+               parallel_fraction(one.conn, all.conn, ncpu), one.poly, all.poly,
+               parallel_fraction(one.poly, all.poly, ncpu),
+               t1_total - (one.prof + one.conn + one.poly),
+               t_total - (all.prof + all.conn + all.poly),
+               parallel_fraction(t1_total - (one.prof + one.conn + one.poly),
+                                 t_total - (all.prof + all.conn + all.poly), ncpu));
+        if (ncpu > 1) {
+            double p = parallel_fraction(t1_total, t_total, ncpu);
+            printf("  Amdahl from p = %.2f: %.1f x on 16 threads (goal of issue 15: >= 8 x; "
+                   "measure it on 16 cores where one is at hand)\n",
+                   p, 1.0 / ((1.0 - p) + p / 16.0));
+        }
     }
 
     {

@@ -520,6 +520,31 @@ static ts_status poisson_run(ts_ctx *ctx, const poisson_grid *g, double tol, int
     return st;
 }
 
+/* Solve mode over a w x h grid at stride w (skip_nan: NaN cells left out). */
+static ts_status poisson_solve_grid(ts_ctx *ctx, int w, int h, const unsigned char *mask,
+                                    const float *gx, const float *gy, float *u, double tolerance,
+                                    int max_iter, int skip_nan)
+{
+    poisson_grid g;
+    if (w <= 0 || h <= 0)
+        return ts__fail(ctx, TS_ERR_SIZE, POISSON_STAGE, "grid %d x %d is empty", w, h);
+    if (!mask || !gx || !gy || !u)
+        return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "missing mask, guidance or values");
+    if (!(tolerance > 0.0) || !isfinite(tolerance) || max_iter < 0)
+        return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "tolerance %g or max_iter %d is invalid",
+                        tolerance, max_iter);
+    memset(&g, 0, sizeof g);
+    g.w = w;
+    g.h = h;
+    g.u = u;
+    g.stride = w;
+    g.mask = mask;
+    g.gx = gx;
+    g.gy = gy;
+    g.skip_nan = skip_nan;
+    return poisson_run(ctx, &g, tolerance, max_iter);
+}
+
 /*
  * Beyond terrasynth.h, both entry points:
  * - non-finite values are rejected (TS_ERR_ARG) where they are read: the
@@ -537,44 +562,15 @@ TS_API ts_status ts_poisson_solve(ts_ctx *ctx, int w, int h, const unsigned char
                                   const float *gx, const float *gy, float *u, double tolerance,
                                   int max_iter)
 {
-    poisson_grid g;
     ts__clear(ctx);
-    if (w <= 0 || h <= 0)
-        return ts__fail(ctx, TS_ERR_SIZE, POISSON_STAGE, "grid %d x %d is empty", w, h);
-    if (!mask || !gx || !gy || !u)
-        return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "missing mask, guidance or values");
-    if (!(tolerance > 0.0) || !isfinite(tolerance) || max_iter < 0)
-        return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "tolerance %g or max_iter %d is invalid",
-                        tolerance, max_iter);
-    memset(&g, 0, sizeof g);
-    g.w = w;
-    g.h = h;
-    g.u = u;
-    g.stride = w;
-    g.mask = mask;
-    g.gx = gx;
-    g.gy = gy;
-    return poisson_run(ctx, &g, tolerance, max_iter);
+    return poisson_solve_grid(ctx, w, h, mask, gx, gy, u, tolerance, max_iter, 0);
 }
 
 ts_status ts__poisson_solve_valid(ts_ctx *ctx, int w, int h, const unsigned char *mask,
                                   const float *gx, const float *gy, float *u, double tolerance,
                                   int max_iter)
 {
-    poisson_grid g;
-    if (w <= 0 || h <= 0 || !mask || !gx || !gy || !u || !(tolerance > 0.0) ||
-        !isfinite(tolerance) || max_iter < 0)
-        return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "invalid grid or solver settings");
-    memset(&g, 0, sizeof g);
-    g.w = w;
-    g.h = h;
-    g.u = u;
-    g.stride = w;
-    g.mask = mask;
-    g.gx = gx;
-    g.gy = gy;
-    g.skip_nan = 1;
-    return poisson_run(ctx, &g, tolerance, max_iter);
+    return poisson_solve_grid(ctx, w, h, mask, gx, gy, u, tolerance, max_iter, 1);
 }
 
 TS_API ts_status ts_poisson_seam_remove(ts_ctx *ctx, ts_raster *merged, const unsigned char *labels,
