@@ -6,7 +6,8 @@ PKGS=(build-essential cmake pkg-config libgdal-dev gdal-bin python3-gdal python3
       python3-scipy time  # time: peak memory of a run (tests/cli/test_limits.py, bench)
       libproj-dev proj-bin libgeographiclib-dev libfftw3-dev python3-pytest clang
       libclang-rt-14-dev
-      python3-qgis qgis-providers qgis)  # QGIS provider tests (tests/qgis; qgis = qgis_process)
+      python3-qgis qgis-providers qgis  # QGIS provider tests (tests/qgis; qgis = qgis_process)
+      python3-dask python3-distributed)  # terrasynth-dask, the Dask runner (tests/cli)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,0 +1,238 @@
+#!/usr/bin/python3
+# terrasynth-dask - compute a TerraSynth recipe on a Dask cluster, block by block, into a
+# tiled, compressed GeoTIFF (a COG when GDAL has the COG driver) with overviews.
+#
+# Copyright (C) 2026 The TerraSynth developers
+# SPDX-License-Identifier: GPL-2.0-or-later
+#
+#   terrasynth-dask RECIPE.tsyn OUT.tif [--workers N | --scheduler ADDRESS] [--chunk 2048]
+#                   [--plugins DIR] [--no-overviews] [-q]
+#
+# The workers open the recipe through the TSYN GDAL driver and each reads one chunk (a window
+# of the raster); the client writes the chunks as they come.  Methods that compute any window
+# alone (pixel, amplify) are spread over the workers chunk by chunk; the others (synth, ppa)
+# compute the whole raster on first read, so their recipe is read by one task as one chunk
+# (the same bytes, no gain in speed).  A chunk is a pure function of the recipe and its
+# window, so Dask recomputes the chunks of a worker that dies.  The output appears whole or
+# not at all (written under a temporary name, moved at the end; removed on error and on
+# Ctrl-C); it never replaces the recipe or a file the recipe names.  Debian packages only:
+# python3-gdal, python3-numpy, python3-dask, python3-distributed.
+import argparse
+import os
+import signal
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+
+PROG = "terrasynth-dask"
+# recipe methods whose every window is computed alone, the same bytes as the whole's
+BLOCK_EXACT = {"Pixel", "Amplify"}
+
+
+def fail(msg):
+    sys.stderr.write("%s: %s\n" % (PROG, msg))
+    sys.exit(1)
+
+
+def recipe_method(path):
+    """The recipe's method element (Pixel, Amplify, Synth, PPA, ...) and the files it names
+    (every element text that is an existing path, relative to the recipe's folder)."""
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError) as e:
+        fail("%s: not a readable recipe (%s)" % (path, e))
+    method = next(iter(root), None)
+    if method is None:
+        fail("%s: the recipe has no method" % path)
+    base = os.path.dirname(os.path.abspath(path))
+    named = []
+    for el in root.iter():
+        for v in [el.text or ""] + list(el.attrib.values()):
+            v = v.strip()
+            if v and len(v) < 4096:
+                p = v if os.path.isabs(v) else os.path.join(base, v)
+                if os.path.isfile(p):
+                    named.append(p)
+    return method.tag, named
+
+
+def same_file(a, b):
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def read_chunk(recipe, plugins, x, y, w, h):
+    """One window of the recipe, read through the TSYN driver (runs on a worker)."""
+    if plugins:
+        os.environ["GDAL_DRIVER_PATH"] = plugins
+    from osgeo import gdal
+    gdal.UseExceptions()
+    if plugins:
+        gdal.SetConfigOption("GDAL_DRIVER_PATH", plugins)
+    if gdal.GetDriverByName("TSYN") is None:
+        gdal.AllRegister()
+    if gdal.GetDriverByName("TSYN") is None:
+        raise RuntimeError("the TSYN GDAL driver is not installed on this worker "
+                           "(cmake --install, or GDAL_DRIVER_PATH)")
+    ds = gdal.OpenEx(recipe, gdal.OF_RASTER | gdal.OF_READONLY, allowed_drivers=["TSYN"])
+    a = ds.GetRasterBand(1).ReadAsArray(x, y, w, h)
+    ds = None
+    return x, y, a
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog=PROG, description=__doc__)
+    ap.add_argument("recipe")
+    ap.add_argument("output")
+    g = ap.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, default=2,
+                   help="worker processes of a local cluster (default 2)")
+    g.add_argument("--scheduler", help="address of a running Dask scheduler (tcp://host:8786)")
+    ap.add_argument("--chunk", type=int, default=2048, help="chunk side in cells (default 2048)")
+    ap.add_argument("--plugins", default=os.environ.get("GDAL_DRIVER_PATH", ""),
+                    help="folder of the TSYN plugin for the workers (default: GDAL_DRIVER_PATH)")
+    ap.add_argument("--no-overviews", action="store_true")
+    ap.add_argument("-q", "--quiet", action="store_true")
+    a = ap.parse_args(argv)
+    if a.chunk < 64 or a.chunk > 65536:
+        fail("--chunk %d: give 64..65536 cells" % a.chunk)
+    if a.workers is not None and a.workers < 1:
+        fail("--workers %d: give at least 1" % a.workers)
+    if not os.path.isfile(a.recipe):
+        fail("%s: no such recipe" % a.recipe)
+    method, named = recipe_method(a.recipe)
+    for p in [a.recipe] + named:
+        if same_file(p, a.output):
+            fail("%s: the output would replace %s, which the job reads" % (a.output, p))
+    if os.path.exists(a.output) and not os.path.isfile(a.output):
+        fail("%s: not a regular file" % a.output)
+    out_dir = os.path.dirname(os.path.abspath(a.output))
+    if not os.path.isdir(out_dir) or not os.access(out_dir, os.W_OK):
+        fail("%s: the folder is not writable" % a.output)
+
+    if a.plugins:
+        os.environ["GDAL_DRIVER_PATH"] = a.plugins
+    from osgeo import gdal
+    gdal.UseExceptions()
+    try:
+        src = gdal.OpenEx(a.recipe, gdal.OF_RASTER | gdal.OF_READONLY, allowed_drivers=["TSYN"])
+    except RuntimeError as e:
+        fail("%s: %s" % (a.recipe, str(e).strip().splitlines()[-1]))
+    W, H = src.RasterXSize, src.RasterYSize
+    band = src.GetRasterBand(1)
+    nodata = band.GetNoDataValue()
+    gt, wkt, dtype = src.GetGeoTransform(), src.GetProjection(), band.DataType
+    src = None
+    try:
+        import dask  # noqa: F401
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        fail("needs python3-dask and python3-distributed (apt-get install python3-distributed)")
+
+    chunk = a.chunk if method in BLOCK_EXACT else max(W, H)
+    windows = [(x, y, min(chunk, W - x), min(chunk, H - y))
+               for y in range(0, H, chunk) for x in range(0, W, chunk)]
+    fd, tmp = tempfile.mkstemp(prefix=".%s." % os.path.basename(a.output), suffix=".tif",
+                               dir=out_dir)
+    os.close(fd)
+    tmps = [tmp, tmp + ".cog.tif"]
+
+    def cleanup(*_):
+        for p in tmps:
+            for q in (p, p + ".aux.xml", p + ".ovr"):
+                try:
+                    os.unlink(q)
+                except OSError:
+                    pass
+
+    def on_signal(signum, _frame):
+        cleanup()
+        sys.stderr.write("%s: interrupted; nothing written\n" % PROG)
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, on_signal)
+
+    cluster = client = None
+    try:
+        if a.scheduler:
+            client = Client(a.scheduler)
+        else:
+            cluster = LocalCluster(n_workers=a.workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None)
+            client = Client(cluster)
+        drv = gdal.GetDriverByName("GTiff")
+        dst = drv.Create(tmp, W, H, 1, dtype,
+                         ["TILED=YES", "BLOCKXSIZE=256", "BLOCKYSIZE=256", "COMPRESS=DEFLATE",
+                          "BIGTIFF=IF_SAFER"])
+        dst.SetGeoTransform(gt)
+        if wkt:
+            dst.SetProjection(wkt)
+        ob = dst.GetRasterBand(1)
+        if nodata is not None:
+            ob.SetNoDataValue(nodata)
+        recipe = os.path.abspath(a.recipe)
+        # at most a few chunks in flight per worker: the client holds what has come back
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})) or a.workers or 1)
+        pending = list(windows)
+        futures = as_completed()
+        for _ in range(min(len(pending), 2 * n_workers)):
+            w = pending.pop(0)
+            futures.add(client.submit(read_chunk, recipe, a.plugins, *w, pure=True, retries=2))
+        done = 0
+        for fut in futures:
+            x, y, arr = fut.result()
+            ob.WriteArray(arr, x, y)
+            fut.release()
+            done += 1
+            if pending:
+                w = pending.pop(0)
+                futures.add(client.submit(read_chunk, recipe, a.plugins, *w, pure=True,
+                                          retries=2))
+            if not a.quiet:
+                k = 40 * done // len(windows)
+                sys.stderr.write("\r[%s%s] %d of %d chunks" % ("#" * k, " " * (40 - k), done,
+                                                                len(windows)))
+                sys.stderr.flush()
+        if not a.quiet:
+            sys.stderr.write("\n")
+        ob = None
+        final = tmp
+        if not a.no_overviews:
+            levels, f = [], 2
+            while max(W, H) // f >= 256:
+                levels.append(f)
+                f *= 2
+            if gdal.GetDriverByName("COG") is not None:
+                dst = None
+                gdal.Translate(tmps[1], tmp, format="COG",
+                               creationOptions=["COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER",
+                                                "OVERVIEW_RESAMPLING=AVERAGE"])
+                final = tmps[1]
+            elif levels:
+                dst.BuildOverviews("AVERAGE", levels)
+        dst = None
+        os.replace(final, a.output)
+    except Exception as e:  # one line, nothing left behind
+        cleanup()
+        fail("%s: %s" % (a.recipe, str(e).strip().splitlines()[-1] if str(e).strip() else
+                         type(e).__name__))
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    cleanup()
+    if not a.quiet:
+        print("%s: %d x %d from %s (%s, %s) in %d chunks" % (
+            a.output, W, H, os.path.basename(a.recipe), method,
+            "chunk by chunk" if method in BLOCK_EXACT else "whole raster, one task",
+            len(windows)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,125 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""terrasynth-dask (gdal_driver/terrasynth_dask.py, issue 16): a recipe computed on a local
+Dask cluster of two worker processes (loopback only) gives the same cells, geotransform, CRS
+and nodata as `gdal_translate RECIPE OUT.tif` of the same recipe, whatever the chunk size; a
+pixel and an amplify recipe chunk by chunk, a synth recipe in one task; refusals leave
+nothing behind.  Skips when python3-distributed is absent; not under the sanitizers (the
+runner is plain Python and its workers would each load the instrumented plugin: the plugin is
+checked under them by tests/gdal)."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from osgeo import gdal
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tsutil import JACKSBORO, ROOT, plugin_env, run  # noqa: E402
+
+gdal.UseExceptions()
+PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
+RUNNER = os.path.join(ROOT, "gdal_driver", "terrasynth_dask.py")
+
+try:
+    import distributed  # noqa: F401
+    HAVE_DASK = True
+except ImportError:
+    HAVE_DASK = False
+
+pytestmark = [
+    pytest.mark.skipif(not HAVE_DASK, reason="python3-distributed not installed"),
+    pytest.mark.skipif(bool(os.environ.get("TS_TOOL_PRELOAD")),
+                       reason="the runner's workers would load the instrumented plugin"),
+]
+
+
+def runner(*args, check=True):
+    p = subprocess.run([sys.executable, RUNNER, *map(str, args)], capture_output=True,
+                       text=True, env=plugin_env(PLUGINS), timeout=600)
+    if check:
+        assert p.returncode == 0, p.stderr
+    return p
+
+
+def translate(recipe, out):
+    subprocess.run(["gdal_translate", "-q", str(recipe), str(out)], check=True,
+                   env=plugin_env(PLUGINS))
+
+
+def same_raster(a_path, b_path):
+    a, b = gdal.Open(str(a_path)), gdal.Open(str(b_path))
+    assert (a.RasterXSize, a.RasterYSize) == (b.RasterXSize, b.RasterYSize)
+    assert a.GetGeoTransform() == b.GetGeoTransform()
+    assert a.GetSpatialRef().IsSame(b.GetSpatialRef())
+    assert a.GetRasterBand(1).GetNoDataValue() == b.GetRasterBand(1).GetNoDataValue()
+    assert a.GetRasterBand(1).DataType == b.GetRasterBand(1).DataType
+    assert a.ReadAsArray().tobytes() == b.ReadAsArray().tobytes()
+
+
+@pytest.mark.parametrize("chunk", [64, 200])
+def test_pixel_recipe_chunk_by_chunk(tmp_path, chunk):
+    recipe = tmp_path / "p.tsyn"
+    run("pixel", "--exemplar", JACKSBORO, "--size", "300x260", "--seed", 5, "--recipe", recipe)
+    translate(recipe, tmp_path / "gt.tif")
+    p = runner(recipe, tmp_path / "dask.tif", "--workers", 2, "--chunk", chunk)
+    assert "chunk by chunk" in p.stdout
+    n = -(-300 // chunk) * -(-260 // chunk)
+    assert f"in {n} chunks" in p.stdout
+    same_raster(tmp_path / "dask.tif", tmp_path / "gt.tif")
+    ds = gdal.Open(str(tmp_path / "dask.tif"))
+    st = ds.GetMetadata("IMAGE_STRUCTURE")
+    assert st.get("COMPRESSION") == "DEFLATE"
+    if gdal.GetDriverByName("COG") is not None:
+        assert st.get("LAYOUT") == "COG"
+    assert sorted(os.listdir(tmp_path)) == ["dask.tif", "gt.tif", "p.tsyn"]  # no temp file
+
+
+def test_overviews_of_a_larger_raster(tmp_path):
+    recipe = tmp_path / "p.tsyn"
+    run("pixel", "--exemplar", JACKSBORO, "--size", "700x600", "--seed", 2, "--recipe", recipe)
+    translate(recipe, tmp_path / "gt.tif")
+    runner(recipe, tmp_path / "dask.tif", "--chunk", 256, "-q")
+    same_raster(tmp_path / "dask.tif", tmp_path / "gt.tif")
+    assert gdal.Open(str(tmp_path / "dask.tif")).GetRasterBand(1).GetOverviewCount() >= 1
+
+
+def test_amplify_recipe(tmp_path):
+    recipe = tmp_path / "a.tsyn"
+    run("amplify", JACKSBORO, "--exemplar", JACKSBORO, "--factor", 2, "--patch", 8, "--recipe",
+        recipe)
+    translate(recipe, tmp_path / "gt.tif")
+    runner(recipe, tmp_path / "dask.tif", "--chunk", 256, "-q")
+    same_raster(tmp_path / "dask.tif", tmp_path / "gt.tif")
+
+
+def test_synth_recipe_in_one_task(tmp_path):
+    recipe = tmp_path / "s.tsyn"
+    run("synth", "--exemplar", JACKSBORO, "--size", "200x150", "--seed", 7, "--recipe", recipe)
+    translate(recipe, tmp_path / "gt.tif")
+    p = runner(recipe, tmp_path / "dask.tif", "--chunk", 64)
+    assert "whole raster, one task" in p.stdout and "in 1 chunks" in p.stdout
+    same_raster(tmp_path / "dask.tif", tmp_path / "gt.tif")
+
+
+def test_refusals_leave_nothing(tmp_path):
+    recipe = tmp_path / "p.tsyn"
+    run("pixel", "--exemplar", JACKSBORO, "--size", "64x64", "--recipe", recipe)
+    before = sorted(os.listdir(tmp_path))
+    p = runner(recipe, recipe, check=False)  # over the recipe
+    assert p.returncode == 1 and "would replace" in p.stderr and len(p.stderr.splitlines()) == 1
+    link = tmp_path / "alias.tsyn"
+    os.symlink(recipe, link)
+    p = runner(recipe, link, check=False)  # the same file by another name
+    assert p.returncode == 1 and "would replace" in p.stderr
+    os.unlink(link)
+    p = runner(tmp_path / "none.tsyn", tmp_path / "o.tif", check=False)
+    assert p.returncode == 1 and "no such recipe" in p.stderr
+    bad = tmp_path / "bad.tsyn"
+    bad.write_text('<TerraSynth version="1"><Pixel><Exemplar>/no/such/dem.tif</Exemplar>'
+                   '<Grid width="10" height="10"/></Pixel></TerraSynth>')
+    p = runner(bad, tmp_path / "o.tif", check=False)
+    assert p.returncode == 1 and str(bad.name) in p.stderr and len(p.stderr.splitlines()) == 1
+    p = runner(recipe, tmp_path / "o.tif", "--chunk", 3, check=False)
+    assert p.returncode == 1 and "--chunk" in p.stderr
+    assert sorted(os.listdir(tmp_path)) == sorted(before + ["bad.tsyn"])
