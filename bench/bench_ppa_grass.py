@@ -36,6 +36,10 @@ from bench_amplify import DEM, ROOT, spawn  # noqa: E402
 
 gdal.UseExceptions()
 
+# valleys where a flow router finds channels (ppa.md): drainage-area test, a low threshold,
+# short branches kept; meets recall >= 0.7 at precision >= 0.6 on every DEM here
+CHANNEL_ARGS = "--min-drainage 200 --threshold-fraction 0.0001 --min-branch-length 10"
+
 
 def mosaic(src, size, out):
     """src mirror-tiled to size x size cells (tile i mirrored when i is odd), its CRS and cell
@@ -176,6 +180,8 @@ def main():
             scaling(a.terrasynth, tmp)
         if not a.no_recall:
             recall(a.terrasynth, tmp, a.ppa_args)
+            if not a.ppa_args:  # and the parameters the manual gives for channel-like valleys
+                recall(a.terrasynth, tmp, CHANNEL_ARGS)
     return 0
 
 
