@@ -435,6 +435,8 @@ typedef struct ts_synth_params {
     double variety;    /* pick at random among candidates within (1+variety) of the best */
     int coarse_factor; /* match on exemplars downsampled by this factor, refine at full
                           resolution (1 = exhaustive full-resolution search, 0 = automatic) */
+    int tiled;         /* free synthesis in tiles of this many cells, four waves
+                          (ts_synth_tiled); 0 = in one piece */
 } ts_synth_params;
 
 TS_API ts_synth_params ts_synth_params_default(void);
@@ -511,6 +513,18 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
                                   const ts_synth_params *params,
                                   const ts_synth_constraints *constraints, ts_raster *out,
                                   ts_synth_maps *maps);
+
+/**
+ * Free synthesis of `out` (all NaN on entry) in tiles of `tile` cells
+ * (tiled_synthesis.c): tile (i, j) in wave (i & 1) + 2 (j & 1), made over
+ * its core grown by a patch with its earlier-wave neighbours' cores fixed;
+ * the output is the union of the cores.  Tiles of a wave run in parallel;
+ * the result depends on the seed and the parameters only, not on the
+ * thread count.  tile: 2 x the patch .. 16384.  params->tiled is not
+ * read.  ts_synth_patches calls this when params->tiled > 0.
+ */
+TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                const ts_synth_params *params, int tile, ts_raster *out);
 
 /* ------------------------------------------------------------------ */
 /* Sketch-guided synthesis (Zhou et al. 2007 sections 3-4)            */

@@ -330,6 +330,109 @@ static void test_errors_and_cancel(void)
     ts_ctx_free(ctx);
 }
 
+/* Tiles in four waves (tiled_synthesis.c): every cell filled from the
+ * exemplar's range; the same bytes on 1, 2 and 3 threads (the tiles of a
+ * wave run side by side, in any order); no step across a tile border
+ * steeper than the exemplar's steepest steps (the later tile cut and
+ * smoothed it); the cores of the first wave are what a synthesis of the
+ * grown tile alone gives (an oracle: the public call on that window with
+ * the tile's seed); refusals. */
+static uint64_t tile_seed_of(uint64_t seed, int i, int j)
+{
+    uint64_t z = seed ^ (0x9e3779b97f4a7c15ull * ((uint64_t)(uint32_t)i + 1)) ^
+                 (0xc2b2ae3d27d4eb4full * ((uint64_t)(uint32_t)j + 1));
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+}
+
+static void test_tiles(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_exemplar(ctx, 160, 120, 8, 0), a, b, c, lone;
+    ts_synth_params p = small_params();
+    const int W = 230, H = 170, T = 64;
+    double lo = 1e30, hi = -1e30, ex_step = 0.0, worst = 0.0;
+    int x, y, P = (int)p.patch_size.value;
+    ts_raster_alloc(ctx, W, H, &a);
+    ts_raster_alloc(ctx, W, H, &b);
+    ts_raster_alloc(ctx, W, H, &c);
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++)
+            TS_PIX(&a, x, y) = TS_PIX(&b, x, y) = TS_PIX(&c, x, y) = NAN;
+    p.tiled = T;
+    ts_ctx_set_seed(ctx, 77);
+    ts_ctx_set_threads(ctx, 1);
+    CHECK_MSG(ts_synth_patches(ctx, &ex, 1, &p, NULL, &a, NULL) == TS_OK, "%s",
+              ts_ctx_message(ctx));
+    ts_ctx_set_threads(ctx, 2);
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &b, NULL) == TS_OK);
+    ts_ctx_set_threads(ctx, 3);
+    CHECK(ts_synth_tiled(ctx, &ex, 1, &p, T, &c) == TS_OK);
+    CHECK(memcmp(a.data, b.data, sizeof(float) * W * H) == 0);
+    CHECK(memcmp(a.data, c.data, sizeof(float) * W * H) == 0);
+    for (y = 0; y < 120; y++)
+        for (x = 0; x < 160; x++) {
+            lo = fmin(lo, TS_PIX(&ex, x, y));
+            hi = fmax(hi, TS_PIX(&ex, x, y));
+            if (x > 0)
+                ex_step = fmax(ex_step, fabs(TS_PIX(&ex, x, y) - TS_PIX(&ex, x - 1, y)));
+            if (y > 0)
+                ex_step = fmax(ex_step, fabs(TS_PIX(&ex, x, y) - TS_PIX(&ex, x, y - 1)));
+        }
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            float v = TS_PIX(&a, x, y);
+            CHECK(!isnan(v) && v > lo - 0.2 * (hi - lo) && v < hi + 0.2 * (hi - lo));
+            if (x > 0 && x % T == 0) /* across a vertical tile border */
+                worst = fmax(worst, fabs(v - TS_PIX(&a, x - 1, y)));
+            if (y > 0 && y % T == 0)
+                worst = fmax(worst, fabs(v - TS_PIX(&a, x, y - 1)));
+        }
+    printf("     tiles: worst step across a tile border %.1f, the exemplar's %.1f\n", worst,
+           ex_step);
+    CHECK_MSG(worst <= 1.5 * ex_step, "worst step %g against %g", worst, ex_step);
+    /* wave 0's tile (2, 0): the public call alone on its grown window, its seed */
+    {
+        int x0 = 2 * T - P, x1 = 3 * T + P, y1 = T + P, same = 1;
+        ts_raster_alloc(ctx, x1 - x0, y1, &lone);
+        for (y = 0; y < y1; y++)
+            for (x = 0; x < x1 - x0; x++)
+                TS_PIX(&lone, x, y) = NAN;
+        p.tiled = 0;
+        ts_ctx_set_seed(ctx, tile_seed_of(77, 2, 0));
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &lone, NULL) == TS_OK);
+        for (y = 0; y < T; y++)
+            for (x = 2 * T; x < 3 * T; x++)
+                same &= memcmp(&TS_PIX(&lone, x - x0, y), &TS_PIX(&a, x, y), sizeof(float)) == 0;
+        CHECK_MSG(same, "wave 0's core differs from its tile made alone");
+        ts_raster_free(&lone);
+    }
+    /* another seed, another terrain; refusals */
+    p.tiled = T;
+    ts_ctx_set_seed(ctx, 78);
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++)
+            TS_PIX(&b, x, y) = NAN;
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &b, NULL) == TS_OK);
+    CHECK(memcmp(a.data, b.data, sizeof(float) * W * H) != 0);
+    CHECK(ts_synth_tiled(ctx, &ex, 1, &p, P, &b) == TS_ERR_ARG); /* under 2 patches */
+    CHECK(strstr(ts_ctx_message(ctx), "tiles") != NULL);
+    {
+        unsigned char *fl = calloc((size_t)W * H, 1);
+        ts_synth_constraints cons = ts_synth_constraints_default();
+        fl[5] = TS_CELL_FIXED;
+        cons.cell_flags = fl;
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, &cons, &b, NULL) == TS_ERR_ARG);
+        free(fl);
+    }
+    ts_raster_free(&a);
+    ts_raster_free(&b);
+    ts_raster_free(&c);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -340,6 +443,7 @@ int main(int argc, char **argv)
         {"sketch_keeps_constraints", test_sketch_keeps_constraints},
         {"resolve_metres", test_resolve_metres},
         {"errors_and_cancel", test_errors_and_cancel},
+        {"tiles", test_tiles},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

@@ -64,6 +64,11 @@ static const ts_param_desc synth_desc[] = {
      "(1 = exhaustive full-resolution search; 0 = automatic: exemplars brought to at most "
      "512 x 512 cells).",
      offsetof(ts_synth_params, coarse_factor)},
+    {"tiled", TS_PARAM_INT, 0, 0, 16384, TS_UNIT_CELLS, "cells", NULL,
+     "Free synthesis in tiles of this many cells, made in four waves (a tile is cut and "
+     "smoothed against its finished neighbours, the tiles of a wave run in parallel); "
+     "0 = in one piece.  Not with a sketch, pins, water, heights, regions or debug maps.",
+     offsetof(ts_synth_params, tiled)},
 };
 
 static const ts_param_desc sketch_desc[] = {
