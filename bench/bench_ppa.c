@@ -130,9 +130,10 @@ typedef struct stage_times {
 } stage_times;
 
 /* The public PPA stages one by one (ridges and valleys) on `threads`
- * threads (0 = all); 0 on success. */
+ * threads (0 = all), or profile recognition alone (profile_only); 0 on
+ * success. */
 static int stage_pass(ts_ctx *ctx, const ts_raster *dem, size_t ncells, int profile_length,
-                      double threshold, int threads, stage_times *t)
+                      double threshold, int threads, int profile_only, stage_times *t)
 {
     const int kinds[2] = {TS_RIDGE, TS_VALLEY};
     unsigned char *targets = malloc(ncells);
@@ -152,7 +153,7 @@ static int stage_pass(ts_ctx *ctx, const ts_raster *dem, size_t ncells, int prof
         free(targets);
         return fail_ts(ctx, "ts_ppa_profile_recognition");
     }
-    for (int k = 0; k < 2; k++) {
+    for (int k = 0; k < 2 && !profile_only; k++) {
         ts_ppa_segment *segs = NULL;
         size_t nseg = 0;
         unsigned char *keep;
@@ -343,7 +344,7 @@ int main(int argc, char **argv)
         stage_times all;
         ts_features_free(f);
         f = NULL;
-        if (stage_pass(ctx, &dem, ncells, params.profile_length, threshold, 0, &all) != 0) {
+        if (stage_pass(ctx, &dem, ncells, params.profile_length, threshold, 0, 0, &all) != 0) {
             rc = 1;
             goto done;
         }
@@ -366,7 +367,7 @@ int main(int argc, char **argv)
                 rc = fail_ts(ctx, "ts_ppa_extract (timed)");
                 goto done;
             }
-            if (stage_pass(ctx, &dem, ncells, params.profile_length, threshold, 1, &one) != 0) {
+            if (stage_pass(ctx, &dem, ncells, params.profile_length, threshold, 1, 1, &one) != 0) {
                 rc = 1;
                 goto done;
             }

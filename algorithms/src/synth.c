@@ -382,21 +382,14 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     if (st == TS_OK && sp->slope_style > 0) {
         ts_slope_style_spec ss;
         ts_progress_saved sv2;
-        size_t nc = (size_t)out->width * (size_t)out->height, c;
-        unsigned char *feat_mask = ts__malloc_array(nc, 1);
-        if (!feat_mask) {
-            st = ts__fail(ctx, TS_ERR_NOMEM, "slope style", "out of memory");
-            goto done;
-        }
-        for (c = 0; c < nc; c++)
-            feat_mask[c] = (r.sf->mask[c] & kind) != 0;
         memset(&ss, 0, sizeof ss);
         ss.exemplars = exemplars;
         ss.n_exemplars = n_exemplars;
         ss.cell_exemplar = fill.cell_exemplar;
         ss.flags = r.user_flags;
         ss.strength = sp->slope_style;
-        ss.features = feat_mask;
+        ss.features = r.sf->mask;
+        ss.kind = kind;
         ss.keep_radius = P / 2.0;
         sv2 = ts__progress_push(ctx, 0.97, 1.0);
         st = ts__slope_style(ctx, &ss, out);
@@ -405,7 +398,6 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         if (st == TS_OK)
             st = ts__layout_press_range(ctx, exemplars, n_exemplars, out, r.user_flags, P);
         ts__progress_pop(ctx, sv2);
-        free(feat_mask);
     }
     times[4] = ts__now() - t0;
     if (info) {

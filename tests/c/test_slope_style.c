@@ -308,7 +308,7 @@ static void test_features_keep_standing_out(void)
         for (x = 0; x < 160; x++)
             TS_PIX(&ex, x, y) = (float)(x < 152 ? 0.01 * th_uniform(&seed) : 3.0 * (x - 152));
     for (x = 0; x < W; x++)
-        feat[50 * W + x] = 1;
+        feat[50 * W + x] = TS_VALLEY;
     for (pass = 0; pass < 2; pass++) {
         double in_sum = 0.0, in_before = 0.0;
         for (y = 0; y < H; y++)
@@ -320,6 +320,7 @@ static void test_features_keep_standing_out(void)
         s = spec_of(&ex, 1.0);
         s.features = pass ? feat : NULL;
         s.keep_radius = 12.0;
+        s.kind = TS_VALLEY;
         CHECK(ts__slope_style(ctx, &s, &out) == TS_OK);
         for (y = 40; y <= 60; y++) /* the walls within 10 cells of the valley */
             for (x = 10; x < W - 10; x++) {

@@ -51,7 +51,7 @@ typedef struct tiled_job {
     int n_exemplars;
     ts_synth_params params; /* tiled 0: each tile in one piece */
     ts_raster *out;
-    int T, G, nti, ntj, wave;
+    int T, G, nti, ntj;
     int32_t *tiles; /* the wave's tiles: i + nti * j */
     atomic_int failed;
     atomic_int status; /* the first failure's status */
@@ -174,7 +174,6 @@ TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_e
             for (ti = 0; ti < j.nti; ti++)
                 if (tile_wave(ti, tj) == wave)
                     j.tiles[m++] = (int32_t)(ti + j.nti * tj);
-        j.wave = wave;
         atomic_init(&j.failed, 0);
         atomic_init(&j.status, TS_OK);
         if (m)

@@ -17,9 +17,10 @@
  *      exemplar's gradient magnitude at the output's ground resolution;
  *   2. every cell's wanted magnitude is G^-1(F(g(x))) (quantile mapping),
  *      its factor f(x) = (G^-1(F(g)) / g)^strength, clamped to 1/4..4;
- *   3. each edge's wanted difference is the edge's own difference times the
- *      mean factor of its two cells: directions are kept, only steepness
- *      changes;
+ *   3. each edge's wanted difference is the edge's own difference times its
+ *      cells' factor (the one nearer 1 where both scale alike, 1 where one
+ *      steepens and the other gentles): directions are kept, only
+ *      steepness changes;
  *   4. the heights whose differences fit those best in least squares: the
  *      Poisson equation, solved by poisson.c (nodata cells left out, fixed
  *      cells as boundary values, the mean height of a free region kept).
@@ -54,12 +55,6 @@
 #define SLOPE_KEEP_Q 995 /* the quantile (of SLOPE_Q) near features: 99.5 % */
 #define CREASE_QUANTILE 0.9999 /* no crease sharper than the exemplars' sharpest 0.01 % */
 #define CREASE_PASSES 40
-
-static int slope_int_cmp(const void *a, const void *b)
-{
-    int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
-    return (x > y) - (x < y);
-}
 
 static int slope_float_cmp(const void *a, const void *b)
 {
@@ -170,14 +165,14 @@ static inline double slope_edge(float a, float b)
     return 1.0;
 }
 
-/* Discrete Laplacian (5 points, per cell) at (x, y); NaN without four
- * valid neighbours. */
-static inline double crease_at(const float *a, int w, int h, int x, int y)
+/* Discrete Laplacian (5 points, per cell) at (x, y) of a (stride in
+ * elements); NaN without four valid neighbours. */
+static inline double crease_at(const float *a, ptrdiff_t stride, int w, int h, int x, int y)
 {
-    const float *p = a + (size_t)y * (size_t)w + (size_t)x;
+    const float *p = a + (ptrdiff_t)y * stride + x;
     if (x < 1 || y < 1 || x + 1 >= w || y + 1 >= h)
         return NAN;
-    return (double)p[1] + p[-1] + p[w] + p[-w] - 4.0 * (double)p[0];
+    return (double)p[1] + p[-1] + p[stride] + p[-stride] - 4.0 * (double)p[0];
 }
 
 /* The CREASE_QUANTILE quantile of |Laplacian| of a (w x h, stride w) over a
@@ -189,8 +184,7 @@ static double crease_cap(const float *a, ptrdiff_t stride, int w, int h, float *
     size_t n = 0, i0;
     for (y = 1; y + 1 < h; y += step)
         for (x = 1; x + 1 < w; x += step) {
-            const float *p = a + (ptrdiff_t)y * stride + x;
-            double l = (double)p[1] + p[-1] + p[stride] + p[-stride] - 4.0 * (double)p[0];
+            double l = crease_at(a, stride, w, h, x, y);
             if (!isnan(l))
                 work[n++] = (float)fabs(l);
         }
@@ -246,7 +240,7 @@ ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *
             goto done;
         }
         for (i = 0; i < n; i++)
-            mask[i] = s->features[i] != 0;
+            mask[i] = (s->features[i] & s->kind) != 0;
         if ((st = ts__distance_transform(ctx, mask, W, H, keep)) != TS_OK)
             goto done;
     }
@@ -262,7 +256,7 @@ ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *
     }
     /* the wanted distributions: per exemplar, or all exemplars pooled */
     for (grp = 0; grp < n_groups; grp++) {
-        double q[SLOPE_Q];
+        double q[SLOPE_Q], c;
         int e, k, cnt = 0;
         for (e = 0; e < s->n_exemplars; e++) {
             const ts_raster *ex = &s->exemplars[e];
@@ -273,12 +267,6 @@ ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *
                     qe[(size_t)grp * SLOPE_Q + (size_t)k] += q[k];
                 cnt++;
             }
-        }
-        for (e = 0; e < s->n_exemplars; e++) {
-            const ts_raster *ex = &s->exemplars[e];
-            double c;
-            if (n_groups > 1 && e != grp)
-                continue;
             c = crease_cap(ex->data, ex->stride, ex->width, ex->height, exwork);
             if (!isnan(c))
                 cap[grp] = TS_MAX(cap[grp], c);
@@ -377,7 +365,7 @@ ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *
                 gi = group ? group[i] : 0;
                 if (!mask[i] || gi < 0 || !(cap[gi] > 0))
                     continue;
-                l = crease_at(u, W, H, x, y);
+                l = crease_at(u, W, W, H, x, y);
                 if (isnan(l) || fabs(l) <= cap[gi])
                     continue;
                 next[n_moved] = (int32_t)i;
@@ -386,20 +374,8 @@ ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *
             for (k = 0; k < n_moved; k++)
                 u[next[k]] = val[k];
             /* the next sweep's cells: the moved ones and their neighbours, once each
-             * and in grid order (so that the sweep is the same whatever the order) */
+             * (a Jacobi sweep does not depend on the order it visits them) */
             for (k = 0; k < n_moved; k++) {
-                size_t c = (size_t)next[k];
-                seen[c] = 1;
-                if (c % (size_t)W > 0)
-                    seen[c - 1] = 1;
-                if (c % (size_t)W + 1 < (size_t)W)
-                    seen[c + 1] = 1;
-                if (c >= (size_t)W)
-                    seen[c - (size_t)W] = 1;
-                if (c + (size_t)W < n)
-                    seen[c + (size_t)W] = 1;
-            }
-            for (k = 0; k < n_moved; k++) { /* gather the marks, then clear them */
                 size_t c = (size_t)next[k], d;
                 static const int dx[5] = {0, -1, 1, 0, 0}, dy[5] = {0, 0, 0, -1, 1};
                 for (d = 0; d < 5; d++) {
@@ -408,13 +384,14 @@ ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *
                     if (xx < 0 || yy < 0 || xx >= W || yy >= H)
                         continue;
                     q = (size_t)yy * (size_t)W + (size_t)xx;
-                    if (seen[q]) {
-                        seen[q] = 0;
+                    if (!seen[q]) {
+                        seen[q] = 1;
                         list[n_next++] = (int32_t)q;
                     }
                 }
             }
-            qsort(list, n_next, sizeof *list, slope_int_cmp);
+            for (k = 0; k < n_next; k++)
+                seen[list[k]] = 0;
             n_list = n_next;
         }
         free(list);

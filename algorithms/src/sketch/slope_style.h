@@ -19,7 +19,8 @@ typedef struct ts_slope_style_spec {
     int n_exemplars;
     const int32_t *cell_exemplar; /* per output cell (stride = width), -1 = none; or NULL */
     const unsigned char *flags;   /* per output cell: TS_CELL_FIXED never change; or NULL */
-    const unsigned char *features; /* per output cell: non-zero on the sketch's features; or NULL */
+    const unsigned char *features; /* per output cell: the sketch's feature bits; or NULL */
+    int kind;                      /* the bit of `features` that counts (TS_RIDGE, TS_VALLEY) */
     double keep_radius;            /* within this many cells of them slopes are never gentled */
     double strength;              /* 0..1: the factors' exponent (0 = off) */
     double tolerance;             /* of the Poisson solves; 0 = SLOPE_STYLE_TOLERANCE (loose:
