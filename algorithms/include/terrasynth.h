@@ -526,6 +526,32 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
 TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
                                 const ts_synth_params *params, int tile, ts_raster *out);
 
+/** The wave of tile (ti, tj) in ts_synth_tiled: (ti & 1) + 2 (tj & 1). */
+TS_API int ts_synth_tile_wave(int ti, int tj);
+
+/** One tile of a tiled synthesis, made on its own (ts_synth_tiles). */
+typedef struct ts_synth_tile {
+    int ti, tj; /* tile (ti, tj): columns [ti T, ti T + T), rows [tj T, tj T + T) */
+    /* neighbours[(dj + 1) * 3 + di + 1]: the core of tile (ti + di, tj + dj),
+     * needed (and only read) where that tile exists and is of an earlier wave */
+    const ts_raster *neighbours[9];
+    ts_raster core; /* written: min(T, width - ti T) x min(T, height - tj T) cells */
+} ts_synth_tile;
+
+/**
+ * The tiles of ts_synth_tiled one by one: each given tile's core, made
+ * from its earlier-wave neighbours' cores exactly as in the whole run (the
+ * same bytes), for a width x height grid in tiles of `tile` cells; the
+ * context's seed is the whole run's.  The tiles of one call run in
+ * parallel, one thread each, so no two of them may be neighbours of
+ * different waves (TS_ERR_ARG).  Lets a front end make any window of a
+ * tiled terrain from the tiles under it and the tiles those need
+ * (the GDAL driver, the Dask runner).
+ */
+TS_API ts_status ts_synth_tiles(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                const ts_synth_params *params, int tile, int width, int height,
+                                ts_synth_tile *tiles, int n_tiles);
+
 /* ------------------------------------------------------------------ */
 /* Sketch-guided synthesis (Zhou et al. 2007 sections 3-4)            */
 /* ------------------------------------------------------------------ */
