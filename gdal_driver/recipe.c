@@ -18,6 +18,7 @@
  */
 #include <ctype.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,6 +41,13 @@
 static _Thread_local const char *recipe_stack[RECIPE_MAX_DEPTH];
 static _Thread_local int recipe_depth;
 
+/* A tile of a tiled synth recipe (its core cells). */
+typedef struct recipe_tile {
+    int ti, tj, w, h;
+    float *cells;
+    uint64_t used; /* the last request that needed it */
+} recipe_tile;
+
 struct ts_recipe {
     char *path;
     int method;
@@ -58,6 +66,13 @@ struct ts_recipe {
     int map; /* synth: -1 the terrain, else the TSJOB_MAP_* served (open option MAP) */
     char layer[TS_LAYER_NAME]; /* amplify: the carried layer or "classes" served (LAYER), or "" */
     int computed;
+    /* a tiled synth recipe: the tiles made so far, at most tile_limit bytes
+     * of them between requests (least recently used go first) */
+    pthread_mutex_t tile_lock;
+    int has_tile_lock;
+    recipe_tile *tiles;
+    size_t n_tiles, cap_tiles, tile_bytes;
+    uint64_t tile_clock; /* the request being served */
 };
 
 int recipe_identify(const char *filename, const unsigned char *header, int n_header)
@@ -256,7 +271,38 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
         tsio_errf(err, r->path, "%s", err->msg);
         return -1;
     }
-    return tsjob_synth_prepare(&r->synth, &r->synth_res, err);
+    if (r->synth.params.tiled > 0) {
+        /* tile by tile: recipe_read_window makes the tiles a block needs */
+        const char *mb = CPLGetConfigOption("TSYN_TILE_CACHE_MB", "256");
+        char *end = NULL;
+        double v = strtod(mb, &end);
+        if (r->map >= 0) {
+            tsio_errf(err, r->path, "tiles (tiled %d) take no pins, water, heights, regions or "
+                      "debug maps yet (MAP)", r->synth.params.tiled);
+            return -1;
+        }
+        if (end == mb || *end || !(v >= 0 && v <= 1e6)) {
+            tsio_errf(err, r->path, "TSYN_TILE_CACHE_MB=%s: give megabytes, 0 to 1000000", mb);
+            return -1;
+        }
+        r->synth.lazy = 1;
+        r->synth.tile_cache = (size_t)(v * 1048576.0);
+        if (pthread_mutex_init(&r->tile_lock, NULL) != 0) {
+            tsio_errf(err, r->path, "out of resources for a lock");
+            return -1;
+        }
+        r->has_tile_lock = 1;
+    }
+    if (tsjob_synth_prepare(&r->synth, &r->synth_res, err) != 0) {
+        /* the core's words, the recipe's name */
+        if (strncmp(err->msg, r->path, strlen(r->path)) != 0) {
+            char msg[sizeof err->msg];
+            snprintf(msg, sizeof msg, "%s", err->msg);
+            tsio_errf(err, r->path, "%s", msg);
+        }
+        return -1;
+    }
+    return 0;
 }
 
 /* Read and parse a recipe file; *top is its <TerraSynth> element (version
@@ -499,6 +545,11 @@ void recipe_free(ts_recipe *r)
     tsjob_synth_result_free(&r->synth_res);
     tsjob_amplify_result_free(&r->amplify_res);
     tsjob_pixel_result_free(&r->pixel_res);
+    for (size_t i = 0; i < r->n_tiles; i++)
+        free(r->tiles[i].cells);
+    free(r->tiles);
+    if (r->has_tile_lock)
+        pthread_mutex_destroy(&r->tile_lock);
     tsio_georef_free(&r->geo);
     tsj_values_free(&r->values);
     CSLDestroy(r->strings);
@@ -568,6 +619,11 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
         rc = tsjob_amplify_setup(ctx, &r->amplify, &r->amplify_res, err);
         if (rc == 0 && r->amplify_res.warning.msg[0])
             CPLError(CE_Warning, CPLE_AppDefined, "%s", r->amplify_res.warning.msg);
+    } else if (r->synth.lazy) {
+        /* the exemplars every tile shares; the tiles: recipe_read_window */
+        rc = tsjob_synth_setup(ctx, &r->synth, &r->synth_res, err);
+        if (rc == 0 && r->synth_res.warning.msg[0])
+            CPLError(CE_Warning, CPLE_AppDefined, "%s", r->synth_res.warning.msg);
     } else {
         rc = tsjob_synth_compute(ctx, &r->synth, &r->synth_res, r->map >= 0, err);
         if (rc == 0 && r->synth_res.warning.msg[0])
@@ -592,7 +648,7 @@ const void *recipe_data(const ts_recipe *r)
         return NULL;
     if (r->method == RECIPE_PPA)
         return r->ppa_res.codes;
-    if (r->method == RECIPE_AMPLIFY || r->method == RECIPE_PIXEL)
+    if (r->method == RECIPE_AMPLIFY || r->method == RECIPE_PIXEL || r->synth.lazy)
         return NULL; /* lazy: recipe_read_window */
     if (r->map == TSJOB_MAP_SEAMS)
         return r->synth_res.maps.seams;
@@ -603,27 +659,229 @@ const void *recipe_data(const ts_recipe *r)
 
 int recipe_block_size(const ts_recipe *r)
 {
+    if (r->method == RECIPE_SYNTH && r->synth.lazy && r->synth_res.params.tiled < 256)
+        return r->synth_res.params.tiled; /* a block inside one tile */
     return r->method == RECIPE_PIXEL ? 512 : 256;
 }
 
 int recipe_lazy(const ts_recipe *r)
 {
-    return r->method == RECIPE_AMPLIFY || r->method == RECIPE_PIXEL;
+    return r->method == RECIPE_AMPLIFY || r->method == RECIPE_PIXEL ||
+           (r->method == RECIPE_SYNTH && r->synth.lazy);
 }
 
-int recipe_read_window(const ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err)
+/* ---- a tiled synth recipe, tile by tile ---------------------------- */
+
+static recipe_tile *tile_find(const ts_recipe *r, int ti, int tj)
+{
+    size_t k;
+    for (k = 0; k < r->n_tiles; k++)
+        if (r->tiles[k].ti == ti && r->tiles[k].tj == tj)
+            return &r->tiles[k];
+    return NULL;
+}
+
+/* Add (ti, tj) to the list of wanted tiles unless there. */
+static int want_add(int **list, size_t *n, size_t *cap, int ti, int tj)
+{
+    size_t k;
+    for (k = 0; k < *n; k++)
+        if ((*list)[2 * k] == ti && (*list)[2 * k + 1] == tj)
+            return 0;
+    if (*n == *cap) {
+        size_t c = *cap ? 2 * *cap : 32;
+        int *l = realloc(*list, c * 2 * sizeof **list);
+        if (!l)
+            return -1;
+        *list = l;
+        *cap = c;
+    }
+    (*list)[2 * *n] = ti;
+    (*list)[2 * *n + 1] = tj;
+    (*n)++;
+    return 0;
+}
+
+/* Drop the least recently used tiles not needed by the request being
+ * served until the cache is within its limit. */
+static void tiles_evict(ts_recipe *r)
+{
+    while (r->tile_bytes > r->synth.tile_cache) {
+        size_t k, old = r->n_tiles;
+        for (k = 0; k < r->n_tiles; k++)
+            if (r->tiles[k].used != r->tile_clock &&
+                (old == r->n_tiles || r->tiles[k].used < r->tiles[old].used))
+                old = k;
+        if (old == r->n_tiles)
+            return;
+        r->tile_bytes -= (size_t)r->tiles[old].w * (size_t)r->tiles[old].h * sizeof(float);
+        free(r->tiles[old].cells);
+        r->tiles[old] = r->tiles[--r->n_tiles];
+    }
+}
+
+/* Make n (<= 64) tiles of one wave side by side and put them in the cache
+ * (their earlier-wave neighbours are there). */
+static int tiles_make(ts_recipe *r, ts_ctx *ctx, ts_synth_tile *batch, size_t n, tsio_err *err)
+{
+    const tsjob_synth_result *res = &r->synth_res;
+    int T = res->params.tiled, W = res->geo.width, H = res->geo.height, di, dj, nv = 0;
+    ts_raster views[9 * 64];
+    size_t g;
+    for (g = 0; g < n; g++) {
+        ts_synth_tile *t = &batch[g];
+        int cw = W - t->ti * T < T ? W - t->ti * T : T;
+        int ch = H - t->tj * T < T ? H - t->tj * T : T;
+        float *cells = malloc((size_t)cw * (size_t)ch * sizeof(float));
+        if (!cells)
+            goto oom;
+        t->core = ts_raster_wrap(cells, cw, ch, cw);
+        for (dj = -1; dj <= 1; dj++)
+            for (di = -1; di <= 1; di++) {
+                recipe_tile *nb = tile_find(r, t->ti + di, t->tj + dj);
+                if (nb) {
+                    views[nv] = ts_raster_wrap(nb->cells, nb->w, nb->h, nb->w);
+                    t->neighbours[(dj + 1) * 3 + di + 1] = &views[nv++];
+                }
+            }
+    }
+    if (r->n_tiles + n > r->cap_tiles) {
+        size_t c = 2 * (r->n_tiles + n);
+        recipe_tile *l = realloc(r->tiles, c * sizeof *l);
+        if (!l)
+            goto oom;
+        r->tiles = l;
+        r->cap_tiles = c;
+    }
+    if (tsjob_synth_tiles(ctx, &r->synth, res, batch, (int)n, err) != 0)
+        goto fail;
+    for (g = 0; g < n; g++) { /* into the cache */
+        recipe_tile *e = &r->tiles[r->n_tiles++];
+        e->ti = batch[g].ti;
+        e->tj = batch[g].tj;
+        e->w = batch[g].core.width;
+        e->h = batch[g].core.height;
+        e->cells = batch[g].core.data;
+        e->used = r->tile_clock;
+        r->tile_bytes += (size_t)e->w * (size_t)e->h * sizeof(float);
+    }
+    return 0;
+oom:
+    tsio_errf(err, r->path, "out of memory for the tiles");
+fail:
+    for (g = 0; g < n; g++)
+        free(batch[g].core.data);
+    return -1;
+}
+
+/* Cells [x0, x0+w) x [y0, y0+h) of a tiled synth recipe: the tiles under the
+ * window, and before them the tiles of earlier waves they need (their cone),
+ * made wave by wave (a wave's tiles side by side), kept for later requests. */
+static int tiles_window(ts_recipe *r, ts_ctx *ctx, int x0, int y0, int w, int h, float *out,
+                        tsio_err *err)
+{
+    const tsjob_synth_result *res = &r->synth_res;
+    int T = res->params.tiled, W = res->geo.width, H = res->geo.height;
+    int nti = (W + T - 1) / T, ntj = (H + T - 1) / T, wave, ti, tj, di, dj, rc = -1;
+    int *want = NULL;
+    size_t n_want = 0, cap_want = 0, k, m;
+    ts_synth_tile *batch = NULL;
+    pthread_mutex_lock(&r->tile_lock);
+    r->tile_clock++;
+    for (tj = y0 / T; tj <= (y0 + h - 1) / T; tj++)
+        for (ti = x0 / T; ti <= (x0 + w - 1) / T; ti++)
+            if (want_add(&want, &n_want, &cap_want, ti, tj) != 0)
+                goto oom;
+    /* the cone: dependencies go to earlier waves only, so one pass from
+     * the last wave down finds them all */
+    for (wave = 3; wave > 0; wave--)
+        for (k = 0; k < n_want; k++) {
+            int i = want[2 * k], j = want[2 * k + 1];
+            if (ts_synth_tile_wave(i, j) != wave)
+                continue;
+            for (dj = -1; dj <= 1; dj++)
+                for (di = -1; di <= 1; di++)
+                    if (i + di >= 0 && j + dj >= 0 && i + di < nti && j + dj < ntj &&
+                        ts_synth_tile_wave(i + di, j + dj) < wave &&
+                        want_add(&want, &n_want, &cap_want, i + di, j + dj) != 0)
+                        goto oom;
+        }
+    for (k = 0; k < n_want; k++) {
+        recipe_tile *t = tile_find(r, want[2 * k], want[2 * k + 1]);
+        if (t)
+            t->used = r->tile_clock;
+    }
+    batch = calloc(n_want ? n_want : 1, sizeof *batch);
+    if (!batch)
+        goto oom;
+    for (wave = 0; wave < 4; wave++) {
+        m = 0;
+        for (k = 0; k < n_want; k++) {
+            int i = want[2 * k], j = want[2 * k + 1];
+            if (ts_synth_tile_wave(i, j) == wave && !tile_find(r, i, j)) {
+                memset(&batch[m], 0, sizeof batch[m]);
+                batch[m].ti = i;
+                batch[m].tj = j;
+                m++;
+            }
+        }
+        for (k = 0; k < m; k += 64)
+            if (tiles_make(r, ctx, &batch[k], m - k < 64 ? m - k : 64, err) != 0)
+                goto done;
+    }
+    { /* the window out of its tiles */
+        int y;
+        for (y = y0; y < y0 + h; y++) {
+            int x = x0;
+            while (x < x0 + w) {
+                const recipe_tile *t = tile_find(r, x / T, y / T);
+                int end = (x / T + 1) * T < x0 + w ? (x / T + 1) * T : x0 + w;
+                memcpy(out + (size_t)(y - y0) * (size_t)w + (size_t)(x - x0),
+                       t->cells + (size_t)(y - t->tj * T) * (size_t)t->w + (size_t)(x - t->ti * T),
+                       (size_t)(end - x) * sizeof(float));
+                x = end;
+            }
+        }
+    }
+    rc = 0;
+    goto done;
+oom:
+    tsio_errf(err, r->path, "out of memory for the tiles");
+done:
+    tiles_evict(r);
+    pthread_mutex_unlock(&r->tile_lock);
+    free(batch);
+    free(want);
+    return rc;
+}
+
+int recipe_read_window(ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err)
 {
     ts_ctx *ctx;
     size_t i, n = (size_t)w * (size_t)h;
     int rc;
-    if (!r->computed || (r->method != RECIPE_AMPLIFY && r->method != RECIPE_PIXEL)) {
+    if (!r->computed || !recipe_lazy(r)) {
         tsio_errf(err, r->path, "not computed");
+        return -1;
+    }
+    if (x0 < 0 || y0 < 0 || w < 1 || h < 1 || x0 > recipe_georef(r)->width - w ||
+        y0 > recipe_georef(r)->height - h) {
+        tsio_errf(err, r->path, "window %d,%d %dx%d is off the grid", x0, y0, w, h);
         return -1;
     }
     ctx = ts_ctx_new();
     if (!ctx) {
         tsio_errf(err, r->path, "out of memory");
         return -1;
+    }
+    if (r->method == RECIPE_SYNTH) {
+        ts_ctx_set_seed(ctx, r->seed);
+        rc = tiles_window(r, ctx, x0, y0, w, h, out, err);
+        ts_ctx_free(ctx);
+        for (i = 0; rc == 0 && i < n; i++)
+            if (isnan(out[i]))
+                out[i] = -9999.0f; /* nodata as the driver declares it */
+        return rc;
     }
     if (r->method == RECIPE_PIXEL) {
         ts_ctx_set_seed(ctx, r->seed);

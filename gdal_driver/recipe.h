@@ -50,7 +50,7 @@ int recipe_lazy(const ts_recipe *r);
 /* The side of the blocks the driver serves (a pixel recipe's are larger: each block
  * recomputes the margins its levels need). */
 int recipe_block_size(const ts_recipe *r);
-int recipe_read_window(const ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err);
+int recipe_read_window(ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err);
 
 /** Write a recipe for a job from what a front end was given (jobspec.h;
  *  temporary file + rename).  Input paths are stored relative to the

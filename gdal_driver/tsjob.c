@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "tsjob.h"
 
@@ -39,6 +40,7 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
                                      slope style's Poisson system (~110 B/cell at its peak) */
 #define JOB_MEM_EX_SOURCE_CELL 12 /* per exemplar cell as read */
 #define JOB_MEM_EX_CELL 24        /* per exemplar cell at the target resolution: pyramid, FFT */
+#define JOB_MEM_TILE_CELL 8       /* per cell of a tile being made: its window, flags, copy */
 
 int tsjob_ppa_check_memory(const tsio_georef *in, const char *path, tsio_err *err)
 {
@@ -180,8 +182,19 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
     uint64_t cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
     uint64_t need = JOB_MEM_BASE, biggest = 0;
     int i;
-    need +=
-        cells * (JOB_MEM_SYNTH_CELL + JOB_MEM_MAPS_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0));
+    if (job->lazy && res->params.tiled > 0) {
+        /* tile by tile: the tiles a front end keeps (at least one request's
+         * cone) and every thread's tile being made, with its margins */
+        uint64_t T = (uint64_t)res->params.tiled, P = (uint64_t)res->params.patch_size.value;
+        uint64_t cone = TSJOB_TILE_CONE * T * T * sizeof(float);
+        long threads = sysconf(_SC_NPROCESSORS_ONLN);
+        need += (uint64_t)job->tile_cache > cone ? (uint64_t)job->tile_cache : cone;
+        need += (uint64_t)(threads > 0 ? threads : 1) * (T + 2 * P) * (T + 2 * P) *
+                (JOB_MEM_SYNTH_CELL + JOB_MEM_TILE_CELL);
+    } else {
+        need += cells * (JOB_MEM_SYNTH_CELL + JOB_MEM_MAPS_CELL +
+                         (job->sketch ? JOB_MEM_SKETCH_CELL : 0));
+    }
     int cy = res->geo.height / 2;
     double t_area = res->dx_m ? res->dx_m[cy] * res->dy_m[cy] : 0.0;
     for (i = 0; i < job->n_exemplars; i++) {
@@ -319,6 +332,27 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         return -1;
     }
     ts_ctx_free(ctx);
+    if (res->params.tiled > 0 && (res->params.tiled < 2 * (int)res->params.patch_size.value ||
+                                  res->params.tiled > 16384)) {
+        tsio_errf(err, "synth", "tiles of %d cells: give 2 x the patch (%d) to 16384",
+                  res->params.tiled, 2 * (int)res->params.patch_size.value);
+        tsjob_synth_result_free(res);
+        return -1;
+    }
+    if (res->params.tiled > 0 && job->sketch) {
+        tsio_errf(err, "synth", "tiles (tiled %d) are for free synthesis: not with a sketch yet",
+                  res->params.tiled);
+        tsjob_synth_result_free(res);
+        return -1;
+    }
+    if (res->params.tiled > 0 &&
+        (job->n_pins || job->water || job->heights || job->regions)) {
+        tsio_errf(err, "synth",
+                  "tiles (tiled %d) take no pins, water, heights, regions or debug maps yet",
+                  res->params.tiled);
+        tsjob_synth_result_free(res);
+        return -1;
+    }
     if (job_synth_check_memory(job, res, err) != 0) {
         tsjob_synth_result_free(res);
         return -1;
@@ -363,6 +397,68 @@ static int job_alloc_maps(tsjob_synth_result *res, tsio_err *err)
     return 0;
 }
 
+/* The exemplars at the target resolution, one at a time (ex[i] owned by
+ * the caller, freed by it on failure too). */
+static int job_read_exemplars(const tsjob_synth *job, tsjob_synth_result *res, tsio_raster *ex,
+                              ts_raster *exr, tsio_err *err)
+{
+    int i, cy = res->geo.height / 2, P = (int)res->params.patch_size.value;
+    for (i = 0; i < job->n_exemplars; i++) {
+        double factor = 1.0;
+        if (tsio_read_raster_resampled(job->exemplars[i], job->band,
+                                       res->dx_m ? res->dx_m[cy] : 0, res->dy_m ? res->dy_m[cy] : 0,
+                                       job->cell_size, &ex[i], &factor, err) != 0)
+            return -1;
+        job_warn_sentinels(&res->warning, job->exemplars[i], &ex[i]);
+        if (res->dx_m && !ex[i].dx_m && !res->exemplar_no_crs)
+            res->exemplar_no_crs = i + 1;
+        if (ex[i].r.width < P || ex[i].r.height < P) {
+            tsio_errf(err, job->exemplars[i],
+                      "%d x %d cells at the target resolution is smaller than a patch (%d "
+                      "cells)",
+                      ex[i].r.width, ex[i].r.height, P);
+            return -1;
+        }
+        exr[i] = ex[i].r;
+    }
+    return 0;
+}
+
+int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
+                      tsio_err *err)
+{
+    (void)ctx;
+    if (!(res->params.tiled > 0)) {
+        tsio_errf(err, "synth", "internal error: tile by tile needs a tiled synthesis");
+        return -1;
+    }
+    if (res->n_ex)
+        return 0;
+    if (job_read_exemplars(job, res, res->ex, res->exr, err) != 0) {
+        int i;
+        for (i = 0; i < job->n_exemplars; i++)
+            tsio_raster_free(&res->ex[i]);
+        return -1;
+    }
+    res->n_ex = job->n_exemplars;
+    return 0;
+}
+
+int tsjob_synth_tiles(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_result *res,
+                      ts_synth_tile *tiles, int n_tiles, tsio_err *err)
+{
+    if (!res->n_ex) {
+        tsio_errf(err, "synth", "internal error: tiles before setup");
+        return -1;
+    }
+    if (ts_synth_tiles(ctx, res->exr, res->n_ex, &res->params, res->params.tiled, res->geo.width,
+                       res->geo.height, tiles, n_tiles) != TS_OK) {
+        job_core_err(ctx, job, "synth", err);
+        return -1;
+    }
+    return 0;
+}
+
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
                         tsio_err *err)
 {
@@ -374,7 +470,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     tsio_raster heights;
     ts_synth_params params = res->params; /* lengths in cells */
     ts_synth_constraints cons = ts_synth_constraints_default();
-    int i, rc = -1, cy = res->geo.height / 2, P = (int)res->params.patch_size.value;
+    int i, rc = -1;
     memset(ex, 0, sizeof ex);
     memset(&heights, 0, sizeof heights);
     if (keep_maps) {
@@ -382,24 +478,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
             return -1;
         maps = &res->maps;
     }
-    for (i = 0; i < job->n_exemplars; i++) {
-        double factor = 1.0;
-        if (tsio_read_raster_resampled(job->exemplars[i], job->band,
-                                       res->dx_m ? res->dx_m[cy] : 0, res->dy_m ? res->dy_m[cy] : 0,
-                                       job->cell_size, &ex[i], &factor, err) != 0)
-            goto done;
-        job_warn_sentinels(&res->warning, job->exemplars[i], &ex[i]);
-        if (res->dx_m && !ex[i].dx_m && !res->exemplar_no_crs)
-            res->exemplar_no_crs = i + 1;
-        if (ex[i].r.width < P || ex[i].r.height < P) {
-            tsio_errf(err, job->exemplars[i],
-                      "%d x %d cells at the target resolution is smaller than a patch (%d "
-                      "cells)",
-                      ex[i].r.width, ex[i].r.height, P);
-            goto done;
-        }
-        exr[i] = ex[i].r;
-    }
+    if (job_read_exemplars(job, res, ex, exr, err) != 0)
+        goto done;
     if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
         tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
         goto done;
@@ -578,6 +658,8 @@ void tsjob_synth_result_free(tsjob_synth_result *res)
     free(res->dx_m);
     free(res->dy_m);
     ts_raster_free(&res->out);
+    for (int i = 0; i < TSJOB_MAX_EXEMPLARS; i++)
+        tsio_raster_free(&res->ex[i]);
     memset(res, 0, sizeof *res);
 }
 

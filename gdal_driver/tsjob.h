@@ -126,6 +126,10 @@ typedef struct tsjob_synth {
     const char *regions;
     int n_region_rules;
     int region_id[TSJOB_MAX_EXEMPLARS], region_exemplar[TSJOB_MAX_EXEMPLARS];
+    /* served tile by tile (the driver, a tiled free synthesis): no whole
+     * output; the memory estimate is one request's tiles and the cache */
+    int lazy;
+    size_t tile_cache; /* with lazy: the bytes of tiles a front end keeps */
 } tsjob_synth;
 
 /** Parse "FILE:XOFF,YOFF,W,H@X,Y" into pin (path points into spec). */
@@ -144,6 +148,10 @@ typedef struct tsjob_synth_result {
     ts_synth_maps maps; /* with keep_maps: where each cell came from (owned) */
     int has_maps;
     tsio_err warning; /* "" or one line a front end shows as a warning */
+    /* after tsjob_synth_setup: the exemplars at the target resolution (owned) */
+    tsio_raster ex[TSJOB_MAX_EXEMPLARS];
+    ts_raster exr[TSJOB_MAX_EXEMPLARS];
+    int n_ex;
 } tsjob_synth_result;
 
 /** Check the job and resolve the target grid (cheap: no exemplar is read). */
@@ -153,6 +161,18 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
                         tsio_err *err);
 void tsjob_synth_result_free(tsjob_synth_result *res);
+/** The most tiles one window inside one tile needs: itself and its cone of
+ *  earlier waves (a wave-3 tile: 2 of wave 2, 6 of wave 1, 8 of wave 0). */
+#define TSJOB_TILE_CONE 17
+/** A tiled free synthesis (params.tiled > 0) tile by tile: after prepare,
+ *  read the exemplars at the target resolution (what every tile shares). */
+int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
+                      tsio_err *err);
+/** After setup: the given tiles (ts_synth_tiles: independent of each
+ *  other, their earlier-wave neighbours given), the same bytes as in the
+ *  whole run; the seed is ctx's. */
+int tsjob_synth_tiles(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_result *res,
+                      ts_synth_tile *tiles, int n_tiles, tsio_err *err);
 /** Before the work (after prepare): every output can be written, none is
  *  an input, the debug folder exists (created if need be). */
 int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *res,

@@ -54,3 +54,77 @@ def test_refusals(tmp_path, extra, words):
     assert p.returncode != 0 and words in p.stderr and len(p.stderr.strip().splitlines()) == 1, \
         p.stderr
     assert not os.listdir(tmp_path)
+
+
+def _window(path, x0, y0, w, h, env_extra=None):
+    """Cells of a recipe's window read through gdal_translate -srcwin (a fresh process)."""
+    out = os.path.join(os.path.dirname(path), f"w_{x0}_{y0}_{w}_{h}.tif")
+    env = plugin_env(PLUGINS)
+    env.update(env_extra or {})
+    subprocess.run(["gdal_translate", "-q", "-srcwin", str(x0), str(y0), str(w), str(h),
+                    str(path), out], check=True, env=env)
+    return gdal.Open(out).ReadAsArray()
+
+
+def test_recipe_served_tile_by_tile(tmp_path):
+    """A tiled recipe is served tile by tile (each window from the tiles under it and the
+    earlier-wave tiles those need): any window, read alone in a fresh process, in any
+    order, with no cache or a small one, equals that window of the whole run made in one
+    call by the CLI (ts_synth_tiled)."""
+    args = ["--exemplar", JACKSBORO, "--size", "700x530", "--seed", 4, "--tiled", 128]
+    run("synth", *args, tmp_path / "whole.tif", "-q")
+    run("synth", *args, "--recipe", tmp_path / "t.tsyn")
+    whole = gdal.Open(str(tmp_path / "whole.tif")).ReadAsArray()
+    for (x0, y0, w, h) in [(0, 0, 128, 128), (390, 130, 100, 96), (300, 200, 150, 130),
+                           (650, 500, 50, 30), (0, 0, 700, 530)]:
+        got = _window(tmp_path / "t.tsyn", x0, y0, w, h)
+        assert got.tobytes() == whole[y0:y0 + h, x0:x0 + w].tobytes(), (x0, y0, w, h)
+    # blocks read in a shuffled order, the cache off: every block makes its cone again
+    env = plugin_env(PLUGINS)
+    env["TSYN_TILE_CACHE_MB"] = "0"
+    code = ("import sys, random\nfrom osgeo import gdal\nimport numpy as np\n"
+            "ds = gdal.Open(sys.argv[1]); b = ds.GetRasterBand(1)\n"
+            "bx, by = b.GetBlockSize(); out = np.zeros((ds.RasterYSize, ds.RasterXSize), 'f4')\n"
+            "blocks = [(i, j) for j in range(0, ds.RasterYSize, by)"
+            " for i in range(0, ds.RasterXSize, bx)]\n"
+            "random.Random(3).shuffle(blocks)\n"
+            "for i, j in blocks:\n"
+            "    w = min(bx, ds.RasterXSize - i); h = min(by, ds.RasterYSize - j)\n"
+            "    out[j:j + h, i:i + w] = b.ReadAsArray(i, j, w, h)\n"
+            "    b.FlushCache()\n"
+            "sys.stdout.buffer.write(out.tobytes())\n")
+    p = subprocess.run([sys.executable, "-c", code, str(tmp_path / "t.tsyn")],
+                       capture_output=True, check=True, env=env)
+    assert p.stdout == whole.astype("<f4").tobytes()
+    # a bad cache size is refused in one line
+    bad = subprocess.run(["gdalinfo", str(tmp_path / "t.tsyn")], capture_output=True,
+                         text=True, env=dict(env, TSYN_TILE_CACHE_MB="lots"))
+    assert bad.returncode != 0 and "TSYN_TILE_CACHE_MB" in bad.stderr
+
+
+@pytest.mark.skipif(bool(os.environ.get("TS_TOOL_PRELOAD")),
+                    reason="sanitizers multiply the memory a run takes")
+def test_a_huge_tiled_recipe_serves_a_window_alone(tmp_path):
+    """A 65536 x 65536 tiled recipe (16 GB of Float32 whole) opens, and a window inside
+    tile (5, 3) is made from that tile's cone alone, in a bounded amount of memory, and
+    equals the same window of a whole 1280 x 768 run made by the CLI: the cone lies inside
+    it, away from its borders, and a tile depends on nothing else.  (The exemplar has no
+    CRS, so both grids take it cell for cell: on a geographic grid the exemplar is brought
+    to the cell size of the grid's middle row, which differs between the two grids.)"""
+    import resource
+    z = gdal.Open(JACKSBORO).ReadAsArray().astype(np.float32)
+    ex = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "ex.tif"), z.shape[1], z.shape[0],
+                                              1, gdal.GDT_Float32)
+    ex.GetRasterBand(1).WriteArray(z)
+    ex = None
+    args = ["--exemplar", tmp_path / "ex.tif", "--seed", 6, "--tiled", 128]
+    run("synth", *args, "--size", "65536x65536", "--recipe", tmp_path / "big.tsyn")
+    run("synth", *args, "--size", "1280x768", tmp_path / "small.tif", "-q")
+    got = _window(tmp_path / "big.tsyn", 5 * 128 + 10, 3 * 128 + 20, 100, 90)
+    peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    small = gdal.Open(str(tmp_path / "small.tif")).ReadAsArray()
+    assert got.tobytes() == small[3 * 128 + 20:3 * 128 + 110, 5 * 128 + 10:5 * 128 + 110].tobytes()
+    assert peak_kb < 1024 * 1024, peak_kb  # every child so far under 1 GB
+    info = subprocess.run(["gdalinfo", str(tmp_path / "big.tsyn")], capture_output=True,
+                          text=True, check=True, env=plugin_env(PLUGINS)).stdout
+    assert "Size is 65536, 65536" in info and "Block=128x128" in info
