@@ -1072,3 +1072,102 @@ char *recipe_open_option_list(void)
     CPLFree(xml);
     return out;
 }
+
+/* ------------------------------------------------------------------ */
+/* Tiles for the Dask runner                                           */
+/* ------------------------------------------------------------------ */
+
+#define TSYN_EXPORT __attribute__((visibility("default")))
+
+static void copy_err(const tsio_err *e, char *msg, int n)
+{
+    if (msg && n > 0)
+        snprintf(msg, (size_t)n, "%s", e->msg);
+}
+
+TSYN_EXPORT int tsyn_tiles_open(const char *path, void **handle, int *width, int *height,
+                                int *tile, char *msg, int n)
+{
+    ts_recipe *r = NULL;
+    tsio_err err;
+    *handle = NULL;
+    if (recipe_open(path, NULL, &r, &err) != 0) {
+        copy_err(&err, msg, n);
+        return -1;
+    }
+    if (r->method != RECIPE_SYNTH || !r->synth.lazy) {
+        tsio_errf(&err, path, "not a tiled synth recipe (give it <Param name=\"tiled\">)");
+        recipe_free(r);
+        copy_err(&err, msg, n);
+        return -1;
+    }
+    if (recipe_compute(r, &err) != 0) {
+        recipe_free(r);
+        copy_err(&err, msg, n);
+        return -1;
+    }
+    *width = r->synth_res.geo.width;
+    *height = r->synth_res.geo.height;
+    *tile = r->synth_res.params.tiled;
+    *handle = r;
+    return 0;
+}
+
+/* Tile (ti, tj)'s core into core (row by row, its own width), from the cores
+ * of its neighbours: nb[(dj + 1) * 3 + di + 1] (each row by row, its own
+ * width), NULL where not needed. */
+TSYN_EXPORT int tsyn_tile_make(void *handle, int ti, int tj, const float *const nb[9],
+                               float *core, char *msg, int n)
+{
+    ts_recipe *r = handle;
+    const tsjob_synth_result *res = &r->synth_res;
+    int T = res->params.tiled, W = res->geo.width, H = res->geo.height, k, rc;
+    ts_raster views[9];
+    ts_synth_tile t;
+    ts_ctx *ctx;
+    tsio_err err;
+    memset(&t, 0, sizeof t);
+    if (ti < 0 || tj < 0 || ti * (int64_t)T >= W || tj * (int64_t)T >= H) {
+        tsio_errf(&err, r->path, "tile (%d, %d) is off the grid", ti, tj);
+        copy_err(&err, msg, n);
+        return -1;
+    }
+    t.ti = ti;
+    t.tj = tj;
+    t.core = ts_raster_wrap(core, W - ti * T < T ? W - ti * T : T, H - tj * T < T ? H - tj * T : T,
+                            W - ti * T < T ? W - ti * T : T);
+    for (k = 0; k < 9; k++) {
+        int ni = ti + k % 3 - 1, nj = tj + k / 3 - 1;
+        if (!nb[k] || ni < 0 || nj < 0 || ni * (int64_t)T >= W || nj * (int64_t)T >= H)
+            continue;
+        views[k] = ts_raster_wrap((float *)(uintptr_t)nb[k], W - ni * T < T ? W - ni * T : T,
+                                  H - nj * T < T ? H - nj * T : T, W - ni * T < T ? W - ni * T : T);
+        t.neighbours[k] = &views[k];
+    }
+    ctx = ts_ctx_new();
+    if (!ctx) {
+        tsio_errf(&err, r->path, "out of memory");
+        copy_err(&err, msg, n);
+        return -1;
+    }
+    ts_ctx_set_seed(ctx, r->seed);
+    ts_ctx_set_threads(ctx, 1);
+    rc = tsjob_synth_tiles(ctx, &r->synth, res, &t, 1, &err);
+    ts_ctx_free(ctx);
+    if (rc != 0) {
+        copy_err(&err, msg, n);
+        return -1;
+    }
+    { /* nodata as the driver declares it */
+        size_t i, m = (size_t)t.core.width * (size_t)t.core.height;
+        for (i = 0; i < m; i++)
+            if (isnan(core[i]))
+                core[i] = -9999.0f;
+    }
+    return 0;
+}
+
+TSYN_EXPORT void tsyn_tiles_close(void *handle)
+{
+    recipe_free(handle);
+}

@@ -10,9 +10,13 @@
 #
 # The workers open the recipe through the TSYN GDAL driver and each reads one chunk (a window
 # of the raster); the client writes the chunks as they come.  Methods that compute any window
-# alone (pixel, amplify) are spread over the workers chunk by chunk; the others (synth, ppa)
-# compute the whole raster on first read, so their recipe is read by one task as one chunk
-# (the same bytes, no gain in speed).  A chunk is a pure function of the recipe and its
+# alone (pixel, amplify) are spread over the workers chunk by chunk.  A tiled synth recipe
+# (<Param name="tiled">) is one Dask task per tile: a tile's task takes the cores of its
+# earlier-wave neighbours (four waves, see algorithms/docs/synth.md) as its inputs, so Dask
+# runs the waves in order, each tile once, and moves the neighbours' cores between workers;
+# the task calls the plugin's tsyn_tile_make.  The others (synth in one piece, ppa) compute
+# the whole raster on first read, so their recipe is read by one task as one chunk (the same
+# bytes, no gain in speed).  A chunk is a pure function of the recipe and its
 # window, so Dask recomputes the chunks of a worker that dies.  The output appears whole or
 # not at all (written under a temporary name, moved at the end; removed on error and on
 # Ctrl-C); it never replaces the recipe or a file the recipe names.  Debian packages only:
@@ -82,6 +86,109 @@ def read_chunk(recipe, plugins, x, y, w, h):
     return x, y, a
 
 
+def recipe_tiled(path):
+    """The recipe's tile size (its <Param name="tiled">), 0 when it has none."""
+    root = ET.parse(path).getroot()
+    for el in root.iter("Param"):
+        if el.get("name", "").lower() == "tiled":
+            try:
+                return int((el.text or "0").strip())
+            except ValueError:
+                return 0
+    return 0
+
+
+_TILES = {}  # per worker process: recipe path -> (library, handle, width, height, tile)
+
+
+def _tiles_handle(recipe, plugins):
+    """The recipe opened once per worker process for tile tasks: the plugin's library
+    (ctypes) and a handle with the exemplars read."""
+    import ctypes
+    if recipe in _TILES:
+        return _TILES[recipe]
+    if plugins:
+        os.environ["GDAL_DRIVER_PATH"] = plugins
+    from osgeo import gdal
+    gdal.UseExceptions()
+    if plugins:
+        gdal.SetConfigOption("GDAL_DRIVER_PATH", plugins)
+    if gdal.GetDriverByName("TSYN") is None:
+        gdal.AllRegister()
+    drv = gdal.GetDriverByName("TSYN")
+    path = drv.GetMetadataItem("TSYN_LIBRARY") if drv is not None else None
+    if not path:
+        raise RuntimeError("the TSYN GDAL driver is not installed on this worker "
+                           "(cmake --install, or GDAL_DRIVER_PATH)")
+    lib = ctypes.CDLL(path)
+    lib.tsyn_tiles_open.argtypes = [ctypes.c_char_p, ctypes.POINTER(ctypes.c_void_p),
+                                    ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int),
+                                    ctypes.POINTER(ctypes.c_int), ctypes.c_char_p, ctypes.c_int]
+    lib.tsyn_tile_make.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
+                                   ctypes.c_void_p * 9, ctypes.c_void_p, ctypes.c_char_p,
+                                   ctypes.c_int]
+    h, w, ht, t = ctypes.c_void_p(), ctypes.c_int(), ctypes.c_int(), ctypes.c_int()
+    msg = ctypes.create_string_buffer(1024)
+    if lib.tsyn_tiles_open(recipe.encode(), ctypes.byref(h), ctypes.byref(w), ctypes.byref(ht),
+                           ctypes.byref(t), msg, 1024) != 0:
+        raise RuntimeError(msg.value.decode(errors="replace"))
+    _TILES[recipe] = (lib, h, w.value, ht.value, t.value)
+    return _TILES[recipe]
+
+
+def make_tile(recipe, plugins, ti, tj, neighbours):
+    """Tile (ti, tj)'s core (runs on a worker) from its earlier-wave neighbours' cores
+    (neighbours[(dj + 1) * 3 + di + 1], None where not needed)."""
+    import ctypes
+    import numpy as np
+    lib, h, W, H, T = _tiles_handle(recipe, plugins)
+    core = np.empty((min(T, H - tj * T), min(T, W - ti * T)), dtype=np.float32)
+    keep = [None if n is None else np.ascontiguousarray(n, dtype=np.float32)
+            for n in neighbours]
+    ptrs = (ctypes.c_void_p * 9)(*[None if n is None else n.ctypes.data for n in keep])
+    msg = ctypes.create_string_buffer(1024)
+    if lib.tsyn_tile_make(h, ti, tj, ptrs, core.ctypes.data, msg, 1024) != 0:
+        raise RuntimeError(msg.value.decode(errors="replace"))
+    return core
+
+
+def wave(ti, tj):
+    return (ti & 1) + 2 * (tj & 1)
+
+
+def tile_tasks(client, recipe, plugins, W, H, T):
+    """Submit a task per tile, each after the earlier-wave neighbours it takes (tiles in row
+    order, a tile's needs first: Dask runs them in about that order, so the cores it holds
+    are a few tile rows)."""
+    nti, ntj = (W + T - 1) // T, (H + T - 1) // T
+    futs = {}
+
+    def submit(ti, tj):
+        stack = [(ti, tj)]
+        while stack:
+            i, j = stack[-1]
+            if (i, j) in futs:
+                stack.pop()
+                continue
+            needs = [(i + di, j + dj) for dj in (-1, 0, 1) for di in (-1, 0, 1)
+                     if (di or dj) and 0 <= i + di < nti and 0 <= j + dj < ntj
+                     and wave(i + di, j + dj) < wave(i, j)]
+            missing = [n for n in needs if n not in futs]
+            if missing:
+                stack.extend(missing)
+                continue
+            stack.pop()
+            nb = [futs.get((i + di, j + dj)) if (i + di, j + dj) in needs else None
+                  for dj in (-1, 0, 1) for di in (-1, 0, 1)]
+            futs[(i, j)] = client.submit(make_tile, recipe, plugins, i, j, nb, pure=True,
+                                         retries=2, key="tile-%d-%d-%s" % (
+                                             i, j, abs(hash((recipe, plugins)))))
+    for tj in range(ntj):
+        for ti in range(nti):
+            submit(ti, tj)
+    return futs
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog=PROG, description=__doc__)
     ap.add_argument("recipe")
@@ -131,6 +238,7 @@ def main(argv=None):
     except ImportError:
         fail("needs python3-dask and python3-distributed (apt-get install python3-distributed)")
 
+    tile = recipe_tiled(a.recipe) if method == "Synth" else 0
     chunk = a.chunk if method in BLOCK_EXACT else max(W, H)
     windows = [(x, y, min(chunk, W - x), min(chunk, H - y))
                for y in range(0, H, chunk) for x in range(0, W, chunk)]
@@ -175,16 +283,27 @@ def main(argv=None):
         if nodata is not None:
             ob.SetNoDataValue(nodata)
         recipe = os.path.abspath(a.recipe)
+        plugins = os.path.abspath(a.plugins) if a.plugins else a.plugins
         # at most a few chunks in flight per worker: the client holds what has come back
         n_workers = max(1, len(client.scheduler_info().get("workers", {})) or a.workers or 1)
-        pending = list(windows)
+        pending = [] if tile else list(windows)
         futures = as_completed()
+        if tile:  # one task per tile, the waves as dependencies
+            futs = tile_tasks(client, recipe, plugins, W, H, tile)
+            where = {f.key: (ti * tile, tj * tile) for (ti, tj), f in futs.items()}
+            windows = list(futs)
+            futures = as_completed(list(futs.values()))
+            futs = None  # the client keeps only what as_completed holds
         for _ in range(min(len(pending), 2 * n_workers)):
             w = pending.pop(0)
             futures.add(client.submit(read_chunk, recipe, a.plugins, *w, pure=True, retries=2))
         done = 0
         for fut in futures:
-            x, y, arr = fut.result()
+            if tile:
+                x, y = where.pop(fut.key)
+                arr = fut.result()
+            else:
+                x, y, arr = fut.result()
             ob.WriteArray(arr, x, y)
             fut.release()
             done += 1
@@ -194,8 +313,9 @@ def main(argv=None):
                                           retries=2))
             if not a.quiet:
                 k = 40 * done // len(windows)
-                sys.stderr.write("\r[%s%s] %d of %d chunks" % ("#" * k, " " * (40 - k), done,
-                                                                len(windows)))
+                sys.stderr.write("\r[%s%s] %d of %d %s" % ("#" * k, " " * (40 - k), done,
+                                                           len(windows),
+                                                           "tiles" if tile else "chunks"))
                 sys.stderr.flush()
         if not a.quiet:
             sys.stderr.write("\n")
@@ -227,10 +347,11 @@ def main(argv=None):
             cluster.close()
     cleanup()
     if not a.quiet:
-        print("%s: %d x %d from %s (%s, %s) in %d chunks" % (
+        print("%s: %d x %d from %s (%s, %s) in %d %s" % (
             a.output, W, H, os.path.basename(a.recipe), method,
+            "tile by tile, four waves" if tile else
             "chunk by chunk" if method in BLOCK_EXACT else "whole raster, one task",
-            len(windows)))
+            len(windows), "tiles" if tile else "chunks"))
     return 0
 
 

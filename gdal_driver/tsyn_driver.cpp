@@ -9,6 +9,7 @@
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <algorithm>
+#include <dlfcn.h>
 #include <cstring>
 #include <vector>
 
@@ -188,6 +189,10 @@ extern "C" __attribute__((visibility("default"))) void GDALRegister_TSYN(void)
     drv->SetMetadataItem(GDAL_DMD_EXTENSION, "tsyn");
     drv->SetMetadataItem(GDAL_DMD_HELPTOPIC, "gdal_driver/docs/recipes.md");
     drv->SetMetadataItem(GDAL_DCAP_VIRTUALIO, "YES");
+    /* where this plugin lies: the Dask runner calls its tsyn_tile_make */
+    Dl_info self;
+    if (dladdr(reinterpret_cast<void *>(&GDALRegister_TSYN), &self) && self.dli_fname)
+        drv->SetMetadataItem("TSYN_LIBRARY", self.dli_fname);
     char *options = recipe_open_option_list();
     if (options) {
         drv->SetMetadataItem(GDAL_DMD_OPENOPTIONLIST, options);

@@ -2,7 +2,8 @@
 """terrasynth-dask (gdal_driver/terrasynth_dask.py, issue 16): a recipe computed on a local
 Dask cluster of two worker processes (loopback only) gives the same cells, geotransform, CRS
 and nodata as `gdal_translate RECIPE OUT.tif` of the same recipe, whatever the chunk size; a
-pixel and an amplify recipe chunk by chunk, a synth recipe in one task; refusals leave
+pixel and an amplify recipe chunk by chunk, a tiled synth recipe tile by tile, a synth recipe
+in one piece in one task; refusals leave
 nothing behind.  Skips when python3-distributed is absent; not under the sanitizers (the
 runner is plain Python and its workers would each load the instrumented plugin: the plugin is
 checked under them by tests/gdal)."""
@@ -100,6 +101,24 @@ def test_synth_recipe_in_one_task(tmp_path):
     p = runner(recipe, tmp_path / "dask.tif", "--chunk", 64)
     assert "whole raster, one task" in p.stdout and "in 1 chunks" in p.stdout
     same_raster(tmp_path / "dask.tif", tmp_path / "gt.tif")
+
+
+def test_tiled_synth_recipe_tile_by_tile(tmp_path):
+    """A tiled synth recipe: one task per tile, the waves as dependencies, the neighbours'
+    cores moved between the two workers: the same cells as the CLI's whole run and as
+    gdal_translate, on 2 workers and on 1."""
+    args = ["--exemplar", JACKSBORO, "--size", "530x400", "--seed", 8, "--tiled", 128]
+    recipe = tmp_path / "t.tsyn"
+    run("synth", *args, "--recipe", recipe)
+    run("synth", *args, tmp_path / "cli.tif", "-q")
+    translate(recipe, tmp_path / "gt.tif")
+    p = runner(recipe, tmp_path / "d2.tif", "--no-overviews")
+    assert "tile by tile, four waves" in p.stdout and "in 20 tiles" in p.stdout, p.stdout
+    same_raster(tmp_path / "d2.tif", tmp_path / "gt.tif")
+    runner(recipe, tmp_path / "d1.tif", "--workers", 1, "--no-overviews", "-q")
+    same_raster(tmp_path / "d1.tif", tmp_path / "gt.tif")
+    cli = gdal.Open(str(tmp_path / "cli.tif")).ReadAsArray()
+    assert gdal.Open(str(tmp_path / "d2.tif")).ReadAsArray().tobytes() == cli.tobytes()
 
 
 def test_refusals_leave_nothing(tmp_path):
