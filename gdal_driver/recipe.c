@@ -41,9 +41,10 @@
 static _Thread_local const char *recipe_stack[RECIPE_MAX_DEPTH];
 static _Thread_local int recipe_depth;
 
-/* A tile of a tiled synth recipe (its core cells). */
+/* A tile of a tiled synth recipe: its window's cells (ts_synth_tile_window). */
 typedef struct recipe_tile {
-    int ti, tj, w, h;
+    int ti, tj;
+    int x0, y0, w, h; /* the window */
     float *cells;
     uint64_t used; /* the last request that needed it */
 } recipe_tile;
@@ -730,12 +731,16 @@ static int tiles_make(ts_recipe *r, ts_ctx *ctx, ts_synth_tile *batch, size_t n,
     size_t g;
     for (g = 0; g < n; g++) {
         ts_synth_tile *t = &batch[g];
-        int cw = W - t->ti * T < T ? W - t->ti * T : T;
-        int ch = H - t->tj * T < T ? H - t->tj * T : T;
-        float *cells = malloc((size_t)cw * (size_t)ch * sizeof(float));
+        int win[4];
+        float *cells;
+        if (ts_synth_tile_window(ctx, &res->params, T, W, H, t->ti, t->tj, win, NULL) != TS_OK) {
+            tsio_errf(err, r->path, "%s", ts_ctx_message(ctx));
+            goto fail;
+        }
+        cells = malloc((size_t)win[2] * (size_t)win[3] * sizeof(float));
         if (!cells)
             goto oom;
-        t->core = ts_raster_wrap(cells, cw, ch, cw);
+        t->window = ts_raster_wrap(cells, win[2], win[3], win[2]);
         for (dj = -1; dj <= 1; dj++)
             for (di = -1; di <= 1; di++) {
                 recipe_tile *nb = tile_find(r, t->ti + di, t->tj + dj);
@@ -757,11 +762,15 @@ static int tiles_make(ts_recipe *r, ts_ctx *ctx, ts_synth_tile *batch, size_t n,
         goto fail;
     for (g = 0; g < n; g++) { /* into the cache */
         recipe_tile *e = &r->tiles[r->n_tiles++];
+        int win[4];
+        ts_synth_tile_window(ctx, &res->params, T, W, H, batch[g].ti, batch[g].tj, win, NULL);
         e->ti = batch[g].ti;
         e->tj = batch[g].tj;
-        e->w = batch[g].core.width;
-        e->h = batch[g].core.height;
-        e->cells = batch[g].core.data;
+        e->x0 = win[0];
+        e->y0 = win[1];
+        e->w = batch[g].window.width;
+        e->h = batch[g].window.height;
+        e->cells = batch[g].window.data;
         e->used = r->tile_clock;
         r->tile_bytes += (size_t)e->w * (size_t)e->h * sizeof(float);
     }
@@ -770,7 +779,7 @@ oom:
     tsio_errf(err, r->path, "out of memory for the tiles");
 fail:
     for (g = 0; g < n; g++)
-        free(batch[g].core.data);
+        free(batch[g].window.data);
     return -1;
 }
 
@@ -837,7 +846,7 @@ static int tiles_window(ts_recipe *r, ts_ctx *ctx, int x0, int y0, int w, int h,
                 const recipe_tile *t = tile_find(r, x / T, y / T);
                 int end = (x / T + 1) * T < x0 + w ? (x / T + 1) * T : x0 + w;
                 memcpy(out + (size_t)(y - y0) * (size_t)w + (size_t)(x - x0),
-                       t->cells + (size_t)(y - t->tj * T) * (size_t)t->w + (size_t)(x - t->ti * T),
+                       t->cells + (size_t)(y - t->y0) * (size_t)t->w + (size_t)(x - t->x0),
                        (size_t)(end - x) * sizeof(float));
                 x = end;
             }
@@ -1113,35 +1122,47 @@ TSYN_EXPORT int tsyn_tiles_open(const char *path, void **handle, int *width, int
     return 0;
 }
 
-/* Tile (ti, tj)'s core into core (row by row, its own width), from the cores
- * of its neighbours: nb[(dj + 1) * 3 + di + 1] (each row by row, its own
- * width), NULL where not needed. */
-TSYN_EXPORT int tsyn_tile_make(void *handle, int ti, int tj, const float *const nb[9],
-                               float *core, char *msg, int n)
+/* Where tile (ti, tj) lies: win and core = {x, y, w, h} (ts_synth_tile_window). */
+TSYN_EXPORT int tsyn_tile_rect(void *handle, int ti, int tj, int win[4], int core[4], char *msg,
+                               int n)
 {
     ts_recipe *r = handle;
     const tsjob_synth_result *res = &r->synth_res;
-    int T = res->params.tiled, W = res->geo.width, H = res->geo.height, k, rc;
+    ts_ctx *ctx = ts_ctx_new();
+    int rc = -1;
+    if (ctx && ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width,
+                                    res->geo.height, ti, tj, win, core) == TS_OK)
+        rc = 0;
+    else if (msg && n > 0)
+        snprintf(msg, (size_t)n, "%s: %s", r->path, ctx ? ts_ctx_message(ctx) : "out of memory");
+    ts_ctx_free(ctx);
+    return rc;
+}
+
+/* Tile (ti, tj)'s window into window (row by row, its own width: see
+ * tsyn_tile_rect), from the windows of its neighbours, nb[(dj + 1) * 3 + di
+ * + 1] (each row by row, its own width), NULL where not needed. */
+TSYN_EXPORT int tsyn_tile_make(void *handle, int ti, int tj, const float *const nb[9],
+                               float *window, char *msg, int n)
+{
+    ts_recipe *r = handle;
+    const tsjob_synth_result *res = &r->synth_res;
+    int k, rc, win[4];
     ts_raster views[9];
     ts_synth_tile t;
     ts_ctx *ctx;
     tsio_err err;
     memset(&t, 0, sizeof t);
-    if (ti < 0 || tj < 0 || ti * (int64_t)T >= W || tj * (int64_t)T >= H) {
-        tsio_errf(&err, r->path, "tile (%d, %d) is off the grid", ti, tj);
-        copy_err(&err, msg, n);
+    if (tsyn_tile_rect(handle, ti, tj, win, NULL, msg, n) != 0)
         return -1;
-    }
     t.ti = ti;
     t.tj = tj;
-    t.core = ts_raster_wrap(core, W - ti * T < T ? W - ti * T : T, H - tj * T < T ? H - tj * T : T,
-                            W - ti * T < T ? W - ti * T : T);
+    t.window = ts_raster_wrap(window, win[2], win[3], win[2]);
     for (k = 0; k < 9; k++) {
-        int ni = ti + k % 3 - 1, nj = tj + k / 3 - 1;
-        if (!nb[k] || ni < 0 || nj < 0 || ni * (int64_t)T >= W || nj * (int64_t)T >= H)
+        int nw[4];
+        if (!nb[k] || tsyn_tile_rect(handle, ti + k % 3 - 1, tj + k / 3 - 1, nw, NULL, NULL, 0))
             continue;
-        views[k] = ts_raster_wrap((float *)(uintptr_t)nb[k], W - ni * T < T ? W - ni * T : T,
-                                  H - nj * T < T ? H - nj * T : T, W - ni * T < T ? W - ni * T : T);
+        views[k] = ts_raster_wrap((float *)(uintptr_t)nb[k], nw[2], nw[3], nw[2]);
         t.neighbours[k] = &views[k];
     }
     ctx = ts_ctx_new();
@@ -1157,12 +1178,6 @@ TSYN_EXPORT int tsyn_tile_make(void *handle, int ti, int tj, const float *const 
     if (rc != 0) {
         copy_err(&err, msg, n);
         return -1;
-    }
-    { /* nodata as the driver declares it */
-        size_t i, m = (size_t)t.core.width * (size_t)t.core.height;
-        for (i = 0; i < m; i++)
-            if (isnan(core[i]))
-                core[i] = -9999.0f;
     }
     return 0;
 }

@@ -6,14 +6,14 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 #
 #   terrasynth-dask RECIPE.tsyn OUT.tif [--workers N | --scheduler ADDRESS] [--chunk 2048]
-#                   [--plugins DIR] [--no-overviews] [-q]
+#                   [--plugins DIR] [--no-overviews] [--stats] [-q]
 #
 # The workers open the recipe through the TSYN GDAL driver and each reads one chunk (a window
 # of the raster); the client writes the chunks as they come.  Methods that compute any window
 # alone (pixel, amplify) are spread over the workers chunk by chunk.  A tiled synth recipe
-# (<Param name="tiled">) is one Dask task per tile: a tile's task takes the cores of its
+# (<Param name="tiled">) is one Dask task per tile: a tile's task takes the windows of its
 # earlier-wave neighbours (four waves, see algorithms/docs/synth.md) as its inputs, so Dask
-# runs the waves in order, each tile once, and moves the neighbours' cores between workers;
+# runs the waves in order, each tile once, and moves the neighbours' windows between workers;
 # the task calls the plugin's tsyn_tile_make.  The others (synth in one piece, ppa) compute
 # the whole raster on first read, so their recipe is read by one task as one chunk (the same
 # bytes, no gain in speed).  A chunk is a pure function of the recipe and its
@@ -127,6 +127,9 @@ def _tiles_handle(recipe, plugins):
     lib.tsyn_tile_make.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
                                    ctypes.c_void_p * 9, ctypes.c_void_p, ctypes.c_char_p,
                                    ctypes.c_int]
+    lib.tsyn_tile_rect.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
+                                   ctypes.c_int * 4, ctypes.c_int * 4, ctypes.c_char_p,
+                                   ctypes.c_int]
     h, w, ht, t = ctypes.c_void_p(), ctypes.c_int(), ctypes.c_int(), ctypes.c_int()
     msg = ctypes.create_string_buffer(1024)
     if lib.tsyn_tiles_open(recipe.encode(), ctypes.byref(h), ctypes.byref(w), ctypes.byref(ht),
@@ -137,19 +140,29 @@ def _tiles_handle(recipe, plugins):
 
 
 def make_tile(recipe, plugins, ti, tj, neighbours):
-    """Tile (ti, tj)'s core (runs on a worker) from its earlier-wave neighbours' cores
-    (neighbours[(dj + 1) * 3 + di + 1], None where not needed)."""
+    """Tile (ti, tj)'s window (runs on a worker) from its earlier-wave neighbours' windows
+    (neighbours[(dj + 1) * 3 + di + 1], None where not needed), and where its window and
+    core lie ({x, y, w, h} each)."""
     import ctypes
     import numpy as np
     lib, h, W, H, T = _tiles_handle(recipe, plugins)
-    core = np.empty((min(T, H - tj * T), min(T, W - ti * T)), dtype=np.float32)
-    keep = [None if n is None else np.ascontiguousarray(n, dtype=np.float32)
+    win, core = (ctypes.c_int * 4)(), (ctypes.c_int * 4)()
+    msg = ctypes.create_string_buffer(1024)
+    if lib.tsyn_tile_rect(h, ti, tj, win, core, msg, 1024) != 0:
+        raise RuntimeError(msg.value.decode(errors="replace"))
+    window = np.empty((win[3], win[2]), dtype=np.float32)
+    keep = [None if n is None else np.ascontiguousarray(n[2], dtype=np.float32)
             for n in neighbours]
     ptrs = (ctypes.c_void_p * 9)(*[None if n is None else n.ctypes.data for n in keep])
-    msg = ctypes.create_string_buffer(1024)
-    if lib.tsyn_tile_make(h, ti, tj, ptrs, core.ctypes.data, msg, 1024) != 0:
+    if lib.tsyn_tile_make(h, ti, tj, ptrs, window.ctypes.data, msg, 1024) != 0:
         raise RuntimeError(msg.value.decode(errors="replace"))
-    return core
+    return tuple(win), tuple(core), window
+
+
+def peak_rss_mb():
+    """This process's peak resident set in MB (runs on a worker)."""
+    import resource
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def wave(ti, tj):
@@ -158,7 +171,7 @@ def wave(ti, tj):
 
 def tile_tasks(client, recipe, plugins, W, H, T):
     """Submit a task per tile, each after the earlier-wave neighbours it takes (tiles in row
-    order, a tile's needs first: Dask runs them in about that order, so the cores it holds
+    order, a tile's needs first: Dask runs them in about that order, so the windows it holds
     are a few tile rows)."""
     nti, ntj = (W + T - 1) // T, (H + T - 1) // T
     futs = {}
@@ -202,6 +215,8 @@ def main(argv=None):
                     help="folder of the TSYN plugin for the workers (default: GDAL_DRIVER_PATH)")
     ap.add_argument("--no-overviews", action="store_true")
     ap.add_argument("-q", "--quiet", action="store_true")
+    ap.add_argument("--stats", action="store_true",
+                    help="print each worker's peak memory (resident set) at the end")
     a = ap.parse_args(argv)
     if a.chunk < 64 or a.chunk > 65536:
         fail("--chunk %d: give 64..65536 cells" % a.chunk)
@@ -221,6 +236,7 @@ def main(argv=None):
 
     if a.plugins:
         os.environ["GDAL_DRIVER_PATH"] = a.plugins
+    import numpy as np
     from osgeo import gdal
     gdal.UseExceptions()
     try:
@@ -299,9 +315,13 @@ def main(argv=None):
             futures.add(client.submit(read_chunk, recipe, a.plugins, *w, pure=True, retries=2))
         done = 0
         for fut in futures:
-            if tile:
-                x, y = where.pop(fut.key)
-                arr = fut.result()
+            if tile:  # the tile's core out of its window
+                where.pop(fut.key)
+                win, core, window = fut.result()
+                x, y = core[0], core[1]
+                arr = window[y - win[1]:y - win[1] + core[3], x - win[0]:x - win[0] + core[2]]
+                if nodata is not None:
+                    arr = np.where(np.isnan(arr), np.float32(nodata), arr)
             else:
                 x, y, arr = fut.result()
             ob.WriteArray(arr, x, y)
@@ -319,6 +339,9 @@ def main(argv=None):
                 sys.stderr.flush()
         if not a.quiet:
             sys.stderr.write("\n")
+        if a.stats:
+            for w, mb in sorted(client.run(peak_rss_mb).items()):
+                print("%s: worker %s peak memory %.0f MB" % (PROG, w, mb))
         ob = None
         final = tmp
         if not a.no_overviews:

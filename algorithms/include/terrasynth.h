@@ -517,8 +517,9 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
 /**
  * Free synthesis of `out` (all NaN on entry) in tiles of `tile` cells
  * (tiled_synthesis.c): tile (i, j) in wave (i & 1) + 2 (j & 1), made over
- * its core grown by a patch with its earlier-wave neighbours' cores fixed;
- * the output is the union of the cores.  Tiles of a wave run in parallel;
+ * its core grown by a patch with its earlier-wave neighbours' cores fixed
+ * and their margins as terrain to cut against; the output is the union of
+ * the cores.  Tiles of a wave run in parallel;
  * the result depends on the seed and the parameters only, not on the
  * thread count.  tile: 2 x the patch .. 16384.  params->tiled is not
  * read.  ts_synth_patches calls this when params->tiled > 0.
@@ -531,22 +532,32 @@ TS_API int ts_synth_tile_wave(int ti, int tj);
 
 /** One tile of a tiled synthesis, made on its own (ts_synth_tiles). */
 typedef struct ts_synth_tile {
-    int ti, tj; /* tile (ti, tj): columns [ti T, ti T + T), rows [tj T, tj T + T) */
-    /* neighbours[(dj + 1) * 3 + di + 1]: the core of tile (ti + di, tj + dj),
+    int ti, tj; /* tile (ti, tj): its core is columns [ti T, ti T + T), rows [tj T, tj T + T) */
+    /* neighbours[(dj + 1) * 3 + di + 1]: the window of tile (ti + di, tj + dj),
      * needed (and only read) where that tile exists and is of an earlier wave */
     const ts_raster *neighbours[9];
-    ts_raster core; /* written: min(T, width - ti T) x min(T, height - tj T) cells */
+    ts_raster window; /* written: the tile's window (ts_synth_tile_window) */
 } ts_synth_tile;
 
 /**
- * The tiles of ts_synth_tiled one by one: each given tile's core, made
- * from its earlier-wave neighbours' cores exactly as in the whole run (the
- * same bytes), for a width x height grid in tiles of `tile` cells; the
- * context's seed is the whole run's.  The tiles of one call run in
- * parallel, one thread each, so no two of them may be neighbours of
- * different waves (TS_ERR_ARG).  Lets a front end make any window of a
- * tiled terrain from the tiles under it and the tiles those need
- * (the GDAL driver, the Dask runner).
+ * Where tile (ti, tj) of a width x height grid in tiles of `tile` cells
+ * lies: window = {x, y, w, h} of the cells its synthesis makes (its core
+ * grown by the patch size, clipped to the grid), core = {x, y, w, h} of
+ * the cells it gives the output (either may be NULL).
+ */
+TS_API ts_status ts_synth_tile_window(ts_ctx *ctx, const ts_synth_params *params, int tile,
+                                      int width, int height, int ti, int tj, int window[4],
+                                      int core[4]);
+
+/**
+ * The tiles of ts_synth_tiled one by one: each given tile's window, made
+ * from its earlier-wave neighbours' windows exactly as in the whole run
+ * (the same bytes; the output is the union of the cores), for a width x
+ * height grid in tiles of `tile` cells; the context's seed is the whole
+ * run's.  The tiles of one call run in parallel, so no two of them may be
+ * neighbours of different waves (TS_ERR_ARG).  Lets a front end make any
+ * window of a tiled terrain from the tiles under it and the tiles those
+ * need (the GDAL driver, the Dask runner).
  */
 TS_API ts_status ts_synth_tiles(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
                                 const ts_synth_params *params, int tile, int width, int height,

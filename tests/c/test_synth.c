@@ -413,8 +413,8 @@ static void test_tiles(void)
      * tile, in reverse order within a wave: the same bytes as the whole run */
     {
         enum { NTI = 4, NTJ = 3 };
-        ts_raster cores[NTJ][NTI];
-        int need[NTJ][NTI], i, j, w, di, dj, changed = 1, same = 1, n_need = 0;
+        ts_raster wins[NTJ][NTI];
+        int need[NTJ][NTI], i, j, w, di, dj, changed = 1, same = 1, n_need = 0, win[4], core[4];
         memset(need, 0, sizeof need);
         need[1][3] = 1;
         while (changed) { /* the cone: earlier-wave neighbours of needed tiles */
@@ -428,14 +428,16 @@ static void test_tiles(void)
                                 !need[j + dj][i + di])
                                 need[j + dj][i + di] = changed = 1;
         }
+        p.tiled = 0;
         for (j = 0; j < NTJ; j++)
             for (i = 0; i < NTI; i++) {
-                int cw = W - i * T < T ? W - i * T : T, ch = H - j * T < T ? H - j * T : T;
-                ts_raster_alloc(ctx, cw, ch, &cores[j][i]);
+                CHECK(ts_synth_tile_window(ctx, &p, T, W, H, i, j, win, core) == TS_OK);
+                CHECK(core[0] == i * T && core[1] == j * T && core[2] == (i < 3 ? T : W - 3 * T));
+                CHECK(win[0] == (i ? i * T - P : 0) && win[2] >= core[2]);
+                ts_raster_alloc(ctx, win[2], win[3], &wins[j][i]);
                 n_need += need[j][i];
             }
         CHECK(n_need < NTI * NTJ); /* the cone is not everything */
-        p.tiled = 0;
         ts_ctx_set_seed(ctx, 77);
         ts_ctx_set_threads(ctx, 1);
         for (w = 0; w < 4; w++)
@@ -447,44 +449,47 @@ static void test_tiles(void)
                     memset(&t, 0, sizeof t);
                     t.ti = i;
                     t.tj = j;
-                    t.core = cores[j][i];
+                    t.window = wins[j][i];
                     for (dj = -1; dj <= 1; dj++)
                         for (di = -1; di <= 1; di++)
                             if (i + di >= 0 && j + dj >= 0 && i + di < NTI && j + dj < NTJ &&
                                 need[j + dj][i + di])
-                                t.neighbours[(dj + 1) * 3 + di + 1] = &cores[j + dj][i + di];
+                                t.neighbours[(dj + 1) * 3 + di + 1] = &wins[j + dj][i + di];
                     CHECK_MSG(ts_synth_tiles(ctx, &ex, 1, &p, T, W, H, &t, 1) == TS_OK, "%s",
                               ts_ctx_message(ctx));
                 }
+        CHECK(ts_synth_tile_window(ctx, &p, T, W, H, 3, 1, win, core) == TS_OK);
         for (y = 0; y < T; y++)
-            same &= memcmp(&TS_PIX(&cores[1][3], 0, y), &TS_PIX(&a, 3 * T, T + y),
-                           sizeof(float) * (size_t)(W - 3 * T)) == 0;
+            same &= memcmp(&TS_PIX(&wins[1][3], 3 * T - win[0], T + y - win[1]),
+                           &TS_PIX(&a, 3 * T, T + y), sizeof(float) * (size_t)(W - 3 * T)) == 0;
         CHECK_MSG(same, "tile (3, 1) made from its cone differs from the whole run");
         printf("     tiles: tile (3, 1) from %d of %d tiles, as in the whole run\n", n_need,
                NTI * NTJ);
-        /* refusals: a needed neighbour missing; two waves' neighbours in one call */
+        /* refusals: a needed neighbour missing; two waves' neighbours in one call;
+         * a tile off the grid */
         {
             ts_synth_tile two[2];
             memset(two, 0, sizeof two);
             two[0].ti = 3;
             two[0].tj = 1;
-            two[0].core = cores[1][3];
+            two[0].window = wins[1][3];
             CHECK(ts_synth_tiles(ctx, &ex, 1, &p, T, W, H, two, 1) == TS_ERR_ARG);
             CHECK(strstr(ts_ctx_message(ctx), "needs") != NULL);
             two[0].ti = 0;
             two[0].tj = 0;
-            two[0].core = cores[0][0];
+            two[0].window = wins[0][0];
             two[1].ti = 1;
             two[1].tj = 0;
-            two[1].core = cores[0][1];
-            two[1].neighbours[3] = &cores[0][0];
-            two[1].neighbours[5] = &cores[0][2];
+            two[1].window = wins[0][1];
+            two[1].neighbours[3] = &wins[0][0];
+            two[1].neighbours[5] = &wins[0][2];
             CHECK(ts_synth_tiles(ctx, &ex, 1, &p, T, W, H, two, 2) == TS_ERR_ARG);
             CHECK(strstr(ts_ctx_message(ctx), "two waves") != NULL);
+            CHECK(ts_synth_tile_window(ctx, &p, T, W, H, 4, 0, win, core) == TS_ERR_ARG);
         }
         for (j = 0; j < NTJ; j++)
             for (i = 0; i < NTI; i++)
-                ts_raster_free(&cores[j][i]);
+                ts_raster_free(&wins[j][i]);
     }
     /* another seed, another terrain; refusals */
     p.tiled = T;

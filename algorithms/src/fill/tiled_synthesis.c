@@ -4,19 +4,25 @@
  *
  * The grid is cut into tiles of T x T cells, tile (i, j) covering columns
  * [iT, (i+1)T) and rows [jT, (j+1)T): its core.  Tile (i, j) belongs to
- * wave (i & 1) + 2 (j & 1) and is synthesised over its core grown by a
- * margin G (the patch size), with the cores of its neighbours of earlier
- * waves, where they fall in that window, as fixed cells: wave 0 alone,
- * wave 1 against its left and right wave-0 cores, wave 2 against its upper
- * and lower wave-0 cores and its diagonal wave-1 cores, wave 3 against all
- * eight neighbours.  The fill grows from the fixed cells as from pinned
- * windows, so every border between two cores is cut (graph cut) and
- * smoothed (Poisson seam removal) inside the later tile, like any seam.
+ * wave (i & 1) + 2 (j & 1) and is synthesised over its window, the core
+ * grown by a margin G (the patch size) and clipped to the grid, starting
+ * from its neighbours of earlier waves: wave 0 alone, wave 1 after its
+ * left and right wave-0 tiles, wave 2 after its upper and lower wave-0
+ * tiles and its diagonal wave-1 tiles, wave 3 after all eight.  Their
+ * cores are fixed cells; their margins, the parts of their windows that
+ * reach into this tile (made with their cores, so continuous with them),
+ * are existing terrain that the fill matches against, may cut away and
+ * smooths (a cell in the margins of two earlier tiles starts empty).  So
+ * next to a fixed core lies the terrain that was made with it, and the
+ * seams between tiles fall where new patches meet those margins, cut
+ * (graph cut) and smoothed (Poisson seam removal) on both sides like any
+ * seam: not along the tile border, where a fixed side would leave a kink.
  * The output is the union of the cores.  Each tile is a function of the
  * parameters, the seed mixed with (i, j), and its earlier neighbours'
- * cores only, so the result does not depend on the order tiles are made
+ * windows only, so the result does not depend on the order tiles are made
  * in nor on the thread count: the tiles of one wave run in parallel, one
- * thread each.
+ * thread each (a wave of fewer tiles than threads shares them out: a
+ * tile's fill gives the same bytes on any number).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -50,12 +56,33 @@ TS_API int ts_synth_tile_wave(int ti, int tj)
     return tile_wave(ti, tj);
 }
 
+/* Tile (ti, tj)'s core and window: [x0, x1) x [y0, y1) each. */
+typedef struct tile_rect {
+    int cx0, cy0, cx1, cy1; /* core */
+    int x0, y0, x1, y1;     /* window */
+} tile_rect;
+
+static tile_rect rect_of(int W, int H, int T, int G, int ti, int tj)
+{
+    tile_rect r;
+    r.cx0 = ti * T;
+    r.cy0 = tj * T;
+    r.cx1 = TS_MIN((ti + 1) * T, W);
+    r.cy1 = TS_MIN((tj + 1) * T, H);
+    r.x0 = TS_MAX(r.cx0 - G, 0);
+    r.y0 = TS_MAX(r.cy0 - G, 0);
+    r.x1 = TS_MIN(r.cx1 + G, W);
+    r.y1 = TS_MIN(r.cy1 + G, H);
+    return r;
+}
+
 typedef struct tiled_job {
     ts_ctx *parent;
     const ts_raster *exemplars;
     int n_exemplars;
     ts_synth_params params; /* tiled 0: each tile in one piece */
     int W, H, T, G, nti, ntj;
+    int tile_threads; /* threads per tile: the call's shared among the tiles run */
     ts_synth_tile *tiles;
     atomic_int failed;
     atomic_int status; /* the first failure's status */
@@ -63,58 +90,89 @@ typedef struct tiled_job {
     atomic_flag msg_taken;
 } tiled_job;
 
-/* The size of tile (ti, tj)'s core. */
-static void core_size(int W, int H, int T, int ti, int tj, int *cw, int *ch)
+/* Is neighbour (ti + di, tj + dj) on the grid and of an earlier wave? */
+static int earlier(const tiled_job *j, int ti, int tj, int di, int dj)
 {
-    *cw = TS_MIN(T, W - ti * T);
-    *ch = TS_MIN(T, H - tj * T);
+    int ni = ti + di, nj = tj + dj;
+    return (di || dj) && ni >= 0 && nj >= 0 && ni < j->nti && nj < j->ntj &&
+           tile_wave(ni, nj) < tile_wave(ti, tj);
 }
 
-/* Synthesise tile t into its core. */
+/* Synthesise tile t over its window. */
 static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
 {
-    int T = j->T, G = j->G, ti = t->ti, tj = t->tj, w = tile_wave(ti, tj), di, dj, x, y;
-    int x0 = TS_MAX(ti * T - G, 0), y0 = TS_MAX(tj * T - G, 0);
-    int x1 = TS_MIN((ti + 1) * T + G, j->W), y1 = TS_MIN((tj + 1) * T + G, j->H);
-    int rw = x1 - x0, rh = y1 - y0, cw, ch;
+    int ti = t->ti, tj = t->tj, di, dj, x, y;
+    tile_rect me = rect_of(j->W, j->H, j->T, j->G, ti, tj);
+    int rw = me.x1 - me.x0, rh = me.y1 - me.y0;
+    size_t n = (size_t)rw * (size_t)rh;
     ts_raster r;
-    unsigned char *flags = ts__calloc_array((size_t)rw * (size_t)rh, 1);
+    unsigned char *flags = ts__calloc_array(n, 1), *cover = ts__calloc_array(n, 1);
     ts_synth_constraints cons = ts_synth_constraints_default();
     ts_status st;
-    if (!flags || ts_raster_alloc(ctx, rw, rh, &r) != TS_OK) {
+    if (!flags || !cover || ts_raster_alloc(ctx, rw, rh, &r) != TS_OK) {
         free(flags);
+        free(cover);
         return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
     }
     for (y = 0; y < rh; y++)
         for (x = 0; x < rw; x++)
             TS_PIX(&r, x, y) = NAN;
-    /* the cores of the earlier waves' neighbours, fixed */
+    /* the earlier neighbours: their cores fixed, their margins as terrain
+     * to match and cut against; where several reach, the latest wave's (made
+     * with the others' cores around it), and where two margins meet, a strip
+     * left empty so that the fill cuts and smooths across it */
     for (dj = -1; dj <= 1; dj++)
         for (di = -1; di <= 1; di++) {
-            int ni = ti + di, nj = tj + dj, cx0, cy0, cx1, cy1;
             const ts_raster *nb = t->neighbours[(dj + 1) * 3 + di + 1];
-            if ((!di && !dj) || ni < 0 || nj < 0 || ni >= j->nti || nj >= j->ntj ||
-                tile_wave(ni, nj) >= w)
+            int k = (dj + 1) * 3 + di + 1, wn;
+            tile_rect o;
+            if (!earlier(j, ti, tj, di, dj))
                 continue;
-            cx0 = TS_MAX(ni * T, x0);
-            cy0 = TS_MAX(nj * T, y0);
-            cx1 = TS_MIN((ni + 1) * T, x1);
-            cy1 = TS_MIN((nj + 1) * T, y1);
-            for (y = cy0; y < cy1; y++)
-                for (x = cx0; x < cx1; x++) {
-                    TS_PIX(&r, x - x0, y - y0) = TS_PIX(nb, x - ni * T, y - nj * T);
-                    flags[(size_t)(y - y0) * (size_t)rw + (size_t)(x - x0)] = TS_CELL_FIXED;
+            wn = tile_wave(ti + di, tj + dj);
+            o = rect_of(j->W, j->H, j->T, j->G, ti + di, tj + dj);
+            for (y = TS_MAX(o.y0, me.y0); y < TS_MIN(o.y1, me.y1); y++)
+                for (x = TS_MAX(o.x0, me.x0); x < TS_MIN(o.x1, me.x1); x++) {
+                    size_t c = (size_t)(y - me.y0) * (size_t)rw + (size_t)(x - me.x0);
+                    float v = TS_PIX(nb, x - o.x0, y - o.y0);
+                    if (x >= o.cx0 && x < o.cx1 && y >= o.cy0 && y < o.cy1) {
+                        flags[c] = TS_CELL_FIXED;
+                        TS_PIX(&r, x - me.x0, y - me.y0) = v;
+                    } else if (!flags[c] &&
+                               (!cover[c] || tile_wave(ti + (cover[c] - 1) % 3 - 1,
+                                                       tj + (cover[c] - 1) / 3 - 1) < wn)) {
+                        cover[c] = (unsigned char)(k + 1);
+                        TS_PIX(&r, x - me.x0, y - me.y0) = v;
+                    }
                 }
         }
+    for (y = 0; y < rh; y++) /* where two margins meet: empty, two cells each side */
+        for (x = 0; x < rw; x++) {
+            size_t c = (size_t)y * (size_t)rw + (size_t)x;
+            int a, b, meet = 0;
+            if (flags[c] || !cover[c])
+                continue;
+            for (b = TS_MAX(y - 2, 0); b <= TS_MIN(y + 2, rh - 1) && !meet; b++)
+                for (a = TS_MAX(x - 2, 0); a <= TS_MIN(x + 2, rw - 1); a++) {
+                    unsigned char o = cover[(size_t)b * (size_t)rw + (size_t)a];
+                    if (o && (o & 0x7f) != (cover[c] & 0x7f)) {
+                        meet = 1;
+                        break;
+                    }
+                }
+            if (meet)
+                cover[c] |= 0x80;
+        }
+    for (y = 0; y < rh; y++)
+        for (x = 0; x < rw; x++)
+            if (cover[(size_t)y * (size_t)rw + (size_t)x] & 0x80)
+                TS_PIX(&r, x, y) = NAN;
+    free(cover);
     cons.cell_flags = flags;
     ts_ctx_set_seed(ctx, tile_seed(ts_ctx_seed(j->parent), ti, tj));
     st = ts_synth_patches(ctx, j->exemplars, j->n_exemplars, &j->params, &cons, &r, NULL);
-    if (st == TS_OK) { /* the core */
-        core_size(j->W, j->H, T, ti, tj, &cw, &ch);
-        for (y = 0; y < ch; y++)
-            memcpy(&TS_PIX(&t->core, 0, y), &TS_PIX(&r, ti * T - x0, tj * T + y - y0),
-                   (size_t)cw * sizeof(float));
-    }
+    if (st == TS_OK)
+        for (y = 0; y < rh; y++)
+            memcpy(&TS_PIX(&t->window, 0, y), &TS_PIX(&r, 0, y), (size_t)rw * sizeof(float));
     ts_raster_free(&r);
     free(flags);
     return st;
@@ -131,7 +189,7 @@ static void tiles_range(void *arg, size_t begin, size_t end)
         ts__cancel(j->parent);
         return;
     }
-    ts_ctx_set_threads(ctx, 1);
+    ts_ctx_set_threads(ctx, j->tile_threads);
     for (k = begin; k < end && !atomic_load(&j->failed); k++) {
         ts_status st = tile_run(j, ctx, &j->tiles[k]);
         if (st != TS_OK) {
@@ -161,12 +219,15 @@ static ts_status tiles_check(ts_ctx *ctx, const ts_synth_params *params, int til
     return TS_OK;
 }
 
-/* Run the list (independent tiles) in parallel, one thread each. */
+/* Run the list (independent tiles) in parallel. */
 static ts_status tiles_run(tiled_job *j, ts_synth_tile *tiles, size_t n)
 {
     ts_ctx *ctx = j->parent;
     int s;
     j->tiles = tiles;
+    /* a wave of fewer tiles than threads: each tile's fill gets the rest (its
+     * bytes do not depend on its thread count) */
+    j->tile_threads = n ? TS_MAX(1, ts__thread_count(ctx, 64) / (int)TS_MIN(n, 64)) : 1;
     atomic_init(&j->failed, 0);
     atomic_init(&j->status, TS_OK);
     atomic_flag_clear(&j->msg_taken);
@@ -199,6 +260,33 @@ static void job_init(tiled_job *j, ts_ctx *ctx, const ts_raster *exemplars, int 
     j->ntj = (height + tile - 1) / tile;
 }
 
+TS_API ts_status ts_synth_tile_window(ts_ctx *ctx, const ts_synth_params *params, int tile,
+                                      int width, int height, int ti, int tj, int window[4],
+                                      int core[4])
+{
+    int P;
+    tile_rect r;
+    ts__clear(ctx);
+    if (tiles_check(ctx, params, tile, width, height, &P) != TS_OK)
+        return ctx->status;
+    if (ti < 0 || tj < 0 || ti > (width - 1) / tile || tj > (height - 1) / tile)
+        return ts__fail(ctx, TS_ERR_ARG, TILED_STAGE, "tile (%d, %d) is off the grid", ti, tj);
+    r = rect_of(width, height, tile, P, ti, tj);
+    if (window) {
+        window[0] = r.x0;
+        window[1] = r.y0;
+        window[2] = r.x1 - r.x0;
+        window[3] = r.y1 - r.y0;
+    }
+    if (core) {
+        core[0] = r.cx0;
+        core[1] = r.cy0;
+        core[2] = r.cx1 - r.cx0;
+        core[3] = r.cy1 - r.cy0;
+    }
+    return TS_OK;
+}
+
 TS_API ts_status ts_synth_tiles(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
                                 const ts_synth_params *params, int tile, int width, int height,
                                 ts_synth_tile *tiles, int n_tiles)
@@ -213,26 +301,27 @@ TS_API ts_status ts_synth_tiles(ts_ctx *ctx, const ts_raster *exemplars, int n_e
     job_init(&j, ctx, exemplars, n_exemplars, params, tile, width, height, P);
     for (k = 0; k < n_tiles; k++) {
         const ts_synth_tile *t = &tiles[k];
-        int cw, ch, w = tile_wave(t->ti, t->tj);
+        int w = tile_wave(t->ti, t->tj);
+        tile_rect r;
         if (t->ti < 0 || t->tj < 0 || t->ti >= j.nti || t->tj >= j.ntj)
             return ts__fail(ctx, TS_ERR_ARG, TILED_STAGE, "tile (%d, %d) is off the %d x %d tiles",
                             t->ti, t->tj, j.nti, j.ntj);
-        core_size(width, height, tile, t->ti, t->tj, &cw, &ch);
-        if (!t->core.data || t->core.width != cw || t->core.height != ch)
-            return ts__fail(ctx, TS_ERR_ARG, TILED_STAGE, "tile (%d, %d): its core is %d x %d",
-                            t->ti, t->tj, cw, ch);
+        r = rect_of(width, height, tile, P, t->ti, t->tj);
+        if (!t->window.data || t->window.width != r.x1 - r.x0 || t->window.height != r.y1 - r.y0)
+            return ts__fail(ctx, TS_ERR_ARG, TILED_STAGE, "tile (%d, %d): its window is %d x %d",
+                            t->ti, t->tj, r.x1 - r.x0, r.y1 - r.y0);
         for (dj = -1; dj <= 1; dj++)
             for (di = -1; di <= 1; di++) {
-                int ni = t->ti + di, nj = t->tj + dj, nw, nh;
                 const ts_raster *nb = t->neighbours[(dj + 1) * 3 + di + 1];
-                if ((!di && !dj) || ni < 0 || nj < 0 || ni >= j.nti || nj >= j.ntj ||
-                    tile_wave(ni, nj) >= w)
+                tile_rect o;
+                if (!earlier(&j, t->ti, t->tj, di, dj))
                     continue;
-                core_size(width, height, tile, ni, nj, &nw, &nh);
-                if (!nb || !nb->data || nb->width != nw || nb->height != nh)
+                o = rect_of(width, height, tile, P, t->ti + di, t->tj + dj);
+                if (!nb || !nb->data || nb->width != o.x1 - o.x0 || nb->height != o.y1 - o.y0)
                     return ts__fail(ctx, TS_ERR_ARG, TILED_STAGE,
-                                    "tile (%d, %d) needs the %d x %d core of tile (%d, %d)", t->ti,
-                                    t->tj, nw, nh, ni, nj);
+                                    "tile (%d, %d) needs the %d x %d window of tile (%d, %d)",
+                                    t->ti, t->tj, o.x1 - o.x0, o.y1 - o.y0, t->ti + di,
+                                    t->tj + dj);
             }
         /* tiles of one call run side by side: none may need another */
         for (a = 0; a < k; a++)
@@ -251,9 +340,9 @@ TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_e
 {
     tiled_job j;
     ts_synth_tile *tiles;
-    ts_raster *views; /* every tile's core in out */
-    int P, wave, ti, tj, di, dj;
-    size_t n;
+    ts_raster *windows; /* every tile's window, until no later tile needs it */
+    int P, wave, ti, tj, di, dj, y;
+    size_t n, k;
     ts_status st = TS_OK;
     ts__clear(ctx);
     if (!out || !out->data)
@@ -263,42 +352,50 @@ TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_e
     job_init(&j, ctx, exemplars, n_exemplars, params, tile, out->width, out->height, P);
     n = (size_t)j.nti * (size_t)j.ntj;
     tiles = ts__malloc_array(n, sizeof *tiles);
-    views = ts__malloc_array(n, sizeof *views);
-    if (!tiles || !views) {
+    windows = ts__calloc_array(n, sizeof *windows);
+    if (!tiles || !windows) {
         free(tiles);
-        free(views);
+        free(windows);
         return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory");
     }
-    for (tj = 0; tj < j.ntj; tj++)
-        for (ti = 0; ti < j.nti; ti++) {
-            int cw, ch;
-            core_size(j.W, j.H, tile, ti, tj, &cw, &ch);
-            views[(size_t)tj * (size_t)j.nti + (size_t)ti] =
-                ts_raster_wrap(&TS_PIX(out, ti * tile, tj * tile), cw, ch, out->stride);
-        }
     for (wave = 0; wave < 4 && st == TS_OK; wave++) {
         size_t m = 0;
-        for (tj = 0; tj < j.ntj; tj++)
+        for (tj = 0; tj < j.ntj && st == TS_OK; tj++)
             for (ti = 0; ti < j.nti; ti++) {
                 ts_synth_tile *t = &tiles[m];
+                tile_rect r = rect_of(j.W, j.H, tile, P, ti, tj);
+                size_t at = (size_t)tj * (size_t)j.nti + (size_t)ti;
                 if (tile_wave(ti, tj) != wave)
                     continue;
                 memset(t, 0, sizeof *t);
                 t->ti = ti;
                 t->tj = tj;
-                t->core = views[(size_t)tj * (size_t)j.nti + (size_t)ti];
+                if (ts_raster_alloc(ctx, r.x1 - r.x0, r.y1 - r.y0, &windows[at]) != TS_OK) {
+                    st = ctx->status;
+                    break;
+                }
+                t->window = windows[at];
                 for (dj = -1; dj <= 1; dj++)
                     for (di = -1; di <= 1; di++)
-                        if (ti + di >= 0 && tj + dj >= 0 && ti + di < j.nti && tj + dj < j.ntj)
+                        if (earlier(&j, ti, tj, di, dj))
                             t->neighbours[(dj + 1) * 3 + di + 1] =
-                                &views[(size_t)(tj + dj) * (size_t)j.nti + (size_t)(ti + di)];
+                                &windows[at + (size_t)((ptrdiff_t)dj * j.nti + di)];
                 m++;
             }
-        if ((st = tiles_run(&j, tiles, m)) != TS_OK)
+        if (st != TS_OK || (st = tiles_run(&j, tiles, m)) != TS_OK)
             break;
+        for (k = 0; k < m; k++) { /* the cores into the output */
+            const ts_synth_tile *t = &tiles[k];
+            tile_rect r = rect_of(j.W, j.H, tile, P, t->ti, t->tj);
+            for (y = r.cy0; y < r.cy1; y++)
+                memcpy(&TS_PIX(out, r.cx0, y), &TS_PIX(&t->window, r.cx0 - r.x0, y - r.y0),
+                       (size_t)(r.cx1 - r.cx0) * sizeof(float));
+        }
         st = ts__progress(ctx, (wave + 1) / 4.0, "synth tiles");
     }
+    for (k = 0; k < n; k++)
+        ts_raster_free(&windows[k]);
     free(tiles);
-    free(views);
+    free(windows);
     return st;
 }

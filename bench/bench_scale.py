@@ -1,0 +1,180 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""bench_scale: free patch synthesis past one run (issue 16), every figure printed.
+
+  /usr/bin/python3 bench/bench_scale.py [--terrasynth BIN] [--plugins DIR] [--tile 512]
+                                        [--exemplar DEM] [--quick] [--work DIR]
+
+1. A window of a 65 536 x 65 536 tiled recipe through `gdal_translate -srcwin` (a fresh
+   process each): time and peak memory (goal: a 256^2 window in <= 5 s and <= 1 GB), for a
+   window inside one tile of the last wave (17 tiles made: the tile and its cone) and one
+   across four tiles.
+2. Time per cell: `terrasynth synth` in one piece and in tiles at 1024^2, 4096^2 and 8192^2
+   (cells/s printed; the goal: flat from 1024^2 up).
+3. The Dask runner: 16 384^2 from a tiled recipe on a LocalCluster of 2 worker processes
+   against the single-process tiled 8192^2 of step 2 (goal: <= 4 x its time, 4 x the
+   cells), peak memory per worker (goal <= 1.5 GB).  Same bytes on 1 and 2 workers and as
+   the CLI: checked on 2048^2.
+4. Seams across tile borders: ../shared/eval/terrain_metrics.py on the 4096^2 tiled output
+   (seam_lap and seam_grad <= 1.2), and, ours, the 99.9th percentile of |Laplacian| on the
+   cells next to a tile border against everywhere (1 = the borders are like any cell).
+
+Timings are of this machine in this run; ratios are what the goals are about.
+"""
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+from osgeo import gdal
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+METRICS = os.path.normpath(os.path.join(ROOT, "..", "shared", "eval", "terrain_metrics.py"))
+
+
+def timed(cmd, env=None):
+    """Run cmd; (seconds, peak resident MB of that child)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    t = time.monotonic()
+    p = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, env=env)
+    dt = time.monotonic() - t
+    if p.returncode != 0:
+        sys.exit("bench_scale: %s failed: %s" % (" ".join(map(str, cmd[:3])), p.stderr.strip()))
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    # ru_maxrss of children is the largest child so far: measure with /usr/bin/time instead
+    return dt, p, max(peak, before) / 1024.0
+
+
+def time_rss(cmd, env=None):
+    """seconds and the peak resident MB of cmd alone (GNU time)."""
+    t = time.monotonic()
+    p = subprocess.run(["/usr/bin/time", "-f", "TSRSS %M"] + [str(c) for c in cmd],
+                       capture_output=True, text=True, env=env)
+    dt = time.monotonic() - t
+    if p.returncode != 0:
+        sys.exit("bench_scale: %s failed: %s" % (" ".join(map(str, cmd[:3])), p.stderr.strip()))
+    kb = [int(line.split()[1]) for line in p.stderr.splitlines() if line.startswith("TSRSS")]
+    return dt, p, (kb[-1] / 1024.0 if kb else float("nan"))
+
+
+def border_ratio(path, T):
+    z = gdal.Open(path).ReadAsArray().astype(np.float64)
+    lap = np.abs(z[1:-1, :-2] + z[1:-1, 2:] + z[:-2, 1:-1] + z[2:, 1:-1] - 4 * z[1:-1, 1:-1])
+    H, W = lap.shape
+    near = np.zeros((H, W), bool)
+    for b in range(T, W + 2, T):  # columns b-1, b of z are cells b-2, b-1 of lap
+        near[:, max(b - 3, 0):min(b + 1, W)] = True
+    for b in range(T, H + 2, T):
+        near[max(b - 3, 0):min(b + 1, H), :] = True
+    return np.percentile(lap[near], 99.9) / np.percentile(lap[~near], 99.9)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--terrasynth", default=os.path.join(ROOT, "build", "gdal_driver",
+                                                         "terrasynth"))
+    ap.add_argument("--plugins", default=os.path.join(ROOT, "build", "gdalplugins"))
+    ap.add_argument("--exemplar", default=os.path.join(ROOT, "data", "jacksboro_fault_dem.tif"))
+    ap.add_argument("--tile", type=int, default=512)
+    ap.add_argument("--quick", action="store_true", help="skip 8192^2 and the Dask 16384^2")
+    ap.add_argument("--work", default=None)
+    a = ap.parse_args()
+    B, T = a.terrasynth, a.tile
+    work = a.work or tempfile.mkdtemp(prefix="bench_scale.")
+    env = dict(os.environ, GDAL_DRIVER_PATH=os.path.abspath(a.plugins))
+    ex = ["--exemplar", a.exemplar, "--seed", 11]
+    print("bench_scale: exemplar %s, tiles of %d cells, %d cores, work in %s" % (
+        os.path.basename(a.exemplar), T, os.cpu_count(), work))
+
+    # 1. windows of a 65536^2 recipe
+    print("\n1. a window of a 65536 x 65536 tiled recipe, gdal_translate -srcwin (goal 256^2: "
+          "<= 5 s, <= 1024 MB)")
+    for t in sorted({256, T}):
+        rec = os.path.join(work, "big%d.tsyn" % t)
+        subprocess.run([B, "synth", *map(str, ex), "--size", "65536x65536", "--tiled", str(t),
+                        "--recipe", rec], check=True)
+        k = 65536 // t // 2 | 1  # an odd tile index near the middle: (k, k) is of wave 3
+        for name, x0, y0 in [("inside a wave-3 tile", k * t + t // 4, k * t + t // 4),
+                             ("across 4 tiles", (k + 1) * t - 128, (k + 1) * t - 128)]:
+            w = min(256, t)
+            dt, _, mb = time_rss(["gdal_translate", "-q", "-srcwin", x0, y0, w, w, rec,
+                                  os.path.join(work, "win.tif")], env)
+            ok = dt <= 5.0 and mb <= 1024
+            print("   tiles %4d, %dx%d %-22s %6.2f s %7.0f MB  %s" % (
+                t, w, w, name, dt, mb, "ok" if ok else "MISS"))
+
+    # 2. time per cell
+    print("\n2. time per cell, terrasynth synth (2 threads here; goal: cells/s flat)")
+    sizes = [1024, 4096] if a.quick else [1024, 4096, 8192]
+    single = {}
+    for n in sizes:
+        for tiled in (0, T):
+            if tiled == 0 and n > 4096:
+                continue  # in one piece past 4096^2: minutes (the scans over all positions)
+            out = os.path.join(work, "s%d_%d.tif" % (n, tiled))
+            dt, _, mb = time_rss([B, "synth", *ex, "--size", "%dx%d" % (n, n), "--tiled",
+                                  tiled, "-q", out])
+            single[(n, tiled)] = dt
+            print("   %5d^2 %-14s %7.1f s %9.0f cells/s %7.0f MB" % (
+                n, "in one piece" if not tiled else "tiles of %d" % tiled, dt, n * n / dt, mb))
+
+    # 3. Dask
+    runner = os.path.join(ROOT, "gdal_driver", "terrasynth_dask.py")
+    print("\n3. terrasynth-dask, LocalCluster of 2 worker processes, 1 thread each")
+    rec = os.path.join(work, "d2048.tsyn")
+    subprocess.run([B, "synth", *map(str, ex), "--size", "2048x2048", "--tiled", str(T),
+                    "--recipe", rec], check=True)
+    cli = os.path.join(work, "d2048_cli.tif")
+    subprocess.run([B, "synth", *map(str, ex), "--size", "2048x2048", "--tiled", str(T), "-q",
+                    cli], check=True)
+    got = {}
+    for nw in (1, 2):
+        o = os.path.join(work, "d2048_%d.tif" % nw)
+        subprocess.run([sys.executable, runner, rec, o, "--workers", str(nw), "--no-overviews",
+                        "-q"], check=True, env=env)
+        got[nw] = gdal.Open(o).ReadAsArray().tobytes()
+    same = got[1] == got[2] == gdal.Open(cli).ReadAsArray().tobytes()
+    print("   2048^2: 1 worker, 2 workers and the CLI give %s" % (
+        "the same bytes" if same else "DIFFERENT BYTES"))
+    if not a.quick:
+        rec = os.path.join(work, "d16k.tsyn")
+        subprocess.run([B, "synth", *map(str, ex), "--size", "16384x16384", "--tiled", str(T),
+                        "--recipe", rec], check=True)
+        dt, p, _ = time_rss([sys.executable, runner, rec, os.path.join(work, "d16k.tif"),
+                             "--workers", "2", "--no-overviews", "--stats", "-q"], env)
+        peaks = [float(line.split()[-2]) for line in p.stdout.splitlines() if "peak memory" in
+                 line]
+        ref = single[(8192, T)]
+        print("   16384^2 in %.1f s = %.2f x the single-process 8192^2 (%.1f s; goal <= 4)  %s"
+              % (dt, dt / ref, ref, "ok" if dt <= 4 * ref else "MISS"))
+        print("   %.0f cells/s; peak per worker %s MB (goal <= 1536)  %s" % (
+            16384 * 16384 / dt, ", ".join("%.0f" % m for m in peaks),
+            "ok" if peaks and max(peaks) <= 1536 else "MISS"))
+
+    # 4. seams
+    print("\n4. seams across tile borders (4096^2, tiles of %d)" % T)
+    out = os.path.join(work, "s4096_%d.tif" % T)
+    if os.path.exists(METRICS):
+        p = subprocess.run([sys.executable, METRICS, "--out", out, "--exemplar", a.exemplar],
+                           capture_output=True, text=True, check=True)
+        m = json.loads(p.stdout)
+        print("   terrain_metrics: seam_lap %.3f, seam_grad %.3f (goal <= 1.2)  %s" % (
+            m["seam_lap"], m["seam_grad"],
+            "ok" if m["seam_lap"] <= 1.2 and m["seam_grad"] <= 1.2 else "MISS"))
+    else:
+        print("   terrain_metrics: %s absent, skipped" % METRICS)
+    print("   ours: P99.9 |Laplacian| next to tile borders / elsewhere: %.3f" %
+          border_ratio(out, T))
+    one = os.path.join(work, "s4096_0.tif")
+    print("   the same measure on the run in one piece, at the same lines: %.3f" %
+          border_ratio(one, T))
+
+
+if __name__ == "__main__":
+    main()
