@@ -101,12 +101,12 @@ def main():
                         "--recipe", rec], check=True)
         k = 65536 // t // 2 | 1  # an odd tile index near the middle: (k, k) is of wave 3
         for name, x0, y0 in [("inside a wave-3 tile", k * t + t // 4, k * t + t // 4),
-                             ("across 4 tiles", (k + 1) * t - 128, (k + 1) * t - 128)]:
+                             ("across 4 tiles (same 17)", (k + 1) * t - 128, (k + 1) * t - 128)]:
             w = min(256, t)
             dt, _, mb = time_rss(["gdal_translate", "-q", "-srcwin", x0, y0, w, w, rec,
                                   os.path.join(work, "win.tif")], env)
             ok = dt <= 5.0 and mb <= 1024
-            print("   tiles %4d, %dx%d %-22s %6.2f s %7.0f MB  %s" % (
+            print("   tiles %4d, %dx%d %-31s %6.2f s %7.0f MB  %s" % (
                 t, w, w, name, dt, mb, "ok" if ok else "MISS"))
 
     # 2. time per cell

@@ -67,6 +67,7 @@ static const ts_param_desc synth_desc[] = {
     {"tiled", TS_PARAM_INT, 0, 0, 16384, TS_UNIT_CELLS, "cells", NULL,
      "Free synthesis in tiles of this many cells, made in four waves (a tile is cut and "
      "smoothed against its finished neighbours, the tiles of a wave run in parallel); "
+     "a recipe in tiles is served tile by tile, any window alone (256-512 suit that); "
      "0 = in one piece.  Not with a sketch, pins, water, heights, regions or debug maps.",
      offsetof(ts_synth_params, tiled)},
 };

@@ -19,12 +19,9 @@
 #include <string.h>
 
 #include "patch_merge.h"
+#include "placement_queue.h"
 
-typedef struct placement {
-    int x, y;    /* window top-left in the output */
-    int overlap; /* filled cells in the window */
-    int needed;  /* still has empty cells to fill */
-} placement;
+typedef ts__placement placement;
 
 #define PLACE_MAX_LEVELS 5 /* pyramid levels: factors 1, 2, 4, 8, 16 */
 
@@ -823,29 +820,13 @@ static void placer_free(placer *pl)
     free(pl->to_cut);
 }
 
-/* Grow order: the needed position with the most filled cells, ties to the
- * one nearest the centre; with `apart` >= 0 only those whose windows (with
- * their rings and the cells ts__border_keeps_old reads) stay clear of
- * position apart's. */
-static int place_pick(const placer *pl, const placement *pos, int n_pos, int apart)
+/* Grow order: the queue's best (placement_queue.c); with `apart` >= 0 the
+ * best of those whose windows (with their rings and the cells
+ * ts__border_keeps_old reads) stay clear of position apart's. */
+static int place_pick(const placer *pl, ts__pos_queue *q, const int *xs, int nx, const int *ys,
+                      int ny, int apart)
 {
-    int pick = -1, j, gap = pl->P + 4;
-    long best_d = 0;
-    for (j = 0; j < n_pos; j++) {
-        long d;
-        if (!pos[j].needed || j == apart)
-            continue;
-        if (apart >= 0 && abs(pos[j].x - pos[apart].x) < gap && abs(pos[j].y - pos[apart].y) < gap)
-            continue;
-        d = labs((long)pos[j].x - (pl->out->width - pl->P) / 2) +
-            labs((long)pos[j].y - (pl->out->height - pl->P) / 2);
-        if (pick < 0 || pos[j].overlap > pos[pick].overlap ||
-            (pos[j].overlap == pos[pick].overlap && d < best_d)) {
-            pick = j;
-            best_d = d;
-        }
-    }
-    return pick;
+    return ts__queue_best(q, xs, nx, ys, ny, apart, pl->P + 4);
 }
 
 /* Two placements side by side: slot i places q[i] as patch index + i. */
@@ -941,7 +922,9 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
     placer pl, pl2;
     ts_ctx *ca = NULL, *cb = NULL;
     placement *pos = NULL;
+    ts__pos_queue q;
     int *xs = NULL, *ys = NULL, nx, ny, n_pos, i, e, placed = 0, step, alloc_failed = 0;
+    int n_needed = 0; /* positions still needed */
     size_t n_out;
     double t_start = ts__now();
     int first_index = maps ? maps->n_patches : 0;
@@ -951,6 +934,7 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
         return st;
     memset(&pl, 0, sizeof pl);
     memset(&pl2, 0, sizeof pl2);
+    memset(&q, 0, sizeof q);
     pl.ctx = ctx;
     pl.p = f;
     pl.out = out;
@@ -1016,6 +1000,13 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
         pos[i].x = xs[i % nx];
         pos[i].y = ys[i / nx];
         place_count(&pl, &pos[i]);
+        n_needed += pos[i].needed;
+    }
+    /* the grow order's queue (raster order scans: it is for comparisons) */
+    if (params->order != TS_ORDER_RASTER &&
+        ts__queue_init(&q, pos, n_pos, (out->width - pl.P) / 2, (out->height - pl.P) / 2) != 0) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "synth", "out of memory");
+        goto done;
     }
     /* grow order places two patches at once when the best position has a
      * second one far enough away (their windows and rings disjoint): the
@@ -1039,16 +1030,16 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
     for (;;) {
         int pick = -1, pick2 = -1, j, n_run;
         if (params->order == TS_ORDER_RASTER) { /* grow and tree: the same here */
-            for (j = 0; j < n_pos; j++)
+            for (j = 0; j < n_pos; j++) /* (a scan: raster order is for comparisons) */
                 if (pos[j].needed) {
                     pick = j;
                     break;
                 }
         } else {
-            pick = place_pick(&pl, pos, n_pos, -1);
+            pick = place_pick(&pl, &q, xs, nx, ys, ny, -1);
             /* a second that grows from what is placed, nearly as well */
             if (pick >= 0 && pos[pick].overlap > 0) {
-                pick2 = place_pick(&pl, pos, n_pos, pick);
+                pick2 = place_pick(&pl, &q, xs, nx, ys, ny, pick);
                 if (pick2 >= 0 && 2 * pos[pick2].overlap < pos[pick].overlap)
                     pick2 = -1;
             }
@@ -1057,12 +1048,9 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
             break;
         {
             /* the stages inside report at the current fraction (they can still cancel) */
-            int remaining = 0;
             double frac;
             ts_progress_saved sv;
-            for (j = 0; j < n_pos; j++)
-                remaining += pos[j].needed;
-            frac = 0.1 + 0.9 * (double)placed / (double)(placed + remaining);
+            frac = 0.1 + 0.9 * (double)placed / (double)(placed + n_needed);
             sv = ts__progress_push(ctx, frac, frac);
             if (pick2 < 0) {
                 st = place_one(&pl, &pos[pick], placed + first_index);
@@ -1113,21 +1101,31 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
         }
         memset(pl.sec, 0, sizeof pl.sec);
         memset(pl2.sec, 0, sizeof pl2.sec);
-        /* windows that intersect the new patches changed */
+        /* windows that intersect the new patches changed (found on the
+         * position grid, not by a scan of every position) */
+        for (i = 0; i < n_run; i++) {
+            int w = i ? pick2 : pick, x0, x1, y0, y1, ix, iy;
+            ts__axis_near(xs, nx, pos[w].x, pl.P, &x0, &x1);
+            ts__axis_near(ys, ny, pos[w].y, pl.P, &y0, &y1);
+            for (iy = y0; iy < y1; iy++)
+                for (ix = x0; ix < x1; ix++) {
+                    j = ix + nx * iy;
+                    n_needed -= pos[j].needed;
+                    place_count(&pl, &pos[j]);
+                    n_needed += pos[j].needed;
+                    if (params->order != TS_ORDER_RASTER)
+                        ts__queue_fix(&q, j);
+                }
+        }
         for (i = 0; i < n_run; i++) {
             int w = i ? pick2 : pick;
-            for (j = 0; j < n_pos; j++)
-                if (abs(pos[j].x - pos[w].x) < pl.P && abs(pos[j].y - pos[w].y) < pl.P)
-                    place_count(&pl, &pos[j]);
+            n_needed -= pos[w].needed;
+            pos[w].needed = 0;
+            if (params->order != TS_ORDER_RASTER)
+                ts__queue_fix(&q, w);
         }
-        pos[pick].needed = 0;
-        if (pick2 >= 0)
-            pos[pick2].needed = 0;
         {
-            int remaining = 0;
-            for (j = 0; j < n_pos; j++)
-                remaining += pos[j].needed;
-            st = ts__progress(ctx, 0.1 + 0.9 * (double)placed / (double)(placed + remaining),
+            st = ts__progress(ctx, 0.1 + 0.9 * (double)placed / (double)(placed + n_needed),
                               "patch placement");
             if (st != TS_OK)
                 goto done;
@@ -1136,6 +1134,7 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
     st = ts__progress(ctx, 1.0, "patch placement");
 done:
     free(pos);
+    ts__queue_free(&q);
     free(xs);
     free(ys);
     placer_free(&pl);
