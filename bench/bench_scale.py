@@ -148,14 +148,18 @@ def main():
                         "--recipe", rec], check=True)
         dt, p, _ = time_rss([sys.executable, runner, rec, os.path.join(work, "d16k.tif"),
                              "--workers", "2", "--no-overviews", "--stats", "-q"], env)
-        peaks = [float(line.split()[-2]) for line in p.stdout.splitlines() if "peak memory" in
-                 line]
+        peaks = [float(line.split("peak memory ")[1].split()[0]) for line in
+                 p.stdout.splitlines() if "peak memory" in line]
+        cpus = [float(line.split(", ")[-1].split()[0]) for line in p.stdout.splitlines()
+                if "peak memory" in line]
         ref = single[(8192, T)]
         print("   16384^2 in %.1f s = %.2f x the single-process 8192^2 (%.1f s; goal <= 4)  %s"
               % (dt, dt / ref, ref, "ok" if dt <= 4 * ref else "MISS"))
         print("   %.0f cells/s; peak per worker %s MB (goal <= 1536)  %s" % (
             16384 * 16384 / dt, ", ".join("%.0f" % m for m in peaks),
             "ok" if peaks and max(peaks) <= 1536 else "MISS"))
+        print("   workers busy %s of the wall time (CPU s / wall s)" % ", ".join(
+            "%.0f %%" % (100 * c / dt) for c in cpus))
 
     # 4. seams
     print("\n4. seams across tile borders (4096^2, tiles of %d)" % T)

@@ -159,10 +159,11 @@ def make_tile(recipe, plugins, ti, tj, neighbours):
     return tuple(win), tuple(core), window
 
 
-def peak_rss_mb():
-    """This process's peak resident set in MB (runs on a worker)."""
+def worker_stats():
+    """This process's peak resident set in MB and CPU seconds (runs on a worker)."""
     import resource
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_maxrss / 1024.0, u.ru_utime + u.ru_stime
 
 
 def wave(ti, tj):
@@ -216,7 +217,7 @@ def main(argv=None):
     ap.add_argument("--no-overviews", action="store_true")
     ap.add_argument("-q", "--quiet", action="store_true")
     ap.add_argument("--stats", action="store_true",
-                    help="print each worker's peak memory (resident set) at the end")
+                    help="print each worker's peak memory (resident set) and CPU time at the end")
     a = ap.parse_args(argv)
     if a.chunk < 64 or a.chunk > 65536:
         fail("--chunk %d: give 64..65536 cells" % a.chunk)
@@ -340,8 +341,8 @@ def main(argv=None):
         if not a.quiet:
             sys.stderr.write("\n")
         if a.stats:
-            for w, mb in sorted(client.run(peak_rss_mb).items()):
-                print("%s: worker %s peak memory %.0f MB" % (PROG, w, mb))
+            for w, (mb, cpu) in sorted(client.run(worker_stats).items()):
+                print("%s: worker %s peak memory %.0f MB, %.1f CPU s" % (PROG, w, mb, cpu))
         ob = None
         final = tmp
         if not a.no_overviews:

@@ -194,9 +194,9 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
         need += (uint64_t)(threads > 0 ? threads : 1) * (T + 2 * P) * (T + 2 * P) *
                 (JOB_MEM_SYNTH_CELL + JOB_MEM_TILE_CELL);
     } else {
-        need += cells * (JOB_MEM_SYNTH_CELL + JOB_MEM_MAPS_CELL +
-                         (job->sketch ? JOB_MEM_SKETCH_CELL : 0) +
-                         (res->params.tiled > 0 ? JOB_MEM_TILED_CELL : 0));
+        /* (tiles take no debug maps: their windows instead) */
+        need += cells * (JOB_MEM_SYNTH_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0) +
+                         (res->params.tiled > 0 ? JOB_MEM_TILED_CELL : JOB_MEM_MAPS_CELL));
     }
     int cy = res->geo.height / 2;
     double t_area = res->dx_m ? res->dx_m[cy] * res->dy_m[cy] : 0.0;
