@@ -83,6 +83,8 @@ def main():
     ap.add_argument("--exemplar", default=os.path.join(ROOT, "data", "jacksboro_fault_dem.tif"))
     ap.add_argument("--tile", type=int, default=512)
     ap.add_argument("--quick", action="store_true", help="skip 8192^2 and the Dask 16384^2")
+    ap.add_argument("--full", action="store_true",
+                    help="also 16384^2 in one process (CLI, tiles), compared with the Dask one")
     ap.add_argument("--work", default=None)
     a = ap.parse_args()
     B, T = a.terrasynth, a.tile
@@ -160,6 +162,18 @@ def main():
             "ok" if peaks and max(peaks) <= 1536 else "MISS"))
         print("   workers busy %s of the wall time (CPU s / wall s)" % ", ".join(
             "%.0f %%" % (100 * c / dt) for c in cpus))
+        if a.full:
+            one = os.path.join(work, "s16k_cli.tif")
+            dt1, _, mb1 = time_rss([B, "synth", *ex, "--size", "16384x16384", "--tiled", T,
+                                    "-q", one])
+            print("   16384^2 in one process (CLI, tiles of %d): %.1f s, %.0f cells/s, %.0f MB"
+                  % (T, dt1, 16384 * 16384 / dt1, mb1))
+            d = gdal.Open(os.path.join(work, "d16k.tif")).GetRasterBand(1)
+            c = gdal.Open(one).GetRasterBand(1)
+            same = all(d.ReadAsArray(0, y, 16384, 1024).tobytes() ==
+                       c.ReadAsArray(0, y, 16384, 1024).tobytes() for y in range(0, 16384, 1024))
+            print("   the Dask 16384^2 and the one-process 16384^2: %s" % (
+                "the same bytes" if same else "DIFFERENT BYTES"))
 
     # 4. seams
     print("\n4. seams across tile borders (4096^2, tiles of %d)" % T)
