@@ -10,7 +10,8 @@
    window inside one tile of the last wave (17 tiles made: the tile and its cone) and one
    across four tiles.
 2. Time per cell: `terrasynth synth` in one piece and in tiles at 1024^2, 4096^2 and 8192^2
-   (cells/s printed; the goal: flat from 1024^2 up).
+   (cells/s printed; the goal: flat from 1024^2 up); tiles on 1 thread and on all (the
+   parallel fraction, and what Amdahl's law gives on 16 threads).
 3. The Dask runner: 16 384^2 from a tiled recipe on a LocalCluster of 2 worker processes
    against the single-process tiled 8192^2 of step 2 (goal: <= 4 x its time, 4 x the
    cells), peak memory per worker (goal <= 1.5 GB).  Same bytes on 1 and 2 workers and as
@@ -125,6 +126,22 @@ def main():
             single[(n, tiled)] = dt
             print("   %5d^2 %-14s %7.1f s %9.0f cells/s %7.0f MB" % (
                 n, "in one piece" if not tiled else "tiles of %d" % tiled, dt, n * n / dt, mb))
+
+    # thread scaling of the tiles (a wave's tiles side by side)
+    n_cpu = os.cpu_count() or 1
+    t = {}
+    for th in sorted({1, n_cpu}):
+        out = os.path.join(work, "th%d.tif" % th)
+        t[th], _, _ = time_rss([B, "synth", *ex, "--size", "2048x2048", "--tiled", 256,
+                                "--threads", th, "-q", out])
+    if n_cpu > 1:
+        same = (gdal.Open(os.path.join(work, "th1.tif")).ReadAsArray().tobytes() ==
+                gdal.Open(os.path.join(work, "th%d.tif" % n_cpu)).ReadAsArray().tobytes())
+        pf = (1 - t[n_cpu] / t[1]) / (1 - 1.0 / n_cpu)
+        print("   2048^2 in tiles of 256: %.2f s on 1 thread, %.2f s on %d (%s); parallel "
+              "fraction %.2f, Amdahl on 16 threads: %.1f x (goal >= 8)" % (
+                  t[1], t[n_cpu], n_cpu, "same bytes" if same else "DIFFERENT BYTES", pf,
+                  1 / ((1 - pf) + pf / 16)))
 
     # 3. Dask
     runner = os.path.join(ROOT, "gdal_driver", "terrasynth_dask.py")
