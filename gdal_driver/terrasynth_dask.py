@@ -290,9 +290,12 @@ def main(argv=None):
                                    dashboard_address=None)
             client = Client(cluster)
         drv = gdal.GetDriverByName("GTiff")
+        # a COG follows: the chunks go uncompressed into the intermediate (compressing them
+        # twice cost the client CPU the workers need), the COG compresses on every core
+        cog = not a.no_overviews and gdal.GetDriverByName("COG") is not None
         dst = drv.Create(tmp, W, H, 1, dtype,
-                         ["TILED=YES", "BLOCKXSIZE=256", "BLOCKYSIZE=256", "COMPRESS=DEFLATE",
-                          "BIGTIFF=IF_SAFER"])
+                         ["TILED=YES", "BLOCKXSIZE=256", "BLOCKYSIZE=256",
+                          "COMPRESS=NONE" if cog else "COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER"])
         dst.SetGeoTransform(gt)
         if wkt:
             dst.SetProjection(wkt)
@@ -350,11 +353,12 @@ def main(argv=None):
             while max(W, H) // f >= 256:
                 levels.append(f)
                 f *= 2
-            if gdal.GetDriverByName("COG") is not None:
+            if cog:
                 dst = None
                 gdal.Translate(tmps[1], tmp, format="COG",
                                creationOptions=["COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER",
-                                                "OVERVIEW_RESAMPLING=AVERAGE"])
+                                                "OVERVIEW_RESAMPLING=AVERAGE",
+                                                "NUM_THREADS=ALL_CPUS"])
                 final = tmps[1]
             elif levels:
                 dst.BuildOverviews("AVERAGE", levels)
