@@ -3,7 +3,7 @@
 Dask cluster of two worker processes (loopback only) gives the same cells, geotransform, CRS
 and nodata as `gdal_translate RECIPE OUT.tif` of the same recipe, whatever the chunk size; a
 pixel and an amplify recipe chunk by chunk, a tiled synth recipe tile by tile, a synth recipe
-in one piece in one task; refusals leave
+in one piece in one task; a worker killed mid-run on a running cluster loses nothing; refusals leave
 nothing behind.  Skips when python3-distributed is absent; not under the sanitizers (the
 runner is plain Python and its workers would each load the instrumented plugin: the plugin is
 checked under them by tests/gdal)."""
@@ -142,3 +142,60 @@ def test_refusals_leave_nothing(tmp_path):
     p = runner(recipe, tmp_path / "o.tif", "--chunk", 3, check=False)
     assert p.returncode == 1 and "--chunk" in p.stderr
     assert sorted(os.listdir(tmp_path)) == sorted(before + ["bad.tsyn"])
+
+
+def test_a_dead_worker_loses_nothing(tmp_path):
+    """A running cluster (a scheduler and two workers on loopback, started here as a user
+    would); one worker is killed once some tiles are written: Dask makes its tiles again on
+    the other (a tile is a pure function of the recipe and its neighbours), and the output
+    is the same bytes as gdal_translate."""
+    import re
+    import signal
+    import socket
+    import time
+    args = ["--exemplar", JACKSBORO, "--size", "1024x768", "--seed", 12, "--tiled", 128]
+    recipe = tmp_path / "t.tsyn"
+    run("synth", *args, "--recipe", recipe)
+    translate(recipe, tmp_path / "gt.tif")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    env = plugin_env(PLUGINS)
+    py = sys.executable
+    procs = [subprocess.Popen([py, "-m", "distributed.cli.dask_scheduler", "--host",
+                               "127.0.0.1", "--port", str(port), "--dashboard-address", ":0"],
+                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    addr = "tcp://127.0.0.1:%d" % port
+    try:
+        for _ in range(2):
+            procs.append(subprocess.Popen([py, "-m", "distributed.cli.dask_worker", addr,
+                                           "--nthreads", "1", "--no-nanny", "--host",
+                                           "127.0.0.1", "--dashboard-address", ":0"],
+                                          env=env, stdout=subprocess.DEVNULL,
+                                          stderr=subprocess.DEVNULL))
+        from distributed import Client
+        with Client(addr, timeout=60) as c:
+            c.wait_for_workers(2, timeout=60)
+        runner_p = subprocess.Popen([py, RUNNER, str(recipe), str(tmp_path / "d.tif"),
+                                     "--scheduler", addr, "--no-overviews"], env=env,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        buf, killed = b"", 0
+        deadline = time.monotonic() + 300
+        while runner_p.poll() is None and time.monotonic() < deadline:
+            ch = runner_p.stderr.read1(4096) if hasattr(runner_p.stderr, "read1") else b""
+            buf += ch
+            m = re.findall(rb"(\d+) of (\d+) tiles", buf)
+            if not killed and m and int(m[-1][0]) >= 6:
+                procs[1].send_signal(signal.SIGKILL)
+                killed = int(m[-1][0])
+            if not ch:
+                time.sleep(0.05)
+        out, err = runner_p.communicate(timeout=300)
+        assert runner_p.returncode == 0, (buf + err).decode(errors="replace")
+        done = re.findall(rb"(\d+) of (\d+) tiles", buf + err)
+        assert 0 < killed < 48 and int(done[-1][0]) == 48, (killed, done[-1])
+        same_raster(tmp_path / "d.tif", tmp_path / "gt.tif")
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()
