@@ -170,7 +170,8 @@ def test_a_dead_worker_loses_nothing(tmp_path):
         for _ in range(2):
             procs.append(subprocess.Popen([py, "-m", "distributed.cli.dask_worker", addr,
                                            "--nthreads", "1", "--no-nanny", "--host",
-                                           "127.0.0.1", "--dashboard-address", ":0"],
+                                           "127.0.0.1", "--dashboard-address", ":0",
+                                           "--local-directory", str(tmp_path / "w")],
                                           env=env, stdout=subprocess.DEVNULL,
                                           stderr=subprocess.DEVNULL))
         from distributed import Client
