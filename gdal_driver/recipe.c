@@ -278,8 +278,8 @@ static int recipe_job(ts_recipe *r, CPLXMLNode *node, const char *const *oo, tsi
         char *end = NULL;
         double v = strtod(mb, &end);
         if (r->map >= 0) {
-            tsio_errf(err, r->path, "tiles (tiled %d) take no pins, water, heights, regions or "
-                      "debug maps yet (MAP)", r->synth.params.tiled);
+            tsio_errf(err, r->path, "tiles (tiled %d) take no debug maps yet (MAP)",
+                      r->synth.params.tiled);
             return -1;
         }
         if (end == mb || *end || !(v >= 0 && v <= 1e6)) {

@@ -348,10 +348,11 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         tsjob_synth_result_free(res);
         return -1;
     }
-    if (res->params.tiled > 0 &&
+    if (res->params.tiled > 0 && job->lazy &&
         (job->n_pins || job->water || job->heights || job->regions)) {
         tsio_errf(err, "synth",
-                  "tiles (tiled %d) take no pins, water, heights, regions or debug maps yet",
+                  "a recipe in tiles (tiled %d) takes no pins, water, heights or regions yet "
+                  "(terrasynth synth --tiled does)",
                   res->params.tiled);
         tsjob_synth_result_free(res);
         return -1;
@@ -856,6 +857,13 @@ static int job_synth_inputs(const tsjob_synth *job, const char **in)
 
 int tsjob_synth_check_recipe(const tsjob_synth *job, const char *recipe, tsio_err *err)
 {
+    if (job->params.tiled > 0 && (job->n_pins || job->water || job->heights || job->regions)) {
+        tsio_errf(err, recipe,
+                  "a recipe in tiles (tiled %d) takes no pins, water, heights or regions yet "
+                  "(terrasynth synth --tiled does)",
+                  job->params.tiled);
+        return -1;
+    }
     const char *in[JOB_MAX_INPUTS];
     int n = job_synth_inputs(job, in);
     return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;

@@ -515,17 +515,21 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
                                   ts_synth_maps *maps);
 
 /**
- * Free synthesis of `out` (all NaN on entry) in tiles of `tile` cells
+ * Free synthesis of `out` (NaN on entry but its fixed cells) in tiles of `tile` cells
  * (tiled_synthesis.c): tile (i, j) in wave (i & 1) + 2 (j & 1), made over
  * its core grown by a patch with its earlier-wave neighbours' cores fixed
  * and their margins as terrain to cut against; the output is the union of
  * the cores.  Tiles of a wave run in parallel;
  * the result depends on the seed and the parameters only, not on the
- * thread count.  tile: 2 x the patch .. 16384.  params->tiled is not
- * read.  ts_synth_patches calls this when params->tiled > 0.
+ * thread count.  constraints (may be NULL) are the whole grid's, as for
+ * ts_synth_patches: each tile takes its window's part (pinned and water
+ * cells fixed with their values in `out`, nodata, regions, heights).
+ * tile: 2 x the patch .. 16384.  params->tiled is not read.
+ * ts_synth_patches calls this when params->tiled > 0.
  */
 TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
-                                const ts_synth_params *params, int tile, ts_raster *out);
+                                const ts_synth_params *params,
+                                const ts_synth_constraints *constraints, int tile, ts_raster *out);
 
 /** The wave of tile (ti, tj) in ts_synth_tiled: (ti & 1) + 2 (tj & 1). */
 TS_API int ts_synth_tile_wave(int ti, int tj);

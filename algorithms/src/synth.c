@@ -72,20 +72,12 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     if (synth_check_constraints(ctx, constraints) != TS_OK)
         return ctx->status;
     if (params->tiled > 0) {
-        int flagged = 0;
-        if (constraints && constraints->cell_flags && out && out->data) {
-            size_t c, n = (size_t)out->width * (size_t)out->height;
-            for (c = 0; c < n && !flagged; c++)
-                flagged = constraints->cell_flags[c] != 0;
-        }
-        if ((maps && (maps->seams || maps->source_exemplar || maps->source_x || maps->source_y ||
-                      maps->order)) ||
-            flagged || (constraints && (constraints->cell_exemplar || constraints->heights)))
-            return ts__fail(ctx, TS_ERR_ARG, "synth",
-                            "tiles (tiled %d) take no pins, water, heights, regions or "
-                            "debug maps yet",
+        if (maps && (maps->seams || maps->source_exemplar || maps->source_x || maps->source_y ||
+                     maps->order))
+            return ts__fail(ctx, TS_ERR_ARG, "synth", "tiles (tiled %d) take no debug maps yet",
                             params->tiled);
-        return ts_synth_tiled(ctx, exemplars, n_exemplars, params, params->tiled, out);
+        return ts_synth_tiled(ctx, exemplars, n_exemplars, params, constraints, params->tiled,
+                              out);
     }
     f = ts__fill_make(params, constraints);
     return ts__fill_run(ctx, exemplars, n_exemplars, &f, out, maps);

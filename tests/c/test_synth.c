@@ -368,7 +368,7 @@ static void test_tiles(void)
     ts_ctx_set_threads(ctx, 2);
     CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &b, NULL) == TS_OK);
     ts_ctx_set_threads(ctx, 3);
-    CHECK(ts_synth_tiled(ctx, &ex, 1, &p, T, &c) == TS_OK);
+    CHECK(ts_synth_tiled(ctx, &ex, 1, &p, NULL, T, &c) == TS_OK);
     CHECK(memcmp(a.data, b.data, sizeof(float) * W * H) == 0);
     CHECK(memcmp(a.data, c.data, sizeof(float) * W * H) == 0);
     for (y = 0; y < 120; y++)
@@ -499,20 +499,109 @@ static void test_tiles(void)
             TS_PIX(&b, x, y) = NAN;
     CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &b, NULL) == TS_OK);
     CHECK(memcmp(a.data, b.data, sizeof(float) * W * H) != 0);
-    CHECK(ts_synth_tiled(ctx, &ex, 1, &p, P, &b) == TS_ERR_ARG); /* under 2 patches */
+    CHECK(ts_synth_tiled(ctx, &ex, 1, &p, NULL, P, &b) == TS_ERR_ARG); /* under 2 patches */
     CHECK(strstr(ts_ctx_message(ctx), "tiles") != NULL);
     {
-        unsigned char *fl = calloc((size_t)W * H, 1);
-        ts_synth_constraints cons = ts_synth_constraints_default();
-        fl[5] = TS_CELL_FIXED;
-        cons.cell_flags = fl;
-        CHECK(ts_synth_patches(ctx, &ex, 1, &p, &cons, &b, NULL) == TS_ERR_ARG);
-        free(fl);
+        ts_synth_maps maps;
+        int32_t *order = malloc(sizeof(int32_t) * (size_t)W * H);
+        memset(&maps, 0, sizeof maps);
+        maps.order = order;
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &b, &maps) == TS_ERR_ARG);
+        CHECK(strstr(ts_ctx_message(ctx), "debug maps") != NULL);
+        free(order);
     }
     ts_raster_free(&a);
     ts_raster_free(&b);
     ts_raster_free(&c);
     ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
+/* Tiles with the whole grid's constraints: pinned cells keep their values
+ * exactly, nodata cells stay empty, each region takes its exemplar (a
+ * smooth one on the left, a rough one on the right: the right third's mean
+ * |Laplacian| several times the left third's, as in one piece), the same
+ * bytes on 1 and 3 threads. */
+static double mean_abs_lap(const ts_raster *r, const unsigned char *fl, int x0, int x1)
+{
+    double s = 0.0;
+    int x, y, n = 0;
+    for (y = 1; y < r->height - 1; y++)
+        for (x = x0 > 1 ? x0 : 1; x < (x1 < r->width - 1 ? x1 : r->width - 1); x++) {
+            double l = TS_PIX(r, x - 1, y) + TS_PIX(r, x + 1, y) + TS_PIX(r, x, y - 1) +
+                       TS_PIX(r, x, y + 1) - 4.0 * TS_PIX(r, x, y);
+            if (fl[(size_t)y * (size_t)r->width + (size_t)x] || isnan(l))
+                continue;
+            s += fabs(l);
+            n++;
+        }
+    return n ? s / n : 0.0;
+}
+
+static void test_tiles_constraints(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex[2], out[3];
+    ts_synth_params p = small_params();
+    const int W = 300, H = 200, T = 64;
+    unsigned char *fl = calloc((size_t)W * H, 1);
+    int32_t *reg = malloc(sizeof(int32_t) * (size_t)W * H);
+    ts_synth_constraints cons = ts_synth_constraints_default();
+    int x, y, k, pins_ok = 1, holes_ok = 1, filled_ok = 1;
+    double ratio[3];
+    ex[0] = make_exemplar(ctx, 160, 120, 8, 0);
+    ex[1] = make_exemplar(ctx, 160, 120, 9, 0);
+    for (y = 0; y < 120; y++)
+        for (x = 0; x < 160; x++)
+            TS_PIX(&ex[1], x, y) += (float)(60.0 * sin(x / 1.7) * sin(y / 2.1));
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            size_t c = (size_t)y * W + (size_t)x;
+            reg[c] = x < W / 2 ? 0 : 1;
+            if (x >= 100 && x < 140 && y >= 60 && y < 100)
+                fl[c] = TS_CELL_FIXED; /* across tile borders (64, 128) */
+            if (x >= 220 && x < 240 && y >= 20 && y < 40)
+                fl[c] = TS_CELL_NODATA;
+        }
+    cons.cell_flags = fl;
+    cons.cell_exemplar = reg;
+    for (k = 0; k < 3; k++) { /* tiles on 1 and 3 threads, one piece */
+        ts_raster_alloc(ctx, W, H, &out[k]);
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++)
+                TS_PIX(&out[k], x, y) =
+                    fl[(size_t)y * W + (size_t)x] & TS_CELL_FIXED ? 1000.0f : NAN;
+        p.tiled = k < 2 ? T : 0;
+        ts_ctx_set_seed(ctx, 31);
+        ts_ctx_set_threads(ctx, k == 1 ? 3 : 1);
+        CHECK_MSG(ts_synth_patches(ctx, ex, 2, &p, &cons, &out[k], NULL) == TS_OK, "%s",
+                  ts_ctx_message(ctx));
+        ratio[k] = mean_abs_lap(&out[k], fl, 2 * W / 3, W) / mean_abs_lap(&out[k], fl, 0, W / 3);
+    }
+    CHECK(memcmp(out[0].data, out[1].data, sizeof(float) * (size_t)W * H) == 0);
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            unsigned char f = fl[(size_t)y * W + (size_t)x];
+            float v = TS_PIX(&out[0], x, y);
+            if (f & TS_CELL_FIXED)
+                pins_ok &= v == 1000.0f;
+            else if (f & TS_CELL_NODATA)
+                holes_ok &= isnan(v);
+            else
+                filled_ok &= !isnan(v);
+        }
+    CHECK(pins_ok);
+    CHECK(holes_ok);
+    CHECK(filled_ok);
+    printf("     tiles with regions: right third / left third mean |Laplacian| %.2f "
+           "(one piece %.2f)\n", ratio[0], ratio[2]);
+    CHECK(ratio[0] > 2.0 && ratio[0] > 0.7 * ratio[2]);
+    for (k = 0; k < 3; k++)
+        ts_raster_free(&out[k]);
+    ts_raster_free(&ex[0]);
+    ts_raster_free(&ex[1]);
+    free(fl);
+    free(reg);
     ts_ctx_free(ctx);
 }
 
@@ -527,6 +616,7 @@ int main(int argc, char **argv)
         {"resolve_metres", test_resolve_metres},
         {"errors_and_cancel", test_errors_and_cancel},
         {"tiles", test_tiles},
+        {"tiles_constraints", test_tiles_constraints},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

@@ -254,8 +254,10 @@ def test_real_dems_grow_seamless_terrain(tmp_path, name):
         assert np.percentile(seam_steps, 99.9) <= 1.2 * limit, (np.percentile(seam_steps, 99.9), limit)
 
 
-def test_pins_and_water_are_kept(tmp_path):
-    # a projected exemplar on the output grid: pinned cells must come back unchanged
+@pytest.mark.parametrize("tiled", [0, 128])
+def test_pins_and_water_are_kept(tmp_path, tiled):
+    # a projected exemplar on the output grid: pinned cells must come back unchanged, in one
+    # piece and in tiles (the pin and the water cross tile borders)
     utm = tmp_path / "jb_utm.tif"
     gdal.Warp(str(utm), JACKSBORO, dstSRS="EPSG:32616", xRes=90, yRes=90, resampleAlg="bilinear")
     mask = np.zeros((200, 220), np.uint8)
@@ -264,7 +266,8 @@ def test_pins_and_water_are_kept(tmp_path):
     ds.GetRasterBand(1).WriteArray(mask)
     ds = None
     run("synth", "--exemplar", utm, "--size", "220x200", "--seed", "2", "--pin", f"{utm}:150,100,70,50@100,30",
-        "--water", tmp_path / "water.tif", "--water-level", "300", tmp_path / "o.tif", "-q")
+        "--water", tmp_path / "water.tif", "--water-level", "300", "--tiled", tiled,
+        tmp_path / "o.tif", "-q")
     z = load(tmp_path / "o.tif")[1]
     e = gdal.Open(str(utm)).ReadAsArray().astype(np.float64)
     assert np.array_equal(z[30:80, 100:170], e[100:150, 150:220])

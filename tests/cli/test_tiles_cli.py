@@ -41,6 +41,25 @@ def test_threads_recipe_and_seams(tmp_path):
         assert m["seam_lap"] <= 1.2 and m["seam_grad"] <= 1.2, m
 
 
+def test_recipe_with_pins_refused(tmp_path):
+    """Tiles take pins in the CLI, not yet in a recipe (its pins would be read per tile)."""
+    args = ["--exemplar", JACKSBORO, "--size", "300x300", "--tiled", 128,
+            "--pin", f"{JACKSBORO}:0,0,50,50@20,20"]
+    run("synth", *args, tmp_path / "o.tif", "-q")
+    p = run("synth", *args, "--recipe", tmp_path / "t.tsyn", check=False)
+    assert p.returncode != 0 and "recipe in tiles" in p.stderr, p.stderr
+    assert not os.path.exists(tmp_path / "t.tsyn")
+    # written by hand, it is refused on opening
+    (tmp_path / "h.tsyn").write_text(
+        '<TerraSynth version="1"><Synth seed="1"><Exemplar>%s</Exemplar>'
+        '<Pin xoff="0" yoff="0" width="50" height="50" x="20" y="20">%s</Pin>'
+        '<Grid width="300" height="300"/>'
+        '<Param name="tiled">128</Param></Synth></TerraSynth>' % (JACKSBORO, JACKSBORO))
+    p = subprocess.run(["gdalinfo", str(tmp_path / "h.tsyn")], capture_output=True, text=True,
+                       env=plugin_env(PLUGINS))
+    assert p.returncode != 0 and "recipe in tiles" in p.stderr, p.stderr
+
+
 @pytest.mark.parametrize("extra,words", [
     (["--tiled", 20], "tiles of 20 cells"),
     (["--tiled", 128, "--sketch", os.path.join(os.path.dirname(JACKSBORO), "sketches",

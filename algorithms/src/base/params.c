@@ -68,7 +68,8 @@ static const ts_param_desc synth_desc[] = {
      "Free synthesis in tiles of this many cells, made in four waves (a tile is cut and "
      "smoothed against its finished neighbours, the tiles of a wave run in parallel); "
      "a recipe in tiles is served tile by tile, any window alone (256-512 suit that); "
-     "0 = in one piece.  Not with a sketch, pins, water, heights, regions or debug maps.",
+     "0 = in one piece.  Not with a sketch or debug maps (pins, water, heights and regions: "
+     "not in recipes yet).",
      offsetof(ts_synth_params, tiled)},
 };
 

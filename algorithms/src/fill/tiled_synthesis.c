@@ -83,6 +83,10 @@ typedef struct tiled_job {
     ts_synth_params params; /* tiled 0: each tile in one piece */
     int W, H, T, G, nti, ntj;
     int tile_threads; /* threads per tile: the call's shared among the tiles run */
+    /* the whole grid's constraints (or NULL) and its cells on entry (the
+     * fixed cells' values: they never change) */
+    const ts_synth_constraints *cons;
+    const ts_raster *initial;
     ts_synth_tile *tiles;
     atomic_int failed;
     atomic_int status; /* the first failure's status */
@@ -98,6 +102,43 @@ static int earlier(const tiled_job *j, int ti, int tj, int di, int dj)
            tile_wave(ni, nj) < tile_wave(ti, tj);
 }
 
+/* The whole grid's constraints on a tile's window me: its flags (the
+ * fixed cells with their values from the grid on entry, nodata cells
+ * empty), the exemplar of each cell's region and the wanted heights, cut
+ * out into the tile's own arrays.  Returns 0 when out of memory. */
+static int tile_constraints(const tiled_job *j, const tile_rect *me, unsigned char *flags,
+                            ts_raster *r, ts_synth_constraints *cons, int32_t **cell_ex,
+                            float **heights)
+{
+    const ts_synth_constraints *g = j->cons;
+    int rw = me->x1 - me->x0, rh = me->y1 - me->y0, x, y;
+    size_t n = (size_t)rw * (size_t)rh;
+    if (g->cell_exemplar && !(*cell_ex = ts__malloc_array(n, sizeof **cell_ex)))
+        return 0;
+    if (g->heights && !(*heights = ts__malloc_array(n, sizeof **heights)))
+        return 0;
+    for (y = 0; y < rh; y++)
+        for (x = 0; x < rw; x++) {
+            size_t c = (size_t)y * (size_t)rw + (size_t)x;
+            size_t gc = (size_t)(y + me->y0) * (size_t)j->W + (size_t)(x + me->x0);
+            if (g->cell_flags && (g->cell_flags[gc] & TS_CELL_NODATA)) {
+                flags[c] = TS_CELL_NODATA;
+                TS_PIX(r, x, y) = NAN;
+            } else if (g->cell_flags && (g->cell_flags[gc] & TS_CELL_FIXED)) {
+                flags[c] = TS_CELL_FIXED;
+                TS_PIX(r, x, y) = TS_PIX(j->initial, x + me->x0, y + me->y0);
+            }
+            if (*cell_ex)
+                (*cell_ex)[c] = g->cell_exemplar[gc];
+            if (*heights)
+                (*heights)[c] = g->heights[gc];
+        }
+    cons->cell_exemplar = *cell_ex;
+    cons->heights = *heights;
+    cons->alpha_h = g->alpha_h;
+    return 1;
+}
+
 /* Synthesise tile t over its window. */
 static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
 {
@@ -108,6 +149,8 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     ts_raster r;
     unsigned char *flags = ts__calloc_array(n, 1), *cover = ts__calloc_array(n, 1);
     ts_synth_constraints cons = ts_synth_constraints_default();
+    int32_t *cell_ex = NULL;
+    float *heights = NULL;
     ts_status st;
     if (!flags || !cover || ts_raster_alloc(ctx, rw, rh, &r) != TS_OK) {
         free(flags);
@@ -168,13 +211,19 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
                 TS_PIX(&r, x, y) = NAN;
     free(cover);
     cons.cell_flags = flags;
-    ts_ctx_set_seed(ctx, tile_seed(ts_ctx_seed(j->parent), ti, tj));
-    st = ts_synth_patches(ctx, j->exemplars, j->n_exemplars, &j->params, &cons, &r, NULL);
+    if (j->cons && !tile_constraints(j, &me, flags, &r, &cons, &cell_ex, &heights)) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
+    } else {
+        ts_ctx_set_seed(ctx, tile_seed(ts_ctx_seed(j->parent), ti, tj));
+        st = ts_synth_patches(ctx, j->exemplars, j->n_exemplars, &j->params, &cons, &r, NULL);
+    }
     if (st == TS_OK)
         for (y = 0; y < rh; y++)
             memcpy(&TS_PIX(&t->window, 0, y), &TS_PIX(&r, 0, y), (size_t)rw * sizeof(float));
     ts_raster_free(&r);
     free(flags);
+    free(cell_ex);
+    free(heights);
     return st;
 }
 
@@ -336,7 +385,8 @@ TS_API ts_status ts_synth_tiles(ts_ctx *ctx, const ts_raster *exemplars, int n_e
 }
 
 TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
-                                const ts_synth_params *params, int tile, ts_raster *out)
+                                const ts_synth_params *params,
+                                const ts_synth_constraints *constraints, int tile, ts_raster *out)
 {
     tiled_job j;
     ts_synth_tile *tiles;
@@ -350,6 +400,11 @@ TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_e
     if (tiles_check(ctx, params, tile, out->width, out->height, &P) != TS_OK)
         return ctx->status;
     job_init(&j, ctx, exemplars, n_exemplars, params, tile, out->width, out->height, P);
+    if (constraints &&
+        (constraints->cell_flags || constraints->cell_exemplar || constraints->heights)) {
+        j.cons = constraints;
+        j.initial = out;
+    }
     n = (size_t)j.nti * (size_t)j.ntj;
     tiles = ts__malloc_array(n, sizeof *tiles);
     windows = ts__calloc_array(n, sizeof *windows);
