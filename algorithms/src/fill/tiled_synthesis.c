@@ -139,6 +139,63 @@ static int tile_constraints(const tiled_job *j, const tile_rect *me, unsigned ch
     return 1;
 }
 
+/* Empty the non-fixed cells of r within R cells (Chebyshev) of a cell
+ * whose 4-neighbour holds another margin (cover: 1 + the neighbour's slot,
+ * 0 none).  Returns 0 when out of memory. */
+static int meet_empty(const unsigned char *cover, const unsigned char *flags, ts_raster *r,
+                      int rw, int rh, int R)
+{
+    size_t n = (size_t)rw * (size_t)rh;
+    int *row = ts__malloc_array(n, sizeof *row), *acc = ts__malloc_array((size_t)rw + 1, sizeof *acc);
+    unsigned char *m = ts__calloc_array(n, 1);
+    int x, y;
+    if (!row || !acc || !m) {
+        free(row);
+        free(acc);
+        free(m);
+        return 0;
+    }
+    for (y = 0; y < rh; y++)
+        for (x = 0; x < rw; x++) {
+            size_t c = (size_t)y * (size_t)rw + (size_t)x;
+            unsigned char o = cover[c];
+            if (!o || flags[c])
+                continue;
+            if ((x + 1 < rw && cover[c + 1] && cover[c + 1] != o && !flags[c + 1]) ||
+                (y + 1 < rh && cover[c + (size_t)rw] && cover[c + (size_t)rw] != o &&
+                 !flags[c + (size_t)rw]))
+                m[c] = 1;
+        }
+    /* box dilation by R: along rows, then along columns (prefix sums) */
+    for (y = 0; y < rh; y++) {
+        const unsigned char *mr = m + (size_t)y * (size_t)rw;
+        acc[0] = 0;
+        for (x = 0; x < rw; x++)
+            acc[x + 1] = acc[x] + mr[x];
+        for (x = 0; x < rw; x++)
+            row[(size_t)y * (size_t)rw + (size_t)x] =
+                acc[TS_MIN(x + R + 1, rw)] - acc[TS_MAX(x - R, 0)] > 0;
+    }
+    for (x = 0; x < rw; x++) {
+        int run = 0;
+        for (y = 0; y < TS_MIN(R, rh); y++)
+            run += row[(size_t)y * (size_t)rw + (size_t)x];
+        for (y = 0; y < rh; y++) {
+            size_t c = (size_t)y * (size_t)rw + (size_t)x;
+            if (y + R < rh)
+                run += row[(size_t)(y + R) * (size_t)rw + (size_t)x];
+            if (y - R - 1 >= 0)
+                run -= row[(size_t)(y - R - 1) * (size_t)rw + (size_t)x];
+            if (run > 0 && cover[c] && !flags[c])
+                TS_PIX(r, x, y) = NAN;
+        }
+    }
+    free(row);
+    free(acc);
+    free(m);
+    return 1;
+}
+
 /* Synthesise tile t over its window. */
 static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
 {
@@ -188,27 +245,15 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
                     }
                 }
         }
-    for (y = 0; y < rh; y++) /* where two margins meet: empty, two cells each side */
-        for (x = 0; x < rw; x++) {
-            size_t c = (size_t)y * (size_t)rw + (size_t)x;
-            int a, b, meet = 0;
-            if (flags[c] || !cover[c])
-                continue;
-            for (b = TS_MAX(y - 2, 0); b <= TS_MIN(y + 2, rh - 1) && !meet; b++)
-                for (a = TS_MAX(x - 2, 0); a <= TS_MIN(x + 2, rw - 1); a++) {
-                    unsigned char o = cover[(size_t)b * (size_t)rw + (size_t)a];
-                    if (o && (o & 0x7f) != (cover[c] & 0x7f)) {
-                        meet = 1;
-                        break;
-                    }
-                }
-            if (meet)
-                cover[c] |= 0x80;
-        }
-    for (y = 0; y < rh; y++)
-        for (x = 0; x < rw; x++)
-            if (cover[(size_t)y * (size_t)rw + (size_t)x] & 0x80)
-                TS_PIX(&r, x, y) = NAN;
+    /* where two margins meet: empty within a quarter patch of the line, so
+     * the fill lays whole patches across it and cuts irregular seams (a thin
+     * strip would leave a straight line) */
+    if (!meet_empty(cover, flags, &r, rw, rh, TS_MAX(2, j->G / 4))) {
+        free(cover);
+        free(flags);
+        ts_raster_free(&r);
+        return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
+    }
     free(cover);
     cons.cell_flags = flags;
     if (j->cons && !tile_constraints(j, &me, flags, &r, &cons, &cell_ex, &heights)) {
