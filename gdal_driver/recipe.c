@@ -728,19 +728,20 @@ static int tiles_make(ts_recipe *r, ts_ctx *ctx, ts_synth_tile *batch, size_t n,
     const tsjob_synth_result *res = &r->synth_res;
     int T = res->params.tiled, W = res->geo.width, H = res->geo.height, di, dj, nv = 0;
     ts_raster views[9 * 64];
+    int win[64][4];
     size_t g;
     for (g = 0; g < n; g++) {
         ts_synth_tile *t = &batch[g];
-        int win[4];
         float *cells;
-        if (ts_synth_tile_window(ctx, &res->params, T, W, H, t->ti, t->tj, win, NULL) != TS_OK) {
+        if (ts_synth_tile_window(ctx, &res->params, T, W, H, t->ti, t->tj, win[g], NULL) !=
+            TS_OK) {
             tsio_errf(err, r->path, "%s", ts_ctx_message(ctx));
             goto fail;
         }
-        cells = malloc((size_t)win[2] * (size_t)win[3] * sizeof(float));
+        cells = malloc((size_t)win[g][2] * (size_t)win[g][3] * sizeof(float));
         if (!cells)
             goto oom;
-        t->window = ts_raster_wrap(cells, win[2], win[3], win[2]);
+        t->window = ts_raster_wrap(cells, win[g][2], win[g][3], win[g][2]);
         for (dj = -1; dj <= 1; dj++)
             for (di = -1; di <= 1; di++) {
                 recipe_tile *nb = tile_find(r, t->ti + di, t->tj + dj);
@@ -762,12 +763,10 @@ static int tiles_make(ts_recipe *r, ts_ctx *ctx, ts_synth_tile *batch, size_t n,
         goto fail;
     for (g = 0; g < n; g++) { /* into the cache */
         recipe_tile *e = &r->tiles[r->n_tiles++];
-        int win[4];
-        ts_synth_tile_window(ctx, &res->params, T, W, H, batch[g].ti, batch[g].tj, win, NULL);
         e->ti = batch[g].ti;
         e->tj = batch[g].tj;
-        e->x0 = win[0];
-        e->y0 = win[1];
+        e->x0 = win[g][0];
+        e->y0 = win[g][1];
         e->w = batch[g].window.width;
         e->h = batch[g].window.height;
         e->cells = batch[g].window.data;
@@ -1123,17 +1122,23 @@ TSYN_EXPORT int tsyn_tiles_open(const char *path, void **handle, int *width, int
 }
 
 /* Where tile (ti, tj) lies: win and core = {x, y, w, h} (ts_synth_tile_window). */
+/* Where tile (ti, tj) lies (ts_synth_tile_window), with ctx for errors. */
+static int tile_rect(const ts_recipe *r, ts_ctx *ctx, int ti, int tj, int win[4], int core[4])
+{
+    const tsjob_synth_result *res = &r->synth_res;
+    return ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width,
+                                res->geo.height, ti, tj, win, core) == TS_OK
+               ? 0
+               : -1;
+}
+
 TSYN_EXPORT int tsyn_tile_rect(void *handle, int ti, int tj, int win[4], int core[4], char *msg,
                                int n)
 {
     ts_recipe *r = handle;
-    const tsjob_synth_result *res = &r->synth_res;
     ts_ctx *ctx = ts_ctx_new();
-    int rc = -1;
-    if (ctx && ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width,
-                                    res->geo.height, ti, tj, win, core) == TS_OK)
-        rc = 0;
-    else if (msg && n > 0)
+    int rc = ctx ? tile_rect(r, ctx, ti, tj, win, core) : -1;
+    if (rc != 0 && msg && n > 0)
         snprintf(msg, (size_t)n, "%s: %s", r->path, ctx ? ts_ctx_message(ctx) : "out of memory");
     ts_ctx_free(ctx);
     return rc;
@@ -1146,34 +1151,36 @@ TSYN_EXPORT int tsyn_tile_make(void *handle, int ti, int tj, const float *const 
                                float *window, char *msg, int n)
 {
     ts_recipe *r = handle;
-    const tsjob_synth_result *res = &r->synth_res;
     int k, rc, win[4];
     ts_raster views[9];
     ts_synth_tile t;
-    ts_ctx *ctx;
+    ts_ctx *ctx = ts_ctx_new();
     tsio_err err;
     memset(&t, 0, sizeof t);
-    if (tsyn_tile_rect(handle, ti, tj, win, NULL, msg, n) != 0)
-        return -1;
-    t.ti = ti;
-    t.tj = tj;
-    t.window = ts_raster_wrap(window, win[2], win[3], win[2]);
-    for (k = 0; k < 9; k++) {
-        int nw[4];
-        if (!nb[k] || tsyn_tile_rect(handle, ti + k % 3 - 1, tj + k / 3 - 1, nw, NULL, NULL, 0))
-            continue;
-        views[k] = ts_raster_wrap((float *)(uintptr_t)nb[k], nw[2], nw[3], nw[2]);
-        t.neighbours[k] = &views[k];
-    }
-    ctx = ts_ctx_new();
     if (!ctx) {
         tsio_errf(&err, r->path, "out of memory");
         copy_err(&err, msg, n);
         return -1;
     }
+    if (tile_rect(r, ctx, ti, tj, win, NULL) != 0) {
+        tsio_errf(&err, r->path, "%s", ts_ctx_message(ctx));
+        copy_err(&err, msg, n);
+        ts_ctx_free(ctx);
+        return -1;
+    }
+    t.ti = ti;
+    t.tj = tj;
+    t.window = ts_raster_wrap(window, win[2], win[3], win[2]);
+    for (k = 0; k < 9; k++) {
+        int nw[4];
+        if (!nb[k] || tile_rect(r, ctx, ti + k % 3 - 1, tj + k / 3 - 1, nw, NULL) != 0)
+            continue;
+        views[k] = ts_raster_wrap((float *)(uintptr_t)nb[k], nw[2], nw[3], nw[2]);
+        t.neighbours[k] = &views[k];
+    }
     ts_ctx_set_seed(ctx, r->seed);
     ts_ctx_set_threads(ctx, 1);
-    rc = tsjob_synth_tiles(ctx, &r->synth, res, &t, 1, &err);
+    rc = tsjob_synth_tiles(ctx, &r->synth, &r->synth_res, &t, 1, &err);
     ts_ctx_free(ctx);
     if (rc != 0) {
         copy_err(&err, msg, n);

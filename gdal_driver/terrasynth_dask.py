@@ -67,8 +67,9 @@ def same_file(a, b):
         return False
 
 
-def read_chunk(recipe, plugins, x, y, w, h):
-    """One window of the recipe, read through the TSYN driver (runs on a worker)."""
+def tsyn_driver(plugins):
+    """GDAL (osgeo.gdal) and its TSYN driver on this worker, the plugin loaded from `plugins`
+    when given."""
     if plugins:
         os.environ["GDAL_DRIVER_PATH"] = plugins
     from osgeo import gdal
@@ -77,9 +78,16 @@ def read_chunk(recipe, plugins, x, y, w, h):
         gdal.SetConfigOption("GDAL_DRIVER_PATH", plugins)
     if gdal.GetDriverByName("TSYN") is None:
         gdal.AllRegister()
-    if gdal.GetDriverByName("TSYN") is None:
+    drv = gdal.GetDriverByName("TSYN")
+    if drv is None:
         raise RuntimeError("the TSYN GDAL driver is not installed on this worker "
                            "(cmake --install, or GDAL_DRIVER_PATH)")
+    return gdal, drv
+
+
+def read_chunk(recipe, plugins, x, y, w, h):
+    """One window of the recipe, read through the TSYN driver (runs on a worker)."""
+    gdal, _ = tsyn_driver(plugins)
     ds = gdal.OpenEx(recipe, gdal.OF_RASTER | gdal.OF_READONLY, allowed_drivers=["TSYN"])
     a = ds.GetRasterBand(1).ReadAsArray(x, y, w, h)
     ds = None
@@ -107,19 +115,10 @@ def _tiles_handle(recipe, plugins):
     import ctypes
     if recipe in _TILES:
         return _TILES[recipe]
-    if plugins:
-        os.environ["GDAL_DRIVER_PATH"] = plugins
-    from osgeo import gdal
-    gdal.UseExceptions()
-    if plugins:
-        gdal.SetConfigOption("GDAL_DRIVER_PATH", plugins)
-    if gdal.GetDriverByName("TSYN") is None:
-        gdal.AllRegister()
-    drv = gdal.GetDriverByName("TSYN")
-    path = drv.GetMetadataItem("TSYN_LIBRARY") if drv is not None else None
+    _, drv = tsyn_driver(plugins)
+    path = drv.GetMetadataItem("TSYN_LIBRARY")
     if not path:
-        raise RuntimeError("the TSYN GDAL driver is not installed on this worker "
-                           "(cmake --install, or GDAL_DRIVER_PATH)")
+        raise RuntimeError("this TSYN driver does not name its library (TSYN_LIBRARY)")
     lib = ctypes.CDLL(path)
     lib.tsyn_tiles_open.argtypes = [ctypes.c_char_p, ctypes.POINTER(ctypes.c_void_p),
                                     ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int),

@@ -269,6 +269,19 @@ static int job_target_grid(const tsjob_grid *g, const char *first_exemplar, doub
     return job_grid_metrics(geo, cell_size, dx, dy, err);
 }
 
+/* A recipe in tiles is served tile by tile, and its per-cell inputs are
+ * not read per tile yet: refused (one line naming `where`) when it has any. */
+static int job_tiled_recipe_refused(const tsjob_synth *job, const char *where, tsio_err *err)
+{
+    if (!(job->params.tiled > 0) || !(job->n_pins || job->water || job->heights || job->regions))
+        return 0;
+    tsio_errf(err, where,
+              "a recipe in tiles (tiled %d) takes no pins, water, heights or regions yet "
+              "(terrasynth synth --tiled does)",
+              job->params.tiled);
+    return 1;
+}
+
 static int job_synth_built(const tsjob_synth *job)
 {
     const tsjob_grid *g = &job->grid;
@@ -335,12 +348,17 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         return -1;
     }
     ts_ctx_free(ctx);
-    if (res->params.tiled > 0 && (res->params.tiled < 2 * (int)res->params.patch_size.value ||
-                                  res->params.tiled > 16384)) {
-        tsio_errf(err, "synth", "tiles of %d cells: give 2 x the patch (%d) to 16384",
-                  res->params.tiled, 2 * (int)res->params.patch_size.value);
-        tsjob_synth_result_free(res);
-        return -1;
+    if (res->params.tiled > 0) { /* the core's own check of the tile size, before the work */
+        ctx = ts_ctx_new();
+        bad = !ctx || ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width,
+                                           res->geo.height, 0, 0, NULL, NULL) != TS_OK;
+        if (bad)
+            tsio_errf(err, "synth", "%s", ctx ? ts_ctx_message(ctx) : "out of memory");
+        ts_ctx_free(ctx);
+        if (bad) {
+            tsjob_synth_result_free(res);
+            return -1;
+        }
     }
     if (res->params.tiled > 0 && job->sketch) {
         tsio_errf(err, "synth", "tiles (tiled %d) are for free synthesis: not with a sketch yet",
@@ -348,12 +366,7 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         tsjob_synth_result_free(res);
         return -1;
     }
-    if (res->params.tiled > 0 && job->lazy &&
-        (job->n_pins || job->water || job->heights || job->regions)) {
-        tsio_errf(err, "synth",
-                  "a recipe in tiles (tiled %d) takes no pins, water, heights or regions yet "
-                  "(terrasynth synth --tiled does)",
-                  res->params.tiled);
+    if (job->lazy && job_tiled_recipe_refused(job, "synth", err)) {
         tsjob_synth_result_free(res);
         return -1;
     }
@@ -857,13 +870,8 @@ static int job_synth_inputs(const tsjob_synth *job, const char **in)
 
 int tsjob_synth_check_recipe(const tsjob_synth *job, const char *recipe, tsio_err *err)
 {
-    if (job->params.tiled > 0 && (job->n_pins || job->water || job->heights || job->regions)) {
-        tsio_errf(err, recipe,
-                  "a recipe in tiles (tiled %d) takes no pins, water, heights or regions yet "
-                  "(terrasynth synth --tiled does)",
-                  job->params.tiled);
+    if (job_tiled_recipe_refused(job, recipe, err))
         return -1;
-    }
     const char *in[JOB_MAX_INPUTS];
     int n = job_synth_inputs(job, in);
     return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;

@@ -1113,16 +1113,14 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
                     n_needed -= pos[j].needed;
                     place_count(&pl, &pos[j]);
                     n_needed += pos[j].needed;
-                    if (params->order != TS_ORDER_RASTER)
-                        ts__queue_fix(&q, j);
+                    ts__queue_fix(&q, j);
                 }
         }
         for (i = 0; i < n_run; i++) {
             int w = i ? pick2 : pick;
             n_needed -= pos[w].needed;
             pos[w].needed = 0;
-            if (params->order != TS_ORDER_RASTER)
-                ts__queue_fix(&q, w);
+            ts__queue_fix(&q, w);
         }
         {
             st = ts__progress(ctx, 0.1 + 0.9 * (double)placed / (double)(placed + n_needed),

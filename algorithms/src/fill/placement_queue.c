@@ -60,7 +60,10 @@ static void queue_down(ts__pos_queue *q, int i)
 
 void ts__queue_fix(ts__pos_queue *q, int j)
 {
-    int i = q->slot[j];
+    int i;
+    if (!q->slot)
+        return; /* no queue (raster order) */
+    i = q->slot[j];
     if (i < 0 && q->pos[j].needed) {
         q->heap[q->n] = j;
         q->slot[j] = q->n++;

@@ -31,7 +31,7 @@ typedef struct ts__pos_queue {
 int ts__queue_init(ts__pos_queue *q, ts__placement *pos, int n_pos, int cx, int cy);
 void ts__queue_free(ts__pos_queue *q);
 /* After pos[j] changed (overlap or needed): in the queue when needed, out
- * of it when not, in its place. */
+ * of it when not, in its place (nothing for a queue never initialised). */
 void ts__queue_fix(ts__pos_queue *q, int j);
 /* The best position in the queue (-1 if none); with apart >= 0, the best
  * of those not within gap cells of position apart in both x and y

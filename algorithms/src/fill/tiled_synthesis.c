@@ -203,13 +203,13 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     tile_rect me = rect_of(j->W, j->H, j->T, j->G, ti, tj);
     int rw = me.x1 - me.x0, rh = me.y1 - me.y0;
     size_t n = (size_t)rw * (size_t)rh;
-    ts_raster r;
+    ts_raster r = t->window; /* made in place */
     unsigned char *flags = ts__calloc_array(n, 1), *cover = ts__calloc_array(n, 1);
     ts_synth_constraints cons = ts_synth_constraints_default();
     int32_t *cell_ex = NULL;
     float *heights = NULL;
     ts_status st;
-    if (!flags || !cover || ts_raster_alloc(ctx, rw, rh, &r) != TS_OK) {
+    if (!flags || !cover) {
         free(flags);
         free(cover);
         return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
@@ -219,8 +219,7 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
             TS_PIX(&r, x, y) = NAN;
     /* the earlier neighbours: their cores fixed, their margins as terrain
      * to match and cut against; where several reach, the latest wave's (made
-     * with the others' cores around it), and where two margins meet, a strip
-     * left empty so that the fill cuts and smooths across it */
+     * with the others' cores around it) */
     for (dj = -1; dj <= 1; dj++)
         for (di = -1; di <= 1; di++) {
             const ts_raster *nb = t->neighbours[(dj + 1) * 3 + di + 1];
@@ -251,7 +250,6 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     if (!meet_empty(cover, flags, &r, rw, rh, TS_MAX(2, j->G / 4))) {
         free(cover);
         free(flags);
-        ts_raster_free(&r);
         return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
     }
     free(cover);
@@ -262,10 +260,6 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
         ts_ctx_set_seed(ctx, tile_seed(ts_ctx_seed(j->parent), ti, tj));
         st = ts_synth_patches(ctx, j->exemplars, j->n_exemplars, &j->params, &cons, &r, NULL);
     }
-    if (st == TS_OK)
-        for (y = 0; y < rh; y++)
-            memcpy(&TS_PIX(&t->window, 0, y), &TS_PIX(&r, 0, y), (size_t)rw * sizeof(float));
-    ts_raster_free(&r);
     free(flags);
     free(cell_ex);
     free(heights);
