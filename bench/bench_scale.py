@@ -12,10 +12,17 @@
 2. Time per cell: `terrasynth synth` in one piece and in tiles at 1024^2, 4096^2 and 8192^2
    (cells/s printed; the goal: flat from 1024^2 up); tiles on 1 thread and on all (the
    parallel fraction, and what Amdahl's law gives on 16 threads).
-3. The Dask runner: 16 384^2 from a tiled recipe on a LocalCluster of 2 worker processes
-   against the single-process tiled 8192^2 of step 2 (goal: <= 4 x its time, 4 x the
-   cells), peak memory per worker (goal <= 1.5 GB).  Same bytes on 1 and 2 workers and as
-   the CLI: checked on 2048^2.
+3. The Dask runner: 16 384^2 from a tiled recipe on a local cluster of 2 workers (threads of
+   the runner) against the single-process tiled 8192^2 of step 2 (goal: <= 4 x its time, 4 x
+   the cells), peak memory (goal <= 1.5 GB a worker).  Same bytes on 1 and 2 workers, as
+   threads and as processes, and as the CLI: checked on 2048^2.
+
+The exemplar is the Jacksboro DEM warped once to UTM 16N at 80 m (gdalwarp, in the work
+folder), so that every size synthesises from the same exemplar: on the DEM's own geographic
+grid a 16 384-cell side spans 13.6 degrees of latitude, the exemplar is resampled to the
+ground resolution at the grid's centre row (33.0 vs 29.6 degrees N), and 8192^2 and 16 384^2
+were different problems (the exemplar about 387 vs 374 cells wide, so other FFT sizes: the
+FFTs' share of the CPU samples 19 vs 23 %, and 16 384^2 cost 4.2 x 8192^2 in one process).  `--exemplar` takes any other DEM as it is.
 4. Seams across tile borders: ../shared/eval/terrain_metrics.py on the 4096^2 tiled output
    (seam_lap and seam_grad <= 1.2), and, ours, the 99.9th percentile of |Laplacian| on the
    cells next to a tile border against everywhere (1 = the borders are like any cell).
@@ -76,12 +83,31 @@ def border_ratio(path, T):
     return np.percentile(lap[near], 99.9) / np.percentile(lap[~near], 99.9)
 
 
+def wave_roughness(path, T):
+    """Mean |gradient| (elevation units per cell) of the T x T cells of each wave (tile
+    (i, j) is of wave (i & 1) + 2 (j & 1)): tiles of a later wave fill between fixed
+    neighbours, and smoother terrain there shows as bands with a period of two tiles."""
+    ds = gdal.Open(path)
+    a = ds.GetRasterBand(1).ReadAsArray().astype(np.float64)
+    nd = ds.GetRasterBand(1).GetNoDataValue()
+    if nd is not None:
+        a[a == nd] = np.nan
+    gy, gx = np.gradient(a)
+    g = np.hypot(gx, gy)
+    w = [[], [], [], []]
+    for j in range(a.shape[0] // T):
+        for i in range(a.shape[1] // T):
+            w[(i & 1) + 2 * (j & 1)].append(np.nanmean(g[j * T:(j + 1) * T, i * T:(i + 1) * T]))
+    return [float(np.mean(v)) for v in w]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--terrasynth", default=os.path.join(ROOT, "build", "gdal_driver",
                                                          "terrasynth"))
     ap.add_argument("--plugins", default=os.path.join(ROOT, "build", "gdalplugins"))
-    ap.add_argument("--exemplar", default=os.path.join(ROOT, "data", "jacksboro_fault_dem.tif"))
+    ap.add_argument("--exemplar", default=None,
+                    help="default: data/jacksboro_fault_dem.tif warped to UTM 16N at 80 m")
     ap.add_argument("--tile", type=int, default=512)
     ap.add_argument("--quick", action="store_true", help="skip 8192^2 and the Dask 16384^2")
     ap.add_argument("--full", action="store_true",
@@ -90,7 +116,14 @@ def main():
     a = ap.parse_args()
     B, T = a.terrasynth, a.tile
     work = a.work or tempfile.mkdtemp(prefix="bench_scale.")
+    os.makedirs(work, exist_ok=True)
     env = dict(os.environ, GDAL_DRIVER_PATH=os.path.abspath(a.plugins))
+    if a.exemplar is None:  # the same exemplar at every size: a projected grid
+        a.exemplar = os.path.join(work, "jacksboro_utm16n_80m.tif")
+        subprocess.run(["gdalwarp", "-q", "-overwrite", "-t_srs", "EPSG:32616", "-tr", "80",
+                        "80", "-r", "bilinear",
+                        os.path.join(ROOT, "data", "jacksboro_fault_dem.tif"), a.exemplar],
+                       check=True)
     ex = ["--exemplar", a.exemplar, "--seed", 11]
     print("bench_scale: exemplar %s, tiles of %d cells, %d cores, work in %s" % (
         os.path.basename(a.exemplar), T, os.cpu_count(), work))
@@ -145,7 +178,8 @@ def main():
 
     # 3. Dask
     runner = os.path.join(ROOT, "gdal_driver", "terrasynth_dask.py")
-    print("\n3. terrasynth-dask, LocalCluster of 2 worker processes, 1 thread each")
+    print("\n3. terrasynth-dask, a local cluster of 2 workers (threads of the runner; "
+          "--processes: processes)")
     rec = os.path.join(work, "d2048.tsyn")
     subprocess.run([B, "synth", *map(str, ex), "--size", "2048x2048", "--tiled", str(T),
                     "--recipe", rec], check=True)
@@ -153,13 +187,16 @@ def main():
     subprocess.run([B, "synth", *map(str, ex), "--size", "2048x2048", "--tiled", str(T), "-q",
                     cli], check=True)
     got = {}
-    for nw in (1, 2):
-        o = os.path.join(work, "d2048_%d.tif" % nw)
-        subprocess.run([sys.executable, runner, rec, o, "--workers", str(nw), "--no-overviews",
-                        "-q"], check=True, env=env)
-        got[nw] = gdal.Open(o).ReadAsArray().tobytes()
-    same = got[1] == got[2] == gdal.Open(cli).ReadAsArray().tobytes()
-    print("   2048^2: 1 worker, 2 workers and the CLI give %s" % (
+    for nw, kind in ((1, []), (2, []), (2, ["--processes"])):
+        o = os.path.join(work, "d2048_%d%s.tif" % (nw, "p" if kind else ""))
+        dt, _, _ = time_rss([sys.executable, runner, rec, o, "--workers", str(nw), *kind,
+                             "--no-overviews", "-q"], env)
+        got[(nw, bool(kind))] = gdal.Open(o).ReadAsArray().tobytes()
+        print("   2048^2, %d worker%s as %s: %.1f s" % (nw, "s" if nw > 1 else "",
+                                                      "processes" if kind else "threads", dt))
+    ref = gdal.Open(cli).ReadAsArray().tobytes()
+    same = all(g == ref for g in got.values())
+    print("   2048^2: 1 worker, 2 workers (threads, processes) and the CLI give %s" % (
         "the same bytes" if same else "DIFFERENT BYTES"))
     if not a.quick:
         rec = os.path.join(work, "d16k.tsyn")
@@ -174,19 +211,20 @@ def main():
         ref = single[(8192, T)]
         print("   16384^2 in %.1f s = %.2f x the single-process 8192^2 (%.1f s; goal <= 4)  %s"
               % (dt, dt / ref, ref, "ok" if dt <= 4 * ref else "MISS"))
-        print("   %.0f cells/s; peak per worker %s MB (goal <= 1536)  %s" % (
+        print("   %.0f cells/s; peak of the process (both workers and the client) %s MB "
+              "(goal <= 1536 per worker)  %s" % (
             16384 * 16384 / dt, ", ".join("%.0f" % m for m in peaks),
             "ok" if peaks and max(peaks) <= 1536 else "MISS"))
-        print("   workers busy %s of the wall time (CPU s / wall s)" % ", ".join(
-            "%.0f %%" % (100 * c / dt) for c in cpus))
+        print("   CPU s / wall s: %s (threads: all workers together, 200 %% = both cores)" %
+              ", ".join("%.0f %%" % (100 * c / dt) for c in cpus))
         if a.full:
             one = os.path.join(work, "s16k_cli.tif")
             dt1, _, mb1 = time_rss([B, "synth", *ex, "--size", "16384x16384", "--tiled", T,
                                     "-q", one])
             print("   16384^2 in one process (CLI, tiles of %d): %.1f s, %.0f cells/s, %.0f MB"
                   % (T, dt1, 16384 * 16384 / dt1, mb1))
-            d = gdal.Open(os.path.join(work, "d16k.tif")).GetRasterBand(1)
-            c = gdal.Open(one).GetRasterBand(1)
+            dds, cds = gdal.Open(os.path.join(work, "d16k.tif")), gdal.Open(one)
+            d, c = dds.GetRasterBand(1), cds.GetRasterBand(1)  # the datasets kept open
             same = all(d.ReadAsArray(0, y, 16384, 1024).tobytes() ==
                        c.ReadAsArray(0, y, 16384, 1024).tobytes() for y in range(0, 16384, 1024))
             print("   the Dask 16384^2 and the one-process 16384^2: %s" % (
@@ -209,6 +247,11 @@ def main():
     one = os.path.join(work, "s4096_0.tif")
     print("   the same measure on the run in one piece, at the same lines: %.3f" %
           border_ratio(one, T))
+    # the waves alike? mean |gradient| of the tiles' cores, wave by wave
+    for name, path in (("tiles", out), ("one piece, same grid", one)):
+        m = wave_roughness(path, T)
+        print("   mean |gradient| by wave (%s): %s, max / min %.2f (1 = the waves alike)" % (
+            name, " ".join("%.2f" % v for v in m), max(m) / min(m)))
 
 
 if __name__ == "__main__":

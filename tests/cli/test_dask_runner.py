@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 """terrasynth-dask (gdal_driver/terrasynth_dask.py, issue 16): a recipe computed on a local
-Dask cluster of two worker processes (loopback only) gives the same cells, geotransform, CRS
+Dask cluster of two workers (threads of the runner, or processes on loopback) gives the same cells, geotransform, CRS
 and nodata as `gdal_translate RECIPE OUT.tif` of the same recipe, whatever the chunk size; a
 pixel and an amplify recipe chunk by chunk, a tiled synth recipe tile by tile, a synth recipe
 in one piece in one task; a worker killed mid-run on a running cluster loses nothing; refusals leave
@@ -58,12 +58,14 @@ def same_raster(a_path, b_path):
     assert a.ReadAsArray().tobytes() == b.ReadAsArray().tobytes()
 
 
-@pytest.mark.parametrize("chunk", [64, 200])
-def test_pixel_recipe_chunk_by_chunk(tmp_path, chunk):
+@pytest.mark.parametrize("chunk,kind", [(64, "--processes"), (200, None)])
+def test_pixel_recipe_chunk_by_chunk(tmp_path, chunk, kind):
+    """Workers as processes (chunks of 64) and as threads (200): the same cells."""
     recipe = tmp_path / "p.tsyn"
     run("pixel", "--exemplar", JACKSBORO, "--size", "300x260", "--seed", 5, "--recipe", recipe)
     translate(recipe, tmp_path / "gt.tif")
-    p = runner(recipe, tmp_path / "dask.tif", "--workers", 2, "--chunk", chunk)
+    p = runner(recipe, tmp_path / "dask.tif", "--workers", 2, "--chunk", chunk,
+               *([kind] if kind else []))
     assert "chunk by chunk" in p.stdout
     n = -(-300 // chunk) * -(-260 // chunk)
     assert f"in {n} chunks" in p.stdout
@@ -105,8 +107,8 @@ def test_synth_recipe_in_one_task(tmp_path):
 
 def test_tiled_synth_recipe_tile_by_tile(tmp_path):
     """A tiled synth recipe: one task per tile, the waves as dependencies, the neighbours'
-    cores moved between the two workers: the same cells as the CLI's whole run and as
-    gdal_translate, on 2 workers and on 1."""
+    windows shared by two workers (threads) or moved between them (processes): the same
+    cells as the CLI's whole run and as gdal_translate, on 2 workers of each kind and on 1."""
     args = ["--exemplar", JACKSBORO, "--size", "530x400", "--seed", 8, "--tiled", 128]
     recipe = tmp_path / "t.tsyn"
     run("synth", *args, "--recipe", recipe)
@@ -117,6 +119,9 @@ def test_tiled_synth_recipe_tile_by_tile(tmp_path):
     same_raster(tmp_path / "d2.tif", tmp_path / "gt.tif")
     runner(recipe, tmp_path / "d1.tif", "--workers", 1, "--no-overviews", "-q")
     same_raster(tmp_path / "d1.tif", tmp_path / "gt.tif")
+    p = runner(recipe, tmp_path / "dp.tif", "--processes", "--no-overviews", "--stats", "-q")
+    assert p.stdout.count("peak memory") == 2, p.stdout  # one line per worker process
+    same_raster(tmp_path / "dp.tif", tmp_path / "gt.tif")
     cli = gdal.Open(str(tmp_path / "cli.tif")).ReadAsArray()
     assert gdal.Open(str(tmp_path / "d2.tif")).ReadAsArray().tobytes() == cli.tobytes()
 
@@ -141,6 +146,9 @@ def test_refusals_leave_nothing(tmp_path):
     assert p.returncode == 1 and str(bad.name) in p.stderr and len(p.stderr.splitlines()) == 1
     p = runner(recipe, tmp_path / "o.tif", "--chunk", 3, check=False)
     assert p.returncode == 1 and "--chunk" in p.stderr
+    p = runner(recipe, tmp_path / "o.tif", "--scheduler", "tcp://127.0.0.1:9", "--processes",
+               check=False)
+    assert p.returncode == 1 and "--processes" in p.stderr and len(p.stderr.splitlines()) == 1
     assert sorted(os.listdir(tmp_path)) == sorted(before + ["bad.tsyn"])
 
 
