@@ -23,8 +23,8 @@
 # are threads of this process by default: the tile and chunk calls run in C with Python's
 # lock released, so threads compute side by side and share the windows without copying them
 # (worker processes, --processes, pay for pickling and moving every window: 2 workers, 8192^2
-# in tiles, 64.2 s as threads vs 71.7 s as processes here, 60.7 s in one process).  Debian packages only:
-# python3-gdal, python3-numpy, python3-dask, python3-distributed.
+# in tiles, 64.2 s as threads vs 71.7 s as processes here, 60.7 s in one process).  Debian
+# packages only: python3-gdal, python3-numpy, python3-dask, python3-distributed.
 import argparse
 import os
 import signal
@@ -110,24 +110,21 @@ def recipe_tiled(path):
     return 0
 
 
-_TILES = {}  # per worker process: recipe path -> (library, handle, width, height, tile)
-_TILES_LOCK = None  # workers that are threads of one process open the recipe once
-
-
 def _tiles_handle(recipe, plugins):
-    """The recipe opened once per worker process for tile tasks: the plugin's library
-    (ctypes) and a handle with the exemplars read."""
-    import ctypes
+    """The recipe opened once per worker for tile tasks: the plugin's library (ctypes) and
+    a handle with the exemplars read, kept on the Dask worker object.  (Not in a module
+    global: this script runs as __main__, so Dask pickles its functions by value and every
+    task would unpickle a fresh, empty global; a worker of a running cluster would open the
+    recipe and read its exemplars again for every tile.)"""
     import threading
-    global _TILES_LOCK
-    if recipe in _TILES:
-        return _TILES[recipe]
-    if _TILES_LOCK is None:
-        _TILES_LOCK = threading.Lock()
-    with _TILES_LOCK:
-        if recipe not in _TILES:
-            _TILES[recipe] = _tiles_open(recipe, plugins)
-    return _TILES[recipe]
+    from distributed import get_worker
+    w = get_worker()
+    cache = w.__dict__.setdefault("_terrasynth_tiles", {})
+    if recipe not in cache:
+        with w.__dict__.setdefault("_terrasynth_lock", threading.Lock()):
+            if recipe not in cache:
+                cache[recipe] = _tiles_open(recipe, plugins)
+    return cache[recipe]
 
 
 def _tiles_open(recipe, plugins):
