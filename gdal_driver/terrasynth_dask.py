@@ -341,6 +341,12 @@ def main(argv=None):
         for _ in range(min(len(pending), 2 * n_workers)):
             w = pending.pop(0)
             futures.add(client.submit(read_chunk, recipe, a.plugins, *w, pure=True, retries=2))
+        # pieces are written in row-major order, each flushed at once, whatever order they
+        # come back in: the file's bytes (where each compressed block lies) are then the
+        # same on every run; the client holds the pieces that came early
+        order = (sorted((tj * tile, ti * tile) for ti, tj in windows) if tile else
+                 sorted((w[1], w[0]) for w in windows))
+        held, nxt = {}, 0
         done = 0
         for fut in futures:
             if tile:  # the tile's core out of its window
@@ -352,7 +358,12 @@ def main(argv=None):
                     arr = np.where(np.isnan(arr), np.float32(nodata), arr)
             else:
                 x, y, arr = fut.result()
-            ob.WriteArray(arr, x, y)
+            held[(y, x)] = arr
+            while nxt < len(order) and order[nxt] in held:
+                y, x = order[nxt]
+                ob.WriteArray(held.pop((y, x)), x, y)
+                ob.FlushCache()
+                nxt += 1
             fut.release()
             done += 1
             if pending:
@@ -367,6 +378,8 @@ def main(argv=None):
                 sys.stderr.flush()
         if not a.quiet:
             sys.stderr.write("\n")
+        if held or nxt != len(order):
+            raise RuntimeError("internal error: %d pieces left unwritten" % (len(order) - nxt))
         if a.stats and cluster is not None and not a.processes:
             mb, cpu = worker_stats()  # the workers are threads of this process
             print("%s: %d workers as threads of this process: peak memory %.0f MB (all "
