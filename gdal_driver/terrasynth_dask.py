@@ -206,8 +206,11 @@ def tile_tasks(client, recipe, plugins, W, H, T):
             stack.pop()
             nb = [futs.get((i + di, j + dj)) if (i + di, j + dj) in needs else None
                   for dj in (-1, 0, 1) for di in (-1, 0, 1)]
+            # the tile rows in order (Dask would otherwise go wave by wave over the whole
+            # grid): the windows the workers keep for later tiles, and the tiles the client
+            # holds until their turn to be written, stay a few tile rows
             futs[(i, j)] = client.submit(make_tile, recipe, plugins, i, j, nb, pure=True,
-                                         retries=2, key="tile-%d-%d-%s" % (
+                                         retries=2, priority=-j, key="tile-%d-%d-%s" % (
                                              i, j, abs(hash((recipe, plugins)))))
     for tj in range(ntj):
         for ti in range(nti):
@@ -358,7 +361,7 @@ def main(argv=None):
                     arr = np.where(np.isnan(arr), np.float32(nodata), arr)
             else:
                 x, y, arr = fut.result()
-            held[(y, x)] = arr
+            held[(y, x)] = np.ascontiguousarray(arr)  # the core alone, not its window
             while nxt < len(order) and order[nxt] in held:
                 y, x = order[nxt]
                 ob.WriteArray(held.pop((y, x)), x, y)
