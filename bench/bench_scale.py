@@ -85,8 +85,8 @@ def border_ratio(path, T):
 
 def wave_roughness(path, T):
     """Mean |gradient| (elevation units per cell) of the T x T cells of each wave (tile
-    (i, j) is of wave (i & 1) + 2 (j & 1)): tiles of a later wave fill between fixed
-    neighbours, and smoother terrain there shows as bands with a period of two tiles."""
+    (i, j) is of wave (i & 1) + 2 (j & 1)): when each 2 x 2 block of tiles holds a copy of
+    a small exemplar, the waves differ and the tile lattice shows (1 = the waves alike)."""
     ds = gdal.Open(path)
     a = ds.GetRasterBand(1).ReadAsArray().astype(np.float64)
     nd = ds.GetRasterBand(1).GetNoDataValue()
