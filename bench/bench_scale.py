@@ -32,7 +32,6 @@ Timings are of this machine in this run; ratios are what the goals are about.
 import argparse
 import json
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -44,19 +43,6 @@ from osgeo import gdal
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 METRICS = os.path.normpath(os.path.join(ROOT, "..", "shared", "eval", "terrain_metrics.py"))
-
-
-def timed(cmd, env=None):
-    """Run cmd; (seconds, peak resident MB of that child)."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    t = time.monotonic()
-    p = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, env=env)
-    dt = time.monotonic() - t
-    if p.returncode != 0:
-        sys.exit("bench_scale: %s failed: %s" % (" ".join(map(str, cmd[:3])), p.stderr.strip()))
-    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    # ru_maxrss of children is the largest child so far: measure with /usr/bin/time instead
-    return dt, p, max(peak, before) / 1024.0
 
 
 def time_rss(cmd, env=None):

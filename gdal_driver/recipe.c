@@ -721,20 +721,30 @@ static void tiles_evict(ts_recipe *r)
     }
 }
 
+/* Where tile (ti, tj) lies: win and core = {x, y, w, h} (ts_synth_tile_window;
+ * ctx for errors). */
+static int tile_rect(const ts_recipe *r, ts_ctx *ctx, int ti, int tj, int win[4], int core[4])
+{
+    const tsjob_synth_result *res = &r->synth_res;
+    return ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width,
+                                res->geo.height, ti, tj, win, core) == TS_OK
+               ? 0
+               : -1;
+}
+
 /* Make n (<= 64) tiles of one wave side by side and put them in the cache
  * (their earlier-wave neighbours are there). */
 static int tiles_make(ts_recipe *r, ts_ctx *ctx, ts_synth_tile *batch, size_t n, tsio_err *err)
 {
     const tsjob_synth_result *res = &r->synth_res;
-    int T = res->params.tiled, W = res->geo.width, H = res->geo.height, di, dj, nv = 0;
+    int di, dj, nv = 0;
     ts_raster views[9 * 64];
     int win[64][4];
     size_t g;
     for (g = 0; g < n; g++) {
         ts_synth_tile *t = &batch[g];
         float *cells;
-        if (ts_synth_tile_window(ctx, &res->params, T, W, H, t->ti, t->tj, win[g], NULL) !=
-            TS_OK) {
+        if (tile_rect(r, ctx, t->ti, t->tj, win[g], NULL) != 0) {
             tsio_errf(err, r->path, "%s", ts_ctx_message(ctx));
             goto fail;
         }
@@ -1119,17 +1129,6 @@ TSYN_EXPORT int tsyn_tiles_open(const char *path, void **handle, int *width, int
     *tile = r->synth_res.params.tiled;
     *handle = r;
     return 0;
-}
-
-/* Where tile (ti, tj) lies: win and core = {x, y, w, h} (ts_synth_tile_window). */
-/* Where tile (ti, tj) lies (ts_synth_tile_window), with ctx for errors. */
-static int tile_rect(const ts_recipe *r, ts_ctx *ctx, int ti, int tj, int win[4], int core[4])
-{
-    const tsjob_synth_result *res = &r->synth_res;
-    return ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width,
-                                res->geo.height, ti, tj, win, core) == TS_OK
-               ? 0
-               : -1;
 }
 
 TSYN_EXPORT int tsyn_tile_rect(void *handle, int ti, int tj, int win[4], int core[4], char *msg,

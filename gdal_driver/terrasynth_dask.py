@@ -337,7 +337,6 @@ def main(argv=None):
         futures = as_completed()
         if tile:  # one task per tile, the waves as dependencies
             futs = tile_tasks(client, recipe, plugins, W, H, tile)
-            where = {f.key: (ti * tile, tj * tile) for (ti, tj), f in futs.items()}
             windows = list(futs)
             futures = as_completed(list(futs.values()))
             futs = None  # the client keeps only what as_completed holds
@@ -353,7 +352,6 @@ def main(argv=None):
         done = 0
         for fut in futures:
             if tile:  # the tile's core out of its window
-                where.pop(fut.key)
                 win, core, window = fut.result()
                 x, y = core[0], core[1]
                 arr = window[y - win[1]:y - win[1] + core[3], x - win[0]:x - win[0] + core[2]]
