@@ -437,7 +437,15 @@ typedef struct ts_synth_params {
                           resolution (1 = exhaustive full-resolution search, 0 = automatic) */
     int tiled;         /* free synthesis in tiles of this many cells, four waves
                           (ts_synth_tiled); 0 = in one piece */
+    double usage;      /* weight of the exemplar usage cost: windows used more than the
+                          average cost more, so the fill does not keep to the windows
+                          that match easily (smooth ones) nor copy the exemplar's
+                          layout; 0 = off, -1 = automatic (TS_SYNTH_USAGE_FREE for
+                          free synthesis, 0 with a sketch) */
 } ts_synth_params;
+
+/** The usage weight of free synthesis when ts_synth_params.usage is -1. */
+#define TS_SYNTH_USAGE_FREE 32.0
 
 TS_API ts_synth_params ts_synth_params_default(void);
 

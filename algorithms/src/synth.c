@@ -80,6 +80,8 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
                               out);
     }
     f = ts__fill_make(params, constraints);
+    if (f.s.usage < 0) /* automatic: on in free synthesis */
+        f.s.usage = TS_SYNTH_USAGE_FREE;
     return ts__fill_run(ctx, exemplars, n_exemplars, &f, out, maps);
 }
 
@@ -234,6 +236,8 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         return ts__fail(ctx, TS_ERR_SIZE, "sketch", "the sketch (%d x %d) is smaller than a patch",
                         out->width, out->height);
     fill = ts__fill_make(params, constraints);
+    if (fill.s.usage < 0) /* automatic: off with a sketch (feature recall, seams) */
+        fill.s.usage = 0.0;
     n_cells = (size_t)out->width * (size_t)out->height;
     r.n_ex = n_exemplars;
     r.flags = ts__calloc_array(n_cells, 1);

@@ -8,6 +8,7 @@
 #include <pthread.h>
 
 #include "harness.h"
+#include "internal.h"
 #include "terrasynth.h"
 
 /* ---- data ------------------------------------------------------------ */
@@ -213,6 +214,10 @@ static int ref_cmp(const void *pa, const void *pb)
     return (a->idx > b->idx) - (a->idx < b->idx);
 }
 
+/* (cost: NULL, or w x cost[position] added to every SSD) */
+static const float *naive_cost;
+static double naive_cost_w;
+
 static int naive_best(const ts_raster *e, const ts_raster *t, int k, int sep, ts_candidate *out)
 {
     const int nx = e->width - t->width + 1, ny = e->height - t->height + 1;
@@ -222,7 +227,7 @@ static int naive_best(const ts_raster *e, const ts_raster *t, int k, int sep, ts
         double s = naive_ssd(e, t, i % nx, i / nx);
         if (isinf(s))
             continue;
-        all[n].ssd = s;
+        all[n].ssd = s + (naive_cost ? naive_cost_w * naive_cost[i] : 0.0);
         all[n].idx = i;
         n++;
     }
@@ -395,6 +400,59 @@ static void test_best_vs_naive(void)
         check_best(ctx, &e, &t, 1, 0);
         check_best(ctx, &e, &t, 6, 5);
         check_best(ctx, &e, &t, 3, 1);
+        free(e.data);
+        free(src.data);
+        free(t.data);
+    }
+    ts_ctx_free(ctx);
+}
+
+/* A cost per position added to the SSD (the fill's usage cost): the k best
+ * of SSD + w x cost, against the oracle adding it to every naive SSD; the
+ * cost cleared, the plain k best again. */
+static void test_best_cost(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t seed = 21;
+    size_t c;
+    for (c = 0; c < sizeof sizes / sizeof sizes[0]; c++) {
+        ts_raster e = make_random(&seed, sizes[c][0], sizes[c][1], sizes[c][0], 0.0);
+        ts_raster src = make_random(&seed, sizes[c][2], sizes[c][3], sizes[c][2], 0.0);
+        ts_raster t = make_target(&seed, &src, 0, 0, sizes[c][2], sizes[c][3], 0.7, 0.0);
+        int nx = sizes[c][0] - sizes[c][2] + 1, ny = sizes[c][1] - sizes[c][3] + 1, i, n = -1, n0;
+        float *cost = malloc((size_t)nx * (size_t)ny * sizeof *cost);
+        ts_candidate got[8], plain[8], want[8];
+        ts_matcher *m = NULL;
+        double w;
+        for (i = 0; i < nx * ny; i++) /* a few positions cost much, most a little */
+            cost[i] = (float)(th_uniform(&seed) < 0.2 ? 50.0 * th_uniform(&seed)
+                                                       : th_uniform(&seed));
+        /* weights from negligible to dominant against the SSD */
+        for (w = 0.01; w < 2e4; w *= 30.0) {
+            CHECK(ts_matcher_new(ctx, &e, t.width, t.height, &m) == TS_OK);
+            ts__matcher_cost(m, cost, w);
+            CHECK(ts_matcher_best(ctx, m, &t, 8, 2, got, &n) == TS_OK);
+            naive_cost = cost;
+            naive_cost_w = w;
+            n0 = naive_best(&e, &t, 8, 2, want);
+            naive_cost = NULL;
+            CHECK_MSG(n == n0, "case %zu w %g: %d found, want %d", c, w, n, n0);
+            for (i = 0; i < n && i < n0; i++) {
+                CHECK_MSG(got[i].x == want[i].x && got[i].y == want[i].y,
+                          "case %zu w %g #%d at (%d,%d), want (%d,%d)", c, w, i, got[i].x,
+                          got[i].y, want[i].x, want[i].y);
+                CHECK_NEAR(got[i].ssd, want[i].ssd, 1e-9 * fabs(want[i].ssd) + 1e-9);
+            }
+            /* cleared: the plain k best */
+            ts__matcher_cost(m, NULL, 0);
+            CHECK(ts_matcher_best(ctx, m, &t, 8, 2, plain, &n) == TS_OK);
+            n0 = naive_best(&e, &t, 8, 2, want);
+            CHECK(n == n0);
+            for (i = 0; i < n && i < n0; i++)
+                CHECK(plain[i].x == want[i].x && plain[i].y == want[i].y);
+            ts_matcher_free(m);
+        }
+        free(cost);
         free(e.data);
         free(src.data);
         free(t.data);
@@ -768,6 +826,7 @@ int main(int argc, char **argv)
         {"ssd_large", test_ssd_large},
         {"stride", test_stride},
         {"best_vs_naive", test_best_vs_naive},
+        {"best_cost", test_best_cost},
         {"best_smooth", test_best_smooth},
         {"best_near_ties", test_best_near_ties},
         {"best_large", test_best_large},

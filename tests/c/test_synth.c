@@ -122,6 +122,88 @@ static void test_deterministic_and_seeded(void)
     ts_ctx_free(ctx);
 }
 
+/* Half smooth, half rough: the rough half's windows match only their own
+ * continuation well, so SSD alone keeps to the smooth half. */
+static ts_raster make_two_halves(ts_ctx *ctx, int w, int h, uint64_t seed)
+{
+    ts_raster r;
+    int x, y;
+    uint64_t s = seed;
+    ts_raster_alloc(ctx, w, h, &r);
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            double v = 500.0 + 30.0 * sin(x / 23.0) * cos(y / 19.0);
+            if (x >= w / 2)
+                v += 25.0 * sin(x / 2.3 + 3.0 * th_uniform(&s)) * sin(y / 3.1) +
+                     12.0 * th_uniform(&s);
+            TS_PIX(&r, x, y) = (float)v;
+        }
+    return r;
+}
+
+/* The usage cost (an oracle from the source maps): with it the fill draws
+ * on the rough half nearly as often as windows chosen at random would, and
+ * no exemplar window is used much more than the average; without it the
+ * smooth half wins.  On 1 and 2 threads, the same bytes. */
+static void test_usage(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_two_halves(ctx, 200, 120, 3), out, again;
+    ts_synth_params p = small_params();
+    int W = 256, H = 256, k, pass;
+    int32_t *sx = malloc((size_t)W * H * sizeof *sx), *sy = malloc((size_t)W * H * sizeof *sy);
+    double rough_share[2], peak[2];
+    ts_synth_maps maps;
+    memset(&maps, 0, sizeof maps);
+    maps.source_x = sx;
+    maps.source_y = sy;
+    ts_raster_alloc(ctx, W, H, &out);
+    ts_raster_alloc(ctx, W, H, &again);
+    for (pass = 0; pass < 2; pass++) {
+        /* cells per exemplar cell, and the share from the rough half */
+        int *use = calloc((size_t)ex.width * ex.height, sizeof *use), n_used = 0, most = 0;
+        size_t rough = 0;
+        p.usage = pass ? 30.0 : 0.0;
+        for (k = 0; k < W * H; k++)
+            out.data[k] = again.data[k] = NAN;
+        ts_ctx_set_seed(ctx, 7);
+        ts_ctx_set_threads(ctx, 2);
+        maps.n_patches = 0; /* (the first patch index: it seeds each placement) */
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &out, &maps) == TS_OK);
+        for (k = 0; k < W * H; k++) {
+            rough += sx[k] >= ex.width / 2;
+            use[sy[k] * ex.width + sx[k]]++;
+        }
+        for (k = 0; k < ex.width * ex.height; k++) {
+            n_used += use[k] > 0;
+            most = use[k] > most ? use[k] : most;
+        }
+        rough_share[pass] = (double)rough / (W * H);
+        /* the most-used exemplar cell against the mean over all cells */
+        peak[pass] = most / ((double)W * H / (ex.width * ex.height));
+        printf("  usage %g: %.2f of the cells from the rough half, the most-used exemplar cell "
+               "%.1f x the mean, %d of %d exemplar cells used\n",
+               p.usage, rough_share[pass], peak[pass], n_used, ex.width * ex.height);
+        free(use);
+        if (pass) { /* deterministic on any thread count */
+            ts_ctx_set_threads(ctx, 1);
+            CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &again, NULL) == TS_OK);
+            CHECK(memcmp(out.data, again.data, (size_t)W * H * sizeof(float)) == 0);
+        }
+    }
+    /* windows at random would take about half from each side */
+    CHECK_MSG(rough_share[1] >= 0.35, "usage on: %.2f from the rough half", rough_share[1]);
+    CHECK_MSG(rough_share[1] >= rough_share[0] + 0.1, "usage on %.2f, off %.2f from the rough half",
+              rough_share[1], rough_share[0]);
+    CHECK_MSG(peak[1] < peak[0], "usage on: peak use %.1f x the mean, off %.1f", peak[1], peak[0]);
+    free(sx);
+    free(sy);
+    ts_raster_free(&out);
+    ts_raster_free(&again);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
 static void test_keep_nodata_and_prefilled(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -610,6 +692,7 @@ int main(int argc, char **argv)
     static const th_case cases[] = {
         {"fills_everything_without_exemplar_nodata", test_fills_everything_without_exemplar_nodata},
         {"deterministic_and_seeded", test_deterministic_and_seeded},
+        {"usage", test_usage},
         {"keep_nodata_and_prefilled", test_keep_nodata_and_prefilled},
         {"several_exemplars", test_several_exemplars},
         {"sketch_keeps_constraints", test_sketch_keeps_constraints},

@@ -148,6 +148,10 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
  * the matcher was restricted before. */
 ts_status ts__matcher_set_allowed(ts_ctx *ctx, ts_matcher *m, const unsigned char *allowed);
 int ts__matcher_restrict(ts_matcher *m, int on);
+/* A cost per window position (nx * ny, borrowed, finite, >= 0) that the
+ * matcher's next best-k queries add, times weight, to the SSD they rank by
+ * and return; NULL or weight <= 0 clears. */
+void ts__matcher_cost(ts_matcher *m, const float *cost, double weight);
 
 /* poisson.c: ts_poisson_solve with NaN cells of u left out (neither
  * unknowns nor boundary: the edges to them carry no guidance), so a grid

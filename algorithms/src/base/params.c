@@ -71,6 +71,13 @@ static const ts_param_desc synth_desc[] = {
      "0 = in one piece.  Not with a sketch or debug maps (pins, water, heights and regions: "
      "not in recipes yet).",
      offsetof(ts_synth_params, tiled)},
+    {"usage", TS_PARAM_DOUBLE, -1.0, -1.0, 1000.0, TS_UNIT_CELLS, "", NULL,
+     "Weight of the usage cost: a candidate pays this times the exemplar's detail variance "
+     "times how much its window is already used, relative to the average, so the fill draws "
+     "on the whole exemplar instead of the windows that match most easily (smooth ones) and "
+     "does not copy the exemplar's layout; 0 = off, -1 = automatic: 32 for free synthesis, "
+     "0 with a sketch (there it costs feature recall and seams).",
+     offsetof(ts_synth_params, usage)},
 };
 
 static const ts_param_desc sketch_desc[] = {

@@ -47,6 +47,10 @@ struct ts_matcher {
                              all_valid or, when restricted, at allowed */
     unsigned char *all_valid, *allowed; /* the two maps (allowed may be NULL) */
     size_t n_all_valid, n_allowed;
+    /* a cost per position added to the SSD by the best-k queries:
+     * cost_w x cost[i] (borrowed; NULL: none), ts__matcher_cost */
+    const float *cost;
+    double cost_w;
     /* Half spectra of E' and E'^2, pre-scaled by -2/F and 1/F, stored by
      * column (transposed): element (row j, column c) at [c * fh + j],
      * for stride columns (those past cols are zero). */
@@ -666,6 +670,33 @@ static int match_sep_ok(const match_sep *s, int nx, size_t idx)
     return 1;
 }
 
+/* The added cost of position idx (0 without a cost map). */
+static double match_cost(const ts_matcher *m, size_t idx)
+{
+    return m->cost ? m->cost_w * (double)m->cost[idx] : 0.0;
+}
+
+/* Add the cost map to the float SSD map left in rows1; returns the
+ * largest cost added. */
+static double match_add_cost(const ts_matcher *m)
+{
+    const size_t pitch = 2 * (size_t)m->stride;
+    float *map = (float *)m->rows1;
+    double most = 0.0;
+    int x, y;
+    if (!m->cost)
+        return 0.0;
+    for (y = 0; y < m->ny; y++)
+        for (x = 0; x < m->nx; x++) {
+            const double c = match_cost(m, (size_t)y * (size_t)m->nx + (size_t)x);
+            float *v = map + (size_t)y * pitch + (size_t)x;
+            if (isfinite(*v))
+                *v = (float)((double)*v + c);
+            most = c > most ? c : most;
+        }
+    return most;
+}
+
 /* Take position idx if it is far enough from the taken ones. */
 static int match_take(match_sep *s, int nx, size_t idx, double ssd, ts_candidate *out, int *nt)
 {
@@ -732,14 +763,36 @@ static double match_exact_ssd(const ts_matcher *m, const match_known *kn, size_t
 
 /* No known target cell: every valid window has SSD 0; take them in
  * row-major order. */
+static int match_cost_cmp(const void *pa, const void *pb)
+{
+    const match_exact *a = pa, *b = pb;
+    if (a->e != b->e)
+        return a->e < b->e ? -1 : 1;
+    return (a->idx > b->idx) - (a->idx < b->idx);
+}
+
+/* With a cost map, in order of cost (then index); -1 when out of memory. */
 static int match_best_empty(const ts_matcher *m, match_sep *s, int k, ts_candidate *out)
 {
     const size_t n = (size_t)m->nx * (size_t)m->ny;
-    size_t i;
+    size_t i, nv = 0;
+    match_exact *order;
     int nt = 0;
-    for (i = 0; i < n && nt < k; i++)
+    if (!m->cost) {
+        for (i = 0; i < n && nt < k; i++)
+            if (m->valid[i])
+                match_take(s, m->nx, i, 0.0, out, &nt);
+        return nt;
+    }
+    if (!(order = ts__malloc_array(n, sizeof *order)))
+        return -1;
+    for (i = 0; i < n; i++)
         if (m->valid[i])
-            match_take(s, m->nx, i, 0.0, out, &nt);
+            order[nv++] = (match_exact){match_cost(m, i), i};
+    qsort(order, nv, sizeof *order, match_cost_cmp);
+    for (i = 0; i < nv && nt < k; i++)
+        match_take(s, m->nx, order[i].idx, order[i].e, out, &nt);
+    free(order);
     return nt;
 }
 
@@ -818,7 +871,9 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const match
                 wait = w;
                 cap_wait = grow;
             }
-            match_exact_push(wait, &n_wait, (match_exact){match_exact_ssd(m, kn, p.idx), p.idx});
+            match_exact_push(wait, &n_wait,
+                             (match_exact){match_exact_ssd(m, kn, p.idx) + match_cost(m, p.idx),
+                                           p.idx});
         }
         cap = cap > m->n_valid / 4 ? m->n_valid : 4 * cap;
     }
@@ -860,6 +915,12 @@ ts_status ts__matcher_set_allowed(ts_ctx *ctx, ts_matcher *m, const unsigned cha
     m->allowed = a;
     m->n_allowed = k;
     return TS_OK;
+}
+
+void ts__matcher_cost(ts_matcher *m, const float *cost, double weight)
+{
+    m->cost = weight > 0 ? cost : NULL;
+    m->cost_w = weight;
 }
 
 int ts__matcher_restrict(ts_matcher *m, int on)
@@ -1038,16 +1099,19 @@ TS_API ts_status ts_matcher_best(ts_ctx *ctx, ts_matcher *m, const ts_raster *ta
         return ts__fail(ctx, TS_ERR_NOMEM, MATCH_STAGE, "cannot allocate for k = %d", k);
     }
     if (kn.n == 0) {
-        *n_found = match_best_empty(m, &sep, k, out);
+        int nt = match_best_empty(m, &sep, k, out);
         match_sep_free(&sep);
         match_known_free(&kn);
+        if (nt < 0)
+            return ts__fail(ctx, TS_ERR_NOMEM, MATCH_STAGE, "cannot allocate for k = %d", k);
+        *n_found = nt;
         return ts__progress(ctx, 1.0, "best candidates");
     }
     saved = ts__progress_push(ctx, 0.0, 0.9);
     st = match_map(ctx, m, target, NULL, &sum_t2);
     ts__progress_pop(ctx, saved);
     if (st == TS_OK) {
-        delta = MATCH_FLOAT_ERR * (sum_t2 + (double)kn.n * m->max_dev2);
+        delta = MATCH_FLOAT_ERR * (sum_t2 + (double)kn.n * m->max_dev2 + match_add_cost(m));
         st = match_best_search(ctx, m, &kn, delta, &sep, k, out, n_found);
         if (st != TS_OK)
             st = ts__fail(ctx, st, MATCH_STAGE, "cannot allocate the candidate stream");

@@ -25,6 +25,15 @@ typedef ts__placement placement;
 
 #define PLACE_MAX_LEVELS 5 /* pyramid levels: factors 1, 2, 4, 8, 16 */
 
+/* How much each window of an exemplar's matcher level is used: the sum,
+ * over the windows the fill placed, of their overlap with it (in windows). */
+typedef struct exemplar_usage {
+    float *map;     /* nx * ny positions of the matcher's level */
+    int nx, ny, PK; /* positions, window side on that level */
+    double total;   /* sum of map */
+    double detail2; /* the level's mean local variance (the cost's scale) */
+} exemplar_usage;
+
 typedef struct exemplar_data {
     const ts_raster *full;
     /* level[k]: box-downsampled by 2^k (NaN where any cell is); level[0] = *full */
@@ -35,6 +44,7 @@ typedef struct exemplar_data {
     int32_t *feature_sat;   /* likewise of its main feature cells, or NULL */
     unsigned char *allowed; /* level-K window positions not rich in main features, or NULL */
     int32_t feature_limit;  /* the most main feature cells an allowed window has */
+    exemplar_usage *usage;  /* shared by the slots; NULL without a usage cost */
 } exemplar_data;
 
 typedef struct placer {
@@ -69,6 +79,7 @@ typedef struct placer {
     int n_cands_cap;
     double *cand_lb; /* per candidate: a lower bound of its cost */
     double *cand_h;  /* per candidate: its height costs */
+    double *cand_u;  /* per candidate: its usage cost (squared height units) */
     int *to_cut;     /* candidates to cut, in order */
 } placer;
 
@@ -201,6 +212,87 @@ static ts_status place_feature_windows(placer *pl, exemplar_data *e, int index)
     return ts__matcher_set_allowed(pl->ctx, e->matcher, e->allowed);
 }
 
+/* The usage map of exemplar e (zero) and its scale: the mean variance of
+ * the matcher level's cells in windows of an eighth of a patch either side. */
+static ts_status place_usage_init(placer *pl, exemplar_data *e)
+{
+    const ts_raster *lv = &e->level[e->K];
+    exemplar_usage *u = calloc(1, sizeof *u);
+    int r, x, y, dx, dy;
+    double sum = 0.0;
+    size_t n = 0;
+    if (!u)
+        return ts__fail(pl->ctx, TS_ERR_NOMEM, "synth", "out of memory");
+    e->usage = u;
+    u->PK = pl->P >> e->K;
+    u->nx = lv->width - u->PK + 1;
+    u->ny = lv->height - u->PK + 1;
+    u->map = ts__calloc_array((size_t)u->nx * (size_t)u->ny, sizeof *u->map);
+    if (!u->map)
+        return ts__fail(pl->ctx, TS_ERR_NOMEM, "synth", "out of memory");
+    r = TS_MAX(1, u->PK / 8);
+    for (y = r; y < lv->height - r; y += 2)
+        for (x = r; x < lv->width - r; x += 2) {
+            double s1 = 0.0, s2 = 0.0;
+            int m = 0;
+            for (dy = -r; dy <= r; dy++)
+                for (dx = -r; dx <= r; dx++) {
+                    double v = TS_PIX(lv, x + dx, y + dy);
+                    if (!isnan(v)) {
+                        s1 += v;
+                        s2 += v * v;
+                        m++;
+                    }
+                }
+            if (m == (2 * r + 1) * (2 * r + 1)) {
+                sum += s2 / m - (s1 / m) * (s1 / m);
+                n++;
+            }
+        }
+    u->detail2 = n ? TS_MAX(sum / (double)n, 1e-12) : 1.0;
+    return TS_OK;
+}
+
+/* Add the window (sx, sy) of exemplar e, placed, to its usage. */
+static void place_usage_add(exemplar_usage *u, int K, int sx, int sy)
+{
+    int cx = sx >> K, cy = sy >> K, px, py;
+    for (py = TS_MAX(0, cy - u->PK + 1); py <= TS_MIN(u->ny - 1, cy + u->PK - 1); py++) {
+        double oy = (double)(u->PK - abs(py - cy)) / u->PK;
+        for (px = TS_MAX(0, cx - u->PK + 1); px <= TS_MIN(u->nx - 1, cx + u->PK - 1); px++) {
+            double o = oy * (double)(u->PK - abs(px - cx)) / u->PK;
+            u->map[(size_t)py * (size_t)u->nx + (size_t)px] += (float)o;
+            u->total += o;
+        }
+    }
+}
+
+/* The usage cost's weight per unit of the map, for a query of n cells:
+ * usage x detail variance x n / the mean usage, or / 1 while the exemplar
+ * is used less than once on average (a window's use then costs what it
+ * is, not a ratio to a mean near zero, which would bar every window next
+ * to a used one). */
+static double place_usage_weight(const placer *pl, const exemplar_usage *u, int n)
+{
+    double mean;
+    if (!u)
+        return 0.0;
+    mean = TS_MAX(1.0, u->total / ((double)u->nx * (double)u->ny));
+    return pl->p->s.usage * u->detail2 * (double)n / mean;
+}
+
+/* The usage cost (per cell) of the full-resolution window (x, y). */
+static double place_usage_of(const placer *pl, const exemplar_data *ed, int x, int y)
+{
+    const exemplar_usage *u = ed->usage;
+    int px, py;
+    if (!u)
+        return 0.0;
+    px = TS_MIN(x >> ed->K, u->nx - 1);
+    py = TS_MIN(y >> ed->K, u->ny - 1);
+    return place_usage_weight(pl, u, 1) * (double)u->map[(size_t)py * (size_t)u->nx + (size_t)px];
+}
+
 static ts_status place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_raster *full,
                                         int index)
 {
@@ -251,6 +343,8 @@ static ts_status place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_r
     }
     if ((st = ts_matcher_new(ctx, &e->level[e->K], pl->P >> e->K, pl->P >> e->K, &e->matcher)) !=
         TS_OK)
+        return st;
+    if (pl->p->s.usage > 0 && (st = place_usage_init(pl, e)) != TS_OK)
         return st;
     return place_feature_windows(pl, e, index);
 }
@@ -379,7 +473,15 @@ static ts_status place_search(placer *pl, int e, ts_candidate *out, int *n_out)
     ts_status st;
     if (K == 0) {
         ts_raster t = ts_raster_wrap(pl->mtarget, pl->P, pl->P, pl->P);
+        if (ed->usage)
+            ts__matcher_cost(ed->matcher, ed->usage->map,
+                             place_usage_weight(pl, ed->usage, pl->n_tknown[0]));
         st = ts_matcher_best(pl->ctx, ed->matcher, &t, k, 1, out, &found);
+        ts__matcher_cost(ed->matcher, NULL, 0);
+        /* the SSD alone: place_one adds the usage cost to every candidate */
+        for (i = 0; i < found; i++)
+            out[i].ssd = TS_MAX(0.0, out[i].ssd - (double)pl->n_tknown[0] *
+                                                      place_usage_of(pl, ed, out[i].x, out[i].y));
         *n_out = found;
         return st;
     }
@@ -391,7 +493,11 @@ static ts_status place_search(placer *pl, int e, ts_candidate *out, int *n_out)
                 (ptrdiff_t)(pl->tknown[i][c] / Pk) * ed->level[i].stride + pl->tknown[i][c] % Pk;
     }
     tc = ts_raster_wrap(pl->tlevel[K], pl->P >> K, pl->P >> K, pl->P >> K);
+    if (ed->usage)
+        ts__matcher_cost(ed->matcher, ed->usage->map,
+                         place_usage_weight(pl, ed->usage, pl->n_tknown[K]));
     st = ts_matcher_best(pl->ctx, ed->matcher, &tc, 2 * k, 2, coarse, &nc);
+    ts__matcher_cost(ed->matcher, NULL, 0);
     if (st != TS_OK)
         return st;
     {
@@ -485,7 +591,7 @@ static void place_cut_range(void *arg, size_t b, size_t e)
         if (j->status[i] != TS_OK)
             continue;
         cuts = ts__label_cut_edges(lab, P);
-        j->cost[i] = sqrt(pl->cands[i].ssd / j->n_known) +
+        j->cost[i] = sqrt(pl->cands[i].ssd / j->n_known + pl->cand_u[i]) +
                      pl->p->s.alpha_g * cg / (2.0 * TS_MAX(1, cuts)) + pl->cand_h[i];
     }
     ts_ctx_free(c);
@@ -528,6 +634,14 @@ static float place_relief(const ts_raster *r, int x0, int y0, int P)
             hi = v > hi ? v : hi;
         }
     return hi - lo;
+}
+
+/* Record at q what was placed there. */
+static void place_record(placement *q, int e, int sx, int sy)
+{
+    q->src_e = e;
+    q->src_dx = sx - q->x;
+    q->src_dy = sy - q->y;
 }
 
 /* Place one patch at q: the first ever (nothing to match) is random. */
@@ -631,6 +745,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
         place_copy_patch(pl, pl->ex[e].full, x, y);
         for (i = 0; i < P * P; i++)
             pl->best_labels[i] = isnan(pl->target[i]);
+        place_record(q, e, x, y);
         st = place_merge(pl, q, e, x, y, index);
         goto done;
     }
@@ -680,7 +795,9 @@ static ts_status place_one(placer *pl, placement *q, int index)
                 for (x = 0; x < P; x++)
                     win[y * P + x] = TS_PIX(exr, pl->cands[i].x + x, pl->cands[i].y + y);
             pl->cand_h[i] = ts__height_cost(pl->p, W, q->x, q->y, P, win, P);
-            lb[i] = sqrt(pl->cands[i].ssd / n_known) + pl->cand_h[i];
+            pl->cand_u[i] =
+                place_usage_of(pl, &pl->ex[cand_ex[i]], pl->cands[i].x, pl->cands[i].y);
+            lb[i] = sqrt(pl->cands[i].ssd / n_known + pl->cand_u[i]) + pl->cand_h[i];
             cost[i] = INFINITY;
             status[i] = TS_OK;
             pl->to_cut[i] = i;
@@ -743,8 +860,10 @@ static ts_status place_one(placer *pl, placement *q, int index)
         memcpy(pl->best_labels, pl->labels + (size_t)best * P * P, (size_t)P * P);
         if (pl->maps)
             place_tick(pl, &pl->sec[1], &t0);
-        if (st == TS_OK)
+        if (st == TS_OK) {
+            place_record(q, cand_ex[best], pl->cands[best].x, pl->cands[best].y);
             st = place_merge(pl, q, cand_ex[best], pl->cands[best].x, pl->cands[best].y, index);
+        }
         if (pl->maps)
             place_tick(pl, &pl->sec[2], &t0);
     }
@@ -791,6 +910,9 @@ static void placer_free(placer *pl)
             free(pl->ex[e].nodata_sat);
             free(pl->ex[e].feature_sat);
             free(pl->ex[e].allowed);
+            if (pl->ex[e].usage)
+                free(pl->ex[e].usage->map);
+            free(pl->ex[e].usage);
         }
     free(pl->ex);
     free(pl->target);
@@ -817,6 +939,7 @@ static void placer_free(placer *pl)
     free(pl->cands);
     free(pl->cand_lb);
     free(pl->cand_h);
+    free(pl->cand_u);
     free(pl->to_cut);
 }
 
@@ -874,12 +997,13 @@ static int placer_alloc_work(placer *pl)
     pl->cands = ts__malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cands);
     pl->cand_lb = ts__malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cand_lb);
     pl->cand_h = ts__malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cand_h);
+    pl->cand_u = ts__malloc_array((size_t)pl->n_cands_cap, sizeof *pl->cand_u);
     pl->to_cut = ts__malloc_array((size_t)pl->n_cands_cap, sizeof *pl->to_cut);
     pl->tlevel[0] = pl->mtarget;
     pl->tknown[0] = pl->known;
     return failed || !pl->target || !pl->mtarget || !pl->patch || !pl->cand_patch || !pl->src_x ||
            !pl->src_y || !pl->constraint || !pl->labels || !pl->best_labels || !pl->known ||
-           !pl->near || !pl->cands || !pl->cand_lb || !pl->cand_h || !pl->to_cut;
+           !pl->near || !pl->cands || !pl->cand_lb || !pl->cand_h || !pl->cand_u || !pl->to_cut;
 }
 
 /* A second slot for placements side by side: its own work buffers and
@@ -999,6 +1123,8 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
     for (i = 0; i < n_pos; i++) {
         pos[i].x = xs[i % nx];
         pos[i].y = ys[i / nx];
+        pos[i].src_e = -1;
+        pos[i].src_dx = pos[i].src_dy = 0;
         place_count(&pl, &pos[i]);
         n_needed += pos[i].needed;
     }
@@ -1093,6 +1219,14 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
         }
         n_run = pick2 < 0 ? 1 : 2;
         placed += n_run;
+        /* the usage of what was placed, after the pair (both placements
+         * saw the same usage, whatever the thread count) */
+        for (i = 0; i < n_run; i++) {
+            const placement *w = &pos[i ? pick2 : pick];
+            if (w->src_e >= 0 && pl.ex[w->src_e].usage)
+                place_usage_add(pl.ex[w->src_e].usage, pl.ex[w->src_e].K, w->x + w->src_dx,
+                                w->y + w->src_dy);
+        }
         if (maps) {
             maps->n_patches = first_index + placed;
             maps->seconds_match += pl.sec[0] + pl2.sec[0];

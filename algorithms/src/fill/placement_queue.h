@@ -14,6 +14,9 @@ typedef struct ts__placement {
     int x, y;    /* window top-left in the output */
     int overlap; /* filled cells in the window */
     int needed;  /* still has empty cells to fill */
+    /* what the fill placed here: exemplar (-1: nothing yet) and its
+     * window's offset from the position (exemplar x - x, y - y) */
+    int src_e, src_dx, src_dy;
 } ts__placement;
 
 /* The needed positions, best first: most overlap, then nearest the centre
