@@ -84,7 +84,25 @@ def wave_roughness(path, T):
     for j in range(a.shape[0] // T):
         for i in range(a.shape[1] // T):
             w[(i & 1) + 2 * (j & 1)].append(np.nanmean(g[j * T:(j + 1) * T, i * T:(i + 1) * T]))
-    return [float(np.mean(v)) for v in w]
+    return [float(np.mean(v)) for v in w], wave_anova(w)
+
+
+def wave_anova(w):
+    """One-way analysis of variance of the tiles' mean |gradient| across the four waves: F
+    (between-wave over within-wave variance; about 1 when the waves are alike) and its p."""
+    k, n = len(w), sum(len(v) for v in w)
+    if k < 2 or n <= k:
+        return float("nan"), float("nan")
+    grand = np.mean(np.concatenate([np.asarray(v) for v in w]))
+    between = sum(len(v) * (np.mean(v) - grand) ** 2 for v in w) / (k - 1)
+    within = sum(((np.asarray(v) - np.mean(v)) ** 2).sum() for v in w) / (n - k)
+    F = between / within if within > 0 else float("inf")
+    try:
+        from scipy.stats import f as fdist
+        p = float(fdist.sf(F, k - 1, n - k))
+    except ImportError:
+        p = float("nan")
+    return float(F), p
 
 
 def main():
@@ -235,9 +253,10 @@ def main():
           border_ratio(one, T))
     # the waves alike? mean |gradient| of the tiles' cores, wave by wave
     for name, path in (("tiles", out), ("one piece, same grid", one)):
-        m = wave_roughness(path, T)
-        print("   mean |gradient| by wave (%s): %s, max / min %.2f (1 = the waves alike)" % (
-            name, " ".join("%.2f" % v for v in m), max(m) / min(m)))
+        m, (F, p) = wave_roughness(path, T)
+        print("   mean |gradient| by wave (%s): %s, max / min %.2f (1 = the waves alike), "
+              "F %.1f, p %.2g (tiles' means by wave, one-way ANOVA)" % (
+                  name, " ".join("%.2f" % v for v in m), max(m) / min(m), F, p))
 
 
 if __name__ == "__main__":
