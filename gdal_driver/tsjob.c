@@ -194,7 +194,8 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
         need += (uint64_t)(threads > 0 ? threads : 1) * (T + 2 * P) * (T + 2 * P) *
                 (JOB_MEM_SYNTH_CELL + JOB_MEM_TILE_CELL);
     } else {
-        /* (tiles take no debug maps: their windows instead) */
+        /* (tiles: their windows instead of the maps; tiles with debug maps
+         * are checked again by tsjob_synth_compute) */
         need += cells * (JOB_MEM_SYNTH_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0) +
                          (res->params.tiled > 0 ? JOB_MEM_TILED_CELL : JOB_MEM_MAPS_CELL));
     }
@@ -491,6 +492,15 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     memset(ex, 0, sizeof ex);
     memset(&heights, 0, sizeof heights);
     if (keep_maps) {
+        if (res->params.tiled > 0) {
+            /* in tiles, the maps of every tile's window too (up to 4 x the grid:
+             * tiles of 2 patches), beyond what the prepare checked */
+            uint64_t cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
+            if (tsio_check_memory(JOB_MEM_BASE + cells * (JOB_MEM_SYNTH_CELL + JOB_MEM_TILED_CELL +
+                                                          5 * JOB_MEM_MAPS_CELL),
+                                  "synth", "no --debug-dir, or a smaller target grid", err) != 0)
+                return -1;
+        }
         if (job_alloc_maps(res, err) != 0)
             return -1;
         maps = &res->maps;

@@ -71,14 +71,9 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
         return ts__fail(ctx, TS_ERR_ARG, "synth", "missing exemplars, parameters or output");
     if (synth_check_constraints(ctx, constraints) != TS_OK)
         return ctx->status;
-    if (params->tiled > 0) {
-        if (maps && (maps->seams || maps->source_exemplar || maps->source_x || maps->source_y ||
-                     maps->order))
-            return ts__fail(ctx, TS_ERR_ARG, "synth", "tiles (tiled %d) take no debug maps yet",
-                            params->tiled);
-        return ts_synth_tiled(ctx, exemplars, n_exemplars, params, constraints, params->tiled,
-                              out);
-    }
+    if (params->tiled > 0)
+        return ts__synth_tiled_maps(ctx, exemplars, n_exemplars, params, constraints,
+                                    params->tiled, out, maps);
     f = ts__fill_make(params, constraints);
     if (f.s.usage < 0) /* automatic: on in free synthesis */
         f.s.usage = TS_SYNTH_USAGE_FREE;

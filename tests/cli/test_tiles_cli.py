@@ -60,6 +60,58 @@ def test_recipe_with_pins_refused(tmp_path):
     assert p.returncode != 0 and "recipe in tiles" in p.stderr, p.stderr
 
 
+def _maps(d):
+    return {n: gdal.Open(str(d / (n + ".tif"))).ReadAsArray().astype(np.int64)
+            for n in ("source_exemplar", "source_x", "source_y", "order", "seams")}
+
+
+@pytest.mark.parametrize("tiled", [0, 128])
+def test_debug_maps_in_tiles(tmp_path, tiled):
+    """--debug-dir in tiles (in one piece for the oracle's sake): the same terrain as without
+    maps; every cell from a valid exemplar window; and an oracle from the heights alone:
+    inside a patch, away from seams, the terrain's slope is the exemplar's slope where the
+    maps say the cell came from (Poisson seam removal adds only a smooth correction)."""
+    args = ["--exemplar", JACKSBORO, "--size", "420x300", "--seed", 9, "--tiled", tiled]
+    run("synth", *args, tmp_path / "plain.tif", "-q")
+    run("synth", *args, "--debug-dir", tmp_path / "dbg", tmp_path / "o.tif", "-q")
+    z = gdal.Open(str(tmp_path / "o.tif")).ReadAsArray().astype(np.float64)
+    assert gdal.Open(str(tmp_path / "plain.tif")).ReadAsArray().tobytes() == \
+        gdal.Open(str(tmp_path / "o.tif")).ReadAsArray().tobytes()
+    m = _maps(tmp_path / "dbg")
+    ex = gdal.Open(JACKSBORO).ReadAsArray().astype(np.float64)
+    assert (m["source_exemplar"] == 0).all() and (m["order"] >= 0).all()
+    sx, sy = m["source_x"], m["source_y"]
+    assert (sx >= 0).all() and (sy >= 0).all()
+    assert (sx < ex.shape[1]).all() and (sy < ex.shape[0]).all()
+    # patch indices from 0, numbered across the tiles (a patch may be wholly covered later)
+    ids = np.unique(m["order"])
+    assert ids[0] == 0 and len(ids) > 0.8 * (ids[-1] + 1), (len(ids), ids[-1])
+    # cells whose right and lower neighbours come from the next exemplar cells of the same
+    # patch, 3 cells from any seam: their steps equal the exemplar's there
+    inner = ((m["order"][:-1, :-1] == m["order"][:-1, 1:]) & (m["order"][:-1, :-1] == m["order"][1:, :-1])
+             & (sx[:-1, 1:] == sx[:-1, :-1] + 1) & (sy[1:, :-1] == sy[:-1, :-1] + 1))
+    near_seam = np.zeros_like(m["seams"], bool)
+    for dy in range(-3, 4):
+        for dx in range(-3, 4):
+            near_seam |= np.roll(np.roll(m["seams"] > 0, dy, 0), dx, 1)
+    inner &= ~near_seam[:-1, :-1]
+    assert inner.mean() > 0.3, inner.mean()
+    x, y = sx[:-1, :-1][inner], sy[:-1, :-1][inner]
+    ok = (x + 1 < ex.shape[1]) & (y + 1 < ex.shape[0])
+    x, y = x[ok], y[ok]
+    gx_out = (z[:-1, 1:] - z[:-1, :-1])[inner][ok]
+    gx_ex = ex[y, x + 1] - ex[y, x]
+    gy_out = (z[1:, :-1] - z[:-1, :-1])[inner][ok]
+    gy_ex = ex[y + 1, x] - ex[y, x]
+    r = np.corrcoef(np.concatenate([gx_out, gy_out]), np.concatenate([gx_ex, gy_ex]))[0, 1]
+    assert r > 0.9, r
+    # the maps wrong by a cell would not pass
+    r_off = np.corrcoef(gx_out, ex[y, np.minimum(x + 2, ex.shape[1] - 1)] - ex[y, x + 1])[0, 1]
+    assert r_off < r - 0.1, (r, r_off)
+    print("tiled %d: %.0f %% of cells inside patches, slope r %.3f (off by a cell: %.3f), %d patches"
+          % (tiled, 100 * inner.mean(), r, r_off, len(ids)))
+
+
 @pytest.mark.parametrize("extra,words", [
     (["--tiled", 20], "tiles of 20 cells"),
     (["--tiled", 128, "--sketch", os.path.join(os.path.dirname(JACKSBORO), "sketches",

@@ -135,6 +135,13 @@ typedef struct ts__fill {
 /* The fill from the caller's parameters (lengths already in cells) and
  * constraints (may be NULL); nothing a sketch adds. */
 ts__fill ts__fill_make(const ts_synth_params *p, const ts_synth_constraints *c);
+/* ts_synth_tiled with debug maps of the whole grid (maps may be NULL):
+ * the same bytes as without; patch indices numbered wave by wave, tiles in
+ * row-major order within a wave (tiled_synthesis.c). */
+ts_status ts__synth_tiled_maps(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                               const ts_synth_params *params,
+                               const ts_synth_constraints *constraints, int tile, ts_raster *out,
+                               ts_synth_maps *maps);
 
 /* The non-feature fill (nonfeature_placement.c): ts_synth_patches for a
  * checked ts__fill. */

@@ -76,6 +76,14 @@ static tile_rect rect_of(int W, int H, int T, int G, int ti, int tj)
     return r;
 }
 
+/* A tile's debug maps over its window (ts_synth_maps, window-sized). */
+typedef struct tile_maps {
+    int32_t *se, *sx, *sy, *order;
+    unsigned char *seams;
+    int n_patches;  /* placed by this tile */
+    double sec[4];  /* prepare, match, cut, Poisson */
+} tile_maps;
+
 typedef struct tiled_job {
     ts_ctx *parent;
     const ts_raster *exemplars;
@@ -88,6 +96,7 @@ typedef struct tiled_job {
     const ts_synth_constraints *cons;
     const ts_raster *initial;
     ts_synth_tile *tiles;
+    tile_maps *tm; /* per tile (tj * nti + ti) with debug maps, or NULL */
     atomic_int failed;
     atomic_int status; /* the first failure's status */
     char msg[512];
@@ -196,6 +205,33 @@ static int meet_empty(const unsigned char *cover, const unsigned char *flags, ts
     return 1;
 }
 
+/* Cell c from no exemplar. */
+static void tile_maps_none(tile_maps *m, size_t c)
+{
+    m->se[c] = m->sx[c] = m->sy[c] = m->order[c] = -1;
+    m->seams[c] = 0;
+}
+
+/* Maps: every cell of a window from nothing. */
+static void tile_maps_clear(tile_maps *m, size_t n)
+{
+    size_t c;
+    for (c = 0; c < n; c++)
+        tile_maps_none(m, c);
+}
+
+/* Cell c of m takes cell o of an earlier tile's maps.  Its patch index is
+ * stored as -2 - index until the wave is done (tiled_maps_finish): the
+ * fill numbers this tile's own patches from 0. */
+static void tile_maps_take(tile_maps *m, size_t c, const tile_maps *from, size_t o)
+{
+    m->se[c] = from->se[o];
+    m->sx[c] = from->sx[o];
+    m->sy[c] = from->sy[o];
+    m->order[c] = from->order[o] >= 0 ? -2 - from->order[o] : -1;
+    m->seams[c] = from->seams[o];
+}
+
 /* Synthesise tile t over its window. */
 static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
 {
@@ -208,6 +244,8 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     ts_synth_constraints cons = ts_synth_constraints_default();
     int32_t *cell_ex = NULL;
     float *heights = NULL;
+    tile_maps *tm = j->tm ? &j->tm[(size_t)tj * (size_t)j->nti + (size_t)ti] : NULL;
+    ts_synth_maps maps;
     ts_status st;
     if (!flags || !cover) {
         free(flags);
@@ -217,6 +255,8 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     for (y = 0; y < rh; y++)
         for (x = 0; x < rw; x++)
             TS_PIX(&r, x, y) = NAN;
+    if (tm)
+        tile_maps_clear(tm, n);
     /* the earlier neighbours: their cores fixed, their margins as terrain
      * to match and cut against; where several reach, the latest wave's (made
      * with the others' cores around it) */
@@ -233,15 +273,23 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
                 for (x = TS_MAX(o.x0, me.x0); x < TS_MIN(o.x1, me.x1); x++) {
                     size_t c = (size_t)(y - me.y0) * (size_t)rw + (size_t)(x - me.x0);
                     float v = TS_PIX(nb, x - o.x0, y - o.y0);
+                    int taken = 0;
                     if (x >= o.cx0 && x < o.cx1 && y >= o.cy0 && y < o.cy1) {
                         flags[c] = TS_CELL_FIXED;
                         TS_PIX(&r, x - me.x0, y - me.y0) = v;
+                        taken = 1;
                     } else if (!flags[c] &&
                                (!cover[c] || tile_wave(ti + (cover[c] - 1) % 3 - 1,
                                                        tj + (cover[c] - 1) / 3 - 1) < wn)) {
                         cover[c] = (unsigned char)(k + 1);
                         TS_PIX(&r, x - me.x0, y - me.y0) = v;
+                        taken = 1;
                     }
+                    if (taken && tm)
+                        tile_maps_take(tm, c,
+                                       &j->tm[(size_t)(tj + dj) * (size_t)j->nti + (size_t)(ti + di)],
+                                       (size_t)(y - o.y0) * (size_t)(o.x1 - o.x0) +
+                                           (size_t)(x - o.x0));
                 }
         }
     /* where two margins meet: empty within a quarter patch of the line, so
@@ -257,8 +305,33 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     if (j->cons && !tile_constraints(j, &me, flags, &r, &cons, &cell_ex, &heights)) {
         st = ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
     } else {
+        if (tm) {
+            size_t c;
+            /* pinned and water cells come from no exemplar */
+            for (c = 0; c < n && j->cons && j->cons->cell_flags; c++) {
+                size_t gc = (c / (size_t)rw + (size_t)me.y0) * (size_t)j->W + c % (size_t)rw +
+                            (size_t)me.x0;
+                if (j->cons->cell_flags[gc] & (TS_CELL_FIXED | TS_CELL_NODATA))
+                    tile_maps_none(tm, c);
+            }
+            memset(&maps, 0, sizeof maps);
+            maps.source_exemplar = tm->se;
+            maps.source_x = tm->sx;
+            maps.source_y = tm->sy;
+            maps.order = tm->order;
+            maps.seams = tm->seams;
+        }
         ts_ctx_set_seed(ctx, tile_seed(ts_ctx_seed(j->parent), ti, tj));
-        st = ts_synth_patches(ctx, j->exemplars, j->n_exemplars, &j->params, &cons, &r, NULL);
+        /* (maps.n_patches 0: each placement's random stream is as without maps) */
+        st = ts_synth_patches(ctx, j->exemplars, j->n_exemplars, &j->params, &cons, &r,
+                              tm ? &maps : NULL);
+        if (tm) {
+            tm->n_patches = maps.n_patches;
+            tm->sec[0] = maps.seconds_prepare;
+            tm->sec[1] = maps.seconds_match;
+            tm->sec[2] = maps.seconds_cut;
+            tm->sec[3] = maps.seconds_poisson;
+        }
     }
     free(flags);
     free(cell_ex);
@@ -423,9 +496,68 @@ TS_API ts_status ts_synth_tiles(ts_ctx *ctx, const ts_raster *exemplars, int n_e
     return tiles_run(&j, tiles, (size_t)n_tiles);
 }
 
-TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
-                                const ts_synth_params *params,
-                                const ts_synth_constraints *constraints, int tile, ts_raster *out)
+/* The debug maps of tiled runs: each tile's window maps, freed with the
+ * windows. */
+static void tiled_maps_free(tile_maps *tm, size_t n)
+{
+    size_t k;
+    if (!tm)
+        return;
+    for (k = 0; k < n; k++) {
+        free(tm[k].se);
+        free(tm[k].sx);
+        free(tm[k].sy);
+        free(tm[k].order);
+        free(tm[k].seams);
+    }
+    free(tm);
+}
+
+/* After a wave: each tile's own patches numbered after all earlier tiles'
+ * (waves in order, tiles in row-major order within a wave), the indices
+ * taken from earlier tiles decoded, the cores into the whole grid's maps. */
+static void tiled_maps_finish(const tiled_job *j, const ts_synth_tile *tiles, size_t m,
+                              ts_synth_maps *maps)
+{
+    size_t k, c;
+    int y;
+    for (k = 0; k < m; k++) {
+        const ts_synth_tile *t = &tiles[k];
+        tile_maps *tm = &j->tm[(size_t)t->tj * (size_t)j->nti + (size_t)t->ti];
+        tile_rect r = rect_of(j->W, j->H, j->T, j->G, t->ti, t->tj);
+        size_t rw = (size_t)(r.x1 - r.x0), n = rw * (size_t)(r.y1 - r.y0);
+        int base = maps->n_patches;
+        for (c = 0; c < n; c++)
+            tm->order[c] = tm->order[c] >= 0 ? tm->order[c] + base
+                           : tm->order[c] < -1 ? -2 - tm->order[c]
+                                               : -1;
+        maps->n_patches += tm->n_patches;
+        maps->seconds_prepare += tm->sec[0];
+        maps->seconds_match += tm->sec[1];
+        maps->seconds_cut += tm->sec[2];
+        maps->seconds_poisson += tm->sec[3];
+        for (y = r.cy0; y < r.cy1; y++) {
+            size_t g = (size_t)y * (size_t)j->W + (size_t)r.cx0;
+            size_t o = (size_t)(y - r.y0) * rw + (size_t)(r.cx0 - r.x0);
+            size_t w = (size_t)(r.cx1 - r.cx0);
+            if (maps->source_exemplar)
+                memcpy(maps->source_exemplar + g, tm->se + o, w * sizeof(int32_t));
+            if (maps->source_x)
+                memcpy(maps->source_x + g, tm->sx + o, w * sizeof(int32_t));
+            if (maps->source_y)
+                memcpy(maps->source_y + g, tm->sy + o, w * sizeof(int32_t));
+            if (maps->order)
+                memcpy(maps->order + g, tm->order + o, w * sizeof(int32_t));
+            if (maps->seams)
+                memcpy(maps->seams + g, tm->seams + o, w);
+        }
+    }
+}
+
+ts_status ts__synth_tiled_maps(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                               const ts_synth_params *params,
+                               const ts_synth_constraints *constraints, int tile, ts_raster *out,
+                               ts_synth_maps *maps)
 {
     tiled_job j;
     ts_synth_tile *tiles;
@@ -447,9 +579,12 @@ TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_e
     n = (size_t)j.nti * (size_t)j.ntj;
     tiles = ts__malloc_array(n, sizeof *tiles);
     windows = ts__calloc_array(n, sizeof *windows);
-    if (!tiles || !windows) {
+    if (maps)
+        j.tm = ts__calloc_array(n, sizeof *j.tm);
+    if (!tiles || !windows || (maps && !j.tm)) {
         free(tiles);
         free(windows);
+        free(j.tm);
         return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory");
     }
     for (wave = 0; wave < 4 && st == TS_OK; wave++) {
@@ -468,6 +603,20 @@ TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_e
                     st = ctx->status;
                     break;
                 }
+                if (j.tm) {
+                    size_t wn = (size_t)(r.x1 - r.x0) * (size_t)(r.y1 - r.y0);
+                    tile_maps *tm = &j.tm[at];
+                    tm->se = ts__malloc_array(wn, sizeof *tm->se);
+                    tm->sx = ts__malloc_array(wn, sizeof *tm->sx);
+                    tm->sy = ts__malloc_array(wn, sizeof *tm->sy);
+                    tm->order = ts__malloc_array(wn, sizeof *tm->order);
+                    tm->seams = ts__malloc_array(wn, 1);
+                    if (!tm->se || !tm->sx || !tm->sy || !tm->order || !tm->seams) {
+                        st = ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE,
+                                      "out of memory for the debug maps");
+                        break;
+                    }
+                }
                 t->window = windows[at];
                 for (dj = -1; dj <= 1; dj++)
                     for (di = -1; di <= 1; di++)
@@ -485,11 +634,21 @@ TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_e
                 memcpy(&TS_PIX(out, r.cx0, y), &TS_PIX(&t->window, r.cx0 - r.x0, y - r.y0),
                        (size_t)(r.cx1 - r.cx0) * sizeof(float));
         }
+        if (j.tm)
+            tiled_maps_finish(&j, tiles, m, maps);
         st = ts__progress(ctx, (wave + 1) / 4.0, "synth tiles");
     }
     for (k = 0; k < n; k++)
         ts_raster_free(&windows[k]);
+    tiled_maps_free(j.tm, n);
     free(tiles);
     free(windows);
     return st;
+}
+
+TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                const ts_synth_params *params,
+                                const ts_synth_constraints *constraints, int tile, ts_raster *out)
+{
+    return ts__synth_tiled_maps(ctx, exemplars, n_exemplars, params, constraints, tile, out, NULL);
 }
