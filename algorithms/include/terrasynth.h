@@ -549,6 +549,11 @@ typedef struct ts_synth_tile {
      * needed (and only read) where that tile exists and is of an earlier wave */
     const ts_raster *neighbours[9];
     ts_raster window; /* written: the tile's window (ts_synth_tile_window) */
+    /* what the user asks of the tile's window, or NULL: as ts_synth_constraints
+     * but every array window-sized (the whole grid's arrays cut to the window),
+     * the fixed cells' values in `window` on entry; the result is then the
+     * same as ts_synth_tiled's with the whole grid's constraints */
+    const ts_synth_constraints *constraints;
 } ts_synth_tile;
 
 /**

@@ -675,6 +675,65 @@ static void test_tiles_constraints(void)
     CHECK(pins_ok);
     CHECK(holes_ok);
     CHECK(filled_ok);
+    /* tile by tile (ts_synth_tiles, as the driver serves a recipe), each with its
+     * window's part of the constraints: the same bytes as the whole run */
+    {
+        int nti = (W + T - 1) / T, ntj = (H + T - 1) / T, wave, ti, tj, di, dj, same = 1;
+        ts_raster *win = calloc((size_t)nti * ntj, sizeof *win);
+        for (wave = 0; wave < 4; wave++)
+            for (tj = 0; tj < ntj; tj++)
+                for (ti = 0; ti < nti; ti++) {
+                    int w[4], c[4], at = tj * nti + ti;
+                    size_t n, i;
+                    unsigned char *wf;
+                    int32_t *wr;
+                    ts_synth_tile t;
+                    ts_synth_constraints wc = ts_synth_constraints_default();
+                    if (ts_synth_tile_wave(ti, tj) != wave)
+                        continue;
+                    p.tiled = T;
+                    CHECK(ts_synth_tile_window(ctx, &p, T, W, H, ti, tj, w, c) == TS_OK);
+                    ts_raster_alloc(ctx, w[2], w[3], &win[at]);
+                    n = (size_t)w[2] * w[3];
+                    wf = malloc(n);
+                    wr = malloc(n * sizeof *wr);
+                    for (i = 0; i < n; i++) {
+                        size_t g = (size_t)(w[1] + (int)(i / (size_t)w[2])) * W +
+                                   (size_t)(w[0] + (int)(i % (size_t)w[2]));
+                        wf[i] = fl[g];
+                        wr[i] = reg[g];
+                        win[at].data[(i / (size_t)w[2]) * (size_t)win[at].stride +
+                                     i % (size_t)w[2]] = fl[g] & TS_CELL_FIXED ? 1000.0f : NAN;
+                    }
+                    wc.cell_flags = wf;
+                    wc.cell_exemplar = wr;
+                    memset(&t, 0, sizeof t);
+                    t.ti = ti;
+                    t.tj = tj;
+                    t.window = win[at];
+                    t.constraints = &wc;
+                    for (dj = -1; dj <= 1; dj++)
+                        for (di = -1; di <= 1; di++)
+                            if ((di || dj) && ti + di >= 0 && tj + dj >= 0 && ti + di < nti &&
+                                tj + dj < ntj && ts_synth_tile_wave(ti + di, tj + dj) < wave)
+                                t.neighbours[(dj + 1) * 3 + di + 1] = &win[at + dj * nti + di];
+                    ts_ctx_set_seed(ctx, 31);
+                    CHECK_MSG(ts_synth_tiles(ctx, ex, 2, &p, T, W, H, &t, 1) == TS_OK, "%s",
+                              ts_ctx_message(ctx));
+                    for (y = c[1]; y < c[1] + c[3]; y++)
+                        for (x = c[0]; x < c[0] + c[2]; x++) {
+                            float a = TS_PIX(&win[at], x - w[0], y - w[1]), b = TS_PIX(&out[0], x, y);
+                            same &= (isnan(a) && isnan(b)) || a == b;
+                        }
+                    free(wf);
+                    free(wr);
+                }
+        CHECK_MSG(same, "tiles made one by one with their windows' constraints differ from "
+                        "the whole run");
+        for (k = 0; k < nti * ntj; k++)
+            ts_raster_free(&win[k]);
+        free(win);
+    }
     printf("     tiles with regions: right third / left third mean |Laplacian| %.2f "
            "(one piece %.2f)\n", ratio[0], ratio[2]);
     CHECK(ratio[0] > 2.0 && ratio[0] > 0.7 * ratio[2]);

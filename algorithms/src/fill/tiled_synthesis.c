@@ -243,7 +243,7 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     unsigned char *flags = ts__calloc_array(n, 1), *cover = ts__calloc_array(n, 1);
     ts_synth_constraints cons = ts_synth_constraints_default();
     int32_t *cell_ex = NULL;
-    float *heights = NULL;
+    float *heights = NULL, *fixed = NULL;
     tile_maps *tm = j->tm ? &j->tm[(size_t)tj * (size_t)j->nti + (size_t)ti] : NULL;
     ts_synth_maps maps;
     ts_status st;
@@ -251,6 +251,19 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
         free(flags);
         free(cover);
         return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
+    }
+    /* the tile's own constraints (ts_synth_tiles): its fixed cells' values
+     * are in the window on entry */
+    if (t->constraints && t->constraints->cell_flags) {
+        fixed = ts__malloc_array(n, sizeof *fixed);
+        if (!fixed) {
+            free(flags);
+            free(cover);
+            return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
+        }
+        for (y = 0; y < rh; y++)
+            for (x = 0; x < rw; x++)
+                fixed[(size_t)y * (size_t)rw + (size_t)x] = TS_PIX(&r, x, y);
     }
     for (y = 0; y < rh; y++)
         for (x = 0; x < rw; x++)
@@ -302,6 +315,24 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     }
     free(cover);
     cons.cell_flags = flags;
+    if (t->constraints) {
+        /* the same as tile_constraints, from the window's own arrays */
+        const ts_synth_constraints *g = t->constraints;
+        size_t c;
+        for (c = 0; c < n && g->cell_flags; c++) {
+            if (g->cell_flags[c] & TS_CELL_NODATA) {
+                flags[c] = TS_CELL_NODATA;
+                r.data[(c / (size_t)rw) * (size_t)r.stride + c % (size_t)rw] = NAN;
+            } else if (g->cell_flags[c] & TS_CELL_FIXED) {
+                flags[c] = TS_CELL_FIXED;
+                r.data[(c / (size_t)rw) * (size_t)r.stride + c % (size_t)rw] = fixed[c];
+            }
+        }
+        cons.cell_exemplar = g->cell_exemplar;
+        cons.heights = g->heights;
+        cons.alpha_h = g->alpha_h;
+    }
+    free(fixed);
     if (j->cons && !tile_constraints(j, &me, flags, &r, &cons, &cell_ex, &heights)) {
         st = ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
     } else {
