@@ -225,6 +225,10 @@ int tsio_georef_metrics(const tsio_georef *geo, double **dx, double **dy, tsio_e
  */
 int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *field, int fill,
                         int32_t *values, tsio_err *err);
+/** The same over the window [x0, x0 + w) x [y0, y0 + h) of the grid geo
+ *  (values: w * h ints). */
+int tsio_read_label_window(const char *path, const tsio_georef *geo, int x0, int y0, int w, int h,
+                           const char *field, int fill, int32_t *values, tsio_err *err);
 
 /** Check that a vector output can be written (format from the extension,
  *  driver present, directory exists) without writing anything. */

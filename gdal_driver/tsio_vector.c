@@ -523,9 +523,21 @@ int tsio_write_features(const char *path, const tsio_georef *geo, const ts_featu
 int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *field, int fill,
                         int32_t *values, tsio_err *err)
 {
+    return tsio_read_label_window(path, geo, 0, 0, geo->width, geo->height, field, fill, values,
+                                  err);
+}
+
+int tsio_read_label_window(const char *path, const tsio_georef *geo, int x0, int y0, int w, int h,
+                           const char *field, int fill, int32_t *values, tsio_err *err)
+{
     GDALDatasetH src, mem = NULL;
-    size_t i, n = (size_t)geo->width * (size_t)geo->height;
+    size_t i, n = (size_t)w * (size_t)h;
+    double gt[6];
     int rc = -1;
+    /* the window's own geotransform: its cells are the grid's */
+    memcpy(gt, geo->gt, sizeof gt);
+    gt[0] = geo->gt[0] + x0 * geo->gt[1] + y0 * geo->gt[2];
+    gt[3] = geo->gt[3] + x0 * geo->gt[4] + y0 * geo->gt[5];
     tsio__ensure_registered();
     CPLPushErrorHandler(CPLQuietErrorHandler);
     src = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_VECTOR | GDAL_OF_READONLY, NULL, NULL, NULL);
@@ -545,8 +557,7 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
                       GDALGetRasterXSize(src), GDALGetRasterYSize(src), geo->width, geo->height);
             goto done;
         }
-        if (GDALRasterIO(b, GF_Read, 0, 0, geo->width, geo->height, values, geo->width, geo->height,
-                         GDT_Int32, 0, 0) != CE_None) {
+        if (GDALRasterIO(b, GF_Read, x0, y0, w, h, values, w, h, GDT_Int32, 0, 0) != CE_None) {
             tsio__set_err_gdal(err, path, "cannot read the region map");
             goto done;
         }
@@ -566,13 +577,12 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
             tsio_errf(err, path, "the polygon layer has no integer field \"%s\"", field);
             goto done;
         }
-        mem =
-            GDALCreate(GDALGetDriverByName("MEM"), "", geo->width, geo->height, 1, GDT_Int32, NULL);
+        mem = GDALCreate(GDALGetDriverByName("MEM"), "", w, h, 1, GDT_Int32, NULL);
         if (!mem) {
             tsio_errf(err, path, "out of memory");
             goto done;
         }
-        GDALSetGeoTransform(mem, (double *)geo->gt);
+        GDALSetGeoTransform(mem, gt);
         if (geo->wkt)
             GDALSetProjection(mem, geo->wkt);
         GDALFillRaster(GDALGetRasterBand(mem, 1), fill, 0);
@@ -584,8 +594,8 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
             tsio__set_err_gdal(err, path, "cannot rasterise the region polygons");
             goto done;
         }
-        if (GDALRasterIO(GDALGetRasterBand(mem, 1), GF_Read, 0, 0, geo->width, geo->height, values,
-                         geo->width, geo->height, GDT_Int32, 0, 0) != CE_None) {
+        if (GDALRasterIO(GDALGetRasterBand(mem, 1), GF_Read, 0, 0, w, h, values, w, h, GDT_Int32,
+                         0, 0) != CE_None) {
             tsio__set_err_gdal(err, path, "cannot read the rasterised regions");
             goto done;
         }

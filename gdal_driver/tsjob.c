@@ -270,19 +270,6 @@ static int job_target_grid(const tsjob_grid *g, const char *first_exemplar, doub
     return job_grid_metrics(geo, cell_size, dx, dy, err);
 }
 
-/* A recipe in tiles is served tile by tile, and its per-cell inputs are
- * not read per tile yet: refused (one line naming `where`) when it has any. */
-static int job_tiled_recipe_refused(const tsjob_synth *job, const char *where, tsio_err *err)
-{
-    if (!(job->params.tiled > 0) || !(job->n_pins || job->water || job->heights || job->regions))
-        return 0;
-    tsio_errf(err, where,
-              "a recipe in tiles (tiled %d) takes no pins, water, heights or regions yet "
-              "(terrasynth synth --tiled does)",
-              job->params.tiled);
-    return 1;
-}
-
 static int job_synth_built(const tsjob_synth *job)
 {
     const tsjob_grid *g = &job->grid;
@@ -367,10 +354,6 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         tsjob_synth_result_free(res);
         return -1;
     }
-    if (job->lazy && job_tiled_recipe_refused(job, "synth", err)) {
-        tsjob_synth_result_free(res);
-        return -1;
-    }
     if (job_synth_check_memory(job, res, err) != 0) {
         tsjob_synth_result_free(res);
         return -1;
@@ -442,9 +425,13 @@ static int job_read_exemplars(const tsjob_synth *job, tsjob_synth_result *res, t
     return 0;
 }
 
+static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, tsio_raster *ex,
+                        int *x0, int *y0, int *w, int *h, tsio_err *err);
+
 int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
                       tsio_err *err)
 {
+    int i;
     (void)ctx;
     if (!(res->params.tiled > 0)) {
         tsio_errf(err, "synth", "internal error: tile by tile needs a tiled synthesis");
@@ -453,13 +440,131 @@ int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *r
     if (res->n_ex)
         return 0;
     if (job_read_exemplars(job, res, res->ex, res->exr, err) != 0) {
-        int i;
         for (i = 0; i < job->n_exemplars; i++)
             tsio_raster_free(&res->ex[i]);
         return -1;
     }
     res->n_ex = job->n_exemplars;
+    for (i = 0; i < job->n_pins; i++) {
+        int *wn = res->pin_win[i];
+        if (job_pin_read(job, res, i, &res->pin_ex[i], &wn[0], &wn[1], &wn[2], &wn[3], err) != 0)
+            return -1;
+    }
     return 0;
+}
+
+/* A tile's window's part of the job's constraints (tsjob_synth_tiles). */
+typedef struct job_window_cons {
+    ts_synth_constraints cons;
+    unsigned char *flags;
+    int32_t *cell_ex;
+    float *heights;
+} job_window_cons;
+
+/* Read window [x0, x0 + w) x [y0, y0 + h) of a raster on the output grid
+ * into dst (w x h): the same cells the whole-grid reads give. */
+static int job_grid_window(const char *path, const tsjob_synth_result *res, int x0, int y0, int w,
+                           int h, float *dst, tsio_err *err)
+{
+    tsio_raster hdr;
+    size_t nv, ns;
+    tsio_reader *rd = tsio_dem_open(path, 1, &hdr, err);
+    int rc;
+    if (!rd)
+        return -1;
+    if (hdr.geo.width != res->geo.width || hdr.geo.height != res->geo.height) {
+        tsio_errf(err, path, "%d x %d cells, the output %d x %d", hdr.geo.width, hdr.geo.height,
+                  res->geo.width, res->geo.height);
+        tsio_reader_close(rd);
+        tsio_raster_free(&hdr);
+        return -1;
+    }
+    rc = tsio_dem_window(rd, x0, y0, w, h, dst, &nv, &ns, err);
+    tsio_reader_close(rd);
+    tsio_raster_free(&hdr);
+    return rc;
+}
+
+/* The constraints of tile t's window, as job_constraints and
+ * tsjob_synth_compute make them for the whole grid, cut to the window; the
+ * fixed cells' values into t->window. */
+static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
+                                  const tsjob_synth_result *res, ts_synth_tile *t,
+                                  job_window_cons *wc, tsio_err *err)
+{
+    int win[4], x, y, i;
+    size_t n, c;
+    float *tmp = NULL;
+    if (ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width,
+                             res->geo.height, t->ti, t->tj, win, NULL) != TS_OK) {
+        tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
+        return -1;
+    }
+    n = (size_t)win[2] * (size_t)win[3];
+    wc->cons = ts_synth_constraints_default();
+    wc->flags = calloc(n, 1);
+    tmp = malloc(n * sizeof *tmp);
+    if (!wc->flags || !tmp)
+        goto oom;
+    wc->cons.cell_flags = wc->flags;
+    if (job->water) {
+        if (job_grid_window(job->water, res, win[0], win[1], win[2], win[3], tmp, err) != 0)
+            goto fail;
+        for (c = 0; c < n; c++)
+            if (!isnan(tmp[c]) && tmp[c] != 0) {
+                wc->flags[c] |= TS_CELL_FIXED;
+                t->window.data[(c / (size_t)win[2]) * (size_t)t->window.stride + c % (size_t)win[2]] =
+                    (float)job->water_level;
+            }
+    }
+    for (i = 0; i < job->n_pins; i++) {
+        const tsjob_pin *p = &job->pins[i];
+        const int *pw = res->pin_win[i];
+        int ya = p->y > win[1] ? p->y : win[1], xa = p->x > win[0] ? p->x : win[0];
+        int yb = p->y + pw[3] < win[1] + win[3] ? p->y + pw[3] : win[1] + win[3];
+        int xb = p->x + pw[2] < win[0] + win[2] ? p->x + pw[2] : win[0] + win[2];
+        for (y = ya; y < yb; y++)
+            for (x = xa; x < xb; x++) {
+                float v = TS_PIX(&res->pin_ex[i].r, pw[0] + x - p->x, pw[1] + y - p->y);
+                if (isnan(v))
+                    continue;
+                TS_PIX(&t->window, x - win[0], y - win[1]) = v;
+                wc->flags[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])] |=
+                    TS_CELL_FIXED;
+            }
+    }
+    if (job->heights) {
+        if (!(wc->heights = malloc(n * sizeof *wc->heights)))
+            goto oom;
+        if (job_grid_window(job->heights, res, win[0], win[1], win[2], win[3], wc->heights, err) !=
+            0)
+            goto fail;
+        wc->cons.heights = wc->heights;
+        wc->cons.alpha_h = job->alpha_h;
+    }
+    if (job->regions) {
+        int r;
+        if (!(wc->cell_ex = malloc(n * sizeof *wc->cell_ex)))
+            goto oom;
+        if (tsio_read_label_window(job->regions, &res->geo, win[0], win[1], win[2], win[3],
+                                   "region", INT32_MIN, wc->cell_ex, err) != 0)
+            goto fail;
+        for (c = 0; c < n; c++) {
+            int32_t id = wc->cell_ex[c], ex_i = -1;
+            for (r = 0; r < job->n_region_rules; r++)
+                if (job->region_id[r] == id)
+                    ex_i = job->region_exemplar[r];
+            wc->cell_ex[c] = ex_i;
+        }
+        wc->cons.cell_exemplar = wc->cell_ex;
+    }
+    free(tmp);
+    return 0;
+oom:
+    tsio_errf(err, "synth", "out of memory for a tile's constraints");
+fail:
+    free(tmp);
+    return -1;
 }
 
 int tsjob_synth_tiles(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_result *res,
@@ -468,6 +573,32 @@ int tsjob_synth_tiles(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_res
     if (!res->n_ex) {
         tsio_errf(err, "synth", "internal error: tiles before setup");
         return -1;
+    }
+    if (job->n_pins || job->water || job->heights || job->regions) {
+        /* each tile with its window's part of the constraints, read window by window */
+        job_window_cons wc[64];
+        int k, rc = 0;
+        if (n_tiles > 64) {
+            tsio_errf(err, "synth", "internal error: more than 64 tiles in one call");
+            return -1;
+        }
+        memset(wc, 0, sizeof wc);
+        for (k = 0; k < n_tiles && rc == 0; k++) {
+            rc = job_window_constraints(ctx, job, res, &tiles[k], &wc[k], err);
+            tiles[k].constraints = &wc[k].cons;
+        }
+        if (rc == 0 && ts_synth_tiles(ctx, res->exr, res->n_ex, &res->params, res->params.tiled,
+                                      res->geo.width, res->geo.height, tiles, n_tiles) != TS_OK) {
+            job_core_err(ctx, job, "synth", err);
+            rc = -1;
+        }
+        for (k = 0; k < n_tiles; k++) {
+            tiles[k].constraints = NULL;
+            free(wc[k].flags);
+            free(wc[k].cell_ex);
+            free(wc[k].heights);
+        }
+        return rc;
     }
     if (ts_synth_tiles(ctx, res->exr, res->n_ex, &res->params, res->params.tiled, res->geo.width,
                        res->geo.height, tiles, n_tiles) != TS_OK) {
@@ -602,10 +733,48 @@ int tsjob_parse_pin(const char *spec, tsjob_pin *pin, char *path_buf, size_t pat
 }
 
 /* Water and pins go into `out` before the synthesis, as fixed cells. */
+/* Pin i at the target resolution, checked: the raster and the pinned
+ * window in its cells (ex owned by the caller on success). */
+static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, tsio_raster *ex,
+                        int *x0, int *y0, int *w, int *h, tsio_err *err)
+{
+    const tsjob_pin *p = &job->pins[i];
+    int W = res->geo.width, H = res->geo.height, cy = H / 2;
+    double f = 1.0;
+    if (tsio_read_raster_resampled(p->path, job->band, res->dx_m ? res->dx_m[cy] : 0,
+                                   res->dy_m ? res->dy_m[cy] : 0, job->cell_size, ex, &f,
+                                   err) != 0)
+        return -1;
+    job_warn_sentinels(&res->warning, p->path, ex);
+    /* the window in the file's cells, at the output's resolution */
+    *x0 = (int)lround(p->xoff * f);
+    *y0 = (int)lround(p->yoff * f);
+    *w = (int)lround(p->width * f);
+    *h = (int)lround(p->height * f);
+    if (*w < 1 || *h < 1 || *x0 + *w > ex->r.width || *y0 + *h > ex->r.height ||
+        p->xoff + p->width > (int)lround(ex->r.width / f) + 1) {
+        tsio_errf(err, p->path,
+                  "the pinned window %d,%d,%d,%d is not inside "
+                  "the raster",
+                  p->xoff, p->yoff, p->width, p->height);
+        tsio_raster_free(ex);
+        return -1;
+    }
+    if (p->x + *w > W || p->y + *h > H) {
+        tsio_errf(err, p->path,
+                  "the pinned window (%d x %d output cells) at %d,%d leaves the output "
+                  "(%d x %d)",
+                  *w, *h, p->x, p->y, W, H);
+        tsio_raster_free(ex);
+        return -1;
+    }
+    return 0;
+}
+
 static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsigned char *flags,
                            tsio_err *err)
 {
-    int i, x, y, W = res->geo.width, H = res->geo.height, cy = H / 2;
+    int i, x, y, W = res->geo.width, H = res->geo.height;
     if (job->water) {
         tsio_raster m;
         if (tsio_read_raster(job->water, 1, &m, err) != 0)
@@ -629,35 +798,9 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
     for (i = 0; i < job->n_pins; i++) {
         const tsjob_pin *p = &job->pins[i];
         tsio_raster ex;
-        double f = 1.0;
         int x0, y0, w, h;
-        if (tsio_read_raster_resampled(p->path, job->band, res->dx_m ? res->dx_m[cy] : 0,
-                                       res->dy_m ? res->dy_m[cy] : 0, job->cell_size, &ex, &f,
-                                       err) != 0)
+        if (job_pin_read(job, res, i, &ex, &x0, &y0, &w, &h, err) != 0)
             return -1;
-        job_warn_sentinels(&res->warning, p->path, &ex);
-        /* the window in the file's cells, at the output's resolution */
-        x0 = (int)lround(p->xoff * f);
-        y0 = (int)lround(p->yoff * f);
-        w = (int)lround(p->width * f);
-        h = (int)lround(p->height * f);
-        if (w < 1 || h < 1 || x0 + w > ex.r.width || y0 + h > ex.r.height ||
-            p->xoff + p->width > (int)lround(ex.r.width / f) + 1) {
-            tsio_errf(err, p->path,
-                      "the pinned window %d,%d,%d,%d is not inside "
-                      "the raster",
-                      p->xoff, p->yoff, p->width, p->height);
-            tsio_raster_free(&ex);
-            return -1;
-        }
-        if (p->x + w > W || p->y + h > H) {
-            tsio_errf(err, p->path,
-                      "the pinned window (%d x %d output cells) at %d,%d leaves the output "
-                      "(%d x %d)",
-                      w, h, p->x, p->y, W, H);
-            tsio_raster_free(&ex);
-            return -1;
-        }
         for (y = 0; y < h; y++)
             for (x = 0; x < w; x++) {
                 float v = TS_PIX(&ex.r, x0 + x, y0 + y);
@@ -687,6 +830,8 @@ void tsjob_synth_result_free(tsjob_synth_result *res)
     ts_raster_free(&res->out);
     for (int i = 0; i < TSJOB_MAX_EXEMPLARS; i++)
         tsio_raster_free(&res->ex[i]);
+    for (int i = 0; i < TSJOB_MAX_PINS; i++)
+        tsio_raster_free(&res->pin_ex[i]);
     memset(res, 0, sizeof *res);
 }
 
@@ -880,8 +1025,6 @@ static int job_synth_inputs(const tsjob_synth *job, const char **in)
 
 int tsjob_synth_check_recipe(const tsjob_synth *job, const char *recipe, tsio_err *err)
 {
-    if (job_tiled_recipe_refused(job, recipe, err))
-        return -1;
     const char *in[JOB_MAX_INPUTS];
     int n = job_synth_inputs(job, in);
     return job_not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;

@@ -152,6 +152,10 @@ typedef struct tsjob_synth_result {
     tsio_raster ex[TSJOB_MAX_EXEMPLARS];
     ts_raster exr[TSJOB_MAX_EXEMPLARS];
     int n_ex;
+    /* and the pins at the target resolution with their windows (x0, y0, w, h
+     * in the raster's cells at that resolution), for the tiles (owned) */
+    tsio_raster pin_ex[TSJOB_MAX_PINS];
+    int pin_win[TSJOB_MAX_PINS][4];
 } tsjob_synth_result;
 
 /** Check the job and resolve the target grid (cheap: no exemplar is read). */

@@ -587,9 +587,19 @@ static void test_tiles(void)
         ts_synth_maps maps;
         int32_t *order = malloc(sizeof(int32_t) * (size_t)W * H);
         memset(&maps, 0, sizeof maps);
+        size_t k, unset = 0;
         maps.order = order;
-        CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &b, &maps) == TS_ERR_ARG);
-        CHECK(strstr(ts_ctx_message(ctx), "debug maps") != NULL);
+        /* debug maps in tiles: the same terrain as without, every cell from a patch */
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++)
+                TS_PIX(&c, x, y) = NAN;
+        ts_ctx_set_seed(ctx, 78);
+        CHECK(ts_synth_patches(ctx, &ex, 1, &p, NULL, &c, &maps) == TS_OK);
+        CHECK(memcmp(b.data, c.data, sizeof(float) * W * H) == 0);
+        for (k = 0; k < (size_t)W * H; k++)
+            unset += order[k] < 0 || order[k] >= maps.n_patches;
+        CHECK_MSG(unset == 0, "%zu cells without a patch index (%d patches)", unset,
+                  maps.n_patches);
         free(order);
     }
     ts_raster_free(&a);

@@ -41,23 +41,70 @@ def test_threads_recipe_and_seams(tmp_path):
         assert m["seam_lap"] <= 1.2 and m["seam_grad"] <= 1.2, m
 
 
-def test_recipe_with_pins_refused(tmp_path):
-    """Tiles take pins in the CLI, not yet in a recipe (its pins would be read per tile)."""
-    args = ["--exemplar", JACKSBORO, "--size", "300x300", "--tiled", 128,
-            "--pin", f"{JACKSBORO}:0,0,50,50@20,20"]
-    run("synth", *args, tmp_path / "o.tif", "-q")
-    p = run("synth", *args, "--recipe", tmp_path / "t.tsyn", check=False)
-    assert p.returncode != 0 and "recipe in tiles" in p.stderr, p.stderr
-    assert not os.path.exists(tmp_path / "t.tsyn")
-    # written by hand, it is refused on opening
-    (tmp_path / "h.tsyn").write_text(
-        '<TerraSynth version="1"><Synth seed="1"><Exemplar>%s</Exemplar>'
-        '<Pin xoff="0" yoff="0" width="50" height="50" x="20" y="20">%s</Pin>'
-        '<Grid width="300" height="300"/>'
-        '<Param name="tiled">128</Param></Synth></TerraSynth>' % (JACKSBORO, JACKSBORO))
-    p = subprocess.run(["gdalinfo", str(tmp_path / "h.tsyn")], capture_output=True, text=True,
-                       env=plugin_env(PLUGINS))
-    assert p.returncode != 0 and "recipe in tiles" in p.stderr, p.stderr
+def _like(ref, path, a, dtype=gdal.GDT_Float32, nodata=None):
+    """A raster on the grid of `ref` holding array a."""
+    src = gdal.Open(str(ref))
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), a.shape[1], a.shape[0], 1, dtype)
+    ds.SetGeoTransform(src.GetGeoTransform())
+    ds.SetProjection(src.GetProjection())
+    if nodata is not None:
+        ds.GetRasterBand(1).SetNoDataValue(nodata)
+    ds.GetRasterBand(1).WriteArray(a)
+    ds = None
+
+
+@pytest.mark.parametrize("kind", ["pins_water_heights", "regions_raster", "regions_polygons"])
+def test_tiled_recipe_with_constraints(tmp_path, kind):
+    """Pins, water, heights and regions in a recipe in tiles: each tile reads its window's
+    part of them (the pins once), so gdal_translate and a window of the recipe give what the
+    CLI gives with the whole grid's constraints, byte for byte; the pins and the water are
+    kept (an oracle from the inputs alone)."""
+    W, H = 300, 260
+    run("synth", "--exemplar", JACKSBORO, "--size", f"{W}x{H}", "--tiled", 128,
+        tmp_path / "grid.tif", "-q")
+    args = ["--exemplar", JACKSBORO, "--size", f"{W}x{H}", "--seed", 4, "--tiled", 128]
+    if kind == "pins_water_heights":
+        water = np.zeros((H, W), np.uint8)
+        water[200:240, 30:150] = 1  # across the tile border at x = 128
+        _like(tmp_path / "grid.tif", tmp_path / "water.tif", water, gdal.GDT_Byte)
+        heights = np.full((H, W), -9999, np.float32)
+        heights[20:100, 150:290] = 400.0
+        _like(tmp_path / "grid.tif", tmp_path / "heights.tif", heights, nodata=-9999)
+        args += ["--pin", f"{JACKSBORO}:10,10,60,50@100,110", "--water", tmp_path / "water.tif",
+                 "--water-level", 250, "--heights", tmp_path / "heights.tif", "--alpha-h", 2]
+    elif kind == "regions_raster":
+        reg = np.zeros((H, W), np.int32)
+        reg[:, W // 2:] = 1
+        _like(tmp_path / "grid.tif", tmp_path / "reg.tif", reg, gdal.GDT_Int32)
+        rough = tmp_path / "rough.tif"
+        z = gdal.Open(JACKSBORO).ReadAsArray().astype(np.float32) * 1.5
+        _like(JACKSBORO, rough, z)
+        args += ["--exemplar", rough, "--regions", tmp_path / "reg.tif", "--region-exemplar",
+                 f"1={rough}"]
+    else:
+        g = gdal.Open(str(tmp_path / "grid.tif")).GetGeoTransform()
+        x0, x1 = g[0] + 140 * g[1], g[0] + 290 * g[1]
+        y0, y1 = g[3] + 30 * g[5], g[3] + 230 * g[5]
+        (tmp_path / "reg.geojson").write_text(json.dumps({
+            "type": "FeatureCollection", "features": [{
+                "type": "Feature", "properties": {"region": 1},
+                "geometry": {"type": "Polygon", "coordinates": [[
+                    [x0, y0], [x1, y0], [x1, y1], [x0 + 40 * g[1], y1], [x0, y0]]]}}]}))
+        args += ["--exemplar", JACKSBORO, "--regions", tmp_path / "reg.geojson",
+                 "--region-exemplar", f"1={JACKSBORO}"]
+    run("synth", *args, tmp_path / "cli.tif", "-q")
+    run("synth", *args, "--recipe", tmp_path / "t.tsyn")
+    subprocess.run(["gdal_translate", "-q", str(tmp_path / "t.tsyn"), str(tmp_path / "r.tif")],
+                   check=True, env=plugin_env(PLUGINS))
+    a = gdal.Open(str(tmp_path / "cli.tif")).ReadAsArray()
+    assert gdal.Open(str(tmp_path / "r.tif")).ReadAsArray().tobytes() == a.tobytes()
+    # a window alone (a fresh process: only the tiles it needs)
+    w = _window(tmp_path / "t.tsyn", 90, 100, 120, 90)
+    assert w.tobytes() == a[100:190, 90:210].tobytes()
+    if kind == "pins_water_heights":
+        assert (a[200:240, 30:150] == 250).all()
+        pin = gdal.Open(JACKSBORO).ReadAsArray()[10:60, 10:70].astype(np.float32)
+        assert np.array_equal(a[110:160, 100:160], pin)
 
 
 def _maps(d):

@@ -68,8 +68,7 @@ static const ts_param_desc synth_desc[] = {
      "Free synthesis in tiles of this many cells, made in four waves (a tile is cut and "
      "smoothed against its finished neighbours, the tiles of a wave run in parallel); "
      "a recipe in tiles is served tile by tile, any window alone (256-512 suit that); "
-     "0 = in one piece.  Not with a sketch (pins, water, heights and regions: not in "
-     "recipes yet).",
+     "0 = in one piece.  Not with a sketch.",
      offsetof(ts_synth_params, tiled)},
     {"usage", TS_PARAM_DOUBLE, -1.0, -1.0, 1000.0, TS_UNIT_CELLS, "", NULL,
      "Weight of the usage cost: a candidate pays this times the exemplar's detail variance "
