@@ -594,8 +594,8 @@ int tsio_read_label_window(const char *path, const tsio_georef *geo, int x0, int
             tsio__set_err_gdal(err, path, "cannot rasterise the region polygons");
             goto done;
         }
-        if (GDALRasterIO(GDALGetRasterBand(mem, 1), GF_Read, 0, 0, w, h, values, w, h, GDT_Int32,
-                         0, 0) != CE_None) {
+        if (GDALRasterIO(GDALGetRasterBand(mem, 1), GF_Read, 0, 0, w, h, values, w, h, GDT_Int32, 0,
+                         0) != CE_None) {
             tsio__set_err_gdal(err, path, "cannot read the rasterised regions");
             goto done;
         }

@@ -30,19 +30,21 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
 /* Memory a job takes, estimated before the work (bytes; measured peaks of
  * the CLI with a margin: bench/README.md).  Libraries and buffers: */
 #define JOB_MEM_BASE ((uint64_t)96 << 20)
-#define JOB_MEM_PPA_CELL 24       /* per input cell: the DEM, profiles, masks, codes */
-#define JOB_MEM_PPA_TILE_CELL 48  /* per cell of a tile with its margin (tiled ppa) */
-#define JOB_MEM_PPA_STRIP 9  /* per cell of three tile rows: both forests, nodata (tiled ppa) */
-#define JOB_MEM_PPA_CHAINS 1 /* per DEM cell: the chains held (76 k at 4096^2: far less) */
-#define JOB_MEM_SYNTH_CELL 16     /* per output cell: terrain, flags, fill state */
-#define JOB_MEM_MAPS_CELL 20      /* per output cell with the synthesis maps */
-#define JOB_MEM_SKETCH_CELL 128   /* per output cell with a sketch: PPA, features, guides, the
+#define JOB_MEM_PPA_CELL 24      /* per input cell: the DEM, profiles, masks, codes */
+#define JOB_MEM_PPA_TILE_CELL 48 /* per cell of a tile with its margin (tiled ppa) */
+#define JOB_MEM_PPA_STRIP 9      /* per cell of three tile rows: both forests, nodata (tiled ppa) */
+#define JOB_MEM_PPA_CHAINS 1     /* per DEM cell: the chains held (76 k at 4096^2: far less) */
+#define JOB_MEM_SYNTH_CELL 16    /* per output cell: terrain, flags, fill state */
+#define JOB_MEM_MAPS_CELL 20     /* per output cell with the synthesis maps */
+#define JOB_MEM_SKETCH_CELL                                                                        \
+    128                           /* per output cell with a sketch: PPA, features, guides, the     \
                                      slope style's Poisson system (~110 B/cell at its peak) */
 #define JOB_MEM_EX_SOURCE_CELL 12 /* per exemplar cell as read */
 #define JOB_MEM_EX_CELL 24        /* per exemplar cell at the target resolution: pyramid, FFT */
 #define JOB_MEM_TILE_CELL 8       /* per cell of a tile being made: its window, flags, copy */
-#define JOB_MEM_TILED_CELL 16     /* per output cell in tiles: every tile's window (at most 4 x
-                                     its core: tiles of 2 patches) */
+#define JOB_MEM_TILED_CELL                                                                         \
+    16 /* per output cell in tiles: every tile's window (at most 4 x                               \
+          its core: tiles of 2 patches) */
 
 int tsjob_ppa_check_memory(const tsio_georef *in, const char *path, tsio_err *err)
 {
@@ -406,9 +408,9 @@ static int job_read_exemplars(const tsjob_synth *job, tsjob_synth_result *res, t
     int i, cy = res->geo.height / 2, P = (int)res->params.patch_size.value;
     for (i = 0; i < job->n_exemplars; i++) {
         double factor = 1.0;
-        if (tsio_read_raster_resampled(job->exemplars[i], job->band,
-                                       res->dx_m ? res->dx_m[cy] : 0, res->dy_m ? res->dy_m[cy] : 0,
-                                       job->cell_size, &ex[i], &factor, err) != 0)
+        if (tsio_read_raster_resampled(job->exemplars[i], job->band, res->dx_m ? res->dx_m[cy] : 0,
+                                       res->dy_m ? res->dy_m[cy] : 0, job->cell_size, &ex[i],
+                                       &factor, err) != 0)
             return -1;
         job_warn_sentinels(&res->warning, job->exemplars[i], &ex[i]);
         if (res->dx_m && !ex[i].dx_m && !res->exemplar_no_crs)
@@ -428,8 +430,7 @@ static int job_read_exemplars(const tsjob_synth *job, tsjob_synth_result *res, t
 static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, tsio_raster *ex,
                         int *x0, int *y0, int *w, int *h, tsio_err *err);
 
-int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
-                      tsio_err *err)
+int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err)
 {
     int i;
     (void)ctx;
@@ -463,8 +464,8 @@ typedef struct job_window_cons {
 
 /* Read window [x0, x0 + w) x [y0, y0 + h) of a raster on the output grid
  * into dst (w x h): the same cells the whole-grid reads give. */
-static int job_grid_window(const char *path, const tsjob_synth_result *res, int x0, int y0, int w,
-                           int h, float *dst, tsio_err *err)
+static int job_grid_window(const char *path, const char *what, const tsjob_synth_result *res,
+                           int x0, int y0, int w, int h, float *dst, tsio_err *err)
 {
     tsio_raster hdr;
     size_t nv, ns;
@@ -473,8 +474,8 @@ static int job_grid_window(const char *path, const tsjob_synth_result *res, int 
     if (!rd)
         return -1;
     if (hdr.geo.width != res->geo.width || hdr.geo.height != res->geo.height) {
-        tsio_errf(err, path, "%d x %d cells, the output %d x %d", hdr.geo.width, hdr.geo.height,
-                  res->geo.width, res->geo.height);
+        tsio_errf(err, path, "%s is %d x %d cells, the output %d x %d", what, hdr.geo.width,
+                  hdr.geo.height, res->geo.width, res->geo.height);
         tsio_reader_close(rd);
         tsio_raster_free(&hdr);
         return -1;
@@ -495,8 +496,8 @@ static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
     int win[4], x, y, i;
     size_t n, c;
     float *tmp = NULL;
-    if (ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width,
-                             res->geo.height, t->ti, t->tj, win, NULL) != TS_OK) {
+    if (ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width, res->geo.height,
+                             t->ti, t->tj, win, NULL) != TS_OK) {
         tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
         return -1;
     }
@@ -508,12 +509,14 @@ static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
         goto oom;
     wc->cons.cell_flags = wc->flags;
     if (job->water) {
-        if (job_grid_window(job->water, res, win[0], win[1], win[2], win[3], tmp, err) != 0)
+        if (job_grid_window(job->water, "the water mask", res, win[0], win[1], win[2], win[3], tmp,
+                            err) != 0)
             goto fail;
         for (c = 0; c < n; c++)
             if (!isnan(tmp[c]) && tmp[c] != 0) {
                 wc->flags[c] |= TS_CELL_FIXED;
-                t->window.data[(c / (size_t)win[2]) * (size_t)t->window.stride + c % (size_t)win[2]] =
+                t->window
+                    .data[(c / (size_t)win[2]) * (size_t)t->window.stride + c % (size_t)win[2]] =
                     (float)job->water_level;
             }
     }
@@ -536,8 +539,8 @@ static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
     if (job->heights) {
         if (!(wc->heights = malloc(n * sizeof *wc->heights)))
             goto oom;
-        if (job_grid_window(job->heights, res, win[0], win[1], win[2], win[3], wc->heights, err) !=
-            0)
+        if (job_grid_window(job->heights, "the heights", res, win[0], win[1], win[2], win[3],
+                            wc->heights, err) != 0)
             goto fail;
         wc->cons.heights = wc->heights;
         wc->cons.alpha_h = job->alpha_h;
@@ -686,16 +689,16 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         int bad;
         if (tsio_read_raster(job->sketch, 1, &sk, err) != 0)
             goto done;
-        bad = ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params, &params,
-                              &cons, &res->out, maps, &res->sketch_features,
-                              &res->sketch_info) != TS_OK;
+        bad =
+            ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params, &params, &cons,
+                            &res->out, maps, &res->sketch_features, &res->sketch_info) != TS_OK;
         tsio_raster_free(&sk);
         if (bad) {
             job_core_err(ctx, job, job->sketch, err);
             goto done;
         }
-    } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &params, &cons, &res->out,
-                                maps) != TS_OK) {
+    } else if (ts_synth_patches(ctx, exr, job->n_exemplars, &params, &cons, &res->out, maps) !=
+               TS_OK) {
         job_core_err(ctx, job, "synth", err);
         goto done;
     }
@@ -723,8 +726,8 @@ int tsjob_parse_pin(const char *spec, tsjob_pin *pin, char *path_buf, size_t pat
     memcpy(path_buf, spec, n);
     path_buf[n] = '\0';
     pin->path = path_buf;
-    if (sscanf(colon + 1, "%d,%d,%d,%d@%d,%d%c", &pin->xoff, &pin->yoff, &pin->width,
-               &pin->height, &pin->x, &pin->y, &tail) != 6)
+    if (sscanf(colon + 1, "%d,%d,%d,%d@%d,%d%c", &pin->xoff, &pin->yoff, &pin->width, &pin->height,
+               &pin->x, &pin->y, &tail) != 6)
         return -1;
     if (pin->xoff < 0 || pin->yoff < 0 || pin->width < 1 || pin->height < 1 || pin->x < 0 ||
         pin->y < 0)
@@ -742,8 +745,7 @@ static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, 
     int W = res->geo.width, H = res->geo.height, cy = H / 2;
     double f = 1.0;
     if (tsio_read_raster_resampled(p->path, job->band, res->dx_m ? res->dx_m[cy] : 0,
-                                   res->dy_m ? res->dy_m[cy] : 0, job->cell_size, ex, &f,
-                                   err) != 0)
+                                   res->dy_m ? res->dy_m[cy] : 0, job->cell_size, ex, &f, err) != 0)
         return -1;
     job_warn_sentinels(&res->warning, p->path, ex);
     /* the window in the file's cells, at the output's resolution */

@@ -28,8 +28,8 @@
 #include "feature_placement.h"
 #include "feature_tree.h"
 #include "layout.h"
-#include "slope_style.h"
 #include "relief_guide.h"
+#include "slope_style.h"
 
 TS_API ts_synth_constraints ts_synth_constraints_default(void)
 {
@@ -72,8 +72,8 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     if (synth_check_constraints(ctx, constraints) != TS_OK)
         return ctx->status;
     if (params->tiled > 0)
-        return ts__synth_tiled_maps(ctx, exemplars, n_exemplars, params, constraints,
-                                    params->tiled, out, maps);
+        return ts__synth_tiled_maps(ctx, exemplars, n_exemplars, params, constraints, params->tiled,
+                                    out, maps);
     f = ts__fill_make(params, constraints);
     if (f.s.usage < 0) /* automatic: on in free synthesis */
         f.s.usage = TS_SYNTH_USAGE_FREE;
@@ -89,9 +89,9 @@ typedef struct sketch_run {
     ts_features *sf;           /* the sketch's PPA graph */
     ts_feature_site *sites;
     size_t n_sites;
-    ts__ex_site *es;           /* the exemplars' sites */
+    ts__ex_site *es; /* the exemplars' sites */
     size_t n_es;
-    ts_relief_profile *profs;  /* per exemplar */
+    ts_relief_profile *profs;    /* per exemplar */
     unsigned char **ex_features; /* per exemplar: its main features of the kind (or NULL) */
     float *guide;
     int n_ex;

@@ -425,8 +425,8 @@ static void test_best_cost(void)
         ts_matcher *m = NULL;
         double w;
         for (i = 0; i < nx * ny; i++) /* a few positions cost much, most a little */
-            cost[i] = (float)(th_uniform(&seed) < 0.2 ? 50.0 * th_uniform(&seed)
-                                                       : th_uniform(&seed));
+            cost[i] =
+                (float)(th_uniform(&seed) < 0.2 ? 50.0 * th_uniform(&seed) : th_uniform(&seed));
         /* weights from negligible to dominant against the SSD */
         for (w = 0.01; w < 2e4; w *= 30.0) {
             CHECK(ts_matcher_new(ctx, &e, t.width, t.height, &m) == TS_OK);
@@ -439,8 +439,8 @@ static void test_best_cost(void)
             CHECK_MSG(n == n0, "case %zu w %g: %d found, want %d", c, w, n, n0);
             for (i = 0; i < n && i < n0; i++) {
                 CHECK_MSG(got[i].x == want[i].x && got[i].y == want[i].y,
-                          "case %zu w %g #%d at (%d,%d), want (%d,%d)", c, w, i, got[i].x,
-                          got[i].y, want[i].x, want[i].y);
+                          "case %zu w %g #%d at (%d,%d), want (%d,%d)", c, w, i, got[i].x, got[i].y,
+                          want[i].x, want[i].y);
                 CHECK_NEAR(got[i].ssd, want[i].ssd, 1e-9 * fabs(want[i].ssd) + 1e-9);
             }
             /* cleared: the plain k best */

@@ -22,10 +22,10 @@ static ts_raster make_exemplar(ts_ctx *ctx, int w, int h, uint64_t seed, int hol
     ts_raster_alloc(ctx, w, h, &r);
     for (y = 0; y < h; y++)
         for (x = 0; x < w; x++)
-            TS_PIX(&r, x, y) = (float)(1000.0 + 80.0 * sin(x / 13.0 + ph[0]) * cos(y / 17.0 + ph[1]) +
-                                       40.0 * sin((x + y) / 7.0 + ph[2]) +
-                                       15.0 * sin(x / 3.1 + ph[3]) * sin(y / 4.3 + ph[4]) +
-                                       3.0 * th_uniform(&s));
+            TS_PIX(&r, x, y) =
+                (float)(1000.0 + 80.0 * sin(x / 13.0 + ph[0]) * cos(y / 17.0 + ph[1]) +
+                        40.0 * sin((x + y) / 7.0 + ph[2]) +
+                        15.0 * sin(x / 3.1 + ph[3]) * sin(y / 4.3 + ph[4]) + 3.0 * th_uniform(&s));
     if (holes)
         for (y = 40; y < 60; y++)
             for (x = 50; x < 75; x++)
@@ -373,7 +373,8 @@ static void test_resolve_metres(void)
 static void test_errors_and_cancel(void)
 {
     ts_ctx *ctx = ts_ctx_new();
-    ts_raster ex = make_exemplar(ctx, 160, 120, 6, 0), small = make_exemplar(ctx, 20, 20, 7, 0), out;
+    ts_raster ex = make_exemplar(ctx, 160, 120, 6, 0), small = make_exemplar(ctx, 20, 20, 7, 0),
+              out;
     ts_synth_params p = small_params();
     ts_raster_alloc(ctx, 100, 100, &out);
     CHECK(ts_synth_patches(ctx, &small, 1, &p, NULL, &out, NULL) == TS_ERR_SIZE);
@@ -712,8 +713,9 @@ static void test_tiles_constraints(void)
                                    (size_t)(w[0] + (int)(i % (size_t)w[2]));
                         wf[i] = fl[g];
                         wr[i] = reg[g];
-                        win[at].data[(i / (size_t)w[2]) * (size_t)win[at].stride +
-                                     i % (size_t)w[2]] = fl[g] & TS_CELL_FIXED ? 1000.0f : NAN;
+                        win[at]
+                            .data[(i / (size_t)w[2]) * (size_t)win[at].stride + i % (size_t)w[2]] =
+                            fl[g] & TS_CELL_FIXED ? 1000.0f : NAN;
                     }
                     wc.cell_flags = wf;
                     wc.cell_exemplar = wr;
@@ -732,7 +734,8 @@ static void test_tiles_constraints(void)
                               ts_ctx_message(ctx));
                     for (y = c[1]; y < c[1] + c[3]; y++)
                         for (x = c[0]; x < c[0] + c[2]; x++) {
-                            float a = TS_PIX(&win[at], x - w[0], y - w[1]), b = TS_PIX(&out[0], x, y);
+                            float a = TS_PIX(&win[at], x - w[0], y - w[1]),
+                                  b = TS_PIX(&out[0], x, y);
                             same &= (isnan(a) && isnan(b)) || a == b;
                         }
                     free(wf);
@@ -745,7 +748,8 @@ static void test_tiles_constraints(void)
         free(win);
     }
     printf("     tiles with regions: right third / left third mean |Laplacian| %.2f "
-           "(one piece %.2f)\n", ratio[0], ratio[2]);
+           "(one piece %.2f)\n",
+           ratio[0], ratio[2]);
     CHECK(ratio[0] > 2.0 && ratio[0] > 0.7 * ratio[2]);
     for (k = 0; k < 3; k++)
         ts_raster_free(&out[k]);

@@ -871,9 +871,9 @@ static ts_status match_best_search(ts_ctx *ctx, const ts_matcher *m, const match
                 wait = w;
                 cap_wait = grow;
             }
-            match_exact_push(wait, &n_wait,
-                             (match_exact){match_exact_ssd(m, kn, p.idx) + match_cost(m, p.idx),
-                                           p.idx});
+            match_exact_push(
+                wait, &n_wait,
+                (match_exact){match_exact_ssd(m, kn, p.idx) + match_cost(m, p.idx), p.idx});
         }
         cap = cap > m->n_valid / 4 ? m->n_valid : 4 * cap;
     }

@@ -795,8 +795,7 @@ static ts_status place_one(placer *pl, placement *q, int index)
                 for (x = 0; x < P; x++)
                     win[y * P + x] = TS_PIX(exr, pl->cands[i].x + x, pl->cands[i].y + y);
             pl->cand_h[i] = ts__height_cost(pl->p, W, q->x, q->y, P, win, P);
-            pl->cand_u[i] =
-                place_usage_of(pl, &pl->ex[cand_ex[i]], pl->cands[i].x, pl->cands[i].y);
+            pl->cand_u[i] = place_usage_of(pl, &pl->ex[cand_ex[i]], pl->cands[i].x, pl->cands[i].y);
             lb[i] = sqrt(pl->cands[i].ssd / n_known + pl->cand_u[i]) + pl->cand_h[i];
             cost[i] = INFINITY;
             status[i] = TS_OK;
@@ -1156,7 +1155,7 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
     for (;;) {
         int pick = -1, pick2 = -1, j, n_run;
         if (params->order == TS_ORDER_RASTER) { /* grow and tree: the same here */
-            for (j = 0; j < n_pos; j++) /* (a scan: raster order is for comparisons) */
+            for (j = 0; j < n_pos; j++)         /* (a scan: raster order is for comparisons) */
                 if (pos[j].needed) {
                     pick = j;
                     break;

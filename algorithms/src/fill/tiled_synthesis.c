@@ -80,8 +80,8 @@ static tile_rect rect_of(int W, int H, int T, int G, int ti, int tj)
 typedef struct tile_maps {
     int32_t *se, *sx, *sy, *order;
     unsigned char *seams;
-    int n_patches;  /* placed by this tile */
-    double sec[4];  /* prepare, match, cut, Poisson */
+    int n_patches; /* placed by this tile */
+    double sec[4]; /* prepare, match, cut, Poisson */
 } tile_maps;
 
 typedef struct tiled_job {
@@ -151,11 +151,12 @@ static int tile_constraints(const tiled_job *j, const tile_rect *me, unsigned ch
 /* Empty the non-fixed cells of r within R cells (Chebyshev) of a cell
  * whose 4-neighbour holds another margin (cover: 1 + the neighbour's slot,
  * 0 none).  Returns 0 when out of memory. */
-static int meet_empty(const unsigned char *cover, const unsigned char *flags, ts_raster *r,
-                      int rw, int rh, int R)
+static int meet_empty(const unsigned char *cover, const unsigned char *flags, ts_raster *r, int rw,
+                      int rh, int R)
 {
     size_t n = (size_t)rw * (size_t)rh;
-    int *row = ts__malloc_array(n, sizeof *row), *acc = ts__malloc_array((size_t)rw + 1, sizeof *acc);
+    int *row = ts__malloc_array(n, sizeof *row),
+        *acc = ts__malloc_array((size_t)rw + 1, sizeof *acc);
     unsigned char *m = ts__calloc_array(n, 1);
     int x, y;
     if (!row || !acc || !m) {
@@ -299,10 +300,9 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
                         taken = 1;
                     }
                     if (taken && tm)
-                        tile_maps_take(tm, c,
-                                       &j->tm[(size_t)(tj + dj) * (size_t)j->nti + (size_t)(ti + di)],
-                                       (size_t)(y - o.y0) * (size_t)(o.x1 - o.x0) +
-                                           (size_t)(x - o.x0));
+                        tile_maps_take(
+                            tm, c, &j->tm[(size_t)(tj + dj) * (size_t)j->nti + (size_t)(ti + di)],
+                            (size_t)(y - o.y0) * (size_t)(o.x1 - o.x0) + (size_t)(x - o.x0));
                 }
         }
     /* where two margins meet: empty within a quarter patch of the line, so
@@ -512,8 +512,7 @@ TS_API ts_status ts_synth_tiles(ts_ctx *ctx, const ts_raster *exemplars, int n_e
                 if (!nb || !nb->data || nb->width != o.x1 - o.x0 || nb->height != o.y1 - o.y0)
                     return ts__fail(ctx, TS_ERR_ARG, TILED_STAGE,
                                     "tile (%d, %d) needs the %d x %d window of tile (%d, %d)",
-                                    t->ti, t->tj, o.x1 - o.x0, o.y1 - o.y0, t->ti + di,
-                                    t->tj + dj);
+                                    t->ti, t->tj, o.x1 - o.x0, o.y1 - o.y0, t->ti + di, t->tj + dj);
             }
         /* tiles of one call run side by side: none may need another */
         for (a = 0; a < k; a++)
@@ -559,7 +558,7 @@ static void tiled_maps_finish(const tiled_job *j, const ts_synth_tile *tiles, si
         size_t rw = (size_t)(r.x1 - r.x0), n = rw * (size_t)(r.y1 - r.y0);
         int base = maps->n_patches;
         for (c = 0; c < n; c++)
-            tm->order[c] = tm->order[c] >= 0 ? tm->order[c] + base
+            tm->order[c] = tm->order[c] >= 0   ? tm->order[c] + base
                            : tm->order[c] < -1 ? -2 - tm->order[c]
                                                : -1;
         maps->n_patches += tm->n_patches;
