@@ -159,6 +159,28 @@ def test_debug_maps_in_tiles(tmp_path, tiled):
           % (tiled, 100 * inner.mean(), r, r_off, len(ids)))
 
 
+def _largest_copy(d):
+    """The largest share of the grid taken from one exemplar at one offset (where each cell
+    came from, minus where it is): one verbatim copy of the exemplar."""
+    m = _maps(d)
+    yy, xx = np.mgrid[0:m["source_x"].shape[0], 0:m["source_x"].shape[1]]
+    key = (m["source_exemplar"] * 4096 + (m["source_x"] - xx + 2048)) * 4096 + \
+        (m["source_y"] - yy + 2048)
+    return np.unique(key, return_counts=True)[1].max() / key.size
+
+
+def test_tiles_do_not_copy_the_exemplar(tmp_path):
+    """The tile lattice defect (issue 16): with a small exemplar, each tile became one
+    near-verbatim copy of it. With the usage cost (the default) no exemplar offset covers more
+    than a few patches; with --usage 0 a tile-sized copy comes back (so the check can fail)."""
+    base = ["--exemplar", JACKSBORO, "--size", "1024x1024", "--seed", 2, "--tiled", 256]
+    run("synth", *base, "--debug-dir", tmp_path / "d", tmp_path / "o.tif", "-q")
+    run("synth", *base, "--usage", 0, "--debug-dir", tmp_path / "d0", tmp_path / "o0.tif", "-q")
+    with_usage, without = _largest_copy(tmp_path / "d"), _largest_copy(tmp_path / "d0")
+    print("largest one-offset copy: %.3f of the grid (--usage 0: %.3f)" % (with_usage, without))
+    assert with_usage < 0.02 and without > 0.04, (with_usage, without)
+
+
 @pytest.mark.parametrize("extra,words", [
     (["--tiled", 20], "tiles of 20 cells"),
     (["--tiled", 128, "--sketch", os.path.join(os.path.dirname(JACKSBORO), "sketches",
