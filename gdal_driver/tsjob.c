@@ -30,21 +30,19 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
 /* Memory a job takes, estimated before the work (bytes; measured peaks of
  * the CLI with a margin: bench/README.md).  Libraries and buffers: */
 #define JOB_MEM_BASE ((uint64_t)96 << 20)
-#define JOB_MEM_PPA_CELL 24      /* per input cell: the DEM, profiles, masks, codes */
-#define JOB_MEM_PPA_TILE_CELL 48 /* per cell of a tile with its margin (tiled ppa) */
-#define JOB_MEM_PPA_STRIP 9      /* per cell of three tile rows: both forests, nodata (tiled ppa) */
-#define JOB_MEM_PPA_CHAINS 1     /* per DEM cell: the chains held (76 k at 4096^2: far less) */
-#define JOB_MEM_SYNTH_CELL 16    /* per output cell: terrain, flags, fill state */
-#define JOB_MEM_MAPS_CELL 20     /* per output cell with the synthesis maps */
-#define JOB_MEM_SKETCH_CELL                                                                        \
-    128                           /* per output cell with a sketch: PPA, features, guides, the     \
+#define JOB_MEM_PPA_CELL 24       /* per input cell: the DEM, profiles, masks, codes */
+#define JOB_MEM_PPA_TILE_CELL 48  /* per cell of a tile with its margin (tiled ppa) */
+#define JOB_MEM_PPA_STRIP 9  /* per cell of three tile rows: both forests, nodata (tiled ppa) */
+#define JOB_MEM_PPA_CHAINS 1 /* per DEM cell: the chains held (76 k at 4096^2: far less) */
+#define JOB_MEM_SYNTH_CELL 16     /* per output cell: terrain, flags, fill state */
+#define JOB_MEM_MAPS_CELL 20      /* per output cell with the synthesis maps */
+#define JOB_MEM_SKETCH_CELL 128   /* per output cell with a sketch: PPA, features, guides, the
                                      slope style's Poisson system (~110 B/cell at its peak) */
 #define JOB_MEM_EX_SOURCE_CELL 12 /* per exemplar cell as read */
 #define JOB_MEM_EX_CELL 24        /* per exemplar cell at the target resolution: pyramid, FFT */
 #define JOB_MEM_TILE_CELL 8       /* per cell of a tile being made: its window, flags, copy */
-#define JOB_MEM_TILED_CELL                                                                         \
-    16 /* per output cell in tiles: every tile's window (at most 4 x                               \
-          its core: tiles of 2 patches) */
+#define JOB_MEM_TILED_CELL 16     /* per output cell in tiles: every tile's window (at most 4 x
+                                     its core: tiles of 2 patches) */
 
 int tsjob_ppa_check_memory(const tsio_georef *in, const char *path, tsio_err *err)
 {
@@ -454,6 +452,21 @@ int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *r
     return 0;
 }
 
+/* Region ids (a label map's values) into the exemplar each takes, -1 for
+ * any (--region-exemplar rules). */
+static void job_region_exemplars(const tsjob_synth *job, int32_t *cell_ex, size_t n)
+{
+    size_t c;
+    int r;
+    for (c = 0; c < n; c++) {
+        int32_t id = cell_ex[c], ex_i = -1;
+        for (r = 0; r < job->n_region_rules; r++)
+            if (job->region_id[r] == id)
+                ex_i = job->region_exemplar[r];
+        cell_ex[c] = ex_i;
+    }
+}
+
 /* A tile's window's part of the job's constraints (tsjob_synth_tiles). */
 typedef struct job_window_cons {
     ts_synth_constraints cons;
@@ -546,19 +559,12 @@ static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
         wc->cons.alpha_h = job->alpha_h;
     }
     if (job->regions) {
-        int r;
         if (!(wc->cell_ex = malloc(n * sizeof *wc->cell_ex)))
             goto oom;
         if (tsio_read_label_window(job->regions, &res->geo, win[0], win[1], win[2], win[3],
                                    "region", INT32_MIN, wc->cell_ex, err) != 0)
             goto fail;
-        for (c = 0; c < n; c++) {
-            int32_t id = wc->cell_ex[c], ex_i = -1;
-            for (r = 0; r < job->n_region_rules; r++)
-                if (job->region_id[r] == id)
-                    ex_i = job->region_exemplar[r];
-            wc->cell_ex[c] = ex_i;
-        }
+        job_region_exemplars(job, wc->cell_ex, n);
         wc->cons.cell_exemplar = wc->cell_ex;
     }
     free(tmp);
@@ -666,8 +672,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         cons.alpha_h = job->alpha_h;
     }
     if (job->regions) {
-        size_t n = (size_t)res->geo.width * (size_t)res->geo.height, c;
-        int r;
+        size_t n = (size_t)res->geo.width * (size_t)res->geo.height;
         cell_ex = malloc(n * sizeof *cell_ex);
         if (!cell_ex) {
             tsio_errf(err, job->regions, "out of memory");
@@ -675,13 +680,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         }
         if (tsio_read_label_map(job->regions, &res->geo, "region", INT32_MIN, cell_ex, err) != 0)
             goto done;
-        for (c = 0; c < n; c++) {
-            int32_t id = cell_ex[c], ex_i = -1;
-            for (r = 0; r < job->n_region_rules; r++)
-                if (job->region_id[r] == id)
-                    ex_i = job->region_exemplar[r];
-            cell_ex[c] = ex_i;
-        }
+        job_region_exemplars(job, cell_ex, n);
         cons.cell_exemplar = cell_ex;
     }
     if (job->sketch) {

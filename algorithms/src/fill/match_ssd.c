@@ -761,17 +761,15 @@ static double match_exact_ssd(const ts_matcher *m, const match_known *kn, size_t
     return s;
 }
 
-/* No known target cell: every valid window has SSD 0; take them in
- * row-major order. */
-static int match_cost_cmp(const void *pa, const void *pb)
+/* qsort's order of match_exact_less. */
+static int match_exact_cmp(const void *a, const void *b)
 {
-    const match_exact *a = pa, *b = pb;
-    if (a->e != b->e)
-        return a->e < b->e ? -1 : 1;
-    return (a->idx > b->idx) - (a->idx < b->idx);
+    return match_exact_less(a, b) ? -1 : match_exact_less(b, a);
 }
 
-/* With a cost map, in order of cost (then index); -1 when out of memory. */
+/* No known target cell: every valid window has SSD 0; take them in
+ * row-major order, or with a cost map in order of cost (then index); -1
+ * when out of memory. */
 static int match_best_empty(const ts_matcher *m, match_sep *s, int k, ts_candidate *out)
 {
     const size_t n = (size_t)m->nx * (size_t)m->ny;
@@ -789,7 +787,7 @@ static int match_best_empty(const ts_matcher *m, match_sep *s, int k, ts_candida
     for (i = 0; i < n; i++)
         if (m->valid[i])
             order[nv++] = (match_exact){match_cost(m, i), i};
-    qsort(order, nv, sizeof *order, match_cost_cmp);
+    qsort(order, nv, sizeof *order, match_exact_cmp);
     for (i = 0; i < nv && nt < k; i++)
         match_take(s, m->nx, order[i].idx, order[i].e, out, &nt);
     free(order);

@@ -111,41 +111,56 @@ static int earlier(const tiled_job *j, int ti, int tj, int di, int dj)
            tile_wave(ni, nj) < tile_wave(ti, tj);
 }
 
-/* The whole grid's constraints on a tile's window me: its flags (the
- * fixed cells with their values from the grid on entry, nodata cells
- * empty), the exemplar of each cell's region and the wanted heights, cut
- * out into the tile's own arrays.  Returns 0 when out of memory. */
-static int tile_constraints(const tiled_job *j, const tile_rect *me, unsigned char *flags,
-                            ts_raster *r, ts_synth_constraints *cons, int32_t **cell_ex,
-                            float **heights)
+/* A tile's window's constraints (ts_synth_tile.constraints, or the whole
+ * grid's cut to the window) and the fixed cells' values. */
+typedef struct window_cons {
+    ts_synth_constraints c; /* window-sized arrays */
+    unsigned char *flags;   /* owned by the cut (NULL otherwise) */
+    int32_t *cell_ex;
+    float *heights;
+    float *fixed; /* the window's fixed cells' values */
+} window_cons;
+
+/* The whole grid's constraints cut to a tile's window me: flags, the
+ * exemplar of each cell's region, the wanted heights, and the fixed cells'
+ * values from the grid on entry.  Returns 0 when out of memory. */
+static int tile_cut_constraints(const tiled_job *j, const tile_rect *me, window_cons *w)
 {
     const ts_synth_constraints *g = j->cons;
     int rw = me->x1 - me->x0, rh = me->y1 - me->y0, x, y;
     size_t n = (size_t)rw * (size_t)rh;
-    if (g->cell_exemplar && !(*cell_ex = ts__malloc_array(n, sizeof **cell_ex)))
-        return 0;
-    if (g->heights && !(*heights = ts__malloc_array(n, sizeof **heights)))
+    if ((g->cell_flags && (!(w->flags = ts__malloc_array(n, 1)) ||
+                           !(w->fixed = ts__malloc_array(n, sizeof *w->fixed)))) ||
+        (g->cell_exemplar && !(w->cell_ex = ts__malloc_array(n, sizeof *w->cell_ex))) ||
+        (g->heights && !(w->heights = ts__malloc_array(n, sizeof *w->heights))))
         return 0;
     for (y = 0; y < rh; y++)
         for (x = 0; x < rw; x++) {
             size_t c = (size_t)y * (size_t)rw + (size_t)x;
             size_t gc = (size_t)(y + me->y0) * (size_t)j->W + (size_t)(x + me->x0);
-            if (g->cell_flags && (g->cell_flags[gc] & TS_CELL_NODATA)) {
-                flags[c] = TS_CELL_NODATA;
-                TS_PIX(r, x, y) = NAN;
-            } else if (g->cell_flags && (g->cell_flags[gc] & TS_CELL_FIXED)) {
-                flags[c] = TS_CELL_FIXED;
-                TS_PIX(r, x, y) = TS_PIX(j->initial, x + me->x0, y + me->y0);
+            if (w->flags) {
+                w->flags[c] = g->cell_flags[gc];
+                w->fixed[c] = TS_PIX(j->initial, x + me->x0, y + me->y0);
             }
-            if (*cell_ex)
-                (*cell_ex)[c] = g->cell_exemplar[gc];
-            if (*heights)
-                (*heights)[c] = g->heights[gc];
+            if (w->cell_ex)
+                w->cell_ex[c] = g->cell_exemplar[gc];
+            if (w->heights)
+                w->heights[c] = g->heights[gc];
         }
-    cons->cell_exemplar = *cell_ex;
-    cons->heights = *heights;
-    cons->alpha_h = g->alpha_h;
+    w->c = ts_synth_constraints_default();
+    w->c.cell_flags = w->flags;
+    w->c.cell_exemplar = w->cell_ex;
+    w->c.heights = w->heights;
+    w->c.alpha_h = g->alpha_h;
     return 1;
+}
+
+static void window_cons_free(window_cons *w)
+{
+    free(w->flags);
+    free(w->cell_ex);
+    free(w->heights);
+    free(w->fixed);
 }
 
 /* Empty the non-fixed cells of r within R cells (Chebyshev) of a cell
@@ -239,36 +254,31 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     int ti = t->ti, tj = t->tj, di, dj, x, y;
     tile_rect me = rect_of(j->W, j->H, j->T, j->G, ti, tj);
     int rw = me.x1 - me.x0, rh = me.y1 - me.y0;
-    size_t n = (size_t)rw * (size_t)rh;
+    size_t n = (size_t)rw * (size_t)rh, c;
     ts_raster r = t->window; /* made in place */
     unsigned char *flags = ts__calloc_array(n, 1), *cover = ts__calloc_array(n, 1);
     ts_synth_constraints cons = ts_synth_constraints_default();
-    int32_t *cell_ex = NULL;
-    float *heights = NULL, *fixed = NULL;
     tile_maps *tm = j->tm ? &j->tm[(size_t)tj * (size_t)j->nti + (size_t)ti] : NULL;
+    /* the window's constraints: the tile's own (ts_synth_tiles: the fixed
+     * cells' values in the window on entry) or the grid's cut to it */
+    window_cons w;
+    const ts_synth_constraints *wc = j->cons ? &w.c : t->constraints;
     ts_synth_maps maps;
     ts_status st;
-    if (!flags || !cover) {
+    memset(&w, 0, sizeof w);
+    if (!flags || !cover || (j->cons && !tile_cut_constraints(j, &me, &w)) ||
+        (!j->cons && wc && wc->cell_flags && !(w.fixed = ts__malloc_array(n, sizeof *w.fixed)))) {
         free(flags);
         free(cover);
+        window_cons_free(&w);
         return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
     }
-    /* the tile's own constraints (ts_synth_tiles): its fixed cells' values
-     * are in the window on entry */
-    if (t->constraints && t->constraints->cell_flags) {
-        fixed = ts__malloc_array(n, sizeof *fixed);
-        if (!fixed) {
-            free(flags);
-            free(cover);
-            return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
-        }
-        for (y = 0; y < rh; y++)
-            for (x = 0; x < rw; x++)
-                fixed[(size_t)y * (size_t)rw + (size_t)x] = TS_PIX(&r, x, y);
-    }
     for (y = 0; y < rh; y++)
-        for (x = 0; x < rw; x++)
+        for (x = 0; x < rw; x++) {
+            if (!j->cons && w.fixed)
+                w.fixed[(size_t)y * (size_t)rw + (size_t)x] = TS_PIX(&r, x, y);
             TS_PIX(&r, x, y) = NAN;
+        }
     if (tm)
         tile_maps_clear(tm, n);
     /* the earlier neighbours: their cores fixed, their margins as terrain
@@ -285,9 +295,9 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
             o = rect_of(j->W, j->H, j->T, j->G, ti + di, tj + dj);
             for (y = TS_MAX(o.y0, me.y0); y < TS_MIN(o.y1, me.y1); y++)
                 for (x = TS_MAX(o.x0, me.x0); x < TS_MIN(o.x1, me.x1); x++) {
-                    size_t c = (size_t)(y - me.y0) * (size_t)rw + (size_t)(x - me.x0);
                     float v = TS_PIX(nb, x - o.x0, y - o.y0);
                     int taken = 0;
+                    c = (size_t)(y - me.y0) * (size_t)rw + (size_t)(x - me.x0);
                     if (x >= o.cx0 && x < o.cx1 && y >= o.cy0 && y < o.cy1) {
                         flags[c] = TS_CELL_FIXED;
                         TS_PIX(&r, x - me.x0, y - me.y0) = v;
@@ -311,62 +321,51 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     if (!meet_empty(cover, flags, &r, rw, rh, TS_MAX(2, j->G / 4))) {
         free(cover);
         free(flags);
+        window_cons_free(&w);
         return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
     }
     free(cover);
     cons.cell_flags = flags;
-    if (t->constraints) {
-        /* the same as tile_constraints, from the window's own arrays */
-        const ts_synth_constraints *g = t->constraints;
-        size_t c;
-        for (c = 0; c < n && g->cell_flags; c++) {
-            if (g->cell_flags[c] & TS_CELL_NODATA) {
+    if (wc) {
+        /* the user's fixed cells with their values, nodata cells empty (and
+         * from no exemplar in the maps) */
+        for (c = 0; c < n && wc->cell_flags; c++) {
+            float *v = &r.data[(c / (size_t)rw) * (size_t)r.stride + c % (size_t)rw];
+            if (wc->cell_flags[c] & TS_CELL_NODATA) {
                 flags[c] = TS_CELL_NODATA;
-                r.data[(c / (size_t)rw) * (size_t)r.stride + c % (size_t)rw] = NAN;
-            } else if (g->cell_flags[c] & TS_CELL_FIXED) {
+                *v = NAN;
+            } else if (wc->cell_flags[c] & TS_CELL_FIXED) {
                 flags[c] = TS_CELL_FIXED;
-                r.data[(c / (size_t)rw) * (size_t)r.stride + c % (size_t)rw] = fixed[c];
+                *v = w.fixed[c];
             }
+            if (tm && (wc->cell_flags[c] & (TS_CELL_FIXED | TS_CELL_NODATA)))
+                tile_maps_none(tm, c);
         }
-        cons.cell_exemplar = g->cell_exemplar;
-        cons.heights = g->heights;
-        cons.alpha_h = g->alpha_h;
+        cons.cell_exemplar = wc->cell_exemplar;
+        cons.heights = wc->heights;
+        cons.alpha_h = wc->alpha_h;
     }
-    free(fixed);
-    if (j->cons && !tile_constraints(j, &me, flags, &r, &cons, &cell_ex, &heights)) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for a tile");
-    } else {
-        if (tm) {
-            size_t c;
-            /* pinned and water cells come from no exemplar */
-            for (c = 0; c < n && j->cons && j->cons->cell_flags; c++) {
-                size_t gc = (c / (size_t)rw + (size_t)me.y0) * (size_t)j->W + c % (size_t)rw +
-                            (size_t)me.x0;
-                if (j->cons->cell_flags[gc] & (TS_CELL_FIXED | TS_CELL_NODATA))
-                    tile_maps_none(tm, c);
-            }
-            memset(&maps, 0, sizeof maps);
-            maps.source_exemplar = tm->se;
-            maps.source_x = tm->sx;
-            maps.source_y = tm->sy;
-            maps.order = tm->order;
-            maps.seams = tm->seams;
-        }
-        ts_ctx_set_seed(ctx, tile_seed(ts_ctx_seed(j->parent), ti, tj));
-        /* (maps.n_patches 0: each placement's random stream is as without maps) */
-        st = ts_synth_patches(ctx, j->exemplars, j->n_exemplars, &j->params, &cons, &r,
-                              tm ? &maps : NULL);
-        if (tm) {
-            tm->n_patches = maps.n_patches;
-            tm->sec[0] = maps.seconds_prepare;
-            tm->sec[1] = maps.seconds_match;
-            tm->sec[2] = maps.seconds_cut;
-            tm->sec[3] = maps.seconds_poisson;
-        }
+    if (tm) {
+        memset(&maps, 0, sizeof maps);
+        maps.source_exemplar = tm->se;
+        maps.source_x = tm->sx;
+        maps.source_y = tm->sy;
+        maps.order = tm->order;
+        maps.seams = tm->seams;
+    }
+    ts_ctx_set_seed(ctx, tile_seed(ts_ctx_seed(j->parent), ti, tj));
+    /* (maps.n_patches 0: each placement's random stream is as without maps) */
+    st = ts_synth_patches(ctx, j->exemplars, j->n_exemplars, &j->params, &cons, &r,
+                          tm ? &maps : NULL);
+    if (tm) {
+        tm->n_patches = maps.n_patches;
+        tm->sec[0] = maps.seconds_prepare;
+        tm->sec[1] = maps.seconds_match;
+        tm->sec[2] = maps.seconds_cut;
+        tm->sec[3] = maps.seconds_poisson;
     }
     free(flags);
-    free(cell_ex);
-    free(heights);
+    window_cons_free(&w);
     return st;
 }
 
