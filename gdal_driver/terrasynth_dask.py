@@ -320,9 +320,14 @@ def main(argv=None):
         # a COG follows: the chunks go uncompressed into the intermediate (compressing them
         # twice cost the client CPU the workers need), the COG compresses on every core
         cog = not a.no_overviews and gdal.GetDriverByName("COG") is not None
+        # DEFLATE after the predictor (floating point: 3, integers: 2): on a 8192^2 synth
+        # output 18 % smaller than DEFLATE alone for the same CPU time (190 vs 233 MB)
+        floating = dtype in (gdal.GDT_Float32, gdal.GDT_Float64)
+        compress = (["COMPRESS=NONE"] if cog else
+                    ["COMPRESS=DEFLATE", "PREDICTOR=%d" % (3 if floating else 2)])
         dst = drv.Create(tmp, W, H, 1, dtype,
-                         ["TILED=YES", "BLOCKXSIZE=256", "BLOCKYSIZE=256",
-                          "COMPRESS=NONE" if cog else "COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER"])
+                         ["TILED=YES", "BLOCKXSIZE=256", "BLOCKYSIZE=256", "BIGTIFF=IF_SAFER"]
+                         + compress)
         dst.SetGeoTransform(gt)
         if wkt:
             dst.SetProjection(wkt)
@@ -398,7 +403,8 @@ def main(argv=None):
             if cog:
                 dst = None
                 gdal.Translate(tmps[1], tmp, format="COG",
-                               creationOptions=["COMPRESS=DEFLATE", "BIGTIFF=IF_SAFER",
+                               creationOptions=["COMPRESS=DEFLATE", "PREDICTOR=YES",
+                                                "BIGTIFF=IF_SAFER",
                                                 "OVERVIEW_RESAMPLING=AVERAGE",
                                                 "NUM_THREADS=ALL_CPUS"])
                 final = tmps[1]

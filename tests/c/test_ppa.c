@@ -357,6 +357,29 @@ static void test_noise_forest_and_threads(void)
     ts_features_free(f1);
     ts_features_free(f2);
     ts_raster_free(&dem);
+    /* tall enough for strips of rows (64 at least, one per thread): 1 thread against 5
+     * and 8 (strips contracted and joined), both kinds */
+    ts_raster_alloc(ctx, 120, 700, &dem);
+    for (y = 0; y < 700; y++)
+        for (x = 0; x < 120; x++)
+            TS_PIX(&dem, x, y) = (float)(100.0 * th_uniform(&s) + 40.0 * sin(x / 11.0) * cos(y / 13.0));
+    ts_ctx_set_threads(ctx, 1);
+    f1 = f2 = NULL;
+    CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f1) == TS_OK);
+    for (x = 5; x <= 8; x += 3) {
+        ts_ctx_set_threads(ctx, x);
+        CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f2) == TS_OK);
+        if (f1 && f2) {
+            CHECK_MSG(memcmp(f1->mask, f2->mask, 120 * 700) == 0, "%d threads", x);
+            CHECK(f1->n_paths == f2->n_paths && f1->n_verts == f2->n_verts);
+        }
+        ts_features_free(f2);
+        f2 = NULL;
+    }
+    if (f1)
+        check_forest(f1);
+    ts_features_free(f1);
+    ts_raster_free(&dem);
     ts_ctx_free(ctx);
 }
 
@@ -574,6 +597,21 @@ static void test_kruskal_equals_naive(void)
             for (i = 0; i < (size_t)w * h; i++)
                 bad += want[i] != got[i];
             CHECK_MSG(bad == 0, "trial %d: the lean forest differs at %d cells", trial, bad);
+            {
+                /* in strips of rows, each strip's forest contracted, then joined: any
+                 * number of strips, down to one row each, gives the naive forest */
+                int strips[4] = {2, 3, h / 2, h}, si;
+                for (si = 0; si < 4; si++) {
+                    memset(got, 0, (size_t)w * h);
+                    bad = 0;
+                    CHECK(ppa_spanning_forest_strips(ctx, &dem, targets, kind, got,
+                                                     strips[si]) == TS_OK);
+                    for (i = 0; i < (size_t)w * h; i++)
+                        bad += want[i] != got[i];
+                    CHECK_MSG(bad == 0, "trial %d, %d strips: the forest differs at %d cells",
+                              trial, strips[si], bad);
+                }
+            }
             free(want);
             free(got);
         }

@@ -42,10 +42,10 @@ TS_API ts_status ts_features_codes(ts_ctx *ctx, const ts_features *f, const ts_r
     return TS_OK;
 }
 
-/* Steps 2-4 for one kind, into f. */
+/* Steps 2-4 for one kind, into f; share: the kinds running side by side. */
 static ts_status ppa_one_kind(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *m,
                               const unsigned char *targets, int kind, double min_length,
-                              ts_features *f)
+                              ts_features *f, int share)
 {
     size_t n = (size_t)dem->width * (size_t)dem->height, i, n_segs = 0;
     ts_ppa_segment *segs = NULL;
@@ -58,7 +58,11 @@ static ts_status ppa_one_kind(ts_ctx *ctx, const ts_raster *dem, const ts_grid_m
         if (!adj)
             return ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory");
         sv = ts__progress_push(ctx, 0.0, 0.7);
-        st = ppa_spanning_forest(ctx, dem, targets, kind, adj);
+        /* strips of 64 rows at least, one per thread (half each when
+         * ridges and valleys run side by side) */
+        st = ppa_spanning_forest_strips(
+            ctx, dem, targets, kind, adj,
+            TS_MAX(1, ts__thread_count(ctx, (size_t)dem->height / 64) / share));
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto done;
@@ -126,7 +130,7 @@ typedef struct valley_job {
 static void *valley_run(void *p)
 {
     valley_job *j = p;
-    j->status = ppa_one_kind(j->ctx, j->dem, j->m, j->targets, TS_VALLEY, j->min_length, j->f);
+    j->status = ppa_one_kind(j->ctx, j->dem, j->m, j->targets, TS_VALLEY, j->min_length, j->f, 2);
     return NULL;
 }
 
@@ -194,9 +198,9 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem, const ts_g
     if (pthread_create(&tid, NULL, valley_run, &job) != 0) {
         /* no thread: do it in sequence */
         valley_run(&job);
-        st = ppa_one_kind(ctx, dem, m, targets, TS_RIDGE, min_length, f);
+        st = ppa_one_kind(ctx, dem, m, targets, TS_RIDGE, min_length, f, 2);
     } else {
-        st = ppa_one_kind(ctx, dem, m, targets, TS_RIDGE, min_length, f);
+        st = ppa_one_kind(ctx, dem, m, targets, TS_RIDGE, min_length, f, 2);
         if (st != TS_OK)
             ts__cancel(ctx); /* the valleys need not finish */
         pthread_join(tid, NULL);
@@ -293,7 +297,7 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
         sv = kinds == (TS_RIDGE | TS_VALLEY)
                  ? ts__progress_push(ctx, k == TS_RIDGE ? 0.3 : 0.65, k == TS_RIDGE ? 0.65 : 1.0)
                  : ts__progress_push(ctx, 0.3, 1.0);
-        st = ppa_one_kind(ctx, dem, metrics, targets, k, min_length, f);
+        st = ppa_one_kind(ctx, dem, metrics, targets, k, min_length, f, 1);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto fail;

@@ -10,7 +10,9 @@
  * junction whose arms are all branches, the two longest stay (they then
  * form one path, judged as a whole in the next pass).  Isolated paths
  * shorter than the minimum and isolated cells go.
- * Cost: O(cells) per pass; a handful of passes in practice.
+ * Cost: O(cells) per pass; a handful of passes in practice.  Each pass
+ * walks its branches side by side (the walks only read) and groups them by
+ * junction with a radix sort, so the result never depends on the threads.
  */
 #include <stdlib.h>
 #include <string.h>
@@ -19,9 +21,9 @@
 
 typedef struct branch {
     uint32_t start;    /* the endpoint */
-    uint32_t junction; /* first cell of degree != 2, or UINT32_MAX for an isolated path */
+    uint32_t junction; /* first cell of degree != 2 (the other end of an isolated path) */
     int64_t length;    /* fixed point: ppa_length_q */
-    int remove;
+    int remove;        /* after the walk: -1 no branch, 1 an isolated path, 0 a branch */
 } branch;
 
 /* Walk from endpoint `start` until a cell of degree != 2.  Returns the last
@@ -68,14 +70,66 @@ static void branch_remove(unsigned char *adj, int w, uint32_t start, uint32_t st
     }
 }
 
-static int branch_cmp_junction(const void *pa, const void *pb)
+/* (junction, longest first, then start): a total order */
+static int branch_before(const branch *a, const branch *b)
 {
-    const branch *a = pa, *b = pb;
     if (a->junction != b->junction)
-        return a->junction < b->junction ? -1 : 1;
+        return a->junction < b->junction;
     if (a->length != b->length)
-        return a->length > b->length ? -1 : 1; /* longest first */
-    return a->start < b->start ? -1 : (a->start > b->start);
+        return a->length > b->length;
+    return a->start < b->start;
+}
+
+/* br sorted by branch_before: a stable radix sort on the junction, then
+ * each junction's few branches (at most 8) by insertion. */
+static void branch_sort(branch *br, branch *tmp, size_t n)
+{
+    size_t i, j;
+    int pass;
+    for (pass = 0; pass < 4 && n; pass++) {
+        size_t count[257] = {0};
+        int shift = pass * 8, b;
+        for (i = 0; i < n; i++)
+            count[((br[i].junction >> shift) & 0xffu) + 1]++;
+        if (count[((br[0].junction >> shift) & 0xffu) + 1] == n)
+            continue;
+        for (b = 0; b < 256; b++)
+            count[b + 1] += count[b];
+        for (i = 0; i < n; i++)
+            tmp[count[(br[i].junction >> shift) & 0xffu]++] = br[i];
+        memcpy(br, tmp, n * sizeof *br);
+    }
+    for (i = 1; i < n; i++)
+        for (j = i; j > 0 && br[j].junction == br[j - 1].junction && branch_before(&br[j], &br[j - 1]);
+             j--) {
+            branch t = br[j];
+            br[j] = br[j - 1];
+            br[j - 1] = t;
+        }
+}
+
+typedef struct walk_job {
+    const unsigned char *adj;
+    int w;
+    const uint32_t *ends;
+    const ts_grid_metrics *m;
+    branch *br; /* one per end */
+} walk_job;
+
+/* Walk the branch of each end (reads adj only). */
+static void branch_walks(void *arg, size_t begin, size_t end)
+{
+    walk_job *j = arg;
+    size_t i;
+    for (i = begin; i < end; i++) {
+        branch *b = &j->br[i];
+        b->start = j->ends[i];
+        b->remove = -1;
+        if (ppa_degree(j->adj[b->start]) != 1)
+            continue;
+        b->junction = branch_walk(j->adj, j->w, b->start, j->m, &b->length);
+        b->remove = ppa_degree(j->adj[b->junction]) == 1;
+    }
 }
 
 static int branch_cmp_u32(const void *pa, const void *pb)
@@ -103,7 +157,7 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
 {
     size_t n = (size_t)w * (size_t)h, i, cap = 0, nb, n_ends = 0, cap_ends = 0, n_next,
            cap_next = 0;
-    branch *br = NULL;
+    branch *br = NULL, *btmp = NULL;
     uint32_t *ends = NULL, *next = NULL;
     int changed = 1, pass = 0;
     int64_t min_q = ppa_length_q(min_length);
@@ -113,45 +167,51 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
         if (ppa_degree(adj[i]) == 1 && branch_push(&ends, &n_ends, &cap_ends, (uint32_t)i))
             goto nomem;
     while (changed) {
+        walk_job wj;
         changed = 0;
         nb = 0;
         n_next = 0;
-        for (i = 0; i < n_ends; i++) {
-            int64_t len;
-            uint32_t end, start = ends[i];
-            if (ppa_degree(adj[start]) != 1)
-                continue;
-            end = branch_walk(adj, w, start, m, &len);
-            if (ppa_degree(adj[end]) == 1) {
-                /* isolated path: handle once, from its lower end */
-                if (end < start)
-                    continue;
-                if (len < min_q) {
-                    branch_remove(adj, w, start, end);
-                    adj[end] = 0;
-                    changed = 1;
-                } else if (branch_push(&next, &n_next, &cap_next, start) ||
-                           branch_push(&next, &n_next, &cap_next, end)) {
-                    goto nomem;
-                }
-                continue;
-            }
-            if (nb == cap) {
-                size_t ncap = cap ? cap * 2 : 1024;
-                branch *nbr = realloc(br, ncap * sizeof *br);
-                if (!nbr)
-                    goto nomem;
-                br = nbr;
-                cap = ncap;
-            }
-            br[nb].start = start;
-            br[nb].junction = end;
-            br[nb].length = len;
-            br[nb].remove = 0;
-            nb++;
+        if (n_ends > cap) {
+            branch *nbr = realloc(br, n_ends * sizeof *br), *ntmp;
+            if (!nbr)
+                goto nomem;
+            br = nbr;
+            if (!(ntmp = realloc(btmp, n_ends * sizeof *btmp)))
+                goto nomem;
+            btmp = ntmp;
+            cap = n_ends;
         }
-        if (nb)
-            qsort(br, nb, sizeof *br, branch_cmp_junction);
+        wj.adj = adj;
+        wj.w = w;
+        wj.ends = ends;
+        wj.m = m;
+        wj.br = br;
+        ts__parallel_for(ctx, n_ends, branch_walks, &wj);
+        /* isolated paths (their own components: the walks above are not
+         * touched by removing them), each once, from its lower end; the
+         * branches kept in the order of their ends */
+        for (i = 0; i < n_ends; i++) {
+            uint32_t start = br[i].start, end = br[i].junction;
+            int64_t len = br[i].length;
+            if (br[i].remove < 0)
+                continue;
+            if (br[i].remove == 0) {
+                br[nb] = br[i];
+                nb++;
+                continue;
+            }
+            if (end < start)
+                continue;
+            if (len < min_q) {
+                branch_remove(adj, w, start, end);
+                adj[end] = 0;
+                changed = 1;
+            } else if (branch_push(&next, &n_next, &cap_next, start) ||
+                       branch_push(&next, &n_next, &cap_next, end)) {
+                goto nomem;
+            }
+        }
+        branch_sort(br, btmp, nb);
         for (i = 0; i < nb;) {
             size_t j = i, k, leaves;
             int degree, other;
@@ -206,12 +266,14 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
             goto out;
     }
 out:
+    free(btmp);
     free(br);
     free(ends);
     free(next);
     (void)h;
     return ctx->status;
 nomem:
+    free(btmp);
     free(br);
     free(ends);
     free(next);

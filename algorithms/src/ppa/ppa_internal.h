@@ -96,6 +96,12 @@ int ppa_segment_exists(const ts_raster *dem, const unsigned char *t, int kind, i
  * cells. */
 ts_status ppa_spanning_forest(ts_ctx *ctx, const ts_raster *dem, const unsigned char *targets,
                               int kind, unsigned char *adj);
+/* The same in n_strips strips of rows (1..height), side by side: the same
+ * forest on any number (ppa_spanning_forest takes one per thread, strips
+ * of 64 rows at least). */
+ts_status ppa_spanning_forest_strips(ts_ctx *ctx, const ts_raster *dem,
+                                     const unsigned char *targets, int kind, unsigned char *adj,
+                                     int n_strips);
 
 /* The drainage area of every valid cell, in cells (NaN on nodata): flow
  * routed by priority-flood (drainage_area.c).  0, or -1 when out of memory. */
