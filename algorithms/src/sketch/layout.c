@@ -1015,23 +1015,36 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         }
         if ((st = layout_descend(ctx, s, corr)) != TS_OK)
             goto done;
+        /* the change on the floor line, and its normalised blur at rr / 2
+         * (defined off the line too): the blur spreads across the valley,
+         * the rest (the floor's own cell-to-cell bumps, levelled) stays on
+         * the line, so the floor still descends cell by cell.  Spreading
+         * the change itself from each cell's nearest floor cell made
+         * stripes across the valley, one per step of the line's staircase
+         * (seen in hillshades of valley sketches, 2026-11-25) */
+        for (i = 0; i < n; i++)
+            corr[i] = isnan(work[i]) || isnan(corr[i]) ? NAN : corr[i] - work[i];
+        if ((st = lblur(ctx, &ws, corr, W, W, H, 0.5 * rr, guide)) != TS_OK)
+            goto done;
         for (y = 0; y < H; y++)
             for (x = 0; x < W; x++) {
-                double w, delta;
+                double w, wr = strength, delta, rest;
                 int32_t p;
                 i = (size_t)y * (size_t)W + (size_t)x;
                 p = nearest[i];
-                if (p < 0 || isnan(TS_PIX(out, x, y)) || isnan(work[p]) || isnan(corr[p]) ||
+                if (p < 0 || isnan(TS_PIX(out, x, y)) || isnan(guide[i]) ||
                     !(dist[i] < 3.0 * rr))
                     continue;
-                delta = (double)corr[p] - (double)work[p];
+                delta = guide[i];
+                rest = isnan(corr[i]) ? 0.0 : (double)corr[i] - delta;
                 w = strength * exp(-(dist[i] / rr) * (dist[i] / rr));
                 if (fixd) {
                     double t = fixd[i] / (2.0 * rr);
                     t = t > 1.0 ? 1.0 : t;
                     w *= t * t * (3.0 - 2.0 * t);
+                    wr *= t * t * (3.0 - 2.0 * t);
                 }
-                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * delta);
+                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * delta + wr * rest);
             }
     }
 done:
