@@ -1026,25 +1026,29 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
             corr[i] = isnan(work[i]) || isnan(corr[i]) ? NAN : corr[i] - work[i];
         if ((st = lblur(ctx, &ws, corr, W, W, H, 0.5 * rr, guide)) != TS_OK)
             goto done;
+        /* the fall-off across the valley from the distance blurred at 2
+         * cells: the distance to a staircase of cells ripples along it (a
+         * third of a cell, once a step), and a floor moved by tens of
+         * metres drew those ripples as a ladder across the valley */
+        if ((st = lblur(ctx, &ws, dist, W, W, H, 2.0, d01)) != TS_OK)
+            goto done;
         for (y = 0; y < H; y++)
             for (x = 0; x < W; x++) {
-                double w, wr = strength, delta, rest;
-                int32_t p;
+                double w;
                 i = (size_t)y * (size_t)W + (size_t)x;
-                p = nearest[i];
-                if (p < 0 || isnan(TS_PIX(out, x, y)) || isnan(guide[i]) ||
+                if (nearest[i] < 0 || isnan(TS_PIX(out, x, y)) || isnan(guide[i]) ||
                     !(dist[i] < 3.0 * rr))
                     continue;
-                delta = guide[i];
-                rest = isnan(corr[i]) ? 0.0 : (double)corr[i] - delta;
-                w = strength * exp(-(dist[i] / rr) * (dist[i] / rr));
+                /* on the floor line its own change (the floor descends cell
+                 * by cell), beside it the smooth part fading out */
+                w = isnan(corr[i]) ? strength * exp(-(d01[i] / rr) * (d01[i] / rr)) : strength;
                 if (fixd) {
                     double t = fixd[i] / (2.0 * rr);
                     t = t > 1.0 ? 1.0 : t;
                     w *= t * t * (3.0 - 2.0 * t);
-                    wr *= t * t * (3.0 - 2.0 * t);
                 }
-                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * delta + wr * rest);
+                TS_PIX(out, x, y) =
+                    (float)(TS_PIX(out, x, y) + w * (isnan(corr[i]) ? guide[i] : corr[i]));
             }
     }
 done:
