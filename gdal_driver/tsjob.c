@@ -2050,7 +2050,19 @@ int tsjob_pixel_setup(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *r
             tsio_raster_free(&g);
             goto done;
         }
-        st = ts_pixel_guide_prepare(ctx, &g.r, res->stacks, &res->guide);
+        if (job->params.guide_heights == TS_GUIDE_AS_GIVEN && !res->warning.msg[0]) {
+            /* a guide in other units (a grey-level sketch) is all but ignored: say so */
+            double er[2], gr[2];
+            if (ts_pixel_guide_ranges(&g.r, res->stacks, er, gr) == 0 &&
+                (gr[1] < er[0] || gr[0] > er[1] ||
+                 gr[1] - gr[0] < 0.1 * (er[1] - er[0])))
+                tsio_errf(&res->warning, job->guide,
+                          "its values (%.4g..%.4g, 1st..99th percentiles) are not on the "
+                          "exemplars' heights (%.4g..%.4g): if it is a drawing, give "
+                          "--guide-heights stretch",
+                          gr[0], gr[1], er[0], er[1]);
+        }
+        st = ts_pixel_guide_prepare(ctx, &g.r, res->stacks, &job->params, &res->guide);
         tsio_raster_free(&g);
         if (st != TS_OK) {
             tsio_errf(err, job->guide, "%s", ts_ctx_message(ctx));

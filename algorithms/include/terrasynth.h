@@ -863,6 +863,9 @@ typedef struct ts_pixel_params {
     int window;    /* k: neighbourhoods of k x k cells (odd; 0: chosen from the exemplars) */
     double jitter; /* jitter of the upsampled coordinates, in the level's spacings */
     double guide_weight; /* weight of the guide in the corrections' target, 0..1 */
+    int guide_heights;   /* TS_GUIDE_AS_GIVEN: the guide is in the exemplars' units;
+                            TS_GUIDE_STRETCH: mapped linearly so that its 1st..99th
+                            percentiles span the exemplars' (a drawing in grey levels) */
     int rotations;       /* 0: the exemplars as given; 4: also turned by 90, 180, 270 degrees;
                             8: and mirrored */
     int coherence;       /* K of the k-coherence similarity sets: candidates also the K - 1
@@ -874,6 +877,8 @@ typedef struct ts_pixel_params {
     int n_jitter_levels;
     double jitter_levels[10];
 } ts_pixel_params;
+
+enum { TS_GUIDE_AS_GIVEN = 0, TS_GUIDE_STRETCH = 1 };
 
 TS_API ts_pixel_params ts_pixel_params_default(void);
 
@@ -913,7 +918,12 @@ typedef struct ts_pixel_sources {
  *  levels (NaN = no guidance there). */
 typedef struct ts_pixel_guide ts_pixel_guide;
 TS_API ts_status ts_pixel_guide_prepare(ts_ctx *ctx, const ts_raster *guide,
-                                        const ts_pixel_exemplars *ex, ts_pixel_guide **out);
+                                        const ts_pixel_exemplars *ex,
+                                        const ts_pixel_params *params, ts_pixel_guide **out);
+/** The 1st and 99th percentiles of the exemplars' heights (finest level, nodata left out),
+ *  and the guide's (the guide as given); 0, or -1 when either has no value. */
+TS_API int ts_pixel_guide_ranges(const ts_raster *guide, const ts_pixel_exemplars *ex,
+                                 double ex_range[2], double guide_range[2]);
 TS_API void ts_pixel_guide_free(ts_pixel_guide *g);
 
 /**

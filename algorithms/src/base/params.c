@@ -183,6 +183,12 @@ static const ts_param_desc pixel_desc[] = {
      "Weight of the guide in the corrections' target neighbourhoods (with a guide): 0 ignores "
      "it, 1 matches the guide's heights alone.",
      offsetof(ts_pixel_params, guide_weight)},
+    {"guide_heights", TS_PARAM_ENUM, TS_GUIDE_AS_GIVEN, 0, 1, TS_UNIT_CELLS, "",
+     "as-given|stretch",
+     "How the guide's values are read: as heights in the exemplars' units (as-given), or "
+     "mapped linearly so that their 1st..99th percentiles span the exemplars' (stretch: a "
+     "sketch drawn in grey levels, a DEM of another relief).",
+     offsetof(ts_pixel_params, guide_heights)},
     {"rotations", TS_PARAM_INT, 4, 0, 8, TS_UNIT_CELLS, "", NULL,
      "Candidates turned and mirrored (Cruz et al.): 0 the exemplars as given, 4 also turned "
      "by 90, 180 and 270 degrees, 8 those and their mirror images.",

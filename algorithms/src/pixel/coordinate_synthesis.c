@@ -38,6 +38,7 @@
 #include <string.h>
 
 #include "pixel.h"
+#include "relief_guide.h"
 
 uint64_t ts__pix_hash(int64_t x, int64_t y, int level, int stream, uint64_t seed)
 {
@@ -463,6 +464,54 @@ static void stack_levels(void *arg, size_t begin, size_t end)
  * and at most four levels. */
 #define COARSE_WINDOW(k, sp) ((sp) >= 16 && (k) > 3 ? 3 : (k))
 
+/* Every level's nodata cells take the value of the nearest valid cell (once
+ * the usable cells, appearance vectors and similarity sets are made, which
+ * read valid cells only).  The output's bands are read up to a spacing and a
+ * half past a usable coordinate; a read that fell on nodata used to drop its
+ * corner from the blend, which jumped where the read crossed the nodata's
+ * edge: straight steps in outputs of exemplars with a nodata frame.  Filled,
+ * the band runs on continuously, as past the raster's edges (clamped). */
+static ts_status pix_fill_nodata(ts_ctx *ctx, ts_pixel_exemplars *ex)
+{
+    int i, l;
+    for (i = 0; i < ex->n_given; i++) {
+        pix_stack *s = &ex->stacks[i];
+        size_t n = (size_t)s->width * (size_t)s->height, c, holes = 0;
+        unsigned char *m;
+        float *dist;
+        int32_t *nearest;
+        for (c = 0; c < n; c++)
+            holes += isnan(s->level[ex->levels][c]);
+        if (!holes || holes == n)
+            continue;
+        m = ts__malloc_array(n, 1);
+        dist = ts__malloc_array(n, sizeof *dist);
+        nearest = ts__malloc_array(n, sizeof *nearest);
+        if (!m || !dist || !nearest) {
+            free(m);
+            free(dist);
+            free(nearest);
+            return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the stacks");
+        }
+        for (c = 0; c < n; c++)
+            m[c] = !isnan(s->level[ex->levels][c]);
+        if (ts__distance_transform_nearest(ctx, m, s->width, s->height, dist, nearest) != TS_OK) {
+            free(m);
+            free(dist);
+            free(nearest);
+            return ctx->status;
+        }
+        for (l = 0; l <= ex->levels; l++)
+            for (c = 0; c < n; c++)
+                if (!m[c] && nearest[c] >= 0)
+                    s->level[l][c] = s->level[l][nearest[c]];
+        free(m);
+        free(dist);
+        free(nearest);
+    }
+    return TS_OK;
+}
+
 TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
                                   const ts_pixel_params *params, ts_pixel_exemplars **out)
 {
@@ -592,6 +641,10 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
         ts_pixel_exemplars_free(ex);
         return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the similarity sets");
     }
+    if (pix_fill_nodata(ctx, ex) != TS_OK) {
+        ts_pixel_exemplars_free(ex);
+        return ctx->status;
+    }
     if (ts__progress(ctx, 1.0, "stacks") != TS_OK) {
         ts_pixel_exemplars_free(ex);
         return ctx->status;
@@ -625,18 +678,112 @@ TS_API int ts_pixel_window(const ts_pixel_exemplars *ex)
     return ex ? ex->window : 0;
 }
 
+static int pix_float_cmp(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* The 1st and 99th percentiles of the non-NaN values of up to n_src
+ * rasters (each w x h at its stride), from at most about 2^18 of their
+ * cells on a fixed lattice.  0, or -1 when there is no value. */
+static int pix_percentiles(const float *const *src, const int *w, const int *h,
+                           const ptrdiff_t *stride, int n_src, double range[2])
+{
+    size_t total = 0, n = 0, k, step;
+    float *v;
+    int i, x, y;
+    for (i = 0; i < n_src; i++)
+        total += (size_t)w[i] * (size_t)h[i];
+    step = 1;
+    while (total / (step * step) > ((size_t)1 << 18))
+        step++;
+    v = ts__malloc_array(total / (step * step) + (size_t)n_src * 4096 + 1, sizeof *v);
+    if (!v)
+        return -1;
+    for (i = 0; i < n_src; i++)
+        for (y = 0; y < h[i]; y += (int)step)
+            for (x = 0; x < w[i]; x += (int)step) {
+                float z = src[i][(ptrdiff_t)y * stride[i] + x];
+                if (!isnan(z))
+                    v[n++] = z;
+            }
+    if (!n) {
+        free(v);
+        return -1;
+    }
+    qsort(v, n, sizeof *v, pix_float_cmp);
+    k = (size_t)(0.01 * (double)(n - 1) + 0.5);
+    range[0] = v[k];
+    range[1] = v[n - 1 - k];
+    free(v);
+    return 0;
+}
+
+TS_API int ts_pixel_guide_ranges(const ts_raster *guide, const ts_pixel_exemplars *ex,
+                                 double ex_range[2], double guide_range[2])
+{
+    const float *src[64];
+    int w[64], h[64], i, n;
+    ptrdiff_t st[64];
+    if (!guide || !guide->data || !ex)
+        return -1;
+    n = TS_MIN(ex->n_given, 64);
+    {
+        /* the exemplars' usable cells at the finest level (their nodata is filled) */
+        size_t total = 0, k = 0, j;
+        float *v;
+        int rc;
+        for (i = 0; i < n; i++)
+            total += ex->stacks[i].n_usable[ex->levels];
+        if (!(v = ts__malloc_array(total ? total : 1, sizeof *v)))
+            return -1;
+        for (i = 0; i < n; i++)
+            for (j = 0; j < ex->stacks[i].n_usable[ex->levels]; j++)
+                v[k++] = ex->stacks[i].level[ex->levels][ex->stacks[i].usable_list[ex->levels][j]];
+        src[0] = v;
+        w[0] = (int)TS_MIN(total, (size_t)INT32_MAX);
+        h[0] = 1;
+        st[0] = w[0];
+        rc = total ? pix_percentiles(src, w, h, st, 1, ex_range) : -1;
+        free(v);
+        if (rc != 0)
+            return -1;
+    }
+    src[0] = guide->data;
+    w[0] = guide->width;
+    h[0] = guide->height;
+    st[0] = guide->stride;
+    return pix_percentiles(src, w, h, st, 1, guide_range);
+}
+
 TS_API ts_status ts_pixel_guide_prepare(ts_ctx *ctx, const ts_raster *guide,
-                                        const ts_pixel_exemplars *ex, ts_pixel_guide **out)
+                                        const ts_pixel_exemplars *ex,
+                                        const ts_pixel_params *params, ts_pixel_guide **out)
 {
     ts_pixel_guide *g;
     float *base;
     int l, y, L;
+    double scale = 1.0, shift = 0.0;
     ts__clear(ctx);
     if (!out)
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "no output given");
     *out = NULL;
     if (!guide || !guide->data || !ex)
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "missing guide or exemplars");
+    if (params && params->guide_heights == TS_GUIDE_STRETCH) {
+        /* the guide's 1st..99th percentiles onto the exemplars' */
+        double er[2], gr[2];
+        if (ts_pixel_guide_ranges(guide, ex, er, gr) != 0)
+            return ts__fail(ctx, TS_ERR_ARG, "pixel", "the guide or the exemplars have no value");
+        if (!(gr[1] > gr[0]))
+            return ts__fail(ctx, TS_ERR_ARG, "pixel",
+                            "the guide is flat (%g at its 1st and 99th percentiles): nothing "
+                            "to stretch",
+                            gr[0]);
+        scale = (er[1] - er[0]) / (gr[1] - gr[0]);
+        shift = er[0] - scale * gr[0];
+    }
     L = ex->levels;
     g = calloc(1, sizeof *g);
     base = ts__malloc_array((size_t)guide->width * (size_t)guide->height, sizeof *base);
@@ -648,9 +795,14 @@ TS_API ts_status ts_pixel_guide_prepare(ts_ctx *ctx, const ts_raster *guide,
     g->width = guide->width;
     g->height = guide->height;
     g->levels = L;
-    for (y = 0; y < guide->height; y++)
-        memcpy(base + (size_t)y * guide->width, &TS_PIX(guide, 0, y),
-               (size_t)guide->width * sizeof *base);
+    for (y = 0; y < guide->height; y++) {
+        float *row = base + (size_t)y * guide->width;
+        int x;
+        memcpy(row, &TS_PIX(guide, 0, y), (size_t)guide->width * sizeof *base);
+        if (scale != 1.0 || shift != 0.0)
+            for (x = 0; x < guide->width; x++)
+                row[x] = (float)(scale * row[x] + shift);
+    }
     for (l = 0; l <= L; l++) {
         g->level[l] = ts__malloc_array((size_t)g->width * (size_t)g->height, sizeof **g->level);
         if (!g->level[l] || ts__pix_blur(base, g->width, g->height,

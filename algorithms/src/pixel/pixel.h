@@ -60,7 +60,8 @@ typedef struct pix_coord {
 } pix_coord;
 
 /* Candidate e's level l and usable mask at its cell (u, v) (NaN and 0 past
- * its edges): the exemplar's stack read turned. */
+ * its edges): the exemplar's stack read turned (its nodata cells hold the
+ * nearest valid cell's value, and are never usable). */
 float ts__pix_candidate_height(const ts_pixel_exemplars *ex, int l, int e, int u, int v);
 int ts__pix_candidate_usable(const ts_pixel_exemplars *ex, int l, int e, int u, int v);
 
