@@ -74,6 +74,29 @@ static inline uint32_t ppa_weight_key(float w)
     return ~u;
 }
 
+/* Union-find with path halving and union by rank (the spanning forests'). */
+static inline uint32_t ppa_uf_find(uint32_t *parent, uint32_t v)
+{
+    while (parent[v] != v) {
+        parent[v] = parent[parent[v]];
+        v = parent[v];
+    }
+    return v;
+}
+
+/* Join the trees of roots ra != rb. */
+static inline void ppa_uf_union(uint32_t *parent, unsigned char *rank, uint32_t ra, uint32_t rb)
+{
+    if (rank[ra] < rank[rb]) {
+        uint32_t t = ra;
+        ra = rb;
+        rb = t;
+    }
+    parent[rb] = ra;
+    if (rank[ra] == rank[rb])
+        rank[ra]++;
+}
+
 /* Segment k (ppa_connect_step) from a cell is ppa_dir direction
  * ppa_dir_of_k[k]; the other way round, direction d (0..3) is segment
  * ppa_k_of_dir[d]. */

@@ -69,15 +69,6 @@ static ts_status polygon_sort(const ts_ppa_segment *segs, size_t n, uint32_t *or
     return TS_OK;
 }
 
-static uint32_t polygon_find(uint32_t *parent, uint32_t v)
-{
-    while (parent[v] != v) {
-        parent[v] = parent[parent[v]];
-        v = parent[v];
-    }
-    return v;
-}
-
 TS_API ts_status ts_ppa_polygon_breaking(ts_ctx *ctx, const ts_ppa_segment *segs, size_t n_segs,
                                          size_t n_cells, unsigned char *keep)
 {
@@ -111,7 +102,7 @@ TS_API ts_status ts_ppa_polygon_breaking(ts_ctx *ctx, const ts_ppa_segment *segs
     memset(keep, 0, n_segs);
     for (i = 0; i < n_segs; i++) {
         const ts_ppa_segment *s = &segs[order[i]];
-        uint32_t ra = polygon_find(parent, s->a), rb = polygon_find(parent, s->b);
+        uint32_t ra = ppa_uf_find(parent, s->a), rb = ppa_uf_find(parent, s->b);
         if (ra == rb)
             continue; /* would close a polygon: this is its least important segment */
         if (size[ra] < size[rb]) {
@@ -291,18 +282,11 @@ static int forest_kruskal(const ts_ctx *ctx, const uint64_t *items, size_t n, in
         int d = ppa_dir_of_k[idx & 3u];
         if ((i & 0xfffff) == 0xfffff && ts__cancelled(ctx))
             return 1;
-        ra = polygon_find(parent, a);
-        rb = polygon_find(parent, b);
+        ra = ppa_uf_find(parent, a);
+        rb = ppa_uf_find(parent, b);
         if (ra == rb)
             continue; /* would close a polygon */
-        if (rank[ra] < rank[rb]) {
-            uint32_t t = ra;
-            ra = rb;
-            rb = t;
-        }
-        parent[rb] = ra;
-        if (rank[ra] == rank[rb])
-            rank[ra]++;
+        ppa_uf_union(parent, rank, ra, rb);
         adj[a] |= (unsigned char)(1u << d);
         adj[b] |= (unsigned char)(1u << ((d + 4) & 7));
     }
@@ -573,7 +557,7 @@ static ts_status strip_forest(ts_ctx *ctx, forest_job *fj, int n_strips, uint64_
         rank[all[i].u] = rank[all[i].v] = 0;
     }
     for (i = 0; i < total; i++) {
-        uint32_t ra = polygon_find(parent, all[i].u), rb = polygon_find(parent, all[i].v);
+        uint32_t ra = ppa_uf_find(parent, all[i].u), rb = ppa_uf_find(parent, all[i].v);
         uint32_t idx = (uint32_t)all[i].item, a = idx >> 2, b = forest_item_b(all[i].item, w);
         int d = ppa_dir_of_k[idx & 3u];
         if (ra == rb) {
@@ -583,14 +567,7 @@ static ts_status strip_forest(ts_ctx *ctx, forest_job *fj, int n_strips, uint64_
             }
             continue;
         }
-        if (rank[ra] < rank[rb]) {
-            uint32_t t = ra;
-            ra = rb;
-            rb = t;
-        }
-        parent[rb] = ra;
-        if (rank[ra] == rank[rb])
-            rank[ra]++;
+        ppa_uf_union(parent, rank, ra, rb);
         if (all[i].cross) {
             adj[a] |= (unsigned char)(1u << d);
             adj[b] |= (unsigned char)(1u << ((d + 4) & 7));

@@ -379,15 +379,6 @@ static ts_status tile_contract(tiled *t, kind_state *ks)
     return TS_OK;
 }
 
-static uint32_t uf_find(uint32_t *parent, uint32_t v)
-{
-    while (parent[v] != v) {
-        parent[v] = parent[parent[v]];
-        v = parent[v];
-    }
-    return v;
-}
-
 /* Sorted distinct endpoints of n items read by get(i, 0/1). */
 static uint64_t *vertex_list(const void *items, size_t n, size_t size, size_t *n_out)
 {
@@ -424,8 +415,8 @@ static ts_status global_forest(tiled *t, kind_state *ks)
         qsort(ks->edges, ks->n_edges, sizeof *ks->edges, edge_cmp);
     for (i = 0; i < ks->n_edges; i++) {
         cut_edge e = ks->edges[i];
-        uint32_t ra = uf_find(parent, (uint32_t)u64_lower(verts, nv, e.u));
-        uint32_t rb = uf_find(parent, (uint32_t)u64_lower(verts, nv, e.v));
+        uint32_t ra = ppa_uf_find(parent, (uint32_t)u64_lower(verts, nv, e.u));
+        uint32_t rb = ppa_uf_find(parent, (uint32_t)u64_lower(verts, nv, e.v));
         if (ra == rb) {
             if (!e.border) {
                 if (grow((void **)&ks->dropped, &cap_drop, ks->n_dropped + 1, sizeof *ks->dropped))
@@ -434,14 +425,7 @@ static ts_status global_forest(tiled *t, kind_state *ks)
             }
             continue;
         }
-        if (rank[ra] < rank[rb]) {
-            uint32_t tmp = ra;
-            ra = rb;
-            rb = tmp;
-        }
-        parent[rb] = ra;
-        if (rank[ra] == rank[rb])
-            rank[ra]++;
+        ppa_uf_union(parent, rank, ra, rb);
         if (e.border)
             ks->edges[n_keep++] = e;
     }
