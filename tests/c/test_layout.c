@@ -248,6 +248,23 @@ static void make_exemplar(ts_raster *ex)
                                        20.0 * sin(0.7 * y + 0.3 * x));
 }
 
+/* The layout of one exemplar (with its profile) over a W x H sketch mask. */
+static ts_layout_spec layout_spec(const unsigned char *mask, int kind, int W, int H,
+                                  const ts_raster *ex, const ts_relief_profile *prof, int P)
+{
+    ts_layout_spec sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sketch_mask = mask;
+    sp.kind = kind;
+    sp.width = W;
+    sp.height = H;
+    sp.exemplars = ex;
+    sp.n_exemplars = 1;
+    sp.profs = prof;
+    sp.patch = P;
+    return sp;
+}
+
 /* ---- a valley floor made to descend leaves no stripes across the valley ----
  * A steep valley stroke is a staircase of cells (a jog every 4 rows); the floor,
  * bumpy along it, is made to descend.  Beside the floor line, along the valley, the
@@ -291,15 +308,7 @@ static void test_valley_no_stripes(void)
     ff.n_paths = 1;
     ff.verts = vv;
     ff.n_verts = (size_t)H;
-    memset(&sp, 0, sizeof sp);
-    sp.sketch_mask = mask;
-    sp.kind = TS_VALLEY;
-    sp.width = W;
-    sp.height = H;
-    sp.exemplars = &ex;
-    sp.n_exemplars = 1;
-    sp.profs = &prof;
-    sp.patch = P;
+    sp = layout_spec(mask, TS_VALLEY, W, H, &ex, &prof, P);
     sp.features = &ff;
     /* a smooth land, a bumpy floor line */
     for (y = 0; y < H; y++)
@@ -366,15 +375,7 @@ static void test_corrections(void)
     /* a ridge stroke across the middle row */
     for (x = 10; x < W - 10; x++)
         mask[60 * W + x] = TS_RIDGE;
-    memset(&sp, 0, sizeof sp);
-    sp.sketch_mask = mask;
-    sp.kind = TS_RIDGE;
-    sp.width = W;
-    sp.height = H;
-    sp.exemplars = &ex;
-    sp.n_exemplars = 1;
-    sp.profs = &prof;
-    sp.patch = P;
+    sp = layout_spec(mask, TS_RIDGE, W, H, &ex, &prof, P);
     /* a rough flat land */
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++)
