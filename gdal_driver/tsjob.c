@@ -527,7 +527,7 @@ static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
             goto fail;
         for (c = 0; c < n; c++)
             if (!isnan(tmp[c]) && tmp[c] != 0) {
-                wc->flags[c] |= TS_CELL_FIXED;
+                wc->flags[c] |= TS_CELL_FIXED | TS_CELL_WATER;
                 t->window
                     .data[(c / (size_t)win[2]) * (size_t)t->window.stride + c % (size_t)win[2]] =
                     (float)job->water_level;
@@ -545,8 +545,11 @@ static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
                 if (isnan(v))
                     continue;
                 TS_PIX(&t->window, x - win[0], y - win[1]) = v;
-                wc->flags[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])] |=
-                    TS_CELL_FIXED;
+                wc->flags[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])] =
+                    (unsigned char)((wc->flags[(size_t)(y - win[1]) * (size_t)win[2] +
+                                               (size_t)(x - win[0])] |
+                                     TS_CELL_FIXED) &
+                                    ~TS_CELL_WATER); /* a pin over water: land */
             }
     }
     if (job->heights) {
@@ -791,7 +794,7 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
                 float v = TS_PIX(&m.r, x, y);
                 if (!isnan(v) && v != 0) {
                     TS_PIX(&res->out, x, y) = (float)job->water_level;
-                    flags[(size_t)y * (size_t)W + (size_t)x] |= TS_CELL_FIXED;
+                    flags[(size_t)y * (size_t)W + (size_t)x] |= TS_CELL_FIXED | TS_CELL_WATER;
                 }
             }
         tsio_raster_free(&m);
@@ -808,7 +811,10 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
                 if (isnan(v))
                     continue; /* exemplar nodata: left to the synthesis */
                 TS_PIX(&res->out, p->x + x, p->y + y) = v;
-                flags[(size_t)(p->y + y) * (size_t)W + (size_t)(p->x + x)] |= TS_CELL_FIXED;
+                flags[(size_t)(p->y + y) * (size_t)W + (size_t)(p->x + x)] =
+                    (unsigned char)((flags[(size_t)(p->y + y) * (size_t)W + (size_t)(p->x + x)] |
+                                     TS_CELL_FIXED) &
+                                    ~TS_CELL_WATER); /* a pin over water: land */
             }
         tsio_raster_free(&ex);
     }

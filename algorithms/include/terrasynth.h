@@ -476,7 +476,13 @@ typedef struct ts_synth_maps {
 } ts_synth_maps;
 
 /** Bits of ts_synth_constraints.cell_flags. */
-enum { TS_CELL_NODATA = 1, TS_CELL_FIXED = 2 };
+enum {
+    TS_CELL_NODATA = 1,
+    TS_CELL_FIXED = 2,
+    /* with TS_CELL_FIXED: water; the land beside it ends at or above its value
+       (water_banks.c, a TerraSynth addition) */
+    TS_CELL_WATER = 8
+};
 
 /**
  * What the user asks of the output, beyond the exemplars' style: the same

@@ -18,7 +18,8 @@
  * 5. The non-feature fill around the fixed features, which may take
  *    windows with main features only near the sketch's strokes.
  * 6. The layout (layout.c, a TerraSynth addition): the large-scale relief
- *    rises to sketched ridges and falls to sketched valleys.
+ *    rises to sketched ridges and falls to sketched valleys; then the slope
+ *    style (slope_style.c) and the water banks (water_banks.c), ours too.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -77,7 +78,14 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
     f = ts__fill_make(params, constraints);
     if (f.s.usage < 0) /* automatic: on in free synthesis */
         f.s.usage = TS_SYNTH_USAGE_FREE;
-    return ts__fill_run(ctx, exemplars, n_exemplars, &f, out, maps);
+    if (ts__fill_run(ctx, exemplars, n_exemplars, &f, out, maps) != TS_OK)
+        return ctx->status;
+    {
+        int P, ov;
+        if (ts__synth_cells(ctx, params, &P, &ov) != TS_OK)
+            return ctx->status;
+        return ts__water_banks(ctx, out, constraints ? constraints->cell_flags : NULL, P);
+    }
 }
 
 /* ---- the sketch pipeline ------------------------------------------- */
@@ -390,6 +398,9 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
             st = ts__layout_press_range(ctx, exemplars, n_exemplars, out, r.user_flags, P);
         ts__progress_pop(ctx, sv2);
     }
+    /* 8. the land beside water at or above it (ours, water_banks.c) */
+    if (st == TS_OK && constraints)
+        st = ts__water_banks(ctx, out, constraints->cell_flags, P);
     times[4] = ts__now() - t0;
     if (info) {
         info->seconds_sketch_ppa = times[0];

@@ -245,6 +245,76 @@ static void test_keep_nodata_and_prefilled(void)
 
 /* The sketch pipeline takes the same constraints: flagged nodata stays
  * NaN, a flagged fixed block is kept to the bit, the rest is made. */
+/* Water: the land touching it ends at or above its level (water_banks.c).  The same
+ * run with the water flagged as plain fixed cells is the reference: the fill does not
+ * look at the water bit, so the banks alone make the difference, which is never
+ * negative, nil past a patch from the water, and lifts every shore cell to the level. */
+static void test_water_banks(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_exemplar(ctx, 160, 160, 21, 0), a, b;
+    ts_synth_params p = small_params();
+    ts_synth_constraints c = ts_synth_constraints_default();
+    int W = 180, H = 150, x, y, below_ref = 0, below = 0, far_changed = 0, lowered = 0;
+    unsigned char *fw = calloc((size_t)W * H, 1), *ff = calloc((size_t)W * H, 1);
+    float level = 0;
+    double sum = 0;
+    size_t n = 0;
+    for (y = 0; y < ex.height; y++)
+        for (x = 0; x < ex.width; x++, n++)
+            sum += TS_PIX(&ex, x, y);
+    level = (float)(sum / (double)n); /* the exemplar's mean: much land below it */
+    ts_raster_alloc(ctx, W, H, &a);
+    ts_raster_alloc(ctx, W, H, &b);
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            int water = (x - 90) * (x - 90) / 900.0 + (y - 75) * (y - 75) / 400.0 < 1.0;
+            size_t i = (size_t)y * W + (size_t)x;
+            TS_PIX(&a, x, y) = TS_PIX(&b, x, y) = water ? level : NAN;
+            fw[i] = water ? TS_CELL_FIXED | TS_CELL_WATER : 0;
+            ff[i] = water ? TS_CELL_FIXED : 0;
+        }
+    ts_ctx_set_seed(ctx, 5);
+    c.cell_flags = fw;
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &c, &a, NULL) == TS_OK);
+    c.cell_flags = ff;
+    CHECK(ts_synth_patches(ctx, &ex, 1, &p, &c, &b, NULL) == TS_OK);
+    for (y = 1; y + 1 < H; y++)
+        for (x = 1; x + 1 < W; x++) {
+            size_t i = (size_t)y * W + (size_t)x;
+            int dx, dy, shore = 0, near = 0;
+            if (fw[i])
+                continue;
+            for (dy = -32; dy <= 32 && !near; dy++)
+                for (dx = -32; dx <= 32; dx++) {
+                    int u = x + dx, v = y + dy;
+                    if (u >= 0 && v >= 0 && u < W && v < H && fw[(size_t)v * W + (size_t)u] &&
+                        dx * dx + dy * dy < 32 * 32) {
+                        near = 1;
+                        break;
+                    }
+                }
+            for (dy = -1; dy <= 1; dy++)
+                for (dx = -1; dx <= 1; dx++)
+                    shore |= fw[(size_t)(y + dy) * W + (size_t)(x + dx)] != 0;
+            below_ref += shore && TS_PIX(&b, x, y) < level;
+            below += shore && TS_PIX(&a, x, y) < level;
+            lowered += TS_PIX(&a, x, y) < TS_PIX(&b, x, y);
+            far_changed += !near && TS_PIX(&a, x, y) != TS_PIX(&b, x, y);
+        }
+    CHECK_MSG(below_ref > 0, "the reference has no shore below the water: the test shows nothing");
+    CHECK_MSG(below == 0, "%d shore cells below the water (%d without the banks)", below,
+              below_ref);
+    CHECK_MSG(lowered == 0 && far_changed == 0, "%d cells lowered, %d changed past a patch",
+              lowered, far_changed);
+    free(fw);
+    free(ff);
+    ts_raster_free(&ex);
+    ts_raster_free(&a);
+    ts_raster_free(&b);
+    ts_ctx_free(ctx);
+}
+
 static void test_sketch_keeps_constraints(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -767,6 +837,7 @@ int main(int argc, char **argv)
         {"deterministic_and_seeded", test_deterministic_and_seeded},
         {"usage", test_usage},
         {"keep_nodata_and_prefilled", test_keep_nodata_and_prefilled},
+        {"water_banks", test_water_banks},
         {"several_exemplars", test_several_exemplars},
         {"sketch_keeps_constraints", test_sketch_keeps_constraints},
         {"resolve_metres", test_resolve_metres},

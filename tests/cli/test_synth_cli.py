@@ -273,6 +273,12 @@ def test_pins_and_water_are_kept(tmp_path, tiled):
     assert np.array_equal(z[30:80, 100:170], e[100:150, 150:220])
     assert (z[150:190, 10:90] == 300).all()
     assert np.isfinite(z).all()
+    # the shore (every cell touching the water, 8 neighbours) at or above the water: the lake
+    # lies in its basin (before the banks stage, 2026-11-25, part of it hung over lower land)
+    ring = np.zeros_like(mask, bool)
+    ring[149:191, 9:91] = True
+    ring &= mask == 0
+    assert (z[ring] >= 300).all(), "%d shore cells below the water" % (z[ring] < 300).sum()
 
 
 @pytest.mark.parametrize("spec", ["x.tif:1,2,3@4,5", "x.tif:1,2,0,4@5,6", "nocolon@1,2", "x.tif:-1,0,5,5@0,0"])

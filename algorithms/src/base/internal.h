@@ -109,7 +109,7 @@ ts_status ts__synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int
 /* A cell flag of the fill only (beside TS_CELL_NODATA and TS_CELL_FIXED):
  * a window whose centre is such a cell may take exemplar windows with main
  * features (see ts__fill.exemplar_features). */
-#define TS__CELL_FEATURE 4
+#define TS__CELL_FEATURE 4 /* (TS_CELL_* take 1, 2 and 8) */
 
 /* Everything the non-feature fill (nonfeature_placement.c) and the
  * candidates' costs read: the caller's parameters and constraints, and
@@ -135,6 +135,9 @@ typedef struct ts__fill {
 /* The fill from the caller's parameters (lengths already in cells) and
  * constraints (may be NULL); nothing a sketch adds. */
 ts__fill ts__fill_make(const ts_synth_params *p, const ts_synth_constraints *c);
+/* The land within a patch of TS_CELL_WATER cells raised softly to banks at or
+ * above the water's level (water_banks.c); flags may be NULL. */
+ts_status ts__water_banks(ts_ctx *ctx, ts_raster *out, const unsigned char *flags, int patch);
 /* ts_synth_tiled with debug maps of the whole grid (maps may be NULL):
  * the same bytes as without; patch indices numbered wave by wave, tiles in
  * row-major order within a wave (tiled_synthesis.c). */

@@ -335,7 +335,7 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
                 flags[c] = TS_CELL_NODATA;
                 *v = NAN;
             } else if (wc->cell_flags[c] & TS_CELL_FIXED) {
-                flags[c] = TS_CELL_FIXED;
+                flags[c] = (unsigned char)(TS_CELL_FIXED | (wc->cell_flags[c] & TS_CELL_WATER));
                 *v = w.fixed[c];
             }
             if (tm && (wc->cell_flags[c] & (TS_CELL_FIXED | TS_CELL_NODATA)))
