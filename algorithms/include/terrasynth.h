@@ -491,7 +491,9 @@ enum {
  */
 typedef struct ts_synth_constraints {
     /* TS_CELL_NODATA cells stay NaN; TS_CELL_FIXED cells (filled in `out`
-     * on entry: pinned windows, water) never change */
+     * on entry: pinned windows, water) never change; those also flagged
+     * TS_CELL_WATER are water, and the free land touching them ends at or
+     * above their value */
     const unsigned char *cell_flags;
     /* Several styles in one terrain (Zhou et al. section 6.1): the index of
      * the exemplar each cell's region takes, or -1 for any.  A patch takes
