@@ -393,7 +393,8 @@ int main(int argc, char **argv)
                 double p = parallel_fraction(r1, rn, ncpu);
                 printf("  Amdahl on 16 threads: %.1f x from ridges alone (p = %.2f; goal >= 8 x; "
                        "still one thread: the last Kruskal over the strips' contracted paths, "
-                       "branch removal, the feature graph), %.1f x from both kinds\n",
+                       "branch removal, the initial scans and allocations), %.1f x from both "
+                       "kinds\n",
                        1.0 / ((1.0 - p) + p / 16.0), p,
                        1.0 / ((1.0 - parallel_fraction(t1, tn, ncpu)) +
                               parallel_fraction(t1, tn, ncpu) / 16.0));

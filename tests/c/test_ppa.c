@@ -370,8 +370,24 @@ static void test_noise_forest_and_threads(void)
         ts_ctx_set_threads(ctx, x);
         CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f2) == TS_OK);
         if (f1 && f2) {
+            size_t q;
+            int same = 1;
             CHECK_MSG(memcmp(f1->mask, f2->mask, 120 * 700) == 0, "%d threads", x);
-            CHECK(f1->n_paths == f2->n_paths && f1->n_verts == f2->n_verts);
+            CHECK(f1->n_paths == f2->n_paths && f1->n_verts == f2->n_verts &&
+                  f1->n_nodes == f2->n_nodes);
+            /* the graph too (made in strips of rows): the same nodes, paths, vertices */
+            for (q = 0; same && q < f1->n_nodes && q < f2->n_nodes; q++)
+                same = f1->nodes[q].x == f2->nodes[q].x && f1->nodes[q].y == f2->nodes[q].y &&
+                       f1->nodes[q].degree == f2->nodes[q].degree;
+            for (q = 0; same && q < f1->n_paths && q < f2->n_paths; q++)
+                same = f1->paths[q].node_a == f2->paths[q].node_a &&
+                       f1->paths[q].node_b == f2->paths[q].node_b &&
+                       f1->paths[q].first == f2->paths[q].first &&
+                       f1->paths[q].count == f2->paths[q].count &&
+                       f1->paths[q].length == f2->paths[q].length;
+            for (q = 0; same && q < f1->n_verts && q < f2->n_verts; q++)
+                same = f1->verts[q].x == f2->verts[q].x && f1->verts[q].y == f2->verts[q].y;
+            CHECK_MSG(same, "the feature graph differs on %d threads", x);
         }
         ts_features_free(f2);
         f2 = NULL;
