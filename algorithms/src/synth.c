@@ -398,7 +398,12 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
             st = ts__layout_press_range(ctx, exemplars, n_exemplars, out, r.user_flags, P);
         ts__progress_pop(ctx, sv2);
     }
-    /* 8. the land beside water at or above it (ours, water_banks.c) */
+    /* 8. the user's wanted heights, which the layout and the slope style do
+     * not know, kept at large scale (ours, layout.c) */
+    if (st == TS_OK && constraints && (sp->layout > 0 || sp->slope_style > 0))
+        st = ts__layout_keep_heights(ctx, out, constraints->heights, constraints->alpha_h,
+                                     r.user_flags, P);
+    /* 9. the land beside water at or above it (ours, water_banks.c) */
     if (st == TS_OK && constraints)
         st = ts__water_banks(ctx, out, constraints->cell_flags, P);
     times[4] = ts__now() - t0;

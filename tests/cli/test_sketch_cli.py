@@ -316,3 +316,29 @@ def test_region_polygons(tmp_path):
     p = run("synth", "--sketch", sketch, "--regions", JACKSBORO, "--region-exemplar", f"1={JACKSBORO}",
             tmp_path / "x.tif", "-q", check=False)
     assert p.returncode == 1 and "region map" in p.stderr
+
+
+def test_wanted_heights_with_a_sketch(tmp_path):
+    """--heights with a sketch: the layout and the slope style, which know nothing of them,
+    gave a block wanted at the exemplar's 95th percentile a mean near the land's median
+    (2026-11-25: the wanted heights were lost with a sketch, kept without one); now each
+    block's mean comes within a tenth of the exemplar's range of its wanted height."""
+    sk = gdal.Open(LAMBDA)
+    w, h = sk.RasterXSize, sk.RasterYSize
+    e = gdal.Open(JACKSBORO).ReadAsArray().astype(np.float64)
+    lo, hi = np.percentile(e, 5), np.percentile(e, 95)
+    want = np.full((h, w), np.nan, np.float32)
+    want[: h // 4, -w // 4:] = hi  # north-east corner high
+    want[-h // 4:, : w // 4] = lo  # south-west corner low
+    path = tmp_path / "heights.tif"
+    ds = gdal.GetDriverByName("GTiff").Create(str(path), w, h, 1, gdal.GDT_Float32)
+    ds.SetGeoTransform(sk.GetGeoTransform())
+    ds.SetProjection(sk.GetProjection())
+    ds.GetRasterBand(1).WriteArray(want)
+    ds = None
+    run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--heights", path, "--seed", "2",
+        tmp_path / "o.tif", "-q")
+    z = gdal.Open(str(tmp_path / "o.tif")).ReadAsArray().astype(np.float64)
+    for v in (hi, lo):
+        m = want == v
+        assert abs(z[m].mean() - v) <= 0.1 * (hi - lo), (v, z[m].mean(), lo, hi)

@@ -1069,3 +1069,47 @@ done:
     free(ws.m);
     return st;
 }
+
+ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heights,
+                                  double alpha_h, const unsigned char *flags, int patch)
+{
+    int W = out->width, H = out->height, x, y;
+    size_t n = (size_t)W * (size_t)H, i, any = 0;
+    double s = alpha_h < 1.0 ? alpha_h : 1.0;
+    float *r, *c;
+    ts_status st;
+    if (!heights || !(s > 0))
+        return TS_OK;
+    for (i = 0; i < n && !any; i++)
+        any = !isnan(heights[i]);
+    if (!any)
+        return TS_OK;
+    r = ts__malloc_array(n, sizeof *r);
+    c = ts__malloc_array(n, sizeof *c);
+    if (!r || !c) {
+        free(r);
+        free(c);
+        return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+    }
+    /* the residual where a height is wanted, 0 on the other land, NaN on nodata:
+     * the NaN-aware blur then averages over the land, wanted or not */
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            float z = TS_PIX(out, x, y);
+            i = (size_t)y * (size_t)W + (size_t)x;
+            r[i] = isnan(z) ? NAN : isnan(heights[i]) ? 0.0f : heights[i] - z;
+        }
+    st = ts__blur_nan(ctx, r, W, W, H, patch / 3.0, c);
+    if (st == TS_OK)
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                i = (size_t)y * (size_t)W + (size_t)x;
+                if ((flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) ||
+                    isnan(TS_PIX(out, x, y)) || isnan(c[i]))
+                    continue;
+                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + s * c[i]);
+            }
+    free(r);
+    free(c);
+    return st;
+}

@@ -61,4 +61,13 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *spec, ts_raster *o
 ts_status ts__layout_press_range(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
                                  ts_raster *out, const unsigned char *flags, int patch);
 
+/* The user's wanted heights kept at large scale after the layout and the
+ * slope style, which know nothing of them: out += min(1, alpha_h) x the
+ * blur at a third of `patch` of (wanted - out) on the cells that have a
+ * wanted height (0 elsewhere), so a region's local mean comes to its wanted
+ * height, the detail below that scale stays, and the change fades out
+ * across the region's edge; flags as above. */
+ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heights,
+                                  double alpha_h, const unsigned char *flags, int patch);
+
 #endif
