@@ -265,6 +265,25 @@ static ts_layout_spec layout_spec(const unsigned char *mask, int kind, int W, in
     return sp;
 }
 
+/* One valley path through the n cells vv[0..n) (its two ends the nodes nn[0], nn[1],
+ * taken from the cells): the feature graph the valley floor's descent walks. */
+static void one_valley_path(ts_features *ff, ts_feature_node nn[2], ts_feature_path *pp,
+                            ts_feature_vertex *vv, size_t n, int W, int H)
+{
+    nn[0] = (ts_feature_node){vv[0].x, vv[0].y, 0, 1, TS_VALLEY};
+    nn[1] = (ts_feature_node){vv[n - 1].x, vv[n - 1].y, 0, 1, TS_VALLEY};
+    pp[0] = (ts_feature_path){TS_VALLEY, 0, 1, 0, n, 0, 0, 0, 0};
+    memset(ff, 0, sizeof *ff);
+    ff->width = W;
+    ff->height = H;
+    ff->nodes = nn;
+    ff->n_nodes = 2;
+    ff->paths = pp;
+    ff->n_paths = 1;
+    ff->verts = vv;
+    ff->n_verts = n;
+}
+
 /* ---- a valley floor made to descend leaves no stripes across the valley ----
  * A steep valley stroke is a staircase of cells (a jog every 4 rows); the floor,
  * bumpy along it, is made to descend.  Beside the floor line, along the valley, the
@@ -297,17 +316,7 @@ static void test_valley_no_stripes(void)
         mask[(size_t)y * W + (size_t)ax] = TS_VALLEY;
         vv[y] = (ts_feature_vertex){ax, y, 0};
     }
-    nn[0] = (ts_feature_node){30, 0, 0, 1, TS_VALLEY};
-    nn[1] = (ts_feature_node){30 + (H - 1) / 4, H - 1, 0, 1, TS_VALLEY};
-    pp[0] = (ts_feature_path){TS_VALLEY, 0, 1, 0, (size_t)H, 0, 0, 0, 0};
-    ff.width = W;
-    ff.height = H;
-    ff.nodes = nn;
-    ff.n_nodes = 2;
-    ff.paths = pp;
-    ff.n_paths = 1;
-    ff.verts = vv;
-    ff.n_verts = (size_t)H;
+    one_valley_path(&ff, nn, pp, vv, (size_t)H, W, H);
     sp = layout_spec(mask, TS_VALLEY, W, H, &ex, &prof, P);
     sp.features = &ff;
     /* a smooth land, a bumpy floor line */
@@ -408,21 +417,12 @@ static void test_corrections(void)
     {
         /* the valley as a one-path graph, outlet on the west edge */
         static ts_feature_vertex vv[200];
-        static ts_feature_node nn[2] = {{0, 60, 0, 1, TS_VALLEY}, {0, 60, 0, 1, TS_VALLEY}};
+        static ts_feature_node nn[2];
         static ts_feature_path pp[1];
         static ts_features ff;
-        nn[1].x = W - 11;
         for (x = 0; x < W - 10; x++)
             vv[x] = (ts_feature_vertex){x, 60, 0};
-        pp[0] = (ts_feature_path){TS_VALLEY, 0, 1, 0, (size_t)(W - 10), 0, 0, 0, 0};
-        ff.width = W;
-        ff.height = H;
-        ff.nodes = nn;
-        ff.n_nodes = 2;
-        ff.paths = pp;
-        ff.n_paths = 1;
-        ff.verts = vv;
-        ff.n_verts = (size_t)(W - 10);
+        one_valley_path(&ff, nn, pp, vv, (size_t)(W - 10), W, H);
         sp.features = &ff;
     }
     sp.kind = TS_VALLEY;

@@ -234,6 +234,12 @@ void ts__parallel_for(const ts_ctx *ctx, size_t n, ts_range_fn fn, void *arg)
     ts__pool_for(ctx->pool, ts__thread_count(ctx, n), n, fn, arg);
 }
 
+int ts__float_cmp(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
 void *ts__malloc_array(size_t n, size_t size)
 {
     if (size && n > SIZE_MAX / size)

@@ -175,6 +175,8 @@ double ts__now(void);
 
 /* Overflow-checked allocation helpers (NULL on overflow or failure). */
 void *ts__malloc_array(size_t n, size_t size);
+/* qsort comparator of floats, ascending (no NaN given) */
+int ts__float_cmp(const void *a, const void *b);
 void *ts__calloc_array(size_t n, size_t size);
 
 #define TS_PI 3.14159265358979323846

@@ -29,12 +29,6 @@
 #include "internal.h"
 #include "relief_guide.h"
 
-static int float_cmp(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return x < y ? -1 : x > y;
-}
-
 /* The median |step| between 4-neighbours of free cells, from at most about
  * 2^16 cells on a fixed lattice. */
 static double median_step(const ts_raster *r, const unsigned char *flags)
@@ -60,7 +54,7 @@ static double median_step(const ts_raster *r, const unsigned char *flags)
         free(v);
         return 0.0;
     }
-    qsort(v, n, sizeof *v, float_cmp);
+    qsort(v, n, sizeof *v, ts__float_cmp);
     med = v[n / 2];
     free(v);
     return med;

@@ -678,83 +678,65 @@ TS_API int ts_pixel_window(const ts_pixel_exemplars *ex)
     return ex ? ex->window : 0;
 }
 
-static int pix_float_cmp(const void *a, const void *b)
+/* The lattice step that samples `total` values with at most about 2^18. */
+static size_t pix_step(size_t total)
 {
-    float x = *(const float *)a, y = *(const float *)b;
-    return x < y ? -1 : x > y;
-}
-
-/* The 1st and 99th percentiles of the non-NaN values of up to n_src
- * rasters (each w x h at its stride), from at most about 2^18 of their
- * cells on a fixed lattice.  0, or -1 when there is no value. */
-static int pix_percentiles(const float *const *src, const int *w, const int *h,
-                           const ptrdiff_t *stride, int n_src, double range[2])
-{
-    size_t total = 0, n = 0, k, step;
-    float *v;
-    int i, x, y;
-    for (i = 0; i < n_src; i++)
-        total += (size_t)w[i] * (size_t)h[i];
-    step = 1;
+    size_t step = 1;
     while (total / (step * step) > ((size_t)1 << 18))
         step++;
-    v = ts__malloc_array(total / (step * step) + (size_t)n_src * 4096 + 1, sizeof *v);
-    if (!v)
+    return step;
+}
+
+/* The 1st and 99th percentiles of v[0, n) (sorted in place). */
+static int pix_range(float *v, size_t n, double range[2])
+{
+    size_t k;
+    if (!n)
         return -1;
-    for (i = 0; i < n_src; i++)
-        for (y = 0; y < h[i]; y += (int)step)
-            for (x = 0; x < w[i]; x += (int)step) {
-                float z = src[i][(ptrdiff_t)y * stride[i] + x];
-                if (!isnan(z))
-                    v[n++] = z;
-            }
-    if (!n) {
-        free(v);
-        return -1;
-    }
-    qsort(v, n, sizeof *v, pix_float_cmp);
+    qsort(v, n, sizeof *v, ts__float_cmp);
     k = (size_t)(0.01 * (double)(n - 1) + 0.5);
     range[0] = v[k];
     range[1] = v[n - 1 - k];
-    free(v);
     return 0;
 }
 
 TS_API int ts_pixel_guide_ranges(const ts_raster *guide, const ts_pixel_exemplars *ex,
                                  double ex_range[2], double guide_range[2])
 {
-    const float *src[64];
-    int w[64], h[64], i, n;
-    ptrdiff_t st[64];
+    size_t total = 0, k = 0, j, step, n_max;
+    float *v;
+    int i, n, x, y, rc;
     if (!guide || !guide->data || !ex)
         return -1;
+    /* the exemplars' usable cells at the finest level (their nodata is filled), every
+     * step-th of their lists one after the other */
     n = TS_MIN(ex->n_given, 64);
-    {
-        /* the exemplars' usable cells at the finest level (their nodata is filled) */
-        size_t total = 0, k = 0, j;
-        float *v;
-        int rc;
-        for (i = 0; i < n; i++)
-            total += ex->stacks[i].n_usable[ex->levels];
-        if (!(v = ts__malloc_array(total ? total : 1, sizeof *v)))
-            return -1;
-        for (i = 0; i < n; i++)
-            for (j = 0; j < ex->stacks[i].n_usable[ex->levels]; j++)
-                v[k++] = ex->stacks[i].level[ex->levels][ex->stacks[i].usable_list[ex->levels][j]];
-        src[0] = v;
-        w[0] = (int)TS_MIN(total, (size_t)INT32_MAX);
-        h[0] = 1;
-        st[0] = w[0];
-        rc = total ? pix_percentiles(src, w, h, st, 1, ex_range) : -1;
-        free(v);
-        if (rc != 0)
-            return -1;
+    for (i = 0; i < n; i++)
+        total += ex->stacks[i].n_usable[ex->levels];
+    step = pix_step(total);
+    n_max = total / step + 1;
+    j = pix_step((size_t)guide->width * (size_t)guide->height); /* the guide's lattice */
+    n_max = TS_MAX(n_max, ((size_t)guide->width / j + 1) * ((size_t)guide->height / j + 1));
+    if (!(v = ts__malloc_array(n_max, sizeof *v)))
+        return -1;
+    for (i = 0, j = 0; i < n; i++) {
+        const pix_stack *st = &ex->stacks[i];
+        size_t q;
+        for (q = 0; q < st->n_usable[ex->levels]; q++, j++)
+            if (j % step == 0)
+                v[k++] = st->level[ex->levels][st->usable_list[ex->levels][q]];
     }
-    src[0] = guide->data;
-    w[0] = guide->width;
-    h[0] = guide->height;
-    st[0] = guide->stride;
-    return pix_percentiles(src, w, h, st, 1, guide_range);
+    rc = pix_range(v, k, ex_range);
+    /* the guide's values on a lattice */
+    step = pix_step((size_t)guide->width * (size_t)guide->height);
+    for (k = 0, y = 0; rc == 0 && y < guide->height; y += (int)step)
+        for (x = 0; x < guide->width; x += (int)step)
+            if (!isnan(TS_PIX(guide, x, y)))
+                v[k++] = TS_PIX(guide, x, y);
+    if (rc == 0)
+        rc = pix_range(v, k, guide_range);
+    free(v);
+    return rc;
 }
 
 TS_API ts_status ts_pixel_guide_prepare(ts_ctx *ctx, const ts_raster *guide,

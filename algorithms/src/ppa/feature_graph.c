@@ -51,13 +51,6 @@ typedef struct graph_job {
     graph_part *parts;
 } graph_job;
 
-static void part_rows(const graph_job *j, size_t k, int *y0, int *y1)
-{
-    int h = j->dem->height;
-    *y0 = (int)((int64_t)h * (int64_t)k / j->n_parts);
-    *y1 = (int)((int64_t)h * (int64_t)(k + 1) / j->n_parts);
-}
-
 /* The strips' nodes (indices local to the strip, made global later). */
 static void graph_nodes(void *arg, size_t begin, size_t end)
 {
@@ -67,7 +60,7 @@ static void graph_nodes(void *arg, size_t begin, size_t end)
     for (k = begin; k < end; k++) {
         graph_part *p = &j->parts[k];
         int y0, y1, x, y;
-        part_rows(j, k, &y0, &y1);
+        ppa_strip_rows(j->dem->height, k, j->n_parts, &y0, &y1);
         for (y = y0; y < y1; y++)
             for (x = 0; x < w; x++) {
                 size_t i = (size_t)y * (size_t)w + (size_t)x;
@@ -103,7 +96,7 @@ static void graph_number(void *arg, size_t begin, size_t end)
     for (k = begin; k < end; k++) {
         int y0, y1;
         size_t i, i0, i1;
-        part_rows(j, k, &y0, &y1);
+        ppa_strip_rows(j->dem->height, k, j->n_parts, &y0, &y1);
         i0 = (size_t)y0 * (size_t)w;
         i1 = (size_t)y1 * (size_t)w;
         for (i = i0; i < i1; i++)
@@ -124,7 +117,7 @@ static void graph_paths(void *arg, size_t begin, size_t end)
         graph_part *p = &j->parts[k];
         int y0, y1;
         size_t i, i0, i1;
-        part_rows(j, k, &y0, &y1);
+        ppa_strip_rows(j->dem->height, k, j->n_parts, &y0, &y1);
         i0 = (size_t)y0 * (size_t)w;
         i1 = (size_t)y1 * (size_t)w;
         for (i = i0; i < i1 && !p->failed; i++) {

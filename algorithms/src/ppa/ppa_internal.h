@@ -74,6 +74,13 @@ static inline uint32_t ppa_weight_key(float w)
     return ~u;
 }
 
+/* Rows [y0, y1) of strip k of n over h rows (strips side by side). */
+static inline void ppa_strip_rows(int h, size_t k, int n, int *y0, int *y1)
+{
+    *y0 = (int)((int64_t)h * (int64_t)k / n);
+    *y1 = (int)((int64_t)h * (int64_t)(k + 1) / n);
+}
+
 /* Union-find with path halving and union by rank (the spanning forests'). */
 static inline uint32_t ppa_uf_find(uint32_t *parent, uint32_t v)
 {

@@ -243,24 +243,30 @@ static void forest_fill(void *arg, size_t begin, size_t end)
 }
 
 /* Stable LSD radix sort of items[0, n) on their keys (the high 32 bits),
- * through tmp; the sorted items end in items. */
+ * through tmp (the two swap roles each pass); the sorted items end in items. */
 static void forest_sort(uint64_t *items, uint64_t *tmp, size_t n)
 {
+    uint64_t *src = items, *dst = tmp;
     int pass;
     size_t i;
     for (pass = 0; pass < 4 && n; pass++) {
         size_t count[257] = {0};
         int shift = 32 + pass * 8, b;
+        uint64_t *t;
         for (i = 0; i < n; i++)
-            count[((items[i] >> shift) & 0xffu) + 1]++;
-        if (count[((items[0] >> shift) & 0xffu) + 1] == n)
+            count[((src[i] >> shift) & 0xffu) + 1]++;
+        if (count[((src[0] >> shift) & 0xffu) + 1] == n)
             continue; /* one bucket: nothing moves */
         for (b = 0; b < 256; b++)
             count[b + 1] += count[b];
         for (i = 0; i < n; i++)
-            tmp[count[(items[i] >> shift) & 0xffu]++] = items[i];
-        memcpy(items, tmp, n * sizeof *items);
+            dst[count[(src[i] >> shift) & 0xffu]++] = src[i];
+        t = src;
+        src = dst;
+        dst = t;
     }
+    if (src != items)
+        memcpy(items, src, n * sizeof *items);
 }
 
 /* The cell at the other end of item's segment. */
@@ -315,13 +321,6 @@ typedef struct strip_job {
     int *strip_failed;
 } strip_job;
 
-static void strip_rows(const strip_job *s, int k, int *y0, int *y1)
-{
-    int h = s->fj->dem->height;
-    *y0 = (int)((int64_t)h * k / s->n_strips);
-    *y1 = (int)((int64_t)h * (k + 1) / s->n_strips);
-}
-
 /* The item of the segment from cell p in direction d (0..7). */
 static uint64_t strip_link_item(const forest_job *fj, uint32_t p, int d)
 {
@@ -359,7 +358,7 @@ static void strip_forests(void *arg, size_t begin, size_t end)
         strip_edge *e = NULL;
         size_t ne = 0;
         uint32_t c, c0, c1;
-        strip_rows(s, (int)k, &y0, &y1);
+        ppa_strip_rows(fj->dem->height, k, s->n_strips, &y0, &y1);
         lo = fj->row_count[y0];
         hi = fj->row_count[y1];
         items = fj->items + lo;

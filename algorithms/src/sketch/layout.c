@@ -633,12 +633,6 @@ static size_t layout_samples(int w, int h)
     return ((size_t)w / (size_t)st + 1) * ((size_t)h / (size_t)st + 1);
 }
 
-static int layout_float_cmp(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Quantiles 0.5 %, 1 %, ..., 99.5 % of the gradient magnitude (central
  * differences, cells with four valid neighbours) of a + lam * b (b may be
  * NULL), over at most about LAYOUT_SAMPLES cells on a regular lattice;
@@ -664,7 +658,7 @@ static int layout_gradient_quantiles(const float *a, const float *b, ptrdiff_t s
         }
     if (!n)
         return 0;
-    qsort(work, n, sizeof *work, layout_float_cmp);
+    qsort(work, n, sizeof *work, ts__float_cmp);
     for (k = 0; k < LAYOUT_QUANTILES; k++) {
         double pos = (0.5 + 0.5 * (double)k) / 100.0 * (double)(n - 1);
         size_t i0 = (size_t)pos;
@@ -687,7 +681,7 @@ static double layout_percentile(const ts_raster *r, double p, float *work)
                 work[n++] = TS_PIX(r, x, y);
     if (!n)
         return NAN;
-    qsort(work, n, sizeof *work, layout_float_cmp);
+    qsort(work, n, sizeof *work, ts__float_cmp);
     pos = p / 100.0 * (double)(n - 1);
     i0 = (size_t)pos;
     return i0 + 1 < n ? work[i0] + (pos - (double)i0) * (work[i0 + 1] - work[i0]) : work[n - 1];

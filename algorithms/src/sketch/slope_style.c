@@ -56,12 +56,6 @@
 #define CREASE_QUANTILE 0.9999 /* no crease sharper than the exemplars' sharpest 0.01 % */
 #define CREASE_PASSES 40
 
-static int slope_float_cmp(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* One component of the gradient at p along a step of `d` elements: the
  * central difference, or the one-sided one where the grid or the data end
  * on one side (NaN where they end on both). */
@@ -115,7 +109,7 @@ static size_t slope_quantiles(const float *a, ptrdiff_t stride, int w, int h, co
         }
     if (n < 16)
         return 0;
-    qsort(work, n, sizeof *work, slope_float_cmp);
+    qsort(work, n, sizeof *work, ts__float_cmp);
     for (k = 0; k < SLOPE_Q; k++) {
         double pos = (double)k / (SLOPE_Q - 1) * (double)(n - 1);
         size_t i0 = (size_t)pos;
@@ -190,7 +184,7 @@ static double crease_cap(const float *a, ptrdiff_t stride, int w, int h, float *
         }
     if (n < 1024)
         return NAN;
-    qsort(work, n, sizeof *work, slope_float_cmp);
+    qsort(work, n, sizeof *work, ts__float_cmp);
     pos = CREASE_QUANTILE * (double)(n - 1);
     i0 = (size_t)pos;
     return i0 + 1 < n ? work[i0] + (pos - (double)i0) * (work[i0 + 1] - work[i0]) : work[n - 1];
