@@ -135,9 +135,13 @@ int cli_ppa(int argc, char **argv)
         }
         for (k = 0; k < f->n_paths; k++)
             np[f->paths[k].kind]++;
-        printf("ppa: %zu ridge paths, %zu valley paths, %zu branch points, %zu endpoints "
-               "(threshold %.3g m)\n",
-               np[TS_RIDGE], np[TS_VALLEY], nb, ne, f->threshold_used);
+        printf("ppa: %zu ridge paths, %zu valley paths, %zu branch points, %zu endpoints ",
+               np[TS_RIDGE], np[TS_VALLEY], nb, ne);
+        if (job.params.features == TS_PPA_BOTH)
+            printf("(thresholds: ridges %.3g m, valleys %.3g m)\n", f->threshold_used,
+                   f->threshold_used_valleys);
+        else
+            printf("(threshold %.3g m)\n", f->threshold_used);
     }
     rc = 0;
 done:

@@ -34,6 +34,8 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
 #define JOB_MEM_PPA_TILE_CELL 48  /* per cell of a tile with its margin (tiled ppa) */
 #define JOB_MEM_PPA_STRIP 9  /* per cell of three tile rows: both forests, nodata (tiled ppa) */
 #define JOB_MEM_PPA_CHAINS 1 /* per DEM cell: the chains held (76 k at 4096^2: far less) */
+#define JOB_MEM_PPA_DRAINAGE 14 /* per DEM cell, tiled valleys with min_drainage: the whole DEM,
+                                   the areas, directions, order (then a bit a cell) */
 #define JOB_MEM_SYNTH_CELL 16     /* per output cell: terrain, flags, fill state */
 #define JOB_MEM_MAPS_CELL 20      /* per output cell with the synthesis maps */
 #define JOB_MEM_SKETCH_CELL 128   /* per output cell with a sketch: PPA, features, guides, the
@@ -64,10 +66,19 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
     res->tile_size = job->tile_size;
     if (res->tile_size > 0 && (res->tile_size < g.width || res->tile_size < g.height)) {
         uint64_t side = (uint64_t)res->tile_size + 2 * (uint64_t)job->params.profile_length;
-        y = tsio_check_memory(JOB_MEM_BASE + side * side * JOB_MEM_PPA_TILE_CELL +
-                                  (uint64_t)res->tile_size * (uint64_t)g.width * JOB_MEM_PPA_STRIP +
-                                  (uint64_t)g.width * (uint64_t)g.height * JOB_MEM_PPA_CHAINS,
-                              job->input, "give a smaller tile size (--tile-size)", err);
+        uint64_t cells = (uint64_t)g.width * (uint64_t)g.height;
+        int drainage = job->params.min_drainage > 0 && job->params.features != TS_PPA_RIDGES;
+        uint64_t tiles = side * side * JOB_MEM_PPA_TILE_CELL +
+                         (uint64_t)res->tile_size * (uint64_t)g.width * JOB_MEM_PPA_STRIP +
+                         cells * JOB_MEM_PPA_CHAINS;
+        /* the drainage (valleys where the water runs) is routed over the whole
+         * DEM before the tiles */
+        uint64_t flow = drainage ? cells * JOB_MEM_PPA_DRAINAGE : 0;
+        y = tsio_check_memory(JOB_MEM_BASE + (flow > tiles ? flow : tiles), job->input,
+                              drainage ? "valleys where the water runs route it over the whole "
+                                         "DEM: give min_drainage 0 (valleys by profile alone)"
+                                       : "give a smaller tile size (--tile-size)",
+                              err);
     } else {
         res->tile_size = 0; /* one tile: in one piece */
         y = tsjob_ppa_check_memory(&g, job->input, err);
@@ -76,12 +87,6 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
     if (y != 0)
         return -1;
     if (res->tile_size > 0) {
-        if (job->params.min_drainage > 0 && job->params.features != TS_PPA_RIDGES) {
-            tsio_errf(err, job->input,
-                      "min_drainage routes water over the whole DEM, which does not fit in "
-                      "memory (or tiles were asked for): give min_drainage 0");
-            return -1;
-        }
         if (!(res->reader = tsio_dem_open(job->input, job->band, &res->in, err)))
             return -1;
     } else {
@@ -1129,6 +1134,7 @@ static int job_debug_features(ts_ctx *ctx, const char *dir, const tsjob_synth_re
 {
     ts_ppa_params pp = ts_ppa_params_default();
     ts_features *of = NULL;
+    pp.min_drainage = 0; /* the axes as the synthesis sees them: by profile */
     char a[4096], b[4096];
     int rc = -1;
     if (tsio_path(a, sizeof a, dir, "sketch_features", "gpkg", err) != 0 ||

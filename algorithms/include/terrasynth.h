@@ -231,7 +231,9 @@ typedef struct ts_features {
     ts_feature_node *nodes;
     ts_feature_path *paths;
     ts_feature_vertex *verts;
-    double threshold_used;   /* effective profile threshold, elevation units */
+    double threshold_used;   /* effective profile threshold, elevation units (the ridges', or
+                                the valleys' when only valleys are mapped) */
+    double threshold_used_valleys; /* the valleys' (a lower one for channels: min_drainage) */
 } ts_features;
 
 TS_API void ts_features_free(ts_features *f);

@@ -270,6 +270,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     mode = sp->mode == TS_SKETCH_AUTO ? ts__sketch_auto_mode(ctx, sketch) : sp->mode;
     kind = mode == TS_SKETCH_VALLEYS ? TS_VALLEY : TS_RIDGE;
     pp.features = mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS : TS_PPA_RIDGES;
+    pp.min_drainage = 0; /* a drawing's valleys and an exemplar's main ones: by profile */
     pp.min_branch_length.value = TS_MIN(40.0, 0.5 * P);
     if (info) {
         memset(info, 0, sizeof *info);

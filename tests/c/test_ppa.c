@@ -22,11 +22,13 @@ static ts_raster make_dem(ts_ctx *ctx, int w, int h, surface_fn f)
     return r;
 }
 
+/* The PPA by profiles alone (the paper's; min_drainage 0): valleys as ridges. */
 static ts_features *run_ppa(ts_ctx *ctx, const ts_raster *dem, int features)
 {
     ts_ppa_params p = ts_ppa_params_default();
     ts_features *f = NULL;
     p.features = features;
+    p.min_drainage = 0;
     if (ts_ppa_extract(ctx, dem, NULL, &p, &f) != TS_OK) {
         fprintf(stderr, "ppa failed: %s\n", ts_ctx_message(ctx));
         return NULL;
@@ -749,6 +751,7 @@ static void test_drainage_area_equals_naive(void)
         ts_ppa_params p = ts_ppa_params_default();
         ts_features *f = NULL;
         p.features = TS_VALLEY;
+        p.min_drainage = 0;
         CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &f) == TS_OK);
         CHECK(count_mask(f, TS_VALLEY) > 0);
         ts_features_free(f);
@@ -759,6 +762,70 @@ static void test_drainage_area_equals_naive(void)
         ts_features_free(f);
         ts_raster_free(&dem);
     }
+    ts_ctx_free(ctx);
+}
+
+/* The defaults: valleys where the water runs.  Every valley cell drains at
+ * least min_drainage cells by the naive flood; the valleys' threshold is
+ * 0.0001 of the range and the ridges' 0.0025 (both auto), and the ridges
+ * are those of min_drainage 0; a threshold given is every kind's. */
+static void test_channels_by_default(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t s = 4242;
+    int w = 160, h = 140, x, y;
+    ts_raster dem;
+    ts_features *fc = NULL, *fp = NULL;
+    ts_ppa_params p = ts_ppa_params_default();
+    float *area = malloc((size_t)w * h * sizeof *area);
+    size_t i, n = (size_t)w * h, valleys = 0, low = 0, ridge_diff = 0, prof_low = 0;
+    ts_raster_alloc(ctx, w, h, &dem);
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) /* ridges and ravines on a tilted plane, with noise */
+            TS_PIX(&dem, x, y) = (float)(30.0 * sin(0.13 * x) * cos(0.09 * y) +
+                                         12.0 * sin(0.31 * x + 0.2 * y) + 0.8 * y +
+                                         3.0 * th_uniform(&s));
+    naive_drainage(&dem, area);
+    CHECK(p.min_drainage == 200 && p.threshold_fraction == -1 && p.min_branch_length.value == -1);
+    p.features = TS_PPA_BOTH;
+    CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &fc) == TS_OK);
+    p.min_drainage = 0;
+    CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &fp) == TS_OK);
+    if (fc && fp) {
+        ts_raster_stats st;
+        CHECK(ts_raster_stats_compute(ctx, &dem, &st) == TS_OK);
+        for (i = 0; i < n; i++) {
+            if (fc->mask[i] & TS_VALLEY) {
+                valleys++;
+                low += !(area[i] >= 200);
+            }
+            if ((fp->mask[i] & TS_VALLEY) && !(area[i] >= 200))
+                prof_low++;
+            ridge_diff += (fc->mask[i] & TS_RIDGE) != (fp->mask[i] & TS_RIDGE);
+        }
+        CHECK_MSG(valleys > 100 && low == 0, "%zu valley cells, %zu drain < 200", valleys, low);
+        CHECK_MSG(prof_low > 50, "profile valleys: %zu cells drain < 200", prof_low);
+        CHECK(ridge_diff == 0);
+        CHECK(fabs(fc->threshold_used - 0.0025 * (st.max - st.min)) < 1e-6 * (st.max - st.min));
+        CHECK(fabs(fc->threshold_used_valleys - 0.0001 * (st.max - st.min)) <
+              1e-6 * (st.max - st.min));
+        CHECK(fp->threshold_used_valleys == fp->threshold_used);
+    }
+    ts_features_free(fc);
+    ts_features_free(fp);
+    fc = NULL;
+    p = ts_ppa_params_default();
+    p.features = TS_PPA_BOTH;
+    p.threshold_fraction = 0.01;
+    CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &fc) == TS_OK);
+    CHECK(fc && fc->threshold_used == fc->threshold_used_valleys);
+    ts_features_free(fc);
+    p.threshold_fraction = -0.5; /* -1 is auto; other negatives are no value */
+    CHECK(ts_params_validate(ctx, "ppa", &p) == TS_ERR_ARG);
+    CHECK(ts_params_set(ctx, "ppa", &p, "threshold_fraction", "-1") == TS_OK);
+    CHECK(ts_params_set(ctx, "ppa", &p, "min_branch_length", "-1m") == TS_ERR_ARG);
+    ts_raster_free(&dem);
+    free(area);
     ts_ctx_free(ctx);
 }
 
@@ -855,17 +922,13 @@ static void test_tiled_equals_whole(void)
         free(whole);
         free(codes);
     }
-    /* refused: valleys with min_drainage, a tile too small */
+    /* refused: a tile too small */
     {
         ts_ppa_params p = ts_ppa_params_default();
         ts_raster dem = make_dem(ctx, 40, 40, valley_v);
         unsigned char codes[1600];
         tiled_io io = {&dem, codes, 0, 0};
         p.features = TS_PPA_VALLEYS;
-        p.min_drainage = 10;
-        CHECK(ts_ppa_extract_tiled(ctx, 40, 40, NULL, &p, 16, tiled_read, tiled_write, &io, NULL) ==
-              TS_ERR_ARG);
-        p.min_drainage = 0;
         CHECK(ts_ppa_extract_tiled(ctx, 40, 40, NULL, &p, 8, tiled_read, tiled_write, &io, NULL) ==
               TS_ERR_ARG);
         ts_raster_free(&dem);
@@ -997,6 +1060,7 @@ int main(int argc, char **argv)
         {"kruskal_equals_naive", test_kruskal_equals_naive},
         {"profile_recognition_equals_naive", test_profile_recognition_equals_naive},
         {"drainage_area_equals_naive", test_drainage_area_equals_naive},
+        {"channels_by_default", test_channels_by_default},
         {"tiled_equals_whole", test_tiled_equals_whole},
         {"crossing_diagonals", test_crossing_diagonals},
         {"errors_and_cancel", test_errors_and_cancel},

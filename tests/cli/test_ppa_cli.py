@@ -325,6 +325,20 @@ def test_tiles_give_the_raster_of_one_piece(tmp_path):
     assert not leftovers(tmp_path)
 
 
+def test_tiles_give_the_channels_of_one_piece(tmp_path):
+    """The defaults (valleys where the water runs: the drainage routed over the whole DEM before
+    the tiles) in tiles: the cells of the run in one piece."""
+    whole = tmp_path / "whole.tif"
+    run("ppa", JACKSBORO, whole, "--both", "-q")
+    ref = read(whole)[1]
+    assert (ref & 2).sum() > 300
+    for tile in ("100", "41"):
+        out = tmp_path / ("t%s.tif" % tile)
+        run("ppa", JACKSBORO, out, "--both", "-q", "--tile-size", tile)
+        a = read(out)[1]
+        assert np.array_equal(a, ref), "tile %s: %d cells differ" % (tile, (a != ref).sum())
+
+
 def test_tiles_progress_goes_one_way(tmp_path):
     p = run("ppa", JACKSBORO, tmp_path / "o.tif", "--progress-lines", "--both", "--tile-size", "64")
     pcts = [int(l.split()[1]) for l in p.stdout.splitlines() if l.startswith("PROGRESS ")]
@@ -335,10 +349,79 @@ def test_tiles_refuse_what_needs_the_whole(tmp_path):
     out = tmp_path / "o.tif"
     for extra, words in ((["--lines", tmp_path / "l.gpkg"], "lines and preview"),
                          (["--preview", tmp_path / "p.png"], "lines and preview"),
-                         (["--valleys", "--min-drainage", "50"], "min_drainage"),
                          ([], "16..16384")):
         tile = "8" if not extra else "64"
         p = run("ppa", JACKSBORO, out, "--tile-size", tile, *extra, check=False)
         assert p.returncode != 0 and words in p.stderr, p.stderr
         assert len(p.stderr.strip().splitlines()) == 1
         assert not out.exists() and not leftovers(tmp_path)
+
+
+# ---------------------------------------------------------------- valleys where the water runs
+
+
+def drainage_oracle(z):
+    """Drainage area in cells by priority-flood, written here from the rule in ppa.md (seeds:
+    valid cells on the edge or beside nodata, row-major; lowest first, ties first come first
+    served; a cell drains to the cell it was reached from): an independent implementation."""
+    import heapq
+    h, w = z.shape
+    nb = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)]
+    valid = ~np.isnan(z)
+    parent = np.full(z.shape, -1, np.int64)
+    seen = ~valid
+    heap, count, order = [], 0, []
+    for y in range(h):
+        for x in range(w):
+            if not valid[y, x]:
+                continue
+            edge = x in (0, w - 1) or y in (0, h - 1) or any(
+                not valid[y + dy, x + dx] for dx, dy in nb)
+            if edge:
+                heapq.heappush(heap, (float(z[y, x]), count, y, x))
+                count += 1
+                seen[y, x] = True
+    while heap:
+        hz, _, y, x = heapq.heappop(heap)
+        order.append((y, x))
+        for dx, dy in nb:
+            nx, ny = x + dx, y + dy
+            if 0 <= nx < w and 0 <= ny < h and not seen[ny, nx]:
+                seen[ny, nx] = True
+                parent[ny, nx] = y * w + x
+                heapq.heappush(heap, (max(float(z[ny, nx]), hz), count, ny, nx))
+                count += 1
+    area = np.where(valid, 1.0, np.nan).ravel()
+    par = parent.ravel()
+    for y, x in reversed(order):
+        c = y * w + x
+        if par[c] >= 0:
+            area[par[c]] += area[c]
+    return area.reshape(z.shape)
+
+
+def test_valleys_where_the_water_runs(tmp_path):
+    """By default valleys are channels: every valley cell drains at least 200 cells (the
+    oracle above), the dip threshold is lower than the ridges' and the ridges are those of
+    --min-drainage 0; with --min-drainage 0 valleys are by profile alone and reach hollows
+    that drain a few cells."""
+    z = gdal.Open(JACKSBORO).ReadAsArray().astype(np.float64)
+    area = drainage_oracle(z)
+    out, prof = tmp_path / "v.tif", tmp_path / "p.tif"
+    p = run("ppa", JACKSBORO, out, "--both")
+    assert "thresholds: ridges" in p.stdout
+    run("ppa", JACKSBORO, prof, "--both", "--min-drainage", "0", "-q")
+    a, b = read(out)[1], read(prof)[1]
+    va, vb = (a & 2) > 0, (b & 2) > 0
+    assert va.sum() > 300
+    assert area[va].min() >= 200, area[va].min()
+    assert (area[vb] < 200).mean() > 0.2  # profile valleys: hollows above the channel heads
+    assert np.array_equal(a & 1, b & 1)  # ridges untouched
+    # an explicit threshold is every kind's; -1 is auto, other negatives are refused
+    p = run("ppa", JACKSBORO, tmp_path / "e.tif", "--both", "--threshold-fraction", "0.01")
+    assert "ridges" in p.stdout
+    words = p.stdout.split("thresholds: ridges ")[1]
+    r, v = words.split(" m, valleys ")
+    assert float(r) == float(v.split()[0])
+    p = run("ppa", JACKSBORO, tmp_path / "n.tif", "--threshold-fraction", "-0.5", check=False)
+    assert p.returncode != 0 and "auto" in p.stderr

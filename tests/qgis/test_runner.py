@@ -15,7 +15,8 @@ from terrasynth_qgis import descriptors, runner
 PPA = descriptors.FALLBACK["stages"]["ppa"]
 SYNTH = descriptors.FALLBACK["stages"]["synth"]
 PPA_DEFAULTS = {"features": 0, "profile_length": 11, "threshold": 0.0,
-                "threshold_fraction": 0.0025, "min_branch_length": (40.0, "cells")}
+                "threshold_fraction": -1.0, "min_branch_length": (-1.0, "cells"),
+                "min_drainage": 200.0}
 
 
 def by_name(descs, name):
@@ -69,7 +70,7 @@ def test_format_value_by_type():
 def test_defaults_pass_all_but_the_exclusive_pair():
     args = runner.descriptor_args("ppa", PPA, PPA_DEFAULTS)
     assert args == ["--features", "ridges", "--profile-length", "11",
-                    "--min-branch-length", "40"]
+                    "--min-branch-length", "-1", "--min-drainage", "200"]
 
 
 def test_threshold_replaces_fraction():

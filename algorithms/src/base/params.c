@@ -23,17 +23,21 @@ static const ts_param_desc ppa_desc[] = {
     {"threshold", TS_PARAM_DOUBLE, 0.0, 0.0, 1e6, TS_UNIT_CELLS, "elevation units", NULL,
      "Minimum dip on both sides of a profile, in elevation units (metres after unit conversion).",
      offsetof(ts_ppa_params, threshold)},
-    {"threshold_fraction", TS_PARAM_DOUBLE, 0.0025, 0.0, 1.0, TS_UNIT_CELLS, "fraction", NULL,
+    {"threshold_fraction", TS_PARAM_DOUBLE, -1.0, -1.0, 1.0, TS_UNIT_CELLS, "fraction", NULL,
      "Minimum dip as a fraction of the DEM's elevation range; the larger of the two thresholds "
-     "applies.",
+     "applies.  -1 (auto): 0.0025, and 0.0001 for valleys with the drainage test "
+     "(min_drainage > 0: the test keeps the hollows out, a low dip lets in channels on "
+     "gentle ground).",
      offsetof(ts_ppa_params, threshold_fraction)},
-    {"min_branch_length", TS_PARAM_LENGTH, 40, 0, 1e7, TS_UNIT_CELLS, "cells or m", NULL,
+    {"min_branch_length", TS_PARAM_LENGTH, -1, -1, 1e7, TS_UNIT_CELLS, "cells or m", NULL,
      "Branches shorter than this are removed (branch reduction); a plain number is cells, "
-     "a number with suffix m is metres.",
+     "a number with suffix m is metres.  -1 (auto): 40 cells, and 10 cells for valleys with "
+     "the drainage test (min_drainage > 0).",
      offsetof(ts_ppa_params, min_branch_length)},
-    {"min_drainage", TS_PARAM_DOUBLE, 0.0, 0.0, 1e9, TS_UNIT_CELLS, "cells", NULL,
-     "Valley cells draining fewer cells than this are not valley targets (hollows above the "
-     "channel heads; drainage routed by priority-flood, D8); 0 keeps them all.",
+    {"min_drainage", TS_PARAM_DOUBLE, 200.0, 0.0, 1e9, TS_UNIT_CELLS, "cells", NULL,
+     "Valleys where the water runs: valley cells draining fewer cells than this are not "
+     "valley targets (hollows above the channel heads; drainage routed by priority-flood, "
+     "D8).  0: valleys by their profiles alone, as ridges.",
      offsetof(ts_ppa_params, min_drainage)},
 };
 
@@ -301,6 +305,9 @@ static ts_status check_range(ts_ctx *ctx, const char *stage, const ts_param_desc
     if (!(v >= d->min && v <= d->max))
         return ts__fail(ctx, TS_ERR_ARG, stage, "%s = %g is out of range [%g, %g]", d->name, v,
                         d->min, d->max);
+    if (d->min == -1.0 && v < 0 && v != -1.0) /* -1 is "auto", not a value */
+        return ts__fail(ctx, TS_ERR_ARG, stage, "%s = %g: give -1 (auto) or 0 .. %g", d->name, v,
+                        d->max);
     if (d->type == TS_PARAM_INT && strcmp(d->name, "profile_length") == 0 && ((long)v % 2) == 0)
         return ts__fail(ctx, TS_ERR_ARG, stage, "%s = %g must be odd", d->name, v);
     return TS_OK;

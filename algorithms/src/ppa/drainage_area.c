@@ -17,6 +17,7 @@
  */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "ppa_internal.h"
 
@@ -30,17 +31,32 @@ static int flood_before(const flood_item *a, const flood_item *b)
     return a->h < b->h || (a->h == b->h && a->count < b->count);
 }
 
-static void heap_push(flood_item *heap, size_t *n, flood_item it)
+/* The heap grows as the frontier does (a frontier is about the DEM's
+ * perimeter, not its area). */
+static int heap_push(flood_item **heap, size_t *n, size_t *cap, flood_item it)
 {
     size_t i = (*n)++;
+    flood_item *hp;
+    if (*n > *cap) {
+        size_t ncap = *cap * 2;
+        flood_item *g = realloc(*heap, ncap * sizeof *g);
+        if (!g) {
+            (*n)--;
+            return -1;
+        }
+        *heap = g;
+        *cap = ncap;
+    }
+    hp = *heap;
     while (i > 0) {
         size_t p = (i - 1) / 2;
-        if (!flood_before(&it, &heap[p]))
+        if (!flood_before(&it, &hp[p]))
             break;
-        heap[i] = heap[p];
+        hp[i] = hp[p];
         i = p;
     }
-    heap[i] = it;
+    hp[i] = it;
+    return 0;
 }
 
 static flood_item heap_pop(flood_item *heap, size_t *n)
@@ -63,24 +79,28 @@ static flood_item heap_pop(flood_item *heap, size_t *n)
     return top;
 }
 
+#define FROM_NONE 8    /* a seed: drains off the DEM */
+#define FROM_UNSEEN 255
+
 int ppa_drainage_area(const ts_raster *dem, float *area)
 {
     int w = dem->width, h = dem->height, x, y, d;
-    size_t n = (size_t)w * (size_t)h, nh = 0, taken = 0, i;
+    size_t n = (size_t)w * (size_t)h, nh = 0, cap = 4 * ((size_t)w + (size_t)h) + 16, taken = 0, i;
     uint32_t counter = 0;
-    flood_item *heap = ts__malloc_array(n ? n : 1, sizeof *heap);
-    uint32_t *parent = ts__malloc_array(n ? n : 1, sizeof *parent);
+    int fail = 0;
+    flood_item *heap = ts__malloc_array(cap, sizeof *heap);
+    /* the direction each cell was reached from: a byte, not a cell index */
+    unsigned char *from = ts__malloc_array(n ? n : 1, 1);
     uint32_t *order = ts__malloc_array(n ? n : 1, sizeof *order);
-    unsigned char *seen = ts__calloc_array(n ? n : 1, 1);
-    if (!heap || !parent || !order || !seen || n >= UINT32_MAX) {
+    if (!heap || !from || !order || n >= UINT32_MAX) {
         free(heap);
-        free(parent);
+        free(from);
         free(order);
-        free(seen);
         return -1;
     }
+    memset(from, FROM_UNSEEN, n);
     /* seeds: valid cells on the edge or beside nodata, in row-major order */
-    for (y = 0; y < h; y++)
+    for (y = 0; y < h && !fail; y++)
         for (x = 0; x < w; x++) {
             size_t c = (size_t)y * (size_t)w + (size_t)x;
             int edge = x == 0 || y == 0 || x == w - 1 || y == h - 1;
@@ -91,12 +111,14 @@ int ppa_drainage_area(const ts_raster *dem, float *area)
                 edge = isnan(TS_PIX(dem, x + ppa_dir[d][0], y + ppa_dir[d][1]));
             if (edge) {
                 flood_item it = {TS_PIX(dem, x, y), counter++, (uint32_t)c};
-                seen[c] = 1;
-                parent[c] = UINT32_MAX;
-                heap_push(heap, &nh, it);
+                from[c] = FROM_NONE;
+                if (heap_push(&heap, &nh, &cap, it) != 0) {
+                    fail = 1;
+                    break;
+                }
             }
         }
-    while (nh) {
+    while (nh && !fail) {
         flood_item it = heap_pop(heap, &nh);
         int cx = (int)(it.cell % (uint32_t)w), cy = (int)(it.cell / (uint32_t)w);
         order[taken++] = it.cell;
@@ -108,26 +130,31 @@ int ppa_drainage_area(const ts_raster *dem, float *area)
                 continue;
             c = (size_t)ny * (size_t)w + (size_t)nx;
             nhgt = TS_PIX(dem, nx, ny);
-            if (seen[c] || isnan(nhgt))
+            if (from[c] != FROM_UNSEEN || isnan(nhgt))
                 continue;
-            seen[c] = 1;
-            parent[c] = it.cell;
+            from[c] = (unsigned char)((d + 4) & 7); /* back towards the cell taken */
             {
                 flood_item next = {nhgt > it.h ? nhgt : it.h, counter++, (uint32_t)c};
-                heap_push(heap, &nh, next);
+                if (heap_push(&heap, &nh, &cap, next) != 0) {
+                    fail = 1;
+                    break;
+                }
             }
         }
     }
-    for (i = 0; i < taken; i++)
-        area[order[i]] = 1;
-    for (i = taken; i-- > 0;) {
-        uint32_t c = order[i];
-        if (parent[c] != UINT32_MAX)
-            area[parent[c]] += area[c];
+    if (!fail) {
+        for (i = 0; i < taken; i++)
+            area[order[i]] = 1;
+        for (i = taken; i-- > 0;) {
+            uint32_t c = order[i];
+            int fd = from[c];
+            if (fd != FROM_NONE)
+                area[(size_t)((int)(c / (uint32_t)w) + ppa_dir[fd][1]) * (size_t)w +
+                     (size_t)((int)(c % (uint32_t)w) + ppa_dir[fd][0])] += area[c];
+        }
     }
     free(heap);
-    free(parent);
+    free(from);
     free(order);
-    free(seen);
-    return 0;
+    return fail ? -1 : 0;
 }

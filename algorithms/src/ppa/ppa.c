@@ -172,8 +172,10 @@ static ts_status ppa_merge(ts_ctx *ctx, ts_features *a, const ts_features *b)
 }
 
 /* Ridges here, valleys on a worker thread; same result as in sequence. */
-static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *m,
-                                   const unsigned char *targets, double min_length, ts_features *f)
+static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem,
+                                   const ts_grid_metrics *m_ridges, double len_ridges,
+                                   const ts_grid_metrics *m_valleys, double len_valleys,
+                                   const unsigned char *targets, ts_features *f)
 {
     valley_job job;
     pthread_t tid;
@@ -189,18 +191,18 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem, const ts_g
     fv->width = dem->width;
     fv->height = dem->height;
     job.dem = dem;
-    job.m = m;
+    job.m = m_valleys;
     job.targets = targets;
-    job.min_length = min_length;
+    job.min_length = len_valleys;
     job.ctx = wctx;
     job.f = fv;
     job.status = TS_ERR_INTERNAL;
     if (pthread_create(&tid, NULL, valley_run, &job) != 0) {
         /* no thread: do it in sequence */
         valley_run(&job);
-        st = ppa_one_kind(ctx, dem, m, targets, TS_RIDGE, min_length, f, 2);
+        st = ppa_one_kind(ctx, dem, m_ridges, targets, TS_RIDGE, len_ridges, f, 2);
     } else {
-        st = ppa_one_kind(ctx, dem, m, targets, TS_RIDGE, min_length, f, 2);
+        st = ppa_one_kind(ctx, dem, m_ridges, targets, TS_RIDGE, len_ridges, f, 2);
         if (st != TS_OK)
             ts__cancel(ctx); /* the valleys need not finish */
         pthread_join(tid, NULL);
@@ -214,6 +216,24 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem, const ts_g
     return st;
 }
 
+double ppa_kind_fraction(const ts_ppa_params *p, int kind)
+{
+    if (p->threshold_fraction >= 0)
+        return p->threshold_fraction;
+    return kind == TS_VALLEY && p->min_drainage > 0 ? PPA_AUTO_FRACTION_CHANNELS
+                                                    : PPA_AUTO_FRACTION;
+}
+
+double ppa_kind_branch(const ts_ppa_params *p, int kind, int *in_metres)
+{
+    if (p->min_branch_length.value >= 0) {
+        *in_metres = p->min_branch_length.unit == TS_UNIT_METRES;
+        return p->min_branch_length.value;
+    }
+    *in_metres = 0;
+    return kind == TS_VALLEY && p->min_drainage > 0 ? PPA_AUTO_BRANCH_CHANNELS : PPA_AUTO_BRANCH;
+}
+
 TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
                                 const ts_ppa_params *params, ts_features **out)
 {
@@ -221,7 +241,8 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
     ts_features *f = NULL;
     unsigned char *targets = NULL;
     size_t n;
-    double threshold, min_length;
+    double threshold[2], min_length[2];
+    const ts_grid_metrics *km[2];
     int kinds, k;
     ts_status st;
     ts_progress_saved sv;
@@ -238,17 +259,22 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
                         dem->width, dem->height);
     if (metrics && (!metrics->dx || !metrics->dy))
         return ts__fail(ctx, TS_ERR_ARG, "ppa", "ground metrics without cell sizes");
-    if (params->min_branch_length.unit == TS_UNIT_METRES && !metrics)
+    if (params->min_branch_length.unit == TS_UNIT_METRES && params->min_branch_length.value >= 0 &&
+        !metrics)
         return ts__fail(ctx, TS_ERR_ARG, "ppa",
                         "min_branch_length is in metres but the DEM has no ground metrics "
                         "(no CRS): give it in cells");
     if (ts_raster_stats_compute(ctx, dem, &stats) != TS_OK)
         return ts__fail(ctx, TS_ERR_NUMERIC, "ppa", "every cell of the DEM is nodata");
-    threshold = TS_MAX(params->threshold, params->threshold_fraction * (stats.max - stats.min));
-    /* a length in cells is measured in cells, one in metres on the ground */
-    min_length = params->min_branch_length.value;
-    if (params->min_branch_length.unit == TS_UNIT_CELLS)
-        metrics = NULL;
+    /* per kind ("auto" resolved): a length in cells is measured in cells,
+     * one in metres on the ground */
+    for (k = 0; k < 2; k++) {
+        int in_metres;
+        threshold[k] = TS_MAX(params->threshold,
+                              ppa_kind_fraction(params, k + 1) * (stats.max - stats.min));
+        min_length[k] = ppa_kind_branch(params, k + 1, &in_metres);
+        km[k] = in_metres ? metrics : NULL;
+    }
     kinds = params->features == TS_PPA_RIDGES    ? TS_RIDGE
             : params->features == TS_PPA_VALLEYS ? TS_VALLEY
                                                  : TS_RIDGE | TS_VALLEY;
@@ -262,10 +288,12 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
     }
     f->width = dem->width;
     f->height = dem->height;
-    f->threshold_used = threshold;
+    f->threshold_used = params->features == TS_PPA_VALLEYS ? threshold[1] : threshold[0];
+    f->threshold_used_valleys = threshold[1];
 
     sv = ts__progress_push(ctx, 0.0, 0.3);
-    st = ts_ppa_profile_recognition(ctx, dem, params->profile_length, threshold, kinds, targets);
+    st = ppa_profile_targets(ctx, dem, params->profile_length, threshold[0], threshold[1], kinds,
+                             targets);
     ts__progress_pop(ctx, sv);
     if (st != TS_OK)
         goto fail;
@@ -285,7 +313,7 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
     }
     if (kinds == (TS_RIDGE | TS_VALLEY) && ts__thread_count(ctx, 2) >= 2) {
         sv = ts__progress_push(ctx, 0.3, 1.0);
-        st = ppa_both_parallel(ctx, dem, metrics, targets, min_length, f);
+        st = ppa_both_parallel(ctx, dem, km[0], min_length[0], km[1], min_length[1], targets, f);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto fail;
@@ -297,7 +325,7 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
         sv = kinds == (TS_RIDGE | TS_VALLEY)
                  ? ts__progress_push(ctx, k == TS_RIDGE ? 0.3 : 0.65, k == TS_RIDGE ? 0.65 : 1.0)
                  : ts__progress_push(ctx, 0.3, 1.0);
-        st = ppa_one_kind(ctx, dem, metrics, targets, k, min_length, f, 1);
+        st = ppa_one_kind(ctx, dem, km[k - 1], targets, k, min_length[k - 1], f, 1);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto fail;

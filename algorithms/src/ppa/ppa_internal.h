@@ -133,9 +133,25 @@ ts_status ppa_spanning_forest_strips(ts_ctx *ctx, const ts_raster *dem,
                                      const unsigned char *targets, int kind, unsigned char *adj,
                                      int n_strips);
 
+/* Profile recognition (ppa_profile.c) with a threshold per kind. */
+ts_status ppa_profile_targets(ts_ctx *ctx, const ts_raster *dem, int profile_length,
+                              double threshold_ridges, double threshold_valleys, int kinds,
+                              unsigned char *targets);
+
 /* The drainage area of every valid cell, in cells (NaN on nodata): flow
  * routed by priority-flood (drainage_area.c).  0, or -1 when out of memory. */
 int ppa_drainage_area(const ts_raster *dem, float *area);
+
+/* The parameters of one kind, "auto" resolved (ppa.c): valleys with the
+ * drainage test (min_drainage > 0) are channels, mapped with a lower dip
+ * and shorter branches than ridges (algorithms/docs/ppa.md). */
+#define PPA_AUTO_FRACTION 0.0025
+#define PPA_AUTO_FRACTION_CHANNELS 0.0001
+#define PPA_AUTO_BRANCH 40.0
+#define PPA_AUTO_BRANCH_CHANNELS 10.0
+double ppa_kind_fraction(const ts_ppa_params *p, int kind);
+/* The minimum branch length of the kind; *in_metres = 1 when it is in metres. */
+double ppa_kind_branch(const ts_ppa_params *p, int kind, int *in_metres);
 
 /* PPA step 4, branch reduction: remove branches shorter than min_length
  * (in metres when m != NULL, else cells) from the forest `adj`. */

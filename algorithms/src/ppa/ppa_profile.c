@@ -18,12 +18,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "internal.h"
+#include "ppa_internal.h"
 
 typedef struct profile_job {
     const ts_raster *dem;
     int half;
-    float threshold;
+    float threshold[2]; /* ridges, valleys */
     int kinds;
     int dir; /* the direction of this pass (see profile_lines) */
     unsigned char *targets;
@@ -141,12 +141,12 @@ static void profile_line_bits(const profile_job *job, profile_work *w, const flo
                 if (is_max) {
                     float bw = PPA_MAX(w->suf[a], w->pre[a + h - 1]);
                     float fw = PPA_MAX(w->suf[f], w->pre[f + h - 1]);
-                    if (fw - z > job->threshold && bw - z > job->threshold)
+                    if (fw - z > job->threshold[1] && bw - z > job->threshold[1])
                         bits[s + i] |= TS_VALLEY;
                 } else {
                     float bw = PPA_MIN(w->suf[a], w->pre[a + h - 1]);
                     float fw = PPA_MIN(w->suf[f], w->pre[f + h - 1]);
-                    if (z - fw > job->threshold && z - bw > job->threshold)
+                    if (z - fw > job->threshold[0] && z - bw > job->threshold[0])
                         bits[s + i] |= TS_RIDGE;
                 }
             }
@@ -220,8 +220,9 @@ done:
     free(w.suf);
 }
 
-TS_API ts_status ts_ppa_profile_recognition(ts_ctx *ctx, const ts_raster *dem, int profile_length,
-                                            double threshold, int kinds, unsigned char *targets)
+ts_status ppa_profile_targets(ts_ctx *ctx, const ts_raster *dem, int profile_length,
+                              double threshold_ridges, double threshold_valleys, int kinds,
+                              unsigned char *targets)
 {
     profile_job job;
     ts__clear(ctx);
@@ -232,12 +233,17 @@ TS_API ts_status ts_ppa_profile_recognition(ts_ctx *ctx, const ts_raster *dem, i
     if (profile_length < 3 || profile_length % 2 == 0)
         return ts__fail(ctx, TS_ERR_ARG, "ppa profile recognition",
                         "profile length %d must be odd and at least 3", profile_length);
-    if (!(threshold >= 0.0) || !isfinite(threshold))
+    if (!(threshold_ridges >= 0.0) || !isfinite(threshold_ridges) ||
+        !(threshold_valleys >= 0.0) || !isfinite(threshold_valleys))
         return ts__fail(ctx, TS_ERR_ARG, "ppa profile recognition",
-                        "threshold %g must be a non-negative number", threshold);
+                        "threshold %g must be a non-negative number",
+                        !(threshold_ridges >= 0.0) || !isfinite(threshold_ridges)
+                            ? threshold_ridges
+                            : threshold_valleys);
     job.dem = dem;
     job.half = profile_length / 2;
-    job.threshold = (float)threshold;
+    job.threshold[0] = (float)threshold_ridges;
+    job.threshold[1] = (float)threshold_valleys;
     job.kinds = kinds & (TS_RIDGE | TS_VALLEY);
     job.targets = targets;
     atomic_init(&job.failed, 0);
@@ -252,4 +258,10 @@ TS_API ts_status ts_ppa_profile_recognition(ts_ctx *ctx, const ts_raster *dem, i
     if (atomic_load(&job.failed))
         return ts__fail(ctx, TS_ERR_NOMEM, "ppa profile recognition", "out of memory");
     return ts__progress(ctx, 1.0, "profile recognition");
+}
+
+TS_API ts_status ts_ppa_profile_recognition(ts_ctx *ctx, const ts_raster *dem, int profile_length,
+                                            double threshold, int kinds, unsigned char *targets)
+{
+    return ppa_profile_targets(ctx, dem, profile_length, threshold, threshold, kinds, targets);
 }

@@ -66,6 +66,8 @@ typedef struct kind_state {
     size_t n_chains, cap_chains;
     size_t *chain_base; /* per tile: its first chain */
     unsigned char *dead;
+    const ts_grid_metrics *m; /* branch lengths in metres, or NULL: in cells */
+    int64_t min_q;            /* the kind's minimum branch length, fixed point */
 } kind_state;
 
 typedef struct window {
@@ -79,9 +81,10 @@ typedef struct window {
 typedef struct tiled {
     ts_ctx *ctx;
     int W, H, T, ntx, nty, margin, half;
-    float threshold;
+    float threshold[2]; /* ridges, valleys */
     int kinds;
-    const ts_grid_metrics *m;
+    uint64_t *channel;  /* valleys with the drainage test: bit per DEM cell, set where
+                           the drainage area is at least min_drainage (NULL: no test) */
     ts_window_read_fn read;
     void *user;
     kind_state ks[2];
@@ -152,10 +155,21 @@ static ts_status tile_load(tiled *t, int ti)
     wr.data = t->win;
     /* the stages' own progress holds still at the tiles' */
     sv = ts__progress_push(t->ctx, t->frac, t->frac);
-    st = ts_ppa_profile_recognition(t->ctx, &wr, 2 * t->half + 1, t->threshold, t->kinds, t->wt);
+    st = ppa_profile_targets(t->ctx, &wr, 2 * t->half + 1, t->threshold[0], t->threshold[1],
+                             t->kinds, t->wt);
     ts__progress_pop(t->ctx, sv);
     if (st != TS_OK)
         return st;
+    if (t->channel) /* valleys where the water runs (as ts_ppa_extract) */
+        for (y = 0; y < t->wh; y++) {
+            int x;
+            unsigned char *row = t->wt + (size_t)y * (size_t)t->ww;
+            for (x = 0; x < t->ww; x++) {
+                uint64_t g = gcell(t, t->wx0 + x, t->wy0 + y);
+                if ((row[x] & TS_VALLEY) && !(t->channel[g >> 6] >> (g & 63) & 1))
+                    row[x] &= (unsigned char)~TS_VALLEY;
+            }
+        }
     for (y = 0; y < t->h; y++) {
         size_t o = (size_t)(t->y0 - t->wy0 + y) * (size_t)t->ww + (size_t)(t->x0 - t->wx0);
         memcpy(t->core + (size_t)y * (size_t)t->w, t->win + o, (size_t)t->w * sizeof(float));
@@ -592,7 +606,7 @@ static ts_status tile_chains(tiled *t, kind_state *ks, int ti, int remove)
                         chain c;
                         c.u = gcell(t, gx, gy);
                         c.v = gcell(t, gx + ppa_dir[d][0], gy + ppa_dir[d][1]);
-                        c.length = ppa_step_q(t->m, gy, d);
+                        c.length = ppa_step_q(ks->m, gy, d);
                         if (grow((void **)&ks->chains, &ks->cap_chains, ks->n_chains + 1, sizeof c))
                             return ts__fail(t->ctx, TS_ERR_NOMEM, "ppa", "out of memory");
                         ks->border_chain[j] = (uint32_t)ks->n_chains;
@@ -605,7 +619,7 @@ static ts_status tile_chains(tiled *t, kind_state *ks, int ti, int remove)
                 }
                 /* walk the chain to the next vertex */
                 for (;;) {
-                    len += ppa_step_q(t->m, t->y0 + cy, cd);
+                    len += ppa_step_q(ks->m, t->y0 + cy, cd);
                     cx += ppa_dir[cd][0];
                     cy += ppa_dir[cd][1];
                     if (chain_vertex(t, cx, cy))
@@ -718,8 +732,9 @@ static int u32_push(uint32_t **v, size_t *n, size_t *cap, uint32_t x)
     return 0;
 }
 
-static ts_status global_branches(tiled *t, kind_state *ks, int64_t min_q)
+static ts_status global_branches(tiled *t, kind_state *ks)
 {
+    int64_t min_q = ks->min_q;
     chain_graph g;
     uint64_t *verts = NULL;
     uint32_t *ends = NULL, *next = NULL;
@@ -1150,7 +1165,7 @@ static ts_status strip_fill(tiled *t, int nk, int r)
 /* The tile's forest of kind k after t->passes passes of branch reduction
  * (on a window with a halo) into t->adj; *exact = 0 when a core cell of it
  * is uncertain. */
-static ts_status tile_after_passes(tiled *t, int k, int64_t min_q, int *exact)
+static ts_status tile_after_passes(tiled *t, int k, int *exact)
 {
     window *wn = &t->wn;
     int y, x;
@@ -1164,11 +1179,11 @@ static ts_status tile_after_passes(tiled *t, int k, int64_t min_q, int *exact)
     wn->y0 = TS_MAX(0, t->y0 - t->halo);
     wn->w = TS_MIN(t->W, t->x0 + t->w + t->halo) - wn->x0;
     wn->h = TS_MIN(t->H, t->y0 + t->h + t->halo) - wn->y0;
-    wn->m = t->m;
+    wn->m = t->ks[k].m;
     for (y = 0; y < wn->h; y++)
         memcpy(wn->adj + (size_t)y * (size_t)wn->w, strip_row(t, t->strip[k], wn->y0 + y) + wn->x0,
                (size_t)wn->w);
-    if (win_passes(wn, t->passes, min_q) != 0)
+    if (win_passes(wn, t->passes, t->ks[k].min_q) != 0)
         return ts__fail(t->ctx, TS_ERR_NOMEM, "ppa", "out of memory for the branch reduction");
     for (y = 0; y < t->h; y++) {
         size_t o = (size_t)(t->y0 - wn->y0 + y) * (size_t)wn->w + (size_t)(t->x0 - wn->x0);
@@ -1185,7 +1200,7 @@ static ts_status tile_after_passes(tiled *t, int k, int64_t min_q, int *exact)
  * cleared, the codes written), tile row by tile row with the whole's forest
  * of three tile rows at hand.  *exact = 0: a tile's passes were uncertain
  * (phase 2 stops: the caller tries fewer passes). */
-static ts_status sweep(tiled *t, int nk, int64_t min_q, int remove, int *exact,
+static ts_status sweep(tiled *t, int nk, int remove, int *exact,
                        ts_window_write_fn write, void *user)
 {
     int r, tx, k, n_tiles = t->ntx * t->nty;
@@ -1207,7 +1222,7 @@ static ts_status sweep(tiled *t, int nk, int64_t min_q, int remove, int *exact,
             for (k = 0; k < nk && st == TS_OK; k++) {
                 if (!remove)
                     t->ks[k].chain_base[ti] = t->ks[k].n_chains;
-                if ((st = tile_after_passes(t, k, min_q, exact)) != TS_OK || !*exact)
+                if ((st = tile_after_passes(t, k, exact)) != TS_OK || !*exact)
                     return st;
                 if ((st = tile_chains(t, &t->ks[k], ti, remove)) != TS_OK)
                     return st;
@@ -1251,6 +1266,7 @@ static void tiled_free(tiled *t)
     free(t->work);
     free(t->term);
     free(t->queue);
+    free(t->channel);
     free(t->clears);
     free(t->wn.adj);
     free(t->wn.unc);
@@ -1270,6 +1286,48 @@ static void tiled_free(tiled *t)
     }
 }
 
+/* The cells draining at least min_drainage cells, a bit each: the flow is
+ * routed over the whole DEM (read window by window into one raster, freed
+ * after), by the very function of the whole-raster run. */
+static ts_status tiled_channels(tiled *t, double min_drainage)
+{
+    size_t n = (size_t)t->W * (size_t)t->H, i;
+    int y0;
+    ts_raster whole;
+    float *dem = ts__malloc_array(n, sizeof *dem), *area = ts__malloc_array(n, sizeof *area);
+    ts_status st = TS_OK;
+    t->channel = ts__calloc_array((n + 63) / 64, sizeof *t->channel);
+    if (!dem || !area || !t->channel) {
+        free(dem);
+        free(area);
+        return ts__fail(t->ctx, TS_ERR_NOMEM, "ppa",
+                        "cannot allocate the drainage of %d x %d cells (min_drainage routes "
+                        "water over the whole DEM: give min_drainage 0)",
+                        t->W, t->H);
+    }
+    for (y0 = 0; y0 < t->H && st == TS_OK; y0 += t->T) {
+        int h = TS_MIN(t->T, t->H - y0);
+        if ((st = t->read(t->user, 0, y0, t->W, h, dem + (size_t)y0 * (size_t)t->W)) != TS_OK &&
+            t->ctx->status == TS_OK)
+            ts__fail(t->ctx, st, "ppa", "cannot read the DEM");
+        if (st == TS_OK)
+            st = ts__progress(t->ctx, 0.5 * (y0 + h) / t->H, "drainage");
+    }
+    whole.width = t->W;
+    whole.height = t->H;
+    whole.stride = t->W;
+    whole.data = dem;
+    if (st == TS_OK && ppa_drainage_area(&whole, area) != 0)
+        st = ts__fail(t->ctx, TS_ERR_NOMEM, "ppa", "out of memory for the drainage area");
+    if (st == TS_OK)
+        for (i = 0; i < n; i++)
+            if (area[i] >= min_drainage)
+                t->channel[i >> 6] |= (uint64_t)1 << (i & 63);
+    free(dem);
+    free(area);
+    return st != TS_OK ? t->ctx->status : ts__progress(t->ctx, 1.0, "drainage");
+}
+
 TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
                                       const ts_grid_metrics *metrics, const ts_ppa_params *params,
                                       int tile_size, ts_window_read_fn read,
@@ -1279,8 +1337,7 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
     tiled t;
     int ti, n_tiles, k, nk = 0;
     size_t wcap, tcap;
-    double lo = INFINITY, hi = -INFINITY, min_length, threshold;
-    int64_t min_q;
+    double lo = INFINITY, hi = -INFINITY;
     ts_status st = TS_OK;
     ts_progress_saved sv;
 
@@ -1296,14 +1353,11 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
         return ts__fail(ctx, TS_ERR_ARG, "ppa", "tile size %d: 16..16384 cells", tile_size);
     if (metrics && (!metrics->dx || !metrics->dy))
         return ts__fail(ctx, TS_ERR_ARG, "ppa", "ground metrics without cell sizes");
-    if (params->min_branch_length.unit == TS_UNIT_METRES && !metrics)
+    if (params->min_branch_length.unit == TS_UNIT_METRES && params->min_branch_length.value >= 0 &&
+        !metrics)
         return ts__fail(ctx, TS_ERR_ARG, "ppa",
                         "min_branch_length is in metres but the DEM has no ground metrics "
                         "(no CRS): give it in cells");
-    if (params->min_drainage > 0 && params->features != TS_PPA_RIDGES)
-        return ts__fail(ctx, TS_ERR_ARG, "ppa",
-                        "min_drainage routes water over the whole DEM: not in tiles (give no "
-                        "tile size, or min_drainage 0)");
     memset(&t, 0, sizeof t);
     t.ctx = ctx;
     t.W = width;
@@ -1367,12 +1421,20 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
     ts__progress_pop(ctx, sv);
     if (st == TS_OK && !(lo <= hi))
         st = ts__fail(ctx, TS_ERR_NUMERIC, "ppa", "every cell of the DEM is nodata");
-    threshold = TS_MAX(params->threshold, params->threshold_fraction * (hi - lo));
-    t.threshold = (float)threshold;
-    min_length = params->min_branch_length.value;
-    t.m = params->min_branch_length.unit == TS_UNIT_CELLS ? NULL : metrics;
-    min_q = ppa_length_q(min_length);
-    (void)threshold;
+    for (k = 0; k < 2; k++)
+        t.threshold[k] = (float)TS_MAX(params->threshold,
+                                       ppa_kind_fraction(params, k + 1) * (hi - lo));
+    for (k = 0; k < nk; k++) {
+        int in_metres;
+        t.ks[k].min_q = ppa_length_q(ppa_kind_branch(params, t.ks[k].kind, &in_metres));
+        t.ks[k].m = in_metres ? metrics : NULL;
+    }
+    /* valleys where the water runs: the drainage needs the whole DEM */
+    if (st == TS_OK && (t.kinds & TS_VALLEY) && params->min_drainage > 0) {
+        sv = ts__progress_push(ctx, 0.1, 0.1);
+        st = tiled_channels(&t, params->min_drainage);
+        ts__progress_pop(ctx, sv);
+    }
     /* 1: tile forests contracted to their borders, one Kruskal for the whole */
     sv = ts__progress_push(ctx, 0.1, 0.4);
     for (ti = 0; ti < n_tiles && st == TS_OK; ti++) {
@@ -1409,16 +1471,23 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
         if (st == TS_OK && (!t.wn.adj || !t.wn.unc))
             st = ts__fail(ctx, TS_ERR_NOMEM, "ppa", "cannot allocate for a tile with its halo");
     }
-    sv = ts__progress_push(ctx, 0.4, 0.7);
-    for (t.passes = PPA_TILE_PASSES; st == TS_OK; t.passes--) {
-        int exact = 1;
-        for (k = 0; k < nk; k++)
-            t.ks[k].n_chains = 0;
-        st = sweep(&t, nk, min_q, 0, &exact, NULL, NULL);
-        if (st != TS_OK || exact)
-            break;
+    {
+        /* a try with fewer passes goes on from where the last one stopped:
+         * progress never goes back */
+        double from = 0.4;
+        for (t.passes = PPA_TILE_PASSES; st == TS_OK; t.passes--) {
+            int exact = 1;
+            for (k = 0; k < nk; k++)
+                t.ks[k].n_chains = 0;
+            t.frac = 0;
+            sv = ts__progress_push(ctx, from, 0.7);
+            st = sweep(&t, nk, 0, &exact, NULL, NULL);
+            ts__progress_pop(ctx, sv);
+            if (st != TS_OK || exact)
+                break;
+            from += (0.7 - from) * t.frac;
+        }
     }
-    ts__progress_pop(ctx, sv);
     if (stats) {
         stats->passes_in_tiles = t.passes;
         stats->chains_held = t.ks[0].n_chains + t.ks[1].n_chains;
@@ -1427,7 +1496,7 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
         if (t.ks[k].n_chains >= UINT32_MAX)
             st = ts__fail(ctx, TS_ERR_SIZE, "ppa", "too many feature chains");
         else
-            st = global_branches(&t, &t.ks[k], min_q);
+            st = global_branches(&t, &t.ks[k]);
         free(t.ks[k].chains); /* phase 3 needs only which chains died */
         t.ks[k].chains = NULL;
     }
@@ -1435,7 +1504,7 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
     sv = ts__progress_push(ctx, 0.7, 1.0);
     if (st == TS_OK) {
         int exact = 1;
-        st = sweep(&t, nk, min_q, 1, &exact, write, user);
+        st = sweep(&t, nk, 1, &exact, write, user);
         if (st == TS_OK && !exact)
             st = ts__fail(ctx, TS_ERR_INTERNAL, "ppa", "tiles: the passes changed between sweeps");
     }
