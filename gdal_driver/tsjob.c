@@ -34,8 +34,9 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
 #define JOB_MEM_PPA_TILE_CELL 48  /* per cell of a tile with its margin (tiled ppa) */
 #define JOB_MEM_PPA_STRIP 9  /* per cell of three tile rows: both forests, nodata (tiled ppa) */
 #define JOB_MEM_PPA_CHAINS 1 /* per DEM cell: the chains held (76 k at 4096^2: far less) */
-#define JOB_MEM_PPA_DRAINAGE 14 /* per DEM cell, tiled valleys with min_drainage: the whole DEM,
-                                   the areas, directions, order (then a bit a cell) */
+#define JOB_MEM_PPA_DRAINAGE 24 /* per cell of a drainage tile (each thread has one): heights
+                                   and F, D, flow, order, areas (drainage_area.c) */
+#define JOB_MEM_PPA_DRAINAGE_BORDER 64 /* per cell of the tiles' borders: heights, F, D, exits */
 #define JOB_MEM_SYNTH_CELL 16     /* per output cell: terrain, flags, fill state */
 #define JOB_MEM_MAPS_CELL 20      /* per output cell with the synthesis maps */
 #define JOB_MEM_SKETCH_CELL 128   /* per output cell with a sketch: PPA, features, guides, the
@@ -71,14 +72,16 @@ int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err
         uint64_t tiles = side * side * JOB_MEM_PPA_TILE_CELL +
                          (uint64_t)res->tile_size * (uint64_t)g.width * JOB_MEM_PPA_STRIP +
                          cells * JOB_MEM_PPA_CHAINS;
-        /* the drainage (valleys where the water runs) is routed over the whole
-         * DEM before the tiles */
-        uint64_t flow = drainage ? cells * JOB_MEM_PPA_DRAINAGE : 0;
+        /* the drainage (valleys where the water runs) is routed in tiles too,
+         * before the axes: a tile per thread, the tiles' borders, a bit a cell */
+        long threads = sysconf(_SC_NPROCESSORS_ONLN);
+        uint64_t dt = (uint64_t)(res->tile_size < 16384 ? res->tile_size : 16384);
+        uint64_t flow = drainage ? (uint64_t)(threads > 0 ? threads : 1) * dt * dt *
+                                           JOB_MEM_PPA_DRAINAGE +
+                                       cells / dt * 4 * JOB_MEM_PPA_DRAINAGE_BORDER + cells / 8
+                                 : 0;
         y = tsio_check_memory(JOB_MEM_BASE + (flow > tiles ? flow : tiles), job->input,
-                              drainage ? "valleys where the water runs route it over the whole "
-                                         "DEM: give min_drainage 0 (valleys by profile alone)"
-                                       : "give a smaller tile size (--tile-size)",
-                              err);
+                              "give a smaller tile size (--tile-size)", err);
     } else {
         res->tile_size = 0; /* one tile: in one piece */
         y = tsjob_ppa_check_memory(&g, job->input, err);

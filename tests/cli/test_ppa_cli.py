@@ -361,48 +361,77 @@ def test_tiles_refuse_what_needs_the_whole(tmp_path):
 
 
 def drainage_oracle(z):
-    """Drainage area in cells by priority-flood, written here from the rule in ppa.md (seeds:
-    valid cells on the edge or beside nodata, row-major; lowest first, ties first come first
-    served; a cell drains to the cell it was reached from): an independent implementation."""
+    """Drainage area in cells by the definition in ppa.md, written here another way: F (the
+    least, over paths to the boundary, of the highest cell) by one Dijkstra-like search over
+    the whole DEM, D (steps to a way out on flats of F) by breadth-first search, each cell's
+    flow to its neighbour of least (F, D), areas summed in falling (F, D) order."""
     import heapq
+    from collections import deque
     h, w = z.shape
     nb = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)]
     valid = ~np.isnan(z)
-    parent = np.full(z.shape, -1, np.int64)
-    seen = ~valid
-    heap, count, order = [], 0, []
+    pv = np.pad(valid, 1, constant_values=False)
+    allv = np.ones(z.shape, bool)
+    for dx, dy in nb:
+        allv &= pv[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+    bnd = valid & ~allv
+    F = np.full(z.shape, np.inf)
+    done = ~valid
+    heap = [(float(z[y, x]), y, x) for y, x in zip(*np.nonzero(bnd))]
+    heapq.heapify(heap)
+    while heap:
+        f, y, x = heapq.heappop(heap)
+        if done[y, x]:
+            continue
+        done[y, x] = True
+        F[y, x] = f
+        for dx, dy in nb:
+            nx, ny = x + dx, y + dy
+            if 0 <= nx < w and 0 <= ny < h and not done[ny, nx]:
+                nf = max(float(z[ny, nx]), f)
+                if nf < F[ny, nx]:
+                    F[ny, nx] = nf
+                    heapq.heappush(heap, (nf, ny, nx))
+    F = np.where(valid, F, np.nan).astype(np.float32)  # the core's heights are floats
+    D = np.full(z.shape, -1, np.int64)
+    q = deque()
     for y in range(h):
         for x in range(w):
             if not valid[y, x]:
                 continue
-            edge = x in (0, w - 1) or y in (0, h - 1) or any(
-                not valid[y + dy, x + dx] for dx, dy in nb)
-            if edge:
-                heapq.heappush(heap, (float(z[y, x]), count, y, x))
-                count += 1
-                seen[y, x] = True
-    while heap:
-        hz, _, y, x = heapq.heappop(heap)
-        order.append((y, x))
+            low = bnd[y, x] or any(0 <= x + dx < w and 0 <= y + dy < h and valid[y + dy, x + dx]
+                                   and F[y + dy, x + dx] < F[y, x] for dx, dy in nb)
+            if low:
+                D[y, x] = 0
+                q.append((y, x))
+    while q:
+        y, x = q.popleft()
         for dx, dy in nb:
             nx, ny = x + dx, y + dy
-            if 0 <= nx < w and 0 <= ny < h and not seen[ny, nx]:
-                seen[ny, nx] = True
-                parent[ny, nx] = y * w + x
-                heapq.heappush(heap, (max(float(z[ny, nx]), hz), count, ny, nx))
-                count += 1
-    area = np.where(valid, 1.0, np.nan).ravel()
-    par = parent.ravel()
-    for y, x in reversed(order):
-        c = y * w + x
-        if par[c] >= 0:
-            area[par[c]] += area[c]
-    return area.reshape(z.shape)
+            if 0 <= nx < w and 0 <= ny < h and valid[ny, nx] and D[ny, nx] < 0 \
+                    and F[ny, nx] == F[y, x]:
+                D[ny, nx] = D[y, x] + 1
+                q.append((ny, nx))
+    area = np.where(valid, 1.0, np.nan)
+    cells = [(y, x) for y, x in zip(*np.nonzero(valid))]
+    cells.sort(key=lambda c: (float(F[c]), int(D[c])), reverse=True)
+    for y, x in cells:
+        if bnd[y, x]:
+            continue
+        best, bk = None, (float(F[y, x]), int(D[y, x]))
+        for dx, dy in nb:
+            nx, ny = x + dx, y + dy
+            if 0 <= nx < w and 0 <= ny < h and valid[ny, nx]:
+                k = (float(F[ny, nx]), int(D[ny, nx]))
+                if k < bk:
+                    best, bk = (ny, nx), k
+        area[best] += area[y, x]
+    return area
 
 
 def test_valleys_where_the_water_runs(tmp_path):
     """By default valleys are channels: every valley cell drains at least 200 cells (the
-    oracle above), the dip threshold is lower than the ridges' and the ridges are those of
+    oracle above; the core's areas are compared cell for cell in test_ppa.c), the dip threshold is lower than the ridges' and the ridges are those of
     --min-drainage 0; with --min-drainage 0 valleys are by profile alone and reach hollows
     that drain a few cells."""
     z = gdal.Open(JACKSBORO).ReadAsArray().astype(np.float64)

@@ -19,9 +19,11 @@ PATCH = 64
 
 
 def axes(src, out, kind, main):
-    """PPA mask of `kind` ('ridges'/'valleys'); main=True keeps only the main axes."""
+    """PPA mask of `kind` ('ridges'/'valleys'), by profile (the paper's PPA: a drawing's
+    valleys drain nothing); main=True keeps only the main axes."""
     extra = ["--profile-length", "31", "--threshold-fraction", "0.02", "--min-branch-length", "64"] if main \
         else ["--min-branch-length", "32"]
+    extra += ["--min-drainage", "0"]
     run("ppa", src, out, f"--{kind}", "-q", *extra)
     return gdal.Open(str(out)).ReadAsArray()
 

@@ -36,8 +36,9 @@ static const ts_param_desc ppa_desc[] = {
      offsetof(ts_ppa_params, min_branch_length)},
     {"min_drainage", TS_PARAM_DOUBLE, 200.0, 0.0, 1e9, TS_UNIT_CELLS, "cells", NULL,
      "Valleys where the water runs: valley cells draining fewer cells than this are not "
-     "valley targets (hollows above the channel heads; drainage routed by priority-flood, "
-     "D8).  0: valleys by their profiles alone, as ridges.",
+     "valley targets (hollows above the channel heads; the drainage: depressions filled, "
+     "flats crossed, each cell to its lowest neighbour).  0: valleys by their profiles alone, "
+     "as ridges.",
      offsetof(ts_ppa_params, min_drainage)},
 };
 

@@ -216,6 +216,34 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem,
     return st;
 }
 
+/* The drainage test on the targets: the DEM read from memory, valley
+ * targets draining fewer than min_drainage cells dropped tile by tile. */
+typedef struct channel_filter {
+    const ts_raster *dem;
+    unsigned char *targets;
+    double min_drainage;
+} channel_filter;
+
+static ts_status channel_read(void *user, int x0, int y0, int w, int h, float *buf)
+{
+    const channel_filter *cf = user;
+    int y;
+    for (y = 0; y < h; y++)
+        memcpy(buf + (size_t)y * (size_t)w, &TS_PIX(cf->dem, x0, y0 + y), (size_t)w * sizeof *buf);
+    return TS_OK;
+}
+
+static void channel_drop(void *user, int x0, int y0, int w, int h, const float *area)
+{
+    channel_filter *cf = user;
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++)
+            if (!(area[(size_t)y * (size_t)w + (size_t)x] >= cf->min_drainage))
+                cf->targets[(size_t)(y0 + y) * (size_t)cf->dem->width + (size_t)(x0 + x)] &=
+                    (unsigned char)~TS_VALLEY;
+}
+
 double ppa_kind_fraction(const ts_ppa_params *p, int kind)
 {
     if (p->threshold_fraction >= 0)
@@ -299,17 +327,16 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
         goto fail;
     if ((kinds & TS_VALLEY) && params->min_drainage > 0) {
         /* valleys where the water runs: hollows above the channel heads are not targets */
-        float *area = ts__malloc_array(n, sizeof *area);
-        size_t i;
-        if (!area || ppa_drainage_area(dem, area) != 0) {
-            free(area);
-            st = ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory for the drainage area");
+        channel_filter cf;
+        cf.dem = dem;
+        cf.targets = targets;
+        cf.min_drainage = params->min_drainage;
+        sv = ts__progress_push(ctx, 0.3, 0.3);
+        st = ppa_drainage(ctx, dem->width, dem->height, PPA_DRAINAGE_TILE, channel_read, &cf,
+                          channel_drop, &cf);
+        ts__progress_pop(ctx, sv);
+        if (st != TS_OK)
             goto fail;
-        }
-        for (i = 0; i < n; i++)
-            if (!(area[i] >= params->min_drainage))
-                targets[i] &= (unsigned char)~TS_VALLEY;
-        free(area);
     }
     if (kinds == (TS_RIDGE | TS_VALLEY) && ts__thread_count(ctx, 2) >= 2) {
         sv = ts__progress_push(ctx, 0.3, 1.0);

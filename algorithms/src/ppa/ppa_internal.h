@@ -138,9 +138,21 @@ ts_status ppa_profile_targets(ts_ctx *ctx, const ts_raster *dem, int profile_len
                               double threshold_ridges, double threshold_valleys, int kinds,
                               unsigned char *targets);
 
-/* The drainage area of every valid cell, in cells (NaN on nodata): flow
- * routed by priority-flood (drainage_area.c).  0, or -1 when out of memory. */
-int ppa_drainage_area(const ts_raster *dem, float *area);
+/* The drainage area of every valid cell, in cells (NaN on nodata), the flow
+ * as drainage_area.c defines it, made in tiles of `tile` cells (the same
+ * areas on any tiling): the DEM read window by window (read is called
+ * under a lock), each tile's areas handed to emit (under the lock). */
+typedef void (*ppa_area_fn)(void *user, int x0, int y0, int w, int h, const float *area);
+ts_status ppa_drainage(ts_ctx *ctx, int width, int height, int tile, ts_window_read_fn read,
+                       void *user, ppa_area_fn emit, void *emit_user);
+/* The tiles of the flow routing: in one piece, one tile (one flood; in
+ * tiles each is flooded about four times); in ppa_tiled.c, the PPA's tiles,
+ * at most this. */
+#ifndef PPA_DRAINAGE_TILE
+#define PPA_DRAINAGE_TILE 16384
+#endif
+/* The same of a DEM in memory into area (width x height). */
+ts_status ppa_drainage_area(ts_ctx *ctx, const ts_raster *dem, float *area, int tile);
 
 /* The parameters of one kind, "auto" resolved (ppa.c): valleys with the
  * drainage test (min_drainage > 0) are channels, mapped with a lower dip

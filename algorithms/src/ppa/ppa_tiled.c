@@ -1286,46 +1286,39 @@ static void tiled_free(tiled *t)
     }
 }
 
-/* The cells draining at least min_drainage cells, a bit each: the flow is
- * routed over the whole DEM (read window by window into one raster, freed
- * after), by the very function of the whole-raster run. */
+/* The cells draining at least min_drainage cells, a bit each: the flow
+ * routed in tiles (drainage_area.c), the DEM read window by window. */
+typedef struct channel_io {
+    uint64_t *bits;
+    int W;
+    double min_drainage;
+} channel_io;
+
+static void channel_emit(void *user, int x0, int y0, int w, int h, const float *area)
+{
+    channel_io *io = user;
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++)
+            if (area[(size_t)y * (size_t)w + (size_t)x] >= io->min_drainage) {
+                uint64_t g = (uint64_t)(y0 + y) * (uint64_t)io->W + (uint64_t)(x0 + x);
+                io->bits[g >> 6] |= (uint64_t)1 << (g & 63);
+            }
+}
+
 static ts_status tiled_channels(tiled *t, double min_drainage)
 {
-    size_t n = (size_t)t->W * (size_t)t->H, i;
-    int y0;
-    ts_raster whole;
-    float *dem = ts__malloc_array(n, sizeof *dem), *area = ts__malloc_array(n, sizeof *area);
-    ts_status st = TS_OK;
+    size_t n = (size_t)t->W * (size_t)t->H;
+    channel_io io;
     t->channel = ts__calloc_array((n + 63) / 64, sizeof *t->channel);
-    if (!dem || !area || !t->channel) {
-        free(dem);
-        free(area);
-        return ts__fail(t->ctx, TS_ERR_NOMEM, "ppa",
-                        "cannot allocate the drainage of %d x %d cells (min_drainage routes "
-                        "water over the whole DEM: give min_drainage 0)",
+    if (!t->channel)
+        return ts__fail(t->ctx, TS_ERR_NOMEM, "ppa", "cannot allocate the drainage bits of %d x %d cells",
                         t->W, t->H);
-    }
-    for (y0 = 0; y0 < t->H && st == TS_OK; y0 += t->T) {
-        int h = TS_MIN(t->T, t->H - y0);
-        if ((st = t->read(t->user, 0, y0, t->W, h, dem + (size_t)y0 * (size_t)t->W)) != TS_OK &&
-            t->ctx->status == TS_OK)
-            ts__fail(t->ctx, st, "ppa", "cannot read the DEM");
-        if (st == TS_OK)
-            st = ts__progress(t->ctx, 0.5 * (y0 + h) / t->H, "drainage");
-    }
-    whole.width = t->W;
-    whole.height = t->H;
-    whole.stride = t->W;
-    whole.data = dem;
-    if (st == TS_OK && ppa_drainage_area(&whole, area) != 0)
-        st = ts__fail(t->ctx, TS_ERR_NOMEM, "ppa", "out of memory for the drainage area");
-    if (st == TS_OK)
-        for (i = 0; i < n; i++)
-            if (area[i] >= min_drainage)
-                t->channel[i >> 6] |= (uint64_t)1 << (i & 63);
-    free(dem);
-    free(area);
-    return st != TS_OK ? t->ctx->status : ts__progress(t->ctx, 1.0, "drainage");
+    io.bits = t->channel;
+    io.W = t->W;
+    io.min_drainage = min_drainage;
+    return ppa_drainage(t->ctx, t->W, t->H, TS_MIN(t->T, PPA_DRAINAGE_TILE), t->read, t->user,
+                        channel_emit, &io);
 }
 
 TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
