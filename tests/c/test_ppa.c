@@ -877,6 +877,32 @@ static void test_channels_by_default(void)
     CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &fc) == TS_OK);
     CHECK(fc && fc->threshold_used == fc->threshold_used_valleys);
     ts_features_free(fc);
+    /* on 8 threads and more the drainage runs in tiles of 1024 side by side: the same
+     * valleys as on one thread (one tile) */
+    {
+        ts_raster big;
+        ts_features *f1 = NULL, *f8 = NULL;
+        int bw = 1300, bh = 1100;
+        ts_raster_alloc(ctx, bw, bh, &big);
+        for (y = 0; y < bh; y++)
+            for (x = 0; x < bw; x++)
+                TS_PIX(&big, x, y) = (float)(30.0 * sin(0.013 * x) * cos(0.011 * y) +
+                                             12.0 * sin(0.05 * x + 0.03 * y) + 0.02 * y +
+                                             (float)(int)(4.0 * th_uniform(&s)));
+        p = ts_ppa_params_default();
+        p.features = TS_PPA_VALLEYS;
+        ts_ctx_set_threads(ctx, 1);
+        CHECK(ts_ppa_extract(ctx, &big, NULL, &p, &f1) == TS_OK);
+        ts_ctx_set_threads(ctx, 8);
+        CHECK(ts_ppa_extract(ctx, &big, NULL, &p, &f8) == TS_OK);
+        CHECK(f1 && f8 && count_mask(f1, TS_VALLEY) > 1000 &&
+              memcmp(f1->mask, f8->mask, (size_t)bw * bh) == 0);
+        ts_features_free(f1);
+        ts_features_free(f8);
+        ts_raster_free(&big);
+        ts_ctx_set_threads(ctx, 0);
+        p = ts_ppa_params_default();
+    }
     p.threshold_fraction = -0.5; /* -1 is auto; other negatives are no value */
     CHECK(ts_params_validate(ctx, "ppa", &p) == TS_ERR_ARG);
     CHECK(ts_params_set(ctx, "ppa", &p, "threshold_fraction", "-1") == TS_OK);

@@ -331,9 +331,14 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
         cf.dem = dem;
         cf.targets = targets;
         cf.min_drainage = params->min_drainage;
+        /* one flood in one tile on few threads; tiles (each flooded about four
+         * times, side by side) on many: the same areas either way */
         sv = ts__progress_push(ctx, 0.3, 0.3);
-        st = ppa_drainage(ctx, dem->width, dem->height, PPA_DRAINAGE_TILE, channel_read, &cf,
-                          channel_drop, &cf);
+        st = ppa_drainage(ctx, dem->width, dem->height,
+                          ts__thread_count(ctx, 64) >= PPA_DRAINAGE_TILES_FROM
+                              ? PPA_DRAINAGE_TILE_THREADS
+                              : PPA_DRAINAGE_TILE,
+                          channel_read, &cf, channel_drop, &cf);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto fail;
