@@ -537,6 +537,24 @@ static void tile_areas(dr_job *j, dr_tile *k, size_t taken, const double *in)
     }
 }
 
+/* Append an edge to a growing list; -1 when out of memory. */
+static int edge_push(dr_edge **e, size_t *n, size_t *cap, uint64_t u, uint64_t v, float w)
+{
+    if (*n == *cap) {
+        size_t nc = *cap ? 2 * *cap : 1024;
+        dr_edge *g = realloc(*e, nc * sizeof *g);
+        if (!g)
+            return -1;
+        *e = g;
+        *cap = nc;
+    }
+    (*e)[*n].u = u;
+    (*e)[*n].v = v;
+    (*e)[*n].w = w;
+    (*n)++;
+    return 0;
+}
+
 /* By weight, then nodes: one total order (the forest does not depend on qsort). */
 static int edge_cmp(const void *pa, const void *pb)
 {
@@ -577,18 +595,10 @@ static int phase_a(dr_job *j, dr_tile *k)
                 n = hx(k, nx, ny);
                 if (isnan(k->cell[n].v) || k->cell[n].L == k->cell[c].L)
                     continue;
-                if (ne == cap) {
-                    size_t nc = cap ? 2 * cap : 1024;
-                    dr_edge *g = realloc(e, nc * sizeof *g);
-                    if (!g)
-                        goto done;
-                    e = g;
-                    cap = nc;
-                }
-                e[ne].u = TS_MIN(k->cell[c].L, k->cell[n].L);
-                e[ne].v = TS_MAX(k->cell[c].L, k->cell[n].L);
-                e[ne].w = TS_MAX(k->cell[c].v, k->cell[n].v);
-                ne++;
+                if (edge_push(&e, &ne, &cap, TS_MIN(k->cell[c].L, k->cell[n].L),
+                              TS_MAX(k->cell[c].L, k->cell[n].L),
+                              TS_MAX(k->cell[c].v, k->cell[n].v)) != 0)
+                    goto done;
             }
         }
     /* the minimum spanning forest of the labels (Kruskal): it keeps every
@@ -669,18 +679,9 @@ static int solve_perimeter_f(dr_job *j)
                     v = j->pbnd[qq] ? 0 : 1 + qq;
                     if (u == v)
                         continue;
-                    if (j->n_edges == j->cap_edges) {
-                        size_t nc = j->cap_edges ? 2 * j->cap_edges : 1024;
-                        dr_edge *g = realloc(j->edges, nc * sizeof *g);
-                        if (!g)
-                            return -1;
-                        j->edges = g;
-                        j->cap_edges = nc;
-                    }
-                    j->edges[j->n_edges].u = u;
-                    j->edges[j->n_edges].v = v;
-                    j->edges[j->n_edges].w = TS_MAX(j->ph[p], j->ph[qq]);
-                    j->n_edges++;
+                    if (edge_push(&j->edges, &j->n_edges, &j->cap_edges, u, v,
+                                  TS_MAX(j->ph[p], j->ph[qq])) != 0)
+                        return -1;
                 }
             }
     }
@@ -1050,12 +1051,12 @@ typedef struct mem_io {
     float *area;
 } mem_io;
 
-static ts_status mem_read(void *user, int x0, int y0, int w, int h, float *buf)
+ts_status ppa_raster_window(void *dem, int x0, int y0, int w, int h, float *buf)
 {
-    const mem_io *m = user;
+    const ts_raster *r = dem;
     int y;
     for (y = 0; y < h; y++)
-        memcpy(buf + (size_t)y * (size_t)w, &TS_PIX(m->dem, x0, y0 + y), (size_t)w * sizeof *buf);
+        memcpy(buf + (size_t)y * (size_t)w, &TS_PIX(r, x0, y0 + y), (size_t)w * sizeof *buf);
     return TS_OK;
 }
 
@@ -1073,5 +1074,6 @@ ts_status ppa_drainage_area(ts_ctx *ctx, const ts_raster *dem, float *area, int 
     mem_io m;
     m.dem = dem;
     m.area = area;
-    return ppa_drainage(ctx, dem->width, dem->height, tile, mem_read, &m, mem_emit, &m);
+    return ppa_drainage(ctx, dem->width, dem->height, tile, ppa_raster_window, (void *)dem, mem_emit,
+                        &m);
 }

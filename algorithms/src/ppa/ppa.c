@@ -224,15 +224,6 @@ typedef struct channel_filter {
     double min_drainage;
 } channel_filter;
 
-static ts_status channel_read(void *user, int x0, int y0, int w, int h, float *buf)
-{
-    const channel_filter *cf = user;
-    int y;
-    for (y = 0; y < h; y++)
-        memcpy(buf + (size_t)y * (size_t)w, &TS_PIX(cf->dem, x0, y0 + y), (size_t)w * sizeof *buf);
-    return TS_OK;
-}
-
 static void channel_drop(void *user, int x0, int y0, int w, int h, const float *area)
 {
     channel_filter *cf = user;
@@ -338,7 +329,7 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
                           ts__thread_count(ctx, 64) >= PPA_DRAINAGE_TILES_FROM
                               ? PPA_DRAINAGE_TILE_THREADS
                               : PPA_DRAINAGE_TILE,
-                          channel_read, &cf, channel_drop, &cf);
+                          ppa_raster_window, (void *)dem, channel_drop, &cf);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto fail;

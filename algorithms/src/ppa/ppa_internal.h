@@ -156,6 +156,8 @@ ts_status ppa_drainage(ts_ctx *ctx, int width, int height, int tile, ts_window_r
  * more cores) */
 #define PPA_DRAINAGE_TILES_FROM 8
 #define PPA_DRAINAGE_TILE_THREADS 1024
+/* A window of a raster in memory (user: the const ts_raster *). */
+ts_status ppa_raster_window(void *dem, int x0, int y0, int w, int h, float *buf);
 /* The same of a DEM in memory into area (width x height). */
 ts_status ppa_drainage_area(ts_ctx *ctx, const ts_raster *dem, float *area, int tile);
 
