@@ -608,7 +608,8 @@ static int phase_a(dr_job *j, dr_tile *k)
         goto done;
     for (i = 0; i < np + 2; i++)
         uf[i] = (uint32_t)i;
-    qsort(e, ne, sizeof *e, edge_cmp);
+    if (ne > 1)
+        qsort(e, ne, sizeof *e, edge_cmp);
     for (i = 0; i < ne; i++) {
         uint32_t ru = ppa_uf_find(uf, (uint32_t)e[i].u), rv = ppa_uf_find(uf, (uint32_t)e[i].v);
         if (ru == rv)
@@ -631,7 +632,8 @@ static int phase_a(dr_job *j, dr_tile *k)
         j->edges = g;
         j->cap_edges = nc;
     }
-    memcpy(j->edges + j->n_edges, e, kept * sizeof *e);
+    if (kept)
+        memcpy(j->edges + j->n_edges, e, kept * sizeof *e);
     j->n_edges += kept;
     pthread_mutex_unlock(&j->lock);
     rc = 0;
