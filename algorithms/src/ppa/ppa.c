@@ -125,11 +125,46 @@ typedef struct valley_job {
     ts_ctx *ctx;
     ts_features *f;
     ts_status status;
+    /* valleys where the water runs, routed here while the caller finds the
+     * targets (min_drainage > 0): the drainage into vt, then, once the
+     * targets are ready, vt the valley targets that pass */
+    double min_drainage;
+    unsigned char *vt;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    int ready, abort;
 } valley_job;
+
+static void mark_channels(void *user, int x0, int y0, int w, int h, const float *area)
+{
+    valley_job *j = user;
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++)
+            j->vt[(size_t)(y0 + y) * (size_t)j->dem->width + (size_t)(x0 + x)] =
+                area[(size_t)y * (size_t)w + (size_t)x] >= j->min_drainage;
+}
 
 static void *valley_run(void *p)
 {
     valley_job *j = p;
+    if (j->min_drainage > 0) {
+        size_t i, n = (size_t)j->dem->width * (size_t)j->dem->height;
+        int go;
+        j->status = ppa_drainage(j->ctx, j->dem->width, j->dem->height, PPA_DRAINAGE_TILE,
+                                 ppa_raster_window, (void *)j->dem, mark_channels, j);
+        pthread_mutex_lock(&j->mu);
+        while (!j->ready && !j->abort)
+            pthread_cond_wait(&j->cv, &j->mu);
+        go = !j->abort;
+        pthread_mutex_unlock(&j->mu);
+        if (j->status != TS_OK || !go)
+            return NULL;
+        for (i = 0; i < n; i++)
+            j->vt[i] = j->vt[i] && (j->targets[i] & TS_VALLEY) ? TS_VALLEY : 0;
+        j->status = ppa_one_kind(j->ctx, j->dem, j->m, j->vt, TS_VALLEY, j->min_length, j->f, 2);
+        return NULL;
+    }
     j->status = ppa_one_kind(j->ctx, j->dem, j->m, j->targets, TS_VALLEY, j->min_length, j->f, 2);
     return NULL;
 }
@@ -171,21 +206,48 @@ static ts_status ppa_merge(ts_ctx *ctx, ts_features *a, const ts_features *b)
     return TS_OK;
 }
 
-/* Ridges here, valleys on a worker thread; same result as in sequence. */
+/* Profile recognition, when the targets are still to be found (the
+ * drainage runs meanwhile). */
+typedef struct profile_step {
+    int profile_length, kinds;
+    double threshold[2];
+} profile_step;
+
+static void job_release(valley_job *j, int abort)
+{
+    pthread_mutex_lock(&j->mu);
+    if (abort)
+        j->abort = 1;
+    else
+        j->ready = 1;
+    pthread_cond_signal(&j->cv);
+    pthread_mutex_unlock(&j->mu);
+}
+
+/* Ridges here, valleys on a worker thread; same result as in sequence.
+ * With ps, the targets are found here first, while the worker routes the
+ * drainage (min_drainage > 0), which then gives it its valley targets. */
 static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem,
                                    const ts_grid_metrics *m_ridges, double len_ridges,
                                    const ts_grid_metrics *m_valleys, double len_valleys,
-                                   const unsigned char *targets, ts_features *f)
+                                   unsigned char *targets, ts_features *f,
+                                   const profile_step *ps, double min_drainage)
 {
     valley_job job;
     pthread_t tid;
     ts_features *fv = calloc(1, sizeof *fv);
     ts_ctx *wctx = ts__ctx_child(ctx);
-    ts_status st;
+    ts_status st = TS_OK;
+    ts_progress_saved sv;
     size_t n = (size_t)dem->width * (size_t)dem->height;
-    if (!fv || !wctx || !(fv->mask = ts__calloc_array(n, 1))) {
+    int threaded;
+    memset(&job, 0, sizeof job);
+    if (min_drainage > 0)
+        job.vt = ts__calloc_array(n, 1);
+    if (!fv || !wctx || !(fv->mask = ts__calloc_array(n, 1)) || (min_drainage > 0 && !job.vt)) {
         ts_features_free(fv);
         ts_ctx_free(wctx);
+        free(job.vt);
         return ts__fail(ctx, TS_ERR_NOMEM, "ppa", "out of memory");
     }
     fv->width = dem->width;
@@ -197,12 +259,27 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem,
     job.ctx = wctx;
     job.f = fv;
     job.status = TS_ERR_INTERNAL;
-    if (pthread_create(&tid, NULL, valley_run, &job) != 0) {
-        /* no thread: do it in sequence */
-        valley_run(&job);
+    job.min_drainage = min_drainage;
+    pthread_mutex_init(&job.mu, NULL);
+    pthread_cond_init(&job.cv, NULL);
+    job.ready = !ps;
+    threaded = pthread_create(&tid, NULL, valley_run, &job) == 0;
+    if (ps) {
+        sv = ts__progress_push(ctx, 0.0, 0.3);
+        st = ppa_profile_targets(ctx, dem, ps->profile_length, ps->threshold[0], ps->threshold[1],
+                                 ps->kinds, targets);
+        ts__progress_pop(ctx, sv);
+        if (st != TS_OK)
+            ts__cancel(ctx); /* the worker need not finish */
+        job_release(&job, st != TS_OK);
+    }
+    if (!threaded)
+        valley_run(&job); /* no thread: in sequence */
+    sv = ts__progress_push(ctx, ps ? 0.3 : 0.0, 1.0);
+    if (st == TS_OK)
         st = ppa_one_kind(ctx, dem, m_ridges, targets, TS_RIDGE, len_ridges, f, 2);
-    } else {
-        st = ppa_one_kind(ctx, dem, m_ridges, targets, TS_RIDGE, len_ridges, f, 2);
+    ts__progress_pop(ctx, sv);
+    if (threaded) {
         if (st != TS_OK)
             ts__cancel(ctx); /* the valleys need not finish */
         pthread_join(tid, NULL);
@@ -211,6 +288,9 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem,
         st = ts__fail(ctx, job.status, "ppa", "%s", ts_ctx_message(wctx));
     if (st == TS_OK)
         st = ppa_merge(ctx, f, fv);
+    pthread_mutex_destroy(&job.mu);
+    pthread_cond_destroy(&job.cv);
+    free(job.vt);
     ts_features_free(fv);
     ts_ctx_free(wctx);
     return st;
@@ -310,12 +390,28 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
     f->threshold_used = params->features == TS_PPA_VALLEYS ? threshold[1] : threshold[0];
     f->threshold_used_valleys = threshold[1];
 
-    sv = ts__progress_push(ctx, 0.0, 0.3);
-    st = ppa_profile_targets(ctx, dem, params->profile_length, threshold[0], threshold[1], kinds,
-                             targets);
-    ts__progress_pop(ctx, sv);
-    if (st != TS_OK)
-        goto fail;
+    if (kinds == (TS_RIDGE | TS_VALLEY) && ts__thread_count(ctx, 2) >= 2 &&
+        params->min_drainage > 0 && ts__thread_count(ctx, 64) < PPA_DRAINAGE_TILES_FROM) {
+        /* both kinds on a few threads: the drainage (one flood, one thread)
+         * while the targets and the ridges are made, then the valleys */
+        profile_step ps;
+        ps.profile_length = params->profile_length;
+        ps.kinds = kinds;
+        ps.threshold[0] = threshold[0];
+        ps.threshold[1] = threshold[1];
+        st = ppa_both_parallel(ctx, dem, km[0], min_length[0], km[1], min_length[1], targets, f,
+                               &ps, params->min_drainage);
+        if (st != TS_OK)
+            goto fail;
+        kinds = 0;
+    } else {
+        sv = ts__progress_push(ctx, 0.0, 0.3);
+        st = ppa_profile_targets(ctx, dem, params->profile_length, threshold[0], threshold[1],
+                                 kinds, targets);
+        ts__progress_pop(ctx, sv);
+        if (st != TS_OK)
+            goto fail;
+    }
     if ((kinds & TS_VALLEY) && params->min_drainage > 0) {
         /* valleys where the water runs: hollows above the channel heads are not targets */
         channel_filter cf;
@@ -336,7 +432,8 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
     }
     if (kinds == (TS_RIDGE | TS_VALLEY) && ts__thread_count(ctx, 2) >= 2) {
         sv = ts__progress_push(ctx, 0.3, 1.0);
-        st = ppa_both_parallel(ctx, dem, km[0], min_length[0], km[1], min_length[1], targets, f);
+        st = ppa_both_parallel(ctx, dem, km[0], min_length[0], km[1], min_length[1], targets, f,
+                               NULL, 0);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto fail;
