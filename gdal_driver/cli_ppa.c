@@ -122,9 +122,10 @@ int cli_ppa(int argc, char **argv)
     }
     f = res.features;
     if (co.progress != PROGRESS_QUIET && !f)
-        printf("ppa: mapped in tiles of %d cells (%d branch reduction passes in the tiles, "
+        printf("ppa: mapped in tiles of %d cells%s (%d branch reduction passes in the tiles, "
                "%zu chains held for the rest)\n",
-               res.tile_size, res.tiled.passes_in_tiles, res.tiled.chains_held);
+               res.tile_size, res.auto_tiles ? ", the DEM being too large for memory in one piece" : "",
+               res.tiled.passes_in_tiles, res.tiled.chains_held);
     if (co.progress != PROGRESS_QUIET && f) {
         size_t nb = 0, ne = 0, np[3] = {0, 0, 0};
         for (k = 0; k < f->n_nodes; k++) {

@@ -202,8 +202,8 @@ static const tsj_option ppa_opts[] = {
     {"tile_size", TSJ_INT, 1, 0, 16384, "N", G_RUN,
      "map the DEM in tiles of N x N cells (16..16384), read window by window three times: the "
      "same raster as in one piece, in the memory of three rows of tiles and the axes' chains "
-     "(DEMs larger than memory; not with lines, preview or min_drainage for valleys). 0 "
-     "(default): in one piece",
+     "(DEMs larger than memory; not with lines or preview). 0 (default): in one piece, or, when "
+     "it does not fit in memory, in the largest tiles (8192 .. 64) that do",
      "TileSize", 0, NULL},
     OPT_RECIPE,
 };

@@ -51,36 +51,56 @@ int tsjob_ppa_check_memory(const tsio_georef *in, const char *path, tsio_err *er
 {
     uint64_t cells = (uint64_t)in->width * (uint64_t)in->height;
     return tsio_check_memory(JOB_MEM_BASE + cells * JOB_MEM_PPA_CELL, path,
-                             "cut the DEM into tiles (gdal_retile.py) or coarsen it (gdalwarp -tr)",
+                             "coarsen it (gdalwarp -tr) or allow more memory (not even tiles of 64 "
+                             "cells fit)",
                              err);
+}
+
+/* The memory of the PPA in tiles of T cells (tsjob_ppa_prepare). */
+static uint64_t ppa_tiled_need(const tsjob_ppa *job, const tsio_georef *g, uint64_t T)
+{
+    uint64_t side = T + 2 * (uint64_t)job->params.profile_length;
+    uint64_t cells = (uint64_t)g->width * (uint64_t)g->height;
+    int drainage = job->params.min_drainage > 0 && job->params.features != TS_PPA_RIDGES;
+    uint64_t tiles = side * side * JOB_MEM_PPA_TILE_CELL + T * (uint64_t)g->width * JOB_MEM_PPA_STRIP +
+                     cells * JOB_MEM_PPA_CHAINS;
+    /* the drainage (valleys where the water runs) is routed in tiles too,
+     * before the axes: a tile per thread, the tiles' borders, a bit a cell */
+    long threads = sysconf(_SC_NPROCESSORS_ONLN);
+    uint64_t dt = T < 16384 ? T : 16384;
+    uint64_t flow = drainage ? (uint64_t)(threads > 0 ? threads : 1) * dt * dt * JOB_MEM_PPA_DRAINAGE +
+                                   cells / dt * 4 * JOB_MEM_PPA_DRAINAGE_BORDER + cells / 8
+                             : 0;
+    return JOB_MEM_BASE + (flow > tiles ? flow : tiles);
 }
 
 int tsjob_ppa_prepare(const tsjob_ppa *job, tsjob_ppa_result *res, tsio_err *err)
 {
     int y;
     tsio_georef g;
+    uint64_t limit;
+    int from_option;
     memset(res, 0, sizeof *res);
     /* the size before the cells: a huge raster is refused, not read */
     if (tsio_read_georef(job->input, &g, err) != 0)
         return -1;
     res->band = job->band;
     res->tile_size = job->tile_size;
+    if (res->tile_size == 0 && tsio_memory_limit(&limit, &from_option, err) == 0 &&
+        JOB_MEM_BASE + (uint64_t)g.width * (uint64_t)g.height * JOB_MEM_PPA_CELL > limit) {
+        /* too large in one piece: the largest tiles that fit */
+        static const int sizes[] = {8192, 4096, 2048, 1024, 512, 256, 128, 64};
+        size_t i;
+        for (i = 0; i < sizeof sizes / sizeof sizes[0]; i++)
+            if ((sizes[i] < g.width || sizes[i] < g.height) &&
+                ppa_tiled_need(job, &g, (uint64_t)sizes[i]) <= limit) {
+                res->tile_size = sizes[i];
+                res->auto_tiles = 1;
+                break;
+            }
+    }
     if (res->tile_size > 0 && (res->tile_size < g.width || res->tile_size < g.height)) {
-        uint64_t side = (uint64_t)res->tile_size + 2 * (uint64_t)job->params.profile_length;
-        uint64_t cells = (uint64_t)g.width * (uint64_t)g.height;
-        int drainage = job->params.min_drainage > 0 && job->params.features != TS_PPA_RIDGES;
-        uint64_t tiles = side * side * JOB_MEM_PPA_TILE_CELL +
-                         (uint64_t)res->tile_size * (uint64_t)g.width * JOB_MEM_PPA_STRIP +
-                         cells * JOB_MEM_PPA_CHAINS;
-        /* the drainage (valleys where the water runs) is routed in tiles too,
-         * before the axes: a tile per thread, the tiles' borders, a bit a cell */
-        long threads = sysconf(_SC_NPROCESSORS_ONLN);
-        uint64_t dt = (uint64_t)(res->tile_size < 16384 ? res->tile_size : 16384);
-        uint64_t flow = drainage ? (uint64_t)(threads > 0 ? threads : 1) * dt * dt *
-                                           JOB_MEM_PPA_DRAINAGE +
-                                       cells / dt * 4 * JOB_MEM_PPA_DRAINAGE_BORDER + cells / 8
-                                 : 0;
-        y = tsio_check_memory(JOB_MEM_BASE + (flow > tiles ? flow : tiles), job->input,
+        y = tsio_check_memory(ppa_tiled_need(job, &g, (uint64_t)res->tile_size), job->input,
                               "give a smaller tile size (--tile-size)", err);
     } else {
         res->tile_size = 0; /* one tile: in one piece */
@@ -933,7 +953,7 @@ int tsjob_ppa_check_outputs(const tsjob_ppa *job, const tsjob_ppa_result *res,
                   "mapped in tiles of %d cells (%s): lines and preview need the whole DEM in "
                   "memory; give neither",
                   res->tile_size,
-                  job->tile_size ? "as asked" : "too large for memory in one piece");
+                  res->auto_tiles ? "too large for memory in one piece" : "as asked");
         return -1;
     }
     if (job_not_an_input(o->output, in, 1, err) || job_not_an_input(o->lines, in, 1, err) ||

@@ -57,6 +57,7 @@ typedef struct tsjob_ppa_result {
     tsio_err warning;        /* "" or one line a front end shows as a warning */
     int tile_size;           /* > 0: the DEM is read and mapped in tiles (no features,
                                 no codes: tsjob_ppa_write makes the raster tile by tile) */
+    int auto_tiles;          /* the tiles were chosen: too large for memory in one piece */
     tsio_reader *reader;     /* the DEM, open, when in tiles */
     int band;
     ts_ctx *ctx; /* borrowed for the tiled write */

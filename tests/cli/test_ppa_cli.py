@@ -339,6 +339,27 @@ def test_tiles_give_the_channels_of_one_piece(tmp_path):
         assert np.array_equal(a, ref), "tile %s: %d cells differ" % (tile, (a != ref).sum())
 
 
+@pytest.mark.skipif((os.cpu_count() or 1) > 16, reason="the drainage's tiles take a tile a core")
+def test_tiles_chosen_from_memory(tmp_path):
+    """No --tile-size, a DEM too large for memory in one piece: the largest tiles that fit,
+    said so, the raster of the run in one piece; lines need one piece: refused; too little
+    memory even for tiles: refused with the amount."""
+    one, auto = tmp_path / "one.tif", tmp_path / "auto.tif"
+    run("ppa", JACKSBORO, one, "--both", "-q")
+    # in one piece it needs 96 MB and 24 bytes a cell (99.3 MB): just under that
+    p = run("ppa", JACKSBORO, auto, "--both", "--max-memory", "99M")
+    assert "too large for memory in one piece" in p.stdout and "tiles of" in p.stdout
+    assert np.array_equal(read(auto)[1], read(one)[1])
+    for extra, words in ((["--max-memory", "99M", "--lines", tmp_path / "l.gpkg"],
+                          "lines and preview"),
+                         (["--max-memory", "90M"], "allow more memory")):
+        out = tmp_path / "o.tif"
+        p = run("ppa", JACKSBORO, out, "--both", *extra, check=False)
+        assert p.returncode != 0 and words in p.stderr, p.stderr
+        assert len(p.stderr.strip().splitlines()) == 1
+        assert not out.exists() and not leftovers(tmp_path)
+
+
 def test_tiles_progress_goes_one_way(tmp_path):
     p = run("ppa", JACKSBORO, tmp_path / "o.tif", "--progress-lines", "--both", "--tile-size", "64")
     pcts = [int(l.split()[1]) for l in p.stdout.splitlines() if l.startswith("PROGRESS ")]
