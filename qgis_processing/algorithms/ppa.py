@@ -37,17 +37,27 @@ cross, the less important one is cancelled.</li>
 <li><b>Branch reduction</b>: branches shorter than <i>Minimum branch length</i> are removed,
 keeping the main axes whole.</li>
 </ol>
+<p><b>Valleys where the water runs</b> (the default): valley targets draining fewer than
+<i>Minimum drainage</i> cells (200) are dropped (the hollows above the channel heads; the
+drainage: depressions filled, flats crossed, each cell to its lowest neighbour), and valleys get
+a lower dip and shorter branches than ridges, so they follow the channels a flow router finds
+(GRASS <code>r.stream.extract</code>: recall 0.71-0.99 at precision 0.71-0.81 on nine real
+DEMs). <i>Minimum drainage</i> 0 gives the paper's valleys, by their profiles alone.</p>
 <h3>Parameters</h3>
 <ul>
 <li><b>Features</b>: ridges, valleys or both.</li>
 <li><b>Profile length</b> (odd, 3..1001 cells, default 11): lengthen it for broad valleys on fine
 grids.</li>
 <li><b>Threshold</b> (metres) and <b>Threshold fraction</b> (of the DEM's elevation range, default
-0.0025): the minimum dip. As on the command line, the two exclude each other: changing one from
-its default replaces the other (which is then 0); changing both is an error.</li>
+-1 = auto: 0.0025 for ridges, 0.0001 for valleys with the drainage test): the minimum dip. As on
+the command line, the two exclude each other: changing one from its default replaces the other
+(which is then 0); changing both is an error. A value given is every kind's.</li>
 <li><b>Minimum branch length</b> with its <b>unit</b> (cells, or metres on the ground; default
-40 cells): the main knob for detail (20 cells: dense network, 80: only the main axes). Metres
-need a CRS, or <i>Cell size</i> for a raster without one.</li>
+-1 = auto: 40 cells for ridges, 10 for valleys with the drainage test): the main knob for detail
+(20 cells: dense network, 80: only the main axes). Metres need a CRS, or <i>Cell size</i> for a
+raster without one.</li>
+<li><b>Minimum drainage</b> (cells, default 200): valleys where the water runs (above); 0: by
+profile alone.</li>
 <li><b>Band</b>: the input band. Heights are read in metres (scale/offset applied, feet
 converted); lengths are measured on the ground (geodesic in a geographic CRS).</li>
 </ul>
