@@ -11,6 +11,7 @@
 # Copyright (C) 2026 The TerraSynth developers
 # SPDX-License-Identifier: GPL-2.0-or-later
 import argparse
+import multiprocessing
 import os
 import sys
 import tempfile
@@ -57,7 +58,14 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         for size in [int(s) for s in a.sizes.split(",")]:
             dem = os.path.join(d, "mosaic_%d.tif" % size)
-            mosaic(src, size, dem)
+            # made in a child: a spawned run's peak would count this Python's pages (a
+            # 16384^2 mosaic is GBs of arrays), as spawn's docstring warns
+            child = multiprocessing.get_context("fork").Process(target=mosaic,
+                                                                args=(src, size, dem))
+            child.start()
+            child.join()
+            if child.exitcode != 0:
+                sys.exit("bench_ppa_tiled: the mosaic of %d failed" % size)
             cells = size * size
             whole = os.path.join(d, "whole_%d.tif" % size)
             runs = []
