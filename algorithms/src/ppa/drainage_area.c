@@ -180,7 +180,7 @@ typedef struct dr_job {
     unsigned char *pbnd; /* perimeter cell on the boundary */
     float *G;            /* perimeter F */
     uint32_t *D, *Dnew;  /* perimeter D (DINF: not known) */
-    unsigned char *todo; /* the tiles of the phase at hand */
+    unsigned char *due; /* the tiles the phase at hand runs on */
     dr_edge *edges;
     size_t n_edges, cap_edges;
     uint64_t *target, *link; /* phase C: where a tile exit's flow enters; by what exit a
@@ -829,7 +829,7 @@ static void tiles_range(void *arg, size_t b, size_t e)
     for (t = b; t < e; t++) {
         if (atomic_load(&j->failed) || ts__cancelled(j->ctx))
             break;
-        if (!j->todo[t])
+        if (!j->due[t])
             continue;
         if (tile_phase(j, &k, t) != 0) {
             job_fail(j);
@@ -959,8 +959,8 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn re
     j.emit_user = emit_user;
     pthread_mutex_init(&j.lock, NULL);
     j.pbase = ts__malloc_array(j.ntiles + 1, sizeof *j.pbase);
-    j.todo = ts__malloc_array(j.ntiles, 1);
-    if (!j.pbase || !j.todo) {
+    j.due = ts__malloc_array(j.ntiles, 1);
+    if (!j.pbase || !j.due) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "ppa drainage", "out of memory");
         goto out;
     }
@@ -989,7 +989,7 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn re
         j.D[i] = j.Dnew[i] = DINF;
         j.target[i] = j.link[i] = NONE;
     }
-    memset(j.todo, 1, j.ntiles);
+    memset(j.due, 1, j.ntiles);
     if (j.ntiles > 1) {
         /* A: F on the tiles' perimeters */
         if ((st = run_phase(&j, 0)) != TS_OK)
@@ -1008,13 +1008,13 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn re
             memcpy(j.D, j.Dnew, j.np * sizeof *j.D);
             /* again: the tiles with a perimeter cell whose D a neighbour of its
              * height in another tile now lowers (every other D stays) */
-            memset(j.todo, 0, j.ntiles);
+            memset(j.due, 0, j.ntiles);
             for (t = 0; t < j.ntiles; t++)
-                any |= j.todo[t] = (unsigned char)flat_pairs(&j, t);
+                any |= j.due[t] = (unsigned char)flat_pairs(&j, t);
             if (!any)
                 break;
         }
-        memset(j.todo, 1, j.ntiles);
+        memset(j.due, 1, j.ntiles);
         if ((st = ts__progress(ctx, 0.6, "drainage: flats")) != TS_OK)
             goto out;
         /* C: the tiles' exits, summed in flow order */
@@ -1032,7 +1032,7 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn re
 out:
     pthread_mutex_destroy(&j.lock);
     free(j.pbase);
-    free(j.todo);
+    free(j.due);
     free(j.ph);
     free(j.pbnd);
     free(j.G);
@@ -1043,6 +1043,47 @@ out:
     free(j.link);
     free(j.A);
     free(j.in);
+    return st;
+}
+
+/* ---- the drainage test: a bit a cell ---- */
+
+typedef struct channel_io {
+    uint64_t *bits;
+    int width;
+    double min_drainage;
+} channel_io;
+
+static void channel_emit(void *user, int x0, int y0, int w, int h, const float *area)
+{
+    channel_io *io = user;
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++)
+            if (area[(size_t)y * (size_t)w + (size_t)x] >= io->min_drainage) {
+                uint64_t g = (uint64_t)(y0 + y) * (uint64_t)io->width + (uint64_t)(x0 + x);
+                io->bits[g >> 6] |= (uint64_t)1 << (g & 63);
+            }
+}
+
+ts_status ppa_channels(ts_ctx *ctx, int width, int height, int tile, ts_window_read_fn read,
+                       void *user, double min_drainage, uint64_t **bits)
+{
+    size_t n = (size_t)width * (size_t)height;
+    channel_io io;
+    ts_status st;
+    *bits = ts__calloc_array((n + 63) / 64, sizeof **bits);
+    if (!*bits)
+        return ts__fail(ctx, TS_ERR_NOMEM, "ppa", "cannot allocate the drainage bits of %d x %d cells",
+                        width, height);
+    io.bits = *bits;
+    io.width = width;
+    io.min_drainage = min_drainage;
+    st = ppa_drainage(ctx, width, height, tile, read, user, channel_emit, &io);
+    if (st != TS_OK) {
+        free(*bits);
+        *bits = NULL;
+    }
     return st;
 }
 

@@ -126,8 +126,8 @@ typedef struct valley_job {
     ts_features *f;
     ts_status status;
     /* valleys where the water runs, routed here while the caller finds the
-     * targets (min_drainage > 0): the drainage into vt, then, once the
-     * targets are ready, vt the valley targets that pass */
+     * targets (min_drainage > 0): the drainage test, then, once the targets
+     * are ready, vt the valley targets that pass it */
     double min_drainage;
     unsigned char *vt;
     pthread_mutex_t mu;
@@ -135,33 +135,26 @@ typedef struct valley_job {
     int ready, abort;
 } valley_job;
 
-static void mark_channels(void *user, int x0, int y0, int w, int h, const float *area)
-{
-    valley_job *j = user;
-    int x, y;
-    for (y = 0; y < h; y++)
-        for (x = 0; x < w; x++)
-            j->vt[(size_t)(y0 + y) * (size_t)j->dem->width + (size_t)(x0 + x)] =
-                area[(size_t)y * (size_t)w + (size_t)x] >= j->min_drainage;
-}
-
 static void *valley_run(void *p)
 {
     valley_job *j = p;
     if (j->min_drainage > 0) {
         size_t i, n = (size_t)j->dem->width * (size_t)j->dem->height;
+        uint64_t *chan = NULL;
         int go;
-        j->status = ppa_drainage(j->ctx, j->dem->width, j->dem->height, PPA_DRAINAGE_TILE,
-                                 ppa_raster_window, (void *)j->dem, mark_channels, j);
+        j->status = ppa_channels(j->ctx, j->dem->width, j->dem->height, PPA_DRAINAGE_TILE,
+                                 ppa_raster_window, (void *)j->dem, j->min_drainage, &chan);
         pthread_mutex_lock(&j->mu);
         while (!j->ready && !j->abort)
             pthread_cond_wait(&j->cv, &j->mu);
         go = !j->abort;
         pthread_mutex_unlock(&j->mu);
+        if (j->status == TS_OK && go)
+            for (i = 0; i < n; i++)
+                j->vt[i] = ppa_channel(chan, i) ? j->targets[i] & TS_VALLEY : 0;
+        free(chan);
         if (j->status != TS_OK || !go)
             return NULL;
-        for (i = 0; i < n; i++)
-            j->vt[i] = j->vt[i] && (j->targets[i] & TS_VALLEY) ? TS_VALLEY : 0;
         j->status = ppa_one_kind(j->ctx, j->dem, j->m, j->vt, TS_VALLEY, j->min_length, j->f, 2);
         return NULL;
     }
@@ -243,7 +236,7 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem,
     int threaded;
     memset(&job, 0, sizeof job);
     if (min_drainage > 0)
-        job.vt = ts__calloc_array(n, 1);
+        job.vt = ts__malloc_array(n, 1);
     if (!fv || !wctx || !(fv->mask = ts__calloc_array(n, 1)) || (min_drainage > 0 && !job.vt)) {
         ts_features_free(fv);
         ts_ctx_free(wctx);
@@ -294,25 +287,6 @@ static ts_status ppa_both_parallel(ts_ctx *ctx, const ts_raster *dem,
     ts_features_free(fv);
     ts_ctx_free(wctx);
     return st;
-}
-
-/* The drainage test on the targets: the DEM read from memory, valley
- * targets draining fewer than min_drainage cells dropped tile by tile. */
-typedef struct channel_filter {
-    const ts_raster *dem;
-    unsigned char *targets;
-    double min_drainage;
-} channel_filter;
-
-static void channel_drop(void *user, int x0, int y0, int w, int h, const float *area)
-{
-    channel_filter *cf = user;
-    int x, y;
-    for (y = 0; y < h; y++)
-        for (x = 0; x < w; x++)
-            if (!(area[(size_t)y * (size_t)w + (size_t)x] >= cf->min_drainage))
-                cf->targets[(size_t)(y0 + y) * (size_t)cf->dem->width + (size_t)(x0 + x)] &=
-                    (unsigned char)~TS_VALLEY;
 }
 
 double ppa_kind_fraction(const ts_ppa_params *p, int kind)
@@ -413,22 +387,24 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
             goto fail;
     }
     if ((kinds & TS_VALLEY) && params->min_drainage > 0) {
-        /* valleys where the water runs: hollows above the channel heads are not targets */
-        channel_filter cf;
-        cf.dem = dem;
-        cf.targets = targets;
-        cf.min_drainage = params->min_drainage;
-        /* one flood in one tile on few threads; tiles (each flooded about four
-         * times, side by side) on many: the same areas either way */
+        /* valleys where the water runs: hollows above the channel heads are not targets;
+         * one flood in one tile on few threads, tiles (each flooded about four times,
+         * side by side) on many: the same areas either way */
+        uint64_t *chan = NULL;
+        size_t i;
         sv = ts__progress_push(ctx, 0.3, 0.3);
-        st = ppa_drainage(ctx, dem->width, dem->height,
+        st = ppa_channels(ctx, dem->width, dem->height,
                           ts__thread_count(ctx, 64) >= PPA_DRAINAGE_TILES_FROM
                               ? PPA_DRAINAGE_TILE_THREADS
                               : PPA_DRAINAGE_TILE,
-                          ppa_raster_window, (void *)dem, channel_drop, &cf);
+                          ppa_raster_window, (void *)dem, params->min_drainage, &chan);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto fail;
+        for (i = 0; i < n; i++)
+            if (!ppa_channel(chan, i))
+                targets[i] &= (unsigned char)~TS_VALLEY;
+        free(chan);
     }
     if (kinds == (TS_RIDGE | TS_VALLEY) && ts__thread_count(ctx, 2) >= 2) {
         sv = ts__progress_push(ctx, 0.3, 1.0);

@@ -156,6 +156,14 @@ ts_status ppa_drainage(ts_ctx *ctx, int width, int height, int tile, ts_window_r
  * more cores) */
 #define PPA_DRAINAGE_TILES_FROM 8
 #define PPA_DRAINAGE_TILE_THREADS 1024
+/* The drainage test: *bits (allocated here, a bit a cell, row-major) set on
+ * the cells that drain at least min_drainage cells, by ppa_drainage. */
+ts_status ppa_channels(ts_ctx *ctx, int width, int height, int tile, ts_window_read_fn read,
+                       void *user, double min_drainage, uint64_t **bits);
+static inline int ppa_channel(const uint64_t *bits, size_t c)
+{
+    return (int)(bits[c >> 6] >> (c & 63) & 1);
+}
 /* A window of a raster in memory (user: the const ts_raster *). */
 ts_status ppa_raster_window(void *dem, int x0, int y0, int w, int h, float *buf);
 /* The same of a DEM in memory into area (width x height). */

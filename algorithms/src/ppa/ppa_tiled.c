@@ -166,7 +166,7 @@ static ts_status tile_load(tiled *t, int ti)
             unsigned char *row = t->wt + (size_t)y * (size_t)t->ww;
             for (x = 0; x < t->ww; x++) {
                 uint64_t g = gcell(t, t->wx0 + x, t->wy0 + y);
-                if ((row[x] & TS_VALLEY) && !(t->channel[g >> 6] >> (g & 63) & 1))
+                if ((row[x] & TS_VALLEY) && !ppa_channel(t->channel, g))
                     row[x] &= (unsigned char)~TS_VALLEY;
             }
         }
@@ -1286,41 +1286,6 @@ static void tiled_free(tiled *t)
     }
 }
 
-/* The cells draining at least min_drainage cells, a bit each: the flow
- * routed in tiles (drainage_area.c), the DEM read window by window. */
-typedef struct channel_io {
-    uint64_t *bits;
-    int W;
-    double min_drainage;
-} channel_io;
-
-static void channel_emit(void *user, int x0, int y0, int w, int h, const float *area)
-{
-    channel_io *io = user;
-    int x, y;
-    for (y = 0; y < h; y++)
-        for (x = 0; x < w; x++)
-            if (area[(size_t)y * (size_t)w + (size_t)x] >= io->min_drainage) {
-                uint64_t g = (uint64_t)(y0 + y) * (uint64_t)io->W + (uint64_t)(x0 + x);
-                io->bits[g >> 6] |= (uint64_t)1 << (g & 63);
-            }
-}
-
-static ts_status tiled_channels(tiled *t, double min_drainage)
-{
-    size_t n = (size_t)t->W * (size_t)t->H;
-    channel_io io;
-    t->channel = ts__calloc_array((n + 63) / 64, sizeof *t->channel);
-    if (!t->channel)
-        return ts__fail(t->ctx, TS_ERR_NOMEM, "ppa", "cannot allocate the drainage bits of %d x %d cells",
-                        t->W, t->H);
-    io.bits = t->channel;
-    io.W = t->W;
-    io.min_drainage = min_drainage;
-    return ppa_drainage(t->ctx, t->W, t->H, TS_MIN(t->T, PPA_DRAINAGE_TILE), t->read, t->user,
-                        channel_emit, &io);
-}
-
 TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
                                       const ts_grid_metrics *metrics, const ts_ppa_params *params,
                                       int tile_size, ts_window_read_fn read,
@@ -1425,7 +1390,8 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
     /* valleys where the water runs: the drainage needs the whole DEM */
     if (st == TS_OK && (t.kinds & TS_VALLEY) && params->min_drainage > 0) {
         sv = ts__progress_push(ctx, 0.1, 0.1);
-        st = tiled_channels(&t, params->min_drainage);
+        st = ppa_channels(ctx, width, height, TS_MIN(tile_size, PPA_DRAINAGE_TILE), read, user,
+                          params->min_drainage, &t.channel);
         ts__progress_pop(ctx, sv);
     }
     /* 1: tile forests contracted to their borders, one Kruskal for the whole */
