@@ -401,6 +401,202 @@ static void test_noise_forest_and_threads(void)
     ts_ctx_free(ctx);
 }
 
+/* ---- branch reduction (in buckets of rows, side by side) equals the rules ---- */
+/* The rules of ppa_branch.c, as plainly as they can be written: in each
+ * pass every endpoint is walked to the first cell of degree != 2; isolated
+ * paths shorter than the minimum go; at each junction its short branches
+ * go, except the longest (one other arm) or the two longest (no other arm),
+ * ranked by length then start; all of a pass's decisions are taken on the
+ * forest as it was, then applied; until a pass changes nothing. */
+typedef struct naive_branch {
+    uint32_t start, junction;
+    int64_t length;
+} naive_branch;
+
+static uint32_t naive_walk(const unsigned char *adj, int w, uint32_t start, int64_t *len)
+{
+    uint32_t cur = start, prev = UINT32_MAX;
+    *len = 0;
+    for (;;) {
+        int d, x = (int)(cur % (uint32_t)w), y = (int)(cur / (uint32_t)w);
+        uint32_t nxt = UINT32_MAX;
+        if (cur != start && ppa_degree(adj[cur]) != 2)
+            return cur;
+        for (d = 0; d < 8; d++)
+            if (adj[cur] & (1u << d)) {
+                uint32_t c = (uint32_t)((y + ppa_dir[d][1]) * w + x + ppa_dir[d][0]);
+                if (c != prev) {
+                    nxt = c;
+                    *len += ppa_step_q(NULL, y, d);
+                    break;
+                }
+            }
+        if (nxt == UINT32_MAX)
+            return cur;
+        prev = cur;
+        cur = nxt;
+    }
+}
+
+/* Cut the chain from start up to (not including) stop, or all of it (stop too) */
+static void naive_cut(unsigned char *adj, int w, int h, uint32_t start, uint32_t stop, int whole)
+{
+    uint32_t cur = start, prev = UINT32_MAX;
+    while (cur != stop) {
+        int d, x = (int)(cur % (uint32_t)w), y = (int)(cur / (uint32_t)w);
+        uint32_t nxt = UINT32_MAX;
+        for (d = 0; d < 8; d++)
+            if (adj[cur] & (1u << d)) {
+                uint32_t c = (uint32_t)((y + ppa_dir[d][1]) * w + x + ppa_dir[d][0]);
+                if (c != prev)
+                    nxt = c;
+            }
+        /* cut every link of cur */
+        for (d = 0; d < 8; d++)
+            if (adj[cur] & (1u << d)) {
+                int nx = x + ppa_dir[d][0], ny = y + ppa_dir[d][1];
+                if (nx >= 0 && ny >= 0 && nx < w && ny < h)
+                    adj[ny * w + nx] &= (unsigned char)~(1u << ((d + 4) & 7));
+            }
+        adj[cur] = 0;
+        if (nxt == UINT32_MAX)
+            break;
+        prev = cur;
+        cur = nxt;
+    }
+    if (whole)
+        adj[stop] = 0;
+}
+
+static void naive_branch_reduction(unsigned char *adj, int w, int h, int64_t min_q)
+{
+    size_t n = (size_t)w * (size_t)h, i, j, k, nb;
+    naive_branch *br = malloc(n * sizeof *br);
+    unsigned char *go = malloc(n);
+    int changed = 1;
+    while (changed) {
+        changed = 0;
+        nb = 0;
+        for (i = 0; i < n; i++)
+            if (ppa_degree(adj[i]) == 1) {
+                br[nb].start = (uint32_t)i;
+                br[nb].junction = naive_walk(adj, w, (uint32_t)i, &br[nb].length);
+                nb++;
+            }
+        memset(go, 0, nb);
+        for (i = 0; i < nb; i++) {
+            int deg = ppa_degree(adj[br[i].junction]), other, rank = 0, leaves = 0;
+            if (deg == 1) { /* an isolated path: judged once, whole */
+                go[i] = br[i].start < br[i].junction && br[i].length < min_q ? 2 : 0;
+                continue;
+            }
+            if (br[i].length >= min_q)
+                continue;
+            for (j = 0; j < nb; j++) {
+                if (br[j].junction != br[i].junction)
+                    continue;
+                leaves++;
+                if (br[j].length > br[i].length ||
+                    (br[j].length == br[i].length && br[j].start < br[i].start))
+                    rank++;
+            }
+            other = deg - leaves;
+            go[i] = !((other <= 0 && rank < 2) || (other == 1 && rank == 0));
+        }
+        for (k = 0; k < nb; k++)
+            if (go[k]) {
+                naive_cut(adj, w, h, br[k].start, br[k].junction, go[k] == 2);
+                changed = 1;
+            }
+    }
+    free(br);
+    free(go);
+}
+
+static void test_branch_reduction_equals_naive(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int trial;
+    for (trial = 0; trial < 24; trial++) {
+        uint64_t s = 500 + (uint64_t)trial;
+        int w = trial % 3 == 0 ? 300 : trial % 3 == 1 ? 40 : 90;
+        int h = trial % 3 == 0 ? 30 : trial % 3 == 1 ? 260 : 90, x, y, d;
+        size_t n = (size_t)w * (size_t)h, i, ne = 0;
+        unsigned char *adj = calloc(n, 1), *a1 = malloc(n), *a2 = malloc(n);
+        uint32_t *uf = malloc(n * sizeof *uf), *order;
+        struct { uint32_t a, b; int d; } *e = malloc(4 * n * sizeof *e);
+        double *key = malloc(4 * n * sizeof *key);
+        int64_t min_q = ppa_length_q(trial % 4 == 0 ? 3.0 : trial % 4 == 1 ? 10.0 : trial % 4 == 2 ? 25.0 : 60.0);
+        double dens = trial % 2 ? 0.55 : 0.8;
+        unsigned char *on = malloc(n);
+        /* a random spanning forest of random cells (Kruskal on random weights, 8 neighbours) */
+        for (i = 0; i < n; i++) {
+            on[i] = th_uniform(&s) < dens;
+            uf[i] = (uint32_t)i;
+        }
+        for (y = 0; y < h; y++)
+            for (x = 0; x < w; x++)
+                for (d = 0; d < 4; d++) {
+                    int nx = x + ppa_dir[d][0], ny = y + ppa_dir[d][1];
+                    if (nx < 0 || ny < 0 || nx >= w || ny >= h || !on[y * w + x] ||
+                        !on[ny * w + nx])
+                        continue;
+                    e[ne].a = (uint32_t)(y * w + x);
+                    e[ne].b = (uint32_t)(ny * w + nx);
+                    e[ne].d = d;
+                    key[ne] = th_uniform(&s);
+                    ne++;
+                }
+        order = malloc((ne + 1) * sizeof *order);
+        for (i = 0; i < ne; i++)
+            order[i] = (uint32_t)i;
+        for (i = ne; i > 1; i--) { /* a random order is a random weight order */
+            size_t r = (size_t)(th_uniform(&s) * (double)i), t;
+            if (r >= i)
+                r = i - 1;
+            t = order[i - 1];
+            order[i - 1] = order[r];
+            order[r] = (uint32_t)t;
+        }
+        for (i = 0; i < ne; i++) {
+            uint32_t ra = ppa_uf_find(uf, e[order[i]].a), rb = ppa_uf_find(uf, e[order[i]].b);
+            if (ra == rb)
+                continue;
+            uf[ra] = rb;
+            adj[e[order[i]].a] |= (unsigned char)(1u << e[order[i]].d);
+            adj[e[order[i]].b] |= (unsigned char)(1u << ((e[order[i]].d + 4) & 7));
+        }
+        memcpy(a1, adj, n);
+        naive_branch_reduction(a1, w, h, min_q);
+        for (x = 1; x <= 5; x += 4) {
+            size_t diff = 0, left = 0, before = 0;
+            memcpy(a2, adj, n);
+            ts_ctx_set_threads(ctx, x);
+            CHECK(ppa_branch_reduction(ctx, w, h, a2, NULL, (double)min_q / PPA_LENGTH_SCALE) ==
+                  TS_OK);
+            for (i = 0; i < n; i++) {
+                diff += a1[i] != a2[i];
+                left += a1[i] != 0;
+                before += adj[i] != 0;
+            }
+            CHECK_MSG(diff == 0, "trial %d (%dx%d), %d threads: %zu cells differ from the rules",
+                      trial, w, h, x, diff);
+            /* something removed, something kept */
+            CHECK_MSG(left > 0 && left < before, "trial %d: %zu of %zu cells left", trial, left,
+                      before);
+        }
+        free(adj);
+        free(a1);
+        free(a2);
+        free(uf);
+        free(e);
+        free(key);
+        free(order);
+        free(on);
+    }
+    ts_ctx_free(ctx);
+}
+
 /* ---- profile recognition (early-exit scans) equals the definition ---- */
 /* The textbook rule: along some direction, the lowest (highest) value on
  * each side within half the profile, stopping at the edge or nodata, lies
@@ -1141,6 +1337,7 @@ int main(int argc, char **argv)
         {"nodata_hole", test_nodata_hole},
         {"noise_forest_and_threads", test_noise_forest_and_threads},
         {"kruskal_equals_naive", test_kruskal_equals_naive},
+        {"branch_reduction_equals_naive", test_branch_reduction_equals_naive},
         {"profile_recognition_equals_naive", test_profile_recognition_equals_naive},
         {"drainage_area_equals_naive", test_drainage_area_equals_naive},
         {"channels_by_default", test_channels_by_default},

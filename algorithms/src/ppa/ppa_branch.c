@@ -132,150 +132,245 @@ static void branch_walks(void *arg, size_t begin, size_t end)
     }
 }
 
-static int branch_cmp_u32(const void *pa, const void *pb)
+/* A pass after the walks, in buckets of rows (fixed by the raster, not by
+ * the threads): each branch goes to the bucket of its junction, each
+ * isolated path (once, from its lower end) to the bucket of its start, so
+ * a junction's branches are decided and removed by one thread; the chains
+ * removed are disjoint (a cell of degree 2 is on one chain), so the
+ * buckets run side by side and the result never depends on the threads. */
+#define BR_CHUNKS 64
+
+typedef struct pass_job {
+    unsigned char *adj;
+    int w, h, nbk;
+    int64_t min_q;
+    branch *br, *sorted;  /* the walks, by end; by bucket */
+    size_t n, *count;     /* count[c * nbk + b]: chunk c's items of bucket b, then
+                             where they go */
+    size_t *bs;           /* bucket b's items: sorted[bs[b] .. bs[b + 1]) */
+    uint32_t *nx;         /* bucket b's next ends from nx[2 bs[b]] */
+    size_t *n_nx;         /* how many */
+    unsigned char *changed; /* per bucket */
+    const unsigned char *cells; /* the initial scan: adj itself */
+} pass_job;
+
+static int branch_bucket(const pass_job *j, const branch *b)
 {
-    uint32_t a = *(const uint32_t *)pa, b = *(const uint32_t *)pb;
-    return a < b ? -1 : (a > b);
+    uint32_t v = b->remove ? b->start : b->junction;
+    return (int)((uint64_t)(v / (uint32_t)j->w) * (uint64_t)j->nbk / (uint64_t)j->h);
 }
 
-static int branch_push(uint32_t **list, size_t *n, size_t *cap, uint32_t v)
+static int branch_kept(const branch *b)
 {
-    if (*n == *cap) {
-        size_t ncap = *cap ? *cap * 2 : 1024;
-        uint32_t *nl = realloc(*list, ncap * sizeof **list);
-        if (!nl)
-            return -1;
-        *list = nl;
-        *cap = ncap;
+    return b->remove == 0 || (b->remove == 1 && b->junction > b->start);
+}
+
+static void pass_count(void *arg, size_t begin, size_t end)
+{
+    pass_job *j = arg;
+    size_t c, i, per = (j->n + BR_CHUNKS - 1) / BR_CHUNKS;
+    for (c = begin; c < end; c++) {
+        size_t *cnt = j->count + c * (size_t)j->nbk;
+        for (i = c * per; i < TS_MIN(j->n, (c + 1) * per); i++)
+            if (branch_kept(&j->br[i]))
+                cnt[branch_bucket(j, &j->br[i])]++;
     }
-    (*list)[(*n)++] = v;
-    return 0;
+}
+
+static void pass_scatter(void *arg, size_t begin, size_t end)
+{
+    pass_job *j = arg;
+    size_t c, i, per = (j->n + BR_CHUNKS - 1) / BR_CHUNKS;
+    for (c = begin; c < end; c++) {
+        size_t *at = j->count + c * (size_t)j->nbk;
+        for (i = c * per; i < TS_MIN(j->n, (c + 1) * per); i++)
+            if (branch_kept(&j->br[i]))
+                j->sorted[at[branch_bucket(j, &j->br[i])]++] = j->br[i];
+    }
+}
+
+/* Decide and remove bucket by bucket; each bucket's next ends. */
+static void pass_buckets(void *arg, size_t begin, size_t end)
+{
+    pass_job *j = arg;
+    size_t b;
+    for (b = begin; b < end; b++) {
+        branch *br = j->sorted + j->bs[b];
+        size_t n = j->bs[b + 1] - j->bs[b], i, nb = 0, k0;
+        uint32_t *nx = j->nx + 2 * j->bs[b];
+        size_t m = 0;
+        unsigned char changed = 0;
+        /* isolated paths first (their own components) */
+        for (i = 0; i < n; i++) {
+            if (br[i].remove == 0) {
+                br[nb++] = br[i];
+                continue;
+            }
+            if (br[i].length < j->min_q) {
+                branch_remove(j->adj, j->w, br[i].start, br[i].junction);
+                j->adj[br[i].junction] = 0;
+                changed = 1;
+            } else {
+                nx[m++] = br[i].start;
+                nx[m++] = br[i].junction;
+            }
+        }
+        branch_sort(br, j->br + j->bs[b], nb); /* the walks' slots of the bucket: free now */
+        for (i = 0; i < nb; i = k0) {
+            size_t k, leaves;
+            int degree, other, any = 0;
+            for (k0 = i; k0 < nb && br[k0].junction == br[i].junction; k0++)
+                ;
+            leaves = k0 - i;
+            degree = ppa_degree(j->adj[br[i].junction]);
+            other = degree - (int)leaves;
+            for (k = i; k < k0; k++) {
+                size_t rank = k - i; /* 0 = longest */
+                if (br[k].length >= j->min_q || (other <= 0 && rank < 2) ||
+                    (other == 1 && rank == 0)) {
+                    if (ppa_degree(j->adj[br[k].start]) == 1)
+                        nx[m++] = br[k].start;
+                    continue;
+                }
+                branch_remove(j->adj, j->w, br[k].start, br[k].junction);
+                changed = 1;
+                any = 1;
+            }
+            /* a junction that lost all but one arm is an endpoint now */
+            if (any && ppa_degree(j->adj[br[i].junction]) == 1)
+                nx[m++] = br[i].junction;
+        }
+        j->n_nx[b] = m;
+        j->changed[b] = changed;
+    }
+}
+
+/* The initial endpoints, in chunks of cells: counted, then written in order. */
+static void ends_count(void *arg, size_t begin, size_t end)
+{
+    pass_job *j = arg;
+    size_t c, i, n = (size_t)j->w * (size_t)j->h, per = (n + BR_CHUNKS - 1) / BR_CHUNKS;
+    for (c = begin; c < end; c++) {
+        size_t cnt = 0;
+        for (i = c * per; i < TS_MIN(n, (c + 1) * per); i++)
+            cnt += ppa_degree(j->cells[i]) == 1;
+        j->count[c] = cnt;
+    }
+}
+
+static void ends_fill(void *arg, size_t begin, size_t end)
+{
+    pass_job *j = arg;
+    size_t c, i, n = (size_t)j->w * (size_t)j->h, per = (n + BR_CHUNKS - 1) / BR_CHUNKS;
+    for (c = begin; c < end; c++) {
+        size_t at = j->count[c];
+        for (i = c * per; i < TS_MIN(n, (c + 1) * per); i++)
+            if (ppa_degree(j->cells[i]) == 1)
+                j->nx[at++] = (uint32_t)i;
+    }
 }
 
 ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
                                const ts_grid_metrics *m, double min_length)
 {
-    size_t n = (size_t)w * (size_t)h, i, cap = 0, nb, n_ends = 0, cap_ends = 0, n_next,
-           cap_next = 0;
-    branch *br = NULL, *btmp = NULL;
-    uint32_t *ends = NULL, *next = NULL;
-    int changed = 1, pass = 0;
-    int64_t min_q = ppa_length_q(min_length);
+    size_t n_ends = 0, cap = 0, c, b, total;
+    branch *br = NULL, *sorted = NULL;
+    uint32_t *ends = NULL, *nx = NULL;
+    size_t *count = NULL, *bs = NULL, *n_nx = NULL;
+    unsigned char *changed = NULL;
+    int any = 1, pass = 0;
+    pass_job pj;
+    memset(&pj, 0, sizeof pj);
+    pj.adj = adj;
+    pj.cells = adj;
+    pj.w = w;
+    pj.h = h;
+    pj.nbk = TS_MAX(1, TS_MIN(1024, h / 8));
+    pj.min_q = ppa_length_q(min_length);
+    count = ts__calloc_array((size_t)BR_CHUNKS * (size_t)pj.nbk + 1, sizeof *count);
+    bs = ts__malloc_array((size_t)pj.nbk + 1, sizeof *bs);
+    n_nx = ts__malloc_array((size_t)pj.nbk, sizeof *n_nx);
+    changed = ts__malloc_array((size_t)pj.nbk, 1);
+    if (!count || !bs || !n_nx || !changed)
+        goto nomem;
     /* the endpoints; later passes only revisit endpoints and the junctions
      * that removals touched */
-    for (i = 0; i < n; i++)
-        if (ppa_degree(adj[i]) == 1 && branch_push(&ends, &n_ends, &cap_ends, (uint32_t)i))
-            goto nomem;
-    while (changed) {
+    pj.count = count;
+    ts__parallel_for(ctx, BR_CHUNKS, ends_count, &pj);
+    for (c = 0, total = 0; c < BR_CHUNKS; c++) {
+        size_t t = count[c];
+        count[c] = total;
+        total += t;
+    }
+    n_ends = total;
+    cap = TS_MAX(n_ends, 1);
+    ends = ts__malloc_array(cap, sizeof *ends);
+    br = ts__malloc_array(cap, sizeof *br);
+    sorted = ts__malloc_array(cap, sizeof *sorted);
+    nx = ts__malloc_array(2 * cap, sizeof *nx);
+    if (!ends || !br || !sorted || !nx)
+        goto nomem;
+    pj.nx = ends;
+    ts__parallel_for(ctx, BR_CHUNKS, ends_fill, &pj);
+    while (any) {
         walk_job wj;
-        changed = 0;
-        nb = 0;
-        n_next = 0;
-        if (n_ends > cap) {
-            branch *nbr = realloc(br, n_ends * sizeof *br), *ntmp;
-            if (!nbr)
-                goto nomem;
-            br = nbr;
-            if (!(ntmp = realloc(btmp, n_ends * sizeof *btmp)))
-                goto nomem;
-            btmp = ntmp;
-            cap = n_ends;
-        }
         wj.adj = adj;
         wj.w = w;
         wj.ends = ends;
         wj.m = m;
         wj.br = br;
         ts__parallel_for(ctx, n_ends, branch_walks, &wj);
-        /* isolated paths (their own components: the walks above are not
-         * touched by removing them), each once, from its lower end; the
-         * branches kept in the order of their ends */
-        for (i = 0; i < n_ends; i++) {
-            uint32_t start = br[i].start, end = br[i].junction;
-            int64_t len = br[i].length;
-            if (br[i].remove < 0)
-                continue;
-            if (br[i].remove == 0) {
-                br[nb] = br[i];
-                nb++;
-                continue;
-            }
-            if (end < start)
-                continue;
-            if (len < min_q) {
-                branch_remove(adj, w, start, end);
-                adj[end] = 0;
-                changed = 1;
-            } else if (branch_push(&next, &n_next, &cap_next, start) ||
-                       branch_push(&next, &n_next, &cap_next, end)) {
-                goto nomem;
+        /* group by bucket: counted in fixed chunks, then scattered in order */
+        pj.br = br;
+        pj.sorted = sorted;
+        pj.n = n_ends;
+        pj.count = count;
+        pj.bs = bs;
+        pj.nx = nx;
+        pj.n_nx = n_nx;
+        pj.changed = changed;
+        memset(count, 0, (size_t)BR_CHUNKS * (size_t)pj.nbk * sizeof *count);
+        ts__parallel_for(ctx, BR_CHUNKS, pass_count, &pj);
+        for (b = 0, total = 0; b < (size_t)pj.nbk; b++) {
+            bs[b] = total;
+            for (c = 0; c < BR_CHUNKS; c++) {
+                size_t t = count[c * (size_t)pj.nbk + b];
+                count[c * (size_t)pj.nbk + b] = total;
+                total += t;
             }
         }
-        branch_sort(br, btmp, nb);
-        for (i = 0; i < nb;) {
-            size_t j = i, k, leaves;
-            int degree, other;
-            while (j < nb && br[j].junction == br[i].junction)
-                j++;
-            leaves = j - i;
-            degree = ppa_degree(adj[br[i].junction]);
-            other = degree - (int)leaves;
-            for (k = i; k < j; k++) {
-                size_t rank = k - i; /* 0 = longest */
-                if (br[k].length >= min_q)
-                    continue;
-                if (other <= 0 && rank < 2)
-                    continue;
-                if (other == 1 && rank == 0)
-                    continue;
-                br[k].remove = 1;
-            }
-            i = j;
+        bs[pj.nbk] = total;
+        ts__parallel_for(ctx, BR_CHUNKS, pass_scatter, &pj);
+        ts__parallel_for(ctx, (size_t)pj.nbk, pass_buckets, &pj);
+        /* next pass: surviving endpoints and junctions that became
+         * endpoints, bucket by bucket */
+        any = 0;
+        for (b = 0, total = 0; b < (size_t)pj.nbk; b++) {
+            memcpy(ends + total, nx + 2 * bs[b], n_nx[b] * sizeof *ends);
+            total += n_nx[b];
+            any |= changed[b];
         }
-        for (i = 0; i < nb; i++) {
-            if (br[i].remove) {
-                branch_remove(adj, w, br[i].start, br[i].junction);
-                changed = 1;
-            }
-        }
-        /* next pass: surviving endpoints and junctions that became endpoints */
-        for (i = 0; i < nb; i++) {
-            uint32_t v = br[i].remove ? br[i].junction : br[i].start;
-            if (ppa_degree(adj[v]) == 1 && branch_push(&next, &n_next, &cap_next, v))
-                goto nomem;
-        }
-        /* a junction may have lost several branches: keep each cell once */
-        if (n_next) {
-            size_t u = 1;
-            qsort(next, n_next, sizeof *next, branch_cmp_u32);
-            for (i = 1; i < n_next; i++)
-                if (next[i] != next[u - 1])
-                    next[u++] = next[i];
-            n_next = u;
-        }
-        {
-            uint32_t *t = ends;
-            size_t tc = cap_ends;
-            ends = next;
-            cap_ends = cap_next;
-            n_ends = n_next;
-            next = t;
-            cap_next = tc;
-        }
+        n_ends = total;
         if (++pass % 4 == 0 && ts__progress(ctx, 0.5, "branch reduction") != TS_OK)
-            goto out;
+            break;
     }
-out:
-    free(btmp);
-    free(br);
+    free(count);
+    free(bs);
+    free(n_nx);
+    free(changed);
     free(ends);
-    free(next);
-    (void)h;
+    free(br);
+    free(sorted);
+    free(nx);
     return ctx->status;
 nomem:
-    free(btmp);
-    free(br);
+    free(count);
+    free(bs);
+    free(n_nx);
+    free(changed);
     free(ends);
-    free(next);
+    free(br);
+    free(sorted);
+    free(nx);
     return ts__fail(ctx, TS_ERR_NOMEM, "ppa branch reduction", "out of memory");
 }
