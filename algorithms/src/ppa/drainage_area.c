@@ -160,6 +160,9 @@ static void rh_free(radix_heap *q)
 #define DINF UINT32_MAX
 #define DIR_OUT 8 /* drains off the DEM */
 
+/* The phases (dr_job.phase). */
+enum { PH_LABELS, PH_ROUTE, PH_RELAX, PH_FLOW, PH_AREAS };
+
 typedef struct dr_edge {
     uint64_t u, v; /* global nodes: 0 the boundary, 1 + p perimeter cell p */
     float w;
@@ -186,6 +189,14 @@ typedef struct dr_job {
     uint64_t *target, *link; /* phase C: where a tile exit's flow enters; by what exit a
                                 perimeter cell's flow leaves its tile */
     double *A, *in;          /* an exit's area in its tile; what flows into a perimeter cell */
+    /* kept (in memory, not in bounded memory): each cell's F, D and flow
+     * (W x H), so that a tile is routed once: D across tiles is relaxed on
+     * the flats alone, the flow and the areas follow from F and D */
+    float *Fc;
+    uint32_t *Dc;
+    unsigned char *dirs;
+    size_t *hbase;           /* per tile (and one past): its first halo cell in hsens */
+    unsigned char *hsens;    /* the halo cells whose D the tile's last routing could read */
     int phase;
 } dr_job;
 
@@ -228,6 +239,43 @@ static long perim_local(int w, int h, int x, int y)
 static size_t perim_count(int w, int h)
 {
     return h == 1 ? (size_t)w : w == 1 ? (size_t)h : 2 * (size_t)w + 2 * (size_t)(h - 2);
+}
+
+/* The cell of tile (w x h) whose perimeter index is k. */
+static void perim_xy(int w, int h, size_t k, int *x, int *y)
+{
+    size_t k2;
+    if (k < (size_t)w) {
+        *x = (int)k, *y = 0;
+        return;
+    }
+    if (k < 2 * (size_t)w) {
+        *x = (int)(k - (size_t)w), *y = h - 1;
+        return;
+    }
+    k2 = k - 2 * (size_t)w;
+    if (k2 < (size_t)(h - 2))
+        *x = 0, *y = 1 + (int)k2;
+    else
+        *x = w - 1, *y = 1 + (int)(k2 - (size_t)(h - 2));
+}
+
+/* The halo of a w x h tile, a ring of 2 (w + 2) + 2 h cells: the row
+ * above, the row below, the column left, the column right. */
+static size_t halo_count(int w, int h)
+{
+    return 2 * (size_t)(w + 2) + 2 * (size_t)h;
+}
+
+static size_t halo_index(int w, int h, int x, int y) /* (x, y) in the halo */
+{
+    if (y < 0)
+        return (size_t)(x + 1);
+    if (y >= h)
+        return (size_t)(w + 2) + (size_t)(x + 1);
+    if (x < 0)
+        return 2 * (size_t)(w + 2) + (size_t)y;
+    return 2 * (size_t)(w + 2) + (size_t)h + (size_t)y;
 }
 
 static void tile_rect(const dr_job *j, size_t t, int *x0, int *y0, int *w, int *h)
@@ -537,6 +585,64 @@ static void tile_areas(dr_job *j, dr_tile *k, size_t taken, const double *in)
     }
 }
 
+/* Tile k's areas with `in` (NULL: none) flowing into its perimeter cells,
+ * summed down the flow k->dir in a topological order found from the flow
+ * alone, upstream first, into k->order (returned: how many).  The sums
+ * are of whole numbers of cells, exact in doubles, so any such order
+ * gives the areas tile_areas gives. */
+static size_t tile_topo_areas(dr_job *j, dr_tile *k, const double *in)
+{
+    size_t n = (size_t)k->w * (size_t)k->h, i, tail = 0, pb = j->pbase[k->t];
+    int x, y;
+    memset(k->indeg, 0, n);
+    for (y = 0; y < k->h; y++)
+        for (x = 0; x < k->w; x++) {
+            size_t c = (size_t)y * (size_t)k->w + (size_t)x;
+            int dd = k->dir[c], tx, ty;
+            k->acc[c] = 1.0;
+            if (dd >= 8)
+                continue;
+            tx = x + ppa_dir[dd][0];
+            ty = y + ppa_dir[dd][1];
+            if (tx >= 0 && ty >= 0 && tx < k->w && ty < k->h)
+                k->indeg[(size_t)ty * (size_t)k->w + (size_t)tx]++;
+        }
+    if (in) {
+        size_t np = perim_count(k->w, k->h), q;
+        for (q = 0; q < np; q++) {
+            perim_xy(k->w, k->h, q, &x, &y);
+            k->acc[(size_t)y * (size_t)k->w + (size_t)x] += in[pb + q];
+        }
+    }
+    /* from each source down its path, as far as the cells whose every
+     * upstream cell is in (255: a cell taken) */
+    for (i = 0; i < n; i++) {
+        size_t c = i;
+        if (k->indeg[c])
+            continue;
+        k->indeg[c] = 255;
+        k->order[tail++] = (uint32_t)c;
+        for (;;) {
+            int dd = k->dir[c], tx, ty;
+            size_t t;
+            if (dd >= 8)
+                break;
+            tx = (int)(c % (size_t)k->w) + ppa_dir[dd][0];
+            ty = (int)(c / (size_t)k->w) + ppa_dir[dd][1];
+            if (tx < 0 || ty < 0 || tx >= k->w || ty >= k->h)
+                break;
+            t = (size_t)ty * (size_t)k->w + (size_t)tx;
+            k->acc[t] += k->acc[c];
+            if (--k->indeg[t])
+                break;
+            k->indeg[t] = 255;
+            k->order[tail++] = (uint32_t)t;
+            c = t;
+        }
+    }
+    return tail;
+}
+
 /* Append an edge to a growing list; -1 when out of memory. */
 static int edge_push(dr_edge **e, size_t *n, size_t *cap, uint64_t u, uint64_t v, float w)
 {
@@ -753,56 +859,248 @@ out:
     return rc;
 }
 
-/* Phases B-D on a tile. */
+/* After a routing of tile k: the halo cells whose D it read or could
+ * have, for D enters a routing only between cells of equal F: a perimeter
+ * cell's D from a halo cell of its F, and the flow of a perimeter cell to
+ * the neighbour of least (F, D), where a halo cell competes by D only with
+ * a cell of its F (the perimeter cell or another neighbour of it).  A
+ * change of D anywhere else leaves the routing as it is. */
+static void halo_sensitivity(dr_job *j, dr_tile *k)
+{
+    unsigned char *sens = j->hsens + j->hbase[k->t];
+    int x, y, d, e;
+    memset(sens, 0, halo_count(k->w, k->h));
+    for (y = 0; y < k->h; y++)
+        for (x = 0; x < k->w; x += (y == 0 || y == k->h - 1) ? 1 : TS_MAX(1, k->w - 1)) {
+            const dr_cell *c = &k->cell[hx(k, x, y)];
+            if (isnan(c->v))
+                continue;
+            for (d = 0; d < 8; d++) {
+                int qx = x + ppa_dir[d][0], qy = y + ppa_dir[d][1];
+                const dr_cell *q;
+                int hit;
+                if (qx >= 0 && qy >= 0 && qx < k->w && qy < k->h)
+                    continue;
+                q = &k->cell[hx(k, qx, qy)];
+                if (isnan(q->v))
+                    continue;
+                hit = q->v == c->v;
+                for (e = 0; e < 8 && !hit; e++)
+                    if (e != d) {
+                        const dr_cell *r = &k->cell[hx(k, x + ppa_dir[e][0], y + ppa_dir[e][1])];
+                        hit = r->v == q->v;
+                    }
+                if (hit)
+                    sens[halo_index(k->w, k->h, qx, qy)] = 1;
+            }
+        }
+}
+
+/* Kept: D of tile k lowered where a neighbour across its border offers a
+ * lower D on a flat, and on along the flat (breadth-first on D). */
+static int tile_relax(dr_job *j, dr_tile *k)
+{
+    size_t pb = j->pbase[k->t];
+    int x, y, d;
+    rh_reset(&k->q);
+    for (y = 0; y < k->h; y++)
+        for (x = 0; x < k->w; x += (y == 0 || y == k->h - 1) ? 1 : TS_MAX(1, k->w - 1)) {
+            size_t g = (size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x);
+            float f = j->Fc[g];
+            uint32_t dv = j->Dc[g];
+            if (isnan(f) || dv == 0)
+                continue;
+            for (d = 0; d < 8; d++) {
+                int gx = k->x0 + x + ppa_dir[d][0], gy = k->y0 + y + ppa_dir[d][1];
+                size_t q;
+                if (gx < 0 || gy < 0 || gx >= j->W || gy >= j->H ||
+                    (gx >= k->x0 && gy >= k->y0 && gx < k->x0 + k->w && gy < k->y0 + k->h))
+                    continue;
+                q = perim_of(j, gx, gy);
+                if (j->G[q] == f && j->D[q] != DINF && j->D[q] + 1 < dv)
+                    dv = j->D[q] + 1;
+            }
+            if (dv < j->Dc[g]) {
+                j->Dc[g] = dv;
+                if (rh_push(&k->q, dv, g) != 0)
+                    return -1;
+            }
+        }
+    while (k->q.size) {
+        rh_item it;
+        size_t g;
+        int cx, cy;
+        uint32_t du;
+        float f;
+        if (rh_pop(&k->q, &it) != 0)
+            return -1;
+        g = (size_t)it.v;
+        du = (uint32_t)it.key;
+        if (du != j->Dc[g])
+            continue; /* stale */
+        f = j->Fc[g];
+        cx = (int)(g % (size_t)j->W);
+        cy = (int)(g / (size_t)j->W);
+        for (d = 0; d < 8; d++) {
+            int nx = cx + ppa_dir[d][0], ny = cy + ppa_dir[d][1];
+            size_t gn;
+            if (nx < k->x0 || ny < k->y0 || nx >= k->x0 + k->w || ny >= k->y0 + k->h)
+                continue;
+            gn = (size_t)ny * (size_t)j->W + (size_t)nx;
+            if (j->Fc[gn] == f && j->Dc[gn] > du + 1) {
+                j->Dc[gn] = du + 1;
+                if (rh_push(&k->q, du + 1, gn) != 0)
+                    return -1;
+            }
+        }
+    }
+    for (y = 0; y < k->h; y++)
+        for (x = 0; x < k->w; x += (y == 0 || y == k->h - 1) ? 1 : TS_MAX(1, k->w - 1))
+            j->Dnew[pb + (size_t)perim_local(k->w, k->h, x, y)] =
+                j->Dc[(size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x)];
+    return 0;
+}
+
+/* Kept, once D holds still: tile k's flow from F and D (the neighbours'
+ * too: nothing is written to them now), into k->dir and j->dirs. */
+static void tile_dirs_kept(dr_job *j, dr_tile *k)
+{
+    ptrdiff_t off[8];
+    int x, y, d;
+    for (d = 0; d < 8; d++)
+        off[d] = (ptrdiff_t)ppa_dir[d][1] * j->W + ppa_dir[d][0];
+    for (y = 0; y < k->h; y++) {
+        int gy = k->y0 + y;
+        unsigned char *row = k->dir + (size_t)y * (size_t)k->w;
+        for (x = 0; x < k->w; x++) {
+            int gx = k->x0 + x, best = DIR_OUT;
+            size_t g = (size_t)gy * (size_t)j->W + (size_t)gx;
+            float bf = j->Fc[g], nf[8];
+            uint32_t bd = j->Dc[g];
+            if (isnan(bf)) {
+                row[x] = 255;
+                continue;
+            }
+            if (gx > 0 && gy > 0 && gx < j->W - 1 && gy < j->H - 1) {
+                /* a boundary cell (beside nodata) drains off the DEM */
+                for (d = 0; d < 8; d++)
+                    if (isnan(nf[d] = j->Fc[(size_t)((ptrdiff_t)g + off[d])]))
+                        break;
+                if (d == 8)
+                    for (d = 0; d < 8; d++)
+                        if (nf[d] <= bf) {
+                            uint32_t nd = j->Dc[(size_t)((ptrdiff_t)g + off[d])];
+                            if (nf[d] < bf || nd < bd) {
+                                best = d;
+                                bf = nf[d];
+                                bd = nd;
+                            }
+                        }
+            }
+            row[x] = (unsigned char)best;
+        }
+        memcpy(j->dirs + (size_t)gy * (size_t)j->W + (size_t)k->x0, row, (size_t)k->w);
+    }
+}
+
+/* Cell c of tile k, taken after the cell it drains to: its exit (the
+ * perimeter cell by which its flow leaves the tile, k->cell[].L), and
+ * where that flow enters the next tile. */
+static void tile_exit(dr_job *j, dr_tile *k, size_t c)
+{
+    size_t pb = j->pbase[k->t];
+    int dd = k->dir[c], cx = (int)(c % (size_t)k->w), cy = (int)(c / (size_t)k->w), tx, ty;
+    long p = perim_local(k->w, k->h, cx, cy);
+    uint32_t ex = DINF;
+    if (dd < 8) {
+        tx = cx + ppa_dir[dd][0];
+        ty = cy + ppa_dir[dd][1];
+        if (tx < 0 || ty < 0 || tx >= k->w || ty >= k->h) {
+            ex = (uint32_t)p;
+            j->target[pb + (size_t)p] = perim_of(j, k->x0 + tx, k->y0 + ty);
+            j->A[pb + (size_t)p] = k->acc[c];
+        } else {
+            ex = k->cell[hx(k, tx, ty)].L;
+        }
+    }
+    k->cell[hx(k, cx, cy)].L = ex;
+    if (p >= 0)
+        j->link[pb + (size_t)p] = ex == DINF ? NONE : pb + ex;
+}
+
+/* Kept: tile k's areas alone, then its exits (C), downstream first. */
+static void tile_exits_kept(dr_job *j, dr_tile *k)
+{
+    size_t i, n = tile_topo_areas(j, k, NULL);
+    for (i = n; i-- > 0;)
+        tile_exit(j, k, k->order[i]);
+}
+
+/* Phases A, B (with C's exits) and D on a tile. */
 static int tile_phase(dr_job *j, dr_tile *k, size_t t)
 {
-    size_t pb, i, n;
+    size_t pb = j->pbase[t], i, n;
     int x, y;
+    if (j->phase == PH_RELAX || j->phase == PH_FLOW || (j->phase == PH_AREAS && j->Fc)) {
+        /* kept: no reading, no routing */
+        k->t = (int)t;
+        tile_rect(j, t, &k->x0, &k->y0, &k->w, &k->h);
+        k->hw = k->w + 2;
+        if (j->phase == PH_RELAX)
+            return tile_relax(j, k);
+        if (j->phase == PH_FLOW) {
+            tile_dirs_kept(j, k);
+            tile_exits_kept(j, k);
+            return 0;
+        }
+        for (y = 0; y < k->h; y++)
+            memcpy(k->dir + (size_t)y * (size_t)k->w,
+                   j->dirs + (size_t)(k->y0 + y) * (size_t)j->W + (size_t)k->x0, (size_t)k->w);
+        tile_topo_areas(j, k, j->in);
+        goto emit;
+    }
     if (tile_read(j, k, t) != 0)
         return -1;
-    pb = j->pbase[t];
-    if (j->phase == 0)
+    if (j->phase == PH_LABELS)
         return phase_a(j, k);
     n = tile_route(j, k, j->D);
     if (n == (size_t)-1)
         return -1;
-    if (j->phase == 1) { /* D from the neighbours' last D */
+    if (j->phase == PH_ROUTE) {
+        /* D from the neighbours' last D */
         for (y = 0; y < k->h; y++)
             for (x = 0; x < k->w; x++) {
                 long p = perim_local(k->w, k->h, x, y);
                 if (p >= 0)
                     j->Dnew[pb + (size_t)p] = k->cell[hx(k, x, y)].L;
             }
-        return 0;
-    }
-    tile_areas(j, k, n, j->phase == 3 ? j->in : NULL);
-    if (j->phase == 2) {
-        /* exits: perimeter cells draining into another tile; then each
-         * perimeter cell's exit, downstream first (k->cell[].L reused) */
-        for (i = 0; i < n; i++) {
-            size_t c = k->order[i];
-            int dd = k->dir[c], cx = (int)(c % (size_t)k->w), cy = (int)(c / (size_t)k->w), tx, ty;
-            long p = perim_local(k->w, k->h, cx, cy);
-            uint32_t ex = DINF;
-            if (dd != DIR_OUT) {
-                tx = cx + ppa_dir[dd][0];
-                ty = cy + ppa_dir[dd][1];
-                if (tx < 0 || ty < 0 || tx >= k->w || ty >= k->h) {
-                    ex = (uint32_t)p;
-                    j->target[pb + (size_t)p] = perim_of(j, k->x0 + tx, k->y0 + ty);
-                    j->A[pb + (size_t)p] = k->acc[c];
-                } else {
-                    ex = k->cell[hx(k, tx, ty)].L;
+        if (j->Fc) { /* kept: F and D of every cell, for the rounds that follow */
+            for (y = 0; y < k->h; y++)
+                for (x = 0; x < k->w; x++) {
+                    size_t g = (size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x);
+                    j->Fc[g] = k->cell[hx(k, x, y)].v;
+                    j->Dc[g] = k->cell[hx(k, x, y)].L;
                 }
-            }
-            k->cell[hx(k, cx, cy)].L = ex;
-            if (p >= 0)
-                j->link[pb + (size_t)p] = ex == DINF ? NONE : pb + ex;
+            return 0;
         }
+        /* C, from this routing (the last one of the tile's is made on the
+         * final D): the exits, perimeter cells draining into another tile;
+         * then each perimeter cell's exit, downstream first (k->cell[].L
+         * reused) */
+        tile_areas(j, k, n, NULL);
+        for (i = pb; i < j->pbase[t + 1]; i++) { /* an earlier routing's exits go */
+            j->target[i] = NONE;
+            j->A[i] = 0;
+        }
+        for (i = 0; i < n; i++)
+            tile_exit(j, k, k->order[i]);
+        halo_sensitivity(j, k);
         return 0;
     }
-    /* phase 3: the areas, as floats over the doubles (float i lies within
-     * doubles 0..i, read before it is written) */
+    tile_areas(j, k, n, j->ntiles > 1 ? j->in : NULL);
+emit:
+    /* the areas, as floats over the doubles (float i lies within doubles
+     * 0..i, read before it is written) */
     {
         float *out = (float *)k->acc;
         for (i = 0; i < (size_t)k->w * (size_t)k->h; i++) {
@@ -888,27 +1186,8 @@ out:
     return rc;
 }
 
-/* The cell of tile (w x h) whose perimeter index is k. */
-static void perim_xy(int w, int h, size_t k, int *x, int *y)
-{
-    size_t k2;
-    if (k < (size_t)w) {
-        *x = (int)k, *y = 0;
-        return;
-    }
-    if (k < 2 * (size_t)w) {
-        *x = (int)(k - (size_t)w), *y = h - 1;
-        return;
-    }
-    k2 = k - 2 * (size_t)w;
-    if (k2 < (size_t)(h - 2))
-        *x = 0, *y = 1 + (int)k2;
-    else
-        *x = w - 1, *y = 1 + (int)(k2 - (size_t)(h - 2));
-}
-
-/* Tile t: does a perimeter cell of it have a neighbour in another tile, of
- * the same F, offering it a lower D?  Then the tile is to be done again. */
+/* Kept: tile t, does a perimeter cell of it have a neighbour in another
+ * tile, of the same F, offering it a lower D?  Then it is relaxed again. */
 static int flat_pairs(const dr_job *j, size_t t)
 {
     int x0, y0, w, h, x, y, d;
@@ -935,8 +1214,30 @@ static int flat_pairs(const dr_job *j, size_t t)
     return 0;
 }
 
-ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn read, void *user,
-                       ppa_area_fn emit, void *emit_user)
+/* Tile t: has the D of a cell next to it in another tile, one its last
+ * routing could read (halo_sensitivity), changed in the last round (old:
+ * before it)?  Then that routing is to be done again; every other tile's
+ * stands, exits and flow included. */
+static int halo_changed(const dr_job *j, size_t t, const uint32_t *old)
+{
+    const unsigned char *sens = j->hsens + j->hbase[t];
+    int x0, y0, w, h, x, y;
+    tile_rect(j, t, &x0, &y0, &w, &h);
+    for (y = y0 - 1; y <= y0 + h; y++)
+        for (x = x0 - 1; x <= x0 + w; x += (y == y0 - 1 || y == y0 + h) ? 1 : w + 1) {
+            size_t p;
+            if (x < 0 || y < 0 || x >= j->W || y >= j->H ||
+                !sens[halo_index(w, h, x - x0, y - y0)])
+                continue;
+            p = perim_of(j, x, y);
+            if (old[p] != j->D[p])
+                return 1;
+        }
+    return 0;
+}
+
+ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, int keep, ts_window_read_fn read,
+                       void *user, ppa_area_fn emit, void *emit_user)
 {
     dr_job j;
     size_t t, i;
@@ -959,18 +1260,22 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn re
     j.emit_user = emit_user;
     pthread_mutex_init(&j.lock, NULL);
     j.pbase = ts__malloc_array(j.ntiles + 1, sizeof *j.pbase);
+    j.hbase = ts__malloc_array(j.ntiles + 1, sizeof *j.hbase);
     j.due = ts__malloc_array(j.ntiles, 1);
-    if (!j.pbase || !j.due) {
+    if (!j.pbase || !j.due || !j.hbase) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "ppa drainage", "out of memory");
         goto out;
     }
+    j.hbase[0] = 0;
     for (t = 0; t < j.ntiles; t++) {
         int x0, y0, w, h;
         tile_rect(&j, t, &x0, &y0, &w, &h);
         j.pbase[t] = j.np;
         j.np += perim_count(w, h);
+        j.hbase[t + 1] = j.hbase[t] + halo_count(w, h);
     }
     j.pbase[j.ntiles] = j.np;
+    j.hsens = ts__malloc_array(j.hbase[j.ntiles], 1);
     j.ph = ts__malloc_array(j.np, sizeof *j.ph);
     j.pbnd = ts__calloc_array(j.np, 1);
     j.G = ts__malloc_array(j.np, sizeof *j.G);
@@ -980,7 +1285,14 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn re
     j.link = ts__malloc_array(j.np, sizeof *j.link);
     j.A = ts__calloc_array(j.np, sizeof *j.A);
     j.in = ts__calloc_array(j.np, sizeof *j.in);
-    if (!j.ph || !j.pbnd || !j.G || !j.D || !j.Dnew || !j.target || !j.link || !j.A || !j.in) {
+    if (keep && j.ntiles > 1) {
+        j.Fc = ts__malloc_array((size_t)W * (size_t)H, sizeof *j.Fc);
+        j.Dc = ts__malloc_array((size_t)W * (size_t)H, sizeof *j.Dc);
+        j.dirs = ts__malloc_array((size_t)W * (size_t)H, 1);
+    }
+    if (!j.ph || !j.pbnd || !j.G || !j.D || !j.Dnew || !j.target || !j.link || !j.A || !j.in ||
+        !j.hsens ||
+        (keep && j.ntiles > 1 && (!j.Fc || !j.Dc || !j.dirs))) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "ppa drainage", "out of memory for %zu tile borders",
                       j.np);
         goto out;
@@ -992,7 +1304,7 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn re
     memset(j.due, 1, j.ntiles);
     if (j.ntiles > 1) {
         /* A: F on the tiles' perimeters */
-        if ((st = run_phase(&j, 0)) != TS_OK)
+        if ((st = run_phase(&j, PH_LABELS)) != TS_OK)
             goto out;
         if (solve_perimeter_f(&j) != 0) {
             st = ts__fail(ctx, TS_ERR_NOMEM, "ppa drainage", "out of memory");
@@ -1000,25 +1312,32 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn re
         }
         if ((st = ts__progress(ctx, 0.3, "drainage: spill heights")) != TS_OK)
             goto out;
-        /* B: D across tiles, in rounds until it holds still */
+        /* B: D across tiles, in rounds until it holds still, and C: each
+         * routing's exits (the last routing of every tile reads the final D) */
         for (round = 0;; round++) {
             int any = 0;
-            if ((st = run_phase(&j, 1)) != TS_OK)
+            if ((st = run_phase(&j, round == 0 || !j.Fc ? PH_ROUTE : PH_RELAX)) != TS_OK)
                 goto out;
-            memcpy(j.D, j.Dnew, j.np * sizeof *j.D);
-            /* again: the tiles with a perimeter cell whose D a neighbour of its
-             * height in another tile now lowers (every other D stays) */
-            memset(j.due, 0, j.ntiles);
+            /* again: the tiles beside a perimeter cell whose D changed (Dnew
+             * takes the old D for the test; D falls, round by round, to the
+             * flow's D) */
+            {
+                uint32_t *old = j.D;
+                j.D = j.Dnew;
+                j.Dnew = old;
+            }
             for (t = 0; t < j.ntiles; t++)
-                any |= j.due[t] = (unsigned char)flat_pairs(&j, t);
+                any |= j.due[t] = (unsigned char)(j.Fc ? flat_pairs(&j, t)
+                                                       : halo_changed(&j, t, j.Dnew));
+            memcpy(j.Dnew, j.D, j.np * sizeof *j.D);
             if (!any)
                 break;
         }
         memset(j.due, 1, j.ntiles);
         if ((st = ts__progress(ctx, 0.6, "drainage: flats")) != TS_OK)
             goto out;
-        /* C: the tiles' exits, summed in flow order */
-        if ((st = run_phase(&j, 2)) != TS_OK)
+        /* C: the tiles' exits (kept: from F and D now), summed in flow order */
+        if (j.Fc && (st = run_phase(&j, PH_FLOW)) != TS_OK)
             goto out;
         if (solve_inflow(&j) != 0) {
             st = ts__fail(ctx, TS_ERR_NOMEM, "ppa drainage", "out of memory");
@@ -1026,7 +1345,7 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, ts_window_read_fn re
         }
     }
     /* D: the areas */
-    st = run_phase(&j, 3);
+    st = run_phase(&j, PH_AREAS);
     if (st == TS_OK)
         st = ts__progress(ctx, 1.0, "drainage");
 out:
@@ -1043,6 +1362,11 @@ out:
     free(j.link);
     free(j.A);
     free(j.in);
+    free(j.Fc);
+    free(j.Dc);
+    free(j.dirs);
+    free(j.hbase);
+    free(j.hsens);
     return st;
 }
 
@@ -1066,8 +1390,8 @@ static void channel_emit(void *user, int x0, int y0, int w, int h, const float *
             }
 }
 
-ts_status ppa_channels(ts_ctx *ctx, int width, int height, int tile, ts_window_read_fn read,
-                       void *user, double min_drainage, uint64_t **bits)
+ts_status ppa_channels(ts_ctx *ctx, int width, int height, int tile, int keep,
+                       ts_window_read_fn read, void *user, double min_drainage, uint64_t **bits)
 {
     size_t n = (size_t)width * (size_t)height;
     channel_io io;
@@ -1079,7 +1403,7 @@ ts_status ppa_channels(ts_ctx *ctx, int width, int height, int tile, ts_window_r
     io.bits = *bits;
     io.width = width;
     io.min_drainage = min_drainage;
-    st = ppa_drainage(ctx, width, height, tile, read, user, channel_emit, &io);
+    st = ppa_drainage(ctx, width, height, tile, keep, read, user, channel_emit, &io);
     if (st != TS_OK) {
         free(*bits);
         *bits = NULL;
@@ -1112,11 +1436,12 @@ static void mem_emit(void *user, int x0, int y0, int w, int h, const float *area
                area + (size_t)y * (size_t)w, (size_t)w * sizeof *area);
 }
 
-ts_status ppa_drainage_area(ts_ctx *ctx, const ts_raster *dem, float *area, int tile)
+ts_status ppa_drainage_area(ts_ctx *ctx, const ts_raster *dem, float *area, int tile, int keep)
 {
     mem_io m;
     m.dem = dem;
     m.area = area;
-    return ppa_drainage(ctx, dem->width, dem->height, tile, ppa_raster_window, (void *)dem, mem_emit,
+    return ppa_drainage(ctx, dem->width, dem->height, tile, keep, ppa_raster_window, (void *)dem,
+                        mem_emit,
                         &m);
 }

@@ -135,6 +135,15 @@ typedef struct valley_job {
     int ready, abort;
 } valley_job;
 
+/* The drainage's tiles in memory: one flood in one tile on few threads,
+ * tiles side by side (each routed about three times) on many: the same
+ * areas either way. */
+static int ppa_drainage_tile(const ts_ctx *ctx)
+{
+    return ts__thread_count(ctx, 64) >= PPA_DRAINAGE_TILES_FROM ? PPA_DRAINAGE_TILE_THREADS
+                                                                 : PPA_DRAINAGE_TILE;
+}
+
 static void *valley_run(void *p)
 {
     valley_job *j = p;
@@ -142,8 +151,8 @@ static void *valley_run(void *p)
         size_t i, n = (size_t)j->dem->width * (size_t)j->dem->height;
         uint64_t *chan = NULL;
         int go;
-        j->status = ppa_channels(j->ctx, j->dem->width, j->dem->height, PPA_DRAINAGE_TILE,
-                                 ppa_raster_window, (void *)j->dem, j->min_drainage, &chan);
+        j->status = ppa_channels(j->ctx, j->dem->width, j->dem->height, ppa_drainage_tile(j->ctx),
+                                 1, ppa_raster_window, (void *)j->dem, j->min_drainage, &chan);
         pthread_mutex_lock(&j->mu);
         while (!j->ready && !j->abort)
             pthread_cond_wait(&j->cv, &j->mu);
@@ -365,9 +374,10 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
     f->threshold_used_valleys = threshold[1];
 
     if (kinds == (TS_RIDGE | TS_VALLEY) && ts__thread_count(ctx, 2) >= 2 &&
-        params->min_drainage > 0 && ts__thread_count(ctx, 64) < PPA_DRAINAGE_TILES_FROM) {
-        /* both kinds on a few threads: the drainage (one flood, one thread)
-         * while the targets and the ridges are made, then the valleys */
+        params->min_drainage > 0) {
+        /* both kinds: the drainage (one flood on few threads, tiles side by
+         * side on many) while the targets and the ridges are made, then the
+         * valleys */
         profile_step ps;
         ps.profile_length = params->profile_length;
         ps.kinds = kinds;
@@ -387,16 +397,11 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
             goto fail;
     }
     if ((kinds & TS_VALLEY) && params->min_drainage > 0) {
-        /* valleys where the water runs: hollows above the channel heads are not targets;
-         * one flood in one tile on few threads, tiles (each flooded about four times,
-         * side by side) on many: the same areas either way */
+        /* valleys where the water runs: hollows above the channel heads are not targets */
         uint64_t *chan = NULL;
         size_t i;
         sv = ts__progress_push(ctx, 0.3, 0.3);
-        st = ppa_channels(ctx, dem->width, dem->height,
-                          ts__thread_count(ctx, 64) >= PPA_DRAINAGE_TILES_FROM
-                              ? PPA_DRAINAGE_TILE_THREADS
-                              : PPA_DRAINAGE_TILE,
+        st = ppa_channels(ctx, dem->width, dem->height, ppa_drainage_tile(ctx), 1,
                           ppa_raster_window, (void *)dem, params->min_drainage, &chan);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)

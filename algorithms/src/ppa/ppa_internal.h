@@ -141,25 +141,30 @@ ts_status ppa_profile_targets(ts_ctx *ctx, const ts_raster *dem, int profile_len
 /* The drainage area of every valid cell, in cells (NaN on nodata), the flow
  * as drainage_area.c defines it, made in tiles of `tile` cells (the same
  * areas on any tiling): the DEM read window by window (read is called
- * under a lock), each tile's areas handed to emit (under the lock). */
+ * under a lock), each tile's areas handed to emit (under the lock).  keep:
+ * hold a byte a cell (the flow) rather than route each tile once more. */
 typedef void (*ppa_area_fn)(void *user, int x0, int y0, int w, int h, const float *area);
-ts_status ppa_drainage(ts_ctx *ctx, int width, int height, int tile, ts_window_read_fn read,
-                       void *user, ppa_area_fn emit, void *emit_user);
+ts_status ppa_drainage(ts_ctx *ctx, int width, int height, int tile, int keep,
+                       ts_window_read_fn read, void *user, ppa_area_fn emit, void *emit_user);
 /* The tiles of the flow routing: in one piece, one tile (one flood; in
  * tiles each is flooded about four times); in ppa_tiled.c, the PPA's tiles,
  * at most this. */
 #ifndef PPA_DRAINAGE_TILE
 #define PPA_DRAINAGE_TILE 16384
 #endif
-/* ... and from this many threads on, tiles of this size in one piece too
- * (2 threads, 4096^2: one tile 1.6 s, tiles of 1024 3.0 s; not measured on
- * more cores) */
+/* ... and from this many threads on, tiles of this size in one piece too,
+ * their flow kept (4096^2 on one thread: one tile 2.5 s, tiles of 512 or
+ * 1024 3.05 s of work, side by side) */
+#ifndef PPA_DRAINAGE_TILES_FROM
 #define PPA_DRAINAGE_TILES_FROM 8
-#define PPA_DRAINAGE_TILE_THREADS 1024
+#endif
+#ifndef PPA_DRAINAGE_TILE_THREADS
+#define PPA_DRAINAGE_TILE_THREADS 512
+#endif
 /* The drainage test: *bits (allocated here, a bit a cell, row-major) set on
  * the cells that drain at least min_drainage cells, by ppa_drainage. */
-ts_status ppa_channels(ts_ctx *ctx, int width, int height, int tile, ts_window_read_fn read,
-                       void *user, double min_drainage, uint64_t **bits);
+ts_status ppa_channels(ts_ctx *ctx, int width, int height, int tile, int keep,
+                       ts_window_read_fn read, void *user, double min_drainage, uint64_t **bits);
 static inline int ppa_channel(const uint64_t *bits, size_t c)
 {
     return (int)(bits[c >> 6] >> (c & 63) & 1);
@@ -167,7 +172,7 @@ static inline int ppa_channel(const uint64_t *bits, size_t c)
 /* A window of a raster in memory (user: the const ts_raster *). */
 ts_status ppa_raster_window(void *dem, int x0, int y0, int w, int h, float *buf);
 /* The same of a DEM in memory into area (width x height). */
-ts_status ppa_drainage_area(ts_ctx *ctx, const ts_raster *dem, float *area, int tile);
+ts_status ppa_drainage_area(ts_ctx *ctx, const ts_raster *dem, float *area, int tile, int keep);
 
 /* The parameters of one kind, "auto" resolved (ppa.c): valleys with the
  * drainage test (min_drainage > 0) are channels, mapped with a lower dip

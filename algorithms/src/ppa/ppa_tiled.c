@@ -1390,7 +1390,7 @@ TS_API ts_status ts_ppa_extract_tiled(ts_ctx *ctx, int width, int height,
     /* valleys where the water runs: the drainage needs the whole DEM */
     if (st == TS_OK && (t.kinds & TS_VALLEY) && params->min_drainage > 0) {
         sv = ts__progress_push(ctx, 0.1, 0.1);
-        st = ppa_channels(ctx, width, height, TS_MIN(tile_size, PPA_DRAINAGE_TILE), read, user,
+        st = ppa_channels(ctx, width, height, TS_MIN(tile_size, PPA_DRAINAGE_TILE), 0, read, user,
                           params->min_drainage, &t.channel);
         ts__progress_pop(ctx, sv);
     }
