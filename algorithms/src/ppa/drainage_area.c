@@ -161,7 +161,7 @@ static void rh_free(radix_heap *q)
 #define DIR_OUT 8 /* drains off the DEM */
 
 /* The phases (dr_job.phase). */
-enum { PH_LABELS, PH_ROUTE, PH_RELAX, PH_FLOW, PH_AREAS };
+enum { PH_LABELS, PH_ROUTE, PH_FLATS, PH_RELAX, PH_FLOW, PH_AREAS };
 
 typedef struct dr_edge {
     uint64_t u, v; /* global nodes: 0 the boundary, 1 + p perimeter cell p */
@@ -178,6 +178,7 @@ typedef struct dr_job {
     void *emit_user;
     pthread_mutex_t lock; /* reads, emits, the edge list */
     atomic_int failed;
+    atomic_size_t next; /* the next tile a worker takes */
     size_t *pbase;       /* per tile (and one past): its first perimeter cell */
     float *ph;           /* perimeter heights (NaN: nodata) */
     unsigned char *pbnd; /* perimeter cell on the boundary */
@@ -683,6 +684,13 @@ static int phase_a(dr_job *j, dr_tile *k)
     int rc = -1;
     if (tile_flood(k) != 0)
         return -1;
+    if (j->Fc) /* kept: the tile's F alone and its labels, for PH_FLATS */
+        for (y = 0; y < k->h; y++)
+            for (x = 0; x < k->w; x++) {
+                size_t g = (size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x);
+                j->Fc[g] = k->cell[hx(k, x, y)].v;
+                j->Dc[g] = k->cell[hx(k, x, y)].L;
+            }
     for (y = 0; y < k->h; y++)
         for (x = 0; x < k->w; x++) {
             long p = perim_local(k->w, k->h, x, y);
@@ -896,6 +904,91 @@ static void halo_sensitivity(dr_job *j, dr_tile *k)
         }
 }
 
+/* F and D of tile k where its flow is kept, without routing it: after
+ * Barnes (2016), a cell's F is the greater of its F in the tile alone and
+ * the F of the seed whose flood reached it first (its label; a boundary
+ * seed's is its height): a lower way out through another seed would cross
+ * into that seed's region at a spill height the tiles' forests keep, and
+ * so would have lowered this seed's F.  Then D by its definition: 0 on
+ * boundary cells and cells with a lower neighbour (across the border by
+ * the perimeter F), the rest breadth-first along the flats of the tile
+ * (across tiles: the rounds of tile_relax). */
+static void tile_flats(dr_job *j, dr_tile *k)
+{
+    size_t pb = j->pbase[k->t], head = 0, tail = 0;
+    ptrdiff_t off[8];
+    int x, y, d;
+    for (y = 0; y < k->h; y++)
+        for (x = 0; x < k->w; x++) {
+            size_t g = (size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x);
+            uint32_t lab = j->Dc[g];
+            if (lab >= 2 && j->G[pb + lab - 2] > j->Fc[g])
+                j->Fc[g] = j->G[pb + lab - 2];
+        }
+    for (d = 0; d < 8; d++)
+        off[d] = (ptrdiff_t)ppa_dir[d][1] * j->W + ppa_dir[d][0];
+    for (y = 0; y < k->h; y++)
+        for (x = 0; x < k->w; x++) {
+            size_t g = (size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x);
+            float f = j->Fc[g];
+            uint32_t dv = DINF;
+            if (isnan(f)) {
+                j->Dc[g] = DINF;
+                continue;
+            }
+            if (x > 0 && y > 0 && x < k->w - 1 && y < k->h - 1) { /* inside the tile */
+                for (d = 0; d < 8; d++) {
+                    float nf = j->Fc[(size_t)((ptrdiff_t)g + off[d])];
+                    if (!(nf >= f)) /* lower, or nodata (a boundary cell) */
+                        dv = 0;
+                }
+                goto classified;
+            }
+            for (d = 0; d < 8 && dv; d++) {
+                int nx = x + ppa_dir[d][0], ny = y + ppa_dir[d][1];
+                int gx = k->x0 + nx, gy = k->y0 + ny;
+                float nf;
+                if (gx < 0 || gy < 0 || gx >= j->W || gy >= j->H) {
+                    dv = 0; /* on the DEM's edge: a boundary cell */
+                    break;
+                }
+                nf = nx >= 0 && ny >= 0 && nx < k->w && ny < k->h
+                         ? j->Fc[(size_t)gy * (size_t)j->W + (size_t)gx]
+                         : j->G[perim_of(j, gx, gy)];
+                if (isnan(nf) || nf < f)
+                    dv = 0; /* beside nodata (a boundary cell), or a lower neighbour */
+            }
+        classified:
+            j->Dc[g] = dv;
+            if (!dv)
+                k->order[tail++] = (uint32_t)(y * k->w + x);
+        }
+    while (head < tail) {
+        size_t c = k->order[head++], g;
+        int cx = (int)(c % (size_t)k->w), cy = (int)(c / (size_t)k->w);
+        uint32_t du;
+        float f;
+        g = (size_t)(k->y0 + cy) * (size_t)j->W + (size_t)(k->x0 + cx);
+        f = j->Fc[g];
+        du = j->Dc[g];
+        for (d = 0; d < 8; d++) {
+            int nx = cx + ppa_dir[d][0], ny = cy + ppa_dir[d][1];
+            size_t gn;
+            if (nx < 0 || ny < 0 || nx >= k->w || ny >= k->h)
+                continue;
+            gn = (size_t)(k->y0 + ny) * (size_t)j->W + (size_t)(k->x0 + nx);
+            if (j->Dc[gn] == DINF && j->Fc[gn] == f) {
+                j->Dc[gn] = du + 1;
+                k->order[tail++] = (uint32_t)(ny * k->w + nx);
+            }
+        }
+    }
+    for (y = 0; y < k->h; y++)
+        for (x = 0; x < k->w; x += (y == 0 || y == k->h - 1) ? 1 : TS_MAX(1, k->w - 1))
+            j->Dnew[pb + (size_t)perim_local(k->w, k->h, x, y)] =
+                j->Dc[(size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x)];
+}
+
 /* Kept: D of tile k lowered where a neighbour across its border offers a
  * lower D on a flat, and on along the flat (breadth-first on D). */
 static int tile_relax(dr_job *j, dr_tile *k)
@@ -1041,11 +1134,16 @@ static int tile_phase(dr_job *j, dr_tile *k, size_t t)
 {
     size_t pb = j->pbase[t], i, n;
     int x, y;
-    if (j->phase == PH_RELAX || j->phase == PH_FLOW || (j->phase == PH_AREAS && j->Fc)) {
+    if (j->phase == PH_FLATS || j->phase == PH_RELAX || j->phase == PH_FLOW ||
+        (j->phase == PH_AREAS && j->Fc)) {
         /* kept: no reading, no routing */
         k->t = (int)t;
         tile_rect(j, t, &k->x0, &k->y0, &k->w, &k->h);
         k->hw = k->w + 2;
+        if (j->phase == PH_FLATS) {
+            tile_flats(j, k);
+            return 0;
+        }
         if (j->phase == PH_RELAX)
             return tile_relax(j, k);
         if (j->phase == PH_FLOW) {
@@ -1114,17 +1212,21 @@ emit:
     return 0;
 }
 
+/* A worker: tiles taken one at a time while any is left (tiles differ in
+ * their work; each tile's result is its own, whoever makes it). */
 static void tiles_range(void *arg, size_t b, size_t e)
 {
     dr_job *j = arg;
     dr_tile k;
     size_t t;
+    (void)b;
+    (void)e;
     if (tile_alloc(&k, TS_MIN(j->T, j->W), TS_MIN(j->T, j->H)) != 0) {
         job_fail(j);
         tile_free(&k);
         return;
     }
-    for (t = b; t < e; t++) {
+    while ((t = atomic_fetch_add(&j->next, 1)) < j->ntiles) {
         if (atomic_load(&j->failed) || ts__cancelled(j->ctx))
             break;
         if (!j->due[t])
@@ -1140,6 +1242,7 @@ static void tiles_range(void *arg, size_t b, size_t e)
 static ts_status run_phase(dr_job *j, int phase)
 {
     j->phase = phase;
+    atomic_store(&j->next, 0);
     ts__parallel_for(j->ctx, j->ntiles, tiles_range, j);
     if (atomic_load(&j->failed))
         return j->ctx->status != TS_OK ? j->ctx->status
@@ -1245,6 +1348,7 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, int keep, ts_window_
     int round;
     memset(&j, 0, sizeof j);
     atomic_init(&j.failed, 0);
+    atomic_init(&j.next, 0);
     j.ctx = ctx;
     j.W = W;
     j.H = H;
@@ -1316,7 +1420,8 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, int keep, ts_window_
          * routing's exits (the last routing of every tile reads the final D) */
         for (round = 0;; round++) {
             int any = 0;
-            if ((st = run_phase(&j, round == 0 || !j.Fc ? PH_ROUTE : PH_RELAX)) != TS_OK)
+            if ((st = run_phase(&j, !j.Fc ? PH_ROUTE : round == 0 ? PH_FLATS : PH_RELAX)) !=
+                TS_OK)
                 goto out;
             /* again: the tiles beside a perimeter cell whose D changed (Dnew
              * takes the old D for the test; D falls, round by round, to the
@@ -1329,6 +1434,9 @@ ts_status ppa_drainage(ts_ctx *ctx, int W, int H, int tile, int keep, ts_window_
             for (t = 0; t < j.ntiles; t++)
                 any |= j.due[t] = (unsigned char)(j.Fc ? flat_pairs(&j, t)
                                                        : halo_changed(&j, t, j.Dnew));
+            /* a round after the first that lowered no D: the next would be the same */
+            if (round > 0 && memcmp(j.Dnew, j.D, j.np * sizeof *j.D) == 0)
+                any = 0;
             memcpy(j.Dnew, j.D, j.np * sizeof *j.D);
             if (!any)
                 break;

@@ -135,6 +135,41 @@ typedef struct valley_job {
     int ready, abort;
 } valley_job;
 
+/* Cell-by-cell mask work, side by side (chan: the drainage test's bits). */
+typedef struct mask_job {
+    unsigned char *to;
+    const unsigned char *from;
+    const uint64_t *chan;
+    int op; /* 0: to = chan ? from & valley : 0; 1: to |= from; 2: to &= ~valley where !chan */
+} mask_job;
+
+static void mask_range(void *arg, size_t b, size_t e)
+{
+    mask_job *j = arg;
+    size_t i;
+    if (j->op == 0)
+        for (i = b; i < e; i++)
+            j->to[i] = ppa_channel(j->chan, i) ? j->from[i] & TS_VALLEY : 0;
+    else if (j->op == 1)
+        for (i = b; i < e; i++)
+            j->to[i] |= j->from[i];
+    else
+        for (i = b; i < e; i++)
+            if (!ppa_channel(j->chan, i))
+                j->to[i] &= (unsigned char)~TS_VALLEY;
+}
+
+static void mask_apply(ts_ctx *ctx, size_t n, int op, unsigned char *to, const unsigned char *from,
+                       const uint64_t *chan)
+{
+    mask_job j;
+    j.to = to;
+    j.from = from;
+    j.chan = chan;
+    j.op = op;
+    ts__parallel_for(ctx, n, mask_range, &j);
+}
+
 /* The drainage's tiles in memory: one flood in one tile on few threads,
  * tiles side by side (each routed about three times) on many: the same
  * areas either way. */
@@ -148,7 +183,7 @@ static void *valley_run(void *p)
 {
     valley_job *j = p;
     if (j->min_drainage > 0) {
-        size_t i, n = (size_t)j->dem->width * (size_t)j->dem->height;
+        size_t n = (size_t)j->dem->width * (size_t)j->dem->height;
         uint64_t *chan = NULL;
         int go;
         j->status = ppa_channels(j->ctx, j->dem->width, j->dem->height, ppa_drainage_tile(j->ctx),
@@ -159,8 +194,7 @@ static void *valley_run(void *p)
         go = !j->abort;
         pthread_mutex_unlock(&j->mu);
         if (j->status == TS_OK && go)
-            for (i = 0; i < n; i++)
-                j->vt[i] = ppa_channel(chan, i) ? j->targets[i] & TS_VALLEY : 0;
+            mask_apply(j->ctx, n, 0, j->vt, j->targets, chan);
         free(chan);
         if (j->status != TS_OK || !go)
             return NULL;
@@ -203,8 +237,7 @@ static ts_status ppa_merge(ts_ctx *ctx, ts_features *a, const ts_features *b)
     a->n_nodes += b->n_nodes;
     a->n_paths += b->n_paths;
     a->n_verts += b->n_verts;
-    for (i = 0; i < n; i++)
-        a->mask[i] |= b->mask[i];
+    mask_apply(ctx, n, 1, a->mask, b->mask, NULL);
     return TS_OK;
 }
 
@@ -316,10 +349,53 @@ double ppa_kind_branch(const ts_ppa_params *p, int kind, int *in_metres)
     return kind == TS_VALLEY && p->min_drainage > 0 ? PPA_AUTO_BRANCH_CHANNELS : PPA_AUTO_BRANCH;
 }
 
+/* The elevation range, rows side by side (min and max: the same on any split). */
+#define RANGE_CHUNKS 64
+typedef struct range_job {
+    const ts_raster *dem;
+    float lo[RANGE_CHUNKS], hi[RANGE_CHUNKS];
+} range_job;
+
+static void range_rows(void *arg, size_t b, size_t e)
+{
+    range_job *j = arg;
+    int H = j->dem->height, x, y;
+    size_t c;
+    for (c = b; c < e; c++) {
+        float lo = INFINITY, hi = -INFINITY;
+        for (y = (int)((size_t)H * c / RANGE_CHUNKS); y < (int)((size_t)H * (c + 1) / RANGE_CHUNKS);
+             y++)
+            for (x = 0; x < j->dem->width; x++) {
+                float v = TS_PIX(j->dem, x, y);
+                lo = v < lo ? v : lo; /* NaN compares false: skipped */
+                hi = v > hi ? v : hi;
+            }
+        j->lo[c] = lo;
+        j->hi[c] = hi;
+    }
+}
+
+static int dem_range(ts_ctx *ctx, const ts_raster *dem, double *lo, double *hi)
+{
+    range_job j;
+    size_t c;
+    j.dem = dem;
+    ts__parallel_for(ctx, RANGE_CHUNKS, range_rows, &j);
+    *lo = INFINITY;
+    *hi = -INFINITY;
+    for (c = 0; c < RANGE_CHUNKS; c++) {
+        *lo = TS_MIN(*lo, (double)j.lo[c]);
+        *hi = TS_MAX(*hi, (double)j.hi[c]);
+    }
+    return *lo <= *hi;
+}
+
 TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
                                 const ts_ppa_params *params, ts_features **out)
 {
-    ts_raster_stats stats;
+    struct {
+        double min, max;
+    } stats;
     ts_features *f = NULL;
     unsigned char *targets = NULL;
     size_t n;
@@ -346,7 +422,7 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
         return ts__fail(ctx, TS_ERR_ARG, "ppa",
                         "min_branch_length is in metres but the DEM has no ground metrics "
                         "(no CRS): give it in cells");
-    if (ts_raster_stats_compute(ctx, dem, &stats) != TS_OK)
+    if (!dem_range(ctx, dem, &stats.min, &stats.max))
         return ts__fail(ctx, TS_ERR_NUMERIC, "ppa", "every cell of the DEM is nodata");
     /* per kind ("auto" resolved): a length in cells is measured in cells,
      * one in metres on the ground */
@@ -399,16 +475,13 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
     if ((kinds & TS_VALLEY) && params->min_drainage > 0) {
         /* valleys where the water runs: hollows above the channel heads are not targets */
         uint64_t *chan = NULL;
-        size_t i;
         sv = ts__progress_push(ctx, 0.3, 0.3);
         st = ppa_channels(ctx, dem->width, dem->height, ppa_drainage_tile(ctx), 1,
                           ppa_raster_window, (void *)dem, params->min_drainage, &chan);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto fail;
-        for (i = 0; i < n; i++)
-            if (!ppa_channel(chan, i))
-                targets[i] &= (unsigned char)~TS_VALLEY;
+        mask_apply(ctx, n, 2, targets, NULL, chan);
         free(chan);
     }
     if (kinds == (TS_RIDGE | TS_VALLEY) && ts__thread_count(ctx, 2) >= 2) {
