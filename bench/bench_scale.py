@@ -45,9 +45,13 @@ ROOT = os.path.dirname(HERE)
 METRICS = os.path.normpath(os.path.join(ROOT, "..", "shared", "eval", "terrain_metrics.py"))
 
 
-# the creation options of terrasynth-dask --no-overviews on a Float32 recipe
-DASK_CO = ["-co", "TILED=YES", "-co", "BLOCKXSIZE=256", "-co", "BLOCKYSIZE=256",
-           "-co", "COMPRESS=DEFLATE", "-co", "PREDICTOR=3", "-co", "BIGTIFF=IF_SAFER"]
+# the creation options of terrasynth-dask --no-overviews on a Float32 recipe (ZSTD where
+# GDAL has it, as the runner)
+_ZSTD = "ZSTD" in (gdal.GetDriverByName("GTiff").GetMetadataItem("DMD_CREATIONOPTIONLIST") or "")
+DASK_CODEC = "ZSTD" if _ZSTD else "DEFLATE"
+DASK_CO = (["-co", "TILED=YES", "-co", "BLOCKXSIZE=256", "-co", "BLOCKYSIZE=256",
+            "-co", "COMPRESS=" + DASK_CODEC, "-co", "PREDICTOR=3", "-co", "BIGTIFF=IF_SAFER"]
+           + (["-co", "ZSTD_LEVEL=1"] if _ZSTD else []))
 
 
 def time_rss(cmd, env=None):
@@ -170,14 +174,15 @@ def main():
                 n, "in one piece" if not tiled else "tiles of %d" % tiled, dt, n * n / dt, mb))
     if not a.quick:
         # the same tiles written as the Dask runner writes them (without overviews):
-        # DEFLATE after the floating-point predictor, 256^2 blocks (the CLI's default is
-        # uncompressed, so step 3 compares with both)
+        # ZSTD (or DEFLATE) after the floating-point predictor, 256^2 blocks (the CLI's
+        # default is uncompressed, so step 3 compares with both)
         out = os.path.join(work, "s8192_%d_deflate.tif" % T)
         dt, _, mb = time_rss([B, "synth", *ex, "--size", "8192x8192", "--tiled", T, "-q",
                               *DASK_CO, out])
         single["deflate"] = dt
         print("   %5d^2 %-14s %7.1f s %9.0f cells/s %7.0f MB  (written as the Dask runner "
-              "does: DEFLATE, predictor 3)" % (8192, "tiles of %d" % T, dt, 8192 * 8192 / dt, mb))
+              "does: %s, predictor 3)" % (8192, "tiles of %d" % T, dt, 8192 * 8192 / dt, mb,
+                                          DASK_CODEC))
 
     # thread scaling of the tiles (a wave's tiles side by side)
     n_cpu = os.cpu_count() or 1
@@ -231,8 +236,8 @@ def main():
         print("   16384^2 in %.1f s = %.2f x the single-process 8192^2 (%.1f s; goal <= 4)  %s"
               % (dt, dt / ref, ref, "ok" if dt <= 4 * ref else "MISS"))
         print("   16384^2 in %.1f s = %.2f x the single-process 8192^2 written the same way "
-              "(%.1f s, DEFLATE tiles; goal <= 4)  %s" % (
-                  dt, dt / single["deflate"], single["deflate"],
+              "(%.1f s, %s tiles; goal <= 4)  %s" % (
+                  dt, dt / single["deflate"], single["deflate"], DASK_CODEC,
                   "ok" if dt <= 4 * single["deflate"] else "MISS"))
         print("   %.0f cells/s; peak of the process (both workers and the client) %s MB "
               "(goal <= 1536 per worker)  %s" % (
