@@ -279,6 +279,7 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
     size_t *count = NULL, *bs = NULL, *n_nx = NULL;
     unsigned char *changed = NULL;
     int any = 1, pass = 0;
+    ts_status st;
     pass_job pj;
     memset(&pj, 0, sizeof pj);
     pj.adj = adj;
@@ -354,16 +355,11 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
         if (++pass % 4 == 0 && ts__progress(ctx, 0.5, "branch reduction") != TS_OK)
             break;
     }
-    free(count);
-    free(bs);
-    free(n_nx);
-    free(changed);
-    free(ends);
-    free(br);
-    free(sorted);
-    free(nx);
-    return ctx->status;
+    st = ctx->status;
+    goto out;
 nomem:
+    st = ts__fail(ctx, TS_ERR_NOMEM, "ppa branch reduction", "out of memory");
+out:
     free(count);
     free(bs);
     free(n_nx);
@@ -372,5 +368,5 @@ nomem:
     free(br);
     free(sorted);
     free(nx);
-    return ts__fail(ctx, TS_ERR_NOMEM, "ppa branch reduction", "out of memory");
+    return st;
 }
