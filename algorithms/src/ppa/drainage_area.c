@@ -29,7 +29,15 @@
  *      so far, where it enters, and for each perimeter cell the cell its
  *      flow leaves the tile by; summed over the tiles' exits in flow order;
  *   D. each tile's areas with what flows in from its neighbours.
- * One tile is steps 1-4 at once.  tests/c/test_ppa.c compares the areas
+ * Two ways through B-D.  Kept (in memory, `keep`): F, D and the flow of
+ * every cell are held (9 bytes a cell), so no tile is routed: F is the
+ * greater of the tile's own flood and its label's perimeter F, D is found
+ * breadth-first on the flats and relaxed across tiles, the flow, exits and
+ * areas follow in a topological order.  Routed (bounded memory, for
+ * ppa_tiled.c): each round routes its tiles by one flood keyed (F, D) and
+ * keeps their exits; a tile is routed again only when a neighbour's D that
+ * its routing could read has changed; D routes each tile once more.
+ * One tile is steps 1-4 at once, by one routing.  tests/c/test_ppa.c compares the areas
  * with the definition computed naively (F by relaxation, the flow cell by
  * cell) on several tilings.
  *
