@@ -2094,7 +2094,7 @@ int tsjob_pixel_setup(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *r
                 tsio_errf(&res->warning, job->guide,
                           "its values (%.4g..%.4g, 1st..99th percentiles) are not on the "
                           "exemplars' heights (%.4g..%.4g): if it is a drawing, give "
-                          "--guide-heights stretch",
+                          "--guide-heights quantile",
                           gr[0], gr[1], er[0], er[1]);
         }
         st = ts_pixel_guide_prepare(ctx, &g.r, res->stacks, &job->params, &res->guide);

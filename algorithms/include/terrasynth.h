@@ -875,7 +875,9 @@ typedef struct ts_pixel_params {
     double guide_weight; /* weight of the guide in the corrections' target, 0..1 */
     int guide_heights;   /* TS_GUIDE_AS_GIVEN: the guide is in the exemplars' units;
                             TS_GUIDE_STRETCH: mapped linearly so that its 1st..99th
-                            percentiles span the exemplars' (a drawing in grey levels) */
+                            percentiles span the exemplars' (a drawing in grey levels);
+                            TS_GUIDE_QUANTILE: each value to the exemplars' height of
+                            the same rank (within their 1st..99th percentiles) */
     int rotations;       /* 0: the exemplars as given; 4: also turned by 90, 180, 270 degrees;
                             8: and mirrored */
     int coherence;       /* K of the k-coherence similarity sets: candidates also the K - 1
@@ -888,7 +890,7 @@ typedef struct ts_pixel_params {
     double jitter_levels[10];
 } ts_pixel_params;
 
-enum { TS_GUIDE_AS_GIVEN = 0, TS_GUIDE_STRETCH = 1 };
+enum { TS_GUIDE_AS_GIVEN = 0, TS_GUIDE_STRETCH = 1, TS_GUIDE_QUANTILE = 2 };
 
 TS_API ts_pixel_params ts_pixel_params_default(void);
 

@@ -1,13 +1,13 @@
 #!/usr/bin/python3
 # pixel_drawings.py - `terrasynth pixel` guided by drawings (issue 14): three grey-level
 # drawings (an X of bright ridges, a Y of dark valleys on a bright ground, a bright ring),
-# read with --guide-heights stretch, over crops of five DEMs of ../shared/data/dem x seeds,
+# read with --guide-heights quantile (and stretch), over crops of five DEMs of ../shared/data/dem x seeds,
 # judged by the independent yardstick ../shared/eval/terrain_metrics.py: structure_r (goal
 # >= 0.6 with a guide), and slope_w1 and the worse of seam_lap / seam_grad for what the
 # drawing does to the style.  One line per drawing x DEM x weight, then the counts.
 #
 #   /usr/bin/python3 bench/quality/pixel_drawings.py [--terrasynth BIN] [--seeds 1,2,3]
-#        [--weights 0.5] [--size 256] [--out DIR]
+#        [--weights 0.5] [--heights quantile,stretch] [--size 256] [--out DIR]
 #
 # Copyright (C) 2026 The TerraSynth developers
 # SPDX-License-Identifier: GPL-2.0-or-later
@@ -60,6 +60,7 @@ def main():
                                                          "terrasynth"))
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--weights", default="0.5")
+    ap.add_argument("--heights", default="quantile,stretch")
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
@@ -70,7 +71,7 @@ def main():
     work = a.out or tempfile.mkdtemp(prefix="ts_drawings_")
     os.makedirs(work, exist_ok=True)
     seeds = [int(s) for s in a.seeds.split(",")]
-    weights = [float(w) for w in a.weights.split(",")]
+    weights = [(h, float(w)) for h in a.heights.split(",") for w in a.weights.split(",")]
     n = a.size
     rows = []
     for en, f, win in CROPS:
@@ -85,12 +86,12 @@ def main():
             ds.SetProjection(src.GetProjection())
             ds.GetRasterBand(1).WriteArray(img.astype(np.uint8))
             ds = None
-            for w in weights:
+            for how, w in weights:
                 r, s1, se = [], [], []
                 for seed in seeds:
                     out = os.path.join(work, "out.tif")
                     subprocess.run([a.terrasynth, "pixel", "--exemplar", ex, "--guide", g,
-                                    "--guide-heights", "stretch", "--guide-weight", str(w),
+                                    "--guide-heights", how, "--guide-weight", str(w),
                                     "--seed", str(seed), out, "-q"], check=True)
                     m = json.loads(subprocess.run(
                         [sys.executable, METRICS, "--out", out, "--exemplar", ex, "--sketch", g],
@@ -98,19 +99,20 @@ def main():
                     r.append(m["structure_r"])
                     s1.append(m["slope_w1_deg"])
                     se.append(max(m["seam_lap"], m["seam_grad"]))
-                rows.append((r, s1, se))
-                print("%-10s %-10s weight %.2f  structure_r %s  slope_w1 %s  seams %s" % (
-                    dn, en, w, " ".join("%.2f" % v for v in r),
+                rows.append((how, r, s1, se))
+                print("%-10s %-10s %-8s %.2f  structure_r %s  slope_w1 %s  seams %s" % (
+                    dn, en, how, w, " ".join("%.2f" % v for v in r),
                     " ".join("%.1f" % v for v in s1), " ".join("%.2f" % v for v in se)),
                     flush=True)
-    allr = [v for r, _, _ in rows for v in r]
-    alls = [v for _, s, _ in rows for v in s]
-    alle = [v for _, _, e in rows for v in e]
-    print("structure_r >= 0.6 in %d of %d (worst %.2f); slope_w1 <= 3 in %d of %d (worst %.1f); "
-          "seams <= 1.2 in %d of %d (worst %.2f)" % (
-              sum(v >= 0.6 for v in allr), len(allr), min(allr),
-              sum(v <= 3 for v in alls), len(alls), max(alls),
-              sum(v <= 1.2 for v in alle), len(alle), max(alle)))
+    for how in dict.fromkeys(h for h, _ in weights):
+        allr = [v for hh, r, _, _ in rows if hh == how for v in r]
+        alls = [v for hh, _, s, _ in rows if hh == how for v in s]
+        alle = [v for hh, _, _, e in rows if hh == how for v in e]
+        print("%s: structure_r >= 0.6 in %d of %d (worst %.2f, mean %.2f); slope_w1 <= 3 in %d "
+              "of %d (worst %.1f, mean %.1f); seams <= 1.2 in %d of %d (worst %.2f)" % (
+                  how, sum(v >= 0.6 for v in allr), len(allr), min(allr), np.mean(allr),
+                  sum(v <= 3 for v in alls), len(alls), max(alls), np.mean(alls),
+                  sum(v <= 1.2 for v in alle), len(alle), max(alle)))
     return 0
 
 

@@ -48,7 +48,7 @@ class PixelAlgorithm(TerraSynthAlgorithm):
     LABELS = {"levels": "Levels (0 = as many as fit)", "passes": "Correction passes",
               "window": "Neighbourhood (cells)", "jitter": "Jitter (spacings)",
               "guide_weight": "Guide weight",
-              "guide_heights": "Guide's values (as heights, or stretched: a drawing)",
+              "guide_heights": "Guide's values (as heights, stretched, or by rank: a drawing)",
               "rotations": "Rotations (0, 4 or 8)",
               "pca_energy": "Share of the neighbourhoods' variance compared (PCA)",
               "coherence": "k-coherence candidates per neighbour (1 = coherent only)"}

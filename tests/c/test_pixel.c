@@ -524,6 +524,66 @@ static void test_errors(void)
     ts_ctx_free(ctx);
 }
 
+/* --guide-heights quantile: each guide value goes to the exemplars' height of
+ * its rank, so the mapped guide has the exemplars' distribution (its 1st and
+ * 99th percentiles are theirs, by ts_pixel_guide_ranges on the mapped
+ * values), the mapping keeps the order, and equal values (a drawing's
+ * ground) map to one height: for a ground of 3/4 of the cells, the
+ * exemplars' height at rank 3/8. */
+static void test_guide_quantile(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_pixel_params p = ts_pixel_params_default();
+    ts_raster ex = make_terrain(ctx, 120, 110, 9), guide, mapped;
+    ts_pixel_exemplars *E = NULL;
+    ts_pixel_guide *g = NULL;
+    uint64_t s = 31;
+    int x, y, trial;
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
+    ts_raster_alloc(ctx, 90, 70, &guide);
+    for (trial = 0; trial < 2 && E; trial++) {
+        double er[2], gr[2];
+        size_t i, n = 90 * 70, bad = 0;
+        for (y = 0; y < 70; y++)
+            for (x = 0; x < 90; x++)
+                TS_PIX(&guide, x, y) = trial == 0 ? (float)(-log(1.0 - th_uniform(&s)) * 40.0)
+                                       : (float)((x + y) % 4 == 0 ? 230 : 30); /* a drawing */
+        p.guide_heights = TS_GUIDE_QUANTILE;
+        CHECK(ts_pixel_guide_prepare(ctx, &guide, E, &p, &g) == TS_OK);
+        if (!g)
+            break;
+        mapped = ts_raster_wrap(g->level[g->levels], 90, 70, 90);
+        CHECK(ts_pixel_guide_ranges(&mapped, E, er, gr) == 0);
+        for (i = 0; i < n; i++)
+            for (x = 0; x < 8; x++) { /* the order kept (a few pairs per cell) */
+                size_t j = (size_t)(th_uniform(&s) * (double)n) % n;
+                if ((guide.data[i] < guide.data[j] && mapped.data[i] > mapped.data[j]) ||
+                    (guide.data[i] == guide.data[j] && mapped.data[i] != mapped.data[j]))
+                    bad++;
+            }
+        CHECK_MSG(bad == 0, "trial %d: %zu pairs out of order", trial, bad);
+        if (trial == 0) {
+            double tol = 0.02 * (er[1] - er[0]);
+            CHECK_MSG(fabs(gr[0] - er[0]) <= tol && fabs(gr[1] - er[1]) <= tol,
+                      "mapped 1st..99th %g..%g, the exemplars' %g..%g", gr[0], gr[1], er[0],
+                      er[1]);
+        } else {
+            /* the ground (3/4) at rank 3/8, the lines (1/4) at rank 7/8: strictly between
+             * the exemplars' 1st and 99th percentiles, the lines above */
+            float ground = mapped.data[1], line = mapped.data[0];
+            CHECK(guide.data[1] == 30 && guide.data[0] == 230);
+            CHECK_MSG(ground > er[0] && line < er[1] && line > ground, "%g %g (%g..%g)", ground,
+                      line, er[0], er[1]);
+        }
+        ts_pixel_guide_free(g);
+        g = NULL;
+    }
+    ts_raster_free(&guide);
+    ts_raster_free(&ex);
+    ts_pixel_exemplars_free(E);
+    ts_ctx_free(ctx);
+}
+
 /* The Jacobi eigenvalues keep the matrix's invariants (trace, Frobenius
  * norm) and give a 2 x 2 matrix's by the formula; the window choice takes 3
  * for white noise (every direction carries variance) and 9 for a smooth
@@ -582,6 +642,7 @@ int main(int argc, char **argv)
         {"errors", test_errors},
         {"nodata_frame", test_nodata_frame},
         {"window_choice", test_window_choice},
+        {"guide_quantile", test_guide_quantile},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

@@ -125,8 +125,9 @@ def test_guide_sets_the_layout(tmp_path):
 def test_a_drawing_as_guide(tmp_path):
     """A guide drawn in grey levels (a Byte raster, bright ridges on a dark ground) is not in
     the exemplar's units: as given it is all but ignored, and the command says so; with
-    --guide-heights stretch its 1st..99th percentiles are mapped onto the exemplar's, and
-    the terrain follows it (structure_r of ../shared/eval/terrain_metrics.py)."""
+    --guide-heights stretch its 1st..99th percentiles are mapped onto the exemplar's, with
+    quantile each level onto the exemplar's height of its rank, and the terrain follows it
+    (structure_r of ../shared/eval/terrain_metrics.py)."""
     metrics = os.path.join(ROOT, "..", "shared", "eval", "terrain_metrics.py")
     if not os.path.exists(metrics):
         import pytest
@@ -142,19 +143,26 @@ def test_a_drawing_as_guide(tmp_path):
     ds.GetRasterBand(1).WriteArray(img)
     ds = None
     r = {}
-    for how in ("as-given", "stretch"):
-        out = tmp_path / (how + ".tif")
-        p = run("pixel", "--exemplar", ex, "--guide", guide, "--guide-heights", how,
-                "--seed", 3, out, "-q")
-        warned = "give --guide-heights stretch" in p.stderr
-        assert warned == (how == "as-given"), p.stderr
-        r[how] = json.loads(subprocess.run(
-            [sys.executable, metrics, "--out", str(out), "--exemplar", str(ex), "--sketch",
-             str(guide)], check=True, capture_output=True, text=True).stdout)["structure_r"]
-    print("structure_r as given %.3f, stretched %.3f" % (r["as-given"], r["stretch"]))
-    # measured, seeds 1-4: stretched 0.53-0.62 (a drawn X is followed less closely than a
-    # DEM guide, >= 0.9 in the pixel matrix); as given -0.01
-    assert r["stretch"] >= 0.45 and r["stretch"] > r["as-given"] + 0.3, r
+    for how in ("as-given", "stretch", "quantile"):
+        rs = []
+        for seed in (1, 2, 3):
+            out = tmp_path / ("%s%d.tif" % (how, seed))
+            p = run("pixel", "--exemplar", ex, "--guide", guide, "--guide-heights", how,
+                    "--seed", seed, out, "-q")
+            warned = "give --guide-heights quantile" in p.stderr
+            assert warned == (how == "as-given"), p.stderr
+            rs.append(json.loads(subprocess.run(
+                [sys.executable, metrics, "--out", str(out), "--exemplar", str(ex), "--sketch",
+                 str(guide)], check=True, capture_output=True, text=True).stdout)["structure_r"])
+        r[how] = sum(rs) / len(rs)
+    print("structure_r (mean of seeds 1-3) as given %.3f, stretched %.3f, by rank %.3f" % (
+        r["as-given"], r["stretch"], r["quantile"]))
+    # measured on this small exemplar (200 x 180 cells for a 200 x 200 drawing), seeds 1-6:
+    # stretched 0.35-0.62, by rank 0.32-0.72 (means of seeds 1-3: 0.58, 0.49); as given
+    # -0.01.  Over larger exemplars both reach >= 0.6 in 45 of 45
+    # (bench/quality/pixel_drawings.py)
+    for how in ("stretch", "quantile"):
+        assert r[how] >= 0.4 and r[how] > r["as-given"] + 0.3, r
 
 
 def anisotropy(a):

@@ -188,11 +188,13 @@ static const ts_param_desc pixel_desc[] = {
      "Weight of the guide in the corrections' target neighbourhoods (with a guide): 0 ignores "
      "it, 1 matches the guide's heights alone.",
      offsetof(ts_pixel_params, guide_weight)},
-    {"guide_heights", TS_PARAM_ENUM, TS_GUIDE_AS_GIVEN, 0, 1, TS_UNIT_CELLS, "",
-     "as-given|stretch",
-     "How the guide's values are read: as heights in the exemplars' units (as-given), or "
+    {"guide_heights", TS_PARAM_ENUM, TS_GUIDE_AS_GIVEN, 0, 2, TS_UNIT_CELLS, "",
+     "as-given|stretch|quantile",
+     "How the guide's values are read: as heights in the exemplars' units (as-given), "
      "mapped linearly so that their 1st..99th percentiles span the exemplars' (stretch: a "
-     "sketch drawn in grey levels, a DEM of another relief).",
+     "DEM of another relief), or each value to the exemplars' height of the same rank "
+     "(quantile: a sketch drawn in grey levels, whose ground then takes the exemplars' most "
+     "common heights).",
      offsetof(ts_pixel_params, guide_heights)},
     {"rotations", TS_PARAM_INT, 4, 0, 8, TS_UNIT_CELLS, "", NULL,
      "Candidates turned and mirrored (Cruz et al.): 0 the exemplars as given, 4 also turned "
