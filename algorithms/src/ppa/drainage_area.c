@@ -912,6 +912,25 @@ static void halo_sensitivity(dr_job *j, dr_tile *k)
         }
 }
 
+/* Kept: tile k's perimeter D, from its cells', into Dnew. */
+static void kept_perimeter_d(dr_job *j, const dr_tile *k)
+{
+    size_t pb = j->pbase[k->t], q, np = perim_count(k->w, k->h);
+    int x, y;
+    for (q = 0; q < np; q++) {
+        perim_xy(k->w, k->h, q, &x, &y);
+        j->Dnew[pb + q] = j->Dc[(size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x)];
+    }
+}
+
+/* The offsets of the 8 neighbours in a raster of width W. */
+static void neighbour_offsets(int W, ptrdiff_t off[8])
+{
+    int d;
+    for (d = 0; d < 8; d++)
+        off[d] = (ptrdiff_t)ppa_dir[d][1] * W + ppa_dir[d][0];
+}
+
 /* F and D of tile k where its flow is kept, without routing it: after
  * Barnes (2016), a cell's F is the greater of its F in the tile alone and
  * the F of the seed whose flood reached it first (its label; a boundary
@@ -933,8 +952,7 @@ static void tile_flats(dr_job *j, dr_tile *k)
             if (lab >= 2 && j->G[pb + lab - 2] > j->Fc[g])
                 j->Fc[g] = j->G[pb + lab - 2];
         }
-    for (d = 0; d < 8; d++)
-        off[d] = (ptrdiff_t)ppa_dir[d][1] * j->W + ppa_dir[d][0];
+    neighbour_offsets(j->W, off);
     for (y = 0; y < k->h; y++)
         for (x = 0; x < k->w; x++) {
             size_t g = (size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x);
@@ -991,17 +1009,13 @@ static void tile_flats(dr_job *j, dr_tile *k)
             }
         }
     }
-    for (y = 0; y < k->h; y++)
-        for (x = 0; x < k->w; x += (y == 0 || y == k->h - 1) ? 1 : TS_MAX(1, k->w - 1))
-            j->Dnew[pb + (size_t)perim_local(k->w, k->h, x, y)] =
-                j->Dc[(size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x)];
+    kept_perimeter_d(j, k);
 }
 
 /* Kept: D of tile k lowered where a neighbour across its border offers a
  * lower D on a flat, and on along the flat (breadth-first on D). */
 static int tile_relax(dr_job *j, dr_tile *k)
 {
-    size_t pb = j->pbase[k->t];
     int x, y, d;
     rh_reset(&k->q);
     for (y = 0; y < k->h; y++)
@@ -1055,10 +1069,7 @@ static int tile_relax(dr_job *j, dr_tile *k)
             }
         }
     }
-    for (y = 0; y < k->h; y++)
-        for (x = 0; x < k->w; x += (y == 0 || y == k->h - 1) ? 1 : TS_MAX(1, k->w - 1))
-            j->Dnew[pb + (size_t)perim_local(k->w, k->h, x, y)] =
-                j->Dc[(size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x)];
+    kept_perimeter_d(j, k);
     return 0;
 }
 
@@ -1068,8 +1079,7 @@ static void tile_dirs_kept(dr_job *j, dr_tile *k)
 {
     ptrdiff_t off[8];
     int x, y, d;
-    for (d = 0; d < 8; d++)
-        off[d] = (ptrdiff_t)ppa_dir[d][1] * j->W + ppa_dir[d][0];
+    neighbour_offsets(j->W, off);
     for (y = 0; y < k->h; y++) {
         int gy = k->y0 + y;
         unsigned char *row = k->dir + (size_t)y * (size_t)k->w;
@@ -1180,15 +1190,6 @@ static int tile_phase(dr_job *j, dr_tile *k, size_t t)
                 if (p >= 0)
                     j->Dnew[pb + (size_t)p] = k->cell[hx(k, x, y)].L;
             }
-        if (j->Fc) { /* kept: F and D of every cell, for the rounds that follow */
-            for (y = 0; y < k->h; y++)
-                for (x = 0; x < k->w; x++) {
-                    size_t g = (size_t)(k->y0 + y) * (size_t)j->W + (size_t)(k->x0 + x);
-                    j->Fc[g] = k->cell[hx(k, x, y)].v;
-                    j->Dc[g] = k->cell[hx(k, x, y)].L;
-                }
-            return 0;
-        }
         /* C, from this routing (the last one of the tile's is made on the
          * final D): the exits, perimeter cells draining into another tile;
          * then each perimeter cell's exit, downstream first (k->cell[].L

@@ -171,7 +171,7 @@ static void mask_apply(ts_ctx *ctx, size_t n, int op, unsigned char *to, const u
 }
 
 /* The drainage's tiles in memory: one flood in one tile on few threads,
- * tiles side by side (each routed about three times) on many: the same
+ * tiles side by side (each flooded once, the flow kept) on more: the same
  * areas either way. */
 static int ppa_drainage_tile(const ts_ctx *ctx)
 {
@@ -393,9 +393,7 @@ static int dem_range(ts_ctx *ctx, const ts_raster *dem, double *lo, double *hi)
 TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
                                 const ts_ppa_params *params, ts_features **out)
 {
-    struct {
-        double min, max;
-    } stats;
+    double lo, hi;
     ts_features *f = NULL;
     unsigned char *targets = NULL;
     size_t n;
@@ -422,14 +420,14 @@ TS_API ts_status ts_ppa_extract(ts_ctx *ctx, const ts_raster *dem, const ts_grid
         return ts__fail(ctx, TS_ERR_ARG, "ppa",
                         "min_branch_length is in metres but the DEM has no ground metrics "
                         "(no CRS): give it in cells");
-    if (!dem_range(ctx, dem, &stats.min, &stats.max))
+    if (!dem_range(ctx, dem, &lo, &hi))
         return ts__fail(ctx, TS_ERR_NUMERIC, "ppa", "every cell of the DEM is nodata");
     /* per kind ("auto" resolved): a length in cells is measured in cells,
      * one in metres on the ground */
     for (k = 0; k < 2; k++) {
         int in_metres;
         threshold[k] = TS_MAX(params->threshold,
-                              ppa_kind_fraction(params, k + 1) * (stats.max - stats.min));
+                              ppa_kind_fraction(params, k + 1) * (hi - lo));
         min_length[k] = ppa_kind_branch(params, k + 1, &in_metres);
         km[k] = in_metres ? metrics : NULL;
     }

@@ -151,7 +151,6 @@ typedef struct pass_job {
     uint32_t *nx;         /* bucket b's next ends from nx[2 bs[b]] */
     size_t *n_nx;         /* how many */
     unsigned char *changed; /* per bucket */
-    const unsigned char *cells; /* the initial scan: adj itself */
 } pass_job;
 
 static int branch_bucket(const pass_job *j, const branch *b)
@@ -253,7 +252,7 @@ static void ends_count(void *arg, size_t begin, size_t end)
     for (c = begin; c < end; c++) {
         size_t cnt = 0;
         for (i = c * per; i < TS_MIN(n, (c + 1) * per); i++)
-            cnt += ppa_degree(j->cells[i]) == 1;
+            cnt += ppa_degree(j->adj[i]) == 1;
         j->count[c] = cnt;
     }
 }
@@ -265,7 +264,7 @@ static void ends_fill(void *arg, size_t begin, size_t end)
     for (c = begin; c < end; c++) {
         size_t at = j->count[c];
         for (i = c * per; i < TS_MIN(n, (c + 1) * per); i++)
-            if (ppa_degree(j->cells[i]) == 1)
+            if (ppa_degree(j->adj[i]) == 1)
                 j->nx[at++] = (uint32_t)i;
     }
 }
@@ -283,7 +282,6 @@ ts_status ppa_branch_reduction(ts_ctx *ctx, int w, int h, unsigned char *adj,
     pass_job pj;
     memset(&pj, 0, sizeof pj);
     pj.adj = adj;
-    pj.cells = adj;
     pj.w = w;
     pj.h = h;
     pj.nbk = TS_MAX(1, TS_MIN(1024, h / 8));

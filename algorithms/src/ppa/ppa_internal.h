@@ -142,19 +142,20 @@ ts_status ppa_profile_targets(ts_ctx *ctx, const ts_raster *dem, int profile_len
  * as drainage_area.c defines it, made in tiles of `tile` cells (the same
  * areas on any tiling): the DEM read window by window (read is called
  * under a lock), each tile's areas handed to emit (under the lock).  keep:
- * hold a byte a cell (the flow) rather than route each tile once more. */
+ * hold F, D and the flow of every cell (9 bytes a cell) so that each tile
+ * is flooded once and never routed; else (bounded memory) tiles are routed
+ * in rounds and once more for the areas. */
 typedef void (*ppa_area_fn)(void *user, int x0, int y0, int w, int h, const float *area);
 ts_status ppa_drainage(ts_ctx *ctx, int width, int height, int tile, int keep,
                        ts_window_read_fn read, void *user, ppa_area_fn emit, void *emit_user);
-/* The tiles of the flow routing: in one piece, one tile (one flood; in
- * tiles each is flooded about four times); in ppa_tiled.c, the PPA's tiles,
- * at most this. */
+/* The tiles of the flow routing: in one piece, one tile (one flood); in
+ * ppa_tiled.c, the PPA's tiles, at most this. */
 #ifndef PPA_DRAINAGE_TILE
 #define PPA_DRAINAGE_TILE 16384
 #endif
 /* ... and from this many threads on, tiles of this size in one piece too,
- * their flow kept (4096^2 on one thread: one tile 2.5 s, tiles of 512 or
- * 1024 3.05 s of work, side by side; both kinds on a 16-core machine,
+ * their flow kept (4096^2 on one thread: one tile 2.24 s, tiles of 512
+ * 2.23 s of work, side by side; both kinds on a 16-core machine,
  * 2026-11-26: tiles from 2 threads on against from 8, 3.57 / 3.64 s on 2
  * threads, 1.92 / 2.99 on 4, 1.18 / 1.40 on 8; tiles of 512 against 1024,
  * 1.40 / 1.34 s on 8 threads, 0.78-0.81 / 0.87 on 16) */
