@@ -884,6 +884,11 @@ typedef struct ts_pixel_params {
                             exemplar cells most like each neighbour's (1: none) */
     double pca_energy;   /* share of the neighbourhoods' shape variance the compared
                             appearance vectors keep (Cruz et al.: 0.95; 1: all, plain SSD) */
+    int start;           /* without a guide, the coarsest level from: TS_PIXEL_START_RELIEF
+                            a smooth random relief in the exemplars' heights (ours);
+                            TS_PIXEL_START_RANDOM a coordinate per cell at random */
+    double relief_scale; /* the relief's lattice spacing in cells (0: matched to the
+                            exemplars' relief at the coarsest level's spacing) */
     /* per-level jitter (not a declared parameter: a list): with n_jitter_levels > 0,
      * level l >= 1 is jittered by jitter_levels[min(l - 1, n - 1)] instead of jitter */
     int n_jitter_levels;
@@ -891,6 +896,7 @@ typedef struct ts_pixel_params {
 } ts_pixel_params;
 
 enum { TS_GUIDE_AS_GIVEN = 0, TS_GUIDE_STRETCH = 1, TS_GUIDE_QUANTILE = 2 };
+enum { TS_PIXEL_START_RELIEF = 0, TS_PIXEL_START_RANDOM = 1 };
 
 TS_API ts_pixel_params ts_pixel_params_default(void);
 

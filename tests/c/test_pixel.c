@@ -584,6 +584,159 @@ static void test_guide_quantile(void)
     ts_ctx_free(ctx);
 }
 
+/* The relief start (relief_start.c): the field's ranks are uniform, every
+ * 8S x 8S window holds the low and the high ranks (the strata), its lattice
+ * spacing gives the exemplar's mean height difference at the coarsest
+ * spacing (both written out here with a plain loop and a plain sort), and
+ * plains among massifs keep both in the output, where the random start
+ * leaves more middle heights. */
+static int flt_cmp(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return x < y ? -1 : x > y;
+}
+
+static void test_relief_start(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_pixel_params p = ts_pixel_params_default();
+    ts_raster ex = make_terrain(ctx, 160, 150, 21), out;
+    ts_pixel_exemplars *E = NULL;
+    int x, y, i, L, D, bins[10] = {0}, n = 0;
+    double S;
+    p.levels = 3;
+    CHECK(p.start == TS_PIXEL_START_RELIEF);
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
+    if (!E)
+        goto done;
+    S = E->relief.scale;
+    L = E->levels;
+    D = 1 << L;
+    CHECK_MSG(S >= D / 4.0 && S <= D * 256.0, "lattice spacing %g", S);
+    /* ranks: uniform over 32 x 32 lattice cells far from the origin */
+    for (y = 0; y < 224; y++)
+        for (x = 0; x < 224; x++) {
+            double q = ts__pix_relief_rank(&E->relief, S, 1e9 + (x + 0.5) * S / 7,
+                                           -3e8 + (y + 0.5) * S / 7, 5);
+            CHECK(q >= 0 && q <= 1);
+            bins[q >= 1 ? 9 : (int)(q * 10)]++;
+            n++;
+        }
+    for (i = 0; i < 10; i++)
+        CHECK_MSG(fabs(bins[i] / (double)n - 0.1) <= 0.03, "rank bin %d holds %.3f", i,
+                  bins[i] / (double)n);
+    /* every 8S x 8S window: the low and the high ranks */
+    {
+        int wx, wy, worst_ok = 1;
+        double worst_lo = 0, worst_hi = 1;
+        for (wy = 0; wy < 6; wy++)
+            for (wx = 0; wx < 6; wx++) {
+                double lo = 1, hi = 0;
+                for (y = 0; y < 32; y++)
+                    for (x = 0; x < 32; x++) {
+                        double q = ts__pix_relief_rank(&E->relief, S, (wx * 5.3 + x / 4.0) * S,
+                                                       (wy * 4.7 + y / 4.0) * S, 11);
+                        lo = fmin(lo, q);
+                        hi = fmax(hi, q);
+                    }
+                worst_lo = fmax(worst_lo, lo);
+                worst_hi = fmin(worst_hi, hi);
+                worst_ok &= lo < 0.1 && hi > 0.9;
+            }
+        CHECK_MSG(worst_ok, "a window's ranks span only %.3f..%.3f", worst_lo, worst_hi);
+    }
+    /* the calibration: the exemplar's mean |h(p) - h(p + D)| at level 0 over every pair
+     * of usable cells, against the field's mapped to the same heights (a plain sort) on a
+     * grid of its own */
+    {
+        const pix_stack *st = &E->stacks[0];
+        const float *h0 = st->level[0];
+        size_t nu = 0, c, pairs = 0;
+        float *sorted = malloc(sizeof(float) * (size_t)st->width * (size_t)st->height);
+        double sum = 0, fsum = 0, want, got;
+        for (y = 0; y < st->height; y++)
+            for (x = 0; x < st->width; x++) {
+                c = (size_t)y * (size_t)st->width + (size_t)x;
+                if (!st->usable[0][c])
+                    continue;
+                sorted[nu++] = h0[c];
+                if (x + D < st->width && st->usable[0][c + (size_t)D]) {
+                    sum += fabs((double)h0[c + (size_t)D] - h0[c]);
+                    pairs++;
+                }
+                if (y + D < st->height && st->usable[0][c + (size_t)D * (size_t)st->width]) {
+                    sum += fabs((double)h0[c + (size_t)D * (size_t)st->width] - h0[c]);
+                    pairs++;
+                }
+            }
+        qsort(sorted, nu, sizeof *sorted, flt_cmp);
+        want = sum / (double)pairs;
+        for (y = 0; y < 200; y++)
+            for (x = 0; x < 200; x++) {
+                double px = 7777 + x * S / 5, py = -999 + y * S / 5;
+                double q0 = ts__pix_relief_rank(&E->relief, S, px, py, 3);
+                double qx = ts__pix_relief_rank(&E->relief, S, px + D, py, 3);
+                double qy = ts__pix_relief_rank(&E->relief, S, px, py + D, 3);
+#define H_OF(q) sorted[(size_t)fmin((q) * (double)nu, (double)nu - 1)]
+                fsum += fabs(H_OF(qx) - H_OF(q0)) + fabs(H_OF(qy) - H_OF(q0));
+#undef H_OF
+            }
+        got = fsum / (2.0 * 200 * 200);
+        CHECK_MSG(fabs(got - want) <= 0.15 * want,
+                  "mean height difference at %d cells: field %.2f, exemplar %.2f (S %.1f)", D,
+                  got, want, S);
+        free(sorted);
+    }
+    /* a plain beside a range: the lowest and the highest quarters of the exemplar's
+     * heights in the output, relief against random start */
+    {
+        ts_raster two = make_terrain(ctx, 240, 240, 23);
+        ts_pixel_exemplars *E2 = NULL;
+        float *hs = malloc(sizeof(float) * 240 * 240);
+        double share[2][2];
+        int st;
+        for (y = 0; y < 240; y++)
+            for (x = 0; x < 240; x++) {
+                /* plains and massifs in a pattern of about 60 cells */
+                double t = 1 / (1 + exp(-8 * sin(x / 19.0) * sin(y / 19.0 + 1)));
+                TS_PIX(&two, x, y) = (float)(100 + t * 900 + (0.1 + 0.9 * t) *
+                                                                 (TS_PIX(&two, x, y) - 800));
+                hs[y * 240 + x] = TS_PIX(&two, x, y);
+            }
+        qsort(hs, 240 * 240, sizeof *hs, flt_cmp);
+        CHECK(ts_pixel_prepare(ctx, &two, 1, &p, &E2) == TS_OK);
+        ts_raster_alloc(ctx, 256, 256, &out);
+        ts_ctx_set_seed(ctx, 7);
+        for (st = 0; st < 2 && E2; st++) {
+            int lo = 0, hi = 0;
+            p.start = st ? TS_PIXEL_START_RANDOM : TS_PIXEL_START_RELIEF;
+            CHECK(ts_pixel_synthesize(ctx, E2, &p, 0, 0, &out) == TS_OK);
+            for (i = 0; i < 256 * 256; i++) {
+                lo += out.data[i] < hs[240 * 240 / 4];
+                hi += out.data[i] > hs[240 * 240 * 3 / 4];
+            }
+            share[st][0] = lo / 65536.0;
+            share[st][1] = hi / 65536.0;
+        }
+        /* seeds 1, 2, 3, 7: relief 0.28-0.39 below, 0.26-0.34 above; random 0.07-0.19,
+         * 0.14-0.34 */
+        CHECK_MSG(share[0][0] >= 0.2 && share[0][1] >= 0.2 &&
+                      fmin(share[0][0], share[0][1]) > fmin(share[1][0], share[1][1]) + 0.05,
+                  "relief start: %.3f below the exemplar's 1st quartile, %.3f above the 3rd "
+                  "(random start: %.3f, %.3f)",
+                  share[0][0], share[0][1], share[1][0], share[1][1]);
+        p.start = TS_PIXEL_START_RELIEF;
+        ts_pixel_exemplars_free(E2);
+        ts_raster_free(&two);
+        ts_raster_free(&out);
+        free(hs);
+    }
+done:
+    ts_pixel_exemplars_free(E);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
 /* The Jacobi eigenvalues keep the matrix's invariants (trace, Frobenius
  * norm) and give a 2 x 2 matrix's by the formula; the window choice takes 3
  * for white noise (every direction carries variance) and 9 for a smooth
@@ -643,6 +796,7 @@ int main(int argc, char **argv)
         {"nodata_frame", test_nodata_frame},
         {"window_choice", test_window_choice},
         {"guide_quantile", test_guide_quantile},
+        {"relief_start", test_relief_start},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

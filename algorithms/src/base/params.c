@@ -210,6 +210,17 @@ static const ts_param_desc pixel_desc[] = {
      "principal directions the corrections compare (Cruz et al.: 0.95); the mean is always "
      "kept; 1 keeps every direction (plain sum of squared differences).",
      offsetof(ts_pixel_params, pca_energy)},
+    {"start", TS_PARAM_ENUM, TS_PIXEL_START_RELIEF, 0, 1, TS_UNIT_CELLS, "", "relief|random",
+     "Without a guide, where the coarsest level starts: a smooth random relief whose every "
+     "value takes the exemplars' height of the same rank (relief: plains and mountains in "
+     "the exemplars' proportions; ours), or a coordinate per cell at random (random: the "
+     "corrections then keep middle heights).",
+     offsetof(ts_pixel_params, start)},
+    {"relief_scale", TS_PARAM_DOUBLE, 0.0, 0.0, 1e6, TS_UNIT_CELLS, "", NULL,
+     "Lattice spacing of the relief start, in cells: the larger, the wider its plains and "
+     "mountains; 0: the spacing whose relief matches the exemplars' at the coarsest level's "
+     "spacing.",
+     offsetof(ts_pixel_params, relief_scale)},
 };
 
 static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", "pixel", NULL};

@@ -416,6 +416,27 @@ static pix_coord guided_coord(const ts_pixel_exemplars *ex, float g, uint64_t h)
     return c;
 }
 
+/* Without a guide (the relief start, relief_start.c): in an exemplar chosen
+ * by the hash, one of the 16 usable cells of level 0 whose ranks in height
+ * lie around q (chosen by the hash too). */
+static pix_coord relief_coord(const ts_pixel_exemplars *ex, double q, uint64_t h)
+{
+    pix_coord c;
+    const pix_stack *s;
+    size_t n, i, pick;
+    c.e = (int32_t)(h % (uint64_t)ex->n);
+    s = &ex->stacks[c.e / ex->nv];
+    n = s->n_usable[0];
+    i = (size_t)(q * (double)n);
+    i = i >= 8 ? i - 8 : 0;
+    if (i + 16 > n)
+        i = n > 16 ? n - 16 : 0;
+    pick = i + (size_t)((h >> 24) % (uint64_t)(n - i < 16 ? n - i : 16));
+    turned_target(s->width, s->height, c.e % ex->nv % 4, c.e % ex->nv >= 4,
+                  s->by_height[pick] % s->width, s->by_height[pick] / s->width, &c.u, &c.v);
+    return c;
+}
+
 static int level_alloc(pix_level *lv, pix_region reg)
 {
     lv->reg = reg;
@@ -645,6 +666,10 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
         ts_pixel_exemplars_free(ex);
         return ctx->status;
     }
+    if (ts__pix_relief_build(ex) != 0) {
+        ts_pixel_exemplars_free(ex);
+        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
+    }
     if (ts__progress(ctx, 1.0, "stacks") != TS_OK) {
         ts_pixel_exemplars_free(ex);
         return ctx->status;
@@ -665,6 +690,7 @@ TS_API void ts_pixel_exemplars_free(ts_pixel_exemplars *ex)
     free(ex->stacks);
     free(ex->turn);
     free(ex->cell_base);
+    ts__pix_relief_free(&ex->relief);
     free(ex);
 }
 
@@ -924,6 +950,7 @@ typedef struct run_job {
     uint64_t seed;
     int64_t x0, y0, M;
     const ts_pixel_sources *src;
+    double relief_scale; /* the relief start's lattice spacing (level 0) */
 } run_job;
 
 /* Rows [begin, end) of level l: level 0 from the hash (or the guide), finer
@@ -948,8 +975,17 @@ static void init_rows(void *arg, size_t begin, size_t end)
             if (l == 0) {
                 float gv = guide ? guide_at(guide, 0, hsp, ax, ay) : NAN;
                 uint64_t h0 = ts__pix_hash(ax, ay, 0, 0, seed);
-                c = isnan(gv) || !(params->guide_weight > 0) ? random_coord(ex, 0, h0)
-                                                             : guided_coord(ex, gv, h0);
+                if (!isnan(gv) && params->guide_weight > 0)
+                    c = guided_coord(ex, gv, h0);
+                else if ((!guide || !(params->guide_weight > 0)) &&
+                         params->start == TS_PIXEL_START_RELIEF)
+                    c = relief_coord(ex,
+                                     ts__pix_relief_rank(&ex->relief, j->relief_scale,
+                                                         ((double)ax + 0.5) * hsp,
+                                                         ((double)ay + 0.5) * hsp, seed),
+                                     h0);
+                else
+                    c = random_coord(ex, 0, h0);
             } else {
                 int64_t qx = floor_half(ax), qy = floor_half(ay);
                 pix_coord j;
@@ -1097,8 +1133,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
         }
         /* initialise (level 0) or upsample and jitter */
         {
-            run_job rj = {ex, guide, params, coords, pre, &cur, NULL, l,
-                          L,  hsp,   jit,    seed,   0,   0,    0,    NULL};
+            run_job rj = {ex, guide, params, coords, pre, &cur, NULL, l, L, hsp, jit, seed, 0, 0, 0,
+                          NULL, params->relief_scale > 0 ? params->relief_scale : ex->relief.scale};
             ts__parallel_for(ctx, (size_t)cur.h, init_rows, &rj);
         }
         /* correction */
@@ -1139,7 +1175,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
      * the four agree this is the exemplar's band there; across a seam between coherent
      * regions it blends, and the step is one band's, not the whole heights' */
     {
-        run_job rj = {ex, guide, params, coords, pre, &cur, out, L, L, 1, 0, seed, x0, y0, M, src};
+        run_job rj = {ex, guide, params, coords, pre, &cur, out, L, L, 1, 0, seed, x0, y0, M, src, 0};
         ts__parallel_for(ctx, (size_t)out->height, output_rows, &rj);
     }
 done:

@@ -34,6 +34,15 @@ typedef struct pix_turn {
     int w, h, sw, ox, oy, mxu, mxv, myu, myv;
 } pix_turn;
 
+/* The relief start's field (relief_start.c): the strata's values, the
+ * field's sorted sample (its distribution) and the lattice spacing. */
+typedef struct ts_pixel_relief {
+    double strata[16];
+    double *sorted; /* 16384 values */
+    double scale;   /* S: the lattice spacing (cells of the output) that matches the
+                       exemplars' relief at the coarsest spacing */
+} ts_pixel_relief;
+
 struct ts_pixel_exemplars {
     int n;       /* candidates: the exemplars given x nv (coordinate e: exemplar e / nv, variant
                     e % nv, turned by (e % nv) % 4 quarter turns, mirrored when (e % nv) >= 4) */
@@ -47,6 +56,7 @@ struct ts_pixel_exemplars {
     int64_t *cell_base; /* n_given: the first id of each exemplar's cells in the sets */
     int dim[12];       /* each level's appearance dimension: 1 + principal directions kept */
     float *basis[12];  /* each level's principal directions, (dim - 1) rows of k * k */
+    ts_pixel_relief relief; /* the relief start (its sample NULL until built) */
 };
 
 struct ts_pixel_guide {
@@ -110,6 +120,15 @@ int ts__pix_kdtree_knn(const pix_kdtree *t, const float *q, int K,
 int ts__pix_similarity_build(const ts_ctx *ctx, ts_pixel_exemplars *ex, int coherence);
 /* A similarity set's id as exemplar and cell. */
 void ts__pix_similar(const ts_pixel_exemplars *ex, int32_t id, int *e, int32_t *cell);
+
+/* The relief start (relief_start.c): the field's distribution and the
+ * lattice spacing matched to the exemplars' relief at the coarsest spacing;
+ * 0, or -1 when out of memory. */
+int ts__pix_relief_build(ts_pixel_exemplars *ex);
+void ts__pix_relief_free(ts_pixel_relief *r);
+/* The rank in [0, 1] of the field's value at (x, y) (cells of the output)
+ * on a lattice of spacing S. */
+double ts__pix_relief_rank(const ts_pixel_relief *r, double S, double x, double y, uint64_t seed);
 
 /* The eigenvalues of the symmetric n x n matrix a (destroyed) by cyclic
  * Jacobi rotations, into ev (unordered); 0, or -1 when they did not converge. */
