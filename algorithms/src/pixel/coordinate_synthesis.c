@@ -951,6 +951,7 @@ typedef struct run_job {
     int64_t x0, y0, M;
     const ts_pixel_sources *src;
     double relief_scale; /* the relief start's lattice spacing (level 0) */
+    int relief;          /* level 0 from the relief start */
 } run_job;
 
 /* Rows [begin, end) of level l: level 0 from the hash (or the guide), finer
@@ -977,8 +978,7 @@ static void init_rows(void *arg, size_t begin, size_t end)
                 uint64_t h0 = ts__pix_hash(ax, ay, 0, 0, seed);
                 if (!isnan(gv) && params->guide_weight > 0)
                     c = guided_coord(ex, gv, h0);
-                else if ((!guide || !(params->guide_weight > 0)) &&
-                         params->start == TS_PIXEL_START_RELIEF)
+                else if (j->relief)
                     c = relief_coord(ex,
                                      ts__pix_relief_rank(&ex->relief, j->relief_scale,
                                                          ((double)ax + 0.5) * hsp,
@@ -1030,26 +1030,51 @@ static void output_rows(void *arg, size_t begin, size_t end)
                 double fy = ((double)ay + 0.5) / (double)sp - 0.5;
                 int64_t qx = (int64_t)floor(fx), qy = (int64_t)floor(fy);
                 double tx = fx - (double)qx, ty = fy - (double)qy, acc = 0, wsum = 0;
-                /* smoothstep weights: no crease at the cells' borders in a hillshade */
-                tx = tx * tx * (3 - 2 * tx);
-                ty = ty * ty * (3 - 2 * ty);
                 int w = (int)(pre[l].x1 - pre[l].x0), a, b;
-                for (b = 0; b < 2; b++)
-                    for (a = 0; a < 2; a++) {
-                        size_t i =
-                            (size_t)(qy + b - pre[l].y0) * (size_t)w + (size_t)(qx + a - pre[l].x0);
-                        pix_coord c = coords[l][i];
-                        double wgt = (a ? tx : 1 - tx) * (b ? ty : 1 - ty), val;
-                        if (wgt == 0)
-                            continue; /* (the finest level: one corner) */
-                        c.u = (int32_t)(c.u + (ax - (qx + a) * sp));
-                        c.v = (int32_t)(c.v + (ay - (qy + b) * sp));
-                        val = band_at(ex, l, c);
-                        if (isnan(val))
-                            continue; /* past the valid cells: the others' */
-                        acc += wgt * val;
-                        wsum += wgt;
-                    }
+                if (l == 0 && j->relief) {
+                    /* the relief start's level 0: coherent regions of the relief's heights,
+                     * blended by a cubic B-spline over 4 x 4 cells (a smoothstep across the
+                     * level's lattice lines drew straight scarps along them where a plain
+                     * meets a massif; the weights sum to 1, so a coherent region is still
+                     * the exemplar's band exactly) */
+                    double wx[4], wy[4];
+                    ts__bspline_weights(tx, wx);
+                    ts__bspline_weights(ty, wy);
+                    for (b = 0; b < 4; b++)
+                        for (a = 0; a < 4; a++) {
+                            size_t i = (size_t)(qy - 1 + b - pre[l].y0) * (size_t)w +
+                                       (size_t)(qx - 1 + a - pre[l].x0);
+                            pix_coord c = coords[l][i];
+                            double wgt = wx[a] * wy[b], val;
+                            c.u = (int32_t)(c.u + (ax - (qx - 1 + a) * sp));
+                            c.v = (int32_t)(c.v + (ay - (qy - 1 + b) * sp));
+                            val = band_at(ex, l, c);
+                            if (isnan(val))
+                                continue; /* past the valid cells: the others' */
+                            acc += wgt * val;
+                            wsum += wgt;
+                        }
+                } else {
+                    /* smoothstep weights: no crease at the cells' borders in a hillshade */
+                    tx = tx * tx * (3 - 2 * tx);
+                    ty = ty * ty * (3 - 2 * ty);
+                    for (b = 0; b < 2; b++)
+                        for (a = 0; a < 2; a++) {
+                            size_t i = (size_t)(qy + b - pre[l].y0) * (size_t)w +
+                                       (size_t)(qx + a - pre[l].x0);
+                            pix_coord c = coords[l][i];
+                            double wgt = (a ? tx : 1 - tx) * (b ? ty : 1 - ty), val;
+                            if (wgt == 0)
+                                continue; /* (the finest level: one corner) */
+                            c.u = (int32_t)(c.u + (ax - (qx + a) * sp));
+                            c.v = (int32_t)(c.v + (ay - (qy + b) * sp));
+                            val = band_at(ex, l, c);
+                            if (isnan(val))
+                                continue; /* past the valid cells: the others' */
+                            acc += wgt * val;
+                            wsum += wgt;
+                        }
+                }
                 if (!(wsum > 0)) { /* all past: the nearest cell's own (always valid) */
                     size_t i = (size_t)(qy + (ty >= 0.5) - pre[l].y0) * (size_t)w +
                                (size_t)(qx + (tx >= 0.5) - pre[l].x0);
@@ -1078,7 +1103,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                          const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out,
                          const ts_pixel_sources *src)
 {
-    int L, l, pass, sub;
+    int L, l, pass, sub, relief;
     int64_t M;
     pix_region need[12], pre[12];
     pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL, NULL};
@@ -1108,6 +1133,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "the window's origin is beyond 2^40 cells");
     L = ex->levels;
     seed = ctx->seed;
+    relief = (!guide || !(params->guide_weight > 0)) && params->start == TS_PIXEL_START_RELIEF;
     /* what the corrections read, and a cell more for the bands' interpolation */
     M = (int64_t)params->passes * 4 * (ex->kl[L] / 2) + 2;
     /* the regions each level computes, finest to coarsest */
@@ -1134,7 +1160,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
         /* initialise (level 0) or upsample and jitter */
         {
             run_job rj = {ex, guide, params, coords, pre, &cur, NULL, l, L, hsp, jit, seed, 0, 0, 0,
-                          NULL, params->relief_scale > 0 ? params->relief_scale : ex->relief.scale};
+                          NULL, params->relief_scale > 0 ? params->relief_scale : ex->relief.scale,
+                          relief};
             ts__parallel_for(ctx, (size_t)cur.h, init_rows, &rj);
         }
         /* correction */
@@ -1175,7 +1202,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
      * the four agree this is the exemplar's band there; across a seam between coherent
      * regions it blends, and the step is one band's, not the whole heights' */
     {
-        run_job rj = {ex, guide, params, coords, pre, &cur, out, L, L, 1, 0, seed, x0, y0, M, src, 0};
+        run_job rj = {ex, guide, params, coords, pre, &cur, out, L, L, 1, 0, seed, x0, y0, M, src, 0,
+                      relief};
         ts__parallel_for(ctx, (size_t)out->height, output_rows, &rj);
     }
 done:

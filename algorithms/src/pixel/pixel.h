@@ -126,6 +126,9 @@ void ts__pix_similar(const ts_pixel_exemplars *ex, int32_t id, int *e, int32_t *
  * 0, or -1 when out of memory. */
 int ts__pix_relief_build(ts_pixel_exemplars *ex);
 void ts__pix_relief_free(ts_pixel_relief *r);
+/* The uniform cubic B-spline's four weights at t in [0, 1) (for the nodes
+ * at -1, 0, 1, 2; they sum to 1). */
+void ts__bspline_weights(double t, double w[4]);
 /* The rank in [0, 1] of the field's value at (x, y) (cells of the output)
  * on a lattice of spacing S. */
 double ts__pix_relief_rank(const ts_pixel_relief *r, double S, double x, double y, uint64_t seed);

@@ -90,8 +90,7 @@ static double node_value(const double *strata, int64_t i, int64_t j, uint64_t se
     return strata[perm[slot]];
 }
 
-/* The cubic B-spline's four weights at t in [0, 1). */
-static void bspline(double t, double w[4])
+void ts__bspline_weights(double t, double w[4])
 {
     double s = 1 - t;
     w[0] = s * s * s / 6;
@@ -113,8 +112,8 @@ static double field_cached(const double *strata, const node_cache *cache, double
     double fx = floor(x), fy = floor(y), wx[4], wy[4], z = 0, n2 = 0;
     int64_t ix = (int64_t)fx, iy = (int64_t)fy;
     int a, b;
-    bspline(x - fx, wx);
-    bspline(y - fy, wy);
+    ts__bspline_weights(x - fx, wx);
+    ts__bspline_weights(y - fy, wy);
     for (b = 0; b < 4; b++)
         for (a = 0; a < 4; a++) {
             double w = wx[a] * wy[b];
