@@ -884,6 +884,8 @@ typedef struct ts_pixel_params {
                             exemplar cells most like each neighbour's (1: none) */
     double pca_energy;   /* share of the neighbourhoods' shape variance the compared
                             appearance vectors keep (Cruz et al.: 0.95; 1: all, plain SSD) */
+    int guide_spacing;   /* the finest level the guide steers, as its spacing in cells (finer
+                            levels take their detail from the exemplars alone; 1: all) */
     int start;           /* without a guide, the coarsest level from: TS_PIXEL_START_RELIEF
                             a smooth random relief in the exemplars' heights (ours);
                             TS_PIXEL_START_RANDOM a coordinate per cell at random */

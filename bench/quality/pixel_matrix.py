@@ -94,11 +94,16 @@ def main():
                     subprocess.run([a.terrasynth, "pixel", "--exemplar", ex, "--guide", guide,
                                     "--seed", str(seed), "-q", gout] + extra +
                                    shlex.split(var), check=True)
-                    row["structure_r"] = metrics(gout, ex, guide)["structure_r"]
+                    gm = metrics(gout, ex, guide)
+                    row["structure_r"] = gm["structure_r"]
+                    row["g_seams"] = max(gm["seam_lap"], gm["seam_grad"])
+                    row["g_slope"] = gm["slope_w1_deg"]
                 rows.append(row)
                 print("[%s] %-48s seam_lap %.2f seam_grad %.2f slope_w1 %.2f%s  %.1f s"
                       % (var or "default", row["case"], row["seam_lap"], row["seam_grad"],
-                         row["slope_w1_deg"], (" structure_r %.3f" % row["structure_r"])
+                         row["slope_w1_deg"],
+                         (" guided: structure_r %.3f slope_w1 %.2f seams %.2f"
+                          % (row["structure_r"], row["g_slope"], row["g_seams"]))
                          if "structure_r" in row else "", dt), flush=True)
         if not rows:
             continue
@@ -112,8 +117,13 @@ def main():
                    sum(r["slope_w1_deg"] for r in rows) / n, ok_seam, n, ok_w1, n,
                    sum(r["s"] for r in rows) / n))
         if a.guided:
-            line += "; structure_r min %.3f, >= 0.6: %d/%d" % (
-                min(r["structure_r"] for r in rows), sum(r["structure_r"] >= 0.6 for r in rows), n)
+            line += ("; guided: structure_r min %.3f, >= 0.6: %d/%d; slope_w1 <= 3: %d/%d "
+                     "(mean %.2f); seams <= 1.2: %d/%d" % (
+                         min(r["structure_r"] for r in rows),
+                         sum(r["structure_r"] >= 0.6 for r in rows), n,
+                         sum(r["g_slope"] <= 3 for r in rows), n,
+                         sum(r["g_slope"] for r in rows) / n,
+                         sum(r["g_seams"] <= 1.2 for r in rows), n))
         print(line, flush=True)
     return 0
 

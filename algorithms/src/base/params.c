@@ -210,6 +210,11 @@ static const ts_param_desc pixel_desc[] = {
      "principal directions the corrections compare (Cruz et al.: 0.95); the mean is always "
      "kept; 1 keeps every direction (plain sum of squared differences).",
      offsetof(ts_pixel_params, pca_energy)},
+    {"guide_spacing", TS_PARAM_INT, 8, 1, 1024, TS_UNIT_CELLS, "", NULL,
+     "The finest level the guide steers, as its spacing in cells: the corrections of finer "
+     "levels leave the guide out and take their detail from the exemplars alone (a drawing or "
+     "a coarse DEM, smooth between its lines, would flatten them); 1: every level.",
+     offsetof(ts_pixel_params, guide_spacing)},
     {"start", TS_PARAM_ENUM, TS_PIXEL_START_RELIEF, 0, 1, TS_UNIT_CELLS, "", "relief|random",
      "Without a guide, where the coarsest level starts: a smooth random relief whose every "
      "value takes the exemplars' height of the same rank (relief: plains and mountains in "

@@ -1175,7 +1175,9 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                               order[sub][0],
                               order[sub][1],
                               guide,
-                              params->guide_weight,
+                              /* the guide steers the levels down to guide_spacing; the
+                               * finer ones take their detail from the exemplars alone */
+                              hsp >= params->guide_spacing ? params->guide_weight : 0.0,
                               0};
                 ts__parallel_for(ctx, (size_t)cur.h, height_rows, &j);
                 ts__parallel_for(ctx, (size_t)cur.h, correct_rows, &j);
