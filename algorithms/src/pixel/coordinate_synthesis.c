@@ -388,18 +388,31 @@ static pix_coord random_coord(const ts_pixel_exemplars *ex, int l, uint64_t h)
     return c;
 }
 
+/* In exemplar candidate e (chosen by the hash h), one of the 16 usable cells
+ * of level 0 whose ranks in height lie around rank i (chosen by h too). */
+static pix_coord by_height_pick(const ts_pixel_exemplars *ex, int32_t e, size_t i, uint64_t h)
+{
+    pix_coord c;
+    const pix_stack *s = &ex->stacks[e / ex->nv];
+    size_t n = s->n_usable[0], pick;
+    c.e = e;
+    i = i >= 8 ? i - 8 : 0;
+    if (i + 16 > n)
+        i = n > 16 ? n - 16 : 0;
+    pick = i + (size_t)((h >> 24) % (uint64_t)(n - i < 16 ? n - i : 16));
+    turned_target(s->width, s->height, e % ex->nv % 4, e % ex->nv >= 4,
+                  s->by_height[pick] % s->width, s->by_height[pick] / s->width, &c.u, &c.v);
+    return c;
+}
+
 /* With a guide, level 0 starts from coordinates of the guide's heights: in
  * an exemplar chosen by the hash, one of the 16 usable cells of level 0
  * nearest in height to g (chosen by the hash too). */
 static pix_coord guided_coord(const ts_pixel_exemplars *ex, float g, uint64_t h)
 {
-    pix_coord c;
-    const pix_stack *s;
-    size_t lo = 0, hi, n, pick;
-    c.e = (int32_t)(h % (uint64_t)ex->n);
-    s = &ex->stacks[c.e / ex->nv];
-    n = s->n_usable[0];
-    hi = n;
+    int32_t e = (int32_t)(h % (uint64_t)ex->n);
+    const pix_stack *s = &ex->stacks[e / ex->nv];
+    size_t lo = 0, hi = s->n_usable[0];
     while (lo < hi) { /* the first cell not below g */
         size_t mid = lo + (hi - lo) / 2;
         if (s->level[0][s->by_height[mid]] < g)
@@ -407,34 +420,15 @@ static pix_coord guided_coord(const ts_pixel_exemplars *ex, float g, uint64_t h)
         else
             hi = mid;
     }
-    lo = lo >= 8 ? lo - 8 : 0;
-    if (lo + 16 > n)
-        lo = n > 16 ? n - 16 : 0;
-    pick = lo + (size_t)((h >> 24) % (uint64_t)(n - lo < 16 ? n - lo : 16));
-    turned_target(s->width, s->height, c.e % ex->nv % 4, c.e % ex->nv >= 4,
-                  s->by_height[pick] % s->width, s->by_height[pick] / s->width, &c.u, &c.v);
-    return c;
+    return by_height_pick(ex, e, lo, h);
 }
 
-/* Without a guide (the relief start, relief_start.c): in an exemplar chosen
- * by the hash, one of the 16 usable cells of level 0 whose ranks in height
- * lie around q (chosen by the hash too). */
+/* Without a guide (the relief start, relief_start.c): the same around rank
+ * q in [0, 1] of the exemplar's level-0 heights. */
 static pix_coord relief_coord(const ts_pixel_exemplars *ex, double q, uint64_t h)
 {
-    pix_coord c;
-    const pix_stack *s;
-    size_t n, i, pick;
-    c.e = (int32_t)(h % (uint64_t)ex->n);
-    s = &ex->stacks[c.e / ex->nv];
-    n = s->n_usable[0];
-    i = (size_t)(q * (double)n);
-    i = i >= 8 ? i - 8 : 0;
-    if (i + 16 > n)
-        i = n > 16 ? n - 16 : 0;
-    pick = i + (size_t)((h >> 24) % (uint64_t)(n - i < 16 ? n - i : 16));
-    turned_target(s->width, s->height, c.e % ex->nv % 4, c.e % ex->nv >= 4,
-                  s->by_height[pick] % s->width, s->by_height[pick] / s->width, &c.u, &c.v);
-    return c;
+    int32_t e = (int32_t)(h % (uint64_t)ex->n);
+    return by_height_pick(ex, e, (size_t)(q * (double)ex->stacks[e / ex->nv].n_usable[0]), h);
 }
 
 static int level_alloc(pix_level *lv, pix_region reg)
