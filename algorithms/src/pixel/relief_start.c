@@ -74,12 +74,12 @@ static double node_value(const double *strata, int64_t i, int64_t j, uint64_t se
 {
     int64_t bi = floor_div(i, RELIEF_B), bj = floor_div(j, RELIEF_B);
     int perm[RELIEF_STRATA], k, slot = (int)((j - bj * RELIEF_B) * RELIEF_B + (i - bi * RELIEF_B));
-    uint64_t h = ts__pix_hash(bi, bj, 0, 9, seed);
+    uint64_t h = 0;
     for (k = 0; k < RELIEF_STRATA; k++)
         perm[k] = k;
     for (k = RELIEF_STRATA - 1; k > 0; k--) {
         int r, t;
-        if ((k & 7) == 7) /* fresh bits every 8 draws */
+        if ((k & 7) == 7) /* fresh bits every 8 draws (the first at k = 15) */
             h = ts__pix_hash(bi, bj, k, 9, seed);
         r = (int)((h & 0xff) % (uint64_t)(k + 1));
         h >>= 8;
