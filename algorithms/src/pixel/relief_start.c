@@ -79,7 +79,7 @@ static double node_value(const double *strata, int64_t i, int64_t j, uint64_t se
         perm[k] = k;
     for (k = RELIEF_STRATA - 1; k > 0; k--) {
         int r, t;
-        if ((k & 7) == 7) /* fresh bits every 8 draws (the first at k = 15) */
+        if (k == RELIEF_STRATA - 1 || (k & 7) == 7) /* fresh bits every 8 draws */
             h = ts__pix_hash(bi, bj, k, 9, seed);
         r = (int)((h & 0xff) % (uint64_t)(k + 1));
         h >>= 8;
