@@ -590,12 +590,6 @@ static void test_guide_quantile(void)
  * spacing (both written out here with a plain loop and a plain sort), and
  * plains among massifs keep both in the output, where the random start
  * leaves more middle heights. */
-static int flt_cmp(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return x < y ? -1 : x > y;
-}
-
 static void test_relief_start(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -669,7 +663,7 @@ static void test_relief_start(void)
                     pairs++;
                 }
             }
-        qsort(sorted, nu, sizeof *sorted, flt_cmp);
+        qsort(sorted, nu, sizeof *sorted, ts__float_cmp);
         want = sum / (double)pairs;
         for (y = 0; y < 200; y++)
             for (x = 0; x < 200; x++) {
@@ -703,7 +697,7 @@ static void test_relief_start(void)
                                                                  (TS_PIX(&two, x, y) - 800));
                 hs[y * 240 + x] = TS_PIX(&two, x, y);
             }
-        qsort(hs, 240 * 240, sizeof *hs, flt_cmp);
+        qsort(hs, 240 * 240, sizeof *hs, ts__float_cmp);
         CHECK(ts_pixel_prepare(ctx, &two, 1, &p, &E2) == TS_OK);
         ts_raster_alloc(ctx, 256, 256, &out);
         ts_ctx_set_seed(ctx, 7);

@@ -1024,51 +1024,44 @@ static void output_rows(void *arg, size_t begin, size_t end)
                 double fy = ((double)ay + 0.5) / (double)sp - 0.5;
                 int64_t qx = (int64_t)floor(fx), qy = (int64_t)floor(fy);
                 double tx = fx - (double)qx, ty = fy - (double)qy, acc = 0, wsum = 0;
-                int w = (int)(pre[l].x1 - pre[l].x0), a, b;
+                int w = (int)(pre[l].x1 - pre[l].x0), a, b, nk, o;
+                double wx[4], wy[4];
                 if (l == 0 && j->relief) {
                     /* the relief start's level 0: coherent regions of the relief's heights,
-                     * blended by a cubic B-spline over 4 x 4 cells (a smoothstep across the
-                     * level's lattice lines drew straight scarps along them where a plain
-                     * meets a massif; the weights sum to 1, so a coherent region is still
-                     * the exemplar's band exactly) */
-                    double wx[4], wy[4];
+                     * blended by a cubic B-spline over the 4 x 4 cells around (a smoothstep
+                     * across the level's lattice lines drew straight scarps along them where
+                     * a plain meets a massif; the weights sum to 1, so a coherent region is
+                     * still the exemplar's band exactly) */
                     ts__bspline_weights(tx, wx);
                     ts__bspline_weights(ty, wy);
-                    for (b = 0; b < 4; b++)
-                        for (a = 0; a < 4; a++) {
-                            size_t i = (size_t)(qy - 1 + b - pre[l].y0) * (size_t)w +
-                                       (size_t)(qx - 1 + a - pre[l].x0);
-                            pix_coord c = coords[l][i];
-                            double wgt = wx[a] * wy[b], val;
-                            c.u = (int32_t)(c.u + (ax - (qx - 1 + a) * sp));
-                            c.v = (int32_t)(c.v + (ay - (qy - 1 + b) * sp));
-                            val = band_at(ex, l, c);
-                            if (isnan(val))
-                                continue; /* past the valid cells: the others' */
-                            acc += wgt * val;
-                            wsum += wgt;
-                        }
+                    nk = 4;
+                    o = -1;
                 } else {
-                    /* smoothstep weights: no crease at the cells' borders in a hillshade */
-                    tx = tx * tx * (3 - 2 * tx);
-                    ty = ty * ty * (3 - 2 * ty);
-                    for (b = 0; b < 2; b++)
-                        for (a = 0; a < 2; a++) {
-                            size_t i = (size_t)(qy + b - pre[l].y0) * (size_t)w +
-                                       (size_t)(qx + a - pre[l].x0);
-                            pix_coord c = coords[l][i];
-                            double wgt = (a ? tx : 1 - tx) * (b ? ty : 1 - ty), val;
-                            if (wgt == 0)
-                                continue; /* (the finest level: one corner) */
-                            c.u = (int32_t)(c.u + (ax - (qx + a) * sp));
-                            c.v = (int32_t)(c.v + (ay - (qy + b) * sp));
-                            val = band_at(ex, l, c);
-                            if (isnan(val))
-                                continue; /* past the valid cells: the others' */
-                            acc += wgt * val;
-                            wsum += wgt;
-                        }
+                    /* smoothstep weights over the 2 x 2 cells around: no crease at the
+                     * cells' borders in a hillshade */
+                    wx[1] = tx * tx * (3 - 2 * tx);
+                    wy[1] = ty * ty * (3 - 2 * ty);
+                    wx[0] = 1 - wx[1];
+                    wy[0] = 1 - wy[1];
+                    nk = 2;
+                    o = 0;
                 }
+                for (b = 0; b < nk; b++)
+                    for (a = 0; a < nk; a++) {
+                        size_t i = (size_t)(qy + o + b - pre[l].y0) * (size_t)w +
+                                   (size_t)(qx + o + a - pre[l].x0);
+                        pix_coord c = coords[l][i];
+                        double wgt = wx[a] * wy[b], val;
+                        if (wgt == 0)
+                            continue; /* (the finest level: one corner) */
+                        c.u = (int32_t)(c.u + (ax - (qx + o + a) * sp));
+                        c.v = (int32_t)(c.v + (ay - (qy + o + b) * sp));
+                        val = band_at(ex, l, c);
+                        if (isnan(val))
+                            continue; /* past the valid cells: the others' */
+                        acc += wgt * val;
+                        wsum += wgt;
+                    }
                 if (!(wsum > 0)) { /* all past: the nearest cell's own (always valid) */
                     size_t i = (size_t)(qy + (ty >= 0.5) - pre[l].y0) * (size_t)w +
                                (size_t)(qx + (tx >= 0.5) - pre[l].x0);
