@@ -269,6 +269,36 @@ static int job_grid_metrics(const tsio_georef *geo, double cell_size, double **d
     return 0;
 }
 
+/* A raster without a CRS has cells of cell_size metres whatever its
+ * geotransform says.  When the job's grid (a sketch, a guide, an input) and an
+ * exemplar both lack a CRS and their geotransforms give cells of different
+ * sizes, the user most likely meant those sizes: say what is done instead. */
+static void job_warn_cell_sizes(tsio_err *warning, double cell_size, const char *grid,
+                                const char *const *exemplars, int n)
+{
+    tsio_georef g, e;
+    tsio_err ignore;
+    int i;
+    if (!(cell_size > 0) || !grid || warning->msg[0] ||
+        tsio_read_georef(grid, &g, &ignore) != 0)
+        return;
+    for (i = 0; i < n && !g.wkt && g.has_gt && !warning->msg[0]; i++) {
+        double a, b;
+        if (tsio_read_georef(exemplars[i], &e, &ignore) != 0)
+            continue;
+        a = fabs(g.gt[1]);
+        b = fabs(e.gt[1]);
+        if (!e.wkt && e.has_gt && fabs(a - b) > 0.01 * (a > b ? a : b))
+            tsio_errf(warning, grid,
+                      "no CRS, cells of %g in its geotransform and %g in %s's: both are taken "
+                      "as %g m (--cell-size); give them a CRS (gdal_edit.py -a_srs) to use "
+                      "their own cell sizes",
+                      a, b, exemplars[i], cell_size);
+        tsio_georef_free(&e);
+    }
+    tsio_georef_free(&g);
+}
+
 /* The target grid of a job (like; size with origin, resolution and CRS, or
  * the first exemplar's), and its ground metrics. */
 static int job_target_grid(const tsjob_grid *g, const char *first_exemplar, double cell_size,
@@ -343,6 +373,8 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         res->mstore.dy = res->dy_m;
         res->metrics = &res->mstore;
     }
+    job_warn_cell_sizes(&res->warning, job->cell_size, job->sketch ? job->sketch : g->like,
+                        (const char *const *)job->exemplars, job->n_exemplars);
     /* lengths in metres become cells of the target grid (its ground cell
      * size on the middle row: the exemplars are resampled to it too) */
     res->params = job->params;
@@ -1286,6 +1318,9 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
     free(dx);
     free(dy);
     tsio_georef_free(&g);
+    /* before the warning on coarse exemplars, which a cell size taken wrongly causes */
+    job_warn_cell_sizes(&res->warning, job->cell_size, job->input,
+                        (const char *const *)job->exemplars, job->n_exemplars);
     for (i = 0; i < job->n_exemplars; i++) {
         uint64_t src, tgt;
         double ratio;
@@ -2013,6 +2048,8 @@ int tsjob_pixel_prepare(const tsjob_pixel *job, tsjob_pixel_result *res, tsio_er
         tsjob_pixel_result_free(res);
         return -1;
     }
+    job_warn_cell_sizes(&res->warning, job->cell_size, job->guide ? job->guide : job->grid.like,
+                        (const char *const *)job->exemplars, job->n_exemplars);
     cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
     if (job->guide) /* as read, and its stack */
         need_guide = cells * 4 * (uint64_t)(L + 3);

@@ -71,3 +71,55 @@ def test_help_lists_every_option_and_rule():
                  "--region-exemplar", "--seed", "--debug-dir", "--layout", "--alpha-p"):
         assert flag in h, flag
     assert "Rules:" in h and "water goes with water_level" in h
+
+
+def test_cell_size_over_two_geotransforms(tmp_path):
+    """--cell-size is the ground cell of every raster without a CRS: a guide, sketch or input
+    whose geotransform gives other cells than the exemplar's is taken at that size too, and
+    the command says so (one line, the job still runs); not when their cells agree, when
+    they have a CRS, or without --cell-size."""
+    import numpy as np
+    from osgeo import gdal, osr
+
+    yy, xx = np.mgrid[0:96, 0:96].astype(np.float32)
+    relief = 300 + 40 * np.sin(xx / 7.0) * np.cos(yy / 9.0) + 3 * xx
+
+    def write(path, cell, crs=False, a=relief):
+        ds = gdal.GetDriverByName("GTiff").Create(str(path), a.shape[1], a.shape[0], 1,
+                                                  gdal.GDT_Float32)
+        ds.SetGeoTransform((0, cell, 0, cell * a.shape[0], 0, -cell))
+        if crs:
+            s = osr.SpatialReference()
+            s.ImportFromEPSG(32631)
+            ds.SetProjection(s.ExportToWkt())
+        ds.GetRasterBand(1).WriteArray(a)
+        ds = None
+        return str(path)
+
+    said = "give them a CRS"
+    cases = [  # (grid cell, exemplar cell, CRS, --cell-size, warned)
+        (80, 20, False, True, True),
+        (20, 20, False, True, False),
+        (80, 20, True, True, False),
+        (80, 20, False, False, False),
+    ]
+    for k, (gc, ec, crs, cs, warned) in enumerate(cases):
+        ex = write(tmp_path / ("ex%d.tif" % k), ec, crs)
+        guide = write(tmp_path / ("g%d.tif" % k), gc, crs)
+        extra = ["--cell-size", "20"] if cs else []
+        p = run("pixel", "--exemplar", ex, "--guide", guide, *extra,
+                tmp_path / ("p%d.tif" % k), "-q")
+        assert (said in p.stderr) == warned, (k, p.stderr)
+        if warned:
+            line = [ln for ln in p.stderr.splitlines() if said in ln][0]
+            assert guide in line and "80" in line and "20 m" in line, line
+    # the same rule for a sketch (synth) and an input (amplify)
+    ex = write(tmp_path / "ex.tif", 20)
+    sk = write(tmp_path / "sk.tif", 80, a=(relief > 320).astype(np.float32))
+    p = run("synth", "--exemplar", ex, "--sketch", sk, "--cell-size", "20",
+            tmp_path / "s.tif", "-q", check=False)
+    assert said in p.stderr, p.stderr
+    coarse = write(tmp_path / "in.tif", 80, a=relief[::4, ::4].copy())
+    p = run("amplify", coarse, "--exemplar", ex, "--cell-size", "20",
+            tmp_path / "a.tif", "-q", check=False)
+    assert said in p.stderr, p.stderr
