@@ -20,6 +20,15 @@
  *   synth    ts_synth_patches in one piece, SIZE/2 square from a SIZE/2 mosaic
  *   tiled    ts_synth_tiled, SIZE/2 square in tiles of SIZE/16 (64 tiles,
  *            16 a wave) from the SIZE/2 mosaic
+ *   tilesched  the tiled job's tiles made one at a time through the public
+ *            ts_synth_tiles (1 thread each, waves in order), each timed, the
+ *            cores put together (their hash must be the tiled job's), then the
+ *            core's schedule replayed for each thread count: within a wave,
+ *            each free thread takes the next tile in row order, a wave starts
+ *            when the last one ends.  Prints the schedule's speed-up (how far
+ *            the tiles' costs and the waves' barriers let the threads go,
+ *            before memory bandwidth and clocks), to set beside the tiled
+ *            job's measured one where the machine has fewer cores than asked
  *   pixel    ts_pixel_synthesize 1024^2 from the 512^2 centre of the DEM
  *   amplify  ts_amplify x8 of a SIZE/16 area average of the mosaic (a
  *            dictionary of the mosaic's SIZE/2 centre)
@@ -230,9 +239,100 @@ static int run_job(const char *job, const job_input *in, int threads, double *se
     return 0;
 }
 
+/* The tilesched job (see the top): returns 0, or 1 on failure. */
+static int tile_schedule(const job_input *in, const int *threads, int n_threads)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_synth_params p = ts_synth_params_default();
+    int n = in->half->width, T = in->size / 16, nti = (n + T - 1) / T, ntj = nti;
+    int ti, tj, w, k, di, dj, y, rc = 1;
+    size_t nt = (size_t)nti * (size_t)ntj;
+    ts_raster *win = calloc(nt, sizeof *win), out;
+    double *sec = calloc(nt, sizeof *sec), total = 0;
+    out.data = NULL;
+    if (!ctx || !win || !sec || ts_raster_alloc(ctx, n, n, &out) != TS_OK)
+        goto done;
+    ts_ctx_set_threads(ctx, 1);
+    ts_ctx_set_seed(ctx, 7);
+    for (w = 0; w < 4; w++)
+        for (tj = 0; tj < ntj; tj++)
+            for (ti = 0; ti < nti; ti++) {
+                ts_synth_tile t;
+                int wr[4], cr[4];
+                size_t at = (size_t)tj * (size_t)nti + (size_t)ti;
+                double t0;
+                if ((ti & 1) + 2 * (tj & 1) != w)
+                    continue;
+                memset(&t, 0, sizeof t);
+                t.ti = ti;
+                t.tj = tj;
+                if (ts_synth_tile_window(ctx, &p, T, n, n, ti, tj, wr, cr) != TS_OK ||
+                    ts_raster_alloc(ctx, wr[2], wr[3], &win[at]) != TS_OK)
+                    goto done;
+                t.window = win[at];
+                for (dj = -1; dj <= 1; dj++)
+                    for (di = -1; di <= 1; di++) {
+                        int ni = ti + di, nj = tj + dj;
+                        if ((di || dj) && ni >= 0 && nj >= 0 && ni < nti && nj < ntj &&
+                            (ni & 1) + 2 * (nj & 1) < w)
+                            t.neighbours[(dj + 1) * 3 + di + 1] =
+                                &win[(size_t)nj * (size_t)nti + (size_t)ni];
+                    }
+                t0 = bench_now_s();
+                if (ts_synth_tiles(ctx, in->half, 1, &p, T, n, n, &t, 1) != TS_OK)
+                    goto done;
+                sec[at] = bench_now_s() - t0;
+                total += sec[at];
+                for (y = 0; y < cr[3]; y++)
+                    memcpy(&TS_PIX(&out, cr[0], cr[1] + y),
+                           &TS_PIX(&win[at], cr[0] - wr[0], cr[1] - wr[1] + y),
+                           (size_t)cr[2] * sizeof(float));
+            }
+    printf("tilesched %d tiles of %d, made one by one: %.2f s in all (hash %016llx: the "
+           "tiled job's)\n",
+           (int)nt, T, total, (unsigned long long)hash_raster(&out));
+    for (k = 0; k < n_threads; k++) {
+        double clock = 0, freeat[64];
+        int P = threads[k] < 1 ? 1 : threads[k] > 64 ? 64 : threads[k], q;
+        for (w = 0; w < 4; w++) {
+            double end = clock;
+            for (q = 0; q < P; q++)
+                freeat[q] = clock;
+            for (tj = 0; tj < ntj; tj++)
+                for (ti = 0; ti < nti; ti++) {
+                    int first = 0;
+                    if ((ti & 1) + 2 * (tj & 1) != w)
+                        continue;
+                    for (q = 1; q < P; q++) /* the first thread free takes it */
+                        if (freeat[q] < freeat[first])
+                            first = q;
+                    freeat[first] += sec[(size_t)tj * (size_t)nti + (size_t)ti];
+                    if (freeat[first] > end)
+                        end = freeat[first];
+                }
+            clock = end; /* the wave's barrier */
+        }
+        printf("tilesched %2d threads: %7.2f s by the schedule, x%5.2f (ideal x%d)\n", P, clock,
+               total / clock, P);
+    }
+    rc = 0;
+done:
+    if (rc)
+        fprintf(stderr, "bench_threads: tilesched: %s\n",
+                ctx ? ts_ctx_message(ctx) : "out of memory");
+    if (win)
+        for (k = 0; k < (int)nt; k++)
+            ts_raster_free(&win[k]);
+    free(win);
+    free(sec);
+    ts_raster_free(&out);
+    ts_ctx_free(ctx);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
-    const char *jobs = "ppa,ridges,profile,synth,tiled,pixel,amplify";
+    const char *jobs = "ppa,ridges,profile,synth,tiled,tilesched,pixel,amplify";
     int threads[MAX_THREADS_LIST] = {1, 2, 4, 8, 16}, n_threads = 5, size = 4096;
     int w, h, i, rc = 0;
     ts_raster dem, big, half;
@@ -242,7 +342,8 @@ int main(int argc, char **argv)
     size_t n;
     if (argc < 4) {
         fprintf(stderr, "usage: bench_threads DEM.f32 WIDTH HEIGHT [--threads 1,2,4,8,16] "
-                        "[--jobs ppa,ridges,profile,synth,tiled,pixel,amplify] [--size 4096]\n");
+                        "[--jobs ppa,ridges,profile,synth,tiled,tilesched,pixel,amplify] "
+                        "[--size 4096]\n");
         return 2;
     }
     w = atoi(argv[2]);
@@ -293,6 +394,10 @@ int main(int argc, char **argv)
         double sec[MAX_THREADS_LIST];
         uint64_t hash[MAX_THREADS_LIST];
         int same = 1, k;
+        if (!strcmp(job, "tilesched")) {
+            rc |= tile_schedule(&in, threads, n_threads);
+            continue;
+        }
         for (i = 0; i < n_threads; i++) {
             marks mk;
             if (run_job(job, &in, threads[i], &sec[i], &hash[i], &mk)) {

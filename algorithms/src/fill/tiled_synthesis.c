@@ -96,6 +96,8 @@ typedef struct tiled_job {
     const ts_synth_constraints *cons;
     const ts_raster *initial;
     ts_synth_tile *tiles;
+    size_t n_tiles;
+    atomic_size_t next; /* the next tile a worker takes */
     tile_maps *tm; /* per tile (tj * nti + ti) with debug maps, or NULL */
     atomic_int failed;
     atomic_int status; /* the first failure's status */
@@ -369,11 +371,17 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
     return st;
 }
 
+/* One worker: it takes the tiles one by one, the next not yet taken (tiles
+ * differ in cost, by wave and at the grid's edges; fixed shares of the list
+ * left a thread idle at the end of each wave).  The bytes do not depend on
+ * who makes which tile. */
 static void tiles_range(void *arg, size_t begin, size_t end)
 {
     tiled_job *j = arg;
     ts_ctx *ctx = ts__ctx_child(j->parent);
     size_t k;
+    (void)begin;
+    (void)end;
     if (!ctx) {
         atomic_store(&j->failed, 1);
         atomic_store(&j->status, TS_ERR_NOMEM);
@@ -381,7 +389,7 @@ static void tiles_range(void *arg, size_t begin, size_t end)
         return;
     }
     ts_ctx_set_threads(ctx, j->tile_threads);
-    for (k = begin; k < end && !atomic_load(&j->failed); k++) {
+    while (!atomic_load(&j->failed) && (k = atomic_fetch_add(&j->next, 1)) < j->n_tiles) {
         ts_status st = tile_run(j, ctx, &j->tiles[k]);
         if (st != TS_OK) {
             if (!atomic_flag_test_and_set(&j->msg_taken)) {
@@ -415,16 +423,19 @@ static ts_status tiles_run(tiled_job *j, ts_synth_tile *tiles, size_t n)
 {
     ts_ctx *ctx = j->parent;
     int s;
+    int nt = n ? (int)TS_MIN(n, 64) : 1;
     j->tiles = tiles;
+    j->n_tiles = n;
+    atomic_init(&j->next, 0);
     /* a wave of fewer tiles than threads: each tile's fill gets the rest (its
      * bytes do not depend on its thread count) */
-    j->tile_threads = n ? TS_MAX(1, ts__thread_count(ctx, 64) / (int)TS_MIN(n, 64)) : 1;
+    j->tile_threads = n ? TS_MAX(1, ts__thread_count(ctx, 64) / nt) : 1;
     atomic_init(&j->failed, 0);
     atomic_init(&j->status, TS_OK);
     atomic_flag_clear(&j->msg_taken);
     j->msg[0] = 0;
-    if (n)
-        ts__parallel_for(ctx, n, tiles_range, j);
+    if (n) /* as many workers as threads, at most one per tile */
+        ts__parallel_for(ctx, (size_t)TS_MIN((int)n, ts__thread_count(ctx, 64)), tiles_range, j);
     if (!atomic_load(&j->failed))
         return TS_OK;
     s = atomic_load(&j->status);
