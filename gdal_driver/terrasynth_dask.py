@@ -369,12 +369,15 @@ def main(argv=None):
             if tile:  # the tile's core out of its window
                 win, core, window = fut.result()
                 x, y = core[0], core[1]
+                # a view of the core (GDAL writes it by its strides: no copy)
                 arr = window[y - win[1]:y - win[1] + core[3], x - win[0]:x - win[0] + core[2]]
                 if nodata is not None:
-                    arr = np.where(np.isnan(arr), np.float32(nodata), arr)
+                    nan = np.isnan(arr)
+                    if nan.any():  # (a synthesis fills every cell: a copy only if not)
+                        arr = np.where(nan, np.float32(nodata), arr)
             else:
                 x, y, arr = fut.result()
-            held[(y, x)] = np.ascontiguousarray(arr)  # the core alone, not its window
+            held[(y, x)] = arr
             while nxt < len(order) and order[nxt] in held:
                 y, x = order[nxt]
                 ob.WriteArray(held.pop((y, x)), x, y)
