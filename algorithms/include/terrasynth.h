@@ -891,6 +891,10 @@ typedef struct ts_pixel_params {
                             TS_PIXEL_START_RANDOM a coordinate per cell at random */
     double relief_scale; /* the relief's lattice spacing in cells (0: matched to the
                             exemplars' relief at the coarsest level's spacing) */
+    int guide_mode;      /* TS_GUIDE_PULL: the corrections' target pulled towards the guide's
+                            heights at each steered level by guide_weight (ours);
+                            TS_GUIDE_ADD: the guide's Laplacian band of each steered level
+                            added to the level's heights (Cruz et al. section II.B) */
     /* per-level jitter (not a declared parameter: a list): with n_jitter_levels > 0,
      * level l >= 1 is jittered by jitter_levels[min(l - 1, n - 1)] instead of jitter */
     int n_jitter_levels;
@@ -899,6 +903,7 @@ typedef struct ts_pixel_params {
 
 enum { TS_GUIDE_AS_GIVEN = 0, TS_GUIDE_STRETCH = 1, TS_GUIDE_QUANTILE = 2 };
 enum { TS_PIXEL_START_RELIEF = 0, TS_PIXEL_START_RANDOM = 1 };
+enum { TS_GUIDE_PULL = 0, TS_GUIDE_ADD = 1 };
 
 TS_API ts_pixel_params ts_pixel_params_default(void);
 

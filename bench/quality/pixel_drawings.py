@@ -7,7 +7,7 @@
 # drawing does to the style.  One line per drawing x DEM x weight, then the counts.
 #
 #   /usr/bin/python3 bench/quality/pixel_drawings.py [--terrasynth BIN] [--seeds 1,2,3]
-#        [--weights 0.5] [--heights quantile,stretch] [--size 256] [--out DIR]
+#        [--weights 0.5] [--heights quantile,stretch] [--size 256] [--out DIR] [--extra ARGS]
 #
 # Copyright (C) 2026 The TerraSynth developers
 # SPDX-License-Identifier: GPL-2.0-or-later
@@ -63,6 +63,8 @@ def main():
     ap.add_argument("--heights", default="quantile,stretch")
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--extra", default="",
+                    help="more options for every run (A/B: '--guide-mode add')")
     a = ap.parse_args()
     if not os.path.isdir(DEM) or not os.path.exists(METRICS):
         print("pixel_drawings: skipped: ../shared absent")
@@ -92,7 +94,8 @@ def main():
                     out = os.path.join(work, "out.tif")
                     subprocess.run([a.terrasynth, "pixel", "--exemplar", ex, "--guide", g,
                                     "--guide-heights", how, "--guide-weight", str(w),
-                                    "--seed", str(seed), out, "-q"], check=True)
+                                    "--seed", str(seed), out, "-q"] + a.extra.split(),
+                                   check=True)
                     m = json.loads(subprocess.run(
                         [sys.executable, METRICS, "--out", out, "--exemplar", ex, "--sketch", g],
                         check=True, capture_output=True, text=True).stdout)

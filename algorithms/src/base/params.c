@@ -226,6 +226,12 @@ static const ts_param_desc pixel_desc[] = {
      "mountains; 0: the spacing whose relief matches the exemplars' at the coarsest level's "
      "spacing.",
      offsetof(ts_pixel_params, relief_scale)},
+    {"guide_mode", TS_PARAM_ENUM, TS_GUIDE_PULL, 0, 1, TS_UNIT_CELLS, "", "pull|add",
+     "How the guide steers the corrections of each level down to guide_spacing: their target "
+     "neighbourhoods pulled towards the guide's heights at that level by guide_weight (pull; "
+     "ours), or the guide's Laplacian band of that level added to the level's heights in full "
+     "(add: Cruz et al.; the coarsest level is pulled by guide_weight in both).",
+     offsetof(ts_pixel_params, guide_mode)},
 };
 
 static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", "pixel", NULL};

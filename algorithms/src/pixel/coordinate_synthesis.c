@@ -105,7 +105,8 @@ typedef struct corr_job {
     pix_level *lv;
     int l, hsp, k, px, py;
     const ts_pixel_guide *guide;
-    double gw; /* the guide's weight */
+    double gw; /* the guide's weight (0: the level is not steered) */
+    int add;   /* TS_GUIDE_ADD: the guide's band of the level added (levels >= 1) */
     int fail;
 } corr_job;
 
@@ -289,9 +290,13 @@ static void correct_rows(void *arg, size_t begin, size_t end)
             for (b = -r; b <= r; b++)
                 for (a = -r; a <= r; a++) {
                     float hv = lv->hc[(y + b) * (size_t)lv->w + x + a];
-                    if (j->guide) {
+                    if (j->guide && j->gw > 0) {
                         float gv = guide_at(j->guide, l, hsp, ax + a, ay + b);
-                        if (!isnan(gv))
+                        if (j->add && l > 0) { /* + the guide's band of this level */
+                            float gc = guide_at(j->guide, l - 1, hsp, ax + a, ay + b);
+                            if (!isnan(gv) && !isnan(gc))
+                                hv += gv - gc;
+                        } else if (!isnan(gv))
                             hv = (float)((1.0 - j->gw) * hv + j->gw * gv);
                     }
                     t[(b + r) * k + a + r] = hv;
@@ -1165,6 +1170,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                               /* the guide steers the levels down to guide_spacing; the
                                * finer ones take their detail from the exemplars alone */
                               hsp >= params->guide_spacing ? params->guide_weight : 0.0,
+                              params->guide_mode == TS_GUIDE_ADD,
                               0};
                 ts__parallel_for(ctx, (size_t)cur.h, height_rows, &j);
                 ts__parallel_for(ctx, (size_t)cur.h, correct_rows, &j);
