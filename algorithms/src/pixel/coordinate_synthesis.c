@@ -1041,6 +1041,17 @@ static void output_rows(void *arg, size_t begin, size_t end)
                     ts__bspline_weights(ty, wy);
                     nk = 4;
                     o = -1;
+                } else if (l == L) {
+                    /* the finest level: a tent over the 3 x 3 cells around, each cell's
+                     * coordinate saying what this cell would be (one coordinate, the cell's
+                     * own, switched hard between unrelated sources: creases, 99.9th
+                     * percentile |Laplacian| up to 1.33 x the exemplar's at 384^2; in a
+                     * coherent region the nine agree, so it is the exemplar exactly) */
+                    wx[0] = wy[0] = 0.25;
+                    wx[1] = wy[1] = 0.5;
+                    wx[2] = wy[2] = 0.25;
+                    nk = 3;
+                    o = -1;
                 } else {
                     /* smoothstep weights over the 2 x 2 cells around: no crease at the
                      * cells' borders in a hillshade */
@@ -1058,7 +1069,7 @@ static void output_rows(void *arg, size_t begin, size_t end)
                         pix_coord c = coords[l][i];
                         double wgt = wx[a] * wy[b], val;
                         if (wgt == 0)
-                            continue; /* (the finest level: one corner) */
+                            continue; /* (a smoothstep's zero weight) */
                         c.u = (int32_t)(c.u + (ax - (qx + o + a) * sp));
                         c.v = (int32_t)(c.v + (ay - (qy + o + b) * sp));
                         val = band_at(ex, l, c);
