@@ -270,23 +270,23 @@ static int job_grid_metrics(const tsio_georef *geo, double cell_size, double **d
 }
 
 /* A raster without a CRS has cells of cell_size metres whatever its
- * geotransform says.  When the job's grid (a sketch, a guide, an input) and an
- * exemplar both lack a CRS and their geotransforms give cells of different
- * sizes, the user most likely meant those sizes: say what is done instead. */
+ * geotransform says.  When the job's grid (a sketch, a guide, an input: file
+ * `grid`, georeference g as the job read it) and an exemplar both lack a CRS
+ * and their geotransforms give cells of different sizes, the user most likely
+ * meant those sizes: say what is done instead. */
 static void job_warn_cell_sizes(tsio_err *warning, double cell_size, const char *grid,
-                                const char *const *exemplars, int n)
+                                const tsio_georef *g, const char *const *exemplars, int n)
 {
-    tsio_georef g, e;
+    tsio_georef e;
     tsio_err ignore;
     int i;
-    if (!(cell_size > 0) || !grid || warning->msg[0] ||
-        tsio_read_georef(grid, &g, &ignore) != 0)
+    if (!(cell_size > 0) || !grid || g->wkt || !g->has_gt)
         return;
-    for (i = 0; i < n && !g.wkt && g.has_gt && !warning->msg[0]; i++) {
+    for (i = 0; i < n && !warning->msg[0]; i++) {
         double a, b;
         if (tsio_read_georef(exemplars[i], &e, &ignore) != 0)
             continue;
-        a = fabs(g.gt[1]);
+        a = fabs(g->gt[1]);
         b = fabs(e.gt[1]);
         if (!e.wkt && e.has_gt && fabs(a - b) > 0.01 * (a > b ? a : b))
             tsio_errf(warning, grid,
@@ -296,7 +296,6 @@ static void job_warn_cell_sizes(tsio_err *warning, double cell_size, const char 
                       a, b, exemplars[i], cell_size);
         tsio_georef_free(&e);
     }
-    tsio_georef_free(&g);
 }
 
 /* The target grid of a job (like; size with origin, resolution and CRS, or
@@ -374,7 +373,7 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
         res->metrics = &res->mstore;
     }
     job_warn_cell_sizes(&res->warning, job->cell_size, job->sketch ? job->sketch : g->like,
-                        (const char *const *)job->exemplars, job->n_exemplars);
+                        &res->geo, (const char *const *)job->exemplars, job->n_exemplars);
     /* lengths in metres become cells of the target grid (its ground cell
      * size on the middle row: the exemplars are resampled to it too) */
     res->params = job->params;
@@ -1317,10 +1316,10 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
         out_area = job->cell_size * job->cell_size / ((double)F * F);
     free(dx);
     free(dy);
-    tsio_georef_free(&g);
     /* before the warning on coarse exemplars, which a cell size taken wrongly causes */
-    job_warn_cell_sizes(&res->warning, job->cell_size, job->input,
+    job_warn_cell_sizes(&res->warning, job->cell_size, job->input, &g,
                         (const char *const *)job->exemplars, job->n_exemplars);
+    tsio_georef_free(&g);
     for (i = 0; i < job->n_exemplars; i++) {
         uint64_t src, tgt;
         double ratio;
@@ -2049,7 +2048,7 @@ int tsjob_pixel_prepare(const tsjob_pixel *job, tsjob_pixel_result *res, tsio_er
         return -1;
     }
     job_warn_cell_sizes(&res->warning, job->cell_size, job->guide ? job->guide : job->grid.like,
-                        (const char *const *)job->exemplars, job->n_exemplars);
+                        &res->geo, (const char *const *)job->exemplars, job->n_exemplars);
     cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
     if (job->guide) /* as read, and its stack */
         need_guide = cells * 4 * (uint64_t)(L + 3);

@@ -96,10 +96,11 @@ def main():
                         # metric CRS instead (a UTM zone: any would do), each its own cells
                         gex, gextra = os.path.join(tmp, "crs_" + f), []
                         if not os.path.exists(gex):
+                            w, h = gdal_size(ex)
+                            m = int(cs.group(1))
                             subprocess.run(["gdal_translate", "-q", "-a_srs", "EPSG:32631",
-                                            "-a_ullr", "0", str(int(cs.group(1)) * gdal_size(
-                                                ex)[1]), str(int(cs.group(1)) * gdal_size(
-                                                ex)[0]), "0", ex, gex], check=True)
+                                            "-a_ullr", "0", str(m * h), str(m * w), "0", ex,
+                                            gex], check=True)
                     if not os.path.exists(guide):
                         # a blurred, mirrored copy of the DEM at the output's size: shapes the
                         # exemplar's own coordinates cannot simply copy

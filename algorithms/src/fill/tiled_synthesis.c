@@ -422,20 +422,19 @@ static ts_status tiles_check(ts_ctx *ctx, const ts_synth_params *params, int til
 static ts_status tiles_run(tiled_job *j, ts_synth_tile *tiles, size_t n)
 {
     ts_ctx *ctx = j->parent;
-    int s;
-    int nt = n ? (int)TS_MIN(n, 64) : 1;
+    int s, threads = ts__thread_count(ctx, 64);
     j->tiles = tiles;
     j->n_tiles = n;
     atomic_init(&j->next, 0);
     /* a wave of fewer tiles than threads: each tile's fill gets the rest (its
      * bytes do not depend on its thread count) */
-    j->tile_threads = n ? TS_MAX(1, ts__thread_count(ctx, 64) / nt) : 1;
+    j->tile_threads = n ? TS_MAX(1, threads / (int)TS_MIN(n, 64)) : 1;
     atomic_init(&j->failed, 0);
     atomic_init(&j->status, TS_OK);
     atomic_flag_clear(&j->msg_taken);
     j->msg[0] = 0;
     if (n) /* as many workers as threads, at most one per tile */
-        ts__parallel_for(ctx, (size_t)TS_MIN((int)n, ts__thread_count(ctx, 64)), tiles_range, j);
+        ts__parallel_for(ctx, TS_MIN(n, (size_t)threads), tiles_range, j);
     if (!atomic_load(&j->failed))
         return TS_OK;
     s = atomic_load(&j->status);
