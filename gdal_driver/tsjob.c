@@ -2037,7 +2037,8 @@ int tsjob_pixel_prepare(const tsjob_pixel *job, tsjob_pixel_result *res, tsio_er
     uint64_t need, cells, need_guide = 0;
     int i, L = job->params.levels ? job->params.levels : 10;
     int k = job->params.window ? job->params.window : 9;
-    int dim = job->params.pca_energy >= 1 ? 1 + k * k : (1 + k * k < 16 ? 1 + k * k : 16);
+    int dim = (job->params.pca_energy >= 1 ? 1 + k * k : (1 + k * k < 16 ? 1 + k * k : 16)) +
+              (job->params.roughness_weight > 0); /* the roughness's value */
     double out_area = 0;
     memset(res, 0, sizeof *res);
     if (job->guide ? tsio_read_georef(job->guide, &res->geo, err) != 0 ||

@@ -895,6 +895,11 @@ typedef struct ts_pixel_params {
                             heights at each steered level by guide_weight (ours);
                             TS_GUIDE_ADD: the guide's Laplacian band of each steered level
                             added to the level's heights (Cruz et al. section II.B) */
+    double roughness_weight; /* lambda of the roughness term (ours): the corrections also
+                            compare the target's roughness (its k x k heights' root sum of
+                            squares about their mean) with the candidate's, lambda times the
+                            difference squared, at the levels the guide does not steer; 0: off.
+                            A property of the prepared exemplars, like pca_energy */
     /* per-level jitter (not a declared parameter: a list): with n_jitter_levels > 0,
      * level l >= 1 is jittered by jitter_levels[min(l - 1, n - 1)] instead of jitter */
     int n_jitter_levels;

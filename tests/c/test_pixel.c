@@ -253,13 +253,18 @@ static void test_windows_anywhere(void)
 }
 
 /* Appearance vectors: with every direction kept their distance is the SSD
- * written out; with 95 % it is at most the SSD and at least the means' part. */
+ * written out; with 95 % it is at most the SSD and at least the means' part.
+ * With the roughness term (lambda > 0) each ends with sqrt(lambda) x the
+ * root sum of squares of its heights about their mean (written out here),
+ * and the distance gains lambda x the two roughnesses' difference squared. */
 static void test_appearance_space(void)
 {
     ts_ctx *ctx = ts_ctx_new();
     ts_raster ex = make_terrain(ctx, 70, 64, 9);
-    int energy;
-    for (energy = 0; energy < 2; energy++) {
+    int run;
+    for (run = 0; run < 4; run++) {
+        int energy = run & 1;
+        double lambda = run & 2 ? 8.0 : 0.0;
         ts_pixel_params p = ts_pixel_params_default();
         ts_pixel_exemplars *E = NULL;
         uint64_t rng = 11;
@@ -267,35 +272,50 @@ static void test_appearance_space(void)
         p.levels = 2;
         p.rotations = 0;
         p.pca_energy = energy ? 1.0 : 0.95;
+        p.roughness_weight = lambda;
         CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
         for (l = 0; l <= 2; l++) {
             const pix_stack *s = &E->stacks[0];
-            int dim = E->dim[l], sp = 1 << (2 - l), k = E->window;
-            CHECK(dim >= 1 && dim <= 1 + k * k);
+            int rd = lambda > 0, dim = E->dim[l], sp = 1 << (2 - l), k = E->window;
+            CHECK(dim >= 1 + rd && dim <= 1 + k * k + rd);
             if (energy)
-                CHECK(dim == 1 + k * k);
+                CHECK(dim == 1 + k * k + rd);
             for (n = 0; n < 200; n++) {
                 int32_t i = s->usable_list[l][(size_t)(th_uniform(&rng) * s->n_usable[l])];
                 int32_t j = s->usable_list[l][(size_t)(th_uniform(&rng) * s->n_usable[l])];
                 const float *a = s->app[l] + (size_t)i * dim, *b = s->app[l] + (size_t)j * dim;
-                float t[81];
-                double ssd, app = 0, mu = 0;
+                float t[81], ti[81];
+                double ssd, app = 0, mu = 0, mt = 0, mi = 0, rt = 0, ri = 0;
                 int c, x, y, u = i % s->width, v = i / s->width;
                 for (y = -k / 2; y <= k / 2; y++)
                     for (x = -k / 2; x <= k / 2; x++) {
-                        t[(y + k / 2) * k + x + k / 2] =
-                            s->level[l][(size_t)(j / s->width + y * sp) * s->width +
-                                        (size_t)(j % s->width + x * sp)];
-                        mu += s->level[l][(size_t)(v + y * sp) * s->width + (size_t)(u + x * sp)] -
-                              t[(y + k / 2) * k + x + k / 2];
+                        int q = (y + k / 2) * k + x + k / 2;
+                        t[q] = s->level[l][(size_t)(j / s->width + y * sp) * s->width +
+                                           (size_t)(j % s->width + x * sp)];
+                        ti[q] = s->level[l][(size_t)(v + y * sp) * s->width + (size_t)(u + x * sp)];
+                        mu += ti[q] - t[q];
+                        mt += t[q];
+                        mi += ti[q];
                     }
-                ssd = ts__pix_ssd(s->level[l], s->width, u, v, k, sp, t);
+                mt /= k * k;
+                mi /= k * k;
+                for (c = 0; c < k * k; c++) {
+                    rt += (t[c] - mt) * (t[c] - mt);
+                    ri += (ti[c] - mi) * (ti[c] - mi);
+                }
+                rt = sqrt(rt);
+                ri = sqrt(ri);
+                ssd = ts__pix_ssd(s->level[l], s->width, u, v, k, sp, t) +
+                      lambda * (rt - ri) * (rt - ri);
                 /* a target's vector (ts__pix_appearance) = the stored one of the same heights */
                 {
-                    float tv[82];
-                    ts__pix_appearance(E->basis[l], dim - 1, k, t, tv);
-                    for (c = 0; c < dim; c++)
+                    float tv[83];
+                    ts__pix_appearance(E->basis[l], dim - 1 - rd, k, t, tv);
+                    for (c = 0; c < dim - rd; c++)
                         bad += fabsf(tv[c] - b[c]) > 1e-3f * (1 + fabsf(b[c]));
+                    if (rd) /* the stored roughness, and ts__pix_roughness's */
+                        bad += fabs(b[dim - 1] - sqrt(lambda) * rt) > 1e-3 * (1 + rt) ||
+                               fabs(ts__pix_roughness(k, t) - rt) > 1e-3 * (1 + rt);
                 }
                 for (c = 0; c < dim; c++)
                     app += ((double)a[c] - b[c]) * ((double)a[c] - b[c]);
@@ -307,7 +327,8 @@ static void test_appearance_space(void)
                         app > ssd * (1 + 1e-3) + 1e-2 || app < k * k * mu * mu * (1 - 1e-3) - 1e-2;
             }
         }
-        CHECK_MSG(bad == 0, "%d appearance distances off (energy %s)", bad, energy ? "1" : "0.95");
+        CHECK_MSG(bad == 0, "%d appearance distances off (energy %s, roughness weight %g)", bad,
+                  energy ? "1" : "0.95", lambda);
         ts_pixel_exemplars_free(E);
     }
     ts_raster_free(&ex);
@@ -784,6 +805,63 @@ static void test_guide_spacing(void)
     ts_ctx_free(ctx);
 }
 
+/* The roughness term is off where the guide steers: with every level
+ * steered (guide spacing 1) stacks prepared with and without it give the
+ * same bytes (their vectors differ only in the roughness value, not
+ * compared there); steered to 8 cells, or unguided, the finer levels compare
+ * it and the outputs differ. */
+static void test_roughness_steered(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_pixel_params p = ts_pixel_params_default();
+    ts_raster ex = make_terrain(ctx, 160, 150, 13), guide, a, b;
+    ts_pixel_exemplars *E0 = NULL, *E8 = NULL;
+    ts_pixel_guide *g0 = NULL, *g8 = NULL;
+    size_t i, n = 96 * 96;
+    int x, y, sp, same;
+    p.levels = 4;
+    CHECK(p.roughness_weight == 8);
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E8) == TS_OK);
+    p.roughness_weight = 0;
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E0) == TS_OK);
+    ts_raster_alloc(ctx, 96, 96, &guide);
+    ts_raster_alloc(ctx, 96, 96, &a);
+    ts_raster_alloc(ctx, 96, 96, &b);
+    for (y = 0; y < 96; y++)
+        for (x = 0; x < 96; x++)
+            TS_PIX(&guide, x, y) = (float)(800 + 60 * sin(6.2831853 * (x + 0.5 * y) / 32.0));
+    if (!E0 || !E8)
+        goto done;
+    ts_ctx_set_seed(ctx, 5);
+    CHECK(ts_pixel_guide_prepare(ctx, &guide, E0, &p, &g0) == TS_OK);
+    CHECK(ts_pixel_guide_prepare(ctx, &guide, E8, &p, &g8) == TS_OK);
+    for (sp = 1; sp <= 8 && g0 && g8; sp += 7) {
+        p.guide_spacing = sp;
+        CHECK(ts_pixel_synthesize_guided(ctx, E0, g0, &p, 0, 0, &a) == TS_OK);
+        CHECK(ts_pixel_synthesize_guided(ctx, E8, g8, &p, 0, 0, &b) == TS_OK);
+        for (i = 0; i < n && a.data[i] == b.data[i]; i++)
+            ;
+        same = i == n;
+        CHECK_MSG(same == (sp == 1), "guide spacing %d: with and without the roughness term %s",
+                  sp, same ? "the same" : "differ");
+    }
+    CHECK(ts_pixel_synthesize(ctx, E0, &p, 0, 0, &a) == TS_OK);
+    CHECK(ts_pixel_synthesize(ctx, E8, &p, 0, 0, &b) == TS_OK);
+    for (i = 0; i < n && a.data[i] == b.data[i]; i++)
+        ;
+    CHECK_MSG(i < n, "unguided: the roughness term changed nothing");
+done:
+    ts_pixel_guide_free(g0);
+    ts_pixel_guide_free(g8);
+    ts_pixel_exemplars_free(E0);
+    ts_pixel_exemplars_free(E8);
+    ts_raster_free(&ex);
+    ts_raster_free(&guide);
+    ts_raster_free(&a);
+    ts_raster_free(&b);
+    ts_ctx_free(ctx);
+}
+
 /* The paper's guide (--guide-mode add, Cruz et al. II.B): each level gets
  * the guide's Laplacian band of that level.  A flat guide has none past the
  * coarsest level, so steering every level changes nothing (pull, ours, pulls
@@ -832,6 +910,9 @@ static void test_guide_add(void)
     int x, y, seed;
     p.levels = 4;
     p.guide_mode = TS_GUIDE_ADD;
+    /* the guide's bands alone: the roughness term is off at steered levels, so with it the
+     * steered levels would differ whatever the guide */
+    p.roughness_weight = 0;
     CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
     ts_raster_alloc(ctx, 128, 128, &flat);
     ts_raster_alloc(ctx, 128, 128, &ridges);
@@ -950,6 +1031,7 @@ int main(int argc, char **argv)
         {"relief_start", test_relief_start},
         {"guide_spacing", test_guide_spacing},
         {"guide_add", test_guide_add},
+        {"roughness_steered", test_roughness_steered},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }

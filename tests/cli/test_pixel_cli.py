@@ -306,3 +306,30 @@ def test_no_creases_at_the_finest_level(tmp_path):
         ratio = lap_p999(out) / lap_p999(ex)
         # 1.04-1.14 (one coordinate per cell at the finest level: 1.22-1.33)
         assert ratio <= 1.2, (f, seed, ratio)
+
+
+def test_roughness_term_keeps_the_fine_relief(tmp_path):
+    """The corrections' roughness term (--roughness-weight, 8 by default) offsets the sum of
+    squared differences' preference for smooth places: the output's relief at fine spacings
+    comes nearer the exemplar's.  Oracle written out here: the mean |h(p) - h(p + d)| over
+    both axes for d = 1, 2, 4 cells, of the output over the exemplar's (same cells), on the
+    project's own DEM, three seeds.  Measured 0.80-0.90 without the term, 0.85-1.00 with it."""
+
+    def relief(path, d):
+        ds = gdal.Open(str(path))
+        b = ds.GetRasterBand(1)
+        a = b.ReadAsArray().astype(np.float64)
+        if b.GetNoDataValue() is not None:
+            a[a == b.GetNoDataValue()] = np.nan
+        return np.nanmean(np.concatenate([np.abs(a[:, d:] - a[:, :-d]).ravel(),
+                                          np.abs(a[d:, :] - a[:-d, :]).ravel()]))
+
+    for seed in (1, 2, 3):
+        ratios = {}
+        for w in ("0", "8"):
+            out = tmp_path / ("r_%d_%s.tif" % (seed, w))
+            run("pixel", "--exemplar", JACKSBORO, "--size", "512x512", "--seed", seed,
+                "--roughness-weight", w, out, "-q")
+            ratios[w] = [relief(out, d) / relief(JACKSBORO, d) for d in (1, 2, 4)]
+        for d, off, on in zip((1, 2, 4), ratios["0"], ratios["8"]):
+            assert on >= off + 0.03 and on <= 1.1, (seed, d, off, on)

@@ -232,6 +232,13 @@ static const ts_param_desc pixel_desc[] = {
      "ours), or the guide's Laplacian band of that level added to the level's heights in full "
      "(add: Cruz et al.; the coarsest level is pulled by guide_weight in both).",
      offsetof(ts_pixel_params, guide_mode)},
+    {"roughness_weight", TS_PARAM_DOUBLE, 8.0, 0.0, 1e4, TS_UNIT_CELLS, "", NULL,
+     "Weight of the roughness term (ours): the corrections also compare the roughness of the "
+     "target neighbourhood (the root sum of squares of its heights about their mean) with each "
+     "candidate's, this weight times their difference squared, at the levels the guide does "
+     "not steer. The sum of squared differences alone prefers smooth places where the target "
+     "is a patchwork of several (outputs gentler than the exemplar); 0: off.",
+     offsetof(ts_pixel_params, roughness_weight)},
 };
 
 static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", "pixel", NULL};

@@ -200,14 +200,16 @@ static double band_at(const ts_pixel_exemplars *ex, int l, pix_coord c)
 }
 
 /* The squared distance between the appearance vector at (of the target
- * turned back into the exemplar's frame) and usable coordinate c's at level l. */
-static double app_distance(const ts_pixel_exemplars *ex, int l, pix_coord c, const float *at)
+ * turned back into the exemplar's frame) and usable coordinate c's at level l,
+ * over their first nd values (all, or all but the roughness). */
+static double app_distance(const ts_pixel_exemplars *ex, int l, pix_coord c, const float *at,
+                           int nd)
 {
     const pix_stack *s = &ex->stacks[c.e / ex->nv];
     int dim = ex->dim[l], i;
     const float *a = s->app[l] + (size_t)cell_of(ex, c) * (size_t)dim;
     float d = 0;
-    for (i = 0; i < dim; i++) {
+    for (i = 0; i < nd; i++) {
         float e = at[i] - a[i];
         d += e * e;
     }
@@ -215,14 +217,16 @@ static double app_distance(const ts_pixel_exemplars *ex, int l, pix_coord c, con
 }
 
 /* The appearance vector of target t turned back for variant v (into at's
- * slot v, marked in have). */
-static const float *target_turned(const ts_pixel_exemplars *ex, int l, const float *t, float *tv,
-                                  const int *perm, int v, int *have, float *at)
+ * slot v, marked in have), ending with the roughness tr where there is one. */
+static const float *target_turned(const ts_pixel_exemplars *ex, int l, const float *t, float tr,
+                                  float *tv, const int *perm, int v, int *have, float *at)
 {
     int k = ex->kl[l], i, dim = ex->dim[l];
     for (i = 0; i < k * k; i++)
         tv[perm[v * k * k + i]] = t[i];
-    ts__pix_appearance(ex->basis[l], dim - 1, k, tv, at + (size_t)v * dim);
+    ts__pix_appearance(ex->basis[l], dim - 1 - (ex->rough > 0), k, tv, at + (size_t)v * dim);
+    if (ex->rough > 0)
+        at[(size_t)v * dim + dim - 1] = tr;
     have[v] = 1;
     return at + (size_t)v * dim;
 }
@@ -236,6 +240,9 @@ static void correct_rows(void *arg, size_t begin, size_t end)
     pix_level *lv = j->lv;
     int k = j->k, r = k / 2, hsp = j->hsp, l = j->l, x, dim = j->ex->dim[l], nv = j->ex->nv;
     int K1 = j->ex->coherence - 1;
+    /* the values compared: all, or all but the roughness where the guide steers (a guide's
+     * pull is smooth between its lines: the term would fight it) */
+    int nd = dim - (j->ex->rough > 0 && j->guide && j->gw > 0);
     int v, have[8], *perm = malloc((size_t)nv * (size_t)k * k * sizeof *perm);
     float *t = malloc(((size_t)k * k * 2 + (size_t)nv * dim) * sizeof *t), *tv = t + k * k;
     float *at = tv + k * k;
@@ -267,6 +274,7 @@ static void correct_rows(void *arg, size_t begin, size_t end)
             int64_t ax = lv->reg.x0 + x;
             pix_coord cur = lv->s[y * (size_t)lv->w + x], best = cur;
             double bc;
+            float tr;
             int a, b;
             if ((ax & 1) != j->px)
                 continue;
@@ -301,11 +309,19 @@ static void correct_rows(void *arg, size_t begin, size_t end)
                     }
                     t[(b + r) * k + a + r] = hv;
                 }
+            if (nd < dim || !(j->ex->rough > 0))
+                tr = 0;
+            else { /* the roughness of the heights the neighbours' coordinates give */
+                for (b = -r; b <= r; b++)
+                    for (a = -r; a <= r; a++)
+                        tv[(b + r) * k + a + r] = lv->hc[(y + b) * (size_t)lv->w + x + a];
+                tr = j->ex->rough * ts__pix_roughness(k, tv);
+            }
             memset(have, 0, sizeof have);
 #define TARGET_FOR(cand)                                                                           \
     (v = (cand).e % nv,                                                                            \
-     have[v] ? at + (size_t)v * dim : target_turned(j->ex, l, t, tv, perm, v, have, at))
-            bc = usable(j->ex, l, cur) ? app_distance(j->ex, l, cur, TARGET_FOR(cur)) : INFINITY;
+     have[v] ? at + (size_t)v * dim : target_turned(j->ex, l, t, tr, tv, perm, v, have, at))
+            bc = usable(j->ex, l, cur) ? app_distance(j->ex, l, cur, TARGET_FOR(cur), nd) : INFINITY;
             for (b = -r; b <= r; b++)
                 for (a = -r; a <= r; a++) {
                     pix_coord n = lv->s[(y + b) * (size_t)lv->w + x + a], c = n;
@@ -316,7 +332,7 @@ static void correct_rows(void *arg, size_t begin, size_t end)
 #define SAME(p, q) ((p).e == (q).e && (p).u == (q).u && (p).v == (q).v)
                     /* in a coherent region most candidates are the cell's own coordinate */
                     if ((a || b) && !SAME(c, cur) && !SAME(c, best) && usable(j->ex, l, c)) {
-                        cost = app_distance(j->ex, l, c, TARGET_FOR(c));
+                        cost = app_distance(j->ex, l, c, TARGET_FOR(c), nd);
                         if (cost < bc) {
                             bc = cost;
                             best = c;
@@ -338,7 +354,7 @@ static void correct_rows(void *arg, size_t begin, size_t end)
                         c.v -= b * hsp;
                         if (SAME(c, cur) || SAME(c, best) || !usable(j->ex, l, c))
                             continue;
-                        cost = app_distance(j->ex, l, c, TARGET_FOR(c));
+                        cost = app_distance(j->ex, l, c, TARGET_FOR(c), nd);
                         if (cost < bc) {
                             bc = cost;
                             best = c;
@@ -641,6 +657,7 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
                                       1 << (L - l));
             }
     }
+    ex->rough = params->roughness_weight > 0 ? (float)sqrt(params->roughness_weight) : 0.0f;
     if (ts__pix_appearance_build(ctx, ex, params->pca_energy) != 0) {
         ts_pixel_exemplars_free(ex);
         return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the appearance space");

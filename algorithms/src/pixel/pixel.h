@@ -54,7 +54,10 @@ struct ts_pixel_exemplars {
     pix_turn *turn;    /* n */
     int coherence;     /* K of the k-coherence similarity sets (1: none) */
     int64_t *cell_base; /* n_given: the first id of each exemplar's cells in the sets */
-    int dim[12];       /* each level's appearance dimension: 1 + principal directions kept */
+    int dim[12];       /* each level's appearance dimension: 1 + principal directions kept
+                          (+ 1 with the roughness term: the last) */
+    float rough;       /* the roughness term's sqrt(lambda) (0: none): an appearance vector's
+                          last value is rough x the neighbourhood's roughness */
     float *basis[12];  /* each level's principal directions, (dim - 1) rows of k * k */
     ts_pixel_relief relief; /* the relief start (its sample NULL until built) */
 };
@@ -98,8 +101,12 @@ double ts__pix_ssd(const float *level, int width, int u, int v, int k, int h, co
 uint64_t ts__pix_hash(int64_t x, int64_t y, int level, int stream, uint64_t seed);
 
 /* The appearance vector of the k x k heights t (appearance_space.c): k x
- * their mean, then their shape (less the mean) on the m rows of basis. */
+ * their mean, then their shape (less the mean) on the m rows of basis (the
+ * roughness slot, where there is one, is the caller's). */
 void ts__pix_appearance(const float *basis, int m, int k, const float *t, float *out);
+/* The roughness of the k x k heights t: the root sum of squares of t less
+ * its mean (the shape's norm; the same under turns and mirrors). */
+float ts__pix_roughness(int k, const float *t);
 /* Every level's principal directions holding `energy` of the shapes'
  * variance (1: all) and every usable cell's appearance vector.  0, or -1
  * when out of memory. */
