@@ -25,9 +25,10 @@ Runs <code>terrasynth pixel</code>.</p>
 <ol>
 <li><b>Gaussian stacks</b> of the exemplars (and their turned and mirrored copies).</li>
 <li><b>Coordinates</b>, coarse to fine: upsampled, jittered, corrected against the
-neighbours' heights (k-coherence, in sub-passes).</li>
+neighbours' heights (k-coherence, in sub-passes), with a roughness term (ours) so that a
+neighbourhood pieced from several places is not answered by the smoothest one.</li>
 <li><b>Guide</b> (optional): a DEM in the exemplars' units on the output grid that the
-terrain follows at every level.</li>
+terrain follows at its coarser levels (down to the guide spacing).</li>
 </ol>
 <p>Every cell is a function of the seed and its position: the same inputs and seed give the
 same bytes, and any window equals the same window of a larger run.</p>
@@ -51,8 +52,10 @@ class PixelAlgorithm(TerraSynthAlgorithm):
               "guide_heights": "Guide's values (as heights, stretched, or by rank: a drawing)",
               "rotations": "Rotations (0, 4 or 8)",
               "pca_energy": "Share of the neighbourhoods' variance compared (PCA)",
-              "coherence": "k-coherence candidates per neighbour (1 = coherent only)"}
-    ADVANCED = ("levels", "passes", "window", "jitter", "pca_energy", "coherence")
+              "coherence": "k-coherence candidates per neighbour (1 = coherent only)",
+              "roughness_weight": "Roughness term's weight (0 = off)"}
+    ADVANCED = ("levels", "passes", "window", "jitter", "pca_energy", "coherence",
+                "roughness_weight", "guide_spacing", "start", "relief_scale", "guide_mode")
 
     EXEMPLARS = "EXEMPLARS"
     GUIDE = "GUIDE"
