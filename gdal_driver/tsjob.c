@@ -44,8 +44,8 @@ static void job_warn_sentinels(tsio_err *warning, const char *path, const tsio_r
 #define JOB_MEM_EX_SOURCE_CELL 12 /* per exemplar cell as read */
 #define JOB_MEM_EX_CELL 24        /* per exemplar cell at the target resolution: pyramid, FFT */
 #define JOB_MEM_TILE_CELL 8       /* per cell of a tile being made: its window, flags, copy */
-#define JOB_MEM_TILED_CELL 16     /* per output cell in tiles: every tile's window (at most 4 x
-                                     its core: tiles of 2 patches) */
+#define JOB_MEM_TILED_CELL 16     /* per output cell in tiles with debug maps: every tile's
+                                     window (at most 4 x its core: tiles of 2 patches) */
 
 int tsjob_ppa_check_memory(const tsio_georef *in, const char *path, tsio_err *err)
 {
@@ -221,11 +221,21 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
         need += (uint64_t)job->tile_cache > cone ? (uint64_t)job->tile_cache : cone;
         need += (uint64_t)(threads > 0 ? threads : 1) * (T + 2 * P) * (T + 2 * P) *
                 (JOB_MEM_SYNTH_CELL + JOB_MEM_TILE_CELL);
+    } else if (res->params.tiled > 0) {
+        /* tiles without maps are made row by row: three rows of tiles'
+         * windows alive at once, and every thread's tile being made (tiles
+         * with debug maps keep every window: checked again by
+         * tsjob_synth_compute) */
+        uint64_t T = (uint64_t)res->params.tiled, P = (uint64_t)res->params.patch_size.value;
+        uint64_t nti = ((uint64_t)res->geo.width + T - 1) / T;
+        long threads = sysconf(_SC_NPROCESSORS_ONLN);
+        need += cells * (JOB_MEM_SYNTH_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0)) +
+                3 * nti * (T + 2 * P) * (T + 2 * P) * sizeof(float) +
+                (uint64_t)(threads > 0 ? threads : 1) * (T + 2 * P) * (T + 2 * P) *
+                    (JOB_MEM_SYNTH_CELL + JOB_MEM_TILE_CELL);
     } else {
-        /* (tiles: their windows instead of the maps; tiles with debug maps
-         * are checked again by tsjob_synth_compute) */
         need += cells * (JOB_MEM_SYNTH_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0) +
-                         (res->params.tiled > 0 ? JOB_MEM_TILED_CELL : JOB_MEM_MAPS_CELL));
+                         JOB_MEM_MAPS_CELL);
     }
     int cy = res->geo.height / 2;
     double t_area = res->dx_m ? res->dx_m[cy] * res->dy_m[cy] : 0.0;

@@ -524,6 +524,23 @@ static void test_tiles(void)
     CHECK(ts_synth_tiled(ctx, &ex, 1, &p, NULL, T, &c) == TS_OK);
     CHECK(memcmp(a.data, b.data, sizeof(float) * W * H) == 0);
     CHECK(memcmp(a.data, c.data, sizeof(float) * W * H) == 0);
+    /* with the debug maps the tiles run wave by wave, without them row by row
+     * (three rows of windows alive): two orders, the same heights */
+    {
+        ts_synth_maps maps;
+        int32_t *se = malloc(sizeof(int32_t) * W * H);
+        memset(&maps, 0, sizeof maps);
+        maps.source_exemplar = se;
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++)
+                TS_PIX(&b, x, y) = NAN;
+        p.tiled = T;
+        ts_ctx_set_threads(ctx, 2);
+        CHECK(se && ts_synth_patches(ctx, &ex, 1, &p, NULL, &b, &maps) == TS_OK);
+        CHECK_MSG(memcmp(a.data, b.data, sizeof(float) * W * H) == 0,
+                  "tiles in rows and in waves differ");
+        free(se);
+    }
     for (y = 0; y < 120; y++)
         for (x = 0; x < 160; x++) {
             lo = fmin(lo, TS_PIX(&ex, x, y));

@@ -593,6 +593,101 @@ static void tiled_maps_finish(const tiled_job *j, const ts_synth_tile *tiles, si
     }
 }
 
+/* Set up tile (ti, tj) of j as t over windows (its window allocated, its
+ * earlier neighbours' pointed to) and, with debug maps, its maps. */
+static ts_status tile_setup(tiled_job *j, ts_ctx *ctx, int ti, int tj, ts_raster *windows,
+                            ts_synth_tile *t)
+{
+    tile_rect r = rect_of(j->W, j->H, j->T, j->G, ti, tj);
+    size_t at = (size_t)tj * (size_t)j->nti + (size_t)ti;
+    int di, dj;
+    memset(t, 0, sizeof *t);
+    t->ti = ti;
+    t->tj = tj;
+    if (ts_raster_alloc(ctx, r.x1 - r.x0, r.y1 - r.y0, &windows[at]) != TS_OK)
+        return ctx->status;
+    if (j->tm) {
+        size_t wn = (size_t)(r.x1 - r.x0) * (size_t)(r.y1 - r.y0);
+        tile_maps *tm = &j->tm[at];
+        tm->se = ts__malloc_array(wn, sizeof *tm->se);
+        tm->sx = ts__malloc_array(wn, sizeof *tm->sx);
+        tm->sy = ts__malloc_array(wn, sizeof *tm->sy);
+        tm->order = ts__malloc_array(wn, sizeof *tm->order);
+        tm->seams = ts__malloc_array(wn, 1);
+        if (!tm->se || !tm->sx || !tm->sy || !tm->order || !tm->seams)
+            return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for the debug maps");
+    }
+    t->window = windows[at];
+    for (dj = -1; dj <= 1; dj++)
+        for (di = -1; di <= 1; di++)
+            if (earlier(j, ti, tj, di, dj))
+                t->neighbours[(dj + 1) * 3 + di + 1] =
+                    &windows[at + (size_t)((ptrdiff_t)dj * j->nti + di)];
+    return TS_OK;
+}
+
+/* The cores of the m tiles made into the output. */
+static void tiles_to_output(const tiled_job *j, const ts_synth_tile *tiles, size_t m,
+                            ts_raster *out)
+{
+    size_t k;
+    int y;
+    for (k = 0; k < m; k++) {
+        const ts_synth_tile *t = &tiles[k];
+        tile_rect r = rect_of(j->W, j->H, j->T, j->G, t->ti, t->tj);
+        for (y = r.cy0; y < r.cy1; y++)
+            memcpy(&TS_PIX(out, r.cx0, y), &TS_PIX(&t->window, r.cx0 - r.x0, y - r.y0),
+                   (size_t)(r.cx1 - r.cx0) * sizeof(float));
+    }
+}
+
+/* Without debug maps: the tiles row by row, so that only three rows of
+ * windows are alive at once.  A tile needs only its earlier-wave
+ * neighbours: an even row's wave-0 tiles none, its wave-1 tiles the wave-0
+ * tiles beside them; an odd row's tiles the even rows above and below and,
+ * for wave 3, the wave-2 tiles beside them.  So: even row 0, then for each
+ * odd row k the even row k + 1 and then row k, after which row k's windows
+ * and row k - 1's are needed by nobody.  Each step is one wave of one row
+ * (its tiles side by side); every tile sees the same neighbours' windows as
+ * in wave order, so the bytes are the same. */
+static ts_status tiled_by_rows(tiled_job *j, ts_ctx *ctx, ts_synth_tile *tiles,
+                               ts_raster *windows, ts_raster *out)
+{
+    int k, pass, ti;
+    ts_status st = TS_OK;
+    size_t done = 0, n = (size_t)j->nti * (size_t)j->ntj;
+    for (k = -1; k < j->ntj && st == TS_OK; k += 2) {
+        /* the even row below k (row 0 first), then row k itself */
+        int rows[2] = {k + 1, k}, ri;
+        for (ri = 0; ri < 2 && st == TS_OK; ri++) {
+            int tj = rows[ri];
+            if (tj < 0 || tj >= j->ntj)
+                continue;
+            for (pass = 0; pass < 2 && st == TS_OK; pass++) { /* even, then odd columns */
+                size_t m = 0;
+                for (ti = pass; ti < j->nti; ti += 2) {
+                    if ((st = tile_setup(j, ctx, ti, tj, windows, &tiles[m])) != TS_OK)
+                        break;
+                    m++;
+                }
+                if (st != TS_OK || (st = tiles_run(j, tiles, m)) != TS_OK)
+                    break;
+                tiles_to_output(j, tiles, m, out);
+                done += m;
+                st = ts__progress(ctx, (double)done / (double)n, "synth tiles");
+            }
+        }
+        /* row k and the even row above it are needed by no later tile */
+        for (ti = 0; ti < j->nti; ti++) {
+            if (k >= 0)
+                ts_raster_free(&windows[(size_t)k * (size_t)j->nti + (size_t)ti]);
+            if (k >= 1)
+                ts_raster_free(&windows[(size_t)(k - 1) * (size_t)j->nti + (size_t)ti]);
+        }
+    }
+    return st;
+}
+
 ts_status ts__synth_tiled_maps(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
                                const ts_synth_params *params,
                                const ts_synth_constraints *constraints, int tile, ts_raster *out,
@@ -601,7 +696,7 @@ ts_status ts__synth_tiled_maps(ts_ctx *ctx, const ts_raster *exemplars, int n_ex
     tiled_job j;
     ts_synth_tile *tiles;
     ts_raster *windows; /* every tile's window, until no later tile needs it */
-    int P, wave, ti, tj, di, dj, y;
+    int P, wave, ti, tj;
     size_t n, k;
     ts_status st = TS_OK;
     ts__clear(ctx);
@@ -626,55 +721,25 @@ ts_status ts__synth_tiled_maps(ts_ctx *ctx, const ts_raster *exemplars, int n_ex
         free(j.tm);
         return ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory");
     }
-    for (wave = 0; wave < 4 && st == TS_OK; wave++) {
+    if (!maps)
+        st = tiled_by_rows(&j, ctx, tiles, windows, out);
+    /* with debug maps: wave by wave (each tile's patches are numbered after
+     * every tile of earlier waves, so a wave's maps are finished before the
+     * next takes from them); every window is kept */
+    for (wave = 0; maps && wave < 4 && st == TS_OK; wave++) {
         size_t m = 0;
         for (tj = 0; tj < j.ntj && st == TS_OK; tj++)
             for (ti = 0; ti < j.nti; ti++) {
-                ts_synth_tile *t = &tiles[m];
-                tile_rect r = rect_of(j.W, j.H, tile, P, ti, tj);
-                size_t at = (size_t)tj * (size_t)j.nti + (size_t)ti;
                 if (tile_wave(ti, tj) != wave)
                     continue;
-                memset(t, 0, sizeof *t);
-                t->ti = ti;
-                t->tj = tj;
-                if (ts_raster_alloc(ctx, r.x1 - r.x0, r.y1 - r.y0, &windows[at]) != TS_OK) {
-                    st = ctx->status;
+                if ((st = tile_setup(&j, ctx, ti, tj, windows, &tiles[m])) != TS_OK)
                     break;
-                }
-                if (j.tm) {
-                    size_t wn = (size_t)(r.x1 - r.x0) * (size_t)(r.y1 - r.y0);
-                    tile_maps *tm = &j.tm[at];
-                    tm->se = ts__malloc_array(wn, sizeof *tm->se);
-                    tm->sx = ts__malloc_array(wn, sizeof *tm->sx);
-                    tm->sy = ts__malloc_array(wn, sizeof *tm->sy);
-                    tm->order = ts__malloc_array(wn, sizeof *tm->order);
-                    tm->seams = ts__malloc_array(wn, 1);
-                    if (!tm->se || !tm->sx || !tm->sy || !tm->order || !tm->seams) {
-                        st = ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE,
-                                      "out of memory for the debug maps");
-                        break;
-                    }
-                }
-                t->window = windows[at];
-                for (dj = -1; dj <= 1; dj++)
-                    for (di = -1; di <= 1; di++)
-                        if (earlier(&j, ti, tj, di, dj))
-                            t->neighbours[(dj + 1) * 3 + di + 1] =
-                                &windows[at + (size_t)((ptrdiff_t)dj * j.nti + di)];
                 m++;
             }
         if (st != TS_OK || (st = tiles_run(&j, tiles, m)) != TS_OK)
             break;
-        for (k = 0; k < m; k++) { /* the cores into the output */
-            const ts_synth_tile *t = &tiles[k];
-            tile_rect r = rect_of(j.W, j.H, tile, P, t->ti, t->tj);
-            for (y = r.cy0; y < r.cy1; y++)
-                memcpy(&TS_PIX(out, r.cx0, y), &TS_PIX(&t->window, r.cx0 - r.x0, y - r.y0),
-                       (size_t)(r.cx1 - r.cx0) * sizeof(float));
-        }
-        if (j.tm)
-            tiled_maps_finish(&j, tiles, m, maps);
+        tiles_to_output(&j, tiles, m, out);
+        tiled_maps_finish(&j, tiles, m, maps);
         st = ts__progress(ctx, (wave + 1) / 4.0, "synth tiles");
     }
     for (k = 0; k < n; k++)
