@@ -620,9 +620,14 @@ static ts_status tile_setup(tiled_job *j, ts_ctx *ctx, int ti, int tj, ts_raster
     t->window = windows[at];
     for (dj = -1; dj <= 1; dj++)
         for (di = -1; di <= 1; di++)
-            if (earlier(j, ti, tj, di, dj))
-                t->neighbours[(dj + 1) * 3 + di + 1] =
-                    &windows[at + (size_t)((ptrdiff_t)dj * j->nti + di)];
+            if (earlier(j, ti, tj, di, dj)) {
+                const ts_raster *nb = &windows[at + (size_t)((ptrdiff_t)dj * j->nti + di)];
+                if (!nb->data) /* a schedule that runs a tile before its neighbour */
+                    return ts__fail(ctx, TS_ERR_ARG, TILED_STAGE,
+                                    "internal error: tile (%d, %d) before tile (%d, %d)", ti, tj,
+                                    ti + di, tj + dj);
+                t->neighbours[(dj + 1) * 3 + di + 1] = nb;
+            }
     return TS_OK;
 }
 
