@@ -541,6 +541,25 @@ static void test_tiles(void)
                   "tiles in rows and in waves differ");
         free(se);
     }
+    /* bands of several rows (5 threads over 2 tiles a row: 3 odd rows a band) against one
+     * row at a time (1 thread), 7 rows of tiles */
+    {
+        ts_raster t1, t5;
+        int ok = ts_raster_alloc(ctx, 200, 7 * T - 20, &t1) == TS_OK &&
+                 ts_raster_alloc(ctx, 200, 7 * T - 20, &t5) == TS_OK;
+        CHECK(ok);
+        for (y = 0; ok && y < t1.height; y++)
+            for (x = 0; x < t1.width; x++)
+                TS_PIX(&t1, x, y) = TS_PIX(&t5, x, y) = NAN;
+        ts_ctx_set_threads(ctx, 1);
+        CHECK(ok && ts_synth_tiled(ctx, &ex, 1, &p, NULL, T, &t1) == TS_OK);
+        ts_ctx_set_threads(ctx, 5);
+        CHECK(ok && ts_synth_tiled(ctx, &ex, 1, &p, NULL, T, &t5) == TS_OK);
+        CHECK_MSG(ok && memcmp(t1.data, t5.data, sizeof(float) * 200 * (size_t)t1.height) == 0,
+                  "tiles in bands of one and of three rows differ");
+        ts_raster_free(&t1);
+        ts_raster_free(&t5);
+    }
     for (y = 0; y < 120; y++)
         for (x = 0; x < 160; x++) {
             lo = fmin(lo, TS_PIX(&ex, x, y));

@@ -646,49 +646,62 @@ static void tiles_to_output(const tiled_job *j, const ts_synth_tile *tiles, size
     }
 }
 
-/* Without debug maps: the tiles row by row, so that only three rows of
- * windows are alive at once.  A tile needs only its earlier-wave
- * neighbours: an even row's wave-0 tiles none, its wave-1 tiles the wave-0
- * tiles beside them; an odd row's tiles the even rows above and below and,
- * for wave 3, the wave-2 tiles beside them.  So: even row 0, then for each
- * odd row k the even row k + 1 and then row k, after which row k's windows
- * and row k - 1's are needed by nobody.  Each step is one wave of one row
- * (its tiles side by side); every tile sees the same neighbours' windows as
- * in wave order, so the bytes are the same. */
+/* One step of the rows' schedule: the tiles of columns of parity `pass` in
+ * rows r0, r0 + 2, ... < r1 (one wave: none needs another), side by side,
+ * their cores into out. */
+static ts_status rows_step(tiled_job *j, ts_ctx *ctx, ts_synth_tile *tiles, ts_raster *windows,
+                           ts_raster *out, int r0, int r1, int pass, size_t *done)
+{
+    size_t m = 0, n = (size_t)j->nti * (size_t)j->ntj;
+    int tj, ti;
+    ts_status st;
+    for (tj = r0; tj < r1 && tj < j->ntj; tj += 2)
+        for (ti = pass; ti < j->nti; ti += 2) {
+            if ((st = tile_setup(j, ctx, ti, tj, windows, &tiles[m])) != TS_OK)
+                return st;
+            m++;
+        }
+    if ((st = tiles_run(j, tiles, m)) != TS_OK)
+        return st;
+    tiles_to_output(j, tiles, m, out);
+    *done += m;
+    return ts__progress(ctx, (double)*done / (double)n, "synth tiles");
+}
+
+/* Without debug maps: the tiles in bands of rows, so that the windows alive
+ * at once are a few rows' (as many as the threads need), not the grid's.  A
+ * tile needs only its earlier-wave neighbours: an even row's wave-0 tiles
+ * none, its wave-1 tiles the wave-0 tiles beside them; an odd row's tiles
+ * the even rows above and below and, for wave 3, the wave-2 tiles beside
+ * them.  So: even row 0; then bands of B odd rows k, k + 2, ... with the
+ * even rows between and below them: the even rows' wave 0, their wave 1,
+ * the odd rows' wave 2, their wave 3 (each step one wave of the band, its
+ * tiles side by side); after a band every window but its last even row's is
+ * needed by no later tile.  B gives a step at least as many tiles as
+ * threads.  Every tile sees the same neighbours' windows as in wave order,
+ * so the bytes are the same. */
 static ts_status tiled_by_rows(tiled_job *j, ts_ctx *ctx, ts_synth_tile *tiles,
                                ts_raster *windows, ts_raster *out)
 {
-    int k, pass, ti;
+    int threads = ts__thread_count(ctx, 64), half = (j->nti + 1) / 2, B, k, tj, ti;
+    size_t done = 0;
     ts_status st = TS_OK;
-    size_t done = 0, n = (size_t)j->nti * (size_t)j->ntj;
-    for (k = -1; k < j->ntj && st == TS_OK; k += 2) {
-        /* the even row below k (row 0 first), then row k itself */
-        int rows[2] = {k + 1, k}, ri;
-        for (ri = 0; ri < 2 && st == TS_OK; ri++) {
-            int tj = rows[ri];
-            if (tj < 0 || tj >= j->ntj)
-                continue;
-            for (pass = 0; pass < 2 && st == TS_OK; pass++) { /* even, then odd columns */
-                size_t m = 0;
-                for (ti = pass; ti < j->nti; ti += 2) {
-                    if ((st = tile_setup(j, ctx, ti, tj, windows, &tiles[m])) != TS_OK)
-                        break;
-                    m++;
-                }
-                if (st != TS_OK || (st = tiles_run(j, tiles, m)) != TS_OK)
-                    break;
-                tiles_to_output(j, tiles, m, out);
-                done += m;
-                st = ts__progress(ctx, (double)done / (double)n, "synth tiles");
-            }
-        }
-        /* row k and the even row above it are needed by no later tile */
-        for (ti = 0; ti < j->nti; ti++) {
-            if (k >= 0)
-                ts_raster_free(&windows[(size_t)k * (size_t)j->nti + (size_t)ti]);
-            if (k >= 1)
-                ts_raster_free(&windows[(size_t)(k - 1) * (size_t)j->nti + (size_t)ti]);
-        }
+    B = TS_MAX(1, (threads + half - 1) / half);
+    if ((st = rows_step(j, ctx, tiles, windows, out, 0, 1, 0, &done)) != TS_OK ||
+        (st = rows_step(j, ctx, tiles, windows, out, 0, 1, 1, &done)) != TS_OK)
+        return st;
+    for (k = 1; k < j->ntj; k += 2 * B) {
+        int end = k + 2 * B; /* the band: rows k .. end - 1 */
+        if ((st = rows_step(j, ctx, tiles, windows, out, k + 1, end, 0, &done)) != TS_OK ||
+            (st = rows_step(j, ctx, tiles, windows, out, k + 1, end, 1, &done)) != TS_OK ||
+            (st = rows_step(j, ctx, tiles, windows, out, k, end, 0, &done)) != TS_OK ||
+            (st = rows_step(j, ctx, tiles, windows, out, k, end, 1, &done)) != TS_OK)
+            return st;
+        /* rows k - 1 .. end - 2 are needed by no later tile (row end - 1, even, by the
+         * next band's first row) */
+        for (tj = k - 1; tj < end - 1 && tj < j->ntj; tj++)
+            for (ti = 0; ti < j->nti; ti++)
+                ts_raster_free(&windows[(size_t)tj * (size_t)j->nti + (size_t)ti]);
     }
     return st;
 }
