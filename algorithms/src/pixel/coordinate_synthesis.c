@@ -13,7 +13,9 @@
  *              x and y each): a cell takes, among the k-coherence candidates
  *              S(p + d) - h d of its k x k neighbours (and its own), the one
  *              whose k x k neighbourhood in the level's stack is nearest
- *              (sum of squared differences) to the heights its neighbours'
+ *              (sum of squared differences, in the appearance space, plus
+ *              our roughness term where the guide does not steer:
+ *              appearance_space.c) to the heights its neighbours'
  *              coordinates give.  Each sub-pass reads the state before it,
  *              so the result does not depend on the order or the threads.
  *
