@@ -223,19 +223,16 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
                 (JOB_MEM_SYNTH_CELL + JOB_MEM_TILE_CELL);
     } else if (res->params.tiled > 0) {
         /* tiles without maps are made in bands of rows: 2 B + 1 rows of tiles'
-         * windows alive at once (B odd rows a band, enough for threads x
-         * max(1, 2048 / T) tiles a step: tiled_synthesis.c), and every
-         * thread's tile being made
-         * (tiles with debug maps keep every window: checked again by
+         * windows alive at once (ts_synth_tiled_band), and every thread's tile
+         * being made (tiles with debug maps keep every window: checked again by
          * tsjob_synth_compute) */
         uint64_t T = (uint64_t)res->params.tiled, P = (uint64_t)res->params.patch_size.value;
-        uint64_t nti = ((uint64_t)res->geo.width + T - 1) / T, half = (nti + 1) / 2;
+        uint64_t nti = ((uint64_t)res->geo.width + T - 1) / T;
         long nproc = sysconf(_SC_NPROCESSORS_ONLN);
         uint64_t threads = (uint64_t)(nproc > 0 ? nproc : 1); /* (the most a run takes) */
-        uint64_t want = threads * (T < 2048 ? 2048 / T : 1); /* tiles a step */
-        uint64_t B = (want + half - 1) / half;
+        uint64_t B = (uint64_t)ts_synth_tiled_band((int)threads, res->geo.width, (int)T);
         need += cells * (JOB_MEM_SYNTH_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0)) +
-                (2 * (B ? B : 1) + 1) * nti * (T + 2 * P) * (T + 2 * P) * sizeof(float) +
+                (2 * B + 1) * nti * (T + 2 * P) * (T + 2 * P) * sizeof(float) +
                 threads * (T + 2 * P) * (T + 2 * P) * (JOB_MEM_SYNTH_CELL + JOB_MEM_TILE_CELL);
     } else {
         need += cells * (JOB_MEM_SYNTH_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0) +

@@ -552,6 +552,11 @@ TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_e
 /** The wave of tile (ti, tj) in ts_synth_tiled: (ti & 1) + 2 (tj & 1). */
 TS_API int ts_synth_tile_wave(int ti, int tj);
 
+/** The odd rows of tiles in each band of ts_synth_tiled without debug maps
+ * (B: a step holds threads x max(1, 2048 / tile) tiles at least), for a grid
+ * `width` cells wide; 2 B + 1 rows of tiles' windows are alive at once. */
+TS_API int ts_synth_tiled_band(int threads, int width, int tile);
+
 /** One tile of a tiled synthesis, made on its own (ts_synth_tiles). */
 typedef struct ts_synth_tile {
     int ti, tj; /* tile (ti, tj): its core is columns [ti T, ti T + T), rows [tj T, tj T + T) */

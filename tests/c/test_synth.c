@@ -550,7 +550,7 @@ static void test_tiles(void)
         const int W2 = 32 * T, H2 = 7 * T - 20;
         int ok = ts_raster_alloc(ctx, W2, H2, &t1) == TS_OK &&
                  ts_raster_alloc(ctx, W2, H2, &t5) == TS_OK;
-        CHECK(ok);
+        CHECK(ok && ts_synth_tiled_band(1, W2, T) == 2 && ts_synth_tiled_band(5, W2, T) >= 4);
         for (y = 0; ok && y < H2; y++)
             for (x = 0; x < W2; x++)
                 TS_PIX(&t1, x, y) = TS_PIX(&t5, x, y) = NAN;
