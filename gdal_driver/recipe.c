@@ -137,6 +137,10 @@ static const char *recipe_resolve(void *user, const char *name, char *msg, size_
         return NULL;
     }
     path = recipe_keep_path(r, name);
+    if (tsio_input_offline(path, &e) != 0) {
+        snprintf(msg, len, "%s", e.msg);
+        return NULL;
+    }
     if (recipe_check_not_self(r, path, &e) != 0) {
         /* without the recipe's own name: the caller adds it */
         const char *colon = strstr(e.msg, ": ");
@@ -395,6 +399,10 @@ static const char *recipe_collect(void *user, const char *name, char *msg, size_
     }
     if (CPLIsFilenameRelative(name) && strncmp(name, "/vsi", 4) != 0)
         resolved = CPLProjectRelativeFilename(n->dir, name);
+    if (tsio_name_plain(resolved, &e) != 0) {
+        snprintf(msg, len, "%s", e.msg); /* never read; the open refuses it */
+        return NULL;
+    }
     n->names = CSLAddString(n->names, resolved);
     return n->names[CSLCount(n->names) - 1];
 }
@@ -480,7 +488,7 @@ static int recipe_scan(const char *path, char ***chain, tsio_err *err)
     return rc;
 }
 
-int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_err *err)
+static int recipe_open_offline(const char *path, const char *const *oo, ts_recipe **out, tsio_err *err)
 {
     ts_recipe *r;
     CPLXMLNode *root = NULL, *top, *node;
@@ -538,6 +546,16 @@ done:
     return 0;
 }
 
+int recipe_open(const char *path, const char *const *oo, ts_recipe **out, tsio_err *err)
+{
+    tsio_offline g;
+    int rc;
+    tsio_offline_begin(&g);
+    rc = recipe_open_offline(path, oo, out, err);
+    tsio_offline_end(&g);
+    return rc;
+}
+
 void recipe_free(ts_recipe *r)
 {
     if (!r)
@@ -581,7 +599,7 @@ double recipe_nodata(const ts_recipe *r)
     return r->map < 0 ? -9999.0 : -1.0;
 }
 
-int recipe_compute(ts_recipe *r, tsio_err *err)
+static int recipe_compute_offline(ts_recipe *r, tsio_err *err)
 {
     ts_ctx *ctx;
     int rc;
@@ -640,6 +658,16 @@ int recipe_compute(ts_recipe *r, tsio_err *err)
     recipe_depth--;
     ts_ctx_free(ctx);
     r->computed = rc == 0;
+    return rc;
+}
+
+int recipe_compute(ts_recipe *r, tsio_err *err)
+{
+    tsio_offline g;
+    int rc;
+    tsio_offline_begin(&g);
+    rc = recipe_compute_offline(r, err);
+    tsio_offline_end(&g);
     return rc;
 }
 
@@ -873,7 +901,7 @@ done:
     return rc;
 }
 
-int recipe_read_window(ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err)
+static int recipe_read_window_offline(ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err)
 {
     ts_ctx *ctx;
     size_t i, n = (size_t)w * (size_t)h;
@@ -916,6 +944,16 @@ int recipe_read_window(ts_recipe *r, int x0, int y0, int w, int h, float *out, t
     for (i = 0; rc == 0 && i < n; i++)
         if (isnan(out[i]))
             out[i] = -9999.0f; /* nodata as the driver declares it */
+    return rc;
+}
+
+int recipe_read_window(ts_recipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err)
+{
+    tsio_offline g;
+    int rc;
+    tsio_offline_begin(&g);
+    rc = recipe_read_window_offline(r, x0, y0, w, h, out, err);
+    tsio_offline_end(&g);
     return rc;
 }
 
@@ -1179,7 +1217,12 @@ TSYN_EXPORT int tsyn_tile_make(void *handle, int ti, int tj, const float *const 
     }
     ts_ctx_set_seed(ctx, r->seed);
     ts_ctx_set_threads(ctx, 1);
-    rc = tsjob_synth_tiles(ctx, &r->synth, &r->synth_res, &t, 1, &err);
+    {
+        tsio_offline g;
+        tsio_offline_begin(&g);
+        rc = tsjob_synth_tiles(ctx, &r->synth, &r->synth_res, &t, 1, &err);
+        tsio_offline_end(&g);
+    }
     ts_ctx_free(ctx);
     if (rc != 0) {
         copy_err(&err, msg, n);

@@ -245,6 +245,25 @@ int tsio_same_file(const char *a, const char *b);
  *  init=), never a file name or a URL, which GDAL would read or fetch. */
 int tsio_name_offline(const char *name, tsio_err *err);
 int tsio_crs_offline(const char *crs, tsio_err *err);
+/** tsio_name_plain: a name a recipe may read: never standard input, never
+ *  a device, FIFO or socket (a read would block or never end). */
+int tsio_name_plain(const char *name, tsio_err *err);
+/** tsio_input_offline: the name and every file it leads to (the sources of
+ *  a VRT or an OGR VRT, nested) pass tsio_name_offline and tsio_name_plain,
+ *  and none is a server's description (WMS, WMTS, WCS, WFS, ...) or a
+ *  database connection, unless TSYN_ALLOW_NETWORK=YES. */
+int tsio_input_offline(const char *name, tsio_err *err);
+/** The offline guard around everything a recipe opens or reads: between
+ *  begin and end, on the calling thread, GDAL reaches no network whatever
+ *  the files it opens say (a VRT naming /vsicurl/, a WMS or WMTS
+ *  description, nested VRTs, OGR's web drivers), unless
+ *  TSYN_ALLOW_NETWORK=YES.  Guards nest. */
+typedef struct {
+    int active, pushed;
+    char *saved; /* the thread's earlier CPL_VSIL_CURL_ALLOWED_FILENAME */
+} tsio_offline;
+void tsio_offline_begin(tsio_offline *g);
+void tsio_offline_end(tsio_offline *g);
 /** Memory.  tsio_parse_memory reads "2G", "500M", "512" (MB, as
  *  GDAL_CACHEMAX), "64K", "1T" or "50%" (of the machine's memory).
  *  tsio_physical_memory: the machine's memory, or its container's limit

@@ -615,61 +615,6 @@ int tsio_path(char *buf, size_t n, const char *dir, const char *name, const char
 }
 
 /* ------------------------------------------------------------------ */
-/* What an untrusted recipe may name                                   */
-/* ------------------------------------------------------------------ */
-
-static int network_allowed(void)
-{
-    return CPLTestBool(CPLGetConfigOption("TSYN_ALLOW_NETWORK", "NO"));
-}
-
-int tsio_name_offline(const char *name, tsio_err *err)
-{
-    static const char *const net[] = {"/vsicurl",    "/vsis3",  "/vsigs",    "/vsiaz",
-                                      "/vsiadls",    "/vsioss", "/vsiswift", "/vsihdfs",
-                                      "/vsiwebhdfs", "://",     NULL};
-    int i;
-    if (network_allowed())
-        return 0;
-    for (i = 0; net[i]; i++)
-        if (strstr(name, net[i])) {
-            tsio_errf(err, name,
-                      "names a network resource: a recipe reads local files only (set the "
-                      "configuration option TSYN_ALLOW_NETWORK=YES to allow it)");
-            return -1;
-        }
-    return 0;
-}
-
-int tsio_crs_offline(const char *crs, tsio_err *err)
-{
-    const char *p = crs;
-    struct stat st;
-    while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r')
-        p++;
-    /* WKT (KEYWORD[...) and PROJJSON are read as text */
-    if (*p == '{')
-        return 0;
-    {
-        const char *q = p;
-        while ((*q >= 'A' && *q <= 'Z') || (*q >= '0' && *q <= '9') || *q == '_')
-            q++;
-        if (q > p && *q == '[')
-            return 0;
-    }
-    /* the short forms (EPSG:4326, +proj=..., WGS84, urn:ogc:def:crs:...) name no file
-     * and no address; SetFromUserInput would fetch a URL or read a file */
-    if (strstr(p, "://") || strchr(p, '/') || strchr(p, '\\') || p[0] == '.' ||
-        strstr(p, "init=") || stat(p, &st) == 0) {
-        tsio_errf(err, crs,
-                  "a recipe's CRS is a code (EPSG:32611), WKT, PROJJSON or a PROJ string; "
-                  "never a file or an address");
-        return -1;
-    }
-    return 0;
-}
-
-/* ------------------------------------------------------------------ */
 /* Memory                                                              */
 /* ------------------------------------------------------------------ */
 

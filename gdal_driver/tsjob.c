@@ -3,6 +3,9 @@
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
+#include <ctype.h>
+#include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -788,7 +791,6 @@ int tsjob_parse_pin(const char *spec, tsjob_pin *pin, char *path_buf, size_t pat
 {
     const char *at = strrchr(spec, '@'), *colon;
     size_t n;
-    char tail;
     if (!at)
         return -1;
     for (colon = at; colon > spec && *colon != ':'; colon--)
@@ -798,11 +800,26 @@ int tsjob_parse_pin(const char *spec, tsjob_pin *pin, char *path_buf, size_t pat
     memcpy(path_buf, spec, n);
     path_buf[n] = '\0';
     pin->path = path_buf;
-    if (sscanf(colon + 1, "%d,%d,%d,%d@%d,%d%c", &pin->xoff, &pin->yoff, &pin->width, &pin->height,
-               &pin->x, &pin->y, &tail) != 6)
-        return -1;
-    if (pin->xoff < 0 || pin->yoff < 0 || pin->width < 1 || pin->height < 1 || pin->x < 0 ||
-        pin->y < 0)
+    {
+        /* six whole numbers in 0..INT_MAX, read without overflow (sscanf's %d
+         * is undefined past INT_MAX) */
+        int *dst[6] = {&pin->xoff, &pin->yoff, &pin->width, &pin->height, &pin->x, &pin->y};
+        const char seps[6] = {',', ',', ',', '@', ',', '\0'};
+        const char *s = colon + 1;
+        for (n = 0; n < 6; n++) {
+            char *end;
+            long long v;
+            if (!isdigit((unsigned char)*s))
+                return -1;
+            errno = 0;
+            v = strtoll(s, &end, 10);
+            if (errno == ERANGE || v > INT_MAX || *end != seps[n])
+                return -1;
+            *dst[n] = (int)v;
+            s = end + (seps[n] ? 1 : 0);
+        }
+    }
+    if (pin->width < 1 || pin->height < 1)
         return -1;
     return 0;
 }
@@ -820,13 +837,21 @@ static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, 
                                    res->dy_m ? res->dy_m[cy] : 0, job->cell_size, ex, &f, err) != 0)
         return -1;
     job_warn_sentinels(&res->warning, p->path, ex);
-    /* the window in the file's cells, at the output's resolution */
-    *x0 = (int)lround(p->xoff * f);
-    *y0 = (int)lround(p->yoff * f);
-    *w = (int)lround(p->width * f);
-    *h = (int)lround(p->height * f);
-    if (*w < 1 || *h < 1 || *x0 + *w > ex->r.width || *y0 + *h > ex->r.height ||
-        p->xoff + p->width > (int)lround(ex->r.width / f) + 1) {
+    /* the window in the file's cells, at the output's resolution; every sum in
+     * 64 bits (the user's numbers reach INT_MAX) */
+    double fx0 = (double)p->xoff * f, fy0 = (double)p->yoff * f;
+    double fw = (double)p->width * f, fh = (double)p->height * f;
+    if (!(fx0 + fw <= ex->r.width + 0.5 && fy0 + fh <= ex->r.height + 0.5) ||
+        (int64_t)p->xoff + p->width > (int64_t)lround(ex->r.width / f) + 1) {
+        *w = 0; /* refused below */
+    } else {
+        *x0 = (int)lround(fx0);
+        *y0 = (int)lround(fy0);
+        *w = (int)lround(fw);
+        *h = (int)lround(fh);
+    }
+    if (*w < 1 || *h < 1 || (int64_t)*x0 + *w > ex->r.width ||
+        (int64_t)*y0 + *h > ex->r.height) {
         tsio_errf(err, p->path,
                   "the pinned window %d,%d,%d,%d is not inside "
                   "the raster",
@@ -834,7 +859,7 @@ static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, 
         tsio_raster_free(ex);
         return -1;
     }
-    if (p->x + *w > W || p->y + *h > H) {
+    if ((int64_t)p->x + *w > W || (int64_t)p->y + *h > H) {
         tsio_errf(err, p->path,
                   "the pinned window (%d x %d output cells) at %d,%d leaves the output "
                   "(%d x %d)",

@@ -64,6 +64,12 @@ RECIPES = {
     "seed.tsyn": "<Synth seed='18446744073709551616'><Exemplar>dem.tif</Exemplar>" +
                  GRID % "EPSG:32616" + "</Synth>",
     "ok.tsyn": "<Synth><Exemplar>dem.tif</Exemplar>" + GRID % "EPSG:32616" + "</Synth>",
+    "pin_far.tsyn": "<Synth><Exemplar>dem.tif</Exemplar>" + GRID % "EPSG:32616" +
+                    "<Pin xoff='2147483600' yoff='0' width='100' height='20' x='0' y='0'>"
+                    "dem.tif</Pin></Synth>",
+    "pin_off.tsyn": "<Synth><Exemplar>dem.tif</Exemplar>" + GRID % "EPSG:32616" +
+                    "<Pin xoff='0' yoff='0' width='20' height='20' x='2147483640' y='0'>"
+                    "dem.tif</Pin></Synth>",
 }
 
 
