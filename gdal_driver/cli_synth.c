@@ -127,14 +127,18 @@ int cli_synth(int argc, char **argv)
     if (job.sketch && co.progress != PROGRESS_QUIET)
         printf("sketch: %s, %zu feature sites, %zu feature patches placed (from %zu exemplar "
                "sites)\n",
-               res.sketch_info.mode == TS_SKETCH_VALLEYS ? "valleys" : "ridges",
+               res.sketch_info.mode == TS_SKETCH_BOTH      ? "ridges and valleys"
+               : res.sketch_info.mode == TS_SKETCH_VALLEYS ? "valleys"
+                                                           : "ridges",
                res.sketch_info.n_sites, res.sketch_info.n_feature_patches,
                res.sketch_info.n_exemplar_sites);
     if (job.sketch && res.sketch_info.n_sites > 0 && res.sketch_info.n_exemplar_sites == 0)
         fprintf(stderr,
                 "terrasynth: warning: the exemplars have no main %s to draw the sketch "
                 "with: the output does not follow it\n",
-                res.sketch_info.mode == TS_SKETCH_VALLEYS ? "valleys" : "ridges");
+                res.sketch_info.mode == TS_SKETCH_BOTH      ? "ridges or valleys"
+                : res.sketch_info.mode == TS_SKETCH_VALLEYS ? "valleys"
+                                                            : "ridges");
     ts_ctx_set_progress(ctx, NULL, NULL);
     if (res.exemplar_no_crs && co.progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",

@@ -1230,7 +1230,9 @@ static int job_debug_features(ts_ctx *ctx, const char *dir, const tsjob_synth_re
     if (tsio_path(a, sizeof a, dir, "sketch_features", "gpkg", err) != 0 ||
         tsio_path(b, sizeof b, dir, "output_features", "gpkg", err) != 0)
         return -1;
-    pp.features = res->sketch_info.mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS : TS_PPA_RIDGES;
+    pp.features = res->sketch_info.mode == TS_SKETCH_BOTH      ? TS_PPA_BOTH
+                  : res->sketch_info.mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS
+                                                               : TS_PPA_RIDGES;
     if (res->sketch_features &&
         tsio_write_features(a, &res->geo, res->sketch_features, NULL, err) != 0)
         goto out;

@@ -600,10 +600,11 @@ TS_API ts_status ts_synth_tiles(ts_ctx *ctx, const ts_raster *exemplars, int n_e
 /* ------------------------------------------------------------------ */
 
 /** Values of ts_sketch_params.mode. */
-enum { TS_SKETCH_RIDGES = 0, TS_SKETCH_VALLEYS = 1, TS_SKETCH_AUTO = 2 };
+enum { TS_SKETCH_RIDGES = 0, TS_SKETCH_VALLEYS = 1, TS_SKETCH_AUTO = 2, TS_SKETCH_BOTH = 3 };
 
 typedef struct ts_sketch_params {
-    int mode;        /* ridges (bright strokes), valleys (dark strokes), auto */
+    int mode;        /* ridges (bright strokes), valleys (dark strokes), both (brighter and
+                        darker than a grey ground), auto */
     double alpha_d;  /* weight of the warp's deformation cost c_d */
     double alpha_f;  /* weight of the feature profile dissimilarity c_f */
     double alpha_s;  /* weight of the path smoothness constraint c_s */
@@ -617,7 +618,7 @@ TS_API ts_sketch_params ts_sketch_params_default(void);
 
 /** What a sketch-guided synthesis did (all filled in by the call). */
 typedef struct ts_sketch_info {
-    int mode;                /* TS_SKETCH_RIDGES or TS_SKETCH_VALLEYS, as used */
+    int mode;                /* TS_SKETCH_RIDGES, _VALLEYS or _BOTH, as used */
     size_t n_sites;          /* feature patch sites in the sketch */
     size_t n_feature_patches;/* of which placed */
     size_t n_exemplar_sites; /* candidate feature patches found in the exemplars */
@@ -647,6 +648,46 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
                                  const ts_synth_constraints *constraints, ts_raster *out,
                                  ts_synth_maps *maps, ts_features **sketch_features,
                                  ts_sketch_info *info);
+
+/** A line of a sketch drawn as lines (ts_features_from_lines): its points
+ *  in cell coordinates of the output grid (cell (i, j) spans [i, i + 1) x
+ *  [j, j + 1); points may lie off the grid), its kind, and the heights at
+ *  its points (NaN or z == NULL: none).  All borrowed. */
+typedef struct ts_sketch_line {
+    int kind; /* TS_RIDGE or TS_VALLEY */
+    size_t n;
+    const double *x, *y, *z;
+} ts_sketch_line;
+
+/**
+ * The feature graph of a sketch drawn as lines on a width x height grid:
+ * the cells each line passes through (8-connected), nodes where lines of a
+ * kind meet, cross or end, paths between them; a line end within `snap`
+ * cells of another line of its kind (or of another end) is moved onto it.
+ * Lines leave the grid at its edge; a ring is opened at its first cell.
+ * Vertices take the heights interpolated along their line (z NaN where
+ * none is given).  *out: caller frees with ts_features_free.  TS_ERR_ARG
+ * for a bad kind, grid or snap.
+ */
+TS_API ts_status ts_features_from_lines(ts_ctx *ctx, int width, int height,
+                                        const ts_sketch_line *lines, size_t n_lines, double snap,
+                                        ts_features **out);
+
+/**
+ * ts_synth_sketch on a feature graph the caller made (a sketch drawn as
+ * lines: ts_features_from_lines), instead of PPA on a painted sketch: the
+ * output has the graph's size; `features` is borrowed; the kinds drawn are
+ * those on the graph (sp->mode ridges or valleys keeps that kind alone,
+ * auto and both keep what is there).  Nodata: the cells flagged
+ * TS_CELL_NODATA in `constraints`.  TS_ERR_ARG when no feature of the
+ * kinds is on the grid.
+ */
+TS_API ts_status ts_synth_sketch_features(ts_ctx *ctx, const ts_features *features,
+                                          const ts_raster *exemplars, int n_exemplars,
+                                          const ts_sketch_params *sp,
+                                          const ts_synth_params *params,
+                                          const ts_synth_constraints *constraints, ts_raster *out,
+                                          ts_synth_maps *maps, ts_sketch_info *info);
 
 /* ------------------------------------------------------------------ */
 /* Per-pixel operations (the kernels behind the VRT pixel functions)  */

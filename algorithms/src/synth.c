@@ -94,41 +94,45 @@ TS_API ts_status ts_synth_patches(ts_ctx *ctx, const ts_raster *exemplars, int n
 typedef struct sketch_run {
     unsigned char *flags;      /* the fill's and the placement's cell flags */
     unsigned char *user_flags; /* what the caller fixed (pins, water), before any feature */
-    ts_features *sf;           /* the sketch's PPA graph */
+    const ts_features *sf;     /* the sketch's feature graph */
+    ts_features *own_sf;       /* ... when made here (PPA on a painted sketch) */
+    int kind;                  /* the kinds it draws: bits TS_RIDGE, TS_VALLEY */
     ts_feature_site *sites;
     size_t n_sites;
     ts__ex_site *es; /* the exemplars' sites */
     size_t n_es;
-    ts_relief_profile *profs;    /* per exemplar */
-    unsigned char **ex_features; /* per exemplar: its main features of the kind (or NULL) */
+    ts_relief_profile *profs[2]; /* per exemplar: [0] ridges, [1] valleys */
+    unsigned char **ex_features; /* per exemplar: its main features of the kinds (or NULL) */
     float *guide;
     int n_ex;
 } sketch_run;
 
 static void sketch_run_free(sketch_run *r)
 {
-    int e;
+    int e, k;
     free(r->flags);
     free(r->user_flags);
     free(r->sites);
     free(r->es);
     free(r->guide);
-    if (r->profs)
-        for (e = 0; e < r->n_ex; e++)
-            ts__relief_profile_free(&r->profs[e]);
-    free(r->profs);
+    for (k = 0; k < 2; k++) {
+        if (r->profs[k])
+            for (e = 0; e < r->n_ex; e++)
+                ts__relief_profile_free(&r->profs[k][e]);
+        free(r->profs[k]);
+    }
     if (r->ex_features)
         for (e = 0; e < r->n_ex; e++)
             free(r->ex_features[e]);
     free(r->ex_features);
+    ts_features_free(r->own_sf);
 }
 
-/* Step 2 for exemplar e: its main features of the kind (profiles a third
+/* Step 2 for exemplar e: its main features of the kinds (profiles a third
  * of a patch long, a dip of 2 % of the relief, branches of a patch length:
  * a sketch's stroke stands for a major ridge or valley, not any crease). */
 static ts_status sketch_exemplar(ts_ctx *ctx, sketch_run *r, const ts_raster *ex, int e,
-                                 const ts_ppa_params *pp, const ts_sketch_params *sp, int kind,
-                                 int P)
+                                 const ts_ppa_params *pp, const ts_sketch_params *sp, int P)
 {
     ts_ppa_params epp = *pp;
     ts_features *ef = NULL;
@@ -136,6 +140,10 @@ static ts_status sketch_exemplar(ts_ctx *ctx, sketch_run *r, const ts_raster *ex
     size_t n_es = 0, j, ne, c;
     ts__ex_site *grown;
     ts_status st;
+    int k;
+    epp.features = r->kind == (TS_RIDGE | TS_VALLEY) ? TS_PPA_BOTH
+                   : r->kind == TS_VALLEY            ? TS_PPA_VALLEYS
+                                                     : TS_PPA_RIDGES;
     epp.profile_length = TS_MAX(11, (P / 3) | 1);
     epp.threshold_fraction = 0.02;
     epp.min_branch_length.value = P;
@@ -146,16 +154,18 @@ static ts_status sketch_exemplar(ts_ctx *ctx, sketch_run *r, const ts_raster *ex
         ts__clear(ctx);
         return TS_OK; /* no features in this exemplar: it still serves the fill */
     }
-    st = ts__feature_sites(ctx, ef, kind, 0.5 * P - 1.0, 6.0, 0, &es, &n_es);
-    if (st == TS_OK && (sp->alpha_r > 0 || sp->layout > 0))
-        st = ts__relief_profile_measure(ctx, ex, ef->mask, kind, P, &r->profs[e]);
+    st = ts__feature_sites(ctx, ef, r->kind, 0.5 * P - 1.0, 6.0, 0, &es, &n_es);
+    for (k = 0; k < 2 && st == TS_OK; k++)
+        if ((r->kind & (k ? TS_VALLEY : TS_RIDGE)) && (sp->alpha_r > 0 || sp->layout > 0))
+            st = ts__relief_profile_measure(ctx, ex, ef->mask, k ? TS_VALLEY : TS_RIDGE, P,
+                                            &r->profs[k][e]);
     if (st == TS_OK) {
         /* the fill keeps away from these (section 4.2) */
         ne = (size_t)ef->width * (size_t)ef->height;
         if (!(r->ex_features[e] = ts__malloc_array(ne, 1)))
             st = ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
         for (c = 0; st == TS_OK && c < ne; c++)
-            r->ex_features[e][c] = (ef->mask[c] & kind) != 0;
+            r->ex_features[e][c] = (ef->mask[c] & r->kind) != 0;
     }
     ts_features_free(ef);
     if (st != TS_OK) {
@@ -179,8 +189,7 @@ static ts_status sketch_exemplar(ts_ctx *ctx, sketch_run *r, const ts_raster *ex
 
 /* Step 5's flags: windows within a patch of the sketch's features may take
  * any exemplar window; farther away only featureless ones. */
-static ts_status sketch_feature_zone(ts_ctx *ctx, const sketch_run *r, int kind, int W, int H,
-                                     int P)
+static ts_status sketch_feature_zone(ts_ctx *ctx, const sketch_run *r, int W, int H, int P)
 {
     size_t n = (size_t)W * (size_t)H, i;
     float *d = ts__malloc_array(n, sizeof(float));
@@ -192,7 +201,7 @@ static ts_status sketch_feature_zone(ts_ctx *ctx, const sketch_run *r, int kind,
         return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     }
     for (i = 0; i < n; i++)
-        m[i] = (r->sf->mask[i] & kind) != 0;
+        m[i] = (r->sf->mask[i] & r->kind) != 0;
     st = ts__distance_transform(ctx, m, W, H, d);
     for (i = 0; st == TS_OK && i < n; i++)
         if (d[i] <= P)
@@ -202,179 +211,142 @@ static ts_status sketch_feature_zone(ts_ctx *ctx, const sketch_run *r, int kind,
     return st;
 }
 
-TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_raster *exemplars,
-                                 int n_exemplars, const ts_sketch_params *sp,
-                                 const ts_synth_params *params,
-                                 const ts_synth_constraints *constraints, ts_raster *out,
-                                 ts_synth_maps *maps, ts_features **sketch_features,
-                                 ts_sketch_info *info)
+/* The checks and the cell flags every sketch synthesis starts from: the
+ * sketch's nodata (NaN in `sketch`, which may be NULL, or flagged) stays
+ * nodata; the caller's fixed cells (pins, water: flagged, or filled on
+ * entry) are kept; the rest is made. */
+static ts_status sketch_begin(ts_ctx *ctx, sketch_run *r, const ts_raster *sketch, int W, int H,
+                              const ts_raster *exemplars, int n_exemplars,
+                              const ts_sketch_params *sp, const ts_synth_params *params,
+                              const ts_synth_constraints *constraints, ts_raster *out, int *P)
 {
-    sketch_run r;
-    ts__fill fill;
-    ts_ppa_params pp = ts_ppa_params_default();
-    ts_progress_saved sv;
-    ts_status st = TS_OK;
-    size_t i, n_cells, n_placed = 0;
-    int e, P = 0, ov = 0, kind, mode;
-    double t0 = ts__now(), times[5] = {0, 0, 0, 0, 0};
-    ts__clear(ctx);
+    size_t i, n_cells;
+    int ov = 0, k;
     if (params && params->tiled > 0)
         return ts__fail(ctx, TS_ERR_ARG, "synth",
                         "tiles (tiled %d) are for free synthesis: not with a sketch yet",
                         params->tiled);
-    memset(&r, 0, sizeof r);
-    if (sketch_features)
-        *sketch_features = NULL;
-    if (!sketch || !sketch->data || !out || !out->data || !sp || !params || !exemplars ||
-        n_exemplars < 1)
+    if (!out || !out->data || !sp || !params || !exemplars || n_exemplars < 1)
         return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
-    if (out->width != sketch->width || out->height != sketch->height)
+    if (out->width != W || out->height != H)
         return ts__fail(ctx, TS_ERR_ARG, "sketch", "the output must have the sketch's size");
     if (ts_params_validate(ctx, "sketch", sp) != TS_OK ||
         ts_params_validate(ctx, "synth", params) != TS_OK ||
-        ts__synth_cells(ctx, params, &P, &ov) != TS_OK ||
+        ts__synth_cells(ctx, params, P, &ov) != TS_OK ||
         synth_check_constraints(ctx, constraints) != TS_OK)
         return ctx->status;
-    if (out->width < P || out->height < P)
+    if (W < *P || H < *P)
         return ts__fail(ctx, TS_ERR_SIZE, "sketch", "the sketch (%d x %d) is smaller than a patch",
-                        out->width, out->height);
-    fill = ts__fill_make(params, constraints);
-    if (fill.s.usage < 0) /* automatic: off with a sketch (feature recall, seams) */
-        fill.s.usage = 0.0;
-    n_cells = (size_t)out->width * (size_t)out->height;
-    r.n_ex = n_exemplars;
-    r.flags = ts__calloc_array(n_cells, 1);
-    r.user_flags = ts__malloc_array(n_cells, 1);
-    r.profs = ts__calloc_array((size_t)n_exemplars, sizeof *r.profs);
-    r.ex_features = ts__calloc_array((size_t)n_exemplars, sizeof *r.ex_features);
-    if (!r.flags || !r.user_flags || !r.profs || !r.ex_features) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
-        goto done;
-    }
-    /* the sketch's nodata stays nodata; the caller's fixed cells (pins,
-     * water: flagged, or filled on entry) are kept; the rest is made */
+                        W, H);
+    n_cells = (size_t)W * (size_t)H;
+    r->n_ex = n_exemplars;
+    r->flags = ts__calloc_array(n_cells, 1);
+    r->user_flags = ts__malloc_array(n_cells, 1);
+    for (k = 0; k < 2; k++)
+        r->profs[k] = ts__calloc_array((size_t)n_exemplars, sizeof *r->profs[k]);
+    r->ex_features = ts__calloc_array((size_t)n_exemplars, sizeof *r->ex_features);
+    if (!r->flags || !r->user_flags || !r->profs[0] || !r->profs[1] || !r->ex_features)
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     for (i = 0; i < n_cells; i++) {
-        size_t y = i / (size_t)sketch->width, x = i % (size_t)sketch->width;
+        size_t y = i / (size_t)W, x = i % (size_t)W;
         float *o = &out->data[y * (size_t)out->stride + x];
         unsigned char cf = constraints && constraints->cell_flags ? constraints->cell_flags[i] : 0;
-        if (isnan(sketch->data[y * (size_t)sketch->stride + x]) || (cf & TS_CELL_NODATA)) {
-            r.flags[i] = TS_CELL_NODATA;
+        if ((sketch && isnan(sketch->data[y * (size_t)sketch->stride + x])) ||
+            (cf & TS_CELL_NODATA)) {
+            r->flags[i] = TS_CELL_NODATA;
             *o = NAN;
         } else if (!isnan(*o))
-            r.flags[i] = TS_CELL_FIXED;
+            r->flags[i] = TS_CELL_FIXED;
     }
-    /* the layout keeps away from these, not from the feature cores fixed below */
-    memcpy(r.user_flags, r.flags, n_cells);
+    /* the layout keeps away from these, not from the feature cores fixed later */
+    memcpy(r->user_flags, r->flags, n_cells);
+    return TS_OK;
+}
 
-    /* 1. the sketch's features and sites */
-    mode = sp->mode == TS_SKETCH_AUTO ? ts__sketch_auto_mode(ctx, sketch) : sp->mode;
-    kind = mode == TS_SKETCH_VALLEYS ? TS_VALLEY : TS_RIDGE;
-    pp.features = mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS : TS_PPA_RIDGES;
-    pp.min_drainage = 0; /* a drawing's valleys and an exemplar's main ones: by profile */
-    pp.min_branch_length.value = TS_MIN(40.0, 0.5 * P);
-    if (info) {
-        memset(info, 0, sizeof *info);
-        info->mode = mode;
-    }
-    sv = ts__progress_push(ctx, 0.0, 0.05);
-    st = ts_ppa_extract(ctx, sketch, NULL, &pp, &r.sf);
-    ts__progress_pop(ctx, sv);
-    times[0] = ts__now() - t0;
-    t0 = ts__now();
-    if (st != TS_OK) {
-        ts__fail(ctx, st, "sketch", "PPA on the sketch: %s", ctx->message);
-        goto done;
-    }
-    st = ts__feature_sites(ctx, r.sf, kind, 0.5 * P - 1.0, 0.5 * P,
-                           params->order != TS_ORDER_RASTER, &r.sites, &r.n_sites);
-    if (st != TS_OK)
-        goto done;
-
+/* Steps 2-4: the exemplars' main features, the relief the sketch implies,
+ * the feature patches.  times[1], times[2]: their seconds. */
+static ts_status sketch_features_placed(ts_ctx *ctx, sketch_run *r, ts__fill *fill,
+                                        const ts_raster *exemplars, int n_exemplars,
+                                        const ts_sketch_params *sp, const ts_ppa_params *pp,
+                                        const ts_synth_params *params, ts_raster *out,
+                                        ts_synth_maps *maps, int P, size_t *n_placed,
+                                        double *times)
+{
+    ts_progress_saved sv;
+    ts_status st;
+    double t0 = ts__now();
+    int e;
+    st = ts__feature_sites(ctx, r->sf, r->kind, 0.5 * P - 1.0, 0.5 * P,
+                           params->order != TS_ORDER_RASTER, &r->sites, &r->n_sites);
     /* 2. the exemplars' main features */
-    for (e = 0; e < n_exemplars; e++) {
+    for (e = 0; st == TS_OK && e < n_exemplars; e++) {
         sv = ts__progress_push(ctx, 0.05 + 0.15 * e / n_exemplars,
                                0.05 + 0.15 * (e + 1) / n_exemplars);
-        st = sketch_exemplar(ctx, &r, &exemplars[e], e, &pp, sp, kind, P);
+        st = sketch_exemplar(ctx, r, &exemplars[e], e, pp, sp, P);
         ts__progress_pop(ctx, sv);
-        if (st != TS_OK)
-            goto done;
     }
     times[1] = ts__now() - t0;
     t0 = ts__now();
-
     /* 3. the relief the sketch implies, learnt from the exemplars */
-    if (sp->alpha_r > 0) {
-        if (!(r.guide = ts__malloc_array(n_cells, sizeof(float)))) {
-            st = ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
-            goto done;
-        }
-        st = ts__relief_guide(ctx, r.sf->mask, kind, out->width, out->height, r.profs, n_exemplars,
-                              fill.cell_exemplar, NULL, r.guide);
-        if (st != TS_OK)
-            goto done;
-        fill.guide = r.guide;
-        fill.alpha_r = sp->alpha_r;
+    if (st == TS_OK && sp->alpha_r > 0) {
+        size_t n_cells = (size_t)out->width * (size_t)out->height;
+        if (!(r->guide = ts__malloc_array(n_cells, sizeof(float))))
+            return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+        st = r->kind == (TS_RIDGE | TS_VALLEY)
+                 ? ts__relief_guide_both(ctx, r->sf->mask, out->width, out->height, r->profs[0],
+                                         r->profs[1], n_exemplars, fill->cell_exemplar, NULL,
+                                         r->guide)
+                 : ts__relief_guide(ctx, r->sf->mask, r->kind, out->width, out->height,
+                                    r->profs[r->kind == TS_VALLEY], n_exemplars,
+                                    fill->cell_exemplar, NULL, r->guide);
+        fill->guide = r->guide;
+        fill->alpha_r = sp->alpha_r;
     }
-
     /* 4. feature patches */
-    {
+    if (st == TS_OK) {
         ts__feature_job j;
         j.sp = sp;
-        j.fill = &fill;
+        j.fill = fill;
         j.exemplars = exemplars;
         j.n_exemplars = n_exemplars;
-        j.sketch_features = r.sf;
-        j.kind = kind;
-        j.exemplar_sites = r.es;
-        j.n_exemplar_sites = r.n_es;
-        j.sites = r.sites;
-        j.n_sites = r.n_sites;
+        j.sketch_features = r->sf;
+        j.kind = r->kind;
+        j.exemplar_sites = r->es;
+        j.n_exemplar_sites = r->n_es;
+        j.sites = r->sites;
+        j.n_sites = r->n_sites;
         sv = ts__progress_push(ctx, 0.2, 0.6);
-        st = ts__place_features(ctx, &j, out, r.flags, maps, &n_placed);
+        st = ts__place_features(ctx, &j, out, r->flags, maps, n_placed);
         ts__progress_pop(ctx, sv);
-        times[2] = ts__now() - t0;
-        t0 = ts__now();
-        if (st != TS_OK)
-            goto done;
-        if (info) {
-            info->n_sites = r.n_sites;
-            info->n_feature_patches = n_placed;
-            info->n_exemplar_sites = r.n_es;
-        }
     }
+    times[2] = ts__now() - t0;
+    return st;
+}
 
-    /* 5. the non-feature fill around the fixed features (the order
-     * parameter reorders the feature sites only: the fill always grows out
-     * from them) */
-    if ((st = sketch_feature_zone(ctx, &r, kind, out->width, out->height, P)) != TS_OK)
-        goto done;
-    fill.s.order = TS_ORDER_GROW;
-    fill.cell_flags = r.flags;
-    fill.exemplar_features = (const unsigned char *const *)r.ex_features;
-    sv = ts__progress_push(ctx, 0.6, 0.95);
-    st = ts__fill_run(ctx, exemplars, n_exemplars, &fill, out, maps);
-    ts__progress_pop(ctx, sv);
-    times[3] = ts__now() - t0;
-    t0 = ts__now();
-    if (st != TS_OK)
-        goto done;
-
+/* Steps 6-9, after the fill: the layout, the slope style, the wanted
+ * heights, the water banks. */
+static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill *fill,
+                               const ts_raster *exemplars, int n_exemplars,
+                               const ts_sketch_params *sp,
+                               const ts_synth_constraints *constraints, ts_raster *out, int P)
+{
+    ts_status st = TS_OK;
     /* 6. the relief the sketch lays out */
     if (sp->layout > 0) {
         ts_layout_spec ls;
         memset(&ls, 0, sizeof ls);
-        ls.sketch_mask = r.sf->mask;
-        ls.kind = kind;
+        ls.sketch_mask = r->sf->mask;
+        ls.kind = r->kind;
         ls.width = out->width;
         ls.height = out->height;
         ls.exemplars = exemplars;
         ls.n_exemplars = n_exemplars;
-        ls.profs = r.profs;
-        ls.cell_exemplar = fill.cell_exemplar;
+        ls.profs = r->profs[r->kind == TS_VALLEY];
+        ls.cell_exemplar = fill->cell_exemplar;
         ls.patch = P;
-        ls.features = r.sf;
+        ls.features = r->sf;
         ls.steep_lo = sp->slope_style > 0 ? 1.0 : 0.35;
-        st = ts__layout_apply(ctx, &ls, out, r.user_flags, sp->layout);
+        st = ts__layout_apply(ctx, &ls, out, r->user_flags, sp->layout);
         if (st == TS_OK)
             st = ts__progress(ctx, sp->slope_style > 0 ? 0.97 : 1.0, "layout");
     }
@@ -385,42 +357,202 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         memset(&ss, 0, sizeof ss);
         ss.exemplars = exemplars;
         ss.n_exemplars = n_exemplars;
-        ss.cell_exemplar = fill.cell_exemplar;
-        ss.flags = r.user_flags;
+        ss.cell_exemplar = fill->cell_exemplar;
+        ss.flags = r->user_flags;
         ss.strength = sp->slope_style;
-        ss.features = r.sf->mask;
-        ss.kind = kind;
+        ss.features = r->sf->mask;
+        ss.kind = r->kind;
         ss.keep_radius = P / 2.0;
         sv2 = ts__progress_push(ctx, 0.97, 1.0);
         st = ts__slope_style(ctx, &ss, out);
         /* steeper slopes over a grid larger than the exemplar can carry the
          * land past the exemplars' heights: pressed back as the layout does */
         if (st == TS_OK)
-            st = ts__layout_press_range(ctx, exemplars, n_exemplars, out, r.user_flags, P);
+            st = ts__layout_press_range(ctx, exemplars, n_exemplars, out, r->user_flags, P);
         ts__progress_pop(ctx, sv2);
     }
     /* 8. the user's wanted heights, which the layout and the slope style do
      * not know, kept at large scale (ours, layout.c) */
     if (st == TS_OK && constraints && (sp->layout > 0 || sp->slope_style > 0))
         st = ts__layout_keep_heights(ctx, out, constraints->heights, constraints->alpha_h,
-                                     r.user_flags, P);
+                                     r->user_flags, P);
     /* 9. the land beside water at or above it (ours, water_banks.c) */
     if (st == TS_OK && constraints)
         st = ts__water_banks(ctx, out, constraints->cell_flags, P);
-    times[4] = ts__now() - t0;
+    return st;
+}
+
+/* Steps 2-9 on the sketch's feature graph r->sf. */
+static ts_status sketch_stages(ts_ctx *ctx, sketch_run *r, const ts_raster *exemplars,
+                               int n_exemplars, const ts_sketch_params *sp,
+                               const ts_ppa_params *pp, const ts_synth_params *params,
+                               const ts_synth_constraints *constraints, ts_raster *out,
+                               ts_synth_maps *maps, int P, ts_sketch_info *info, double *times)
+{
+    ts__fill fill = ts__fill_make(params, constraints);
+    ts_progress_saved sv;
+    size_t n_placed = 0;
+    double t0;
+    ts_status st;
+    if (fill.s.usage < 0) /* automatic: off with a sketch (feature recall, seams) */
+        fill.s.usage = 0.0;
+    st = sketch_features_placed(ctx, r, &fill, exemplars, n_exemplars, sp, pp, params, out, maps,
+                                P, &n_placed, times);
     if (info) {
-        info->seconds_sketch_ppa = times[0];
-        info->seconds_exemplar_ppa = times[1];
-        info->seconds_features = times[2];
-        info->seconds_fill = times[3];
-        info->seconds_layout = times[4];
+        info->n_sites = r->n_sites;
+        info->n_feature_patches = n_placed;
+        info->n_exemplar_sites = r->n_es;
     }
+    if (st != TS_OK)
+        return st;
+    /* 5. the non-feature fill around the fixed features (the order
+     * parameter reorders the feature sites only: the fill always grows out
+     * from them) */
+    t0 = ts__now();
+    if ((st = sketch_feature_zone(ctx, r, out->width, out->height, P)) != TS_OK)
+        return st;
+    fill.s.order = TS_ORDER_GROW;
+    fill.cell_flags = r->flags;
+    fill.exemplar_features = (const unsigned char *const *)r->ex_features;
+    sv = ts__progress_push(ctx, 0.6, 0.95);
+    st = ts__fill_run(ctx, exemplars, n_exemplars, &fill, out, maps);
+    ts__progress_pop(ctx, sv);
+    times[3] = ts__now() - t0;
+    t0 = ts__now();
+    if (st == TS_OK)
+        st = sketch_finish(ctx, r, &fill, exemplars, n_exemplars, sp, constraints, out, P);
+    times[4] = ts__now() - t0;
+    return st;
+}
+
+static void sketch_info_times(ts_sketch_info *info, const double *times)
+{
+    if (!info)
+        return;
+    info->seconds_sketch_ppa = times[0];
+    info->seconds_exemplar_ppa = times[1];
+    info->seconds_features = times[2];
+    info->seconds_fill = times[3];
+    info->seconds_layout = times[4];
+}
+
+/* PPA parameters for the sketch and, changed per exemplar, for them. */
+static ts_ppa_params sketch_ppa_params(int P)
+{
+    ts_ppa_params pp = ts_ppa_params_default();
+    pp.min_drainage = 0; /* a drawing's valleys and an exemplar's main ones: by profile */
+    pp.min_branch_length.value = TS_MIN(40.0, 0.5 * P);
+    return pp;
+}
+
+static int sketch_mode_of(int kind)
+{
+    return kind == (TS_RIDGE | TS_VALLEY) ? TS_SKETCH_BOTH
+           : kind == TS_VALLEY            ? TS_SKETCH_VALLEYS
+                                          : TS_SKETCH_RIDGES;
+}
+
+TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_raster *exemplars,
+                                 int n_exemplars, const ts_sketch_params *sp,
+                                 const ts_synth_params *params,
+                                 const ts_synth_constraints *constraints, ts_raster *out,
+                                 ts_synth_maps *maps, ts_features **sketch_features,
+                                 ts_sketch_info *info)
+{
+    sketch_run r;
+    ts_ppa_params pp;
+    ts_progress_saved sv;
+    ts_status st;
+    int P = 0, mode;
+    double t0 = ts__now(), times[5] = {0, 0, 0, 0, 0}, ground = NAN;
+    ts__clear(ctx);
+    memset(&r, 0, sizeof r);
+    if (sketch_features)
+        *sketch_features = NULL;
+    if (info)
+        memset(info, 0, sizeof *info);
+    if (!sketch || !sketch->data)
+        return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
+    st = sketch_begin(ctx, &r, sketch, sketch->width, sketch->height, exemplars, n_exemplars, sp,
+                      params, constraints, out, &P);
+    if (st != TS_OK)
+        goto done;
+    /* 1. the sketch's features and sites */
+    pp = sketch_ppa_params(P);
+    mode = sp->mode;
+    {
+        int auto_mode = ts__sketch_auto_mode(ctx, sketch, &ground);
+        if (mode == TS_SKETCH_AUTO)
+            mode = auto_mode;
+    }
+    r.kind = mode == TS_SKETCH_BOTH      ? TS_RIDGE | TS_VALLEY
+             : mode == TS_SKETCH_VALLEYS ? TS_VALLEY
+                                         : TS_RIDGE;
+    if (info)
+        info->mode = mode;
+    sv = ts__progress_push(ctx, 0.0, 0.05);
+    st = ts__sketch_graph(ctx, sketch, mode, ground, &pp, &r.own_sf);
+    ts__progress_pop(ctx, sv);
+    times[0] = ts__now() - t0;
+    if (st != TS_OK) {
+        ts__fail(ctx, st, "sketch", "PPA on the sketch: %s", ctx->message);
+        goto done;
+    }
+    r.sf = r.own_sf;
+    st = sketch_stages(ctx, &r, exemplars, n_exemplars, sp, &pp, params, constraints, out, maps, P,
+                       info, times);
+    sketch_info_times(info, times);
 done:
-    if (st == TS_OK && sketch_features)
-        *sketch_features = r.sf;
-    else
-        ts_features_free(r.sf);
+    if (st == TS_OK && sketch_features) {
+        *sketch_features = r.own_sf;
+        r.own_sf = NULL;
+    }
     sketch_run_free(&r);
-    (void)ov;
+    return st;
+}
+
+TS_API ts_status ts_synth_sketch_features(ts_ctx *ctx, const ts_features *features,
+                                          const ts_raster *exemplars, int n_exemplars,
+                                          const ts_sketch_params *sp,
+                                          const ts_synth_params *params,
+                                          const ts_synth_constraints *constraints, ts_raster *out,
+                                          ts_synth_maps *maps, ts_sketch_info *info)
+{
+    sketch_run r;
+    ts_ppa_params pp;
+    ts_status st;
+    int P = 0;
+    size_t i, n;
+    double times[5] = {0, 0, 0, 0, 0};
+    ts__clear(ctx);
+    memset(&r, 0, sizeof r);
+    if (info)
+        memset(info, 0, sizeof *info);
+    if (!features || !features->mask)
+        return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing feature graph");
+    st = sketch_begin(ctx, &r, NULL, features->width, features->height, exemplars, n_exemplars,
+                      sp, params, constraints, out, &P);
+    if (st == TS_OK) {
+        n = (size_t)features->width * (size_t)features->height;
+        for (i = 0; i < n; i++)
+            r.kind |= features->mask[i] & (TS_RIDGE | TS_VALLEY);
+        if (sp->mode == TS_SKETCH_RIDGES || sp->mode == TS_SKETCH_VALLEYS)
+            r.kind &= sp->mode == TS_SKETCH_VALLEYS ? TS_VALLEY : TS_RIDGE;
+        if (!r.kind)
+            st = ts__fail(ctx, TS_ERR_ARG, "sketch", "the sketch holds no %s on the grid",
+                          sp->mode == TS_SKETCH_RIDGES    ? "ridge"
+                          : sp->mode == TS_SKETCH_VALLEYS ? "valley"
+                                                          : "ridge or valley");
+    }
+    if (st == TS_OK) {
+        if (info)
+            info->mode = sketch_mode_of(r.kind);
+        pp = sketch_ppa_params(P);
+        r.sf = features;
+        st = sketch_stages(ctx, &r, exemplars, n_exemplars, sp, &pp, params, constraints, out,
+                           maps, P, info, times);
+        sketch_info_times(info, times);
+    }
+    sketch_run_free(&r);
     return st;
 }

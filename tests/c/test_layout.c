@@ -199,7 +199,7 @@ static void test_descend(void)
         y_network(g, W, H, level, &s);
         sp.features = &g->f;
         memcpy(orig, level, (size_t)W * H * sizeof(float));
-        CHECK(layout_descend(ctx, &sp, level) == TS_OK);
+        CHECK(ts__valley_descend(ctx, &sp, level) == TS_OK);
         /* downstream (towards x = 0 on the trunk, towards row 20 on the
          * tributary, then the trunk) never climbs */
         for (x = 1; x <= 60; x++)
@@ -223,13 +223,13 @@ static void test_descend(void)
     for (y = 2; y < 20; y++)
         level[y * W + 40] = (float)(140 + 20 - y);
     memcpy(orig, level, (size_t)W * H * sizeof(float));
-    CHECK(layout_descend(ctx, &sp, level) == TS_OK);
+    CHECK(ts__valley_descend(ctx, &sp, level) == TS_OK);
     for (x = 0; x < W * H; x++)
         if (!isnan(orig[x]))
             CHECK(level[x] == orig[x]);
     /* no graph: nothing changes */
     sp.features = NULL;
-    CHECK(layout_descend(ctx, &sp, level) == TS_OK);
+    CHECK(ts__valley_descend(ctx, &sp, level) == TS_OK);
     free(g);
     free(level);
     free(orig);

@@ -85,8 +85,10 @@ static const ts_param_desc synth_desc[] = {
 };
 
 static const ts_param_desc sketch_desc[] = {
-    {"mode", TS_PARAM_ENUM, TS_SKETCH_AUTO, 0, 2, TS_UNIT_CELLS, "", "ridges|valleys|auto",
-     "What the sketch draws: ridges (bright strokes), valleys (dark strokes), or auto.",
+    {"mode", TS_PARAM_ENUM, TS_SKETCH_AUTO, 0, 3, TS_UNIT_CELLS, "", "ridges|valleys|auto|both",
+     "What the sketch draws: ridges (bright strokes), valleys (dark strokes), both (on a grey "
+     "ground, strokes brighter are ridges and darker are valleys), or auto (both on a ground "
+     "in the middle of the range with strokes either way, else the minority's kind).",
      offsetof(ts_sketch_params, mode)},
     {"alpha_d", TS_PARAM_DOUBLE, 1000.0, 0.0, 1e9, TS_UNIT_CELLS, "", NULL,
      "Weight of the warp deformation cost c_d of feature patches.",

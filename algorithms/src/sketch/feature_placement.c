@@ -446,7 +446,7 @@ static void sk_scan_chunks(void *arg, size_t b, size_t e)
         for (i = lo; i < hi; i++) {
             const ts_feature_site *es = &k->es[i].site;
             int rot, mirror, rots, mirrors;
-            if (es->type != s->type || es->n_ctrl != s->n_ctrl ||
+            if (es->type != s->type || es->kind != s->kind || es->n_ctrl != s->n_ctrl ||
                 (j->only >= 0 && k->es[i].ex != j->only))
                 continue;
             rots = s->type == TS_SITE_BRANCH ? s->degree : s->type == TS_SITE_PATH ? 2 : 1;
@@ -625,6 +625,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
     double best_cost = INFINITY;
     ts_status st;
     *placed = 0;
+    k->kind = s->kind; /* the feature the site stands on: its crest or thalweg */
     wx = TS_MAX(0, TS_MIN(W - P, wx));
     wy = TS_MAX(0, TS_MIN(H - P, wy));
     /* candidates by deformation */
@@ -754,27 +755,6 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
 }
 
 /* ---- the entry point ----------------------------------------------- */
-
-int ts__sketch_auto_mode(ts_ctx *ctx, const ts_raster *sketch)
-{
-    ts_raster_stats st;
-    size_t bright = 0, n = 0;
-    int x, y;
-    double mid;
-    if (ts_raster_stats_compute(ctx, sketch, &st) != TS_OK)
-        return TS_SKETCH_RIDGES;
-    mid = 0.5 * (st.min + st.max);
-    for (y = 0; y < sketch->height; y++)
-        for (x = 0; x < sketch->width; x++) {
-            float v = TS_PIX(sketch, x, y);
-            if (isnan(v))
-                continue;
-            n++;
-            bright += v > mid;
-        }
-    /* strokes are the minority: bright strokes draw ridges */
-    return 2 * bright <= n ? TS_SKETCH_RIDGES : TS_SKETCH_VALLEYS;
-}
 
 static void sk_free(sketcher *k)
 {

@@ -23,7 +23,7 @@ typedef struct ts__feature_job {
     const ts_raster *exemplars;
     int n_exemplars;
     const ts_features *sketch_features; /* the sketch's PPA graph */
-    int kind;                           /* TS_RIDGE or TS_VALLEY */
+    int kind;                           /* bits TS_RIDGE, TS_VALLEY: the kinds drawn */
     const ts__ex_site *exemplar_sites;
     size_t n_exemplar_sites;
     const ts_feature_site *sites; /* the sketch's, in placement order */
@@ -38,8 +38,19 @@ typedef struct ts__feature_job {
 ts_status ts__place_features(ts_ctx *ctx, const ts__feature_job *j, ts_raster *out,
                              unsigned char *flags, ts_synth_maps *maps, size_t *n_placed);
 
-/* TS_SKETCH_RIDGES when the strokes are bright (they are the minority of
- * the cells), TS_SKETCH_VALLEYS when dark. */
-int ts__sketch_auto_mode(ts_ctx *ctx, const ts_raster *sketch);
+/* What a painted sketch draws (sketch_features.c): TS_SKETCH_BOTH on a
+ * ground in the middle of its range with strokes both ways, else
+ * TS_SKETCH_RIDGES when the strokes are bright (the minority of the cells
+ * on a dark ground), TS_SKETCH_VALLEYS when dark; *ground: the median. */
+int ts__sketch_auto_mode(ts_ctx *ctx, const ts_raster *sketch, double *ground);
+/* The sketch's feature graph by PPA (pp: its parameters; features is set
+ * here): one kind, or both (ridges brighter than `ground`, valleys darker)
+ * in one forest.  *out: caller frees with ts_features_free. */
+ts_status ts__sketch_graph(ts_ctx *ctx, const ts_raster *sketch, int mode, double ground,
+                           const ts_ppa_params *pp, ts_features **out);
+/* One forest of two graphs of the same grid (a's nodes, paths and
+ * vertices first).  *out: caller frees with ts_features_free. */
+ts_status ts__features_merge(ts_ctx *ctx, const ts_features *a, const ts_features *b,
+                             ts_features **out);
 
 #endif

@@ -103,6 +103,7 @@ static ts_status tree_node_site(const ts_features *f, size_t node, double r, sit
     if (n == 2)
         s->type = TS_SITE_PATH; /* a degree-2 node: only happens on odd graphs */
     s->degree = n;
+    s->kind = nd->kind;
     s->cx = nd->x;
     s->cy = nd->y;
     s->node = (long)node;
@@ -144,6 +145,7 @@ static ts_status tree_path_sites(const ts_features *f, size_t path, double r, do
             return TS_ERR_NOMEM;
         s->type = TS_SITE_PATH;
         s->degree = 2;
+        s->kind = p->kind;
         s->cx = v->x;
         s->cy = v->y;
         s->node = -1;
@@ -190,7 +192,7 @@ ts_status ts__feature_sites(ts_ctx *ctx, const ts_features *f, int kind, double 
     for (;;) {
         long root = -1;
         for (i = 0; i < f->n_nodes; i++) {
-            if (node_done[i] || f->nodes[i].kind != kind)
+            if (node_done[i] || !(f->nodes[i].kind & kind))
                 continue;
             if (root < 0 || f->nodes[i].degree > f->nodes[root].degree)
                 root = (long)i;
@@ -206,7 +208,7 @@ ts_status ts__feature_sites(ts_ctx *ctx, const ts_features *f, int kind, double 
             for (k = 0; k < f->n_paths; k++) {
                 const ts_feature_path *p = &f->paths[k];
                 size_t other;
-                if (path_done[k] || p->kind != kind || (p->node_a != nd && p->node_b != nd))
+                if (path_done[k] || !(p->kind & kind) || (p->node_a != nd && p->node_b != nd))
                     continue;
                 path_done[k] = 1;
                 {

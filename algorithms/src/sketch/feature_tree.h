@@ -15,6 +15,7 @@ enum { TS_SITE_BRANCH = 0, TS_SITE_ENDPOINT = 1, TS_SITE_PATH = 2 };
 
 typedef struct ts_feature_site {
     int type;        /* TS_SITE_* */
+    int kind;        /* TS_RIDGE or TS_VALLEY: the feature it stands on */
     int degree;      /* arms: branch >= 3, endpoint 1, path 2 */
     double cx, cy;   /* centre, cell coordinates */
     long node, path; /* the node (branch/endpoint) or path it stands on, else -1 */
@@ -23,7 +24,8 @@ typedef struct ts_feature_site {
 } ts_feature_site;
 
 /*
- * The patch sites of the `kind` features of f (TS_RIDGE or TS_VALLEY):
+ * The patch sites of the `kind` features of f (bits TS_RIDGE and/or
+ * TS_VALLEY; each site takes the kind of its node or path):
  * control points where the paths cross a circle of `radius` cells; path
  * sites every `path_step` cells.  breadth_first: BFS over each tree from
  * its root (the highest-degree node); otherwise raster order.  *sites is

@@ -40,160 +40,11 @@
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "layout.h"
 #include "relief_guide.h"
-
-/* ---- NaN-aware blur ------------------------------------------------- */
-
-typedef struct blur_job {
-    int w, h, r;   /* box radius */
-    double *v, *m; /* value * weight and weight, w*h, blurred in place */
-    atomic_int failed;
-} blur_job;
-
-/* One box pass of radius r over n samples at stride s (in place). */
-static void box_line(double *a, size_t n, size_t s, int r, double *tmp)
-{
-    size_t i;
-    double acc = 0.0;
-    size_t R = (size_t)r;
-    for (i = 0; i < n; i++)
-        tmp[i] = a[i * s];
-    for (i = 0; i < R && i < n; i++)
-        acc += tmp[i];
-    for (i = 0; i < n; i++) {
-        if (i + R < n)
-            acc += tmp[i + R];
-        if (i > R)
-            acc -= tmp[i - R - 1];
-        a[i * s] = acc;
-    }
-}
-
-static void blur_rows(void *arg, size_t b, size_t e)
-{
-    blur_job *j = arg;
-    double *tmp = ts__malloc_array((size_t)j->w, sizeof *tmp);
-    size_t y;
-    int p;
-    if (!tmp) {
-        atomic_store(&j->failed, 1);
-        return;
-    }
-    for (y = b; y < e; y++)
-        for (p = 0; p < 3; p++) {
-            box_line(j->v + y * (size_t)j->w, (size_t)j->w, 1, j->r, tmp);
-            box_line(j->m + y * (size_t)j->w, (size_t)j->w, 1, j->r, tmp);
-        }
-    free(tmp);
-}
-
-#define BLUR_BLOCK 32 /* columns a vertical pass runs through together */
-
-/* The vertical passes, over blocks of adjacent columns so that every step
- * runs along memory: for each block a copy of its columns, then running
- * sums over the rows for all its columns at once. */
-static void blur_cols(void *arg, size_t b, size_t e)
-{
-    blur_job *j = arg;
-    size_t h = (size_t)j->h, w = (size_t)j->w, R = (size_t)j->r, x0;
-    double *tmp = ts__malloc_array(h * BLUR_BLOCK, sizeof *tmp);
-    double acc[BLUR_BLOCK];
-    if (!tmp) {
-        atomic_store(&j->failed, 1);
-        return;
-    }
-    for (x0 = b; x0 < e; x0 += BLUR_BLOCK) {
-        size_t bw = TS_MIN((size_t)BLUR_BLOCK, e - x0), y, c;
-        int arr, p;
-        for (arr = 0; arr < 2; arr++) {
-            double *a = arr ? j->m : j->v;
-            for (p = 0; p < 3; p++) {
-                for (y = 0; y < h; y++)
-                    memcpy(tmp + y * bw, a + y * w + x0, bw * sizeof *tmp);
-                for (c = 0; c < bw; c++)
-                    acc[c] = 0.0;
-                for (y = 0; y < R && y < h; y++)
-                    for (c = 0; c < bw; c++)
-                        acc[c] += tmp[y * bw + c];
-                for (y = 0; y < h; y++) {
-                    double *row = a + y * w + x0;
-                    if (y + R < h)
-                        for (c = 0; c < bw; c++)
-                            acc[c] += tmp[(y + R) * bw + c];
-                    if (y > R)
-                        for (c = 0; c < bw; c++)
-                            acc[c] -= tmp[(y - R - 1) * bw + c];
-                    memcpy(row, acc, bw * sizeof *acc);
-                }
-            }
-        }
-    }
-    free(tmp);
-}
-
-int ts__blur_radius(double sigma)
-{
-    /* three boxes of width n = 2r + 1 have variance 3 (n^2 - 1) / 12 */
-    double n = sqrt(4.0 * sigma * sigma + 1.0);
-    int r = (int)lround(0.5 * (n - 1.0));
-    return r < 0 ? 0 : r;
-}
-
-/* ts__blur_nan with caller buffers v and m (w * h doubles each). */
-static void blur_nan_ws(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h, double sigma,
-                        float *out, double *v, double *m, atomic_int *failed)
-{
-    blur_job j;
-    int x, y;
-    j.w = w;
-    j.h = h;
-    j.r = ts__blur_radius(sigma);
-    j.v = v;
-    j.m = m;
-    atomic_init(&j.failed, 0);
-    for (y = 0; y < h; y++) {
-        const float *row = in + (ptrdiff_t)y * stride;
-        double *vr = v + (size_t)y * (size_t)w, *mr = m + (size_t)y * (size_t)w;
-        for (x = 0; x < w; x++) {
-            int bad = isnan(row[x]);
-            vr[x] = bad ? 0.0 : row[x];
-            mr[x] = bad ? 0.0 : 1.0;
-        }
-    }
-    if (j.r > 0) {
-        ts__parallel_for(ctx, (size_t)h, blur_rows, &j);
-        if (!atomic_load(&j.failed))
-            ts__parallel_for(ctx, (size_t)w, blur_cols, &j);
-    }
-    {
-        size_t i, n = (size_t)w * (size_t)h;
-        for (i = 0; i < n; i++)
-            out[i] = m[i] > 1e-9 ? (float)(v[i] / m[i]) : NAN;
-    }
-    if (atomic_load(&j.failed))
-        atomic_store(failed, 1);
-}
-
-ts_status ts__blur_nan(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h, double sigma,
-                       float *out)
-{
-    size_t n = (size_t)w * (size_t)h;
-    double *v = ts__malloc_array(n, sizeof(double)), *m = ts__malloc_array(n, sizeof(double));
-    atomic_int failed;
-    atomic_init(&failed, 0);
-    if (v && m)
-        blur_nan_ws(ctx, in, stride, w, h, sigma, out, v, m, &failed);
-    free(v);
-    free(m);
-    if (!v || !m || atomic_load(&failed))
-        return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-    return TS_OK;
-}
 
 /* Blur buffers reused by the layout's many blurs of the output's size. */
 typedef struct layout_ws {
@@ -204,31 +55,9 @@ typedef struct layout_ws {
 static ts_status lblur(ts_ctx *ctx, const layout_ws *ws, const float *in, ptrdiff_t stride, int w,
                        int h, double sigma, float *out)
 {
-    atomic_int failed;
     if (!ws || (size_t)w * (size_t)h > ws->cap)
         return ts__blur_nan(ctx, in, stride, w, h, sigma, out);
-    atomic_init(&failed, 0);
-    blur_nan_ws(ctx, in, stride, w, h, sigma, out, ws->v, ws->m, &failed);
-    return atomic_load(&failed) ? ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory") : TS_OK;
-}
-
-double ts__mean_gradient(const float *a, int w, int h)
-{
-    double sum = 0.0;
-    size_t cnt = 0;
-    int x, y;
-    for (y = 1; y + 1 < h; y++)
-        for (x = 1; x + 1 < w; x++) {
-            const float *p = a + (size_t)y * (size_t)w + (size_t)x;
-            double gx = 0.5 * ((double)p[1] - (double)p[-1]);
-            double gy = 0.5 * ((double)p[w] - (double)p[-w]);
-            double g = sqrt(gx * gx + gy * gy);
-            if (isnan(g))
-                continue;
-            sum += g;
-            cnt++;
-        }
-    return cnt ? sum / (double)cnt : 0.0;
+    return ts__blur_nan_buffers(ctx, in, stride, w, h, sigma, out, ws->v, ws->m);
 }
 
 /* ---- the two corrections ------------------------------------------ */
@@ -239,11 +68,11 @@ static double layout_reach(double d, double c)
     return c * (1.0 - exp(-d / c));
 }
 
-/* Mean gradient of f_c(dist) blurred at sigma, over the cells within dmax
- * of the features (all when dmax is infinite). */
+/* Mean gradient of f_c(dist) (or of `shape`, when given) blurred at sigma,
+ * over the cells within dmax of the features (all when dmax is infinite). */
 static ts_status layout_reach_gradient(ts_ctx *ctx, const layout_ws *ws, const float *dist,
-                                       const unsigned char *nodata, int W, int H, double c,
-                                       double sigma, double dmax, double *g)
+                                       const float *shape, const unsigned char *nodata, int W,
+                                       int H, double c, double sigma, double dmax, double *g)
 {
     size_t n = (size_t)W * (size_t)H, i;
     float *t = ts__malloc_array(n, sizeof(float)), *b = ts__malloc_array(n, sizeof(float));
@@ -253,7 +82,9 @@ static ts_status layout_reach_gradient(ts_ctx *ctx, const layout_ws *ws, const f
         goto done;
     }
     for (i = 0; i < n; i++)
-        t[i] = (nodata && nodata[i]) || !isfinite(dist[i]) ? NAN : (float)layout_reach(dist[i], c);
+        t[i] = (nodata && nodata[i]) || !isfinite(dist[i]) ? NAN
+               : shape                                    ? shape[i]
+                                                          : (float)layout_reach(dist[i], c);
     if ((st = lblur(ctx, ws, t, W, W, H, sigma, b)) != TS_OK)
         goto done;
     for (i = 0; i < n; i++)
@@ -376,188 +207,50 @@ static ts_status layout_correct(ts_ctx *ctx, const layout_ws *ws, ts_raster *out
     return TS_OK;
 }
 
-/*
- * Valley floors that descend (no valley climbs over a saddle), on the
- * sketch's feature graph: in every connected network, the outlet is the
- * endpoint nearest the grid's edge (ties: the lowest; a network without
- * endpoints takes its node nearest the edge); breadth first from it over
- * the nodes, every path runs from the node reached first (downstream) to
- * the other.  `fill` walks each path upstream raising every vertex to the
- * level below it, `carve` walks it downstream lowering every vertex to the
- * level above it (a node takes the lowest of the paths that reach it from
- * upstream); both never rise downstream, and neither does their mean,
- * which replaces level[] on the paths' cells.  Other cells are left as
- * they are.  O(vertices).
- */
-ts_status layout_descend(ts_ctx *ctx, const ts_layout_spec *s, float *level)
-{
-    const ts_features *f = s->features;
-    int W = s->width, H = s->height;
-    size_t nn, np, i, k, head, tail;
-    size_t *order = NULL, *qpath = NULL;
-    long *down = NULL; /* per path: its downstream node, -1 unused */
-    double *nfill = NULL, *ncarve = NULL, *vfill = NULL, *vcarve = NULL;
-    unsigned char *seen = NULL;
-    ts_status st = TS_OK;
-    if (!f || !f->n_paths)
-        return TS_OK;
-    nn = f->n_nodes;
-    np = f->n_paths;
-    order = ts__malloc_array(nn + 1, sizeof *order);
-    qpath = ts__malloc_array(np + 1, sizeof *qpath);
-    down = ts__malloc_array(np + 1, sizeof *down);
-    nfill = ts__malloc_array(nn + 1, sizeof *nfill);
-    ncarve = ts__malloc_array(nn + 1, sizeof *ncarve);
-    vfill = ts__malloc_array(f->n_verts + 1, sizeof *vfill);
-    vcarve = ts__malloc_array(f->n_verts + 1, sizeof *vcarve);
-    seen = ts__calloc_array(nn + 1, 1);
-    if (!order || !qpath || !down || !nfill || !ncarve || !vfill || !vcarve || !seen) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-        goto done;
-    }
-#define LD_CELL(v) ((size_t)(v)->y * (size_t)W + (size_t)(v)->x)
-#define LD_USED(p) ((p)->kind == s->kind && (p)->count >= 2 && (p)->node_a < nn && (p)->node_b < nn)
-#define LD_BORDER(nd) TS_MIN(TS_MIN((nd)->x, W - 1 - (nd)->x), TS_MIN((nd)->y, H - 1 - (nd)->y))
-    for (k = 0; k < np; k++)
-        down[k] = -1;
-    for (i = 0; i < nn; i++) {
-        size_t first, best = nn, comp_end;
-        int bd = 0, best_end = 0;
-        if (seen[i])
-            continue;
-        /* the network of node i (nodes only through used paths) */
-        tail = 0;
-        order[tail++] = i;
-        seen[i] = 1;
-        for (head = 0; head < tail; head++)
-            for (k = 0; k < np; k++) {
-                const ts_feature_path *p = &f->paths[k];
-                size_t o;
-                if (!LD_USED(p) || (p->node_a != order[head] && p->node_b != order[head]))
-                    continue;
-                o = p->node_a == order[head] ? p->node_b : p->node_a;
-                if (!seen[o]) {
-                    seen[o] = 1;
-                    order[tail++] = o;
-                }
-            }
-        comp_end = tail;
-        for (head = 0; head < comp_end; head++) {
-            const ts_feature_node *nd = &f->nodes[order[head]];
-            int d = LD_BORDER(nd), end = nd->degree == 1;
-            float lv = level[(size_t)nd->y * (size_t)W + (size_t)nd->x];
-            if (best == nn || end > best_end ||
-                (end == best_end &&
-                 (d < bd ||
-                  (d == bd &&
-                   lv < level[(size_t)f->nodes[best].y * (size_t)W + (size_t)f->nodes[best].x])))) {
-                best = order[head];
-                bd = d;
-                best_end = end;
-            }
-        }
-        /* breadth first from the outlet: paths point downstream */
-        for (head = 0; head < comp_end; head++)
-            seen[order[head]] = 2;
-        first = 0;
-        tail = 0;
-        order[tail++] = best;
-        seen[best] = 3;
-        {
-            size_t n_q = 0;
-            for (head = first; head < tail; head++)
-                for (k = 0; k < np; k++) {
-                    const ts_feature_path *p = &f->paths[k];
-                    size_t o;
-                    if (!LD_USED(p) || down[k] >= 0 ||
-                        (p->node_a != order[head] && p->node_b != order[head]))
-                        continue;
-                    down[k] = (long)order[head];
-                    qpath[n_q++] = k;
-                    o = p->node_a == order[head] ? p->node_b : p->node_a;
-                    if (seen[o] != 3) {
-                        seen[o] = 3;
-                        order[tail++] = o;
-                    }
-                }
-            /* fill: paths in the order reached, each walked upstream */
-            for (head = 0; head < tail; head++) {
-                const ts_feature_node *nd = &f->nodes[order[head]];
-                nfill[order[head]] = -INFINITY;
-                ncarve[order[head]] = level[(size_t)nd->y * (size_t)W + (size_t)nd->x];
-            }
-            nfill[best] = level[(size_t)f->nodes[best].y * (size_t)W + (size_t)f->nodes[best].x];
-            for (k = 0; k < n_q; k++) {
-                const ts_feature_path *p = &f->paths[qpath[k]];
-                int from_b = (size_t)down[qpath[k]] == p->node_b;
-                size_t up = from_b ? p->node_a : p->node_b, j;
-                double prev = nfill[down[qpath[k]]];
-                for (j = 0; j < p->count; j++) {
-                    size_t vi = p->first + (from_b ? p->count - 1 - j : j);
-                    double lv = level[LD_CELL(&f->verts[vi])];
-                    prev = isnan(lv) ? prev : fmax(prev, lv);
-                    vfill[vi] = prev;
-                }
-                nfill[up] = fmax(nfill[up], prev);
-            }
-            /* carve: paths in the reverse order, each walked downstream */
-            for (k = n_q; k-- > 0;) {
-                const ts_feature_path *p = &f->paths[qpath[k]];
-                int from_b = (size_t)down[qpath[k]] == p->node_b;
-                size_t up = from_b ? p->node_a : p->node_b, j;
-                double prev = ncarve[up];
-                for (j = 0; j < p->count; j++) {
-                    size_t vi = p->first + (from_b ? j : p->count - 1 - j);
-                    double lv = level[LD_CELL(&f->verts[vi])];
-                    prev = isnan(lv) ? prev : fmin(prev, lv);
-                    vcarve[vi] = prev;
-                }
-                ncarve[down[qpath[k]]] = fmin(ncarve[down[qpath[k]]], prev);
-            }
-            /* the paths' cells take the mean; a node's cell its own */
-            for (k = 0; k < n_q; k++) {
-                const ts_feature_path *p = &f->paths[qpath[k]];
-                size_t j;
-                for (j = 1; j + 1 < p->count; j++) {
-                    size_t vi = p->first + j;
-                    size_t c = LD_CELL(&f->verts[vi]);
-                    if (!isnan(level[c]))
-                        level[c] = (float)(0.5 * (vfill[vi] + vcarve[vi]));
-                }
-            }
-            for (head = 0; head < tail; head++) {
-                const ts_feature_node *nd = &f->nodes[order[head]];
-                size_t c = (size_t)nd->y * (size_t)W + (size_t)nd->x;
-                if (!isnan(level[c]) && isfinite(nfill[order[head]]))
-                    level[c] = (float)(0.5 * (nfill[order[head]] + ncarve[order[head]]));
-            }
-        }
-    }
-#undef LD_CELL
-#undef LD_USED
-#undef LD_BORDER
-done:
-    free(order);
-    free(qpath);
-    free(down);
-    free(nfill);
-    free(ncarve);
-    free(vfill);
-    free(vcarve);
-    free(seen);
-    return st;
-}
-
-/* What both corrections need, computed once. */
+/* What both corrections need, computed once.  kind: the kinds on the grid
+ * (bits).  dist, nearest: to the nearest feature of any kind.  With both
+ * kinds, dist_r: to the nearest ridge; dist_v, near_v: to the nearest
+ * valley cell farther than a quarter patch from every ridge (a valley's
+ * head stops short of the crest it comes down from), near_v also with
+ * valleys alone. */
 typedef struct layout_run_data {
     const ts_layout_spec *s;
-    double strength, sig_l, sig_c, c_l, c_c, sign;
-    const float *dist, *fixd;
-    const int32_t *nearest;
+    int kind;
+    double strength, sig_l, sig_c, c_l, c_c;
+    const float *dist, *fixd, *dist_r, *dist_v;
+    const int32_t *nearest, *near_v;
     const double *gl, *gc, *levels;
-    float *guide, *work, *corr;
+    float *guide, *work, *corr, *corr2;
     const layout_ws *ws;
 } layout_run_data;
+
+/* The layout's shape at cell i for a unit steepness (its height over the
+ * level): ridges -f(d), valleys +f(d); both kinds f(d_v) - f(d_r) + c:
+ * the valleys' own (0 on a floor far from ridges, c around it) less the
+ * ridges' (0 on a crest, c around it): a crest stands c above the land far
+ * from both and a floor c below it, a ridge next to a valley rises from it
+ * all the way, and a valley's head near a crest shallows out towards it. */
+static double layout_shape(const layout_run_data *d, size_t i, double c)
+{
+    if (d->kind == TS_RIDGE)
+        return -layout_reach(d->dist[i], c);
+    if (d->kind == TS_VALLEY)
+        return layout_reach(d->dist[i], c);
+    if (d->near_v[i] < 0 || !isfinite(d->dist_r[i]))
+        return NAN;
+    return layout_reach(d->dist_v[i], c) - layout_reach(d->dist_r[i], c) + c;
+}
+
+/* The output on the cells of the sketch's `kind` features, NaN elsewhere. */
+static void layout_on_features(const layout_run_data *d, const ts_raster *r, int kind, float *work)
+{
+    int W = d->s->width;
+    size_t n = (size_t)W * (size_t)d->s->height, i;
+    for (i = 0; i < n; i++)
+        work[i] = (d->s->sketch_mask[i] & kind)
+                      ? r->data[(i / (size_t)W) * (size_t)r->stride + i % (size_t)W]
+                      : NAN;
+}
 
 /* Both corrections on r (the output's size), the guides' steepness times
  * lam: the layout everywhere, then the crest near the features. */
@@ -568,49 +261,56 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
     int W = s->width, H = s->height;
     size_t n = (size_t)W * (size_t)H, i;
     ts_status st;
-    if (s->kind == TS_VALLEY) {
+    if (d->kind & TS_VALLEY) {
         /* valley floors at the output's own level, smoothed along them over
          * a patch, made to descend to their outlets, smoothed again over
          * half a patch (filling and carving leave steps) */
-        for (i = 0; i < n; i++)
-            d->work[i] = (s->sketch_mask[i] & s->kind)
-                             ? r->data[(i / (size_t)W) * (size_t)r->stride + i % (size_t)W]
-                             : NAN;
+        layout_on_features(d, r, TS_VALLEY, d->work);
         if ((st = lblur(ctx, d->ws, d->work, W, W, H, s->patch, d->corr)) != TS_OK ||
-            (st = layout_descend(ctx, s, d->corr)) != TS_OK)
+            (st = ts__valley_descend(ctx, s, d->corr)) != TS_OK)
             return st;
         for (i = 0; i < n; i++)
-            d->work[i] = (s->sketch_mask[i] & s->kind) ? d->corr[i] : NAN;
+            d->work[i] = (s->sketch_mask[i] & TS_VALLEY) ? d->corr[i] : NAN;
         if ((st = lblur(ctx, d->ws, d->work, W, W, H, 0.5 * s->patch, d->corr)) != TS_OK)
             return st;
     }
     for (i = 0; i < n; i++) {
         double g, level;
         layout_pick(s, d->gl, d->levels, i, &g, &level);
-        if (s->kind == TS_VALLEY && d->nearest[i] >= 0)
-            level = d->corr[d->nearest[i]];
+        if ((d->kind & TS_VALLEY) && d->near_v[i] >= 0)
+            level = d->corr[d->near_v[i]];
         d->guide[i] = (s->nodata && s->nodata[i]) || !isfinite(d->dist[i])
                           ? NAN
-                          : (float)(level - d->sign * lam * g * layout_reach(d->dist[i], d->c_l));
+                          : (float)(level + lam * g * layout_shape(d, i, d->c_l));
     }
     if ((st = layout_correct(ctx, d->ws, r, d->guide, d->sig_l, d->strength, d->fixd, d->dist, 0.0,
                              d->work, d->corr)) != TS_OK)
         return st;
-    /* the crest: the output along the features, smoothed along them over a
-     * quarter patch; valley floors then made to descend to their outlets */
-    for (i = 0; i < n; i++)
-        d->work[i] = (s->sketch_mask[i] & s->kind)
-                         ? r->data[(i / (size_t)W) * (size_t)r->stride + i % (size_t)W]
-                         : NAN;
+    /* the crest: the output along the features of each kind, smoothed along
+     * them over a quarter patch, standing out across them */
+    layout_on_features(d, r, d->kind == (TS_RIDGE | TS_VALLEY) ? TS_RIDGE : d->kind, d->work);
     if ((st = lblur(ctx, d->ws, d->work, W, W, H, 2.0 * d->sig_c, d->corr)) != TS_OK)
         return st;
+    if (d->kind == (TS_RIDGE | TS_VALLEY)) {
+        layout_on_features(d, r, TS_VALLEY, d->work);
+        if ((st = lblur(ctx, d->ws, d->work, W, W, H, 2.0 * d->sig_c, d->corr2)) != TS_OK)
+            return st;
+    }
     for (i = 0; i < n; i++) {
-        double g, level;
+        double g, level, sign;
+        int32_t p = d->nearest[i];
+        const float *crest = d->corr;
         layout_pick(s, d->gc, d->levels, i, &g, &level);
-        d->guide[i] = (s->nodata && s->nodata[i]) || d->nearest[i] < 0
-                          ? NAN
-                          : (float)(d->corr[d->nearest[i]] -
-                                    d->sign * lam_c * g * layout_reach(d->dist[i], d->c_c));
+        if ((s->nodata && s->nodata[i]) || p < 0) {
+            d->guide[i] = NAN;
+            continue;
+        }
+        sign = d->kind == TS_VALLEY ? -1.0 : 1.0;
+        if (d->kind == (TS_RIDGE | TS_VALLEY) && !(s->sketch_mask[p] & TS_RIDGE)) {
+            sign = -1.0;
+            crest = d->corr2;
+        }
+        d->guide[i] = (float)(crest[p] - sign * lam_c * g * layout_reach(d->dist[i], d->c_c));
     }
     return layout_correct(ctx, d->ws, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
                           0.5 * s->patch, d->work, d->corr);
@@ -781,6 +481,40 @@ done:
     return st;
 }
 
+/* The distances the shape of both kinds needs (layout_run_data): none
+ * with one kind (valleys: near_v is `nearest`).  m: work, width*height. */
+static ts_status layout_kind_distances(ts_ctx *ctx, const ts_layout_spec *s,
+                                       const layout_run_data *d, double P, unsigned char *m,
+                                       const float *dist, const int32_t *nearest, float **dist_r,
+                                       float **dist_v, int32_t **near_v)
+{
+    size_t n = (size_t)s->width * (size_t)s->height, i, kept = 0;
+    ts_status st;
+    (void)dist;
+    (void)nearest;
+    if (d->kind != (TS_RIDGE | TS_VALLEY))
+        return TS_OK;
+    *dist_r = ts__malloc_array(n, sizeof(float));
+    *dist_v = ts__malloc_array(n, sizeof(float));
+    *near_v = ts__malloc_array(n, sizeof(int32_t));
+    if (!*dist_r || !*dist_v || !*near_v)
+        return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+    for (i = 0; i < n; i++)
+        m[i] = (s->sketch_mask[i] & TS_RIDGE) != 0;
+    if ((st = ts__distance_transform(ctx, m, s->width, s->height, *dist_r)) != TS_OK)
+        return st;
+    /* valley cells a quarter patch or more from every ridge: a valley
+     * comes down from a crest, it does not notch it */
+    for (i = 0; i < n; i++) {
+        m[i] = (s->sketch_mask[i] & TS_VALLEY) && (*dist_r)[i] > 0.25 * P;
+        kept += m[i];
+    }
+    if (!kept)
+        for (i = 0; i < n; i++)
+            m[i] = (s->sketch_mask[i] & TS_VALLEY) != 0;
+    return ts__distance_transform_nearest(ctx, m, s->width, s->height, *dist_v, *near_v);
+}
+
 ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
                            const unsigned char *flags, double strength)
 {
@@ -798,11 +532,13 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     double *gl = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *gc = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *levels = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
-    float *fixd = NULL;
+    float *fixd = NULL, *dist_r = NULL, *dist_v = NULL, *shape = NULL;
+    int32_t *near_v = NULL;
     layout_run_data d;
     layout_ws ws;
     ts_raster r0r, r01r;
     ts_status st = TS_OK;
+    memset(&d, 0, sizeof d);
     ws.cap = n;
     ws.v = ts__malloc_array(n, sizeof(double));
     ws.m = ts__malloc_array(n, sizeof(double));
@@ -823,11 +559,15 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     ts__clear(ctx);
     for (i = 0; i < n; i++) {
         m[i] = (s->sketch_mask[i] & s->kind) != 0;
+        d.kind |= s->sketch_mask[i] & s->kind & (TS_RIDGE | TS_VALLEY);
         any_fixed |= flags && (flags[i] & TS_CELL_FIXED);
     }
-    if (!(strength > 0))
+    if (!(strength > 0) || !d.kind)
         goto done;
     if ((st = ts__distance_transform_nearest(ctx, m, W, H, dist, nearest)) != TS_OK)
+        goto done;
+    if ((st = layout_kind_distances(ctx, s, &d, P, m, dist, nearest, &dist_r, &dist_v,
+                                    &near_v)) != TS_OK)
         goto done;
     if (any_fixed) {
         /* the corrections fade out towards fixed cells, which keep their values */
@@ -846,8 +586,11 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     d.sig_c = P / 8.0;
     d.c_l = P;
     d.c_c = P / 4.0;
-    d.sign = s->kind == TS_VALLEY ? -1.0 : 1.0;
     d.dist = dist;
+    d.dist_r = dist_r;
+    d.dist_v = dist_v;
+    d.near_v = near_v ? near_v : nearest;
+
     d.fixd = fixd;
     d.nearest = nearest;
     d.gl = gl;
@@ -857,11 +600,21 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     d.work = work;
     d.corr = corr;
     d.ws = &ws;
+    if (d.kind == (TS_RIDGE | TS_VALLEY)) {
+        /* the layout's shape, for its steepness; the second kind's crest */
+        if (!(shape = ts__malloc_array(n, sizeof(float))) ||
+            !(d.corr2 = ts__malloc_array(n, sizeof(float)))) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+            goto done;
+        }
+        for (i = 0; i < n; i++)
+            shape[i] = (float)layout_shape(&d, i, d.c_l);
+    }
     /* steepness of the guides and of the exemplars at both scales */
-    if ((st = layout_reach_gradient(ctx, &ws, dist, s->nodata, W, H, d.c_l, d.sig_l, INFINITY,
-                                    &g1)) != TS_OK ||
-        (st = layout_reach_gradient(ctx, &ws, dist, s->nodata, W, H, d.c_c, d.sig_c, 2.0 * d.c_c,
-                                    &gc1)) != TS_OK ||
+    if ((st = layout_reach_gradient(ctx, &ws, dist, shape, s->nodata, W, H, d.c_l, d.sig_l,
+                                    INFINITY, &g1)) != TS_OK ||
+        (st = layout_reach_gradient(ctx, &ws, dist, NULL, s->nodata, W, H, d.c_c, d.sig_c,
+                                    2.0 * d.c_c, &gc1)) != TS_OK ||
         (st = layout_exemplar_gradients(ctx, s, d.sig_l, gl)) != TS_OK ||
         (st = layout_exemplar_gradients(ctx, s, d.sig_c, gc)) != TS_OK)
         goto done;
@@ -1000,22 +753,28 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     /* valleys: the floor along the sketch's features descends to the
      * outlet cell by cell, the change fading out across the valley over an
      * eighth of a patch (as a river would cut or fill its bed) */
-    if (s->kind == TS_VALLEY) {
+    if (d.kind & TS_VALLEY) {
         double rr = P / 8.0;
+        if (d.kind != TS_VALLEY) {
+            /* from here on the distances are to the valleys (all of them) */
+            for (i = 0; i < n; i++)
+                m[i] = (s->sketch_mask[i] & TS_VALLEY) != 0;
+            if ((st = ts__distance_transform_nearest(ctx, m, W, H, dist, nearest)) != TS_OK)
+                goto done;
+        }
         for (i = 0; i < n; i++) {
             float v = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
-            work[i] = (s->sketch_mask[i] & s->kind) && !(fixd && fixd[i] < 1.0f) ? v : NAN;
+            work[i] = (s->sketch_mask[i] & TS_VALLEY) && !(fixd && fixd[i] < 1.0f) ? v : NAN;
             corr[i] = work[i];
         }
-        if ((st = layout_descend(ctx, s, corr)) != TS_OK)
+        if ((st = ts__valley_descend(ctx, s, corr)) != TS_OK)
             goto done;
         /* the change on the floor line, and its normalised blur at rr / 2
          * (defined off the line too): the blur spreads across the valley,
          * the rest (the floor's own cell-to-cell bumps, levelled) stays on
          * the line, so the floor still descends cell by cell.  Spreading
          * the change itself from each cell's nearest floor cell made
-         * stripes across the valley, one per step of the line's staircase
-         * (seen in hillshades of valley sketches, 2026-11-25) */
+         * stripes across the valley, one per step of the line's staircase */
         for (i = 0; i < n; i++)
             corr[i] = isnan(work[i]) || isnan(corr[i]) ? NAN : corr[i] - work[i];
         if ((st = lblur(ctx, &ws, corr, W, W, H, 0.5 * rr, guide)) != TS_OK)
@@ -1049,6 +808,11 @@ done:
     free(m);
     free(dist);
     free(nearest);
+    free(dist_r);
+    free(dist_v);
+    free(near_v);
+    free(shape);
+    free(d.corr2);
     free(guide);
     free(work);
     free(corr);

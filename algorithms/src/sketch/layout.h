@@ -22,13 +22,16 @@ int ts__blur_radius(double sigma);
 ts_status ts__blur_nan(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h, double sigma,
                        float *out);
 
+/* The same with the caller's work buffers v and m (w * h doubles each). */
+ts_status ts__blur_nan_buffers(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h,
+                               double sigma, float *out, double *v, double *m);
 /* Mean gradient magnitude (central differences, per cell) over the cells
  * whose four neighbours are valid; 0 when there is none. */
 double ts__mean_gradient(const float *a, int w, int h);
 
 typedef struct ts_layout_spec {
-    const unsigned char *sketch_mask; /* width*height: bit `kind` on the sketch's features */
-    int kind;                         /* TS_RIDGE or TS_VALLEY */
+    const unsigned char *sketch_mask; /* width*height: the sketch's feature bits */
+    int kind;                         /* the bits that count: TS_RIDGE, TS_VALLEY or both */
     int width, height;
     const unsigned char *nodata; /* width*height or NULL: non-zero = no guide there */
     const ts_raster *exemplars;  /* at the output's ground resolution */
@@ -42,11 +45,11 @@ typedef struct ts_layout_spec {
     double steep_lo;                /* least steepness factor searched (0 = 0.35) */
 } ts_layout_spec;
 
-/* Along the paths of spec->features of spec->kind (level: width*height,
+/* Along the valley paths of spec->features (level: width*height,
  * NaN = no level), levels made non-increasing from every network's sources
  * to its outlet (the endpoint nearest the grid's edge): the mean of filling
  * and carving (layout.c).  Exposed for the tests. */
-ts_status layout_descend(ts_ctx *ctx, const ts_layout_spec *spec, float *level);
+ts_status ts__valley_descend(ts_ctx *ctx, const ts_layout_spec *spec, float *level);
 
 /* The layout and crest corrections of layout.c, applied to out (the
  * sketch's size) with `strength` (0..1); flags (may be NULL): TS_CELL_FIXED

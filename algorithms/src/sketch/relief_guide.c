@@ -302,3 +302,49 @@ ts_status ts__relief_guide(ts_ctx *ctx, const unsigned char *sketch_mask, int ki
     free(dist);
     return st;
 }
+
+ts_status ts__relief_guide_both(ts_ctx *ctx, const unsigned char *sketch_mask, int width,
+                                int height, const ts_relief_profile *profs_r,
+                                const ts_relief_profile *profs_v, int n_profs,
+                                const int32_t *cell_exemplar, const unsigned char *nodata,
+                                float *guide)
+{
+    size_t n = (size_t)width * (size_t)height, i;
+    float *gv = ts__malloc_array(n, sizeof(float));
+    float *dr = ts__malloc_array(n, sizeof(float)), *dv = ts__malloc_array(n, sizeof(float));
+    unsigned char *m = ts__malloc_array(n, 1);
+    ts_status st = TS_OK;
+    if (!gv || !dr || !dv || !m) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "relief guide", "out of memory");
+        goto done;
+    }
+    if ((st = ts__relief_guide(ctx, sketch_mask, TS_RIDGE, width, height, profs_r, n_profs,
+                               cell_exemplar, nodata, guide)) != TS_OK ||
+        (st = ts__relief_guide(ctx, sketch_mask, TS_VALLEY, width, height, profs_v, n_profs,
+                               cell_exemplar, nodata, gv)) != TS_OK)
+        goto done;
+    for (i = 0; i < n; i++)
+        m[i] = (sketch_mask[i] & TS_RIDGE) != 0;
+    if ((st = ts__distance_transform(ctx, m, width, height, dr)) != TS_OK)
+        goto done;
+    for (i = 0; i < n; i++)
+        m[i] = (sketch_mask[i] & TS_VALLEY) != 0;
+    if ((st = ts__distance_transform(ctx, m, width, height, dv)) != TS_OK)
+        goto done;
+    /* where both reach: the ridge's relief near the ridge, the valley's near
+     * the valley, weighted by the distance to the other */
+    for (i = 0; i < n; i++) {
+        if (isnan(guide[i]))
+            guide[i] = gv[i];
+        else if (!isnan(gv[i])) {
+            double w = dr[i] + dv[i] > 0 ? dv[i] / (dr[i] + dv[i]) : 0.5;
+            guide[i] = (float)(w * guide[i] + (1.0 - w) * gv[i]);
+        }
+    }
+done:
+    free(gv);
+    free(dr);
+    free(dv);
+    free(m);
+    return st;
+}

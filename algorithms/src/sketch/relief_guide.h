@@ -53,4 +53,12 @@ ts_status ts__relief_guide(ts_ctx *ctx, const unsigned char *sketch_mask, int ki
                            int height, const ts_relief_profile *profs, int n_profs,
                            const int32_t *cell_exemplar, const unsigned char *nodata, float *guide);
 
+/* The guide of both kinds: each kind's (ts__relief_guide with its own
+ * profiles), blended where both reach by the distance to the other kind
+ * (the ridge's near ridges, the valley's near valleys). */
+ts_status ts__relief_guide_both(ts_ctx *ctx, const unsigned char *sketch_mask, int width,
+                                int height, const ts_relief_profile *profs_r,
+                                const ts_relief_profile *profs_v, int n_profs,
+                                const int32_t *cell_exemplar, const unsigned char *nodata,
+                                float *guide);
 #endif
