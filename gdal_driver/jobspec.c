@@ -119,10 +119,29 @@ static const tsj_option synth_opts[] = {
      "a real DEM (any GDAL raster) whose style the terrain takes; repeatable", "Exemplar", 0, NULL},
     OPT_BAND_EVERY,
     OPT_CELL_SIZE_GRID,
-    {"sketch", TSJ_FILE, 1, 0, 0, "SK.tif", G_GRID,
-     "a sketch (any single-band raster): the terrain follows it (bright strokes are ridges, "
-     "dark strokes valleys) on its grid, nodata where it is nodata",
+    {"sketch", TSJ_FILE, 1, 0, 0, "SK", G_GRID,
+     "a sketch the terrain follows: a raster (bright strokes are ridges, dark strokes valleys; "
+     "on a grey ground, brighter and darker) on whose grid the output is, nodata where it is "
+     "nodata; or a layer of lines (GeoPackage, Shapefile, GeoJSON, KML, FlatGeobuf...) whose "
+     "field kind says ridge, valley or river, on the grid of like or of resolution",
      "Sketch", 0, NULL},
+    {"sketch_layer", TSJ_TEXT, 1, 0, 0, "NAME", G_GRID,
+     "the layer of a sketch of lines (default: its first layer of lines)", "Sketch@layer", 0,
+     NULL},
+    {"kind_field", TSJ_TEXT, 1, 0, 0, "FIELD", G_GRID,
+     "the field of a sketch of lines that says ridge, valley or river (default kind)",
+     "Sketch@kindField", 0, NULL},
+    {"height_field", TSJ_TEXT, 1, 0, 0, "FIELD", G_CONS,
+     "a numeric field of a sketch of lines: the height wanted along each line (the lines' Z "
+     "values are used without it)",
+     "Sketch@heightField", 0, NULL},
+    {"snap", TSJ_NUMBER, 1, 0, 1000, "CELLS", G_GRID,
+     "a line end this close to another line of its kind joins it (cells, default 2)",
+     "Sketch@snap", 0, NULL},
+    {"extent", TSJ_TEXT, 1, 0, 0, "XMIN,YMIN,XMAX,YMAX", G_GRID,
+     "with a sketch of lines and resolution: the output's extent in its CRS (default: the "
+     "lines' bounding box grown by a patch on each side)",
+     "Grid@extent", 0, NULL},
     OPT_GRID(65536),
     {"pin", TSJ_PIN, TSJOB_MAX_PINS, 0, 0, "FILE:XOFF,YOFF,W,H@X,Y", G_CONS,
      "keep a window of a DEM (its own cells) unchanged with its top-left at output cell X,Y; "
@@ -157,16 +176,31 @@ static const tsj_option synth_opts[] = {
 };
 
 static const tsj_rule synth_rules[] = {
-    {TSJ_EXCLUDES,
-     "sketch",
-     {"like", "size", "origin", "resolution", "crs", NULL},
-     "a sketch sets the output grid: give no %s"},
+    {TSJ_EXCLUDES, "sketch", {"size", "origin", NULL}, "a sketch sets the output grid: give no %s"},
     {TSJ_EXCLUDES,
      "like",
-     {"size", "origin", "resolution", "crs", NULL},
+     {"size", "origin", "resolution", "crs", "extent", NULL},
      "like sets the output grid: give no %s"},
-    {TSJ_ONE_OF, "sketch", {"like", "size", NULL}, "give the target grid: a sketch, like or size"},
-    RULES_GRID_SIZE,
+    {TSJ_ANY_OF, "sketch", {"like", "size", NULL}, "give the target grid: a sketch, like or size"},
+    {TSJ_NEEDS_ANY,
+     "crs",
+     {"origin", "sketch", NULL},
+     "a CRS needs an origin and a resolution (or a sketch of lines and a resolution)"},
+    {TSJ_REQUIRES,
+     "crs",
+     {"resolution", NULL},
+     "a CRS needs an origin and a resolution (or a sketch of lines and a resolution)"},
+    {TSJ_REQUIRES, "origin", {"size", NULL}, "origin goes with size"},
+    {TSJ_NEEDS_ANY,
+     "resolution",
+     {"size", "sketch", NULL},
+     "resolution goes with size (or a sketch of lines)"},
+    {TSJ_REQUIRES, "extent", {"sketch", "resolution", NULL},
+     "extent goes with a sketch of lines and resolution"},
+    {TSJ_REQUIRES, "sketch_layer", {"sketch", NULL}, "%s applies to a sketch: give sketch"},
+    {TSJ_REQUIRES, "kind_field", {"sketch", NULL}, "%s applies to a sketch: give sketch"},
+    {TSJ_REQUIRES, "height_field", {"sketch", NULL}, "%s applies to a sketch: give sketch"},
+    {TSJ_REQUIRES, "snap", {"sketch", NULL}, "%s applies to a sketch: give sketch"},
     {TSJ_TOGETHER, "water", {"water_level", NULL}, "water and water_level go together"},
     {TSJ_TOGETHER, "regions", {"region_exemplar", NULL}, "regions and region_exemplar go together"},
     {TSJ_REQUIRES, "alpha_h", {"heights", NULL}, "alpha_h weighs heights: give heights"},
@@ -610,6 +644,10 @@ static int check_rules(const tsj_values *v, int cli, char *msg, size_t len)
             bad = ru->a;
         if (ru->kind == TSJ_ONE_OF && n_given != 1)
             bad = ru->a;
+        if (ru->kind == TSJ_NEEDS_ANY && a && n_given == 1)
+            bad = a;
+        if (ru->kind == TSJ_ANY_OF && n_given == 0)
+            bad = ru->a;
         if (bad) {
             msgf(msg, len, ru->message, bad);
             return -1;
@@ -866,6 +904,23 @@ int tsj_build_synth(tsj_values *v, tsjob_synth *job, uint64_t *seed, char *msg, 
     if ((s = tsj_get(v, "cell_size", 0)))
         job->cell_size = atof(s);
     job->sketch = tsj_get(v, "sketch", 0);
+    job->sketch_layer = tsj_get(v, "sketch_layer", 0);
+    job->kind_field = tsj_get(v, "kind_field", 0);
+    job->height_field = tsj_get(v, "height_field", 0);
+    job->snap = (s = tsj_get(v, "snap", 0)) ? atof(s) : -1.0;
+    if ((s = tsj_get(v, "extent", 0))) {
+        double *e = job->extent;
+        char tail;
+        if (sscanf(s, "%lf,%lf,%lf,%lf%c", &e[0], &e[1], &e[2], &e[3], &tail) != 4 ||
+            !isfinite(e[0]) || !isfinite(e[1]) || !isfinite(e[2]) || !isfinite(e[3]) ||
+            !(e[2] > e[0]) || !(e[3] > e[1])) {
+            msgf(msg, len, "extent takes XMIN,YMIN,XMAX,YMAX with XMIN < XMAX and YMIN < YMAX, "
+                           "not '%s'",
+                 s);
+            return -1;
+        }
+        job->has_extent = 1;
+    }
     job->grid.like = tsj_get(v, "like", 0);
     if ((s = tsj_get(v, "size", 0)) && !parse_pair(s, 'x', &x, &y)) {
         job->grid.width = (int)x;
@@ -1298,17 +1353,26 @@ void tsj_help(FILE *out, const tsj_job *job)
         char line[256];
         int i;
         size_t n = 0;
-        static const char *const kinds[] = {"needs", "excludes", "goes with", "or"};
+        static const char *const kinds[] = {"needs",    "excludes", "goes with",
+                                            "or",       "needs one of", "or"};
         if (!strcmp(r->a, "output"))
             continue; /* the usage line says it */
         n += (size_t)snprintf(line + n, sizeof line - n, "%s %s",
                               r->a[0] == '@' ? "the sketch parameters" : r->a,
-                              r->kind == TSJ_ONE_OF ? "," : kinds[r->kind]);
+                              r->kind == TSJ_ONE_OF || r->kind == TSJ_ANY_OF ? ","
+                                                                             : kinds[r->kind]);
         for (i = 0; r->b[i] && n < sizeof line; i++)
-            n += (size_t)snprintf(line + n, sizeof line - n, "%s %s",
-                                  i ? (r->kind == TSJ_ONE_OF ? " or" : ",") : "", r->b[i]);
+            n += (size_t)snprintf(
+                line + n, sizeof line - n, "%s %s",
+                i ? (r->kind == TSJ_ONE_OF || r->kind == TSJ_ANY_OF || r->kind == TSJ_NEEDS_ANY
+                         ? " or"
+                         : ",")
+                  : "",
+                r->b[i]);
         if (r->kind == TSJ_ONE_OF && n < sizeof line)
             snprintf(line + n, sizeof line - n, ": exactly one");
+        if (r->kind == TSJ_ANY_OF && n < sizeof line)
+            snprintf(line + n, sizeof line - n, ": at least one");
         fprintf(out, "  %s\n", line);
     }
 }
@@ -1600,7 +1664,9 @@ void tsj_describe(FILE *out)
                                         "choice", "named", "pair"};
     /* one name per kind: a kind added without its name does not compile */
     _Static_assert(sizeof kinds / sizeof kinds[0] == TSJ_PAIR + 1, "a name for every tsj_kind");
-    static const char *const rkinds[] = {"requires", "excludes", "together", "one_of"};
+    static const char *const rkinds[] = {"requires", "excludes", "together",
+                                         "one_of",   "needs_any", "any_of"};
+    _Static_assert(sizeof rkinds / sizeof rkinds[0] == TSJ_ANY_OF + 1, "a name for every rule");
     size_t j, k;
     int i;
     fprintf(out, "  \"jobs\": {");

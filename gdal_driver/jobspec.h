@@ -71,7 +71,9 @@ typedef enum tsj_rule_kind {
     TSJ_REQUIRES, /* a needs every b */
     TSJ_EXCLUDES, /* a forbids every b */
     TSJ_TOGETHER, /* all or none of a and b */
-    TSJ_ONE_OF    /* exactly one of a and b */
+    TSJ_ONE_OF,   /* exactly one of a and b */
+    TSJ_NEEDS_ANY, /* a needs at least one of b */
+    TSJ_ANY_OF    /* at least one of a and b */
 } tsj_rule_kind;
 
 typedef struct tsj_rule {

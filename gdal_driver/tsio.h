@@ -230,6 +230,30 @@ int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *fi
 int tsio_read_label_window(const char *path, const tsio_georef *geo, int x0, int y0, int w, int h,
                            const char *field, int fill, int32_t *values, tsio_err *err);
 
+/** A sketch drawn as lines (tsio_read_lines): its lines (points, kinds,
+ *  heights; all owned), the box of their points (xmin, ymin, xmax, ymax)
+ *  and the CRS they are in (WKT2, owned; NULL when the layer has none). */
+typedef struct tsio_lines {
+    size_t n;
+    ts_sketch_line *lines;
+    double box[4];
+    char *wkt;
+    int is_geographic;
+} tsio_lines;
+/** Is `path` a vector dataset (layers, no raster band)? */
+int tsio_is_lines(const char *path);
+/** Read a layer of lines (layer NULL: the first of lines; kind_field NULL:
+ *  "kind", whose values are ridge, valley or river; height_field NULL: the
+ *  Z values, if any, are the heights) in the CRS to_wkt (NULL: the
+ *  layer's).  One-line errors: no such layer or field, a feature that is
+ *  not a line, an unknown kind, a line that crosses itself, a CRS that
+ *  cannot be transformed, no lines. */
+int tsio_read_lines(const char *path, const char *layer, const char *kind_field,
+                    const char *height_field, const char *to_wkt, tsio_lines *out, tsio_err *err);
+/** The lines' points into cell coordinates of `geo` (in place). */
+void tsio_lines_to_cells(tsio_lines *l, const tsio_georef *geo);
+void tsio_lines_free(tsio_lines *l);
+
 /** Check that a vector output can be written (format from the extension,
  *  driver present, directory exists) without writing anything. */
 int tsio_check_vector_output(const char *path, tsio_err *err);

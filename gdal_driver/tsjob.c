@@ -341,14 +341,96 @@ static int job_target_grid(const tsjob_grid *g, const char *first_exemplar, doub
     return job_grid_metrics(geo, cell_size, dx, dy, err);
 }
 
+/* The grid of a sketch of lines drawn at resolution R: the extent given,
+ * or the lines' box grown by a patch on each side, in the CRS given or the
+ * lines'. */
+static int job_lines_grid(const tsjob_synth *job, tsio_georef *geo, tsio_err *err)
+{
+    const tsjob_grid *g = &job->grid;
+    tsio_georef crs;
+    tsio_lines l;
+    double box[4], margin, w, h, R = g->res;
+    const ts_length *ps = &job->params.patch_size;
+    int rc;
+    memset(&crs, 0, sizeof crs);
+    if (g->crs && tsio_georef_make(1, 1, 0.0, 0.0, 1.0, 1.0, g->crs, &crs, err) != 0)
+        return -1;
+    if (tsio_read_lines(job->sketch, job->sketch_layer, job->kind_field, job->height_field,
+                        crs.wkt, &l, err) != 0) {
+        tsio_georef_free(&crs);
+        return -1;
+    }
+    if (job->has_extent) {
+        memcpy(box, job->extent, sizeof box);
+    } else {
+        margin = ps->unit == TS_UNIT_METRES ? ps->value / (l.is_geographic ? 111320.0 : 1.0)
+                                            : ps->value * R;
+        /* on the lattice of the resolution, as a GIS aligns grids */
+        box[0] = floor((l.box[0] - margin) / R) * R;
+        box[1] = floor((l.box[1] - margin) / R) * R;
+        box[2] = ceil((l.box[2] + margin) / R) * R;
+        box[3] = ceil((l.box[3] + margin) / R) * R;
+    }
+    w = ceil((box[2] - box[0]) / R - 1e-9);
+    h = ceil((box[3] - box[1]) / R - 1e-9);
+    if (!(w >= 1 && h >= 1 && w <= 65536 && h <= 65536)) {
+        tsio_errf(err, job->sketch,
+                  "the grid at resolution %g would be %.0f x %.0f cells: give a coarser "
+                  "resolution or an extent (at most 65536 cells a side)",
+                  R, w, h);
+        rc = -1;
+    } else {
+        rc = tsio_georef_make((int)w, (int)h, box[0], box[3], R, R, l.wkt, geo, err);
+    }
+    tsio_lines_free(&l);
+    tsio_georef_free(&crs);
+    return rc;
+}
+
+/* The output grid of a sketch: a raster's own; lines on like's grid or
+ * drawn at a resolution. */
+static int job_sketch_grid(const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err)
+{
+    const tsjob_grid *g = &job->grid;
+    if (!tsio_is_lines(job->sketch)) {
+        const char *bad = g->like          ? "like"
+                          : g->has_res     ? "resolution"
+                          : g->crs         ? "crs"
+                          : job->has_extent ? "extent"
+                          : job->sketch_layer ? "sketch_layer"
+                          : job->kind_field   ? "kind_field"
+                          : job->height_field ? "height_field"
+                          : job->snap >= 0    ? "snap"
+                                              : NULL;
+        if (bad) {
+            tsio_errf(err, job->sketch, "a painted sketch sets the output grid: give no %s",
+                      bad);
+            return -1;
+        }
+        if (tsio_read_georef(job->sketch, &res->geo, err) != 0)
+            return -1;
+    } else {
+        res->sketch_lines = 1;
+        if (!g->like && !g->has_res) {
+            tsio_errf(err, job->sketch,
+                      "a sketch of lines needs the output grid: give like, or resolution");
+            return -1;
+        }
+        if (g->like ? tsio_read_georef(g->like, &res->geo, err) != 0
+                    : job_lines_grid(job, &res->geo, err) != 0)
+            return -1;
+    }
+    return job_grid_metrics(&res->geo, job->cell_size, &res->dx_m, &res->dy_m, err);
+}
+
 static int job_synth_built(const tsjob_synth *job)
 {
     const tsjob_grid *g = &job->grid;
     if (job->n_exemplars < 1 || job->n_exemplars > TSJOB_MAX_EXEMPLARS)
         return 0;
-    if (job->sketch && (g->like || g->width || g->crs || g->has_origin || g->has_res))
+    if (job->sketch && (g->width || g->has_origin))
         return 0;
-    return !g->crs || (g->has_origin && g->has_res);
+    return !g->crs || (g->has_res && (g->has_origin || job->sketch));
 }
 
 int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err)
@@ -370,9 +452,7 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
     }
     ts_ctx_free(ctx);
     if (job->sketch) {
-        if (tsio_read_georef(job->sketch, &res->geo, err) != 0)
-            return -1;
-        if (job_grid_metrics(&res->geo, job->cell_size, &res->dx_m, &res->dy_m, err) != 0) {
+        if (job_sketch_grid(job, res, err) != 0) {
             tsjob_synth_result_free(res);
             return -1;
         }
@@ -693,6 +773,67 @@ int tsjob_synth_tiles(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_res
     return 0;
 }
 
+/* A sketch of lines: the lines on the output grid as a feature graph, the
+ * heights they carry added to the wanted heights, the synthesis. */
+static int job_sketch_lines(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
+                            const ts_raster *exr, const ts_synth_params *params,
+                            ts_synth_constraints *cons, ts_synth_maps *maps, tsio_err *err)
+{
+    tsio_lines l;
+    ts_features *f = NULL;
+    float *hz = NULL;
+    size_t n = (size_t)res->geo.width * (size_t)res->geo.height, i, k, any = 0;
+    int rc = -1;
+    if (tsio_read_lines(job->sketch, job->sketch_layer, job->kind_field, job->height_field,
+                        res->geo.wkt, &l, err) != 0)
+        return -1;
+    tsio_lines_to_cells(&l, &res->geo);
+    if (ts_features_from_lines(ctx, res->geo.width, res->geo.height, l.lines, l.n,
+                               job->snap >= 0 ? job->snap : 2.0, &f) != TS_OK) {
+        tsio_errf(err, job->sketch, "%s", ts_ctx_message(ctx));
+        goto done;
+    }
+    for (i = 0; i < n && !any; i++)
+        any = f->mask[i] != 0;
+    if (!any) {
+        tsio_errf(err, job->sketch, "no line crosses the output grid");
+        goto done;
+    }
+    for (k = 0; k < f->n_verts && !hz; k++)
+        if (!isnan(f->verts[k].z)) {
+            if (!(hz = malloc(n * sizeof *hz))) {
+                tsio_errf(err, job->sketch, "out of memory");
+                goto done;
+            }
+            for (i = 0; i < n; i++)
+                hz[i] = cons->heights ? cons->heights[i] : NAN;
+        }
+    for (k = 0; hz && k < f->n_verts; k++) {
+        const ts_feature_vertex *v = &f->verts[k];
+        size_t c = (size_t)v->y * (size_t)res->geo.width + (size_t)v->x;
+        if (!isnan(v->z) && isnan(hz[c]))
+            hz[c] = v->z;
+    }
+    if (hz) {
+        cons->heights = hz;
+        if (!job->heights)
+            cons->alpha_h = job->alpha_h;
+    }
+    if (ts_synth_sketch_features(ctx, f, exr, job->n_exemplars, &job->sketch_params, params, cons,
+                                 &res->out, maps, &res->sketch_info) != TS_OK) {
+        job_core_err(ctx, job, job->sketch, err);
+        goto done;
+    }
+    res->sketch_features = f;
+    f = NULL;
+    rc = 0;
+done:
+    ts_features_free(f);
+    free(hz);
+    tsio_lines_free(&l);
+    return rc;
+}
+
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
                         tsio_err *err)
 {
@@ -759,7 +900,10 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         job_region_exemplars(job, cell_ex, n);
         cons.cell_exemplar = cell_ex;
     }
-    if (job->sketch) {
+    if (job->sketch && res->sketch_lines) {
+        if (job_sketch_lines(ctx, job, res, exr, &params, &cons, maps, err) != 0)
+            goto done;
+    } else if (job->sketch) {
         tsio_raster sk;
         int bad;
         if (tsio_read_raster(job->sketch, 1, &sk, err) != 0)

@@ -113,8 +113,17 @@ typedef struct tsjob_synth {
     double cell_size;        /* > 0: metres per cell of every input (and a target grid) without CRS */
     tsjob_grid grid;         /* unused with a sketch: the output is on its grid */
     ts_synth_params params;
-    const char *sketch;      /* sketch-guided synthesis when not NULL */
+    const char *sketch;      /* sketch-guided synthesis when not NULL: a raster or lines */
     ts_sketch_params sketch_params;
+    /* a sketch of lines: its layer (NULL: the first of lines), the field of
+     * the kinds (NULL: "kind") and of the heights (NULL: the Z values), the
+     * snapping distance in cells (< 0: 2), and with grid.has_res the extent
+     * (xmin, ymin, xmax, ymax in the grid's CRS; else the lines' box grown
+     * by a patch) */
+    const char *sketch_layer, *kind_field, *height_field;
+    double snap;
+    int has_extent;
+    double extent[4];
     tsjob_pin pins[TSJOB_MAX_PINS];
     int n_pins;
     const char *water;       /* mask raster on the output grid: non-zero cells are water */
@@ -144,7 +153,8 @@ typedef struct tsjob_synth_result {
     ts_raster out;           /* the terrain (owned) */
     int exemplar_no_crs;     /* index+1 of an exemplar without CRS used cell for cell, or 0 */
     ts_synth_params params;  /* the job's, lengths turned into cells of this grid */
-    ts_features *sketch_features; /* the sketch's PPA graph (sketch-guided only) */
+    ts_features *sketch_features; /* the sketch's feature graph (sketch-guided only) */
+    int sketch_lines;             /* the sketch is a layer of lines */
     ts_sketch_info sketch_info;
     ts_synth_maps maps; /* with keep_maps: where each cell came from (owned) */
     int has_maps;

@@ -144,6 +144,10 @@ def check_rules(job_name, given):
         elif r["kind"] == "one_of":
             n = (a is not None) + sum(b is not None for b in bs)
             bad = r["a"] if n != 1 else None
+        elif r["kind"] == "needs_any" and a:
+            bad = a if all(b is None for b in bs) else None
+        elif r["kind"] == "any_of":
+            bad = r["a"] if a is None and all(b is None for b in bs) else None
         if bad:
             return r["message"].replace("%s", bad, 1)
     return None

@@ -379,6 +379,9 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
     /* 9. the land beside water at or above it (ours, water_banks.c) */
     if (st == TS_OK && constraints)
         st = ts__water_banks(ctx, out, constraints->cell_flags, P);
+    /* 10. drawn valleys that drain to their outlets (ours, valley_breach.c) */
+    if (st == TS_OK && (r->kind & TS_VALLEY) && sp->layout > 0)
+        st = ts__valley_breach(ctx, r->sf, out, r->user_flags, P);
     return st;
 }
 

@@ -21,6 +21,8 @@ from qgis.core import (
     QgsProcessingParameterCrs,
     QgsProcessingParameterDefinition,
     QgsProcessingParameterExtent,
+    QgsProcessingParameterFeatureSource,
+    QgsProcessingParameterField,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterFolderDestination,
     QgsProcessingParameterMapLayer,
@@ -121,7 +123,15 @@ unless <b>Origin X/Y</b> (top-left corner, CRS units), <b>Resolution</b> (CRS un
 <b>CRS</b> are given. A CRS needs the origin and the resolution.</p>
 <h3>Sketch-guided synthesis</h3>
 <p>A <b>Sketch</b> is a grey drawing (any single-band GDAL raster): <b>bright strokes are
-ridges, dark strokes valleys</b> (Zhou et al. 2007, sections 3-4). The ridge or valley axes
+ridges, dark strokes valleys</b>; on a grey ground, strokes brighter than it are ridges and
+darker valleys, both in one sketch (Zhou et al. 2007, sections 3-4). <b>Sketch as lines</b>
+takes a line layer instead, digitised on the map: its <b>Kind field</b> says <i>ridge</i>,
+<i>valley</i> or <i>river</i> of each line, lines meet at junctions, an optional <b>Height
+field</b> (or the lines' Z values) gives the height wanted along each line; the output grid is
+<b>Target grid like</b>'s, or the <b>Target extent</b> at the <b>Pixel size</b>, or the lines'
+extent grown by a patch at the <b>Pixel size</b>. Drawn valleys are carved to drain to the
+grid's edge or into another valley. The lines of <i>terrasynth:ppa</i> (its <i>Lines</i> output)
+are a sketch too: a new terrain with a real landscape's ridges and valleys. The ridge or valley axes
 of the sketch and of the exemplars are extracted (PPA); along the sketch's feature tree, the
 exemplar feature patches that fit best are warped onto it (thin-plate spline / similarity
 warps) and cut in, then the rest is filled as above. The output is <b>on the sketch's grid</b>
@@ -186,6 +196,9 @@ class SynthAlgorithm(TerraSynthAlgorithm):
 
     EXEMPLARS = "EXEMPLARS"
     SKETCH = "SKETCH"
+    SKETCH_LINES = "SKETCH_LINES"
+    KIND_FIELD = "KIND_FIELD"
+    HEIGHT_FIELD = "HEIGHT_FIELD"
     EXTENT = "EXTENT"
     PIXEL_SIZE = "PIXEL_SIZE"
     LIKE = "LIKE"
@@ -225,6 +238,28 @@ class SynthAlgorithm(TerraSynthAlgorithm):
                        "size, geotransform and CRS), nodata where the sketch is nodata; give "
                        "no LIKE, WIDTH/HEIGHT, ORIGIN_X/ORIGIN_Y, RESOLUTION or CRS with it.")
         self.addParameter(sketch)
+        lines = QgsProcessingParameterFeatureSource(
+            self.SKETCH_LINES, self.tr("Sketch as lines"), [QgsProcessing.TypeVectorLine],
+            optional=True)
+        lines.setHelp("Ridges and valleys drawn as lines (--sketch): a field (KIND_FIELD) says "
+                      "ridge, valley or river of each line; junctions are where lines meet. "
+                      "The output grid is LIKE's, or EXTENT at PIXEL_SIZE, or PIXEL_SIZE alone "
+                      "(the lines' extent grown by a patch on each side); in CRS, else the "
+                      "layer's.")
+        self.addParameter(lines)
+        kind = QgsProcessingParameterField(
+            self.KIND_FIELD, self.tr("Kind field (ridge, valley or river)"), defaultValue="kind",
+            parentLayerParameterName=self.SKETCH_LINES,
+            type=QgsProcessingParameterField.String, optional=True)
+        kind.setHelp("The field of SKETCH_LINES that says ridge, valley or river (--kind-field).")
+        self.addParameter(kind)
+        height = QgsProcessingParameterField(
+            self.HEIGHT_FIELD, self.tr("Height field (wanted height along each line)"),
+            parentLayerParameterName=self.SKETCH_LINES,
+            type=QgsProcessingParameterField.Numeric, optional=True)
+        height.setHelp("A numeric field of SKETCH_LINES: the height wanted along each line "
+                       "(--height-field); without it the lines' Z values, if any.")
+        self.addParameter(height)
         extent = QgsProcessingParameterExtent(self.EXTENT, self.tr("Target extent"),
                                               optional=True)
         extent.setHelp("The area to cover, with PIXEL_SIZE: the grid starts at its top-left "
@@ -377,6 +412,17 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         origin = (self.parameterAsDouble(parameters, self.ORIGIN_X, context),
                   self.parameterAsDouble(parameters, self.ORIGIN_Y, context)) if has_x else None
         size = (width, height) if width else None
+        if sketch is not None:
+            # a painted sketch is the grid (the program says the same of a raster --sketch)
+            for given, name in ((like is not None, "like"), (has_res, "resolution"),
+                                (crs.isValid(), "crs")):
+                if given:
+                    raise QgsProcessingException(
+                        "a painted sketch sets the output grid: give no %s" % name)
+        if is_set(parameters, self.SKETCH_LINES):
+            if sketch is not None:
+                raise QgsProcessingException("give SKETCH (painted) or SKETCH_LINES, not both")
+            return self._lines_options(parameters, context, crs, like, size, has_x, has_res)
         if is_set(parameters, self.EXTENT) or is_set(parameters, self.PIXEL_SIZE):
             size, origin, res, crs = self._extent_grid(
                 parameters, context, crs, (width > 0, has_x, has_res, sketch, like))
@@ -387,6 +433,50 @@ class SynthAlgorithm(TerraSynthAlgorithm):
                 ("like", gdal_source(like, self.LIKE) if like is not None else None),
                 ("size", size), ("origin", origin),
                 ("resolution", res), ("crs", crs_text)]
+
+    def _lines_options(self, parameters, context, crs, like, size, has_origin, has_res):
+        """[(option, value)] for a sketch drawn as lines: the layer (a file OGR reads, written
+        to a temporary GeoPackage when it is not one), its fields, and the grid: LIKE, or
+        EXTENT at PIXEL_SIZE, or PIXEL_SIZE (or RESOLUTION) alone."""
+        path, layer_name = self.parameterAsCompatibleSourceLayerPathAndLayerName(
+            parameters, self.SKETCH_LINES, context, ["gpkg", "shp", "geojson", "fgb", "kml"],
+            "gpkg")
+        if not path:
+            raise QgsProcessingException("SKETCH_LINES: '%s' is not a line layer"
+                                         % parameters.get(self.SKETCH_LINES))
+        kind = self.parameterAsString(parameters, self.KIND_FIELD, context) \
+            if is_set(parameters, self.KIND_FIELD) else ""
+        height = self.parameterAsString(parameters, self.HEIGHT_FIELD, context) \
+            if is_set(parameters, self.HEIGHT_FIELD) else ""
+        res, extent = None, None
+        if size is not None or has_origin:
+            raise QgsProcessingException("a sketch sets the output grid: give no WIDTH/HEIGHT "
+                                         "or ORIGIN_X/ORIGIN_Y with SKETCH_LINES")
+        if is_set(parameters, self.PIXEL_SIZE):
+            res = self.parameterAsDouble(parameters, self.PIXEL_SIZE, context)
+        elif has_res:
+            res = self.parameterAsDouble(parameters, self.RESOLUTION, context)
+        if is_set(parameters, self.EXTENT):
+            if res is None:
+                raise QgsProcessingException("EXTENT needs PIXEL_SIZE, the cell size of the grid")
+            if not crs.isValid():
+                crs = self.parameterAsExtentCrs(parameters, self.EXTENT, context)
+            rect = self.parameterAsExtent(parameters, self.EXTENT, context,
+                                          crs if crs.isValid() else QgsCoordinateReferenceSystem())
+            if rect.isNull() or not rect.width() > 0 or not rect.height() > 0:
+                raise QgsProcessingException("EXTENT: the area is empty (%s)" % rect.toString())
+            extent = "%.17g,%.17g,%.17g,%.17g" % (rect.xMinimum(), rect.yMinimum(),
+                                                  rect.xMaximum(), rect.yMaximum())
+        if like is None and res is None:
+            raise QgsProcessingException("a sketch of lines needs the output grid: give LIKE, "
+                                         "or PIXEL_SIZE (with EXTENT or without)")
+        crs_text = None
+        if crs.isValid() and like is None:
+            crs_text = crs.authid() or crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
+        return [("sketch", path), ("sketch_layer", layer_name or None),
+                ("kind_field", kind or None), ("height_field", height or None),
+                ("like", gdal_source(like, self.LIKE) if like is not None else None),
+                ("resolution", res), ("extent", extent), ("crs", crs_text)]
 
     def _extent_grid(self, parameters, context, crs, others):
         """(size, origin, resolution, crs) of the grid over EXTENT at PIXEL_SIZE, as QGIS's
@@ -497,7 +587,7 @@ class SynthAlgorithm(TerraSynthAlgorithm):
 
     def descriptorValues(self, parameters, context):  # noqa: N802
         values = super().descriptorValues(parameters, context)
-        if not is_set(parameters, self.SKETCH):
+        if not is_set(parameters, self.SKETCH) and not is_set(parameters, self.SKETCH_LINES):
             # a dialog always holds the sketch parameters: without a sketch only those
             # changed from their defaults are passed, and the job's rule refuses them
             # ("alpha_r applies to a sketch: give sketch"), as on the command line

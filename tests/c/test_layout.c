@@ -236,6 +236,83 @@ static void test_descend(void)
     ts_ctx_free(ctx);
 }
 
+/* ---- drawn valleys that drain ---- */
+
+/* The slow oracle: a cell drains when it is on the grid's edge or has a
+ * neighbour no higher that drains (relaxed until nothing changes). */
+static void drains_naive(const float *z, int W, int H, unsigned char *dr)
+{
+    int x, y, dx, dy, changed = 1;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++)
+            dr[y * W + x] = x == 0 || y == 0 || x == W - 1 || y == H - 1;
+    while (changed) {
+        changed = 0;
+        for (y = 1; y < H - 1; y++)
+            for (x = 1; x < W - 1; x++) {
+                if (dr[y * W + x])
+                    continue;
+                for (dy = -1; dy <= 1 && !dr[y * W + x]; dy++)
+                    for (dx = -1; dx <= 1; dx++)
+                        if ((dx || dy) && dr[(y + dy) * W + x + dx] &&
+                            z[(y + dy) * W + x + dx] <= z[y * W + x]) {
+                            dr[y * W + x] = 1;
+                            changed = 1;
+                            break;
+                        }
+            }
+    }
+}
+
+static void test_valley_breach(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int W = 70, H = 30, x, rep;
+    float *z = malloc((size_t)W * H * sizeof(float)), *z0 = malloc((size_t)W * H * sizeof(float));
+    float *level = malloc((size_t)W * H * sizeof(float));
+    unsigned char *dr = malloc((size_t)W * H), *fl = calloc((size_t)W * H, 1);
+    y_net *g = malloc(sizeof *g);
+    uint64_t s = 21;
+    for (rep = 0; rep < 8; rep++) {
+        ts_raster r = ts_raster_wrap(z, W, H, W);
+        size_t k;
+        int bad = 0;
+        y_network(g, W, H, level, &s);
+        /* a bumpy land with pits, higher towards the east, and a wall
+         * across the trunk near its outlet (the tributary's source at
+         * (40, 2) is 2 cells from the edge) */
+        for (x = 0; x < W * H; x++)
+            z[x] = (float)(200.0 + 2.0 * (x % W) + 60.0 * th_uniform(&s));
+        for (x = 0; x < H; x++)
+            z[x * W + 6] = 600.0f;
+        if (rep % 2)
+            fl[12 * W + 3] = TS_CELL_FIXED; /* a fixed cell off the valleys */
+        memcpy(z0, z, (size_t)W * H * sizeof(float));
+        CHECK(ts__valley_breach(ctx, &g->f, &r, fl, 16) == TS_OK);
+        for (x = 0; x < W * H; x++)
+            if (z[x] > z0[x] || ((fl[x] & TS_CELL_FIXED) && z[x] != z0[x]))
+                bad = 1;
+        CHECK_MSG(!bad, "a cell raised or a fixed cell moved");
+        drains_naive(z, W, H, dr);
+        for (k = 0; k < g->f.n_verts; k++) {
+            const ts_feature_vertex *v = &g->f.verts[k];
+            CHECK_MSG(dr[v->y * W + v->x], "rep %d: valley cell %d,%d holds water", rep, v->x,
+                      v->y);
+        }
+        /* the wall is cut where the trunk crosses it, and only near it */
+        CHECK(z[20 * W + 6] < 600.0f);
+        CHECK(z[2 * W + 6] == 600.0f || z[2 * W + 6] == z0[2 * W + 6]);
+        memset(fl, 0, (size_t)W * H);
+    }
+    free(z);
+    free(z0);
+    free(level);
+    free(dr);
+    free(fl);
+    free(g);
+    ts_ctx_free(ctx);
+}
+
 /* ---- the corrections ---- */
 
 /* An exemplar with ridges: rows of a sine, 60 cells a period. */
@@ -447,6 +524,7 @@ int main(int argc, char **argv)
 {
     static const th_case cases[] = {
         {"nearest_brute_force", test_nearest_brute_force},
+        {"valley_breach", test_valley_breach},
         {"blur_direct", test_blur_direct},
         {"descend", test_descend},
         {"valley_no_stripes", test_valley_no_stripes},

@@ -19,7 +19,8 @@ DOCS = os.path.join(ROOT, "algorithms", "docs")
 MANUALS = {"ppa.md": ("ppa", ["ppa"]), "synth.md": ("synth", ["synth"]),
            "sketch.md": (None, ["sketch"])}
 # options documented in another manual (with the reason)
-ELSEWHERE = {("synth", "sketch"): "sketch.md"}
+ELSEWHERE = {("synth", o): "sketch.md" for o in ("sketch", "sketch_layer", "kind_field",
+                                                "height_field", "snap", "extent")}
 
 
 @pytest.fixture(scope="module")

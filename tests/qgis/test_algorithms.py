@@ -45,6 +45,8 @@ OTHER_FLAGS = {
             "CELL_SIZE": "--cell-size", "THREADS": "--threads", "LINES": "--lines",
             "PREVIEW": "--preview"},
     "synth": {"EXEMPLARS": "--exemplar", "SKETCH": "--sketch", "LIKE": "--like",
+              "SKETCH_LINES": "--sketch", "KIND_FIELD": "--kind-field",
+              "HEIGHT_FIELD": "--height-field",
               "EXTENT": "--origin", "PIXEL_SIZE": "--resolution", "WIDTH": "--size",
               "HEIGHT": "--size", "ORIGIN_X": "--origin", "ORIGIN_Y": "--origin",
               "RESOLUTION": "--resolution", "CRS": "--crs", "SEED": "--seed", "BAND": "--band",
@@ -67,6 +69,7 @@ OTHER_FLAGS = {
 }
 # parameters whose flag is not --<name in kebab case>
 IRREGULAR_FLAGS = ("--size", "--origin", "--resolution", "--exemplar", "--pin", "--water",
+                   "--sketch",
                    "--region-exemplar", "--exemplar-layer", "--out-layer", "--biome")
 
 
@@ -374,15 +377,81 @@ def test_synth_command_line_with_sketch(jacksboro, lambda_ridges, tmp_path):
     assert os.listdir(tmp_path) == []  # nothing was run
 
 
+def line_sketch(path):
+    """A GeoPackage of lines on the Jacksboro grid (EPSG:4326): a ridge and a valley, with a
+    field "what" for the kinds and "alt" for heights."""
+    from osgeo import ogr, osr
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(4326)
+    ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(path))
+    lyr = ds.CreateLayer("strokes", srs, ogr.wkbLineString)
+    lyr.CreateField(ogr.FieldDefn("what", ogr.OFTString))
+    lyr.CreateField(ogr.FieldDefn("alt", ogr.OFTReal))
+    for kind, wkt, alt in (("ridge", "LINESTRING (-84.40 36.30, -84.25 36.33, -84.10 36.30)", 900),
+                           ("valley", "LINESTRING (-84.35 36.20, -84.20 36.25, -84.09 36.19)",
+                            None)):
+        f = ogr.Feature(lyr.GetLayerDefn())
+        f.SetField("what", kind)
+        if alt is not None:
+            f.SetField("alt", alt)
+        f.SetGeometry(ogr.CreateGeometryFromWkt(wkt))
+        lyr.CreateFeature(f)
+    ds = None
+    return str(path)
+
+
+def test_synth_sketch_of_lines(jacksboro, tmp_path):
+    """SKETCH_LINES with its fields and the grid of LIKE, or of PIXEL_SIZE alone, or EXTENT at
+    PIXEL_SIZE; the run follows the lines (the ridge higher than beside it)."""
+    lines = line_sketch(tmp_path / "lines.gpkg")
+    out = str(tmp_path / "o.tif")
+    argv, _ = build("terrasynth:synth", {"EXEMPLARS": [jacksboro], "SKETCH_LINES": lines,
+                                         "KIND_FIELD": "what", "HEIGHT_FIELD": "alt",
+                                         "LIKE": jacksboro, "OUTPUT": out})
+    kv = pairs(argv)
+    assert kv["--sketch"] == lines and kv["--kind-field"] == "what"
+    assert kv["--height-field"] == "alt" and kv["--like"] == jacksboro
+    argv, _ = build("terrasynth:synth", {"EXEMPLARS": [jacksboro], "SKETCH_LINES": lines,
+                                         "KIND_FIELD": "what", "PIXEL_SIZE": 0.001,
+                                         "OUTPUT": out})
+    kv = pairs(argv)
+    assert kv["--resolution"] == "0.001" and "--extent" not in kv and "--size" not in kv
+    argv, _ = build("terrasynth:synth", {"EXEMPLARS": [jacksboro], "SKETCH_LINES": lines,
+                                         "KIND_FIELD": "what", "PIXEL_SIZE": 0.001,
+                                         "EXTENT": "-84.45,-84.05,36.15,36.40 [EPSG:4326]",
+                                         "OUTPUT": out})
+    kv = pairs(argv)
+    assert [float(v) for v in kv["--extent"].split(",")] == [-84.45, 36.15, -84.05, 36.40]
+    assert kv["--crs"] == "EPSG:4326"
+    alg = registry().createAlgorithmById("terrasynth:synth")
+    ok, msg = alg.checkParameterValues({"EXEMPLARS": [jacksboro], "SKETCH_LINES": lines,
+                                        "KIND_FIELD": "what", "OUTPUT": out},
+                                       QgsProcessingContext())
+    assert not ok and "needs the output grid" in msg
+    res = processing_run("terrasynth:synth", {"EXEMPLARS": [jacksboro], "SKETCH_LINES": lines,
+                                              "KIND_FIELD": "what", "LIKE": jacksboro,
+                                              "SEED": 2, "OUTPUT": out})
+    import numpy as np
+    from osgeo import gdal
+    z = gdal.Open(res["OUTPUT"]).ReadAsArray().astype(float)
+    ds = gdal.Open(jacksboro)
+    gt = ds.GetGeoTransform()
+    col = lambda lon: int((lon - gt[0]) / gt[1])  # noqa: E731
+    row = lambda lat: int((lat - gt[3]) / gt[5])  # noqa: E731
+    ridge = z[row(36.33), col(-84.25)]
+    beside = np.mean([z[row(36.33) + 25, col(-84.25)], z[row(36.33) - 25, col(-84.25)]])
+    assert ridge > beside
+
+
 @pytest.mark.parametrize("params,want", [
-    ({"LIKE": "JACKSBORO"}, "a sketch sets the output grid: give no like"),
+    ({"LIKE": "JACKSBORO"}, "a painted sketch sets the output grid: give no like"),
     ({"WIDTH": 64, "HEIGHT": 64}, "a sketch sets the output grid: give no size"),
     ({"WIDTH": 64}, "give both WIDTH and HEIGHT, or neither"),
     ({"ORIGIN_X": 0, "ORIGIN_Y": 0}, "a sketch sets the output grid: give no origin"),
-    ({"RESOLUTION": 30}, "a sketch sets the output grid: give no resolution"),
-    ({"CRS": "EPSG:32616"}, "a sketch sets the output grid: give no crs"),
+    ({"RESOLUTION": 30}, "a painted sketch sets the output grid: give no resolution"),
+    ({"CRS": "EPSG:32616"}, "a painted sketch sets the output grid: give no crs"),
     ({"LIKE": "JACKSBORO", "WIDTH": 64, "HEIGHT": 64, "ORIGIN_X": 0, "ORIGIN_Y": 0,
-      "RESOLUTION": 30, "CRS": "EPSG:32616"}, "a sketch sets the output grid: give no like"),
+      "RESOLUTION": 30, "CRS": "EPSG:32616"}, "a painted sketch sets the output grid: give no like"),
 ])
 def test_synth_sketch_excludes_other_grids(jacksboro, lambda_ridges, tmp_path, params, want):
     """The dialog checks the job's rules (from describe) with the program's own messages."""

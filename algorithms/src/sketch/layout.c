@@ -175,8 +175,8 @@ static void layout_pick(const ts_layout_spec *s, const double *gain, const doubl
  * fade(fixed) * (near > 0 ? exp(-(d / near)^2) : 1). */
 static ts_status layout_correct(ts_ctx *ctx, const layout_ws *ws, ts_raster *out,
                                 const float *guide, double sigma, double strength,
-                                const float *fixd, const float *dist, double near, float *work,
-                                float *corr)
+                                const float *fixd, const float *dist, double near,
+                                const float *gate, float *work, float *corr)
 {
     int W = out->width, H = out->height, x, y;
     size_t i;
@@ -202,23 +202,46 @@ static ts_status layout_correct(ts_ctx *ctx, const layout_ws *ws, ts_raster *out
             }
             if (near > 0)
                 w *= exp(-(dist[i] / near) * (dist[i] / near));
+            if (gate)
+                w *= gate[i];
             TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * c);
         }
     return TS_OK;
 }
 
+/* With both kinds: the distance to and the nearest cell of the ridges
+ * (_r), the valleys (_vf), and the valleys less their heads near a crest
+ * (_v: a valley's head stops short of the crest it comes down from); the
+ * weight of the crest correction's slope (gate: 1 where a feature stands
+ * alone, 0 where the other kind is within reach). */
+typedef struct layout_both {
+    float *dist_r, *dist_vf, *dist_v, *gate;
+    int32_t *near_r, *near_vf, *near_v;
+} layout_both;
+
+static void layout_both_free(layout_both *b)
+{
+    free(b->dist_r);
+    free(b->dist_vf);
+    free(b->dist_v);
+    free(b->gate);
+    free(b->near_r);
+    free(b->near_vf);
+    free(b->near_v);
+    memset(b, 0, sizeof *b);
+}
+
 /* What both corrections need, computed once.  kind: the kinds on the grid
- * (bits).  dist, nearest: to the nearest feature of any kind.  With both
- * kinds, dist_r: to the nearest ridge; dist_v, near_v: to the nearest
- * valley cell farther than a quarter patch from every ridge (a valley's
- * head stops short of the crest it comes down from), near_v also with
- * valleys alone. */
+ * (bits).  dist, nearest: to the nearest feature of any kind; near_v: the
+ * nearest valley cell whose floor sets the level (valleys alone: nearest;
+ * both kinds: b->near_v). */
 typedef struct layout_run_data {
     const ts_layout_spec *s;
     int kind;
     double strength, sig_l, sig_c, c_l, c_c;
-    const float *dist, *fixd, *dist_r, *dist_v;
+    const float *dist, *fixd;
     const int32_t *nearest, *near_v;
+    const layout_both *b; /* with both kinds, else NULL */
     const double *gl, *gc, *levels;
     float *guide, *work, *corr, *corr2;
     const layout_ws *ws;
@@ -236,9 +259,9 @@ static double layout_shape(const layout_run_data *d, size_t i, double c)
         return -layout_reach(d->dist[i], c);
     if (d->kind == TS_VALLEY)
         return layout_reach(d->dist[i], c);
-    if (d->near_v[i] < 0 || !isfinite(d->dist_r[i]))
+    if (d->near_v[i] < 0 || !isfinite(d->b->dist_r[i]))
         return NAN;
-    return layout_reach(d->dist_v[i], c) - layout_reach(d->dist_r[i], c) + c;
+    return layout_reach(d->b->dist_v[i], c) - layout_reach(d->b->dist_r[i], c) + c;
 }
 
 /* The output on the cells of the sketch's `kind` features, NaN elsewhere. */
@@ -284,7 +307,7 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
                           : (float)(level + lam * g * layout_shape(d, i, d->c_l));
     }
     if ((st = layout_correct(ctx, d->ws, r, d->guide, d->sig_l, d->strength, d->fixd, d->dist, 0.0,
-                             d->work, d->corr)) != TS_OK)
+                             NULL, d->work, d->corr)) != TS_OK)
         return st;
     /* the crest: the output along the features of each kind, smoothed along
      * them over a quarter patch, standing out across them */
@@ -297,23 +320,22 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
             return st;
     }
     for (i = 0; i < n; i++) {
-        double g, level, sign;
+        double g, level, sign = d->kind == TS_VALLEY ? -1.0 : 1.0, base;
         int32_t p = d->nearest[i];
-        const float *crest = d->corr;
         layout_pick(s, d->gc, d->levels, i, &g, &level);
         if ((s->nodata && s->nodata[i]) || p < 0) {
             d->guide[i] = NAN;
             continue;
         }
-        sign = d->kind == TS_VALLEY ? -1.0 : 1.0;
-        if (d->kind == (TS_RIDGE | TS_VALLEY) && !(s->sketch_mask[p] & TS_RIDGE)) {
+        base = d->corr[p];
+        if (d->b && !(s->sketch_mask[p] & TS_RIDGE)) {
+            base = d->corr2[p]; /* the floor of the nearest valley */
             sign = -1.0;
-            crest = d->corr2;
         }
-        d->guide[i] = (float)(crest[p] - sign * lam_c * g * layout_reach(d->dist[i], d->c_c));
+        d->guide[i] = (float)(base - sign * lam_c * g * layout_reach(d->dist[i], d->c_c));
     }
     return layout_correct(ctx, d->ws, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
-                          0.5 * s->patch, d->work, d->corr);
+                          0.5 * s->patch, d->b ? d->b->gate : NULL, d->work, d->corr);
 }
 
 #define LAYOUT_QUANTILES 199
@@ -483,36 +505,72 @@ done:
 
 /* The distances the shape of both kinds needs (layout_run_data): none
  * with one kind (valleys: near_v is `nearest`).  m: work, width*height. */
-static ts_status layout_kind_distances(ts_ctx *ctx, const ts_layout_spec *s,
-                                       const layout_run_data *d, double P, unsigned char *m,
-                                       const float *dist, const int32_t *nearest, float **dist_r,
-                                       float **dist_v, int32_t **near_v)
+/* The distances of both kinds (layout_both); nothing with one kind.
+ * nearest: to any feature; m: work, width*height. */
+static ts_status layout_kind_distances(ts_ctx *ctx, const ts_layout_spec *s, int kind, double P,
+                                       unsigned char *m, const int32_t *nearest, layout_both *b)
 {
     size_t n = (size_t)s->width * (size_t)s->height, i, kept = 0;
     ts_status st;
-    (void)dist;
-    (void)nearest;
-    if (d->kind != (TS_RIDGE | TS_VALLEY))
+    if (kind != (TS_RIDGE | TS_VALLEY))
         return TS_OK;
-    *dist_r = ts__malloc_array(n, sizeof(float));
-    *dist_v = ts__malloc_array(n, sizeof(float));
-    *near_v = ts__malloc_array(n, sizeof(int32_t));
-    if (!*dist_r || !*dist_v || !*near_v)
+    b->dist_r = ts__malloc_array(n, sizeof(float));
+    b->dist_vf = ts__malloc_array(n, sizeof(float));
+    b->dist_v = ts__malloc_array(n, sizeof(float));
+    b->gate = ts__malloc_array(n, sizeof(float));
+    b->near_r = ts__malloc_array(n, sizeof(int32_t));
+    b->near_vf = ts__malloc_array(n, sizeof(int32_t));
+    b->near_v = ts__malloc_array(n, sizeof(int32_t));
+    if (!b->dist_r || !b->dist_vf || !b->dist_v || !b->gate || !b->near_r || !b->near_vf ||
+        !b->near_v)
         return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
     for (i = 0; i < n; i++)
         m[i] = (s->sketch_mask[i] & TS_RIDGE) != 0;
-    if ((st = ts__distance_transform(ctx, m, s->width, s->height, *dist_r)) != TS_OK)
+    if ((st = ts__distance_transform_nearest(ctx, m, s->width, s->height, b->dist_r,
+                                             b->near_r)) != TS_OK)
         return st;
-    /* valley cells a quarter patch or more from every ridge: a valley
-     * comes down from a crest, it does not notch it */
+    for (i = 0; i < n; i++)
+        m[i] = (s->sketch_mask[i] & TS_VALLEY) != 0;
+    if ((st = ts__distance_transform_nearest(ctx, m, s->width, s->height, b->dist_vf,
+                                             b->near_vf)) != TS_OK)
+        return st;
+    /* the crest correction stands a feature out across it where it is
+     * alone; where the other kind comes within 1.25 patches it fades out, and the
+     * land takes the layout's slope between the two (two crests pulling
+     * against each other, a ridge's down and a valley's up, made steps and
+     * terraces between features drawn close) */
     for (i = 0; i < n; i++) {
-        m[i] = (s->sketch_mask[i] & TS_VALLEY) && (*dist_r)[i] > 0.25 * P;
-        kept += m[i];
+        int32_t p = nearest[i];
+        double o = p < 0 ? INFINITY : (s->sketch_mask[p] & TS_RIDGE) ? b->dist_vf[i] : b->dist_r[i];
+        double t = o / (1.25 * P);
+        t = t > 1.0 ? 1.0 : t;
+        b->gate[i] = (float)(t * t * (3.0 - 2.0 * t));
     }
+    /* a valley's head comes down from a crest, it does not notch it: the
+     * valley cells within a quarter patch of a head (a valley end) that is
+     * itself within a quarter patch of a ridge are left out */
+    if (s->features) {
+        const ts_features *f = s->features;
+        int r = (int)ceil(0.25 * P), u, v;
+        size_t k;
+        for (k = 0; k < f->n_nodes; k++) {
+            const ts_feature_node *nd = &f->nodes[k];
+            if (nd->kind != TS_VALLEY || nd->degree != 1 || nd->x < 0 || nd->y < 0 ||
+                nd->x >= s->width || nd->y >= s->height ||
+                !(b->dist_r[(size_t)nd->y * (size_t)s->width + (size_t)nd->x] <= 0.25 * P))
+                continue;
+            for (v = TS_MAX(0, nd->y - r); v <= TS_MIN(s->height - 1, nd->y + r); v++)
+                for (u = TS_MAX(0, nd->x - r); u <= TS_MIN(s->width - 1, nd->x + r); u++)
+                    if ((u - nd->x) * (u - nd->x) + (v - nd->y) * (v - nd->y) <= r * r)
+                        m[(size_t)v * (size_t)s->width + (size_t)u] = 0;
+        }
+    }
+    for (i = 0; i < n; i++)
+        kept += m[i];
     if (!kept)
         for (i = 0; i < n; i++)
             m[i] = (s->sketch_mask[i] & TS_VALLEY) != 0;
-    return ts__distance_transform_nearest(ctx, m, s->width, s->height, *dist_v, *near_v);
+    return ts__distance_transform_nearest(ctx, m, s->width, s->height, b->dist_v, b->near_v);
 }
 
 ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
@@ -532,13 +590,14 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     double *gl = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *gc = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *levels = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
-    float *fixd = NULL, *dist_r = NULL, *dist_v = NULL, *shape = NULL;
-    int32_t *near_v = NULL;
+    float *fixd = NULL, *shape = NULL;
+    layout_both both;
     layout_run_data d;
     layout_ws ws;
     ts_raster r0r, r01r;
     ts_status st = TS_OK;
     memset(&d, 0, sizeof d);
+    memset(&both, 0, sizeof both);
     ws.cap = n;
     ws.v = ts__malloc_array(n, sizeof(double));
     ws.m = ts__malloc_array(n, sizeof(double));
@@ -566,8 +625,7 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         goto done;
     if ((st = ts__distance_transform_nearest(ctx, m, W, H, dist, nearest)) != TS_OK)
         goto done;
-    if ((st = layout_kind_distances(ctx, s, &d, P, m, dist, nearest, &dist_r, &dist_v,
-                                    &near_v)) != TS_OK)
+    if ((st = layout_kind_distances(ctx, s, d.kind, P, m, nearest, &both)) != TS_OK)
         goto done;
     if (any_fixed) {
         /* the corrections fade out towards fixed cells, which keep their values */
@@ -587,9 +645,8 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     d.c_l = P;
     d.c_c = P / 4.0;
     d.dist = dist;
-    d.dist_r = dist_r;
-    d.dist_v = dist_v;
-    d.near_v = near_v ? near_v : nearest;
+    d.b = d.kind == (TS_RIDGE | TS_VALLEY) ? &both : NULL;
+    d.near_v = d.b ? both.near_v : nearest;
 
     d.fixd = fixd;
     d.nearest = nearest;
@@ -808,9 +865,7 @@ done:
     free(m);
     free(dist);
     free(nearest);
-    free(dist_r);
-    free(dist_v);
-    free(near_v);
+    layout_both_free(&both);
     free(shape);
     free(d.corr2);
     free(guide);
@@ -833,8 +888,9 @@ ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heig
 {
     int W = out->width, H = out->height, x, y;
     size_t n = (size_t)W * (size_t)H, i, any = 0;
-    double s = alpha_h < 1.0 ? alpha_h : 1.0;
-    float *r, *c;
+    double s = alpha_h < 1.0 ? alpha_h : 1.0, sigma = patch / 3.0;
+    float *r, *c, *d;
+    unsigned char *m;
     ts_status st;
     if (!heights || !(s > 0))
         return TS_OK;
@@ -844,30 +900,44 @@ ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heig
         return TS_OK;
     r = ts__malloc_array(n, sizeof *r);
     c = ts__malloc_array(n, sizeof *c);
-    if (!r || !c) {
+    d = ts__malloc_array(n, sizeof *d);
+    m = ts__malloc_array(n, 1);
+    if (!r || !c || !d || !m) {
         free(r);
         free(c);
+        free(d);
+        free(m);
         return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
     }
-    /* the residual where a height is wanted, 0 on the other land, NaN on nodata:
-     * the NaN-aware blur then averages over the land, wanted or not */
+    /* the residual on the cells with a wanted height, its mean over them
+     * within sigma (the NaN-aware blur: a region's local mean, a line's mean
+     * along it), fading out over sigma away from them: regions and lines
+     * alike come to their wanted heights, the detail below sigma stays */
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
             float z = TS_PIX(out, x, y);
             i = (size_t)y * (size_t)W + (size_t)x;
-            r[i] = isnan(z) ? NAN : isnan(heights[i]) ? 0.0f : heights[i] - z;
+            r[i] = isnan(z) || isnan(heights[i]) ? NAN : heights[i] - z;
+            m[i] = !isnan(heights[i]);
         }
-    st = ts__blur_nan(ctx, r, W, W, H, patch / 3.0, c);
+    st = ts__blur_nan(ctx, r, W, W, H, sigma, c);
+    if (st == TS_OK)
+        st = ts__distance_transform(ctx, m, W, H, d);
     if (st == TS_OK)
         for (y = 0; y < H; y++)
             for (x = 0; x < W; x++) {
+                double fade;
                 i = (size_t)y * (size_t)W + (size_t)x;
                 if ((flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) ||
                     isnan(TS_PIX(out, x, y)) || isnan(c[i]))
                     continue;
-                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + s * c[i]);
+                fade = d[i] / sigma;
+                fade = exp(-fade * fade);
+                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + s * fade * c[i]);
             }
     free(r);
     free(c);
+    free(d);
+    free(m);
     return st;
 }

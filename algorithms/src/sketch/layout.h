@@ -65,12 +65,21 @@ ts_status ts__layout_press_range(ts_ctx *ctx, const ts_raster *exemplars, int n_
                                  ts_raster *out, const unsigned char *flags, int patch);
 
 /* The user's wanted heights kept at large scale after the layout and the
- * slope style, which know nothing of them: out += min(1, alpha_h) x the
- * blur at a third of `patch` of (wanted - out) on the cells that have a
- * wanted height (0 elsewhere), so a region's local mean comes to its wanted
- * height, the detail below that scale stays, and the change fades out
- * across the region's edge; flags as above. */
+ * slope style, which know nothing of them: on and near the cells that have
+ * a wanted height, out += min(1, alpha_h) x the mean of (wanted - out) over
+ * those cells within a third of `patch`, fading out as exp(-(d / sigma)^2)
+ * with the distance d to them, so a region's local mean and a line's mean
+ * along it come to their wanted heights and the detail below that scale
+ * stays; flags as above. */
 ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heights,
                                   double alpha_h, const unsigned char *flags, int patch);
 
+/* Drawn valleys that drain (valley_breach.c): the floor along every valley
+ * of `f` carved so it never rises on the way to its outlet, the outlet
+ * joined to the grid's edge or another valley within `patch` cells by a
+ * carved channel; cells only lowered, the change fading out across the
+ * valley; flags (may be NULL): TS_CELL_FIXED and TS_CELL_NODATA cells never
+ * change. */
+ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
+                            const unsigned char *flags, int patch);
 #endif

@@ -1,0 +1,535 @@
+/*
+ * valley_breach.c - drawn valleys that drain (a TerraSynth addition): after
+ * every stage that moves heights, the floor along each drawn valley is
+ * carved so that it never rises on the way to its outlet, and the outlet
+ * drains on: into another valley within a patch, along a straight channel,
+ * or else out by the way water leaves it (the path of a priority-flood from
+ * the grid's edge: over the lowest pass), carved the same way.  Carving only lowers cells
+ * (breaching, not filling); the change fades out across the valley.
+ *
+ * The valley cells of the feature graph make a graph of cells (consecutive
+ * vertices joined).  In each network the outlet is the end cell that is
+ * nearest the grid's edge or another network within a patch (ties: the
+ * lowest, then the first in raster order); networks that reach the edge
+ * are joined first, and a network never drains into one that drains into
+ * it.  Breadth first from the outlet every cell gets its downstream cell;
+ * cells are carved upstream first: z(down) = min(z(down), z(cell)).
+ * Cost: O(valley cells + patch^2 per network end).
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "layout.h"
+
+typedef struct breach {
+    int W, H, P;
+    int32_t *id;        /* per grid cell: its carve cell, -1 none */
+    size_t *cell;       /* per carve cell: its grid cell */
+    unsigned char *adj; /* per carve cell: 8 direction bits (valley cells only) */
+    int32_t *comp;      /* per carve cell: its network (-1: a channel cell) */
+    int32_t *down;      /* per carve cell: the next one downstream, -1 none */
+    size_t n, cap;
+    int32_t n_comp;
+} breach;
+
+static const int BX[8] = {1, 1, 0, -1, -1, -1, 0, 1};
+static const int BY[8] = {0, 1, 1, 1, 0, -1, -1, -1};
+
+static int32_t br_add(breach *b, size_t c)
+{
+    if (b->id[c] >= 0)
+        return b->id[c];
+    if (b->n == b->cap) {
+        size_t nc = b->cap ? 2 * b->cap : 1024;
+        size_t *ncell = realloc(b->cell, nc * sizeof *ncell);
+        unsigned char *nadj = ncell ? realloc(b->adj, nc) : NULL;
+        int32_t *ncomp = nadj ? realloc(b->comp, nc * sizeof *ncomp) : NULL;
+        int32_t *ndown = ncomp ? realloc(b->down, nc * sizeof *ndown) : NULL;
+        if (ncell)
+            b->cell = ncell;
+        if (nadj)
+            b->adj = nadj;
+        if (ncomp)
+            b->comp = ncomp;
+        if (!ndown)
+            return -1;
+        b->down = ndown;
+        b->cap = nc;
+    }
+    b->cell[b->n] = c;
+    b->adj[b->n] = 0;
+    b->comp[b->n] = -1;
+    b->down[b->n] = -1;
+    b->id[c] = (int32_t)b->n;
+    return (int32_t)b->n++;
+}
+
+static int br_dir(int dx, int dy)
+{
+    int d;
+    for (d = 0; d < 8; d++)
+        if (BX[d] == dx && BY[d] == dy)
+            return d;
+    return -1;
+}
+
+static int popcount8(unsigned v)
+{
+    int n = 0;
+    for (; v; v &= v - 1)
+        n++;
+    return n;
+}
+
+/* The valley cells and their joins; networks labelled breadth first. */
+static int br_build(breach *b, const ts_features *f)
+{
+    size_t k, j, i, *queue;
+    for (k = 0; k < f->n_paths; k++) {
+        const ts_feature_path *p = &f->paths[k];
+        if (p->kind != TS_VALLEY)
+            continue;
+        for (j = 0; j < p->count; j++) {
+            const ts_feature_vertex *v = &f->verts[p->first + j];
+            int32_t a;
+            if (v->x < 0 || v->y < 0 || v->x >= b->W || v->y >= b->H)
+                continue;
+            if ((a = br_add(b, (size_t)v->y * (size_t)b->W + (size_t)v->x)) < 0)
+                return -1;
+            if (j) {
+                const ts_feature_vertex *u = v - 1;
+                int d = br_dir(v->x - u->x, v->y - u->y);
+                int32_t pu = b->id[(size_t)u->y * (size_t)b->W + (size_t)u->x];
+                if (d >= 0 && pu >= 0) {
+                    b->adj[pu] |= (unsigned char)(1u << d);
+                    b->adj[a] |= (unsigned char)(1u << ((d + 4) % 8));
+                }
+            }
+        }
+    }
+    if (!(queue = ts__malloc_array(b->n + 1, sizeof *queue)))
+        return -1;
+    for (i = 0; i < b->n; i++) {
+        size_t head = 0, tail = 0;
+        if (b->comp[i] >= 0)
+            continue;
+        b->comp[i] = b->n_comp;
+        queue[tail++] = i;
+        for (head = 0; head < tail; head++) {
+            size_t c = b->cell[queue[head]];
+            int d;
+            for (d = 0; d < 8; d++)
+                if (b->adj[queue[head]] & (1u << d)) {
+                    int32_t o = b->id[(size_t)((long)c + BY[d] * (long)b->W + BX[d])];
+                    if (o >= 0 && b->comp[o] < 0) {
+                        b->comp[o] = b->n_comp;
+                        queue[tail++] = (size_t)o;
+                    }
+                }
+        }
+        b->n_comp++;
+    }
+    free(queue);
+    return 0;
+}
+
+/* The nearest cell of a network other than `own` within a patch of carve
+ * cell a (its carve cell, or -1), and the distance (INT_MAX when none). */
+static int br_other(const breach *b, int32_t a, int32_t own, const int32_t *drains, int32_t *hit)
+{
+    size_t c = b->cell[a];
+    int x = (int)(c % (size_t)b->W), y = (int)(c / (size_t)b->W), u, v, best = INT_MAX;
+    *hit = -1;
+    for (v = TS_MAX(0, y - b->P); v <= TS_MIN(b->H - 1, y + b->P); v++)
+        for (u = TS_MAX(0, x - b->P); u <= TS_MIN(b->W - 1, x + b->P); u++) {
+            int32_t o = b->id[(size_t)v * (size_t)b->W + (size_t)u], r;
+            int d;
+            if (o < 0 || b->comp[o] < 0 || b->comp[o] == own)
+                continue;
+            /* never into a network that drains (on) into this one */
+            for (r = b->comp[o]; r >= 0 && r != own; r = drains[r])
+                ;
+            if (r == own)
+                continue;
+            d = (int)ceil(hypot(u - x, v - y));
+            if (d <= b->P && d < best) {
+                best = d;
+                *hit = o;
+            }
+        }
+    return best;
+}
+
+/* A straight channel from carve cell a to grid cell (tx, ty): its cells
+ * (new carve cells where the line meets none) chained downstream; stops at
+ * the first cell of another network.  Returns 0, -1 out of memory. */
+static int br_channel(breach *b, int32_t a, int tx, int ty)
+{
+    size_t c = b->cell[a];
+    int x0 = (int)(c % (size_t)b->W), y0 = (int)(c / (size_t)b->W);
+    int n = TS_MAX(abs(tx - x0), abs(ty - y0)), s;
+    int32_t prev = a, own = b->comp[a];
+    for (s = 1; s <= n; s++) {
+        int x = x0 + (int)lround((double)(tx - x0) * s / n);
+        int y = y0 + (int)lround((double)(ty - y0) * s / n);
+        size_t g = (size_t)y * (size_t)b->W + (size_t)x;
+        int32_t o = b->id[g];
+        if (o >= 0 && b->comp[o] == own)
+            continue; /* its own network: the channel starts beyond it */
+        if (o < 0 && (o = br_add(b, g)) < 0)
+            return -1;
+        b->down[prev] = o;
+        if (b->comp[o] >= 0)
+            return 0; /* reached another network */
+        prev = o;
+    }
+    return 0;
+}
+
+/* A binary heap of (level, arrival) keys for the flood. */
+typedef struct fl_item {
+    float level;
+    uint32_t order;
+    int32_t cell;
+} fl_item;
+
+static int fl_less(const fl_item *a, const fl_item *b)
+{
+    return a->level < b->level || (a->level == b->level && a->order < b->order);
+}
+
+static void fl_push(fl_item *h, size_t *n, fl_item it)
+{
+    size_t i = (*n)++;
+    while (i > 0 && fl_less(&it, &h[(i - 1) / 2])) {
+        h[i] = h[(i - 1) / 2];
+        i = (i - 1) / 2;
+    }
+    h[i] = it;
+}
+
+static fl_item fl_pop(fl_item *h, size_t *n)
+{
+    fl_item top = h[0], last = h[--(*n)];
+    size_t i = 0;
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= *n)
+            break;
+        if (c + 1 < *n && fl_less(&h[c + 1], &h[c]))
+            c++;
+        if (!fl_less(&h[c], &last))
+            break;
+        h[i] = h[c];
+        i = c;
+    }
+    if (*n)
+        h[i] = last;
+    return top;
+}
+
+/* The way water leaves every cell (priority-flood from the grid's edge and
+ * the cells beside nodata, Barnes et al. 2014): parent[c] the cell it was
+ * flooded from, -1 on the edge.  Following parents from any cell leads to
+ * the edge over the lowest pass (the path a depression spills by). */
+static int32_t *br_flood(const ts_raster *out)
+{
+    int W = out->width, H = out->height, x, y, d;
+    size_t n = (size_t)W * (size_t)H, hn = 0;
+    int32_t *parent = ts__malloc_array(n, sizeof *parent);
+    unsigned char *seen = ts__calloc_array(n, 1);
+    fl_item *h = ts__malloc_array(n + 1, sizeof *h);
+    uint32_t order = 0;
+    if (!parent || !seen || !h) {
+        free(parent);
+        free(seen);
+        free(h);
+        return NULL;
+    }
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            size_t c = (size_t)y * (size_t)W + (size_t)x;
+            int edge = x == 0 || y == 0 || x == W - 1 || y == H - 1;
+            parent[c] = -1;
+            if (isnan(TS_PIX(out, x, y))) {
+                seen[c] = 1;
+                continue;
+            }
+            for (d = 0; d < 8 && !edge; d++)
+                edge = isnan(TS_PIX(out, x + BX[d], y + BY[d]));
+            if (edge) {
+                fl_item it = {TS_PIX(out, x, y), order++, (int32_t)c};
+                seen[c] = 1;
+                fl_push(h, &hn, it);
+            }
+        }
+    while (hn) {
+        fl_item it = fl_pop(h, &hn);
+        int cx = (int)((size_t)it.cell % (size_t)W), cy = (int)((size_t)it.cell / (size_t)W);
+        for (d = 0; d < 8; d++) {
+            int nx = cx + BX[d], ny = cy + BY[d];
+            size_t c;
+            fl_item nt;
+            if (nx < 0 || ny < 0 || nx >= W || ny >= H)
+                continue;
+            c = (size_t)ny * (size_t)W + (size_t)nx;
+            if (seen[c])
+                continue;
+            seen[c] = 1;
+            parent[c] = it.cell;
+            nt.level = fmaxf(it.level, TS_PIX(out, nx, ny));
+            nt.order = order++;
+            nt.cell = (int32_t)c;
+            fl_push(h, &hn, nt);
+        }
+    }
+    free(seen);
+    free(h);
+    return parent;
+}
+
+/* The channel from carve cell a along the flood's way out to the edge,
+ * stopping at a cell of another network (which then takes the water). */
+static int br_spill(breach *b, int32_t a, const int32_t *parent)
+{
+    int32_t prev = a, own = b->comp[a];
+    long g = parent[b->cell[a]];
+    while (g >= 0) {
+        int32_t o = b->id[(size_t)g];
+        if (!(o >= 0 && b->comp[o] == own)) {
+            if (o < 0 && (o = br_add(b, (size_t)g)) < 0)
+                return -1;
+            b->down[prev] = o;
+            if (b->comp[o] >= 0)
+                return 0;
+            prev = o;
+        }
+        g = parent[g];
+    }
+    return 0;
+}
+
+typedef struct br_outlet {
+    int32_t comp, cell, score;
+} br_outlet;
+
+static int br_outlet_cmp(const void *pa, const void *pb)
+{
+    const br_outlet *a = pa, *b = pb;
+    if (a->score != b->score)
+        return a->score < b->score ? -1 : 1;
+    return (a->comp > b->comp) - (a->comp < b->comp);
+}
+
+/* Each network's outlet, its channel, and every cell's downstream cell. */
+static int br_orient(breach *b, const ts_raster *out, int32_t **parent)
+{
+    int32_t n_comp = b->n_comp, c, *drains = NULL;
+    size_t i, n0 = b->n, *queue = NULL;
+    br_outlet *o = ts__malloc_array((size_t)n_comp + 1, sizeof *o);
+    int rc = -1;
+    drains = ts__malloc_array((size_t)n_comp + 1, sizeof *drains);
+    queue = ts__malloc_array(n0 + 1, sizeof *queue);
+    if (!o || !drains || !queue)
+        goto done;
+    for (c = 0; c < n_comp; c++) {
+        o[c].comp = c;
+        o[c].cell = -1;
+        o[c].score = INT_MAX;
+        drains[c] = -1;
+    }
+    /* the outlet by the edge alone first (networks that reach it lead) */
+    for (i = 0; i < n0; i++) {
+        size_t g = b->cell[i];
+        int x = (int)(g % (size_t)b->W), y = (int)(g / (size_t)b->W);
+        int border = TS_MIN(TS_MIN(x, b->W - 1 - x), TS_MIN(y, b->H - 1 - y));
+        int32_t k = b->comp[i];
+        int end = popcount8(b->adj[i]) <= 1;
+        float zi = TS_PIX(out, x, y);
+        if (!end)
+            border += b->W + b->H; /* an end cell whenever the network has one */
+        if (o[k].cell < 0 || border < o[k].score ||
+            (border == o[k].score && zi < TS_PIX(out, (int)(b->cell[o[k].cell] % (size_t)b->W),
+                                                 (int)(b->cell[o[k].cell] / (size_t)b->W)))) {
+            o[k].cell = (int32_t)i;
+            o[k].score = border;
+        }
+    }
+    qsort(o, (size_t)n_comp, sizeof *o, br_outlet_cmp);
+    for (c = 0; c < n_comp; c++) {
+        int32_t k = o[c].comp, a = o[c].cell, hit = -1, best_end = a;
+        int border = o[c].score, other = INT_MAX;
+        size_t j;
+        /* an end within a patch of another network drains into it, unless
+         * an end is nearer the edge */
+        for (j = 0; j < n0; j++)
+            if (b->comp[j] == k && popcount8(b->adj[j]) <= 1) {
+                int32_t h;
+                int d = br_other(b, (int32_t)j, k, drains, &h);
+                if (d < other) {
+                    other = d;
+                    hit = h;
+                    best_end = (int32_t)j;
+                }
+            }
+        if (hit >= 0 && other < border) {
+            size_t g = b->cell[hit];
+            a = best_end;
+            if (br_channel(b, a, (int)(g % (size_t)b->W), (int)(g / (size_t)b->W)) != 0)
+                goto done;
+            drains[k] = b->comp[hit];
+        } else {
+            /* out by the way the water leaves: to the edge over the lowest
+             * pass, carved (or into a valley met on the way) */
+            if (!*parent && !(*parent = br_flood(out)))
+                goto done;
+            if (br_spill(b, a, *parent) != 0)
+                goto done;
+            drains[k] = -2;
+        }
+        /* breadth first from the outlet: every cell's downstream cell */
+        {
+            size_t head, tail = 0;
+            unsigned char *seen = ts__calloc_array(n0 + 1, 1);
+            if (!seen)
+                goto done;
+            queue[tail++] = (size_t)a;
+            seen[a] = 1;
+            for (head = 0; head < tail; head++) {
+                size_t g = b->cell[queue[head]];
+                int d;
+                for (d = 0; d < 8; d++)
+                    if (b->adj[queue[head]] & (1u << d)) {
+                        int32_t q = b->id[(size_t)((long)g + BY[d] * (long)b->W + BX[d])];
+                        if (q >= 0 && (size_t)q < n0 && !seen[q]) {
+                            seen[q] = 1;
+                            b->down[q] = (int32_t)queue[head];
+                            queue[tail++] = (size_t)q;
+                        }
+                    }
+            }
+            free(seen);
+        }
+    }
+    rc = 0;
+done:
+    free(o);
+    free(drains);
+    free(queue);
+    return rc;
+}
+
+ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
+                            const unsigned char *flags, int patch)
+{
+    breach b;
+    int32_t *parent = NULL;
+    size_t n = (size_t)out->width * (size_t)out->height, i, head, tail = 0;
+    int32_t *indeg = NULL;
+    size_t *queue = NULL;
+    float *delta = NULL, *spread = NULL, *dist = NULL, *distb = NULL;
+    unsigned char *m = NULL;
+    ts_status st = TS_OK;
+    double rr = patch / 8.0;
+    memset(&b, 0, sizeof b);
+    if (!f)
+        return TS_OK;
+    b.W = out->width;
+    b.H = out->height;
+    b.P = patch;
+    if (!(b.id = ts__malloc_array(n, sizeof *b.id)))
+        return ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+    for (i = 0; i < n; i++)
+        b.id[i] = -1;
+    if (br_build(&b, f) != 0 || (b.n && br_orient(&b, out, &parent) != 0)) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+        goto done;
+    }
+    if (!b.n)
+        goto done;
+    indeg = ts__calloc_array(b.n, sizeof *indeg);
+    queue = ts__malloc_array(b.n, sizeof *queue);
+    delta = ts__malloc_array(n, sizeof *delta);
+    spread = ts__malloc_array(n, sizeof *spread);
+    dist = ts__malloc_array(n, sizeof *dist);
+    distb = ts__malloc_array(n, sizeof *distb);
+    m = ts__malloc_array(n, 1);
+    if (!indeg || !queue || !delta || !spread || !dist || !distb || !m) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+        goto done;
+    }
+    /* carved upstream first (Kahn's order over the downstream links) */
+    for (i = 0; i < n; i++)
+        delta[i] = NAN;
+    for (i = 0; i < b.n; i++) {
+        size_t g = b.cell[i];
+        delta[g] = TS_PIX(out, (int)(g % (size_t)b.W), (int)(g / (size_t)b.W));
+        if (b.down[i] >= 0)
+            indeg[b.down[i]]++;
+    }
+    for (i = 0; i < b.n; i++)
+        if (!indeg[i])
+            queue[tail++] = i;
+    for (head = 0; head < tail; head++) {
+        int32_t c = (int32_t)queue[head], d = b.down[c];
+        if (d < 0)
+            continue;
+        {
+            size_t gc = b.cell[c], gd = b.cell[d];
+            int fixed = flags && (flags[gd] & (TS_CELL_FIXED | TS_CELL_NODATA));
+            if (!fixed && !isnan(delta[gc]) && !isnan(delta[gd]) && delta[gc] < delta[gd])
+                delta[gd] = delta[gc];
+        }
+        if (--indeg[d] == 0)
+            queue[tail++] = (size_t)d;
+    }
+    /* the change: exact on the carved cells, blurred and fading out beside
+     * them (as the layout's valley floors) */
+    for (i = 0; i < n; i++) {
+        float z = TS_PIX(out, (int)(i % (size_t)b.W), (int)(i / (size_t)b.W));
+        distb[i] = delta[i]; /* the carved heights themselves, set as they are */
+        delta[i] = isnan(delta[i]) || isnan(z) ? NAN : delta[i] - z;
+        m[i] = !isnan(delta[i]);
+    }
+    for (i = 0; i < n; i++)
+        if (m[i]) {
+            int x = (int)(i % (size_t)b.W), y = (int)(i / (size_t)b.W);
+            if (!(flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))))
+                TS_PIX(out, x, y) = distb[i];
+        }
+    if ((st = ts__distance_transform(ctx, m, b.W, b.H, dist)) != TS_OK ||
+        (st = ts__blur_nan(ctx, delta, b.W, b.W, b.H, 0.5 * rr, spread)) != TS_OK ||
+        (st = ts__blur_nan(ctx, dist, b.W, b.W, b.H, 2.0, distb)) != TS_OK)
+        goto done;
+    for (i = 0; i < n; i++) {
+        int x = (int)(i % (size_t)b.W), y = (int)(i / (size_t)b.W);
+        double w, c;
+        if (isnan(TS_PIX(out, x, y)) || (flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) ||
+            m[i])
+            continue; /* the carved cells are set above */
+        if (dist[i] < 3.0 * rr && !isnan(spread[i])) {
+            w = exp(-(distb[i] / rr) * (distb[i] / rr));
+            c = w * fmin(0.0, spread[i]);
+        } else
+            continue;
+        TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + c);
+    }
+done:
+    free(parent);
+    free(b.id);
+    free(b.cell);
+    free(b.adj);
+    free(b.comp);
+    free(b.down);
+    free(indeg);
+    free(queue);
+    free(delta);
+    free(spread);
+    free(dist);
+    free(distb);
+    free(m);
+    return st;
+}
