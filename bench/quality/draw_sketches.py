@@ -20,6 +20,14 @@
 #                              junction), UTM 10N 30 m
 #   fishbone_ridges_geo1s_640.tif a winding main ridge with six side spurs,
 #                              EPSG:4326 1 arc-second
+#   range_spurs_both_720.tif   both kinds on a grey ground: a winding crest with
+#                              side spurs and the valleys between them coming
+#                              down from it, UTM 13N 30 m
+#   caldera_both_geo1s_600.tif both kinds: a closed ring ridge (a caldera rim)
+#                              with eight valleys radiating from it and one
+#                              cutting into the ring, EPSG:4326 1 arc-second
+# The both-kind drawings are also written as lines, NAME.gpkg (layer
+# "strokes", field "kind"), the way a GIS user would digitise them.
 # Strokes are painted with a brush whose value falls linearly to zero at
 # `width` cells from the stroke and is then blurred a little (a felt pen, not
 # a Gaussian airbrush); ridges are bright on dark, valleys dark on bright.
@@ -39,9 +47,11 @@ class Canvas:
     def __init__(self, n):
         self.n = n
         self.lines = np.zeros((n, n), bool)
+        self.polylines = []
 
     def stroke(self, pts):
         """Rasterise a polyline (x, y in cells) at sub-cell steps."""
+        self.polylines.append([(x + 0.5, y + 0.5) for x, y in pts])
         for (x0, y0), (x1, y1) in zip(pts[:-1], pts[1:]):
             steps = max(2, int(4 * math.hypot(x1 - x0, y1 - y0)))
             t = np.linspace(0.0, 1.0, steps)
@@ -77,6 +87,34 @@ def write(path, grey, gt, epsg):
     ds.SetProjection(srs.ExportToWkt())
     ds.GetRasterBand(1).WriteArray(grey)
     ds = None
+
+
+def write_lines(path, kinds, gt, epsg):
+    """kinds: [(kind, Canvas)]: every polyline of each canvas, in the grid's CRS."""
+    from osgeo import ogr
+    drv = ogr.GetDriverByName("GPKG")
+    if os.path.exists(path):
+        drv.DeleteDataSource(path)
+    ds = drv.CreateDataSource(path)
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(epsg)
+    lyr = ds.CreateLayer("strokes", srs, ogr.wkbLineString)
+    lyr.CreateField(ogr.FieldDefn("kind", ogr.OFTString))
+    for kind, canvas in kinds:
+        for pts in canvas.polylines:
+            f = ogr.Feature(lyr.GetLayerDefn())
+            f.SetField("kind", kind)
+            g = ogr.Geometry(ogr.wkbLineString)
+            for x, y in pts:
+                g.AddPoint_2D(gt[0] + x * gt[1], gt[3] + y * gt[5])
+            f.SetGeometry(g)
+            lyr.CreateFeature(f)
+    ds = None
+
+
+def both(r, v):
+    """Ridges brighter and valleys darker than a grey ground."""
+    return np.rint(np.clip(120 + 125 * r - 110 * v, 0, 255)).astype(np.uint8)
 
 
 def ridges(v):
@@ -156,6 +194,49 @@ def main():
     write(os.path.join(out, "fishbone_ridges_geo1s_640.tif"), ridges(c.paint(10, 2)),
           (-114.0, 1.0 / 3600, 0.0, 44.15, 0.0, -1.0 / 3600), 4326)
     rows.append("fishbone_ridges_geo1s_640.tif,ridges")
+
+    # both kinds: a crest with spurs and the valleys between them
+    n = 720
+    r, v = Canvas(n), Canvas(n)
+    crest = wiggle((0.04 * n, 0.40 * n), (0.96 * n, 0.30 * n), 0.05 * n, 1.5, 90)
+    r.stroke(crest)
+    for i, t in enumerate((0.15, 0.30, 0.45, 0.60, 0.75, 0.90)):
+        x0, y0 = crest[int(t * (len(crest) - 1))]
+        side = 1 if i % 2 == 0 else -1
+        r.stroke(wiggle((x0, y0), (x0 + 0.05 * n, y0 + side * 0.28 * n), 0.015 * n, 1, 20))
+    for i, t in enumerate((0.075, 0.225, 0.375, 0.525, 0.675, 0.825)):
+        x0, y0 = crest[int(t * (len(crest) - 1))]
+        side = 1 if i % 2 == 0 else -1
+        v.stroke(wiggle((x0 + 0.01 * n, y0 + side * 0.06 * n),
+                        (x0 + 0.04 * n, y0 + side * 0.42 * n), 0.02 * n, 1, 24))
+    gt = (420000.0, 30.0, 0.0, 4400000.0, 0.0, -30.0)
+    write(os.path.join(out, "range_spurs_both_720.tif"), both(r.paint(12, 2.5), v.paint(10, 2.5)),
+          gt, 32613)
+    write_lines(os.path.join(out, "range_spurs_both_720.gpkg"), [("ridge", r), ("valley", v)], gt,
+                32613)
+    rows.append("range_spurs_both_720.tif,both")
+
+    # both kinds: a closed caldera rim, valleys radiating from it, one cutting into it
+    n = 600
+    r, v = Canvas(n), Canvas(n)
+    cx, cy, rad = 0.47 * n, 0.52 * n, 0.20 * n
+    r.stroke([(cx + rad * math.cos(a) * (1 + 0.08 * math.sin(3 * a)),
+               cy + rad * math.sin(a) * (1 + 0.08 * math.sin(3 * a)))
+              for a in np.linspace(0.0, 2 * math.pi, 240)])
+    for k in range(8):
+        a = 0.3 + 2 * math.pi * k / 8
+        r0, r1 = rad * 1.25, (0.42 + 0.05 * (k % 3)) * n
+        v.stroke(wiggle((cx + r0 * math.cos(a), cy + r0 * math.sin(a)),
+                        (cx + r1 * math.cos(a + 0.15), cy + r1 * math.sin(a + 0.15)),
+                        0.015 * n, 1, 24))
+    v.stroke([(cx - 0.45 * rad, cy + 0.1 * rad), (cx - 1.6 * rad, cy + 0.9 * rad),
+              (cx - 2.2 * rad, cy + 1.9 * rad)])
+    gt = (7.60, 1.0 / 3600, 0.0, 46.50, 0.0, -1.0 / 3600)
+    write(os.path.join(out, "caldera_both_geo1s_600.tif"), both(r.paint(11, 2), v.paint(9, 2)),
+          gt, 4326)
+    write_lines(os.path.join(out, "caldera_both_geo1s_600.gpkg"), [("ridge", r), ("valley", v)],
+                gt, 4326)
+    rows.append("caldera_both_geo1s_600.tif,both")
 
     with open(os.path.join(out, "sketches.csv"), "w") as f:
         f.write("file,mode\n" + "\n".join(rows) + "\n")

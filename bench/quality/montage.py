@@ -48,7 +48,7 @@ def grey(path):
     return Image.fromarray(np.uint8(255 * np.nan_to_num(a))).convert("RGB")
 
 
-def write_all(out_dir, sk_dir, rows, size=360):
+def write_all(out_dir, sk_dir, rows, size=360, prefix="montage_"):
     by_sketch = {}
     for r in rows:
         by_sketch.setdefault(r["sketch"], [])
@@ -60,4 +60,4 @@ def write_all(out_dir, sk_dir, rows, size=360):
         for i, r in enumerate(rs):
             img.paste(hillshade(os.path.join(out_dir, r["tag"] + ".tif")).resize((size, size)),
                       (size * (i + 1), 0))
-        img.save(os.path.join(out_dir, "montage_" + sk[:-4] + ".png"))
+        img.save(os.path.join(out_dir, prefix + sk[:-4] + ".png"))

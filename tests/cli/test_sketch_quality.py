@@ -8,7 +8,9 @@ long meandering valley on a grid without CRS, concentric ridges on a geographic 
 of valleys, an exemplar three times finer than the sketch (a 10 m volcano) and one three times
 coarser (a 90 m canyon).  Every case must meet the goal of the sketch-fidelity issue: structure_r >= 0.6,
 feature_recall >= 0.7, seam_lap and seam_grad <= 1.2, slope_w1 <= 3 degrees.  The whole matrix
-(more sketches, more DEMs) is bench/quality.  Skips when ../shared or scipy is absent.
+(more sketches, more DEMs) is bench/quality.  Drawings of both kinds, painted and as lines, are
+judged per kind (bench/quality/both_matrix.py is their matrix).  Skips when ../shared or scipy
+is absent.
 """
 import json
 import os
@@ -157,3 +159,37 @@ def test_valleys_descend(sketches, tmp_path, seed):
         assert max(steps) < 15.0, f"a valley climbs {max(steps):.0f} m over 16 cells"
         n_paths += 1
     assert n_paths >= 5
+
+
+BOTH_GOAL = dict(GOAL, feature_recall_ridges=(">=", 0.7), feature_recall_valleys=(">=", 0.7))
+BOTH_CASES = [  # class, sketch, exemplar, cell size of CRS-less rasters
+    ("ridges and valleys", "valley_between_ridges_800.tif", "mountains_bigtujunga_ca_30m.tif",
+     None),
+    ("rim and gullies", "volcano_rim_gullies_700.tif", "volcano_st_helens_30m.tif", None),
+]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("form", ["painted", "lines"])
+@pytest.mark.parametrize("cls,sketch,exemplar,cell", BOTH_CASES, ids=[c[0] for c in BOTH_CASES])
+def test_both_kinds_meet_the_goal(sketches, tmp_path, cls, sketch, exemplar, cell, form, seed):
+    """Drawings of ridges AND valleys, painted on a grey ground (--mode auto finds both) or
+    the same drawing as lines (the yardstick's GeoPackage, on the painting's grid): each kind
+    is recalled (terrain_metrics.py --mode both), the layout follows, no seam, the slopes."""
+    ex = os.path.join(SHARED, exemplar)
+    if not os.path.exists(ex):
+        pytest.skip(f"{ex} absent")
+    out = tmp_path / "out.tif"
+    painted = sketches / sketch
+    src = painted if form == "painted" else painted.with_suffix(".gpkg")
+    extra = ["--cell-size", cell] if cell else []
+    grid = [] if form == "painted" else ["--like", painted]
+    p = run("synth", "--sketch", src, *grid, "--exemplar", ex, "--seed", seed, out, *extra)
+    assert "ridges and valleys" in p.stdout
+    p = subprocess.run([sys.executable, METRICS, "--out", str(out), "--exemplar", ex, "--sketch",
+                        str(painted), "--patch", "64", "--mode", "both", *map(str, extra)],
+                       capture_output=True, text=True, check=True)
+    m = json.loads(p.stdout)
+    misses = [f"{k} {m[k]:.3f} (goal {op} {lim})" for k, (op, lim) in BOTH_GOAL.items()
+              if not (m[k] >= lim if op == ">=" else m[k] <= lim)]
+    assert not misses, f"{cls} {form}, {sketch} x {exemplar}, seed {seed}: " + ", ".join(misses)

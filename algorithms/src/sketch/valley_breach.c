@@ -422,6 +422,29 @@ done:
     return rc;
 }
 
+/* The land's steep slope: the 95th percentile of the height difference
+ * between neighbouring cells (central differences, at most about 65536
+ * cells sampled); work: width * height floats. */
+static double breach_steep(const ts_raster *out, float *work)
+{
+    int W = out->width, H = out->height, x, y;
+    double cells = (double)W * (double)H;
+    int step = cells > 65536.0 ? (int)ceil(sqrt(cells / 65536.0)) : 1;
+    size_t k = 0;
+    for (y = 1; y + 1 < H; y += step)
+        for (x = 1; x + 1 < W; x += step) {
+            double gx = 0.5 * ((double)TS_PIX(out, x + 1, y) - TS_PIX(out, x - 1, y));
+            double gy = 0.5 * ((double)TS_PIX(out, x, y + 1) - TS_PIX(out, x, y - 1));
+            double g = sqrt(gx * gx + gy * gy);
+            if (!isnan(g))
+                work[k++] = (float)g;
+        }
+    if (!k)
+        return 1.0;
+    qsort(work, k, sizeof *work, ts__float_cmp);
+    return fmax(1e-3, (double)work[(size_t)(0.95 * (double)(k - 1))]);
+}
+
 ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
                             const unsigned char *flags, int patch)
 {
@@ -431,9 +454,10 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
     int32_t *indeg = NULL;
     size_t *queue = NULL;
     float *delta = NULL, *spread = NULL, *dist = NULL, *distb = NULL;
+    int32_t *nearest = NULL;
     unsigned char *m = NULL;
     ts_status st = TS_OK;
-    double rr = patch / 8.0;
+    double rr = patch / 8.0, s_ref;
     memset(&b, 0, sizeof b);
     if (!f)
         return TS_OK;
@@ -461,6 +485,7 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
     }
+    s_ref = breach_steep(out, delta);
     /* carved upstream first (Kahn's order over the downstream links) */
     for (i = 0; i < n; i++)
         delta[i] = NAN;
@@ -500,22 +525,33 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
             if (!(flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))))
                 TS_PIX(out, x, y) = distb[i];
         }
-    if ((st = ts__distance_transform(ctx, m, b.W, b.H, dist)) != TS_OK ||
-        (st = ts__blur_nan(ctx, delta, b.W, b.W, b.H, 0.5 * rr, spread)) != TS_OK ||
-        (st = ts__blur_nan(ctx, dist, b.W, b.W, b.H, 2.0, distb)) != TS_OK)
+    /* beside them: the nearest carved cell's change, fading out over rr or
+     * over as far as the land's steep slopes (s_ref a cell) take to climb
+     * its depth, whichever is wider (a carved floor becomes a valley
+     * bottom, a cut through a pass a gorge with the land's own walls, not a
+     * slot), then smoothed over a cell and a half so that no step of the
+     * line's staircase shows */
+    if (!(nearest = ts__malloc_array(n, sizeof *nearest))) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+        goto done;
+    }
+    if ((st = ts__distance_transform_nearest(ctx, m, b.W, b.H, dist, nearest)) != TS_OK)
+        goto done;
+    for (i = 0; i < n; i++) {
+        double r = nearest[i] >= 0 ? fmax(rr, 1.5 * fabs(delta[nearest[i]]) / s_ref) : rr;
+        double t = dist[i] / r;
+        spread[i] = m[i] ? delta[i]
+                    : (nearest[i] >= 0 && t < 3.0) ? (float)(exp(-t * t) * delta[nearest[i]])
+                                                   : 0.0f;
+    }
+    if ((st = ts__blur_nan(ctx, spread, b.W, b.W, b.H, 1.5, distb)) != TS_OK)
         goto done;
     for (i = 0; i < n; i++) {
         int x = (int)(i % (size_t)b.W), y = (int)(i / (size_t)b.W);
-        double w, c;
         if (isnan(TS_PIX(out, x, y)) || (flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) ||
-            m[i])
+            m[i] || isnan(distb[i]))
             continue; /* the carved cells are set above */
-        if (dist[i] < 3.0 * rr && !isnan(spread[i])) {
-            w = exp(-(distb[i] / rr) * (distb[i] / rr));
-            c = w * fmin(0.0, spread[i]);
-        } else
-            continue;
-        TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + c);
+        TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + fmin(0.0, distb[i]));
     }
 done:
     free(parent);
@@ -530,6 +566,7 @@ done:
     free(spread);
     free(dist);
     free(distb);
+    free(nearest);
     free(m);
     return st;
 }
