@@ -216,6 +216,50 @@ def multistyle():
     return sketch, regions
 
 
+def ridges_valleys():
+    """A drawing of both kinds (ours, not the paper's): a crest across the map
+    with two spurs to either side, the valleys between the spurs running down
+    to the map's edges, and a river along the south.  Returns the painted
+    sketch (a grey ground, 128, with ridges brighter and valleys darker) and
+    the strokes as lines [(kind, [(col, row), ...])], in cell coordinates."""
+    crest = catmull_rom([(20.0, 250.0), (150.0, 226.0), (280.0, 244.0), (400.0, 214.0),
+                         (492.0, 230.0)], n=24)
+    lines = [("ridge", [tuple(p) for p in crest])]
+    for x0, y0, x1, y1 in ((150.0, 228.0, 128.0, 84.0), (360.0, 226.0, 392.0, 70.0),
+                           (220.0, 236.0, 200.0, 360.0), (420.0, 218.0, 450.0, 340.0)):
+        lines.append(("ridge", [(x0, y0), (0.5 * (x0 + x1) + 8.0, 0.5 * (y0 + y1)), (x1, y1)]))
+    for x0, y0, x1, y1 in ((60.0, 200.0, 40.0, 8.0), (262.0, 212.0, 250.0, 8.0),
+                           (470.0, 186.0, 500.0, 40.0), (110.0, 272.0, 96.0, 430.0),
+                           (320.0, 268.0, 330.0, 430.0)):
+        lines.append(("valley", [(x0, y0), (0.5 * (x0 + x1) - 6.0, 0.5 * (y0 + y1)), (x1, y1)]))
+    river = catmull_rom([(4.0, 440.0), (120.0, 432.0), (250.0, 452.0), (380.0, 430.0),
+                         (508.0, 446.0)], n=24)
+    lines.append(("river", [tuple(p) for p in river]))
+    ridge, valley = Canvas(512, 512, sigma=5.0), Canvas(512, 512, sigma=4.0)
+    for kind, pts in lines:
+        (ridge if kind == "ridge" else valley).polyline(pts)
+    grey = 128.0 + 0.5 * ridge.grey() - 0.5 * valley.grey()
+    grey = np.round(grey * QUANTUM) / QUANTUM
+    return grey.astype(np.float32), lines
+
+
+def write_lines(path, lines, description):
+    """The strokes as GeoJSON lines (EPSG:4326, the grid's CRS) with a field kind."""
+    feats = []
+    for kind, pts in lines:
+        coords = ",".join("[%.7f,%.7f]" % (ORIGIN_LON + c * CELL, ORIGIN_LAT - r * CELL)
+                          for c, r in pts)
+        feats.append('{"type":"Feature","properties":{"kind":"%s"},'
+                     '"geometry":{"type":"LineString","coordinates":[%s]}}' % (kind, coords))
+    text = ('{"type":"FeatureCollection","name":"strokes","description":"%s",\n'
+            '"features":[\n%s\n]}\n' % (description, ",\n".join(feats)))
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+    print("%s: %d lines, %d bytes" % (os.path.basename(path), len(lines), len(text)))
+
+
 # ---------------------------------------------------------------------------
 # Output.
 
@@ -282,6 +326,14 @@ def main():
           "Style region map for multistyle_sketch.tif: 1 = west (e.g. mountains), "
           "2 = east (e.g. hills), curved border; nodata 0 declared, not present; "
           + CREDIT, 2)
+    both, lines = ridges_valleys()
+    write(out("ridges_valleys.tif"), both, gdal.GDT_Float32, NODATA,
+          "Sketch map (ridges and valleys): a crest with spurs, the valleys between them "
+          "and a river, on a grey ground (128): brighter = ridges, darker = valleys; the "
+          "same drawing as lines in ridges_valleys.geojson; " + CREDIT, 3)
+    write_lines(out("ridges_valleys.geojson"), lines,
+                "Sketch (ridges and valleys) as lines, field kind; the same drawing painted in "
+                "ridges_valleys.tif; " + CREDIT)
     return 0
 
 
