@@ -204,7 +204,7 @@ def main():
                   1 / ((1 - pf) + pf / 16)))
 
     # 3. Dask
-    runner = os.path.join(ROOT, "gdal_driver", "terrasynth_dask.py")
+    runner = os.path.join(ROOT, "gdal_driver", "dask", "terrasynth_dask.py")
     print("\n3. terrasynth-dask, a local cluster of 2 workers (threads of the runner; "
           "--processes: processes)")
     rec = os.path.join(work, "d2048.tsyn")

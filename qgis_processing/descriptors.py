@@ -120,7 +120,7 @@ def param(stage_name, name):
 def check_rules(job_name, given):
     """The message of the first rule of a job (from `terrasynth describe`) that the set of
     given option and parameter names breaks, else None: the same rules, in the same order and
-    with the same messages, as the program's (gdal_driver/jobspec.c)."""
+    with the same messages, as the program's (gdal_driver/jobs/)."""
     j = job(job_name)
     stages = {st: {d["name"] for d in stage(st)} for st in j.get("stages", [])}
 

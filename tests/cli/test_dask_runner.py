@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""terrasynth-dask (gdal_driver/terrasynth_dask.py, issue 16): a recipe computed on a local
+"""terrasynth-dask (gdal_driver/dask/terrasynth_dask.py): a recipe computed on a local
 Dask cluster of two workers (threads of the runner, or processes on loopback) gives the same cells, geotransform, CRS
 and nodata as `gdal_translate RECIPE OUT.tif` of the same recipe, whatever the chunk size; a
 pixel and an amplify recipe chunk by chunk, a tiled synth recipe tile by tile, a synth recipe
@@ -20,7 +20,7 @@ from tsutil import JACKSBORO, ROOT, plugin_env, run  # noqa: E402
 
 gdal.UseExceptions()
 PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
-RUNNER = os.path.join(ROOT, "gdal_driver", "terrasynth_dask.py")
+RUNNER = os.path.join(ROOT, "gdal_driver", "dask", "terrasynth_dask.py")
 # the runner's default compression: ZSTD where GDAL's GeoTIFF driver has it
 HAS_ZSTD = "ZSTD" in (gdal.GetDriverByName("GTiff").GetMetadataItem("DMD_CREATIONOPTIONLIST")
                       or "")

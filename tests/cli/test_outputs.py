@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""What a job writes, as tsjob writes it for every front end (gdal_driver/tsjob.c): no
+"""What a job writes, as tsjob writes it for every front end (gdal_driver/jobs/): no
 output is ever one of the inputs (compared by identity: a link, or another spelling of
 the path, is refused too), a refused job writes nothing and leaves the input as it was,
 and the debug folder holds every map, georeferenced like the output."""

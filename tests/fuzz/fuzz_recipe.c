@@ -52,7 +52,7 @@ static void fuzz_setup(void)
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    ts_recipe *r = NULL;
+    tsrecipe *r = NULL;
     tsio_err err;
     VSILFILE *fp;
     fuzz_setup();
@@ -61,12 +61,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     VSIFCloseL(fp);
     CPLPushErrorHandler(CPLQuietErrorHandler);
-    if (recipe_open("/vsimem/fuzz/r.tsyn", NULL, &r, &err) == 0) {
-        const tsio_georef *g = recipe_georef(r);
+    if (tsrecipe_open("/vsimem/fuzz/r.tsyn", NULL, &r, &err) == 0) {
+        const tsio_georef *g = tsrecipe_georef(r);
         /* compute only what is cheap: small ppa grids */
-        if (recipe_gdal_type(r) == GDT_Byte && (size_t)g->width * (size_t)g->height <= 4096)
-            recipe_compute(r, &err);
-        recipe_free(r);
+        if (tsrecipe_gdal_type(r) == GDT_Byte && (size_t)g->width * (size_t)g->height <= 4096)
+            tsrecipe_compute(r, &err);
+        tsrecipe_free(r);
     }
     CPLPopErrorHandler();
     VSIUnlink("/vsimem/fuzz/r.tsyn");

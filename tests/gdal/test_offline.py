@@ -21,7 +21,7 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
 DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))
 DEM = os.path.join(DATA, "jacksboro_fault_dem.tif")
-DASK = os.path.join(ROOT, "gdal_driver", "terrasynth_dask.py")
+DASK = os.path.join(ROOT, "gdal_driver", "dask", "terrasynth_dask.py")
 ENV = dict(os.environ, GDAL_DRIVER_PATH=PLUGINS)
 for k in ("TSYN_ALLOW_NETWORK", "NO_PROXY", "no_proxy", "http_proxy", "HTTP_PROXY"):
     ENV.pop(k, None)

@@ -1,0 +1,203 @@
+/*
+ * cli_main.c - the `terrasynth` command-line program: the commands
+ * (cli_ppa.c, cli_synth.c, cli_describe.c) and what they share.
+ *
+ * A thin front end: the jobs (tsjob.c) read with tsio, call the core and
+ * write with tsio; options and rules come from the job declarations
+ * (jobspec.c) and the core's parameter tables.  Errors are one line on
+ * stderr ("terrasynth: <file>: <problem>") and a non-zero exit: 1 for a
+ * failed run, 2 for a usage error.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cpl_conv.h>
+#include <cpl_string.h>
+#include <gdal.h>
+
+#include "cli.h"
+#include "tsio.h"
+
+/* ------------------------------------------------------------------ */
+/* Progress: GDAL's terminal bar, machine-readable lines, or nothing  */
+/* ------------------------------------------------------------------ */
+
+static int progress_lines(double done, const char *msg, void *user)
+{
+    int *last = user;
+    int pct = (int)(done * 100.0);
+    if (pct != *last) {
+        *last = pct;
+        printf("PROGRESS %d %s\n", pct, msg ? msg : "");
+        fflush(stdout);
+    }
+    return 1;
+}
+
+static int progress_bar(double done, const char *msg, void *user)
+{
+    (void)user;
+    (void)msg;
+    return GDALTermProgress(done, NULL, NULL);
+}
+
+void cli_set_progress(ts_ctx *ctx, progress_mode mode, int *state)
+{
+    if (mode == PROGRESS_BAR)
+        ts_ctx_set_progress(ctx, progress_bar, NULL);
+    else if (mode == PROGRESS_LINES)
+        ts_ctx_set_progress(ctx, progress_lines, state);
+}
+
+/* ------------------------------------------------------------------ */
+/* Shared option handling                                             */
+/* ------------------------------------------------------------------ */
+
+void cli_usage_error(const char *cmd, const char *fmt, const char *arg)
+{
+    size_t n = strlen(cmd);
+    fprintf(stderr, "terrasynth %s: ", cmd);
+    /* a message of the core that names the command already ("synth: ...") */
+    if (arg && !strcmp(fmt, "%s") && !strncmp(arg, cmd, n) && arg[n] == ':' && arg[n + 1] == ' ')
+        arg += n + 2;
+    fprintf(stderr, fmt, arg);
+    fprintf(stderr, " (see 'terrasynth %s --help')\n", cmd);
+}
+
+/* Parse an option shared by every command; returns 1 if consumed, 0 if
+ * not ours, -1 on error (message printed). */
+static int parse_common(const char *cmd, common_opts *o, int argc, char **argv, int *i)
+{
+    const char *a = argv[*i];
+    const char *value = *i + 1 < argc ? argv[*i + 1] : NULL;
+    char *end;
+    if (!strcmp(a, "-q") || !strcmp(a, "--quiet")) {
+        o->progress = PROGRESS_QUIET;
+        return 1;
+    }
+    if (!strcmp(a, "--progress-lines")) {
+        o->progress = PROGRESS_LINES;
+        return 1;
+    }
+    if (!strcmp(a, "-of") || !strcmp(a, "-co") || !strcmp(a, "--threads") ||
+        !strcmp(a, "--max-memory")) {
+        if (!value) {
+            cli_usage_error(cmd, "%s needs a value", a);
+            return -1;
+        }
+        ++*i;
+        if (!strcmp(a, "-of")) {
+            o->format = value;
+        } else if (!strcmp(a, "-co")) {
+            if (!strchr(value, '=')) {
+                cli_usage_error(cmd, "-co takes KEY=VALUE, not '%s'", value);
+                return -1;
+            }
+            o->create_options = CSLAddString(o->create_options, value);
+        } else if (!strcmp(a, "--max-memory")) {
+            uint64_t bytes;
+            if (tsio_parse_memory(value, &bytes) != 0) {
+                cli_usage_error(cmd,
+                                "--max-memory takes an amount of memory (2G, 500M, 512 = MB, "
+                                "50%%), not '%s'",
+                                value);
+                return -1;
+            }
+            /* the same option the GDAL driver reads (--config TSYN_MAX_MEMORY) */
+            CPLSetConfigOption("TSYN_MAX_MEMORY", value);
+        } else {
+            long t = strtol(value, &end, 10);
+            if (*end || t < 0 || t > 256) {
+                cli_usage_error(cmd, "--threads must be 0..256, not '%s'", value);
+                return -1;
+            }
+            o->threads = (int)t;
+        }
+        return 1;
+    }
+    return 0;
+}
+
+/* cli_parse_argv's hook for the options every command shares (they are the
+ * command line's own: formats, threads, progress) */
+int cli_skip_common(int argc, char **argv, int *i, void *user)
+{
+    common_opts *co = user;
+    return parse_common(co->cmd, co, argc, argv, i);
+}
+
+const char cli_common_help[] =
+    "  -of FORMAT                       GDAL output format (default: from the extension,\n"
+    "                                   else GTiff)\n"
+    "  -co KEY=VALUE                    creation option (repeatable)\n"
+    "  --threads N                      worker threads (default 0 = all cores)\n"
+    "  --max-memory M                   refuse a job that needs more (2G, 500M, 50%;\n"
+    "                                   default the machine's memory; TSYN_MAX_MEMORY)\n"
+    "  --progress-lines                 print 'PROGRESS <percent> <stage>' lines\n"
+    "  -q, --quiet                      no progress bar or summary\n";
+
+/* ------------------------------------------------------------------ */
+/* terrasynth ppa                                                     */
+/* ------------------------------------------------------------------ */
+
+static void main_help(FILE *out)
+{
+    fprintf(out,
+            "Usage: terrasynth COMMAND [options]\n"
+            "\n"
+            "TerraSynth %s: terrain synthesis from real DEMs.\n"
+            "\n"
+            "Commands:\n"
+            "  ppa        map ridge and valley axes of a DEM (raster, vector lines, preview)\n"
+            "  synth      grow a new terrain from real DEMs, free or following a sketch\n"
+            "  amplify    make a coarse DEM finer with the detail of real terrain\n"
+            "  dictionary build an amplification dictionary once (build), or show one (info)\n"
+            "  pixel      grow a terrain cell by cell, coarse to fine (any window on its own)\n"
+            "  describe   print every stage's parameters as JSON (for front ends)\n"
+            "\n"
+            "'terrasynth COMMAND --help' lists a command's options with defaults and units.\n"
+            "  --version  print the version\n",
+            ts_version());
+}
+
+int main(int argc, char **argv)
+{
+    int rc;
+    if (argc < 2) {
+        main_help(stderr);
+        return EXIT_USAGE;
+    }
+    if (!strcmp(argv[1], "-h") || !strcmp(argv[1], "--help")) {
+        main_help(stdout);
+        return 0;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("terrasynth %s (GDAL %s)\n", ts_version(), GDALVersionInfo("RELEASE_NAME"));
+        return 0;
+    }
+    GDALAllRegister();
+    /* Ctrl-C, kill, a closed terminal: no unfinished output is left behind */
+    tsio_cleanup_on_signals("terrasynth");
+    if (!strcmp(argv[1], "ppa"))
+        rc = cli_ppa(argc, argv);
+    else if (!strcmp(argv[1], "synth"))
+        rc = cli_synth(argc, argv);
+    else if (!strcmp(argv[1], "amplify"))
+        rc = cli_amplify(argc, argv);
+    else if (!strcmp(argv[1], "pixel"))
+        rc = cli_pixel(argc, argv);
+    else if (!strcmp(argv[1], "dictionary"))
+        rc = cli_dictionary(argc, argv);
+    else if (!strcmp(argv[1], "describe"))
+        rc = cli_describe(argc, argv);
+    else {
+        fprintf(stderr, "terrasynth: unknown command '%s' (see 'terrasynth --help')\n", argv[1]);
+        rc = EXIT_USAGE;
+    }
+    GDALDestroyDriverManager();
+    return rc;
+}

@@ -1,0 +1,245 @@
+/*
+ * job_common.c - what every job shares: warnings about the data read, the exemplars' and
+ * target grid's cells, outputs that must not be inputs, previews, progress over
+ * several core calls.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <ctype.h>
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "job_internal.h"
+
+/* ------------------------------------------------------------------ */
+/* ppa                                                                 */
+/* ------------------------------------------------------------------ */
+
+/* The first warning of a job: cells of a float's extreme value read as nodata. */
+void tsjob__warn_sentinels(tsio_err *warning, const char *path, const tsio_raster *r)
+{
+    if (r->n_sentinels && !warning->msg[0])
+        tsio_errf(warning, path,
+                  "%zu cells of +-3.4e38 (a float's extreme value, not declared nodata) taken "
+                  "as nodata",
+                  r->n_sentinels);
+}
+
+/* ------------------------------------------------------------------ */
+/* synth                                                               */
+/* ------------------------------------------------------------------ */
+
+/* Cells of an exemplar, as read and resampled to cells of target_area square
+ * metres (0: as they are); *ratio (may be NULL) is the one between the two.  An
+ * exemplar without CRS has cells of cell_size metres when that is given. */
+int tsjob__exemplar_cells(const char *path, double target_area, double cell_size, uint64_t *source,
+                          uint64_t *target, double *ratio, tsio_err *err)
+{
+    tsio_georef g;
+    double *dx = NULL, *dy = NULL, r = 1.0;
+    if (tsio_read_georef(path, &g, err) != 0)
+        return -1;
+    *source = (uint64_t)g.width * (uint64_t)g.height;
+    if (target_area > 0 && tsio_georef_metrics(&g, &dx, &dy, err) == 0) {
+        double ex_area = dx ? dx[g.height / 2] * dy[g.height / 2] : cell_size * cell_size;
+        if (ex_area > 0)
+            r = ex_area / target_area;
+    }
+    free(dx);
+    free(dy);
+    tsio_georef_free(&g);
+    *target = (uint64_t)((double)*source * r + 1.0);
+    if (ratio)
+        *ratio = r;
+    return 0;
+}
+
+/* The ground metrics of a grid (NULL without CRS unless cell_size > 0:
+ * then every cell is cell_size metres). */
+int tsjob__grid_metrics(const tsio_georef *geo, double cell_size, double **dx, double **dy,
+                        tsio_err *err)
+{
+    int y;
+    if (tsio_georef_metrics(geo, dx, dy, err) != 0)
+        return -1;
+    if (*dx || !(cell_size > 0))
+        return 0;
+    *dx = malloc((size_t)geo->height * sizeof **dx);
+    *dy = malloc((size_t)geo->height * sizeof **dy);
+    if (!*dx || !*dy) {
+        free(*dx);
+        free(*dy);
+        *dx = *dy = NULL;
+        tsio_errf(err, "grid", "out of memory");
+        return -1;
+    }
+    for (y = 0; y < geo->height; y++)
+        (*dx)[y] = (*dy)[y] = cell_size;
+    return 0;
+}
+
+/* A raster without a CRS has cells of cell_size metres whatever its
+ * geotransform says.  When the job's grid (a sketch, a guide, an input: file
+ * `grid`, georeference g as the job read it) and an exemplar both lack a CRS
+ * and their geotransforms give cells of different sizes, the user most likely
+ * meant those sizes: say what is done instead. */
+void tsjob__warn_cell_sizes(tsio_err *warning, double cell_size, const char *grid,
+                            const tsio_georef *g, const char *const *exemplars, int n)
+{
+    tsio_georef e;
+    tsio_err ignore;
+    int i;
+    if (!(cell_size > 0) || !grid || g->wkt || !g->has_gt)
+        return;
+    for (i = 0; i < n && !warning->msg[0]; i++) {
+        double a, b;
+        if (tsio_read_georef(exemplars[i], &e, &ignore) != 0)
+            continue;
+        a = fabs(g->gt[1]);
+        b = fabs(e.gt[1]);
+        if (!e.wkt && e.has_gt && fabs(a - b) > 0.01 * (a > b ? a : b))
+            tsio_errf(warning, grid,
+                      "no CRS, cells of %g in its geotransform and %g in %s's: both are taken "
+                      "as %g m (--cell-size); give them a CRS (gdal_edit.py -a_srs) to use "
+                      "their own cell sizes",
+                      a, b, exemplars[i], cell_size);
+        tsio_georef_free(&e);
+    }
+}
+
+/* The target grid of a job (like; size with origin, resolution and CRS, or
+ * the first exemplar's), and its ground metrics. */
+int tsjob__target_grid(const tsjob_grid *g, const char *first_exemplar, double cell_size,
+                       tsio_georef *geo, double **dx, double **dy, tsio_err *err)
+{
+    if (g->like) {
+        if (tsio_read_georef(g->like, geo, err) != 0)
+            return -1;
+    } else if (g->crs) {
+        if (tsio_georef_make(g->width, g->height, g->origin_x, g->origin_y, g->res, g->res, g->crs,
+                             geo, err) != 0)
+            return -1;
+    } else {
+        /* the first exemplar's CRS, resolution and origin unless given */
+        tsio_georef g0;
+        int rc;
+        if (tsio_read_georef(first_exemplar, &g0, err) != 0)
+            return -1;
+        rc = tsio_georef_make(g->width, g->height, g->has_origin ? g->origin_x : g0.gt[0],
+                              g->has_origin ? g->origin_y : g0.gt[3],
+                              g->has_res ? g->res : fabs(g0.gt[1]),
+                              g->has_res ? g->res : fabs(g0.gt[5]), g0.wkt, geo, err);
+        tsio_georef_free(&g0);
+        if (rc != 0)
+            return -1;
+    }
+    return tsjob__grid_metrics(geo, cell_size, dx, dy, err);
+}
+
+/* ------------------------------------------------------------------ */
+/* what a job writes                                                   */
+/* ------------------------------------------------------------------ */
+
+/* Refuse an output that is one of the inputs (by identity: a link or
+ * another spelling of the path counts too). */
+int tsjob__not_an_input(const char *out, const char *const *inputs, int n, tsio_err *err)
+{
+    int i;
+    if (!out)
+        return 0;
+    for (i = 0; i < n; i++)
+        if (inputs[i] && (tsio_same_file(out, inputs[i]) || !strcmp(out, inputs[i]))) {
+            tsio_errf(err, out, "is an input (%s): an output never overwrites an input", inputs[i]);
+            return -1;
+        }
+    return 0;
+}
+
+/* Two outputs of a job must be two files (-d: refused). */
+int tsjob__distinct(const char *const *outs, int n, tsio_err *err)
+{
+    int i, j;
+    for (i = 0; i < n; i++)
+        for (j = i + 1; j < n; j++)
+            if (outs[i] && outs[j] && tsio_same_file(outs[i], outs[j])) {
+                tsio_errf(err, outs[j], "is also an output (%s): each output needs its own file",
+                          outs[i]);
+                return -1;
+            }
+    return 0;
+}
+
+/* A hillshade PNG; with f, its axes drawn over it.  The metrics are the
+ * grid's, or for a CRS-less grid its pixel size. */
+int tsjob__preview(ts_ctx *ctx, const char *path, const ts_raster *dem, const tsio_georef *geo,
+                   const ts_grid_metrics *metrics, const ts_features *f, tsio_err *err)
+{
+    size_t n = (size_t)dem->width * (size_t)dem->height;
+    unsigned char *rgb = malloc(3 * n);
+    double *rowdx = NULL, *rowdy = NULL;
+    ts_grid_metrics pm;
+    ts_status st;
+    int y, rc;
+    if (!metrics && geo->has_gt) {
+        rowdx = malloc((size_t)dem->height * sizeof *rowdx);
+        rowdy = malloc((size_t)dem->height * sizeof *rowdy);
+        if (rowdx && rowdy) {
+            for (y = 0; y < dem->height; y++) {
+                rowdx[y] = fabs(geo->gt[1]);
+                rowdy[y] = fabs(geo->gt[5]);
+            }
+            pm.dx = rowdx;
+            pm.dy = rowdy;
+            metrics = &pm;
+        }
+    }
+    st = rgb ? ts_render_preview(ctx, dem, metrics, f, rgb) : TS_ERR_NOMEM;
+    free(rowdx);
+    free(rowdy);
+    if (st != TS_OK) {
+        tsio_errf(err, path, "%s", rgb ? ts_ctx_message(ctx) : "out of memory");
+        free(rgb);
+        return -1;
+    }
+    rc = tsio_write_png_rgb(path, dem->width, dem->height, rgb, err);
+    free(rgb);
+    return rc;
+}
+
+/* Write one int map as Float32 with nodata -1. */
+int tsjob__int_map(const char *dir, const char *name, const tsio_georef *geo, const int32_t *v,
+                   float *tmp, tsio_err *err)
+{
+    char path[4096];
+    size_t i, n = (size_t)geo->width * (size_t)geo->height;
+    ts_raster r = ts_raster_wrap(tmp, geo->width, geo->height, geo->width);
+    if (tsio_path(path, sizeof path, dir, name, "tif", err) != 0)
+        return -1;
+    for (i = 0; i < n; i++)
+        tmp[i] = v[i] < 0 ? NAN : (float)v[i];
+    return tsio_write_float(path, NULL, geo, &r, -1.0, err);
+}
+
+/* ------------------------------------------------------------------ */
+/* amplify                                                             */
+/* ------------------------------------------------------------------ */
+
+int tsjob__progress_cb(double done, const char *msg, void *user)
+{
+    job_progress *p = user;
+    return p->fn ? p->fn(p->lo + (p->hi - p->lo) * done, msg, p->user) : 1; /* 1: go on */
+}
+
+void tsjob__progress_range(ts_ctx *ctx, job_progress *p, double lo, double hi)
+{
+    p->lo = lo;
+    p->hi = hi;
+    ts_ctx_set_progress(ctx, tsjob__progress_cb, p);
+}

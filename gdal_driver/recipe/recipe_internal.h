@@ -1,0 +1,61 @@
+/*
+ * recipe_internal.h - an open recipe (struct tsrecipe) as recipe.c,
+ * recipe_tiles.c and recipe_write.c see it.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#ifndef TS_RECIPE_INTERNAL_H
+#define TS_RECIPE_INTERNAL_H
+
+#include <pthread.h>
+#include <stdint.h>
+
+#include "jobspec.h"
+#include "recipe.h"
+#include "recipe_xml.h"
+
+#define RECIPE_MAX_BYTES (1 << 20)
+#define RECIPE_MAX_DEPTH 8
+
+/* A tile of a tiled synth recipe: its window's cells (ts_synth_tile_window). */
+typedef struct recipe_tile {
+    int ti, tj;
+    int x0, y0, w, h; /* the window */
+    float *cells;
+    uint64_t used; /* the last request that needed it */
+} recipe_tile;
+
+struct tsrecipe {
+    char *path;
+    int method;
+    tsjob_ppa ppa;
+    tsjob_synth synth;
+    uint64_t seed;
+    tsjob_values values; /* what the recipe (and the open options) give: the jobs point in */
+    char **strings;      /* CSL list owning every path string the jobs point to */
+    tsio_georef geo;     /* ppa: the input's grid */
+    tsjob_ppa_result ppa_res;
+    tsjob_synth_result synth_res;
+    tsjob_amplify amplify;
+    tsjob_amplify_result amplify_res;
+    tsjob_pixel pixel;
+    tsjob_pixel_result pixel_res;
+    int map; /* synth: -1 the terrain, else the TSJOB_MAP_* served (open option MAP) */
+    char layer[TS_LAYER_NAME]; /* amplify: the carried layer or "classes" served (LAYER), or "" */
+    int computed;
+    /* a tiled synth recipe: the tiles made so far, at most tile_limit bytes
+     * of them between requests (least recently used go first) */
+    pthread_mutex_t tile_lock;
+    int has_tile_lock;
+    recipe_tile *tiles;
+    size_t n_tiles, cap_tiles, tile_bytes;
+    uint64_t tile_clock; /* the request being served */
+};
+
+/* The cells [x0, x0+w) x [y0, y0+h) of a tiled synth recipe, from the tiles
+ * that cover them (made as needed, the least recently used dropped past the
+ * cache's limit); thread-safe (recipe_tiles.c). */
+int tsrecipe__tiles_window(tsrecipe *r, ts_ctx *ctx, int x0, int y0, int w, int h, float *out,
+                           tsio_err *err);
+
+#endif
