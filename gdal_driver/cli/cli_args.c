@@ -116,10 +116,9 @@ int cli_parse_argv(tsjob_values *v, int argc, char **argv, int first,
     return 0;
 }
 
-void cli_job_help(FILE *out, const tsjob_decl *job)
+int cli_groups(const tsjob_decl *job, const char *groups[8])
 {
-    const char *groups[8];
-    int n_groups = 0, g, s;
+    int n_groups = 0, g;
     size_t k;
     for (k = 0; k < job->n_opts; k++) {
         int seen = 0;
@@ -128,61 +127,76 @@ void cli_job_help(FILE *out, const tsjob_decl *job)
         if (!seen && n_groups < 8)
             groups[n_groups++] = job->opts[k].group;
     }
+    return n_groups;
+}
+
+void cli_option_left(const tsjob_option *o, char *left, size_t len)
+{
+    char flag[64];
+    cli_flag_of(o->name, flag, sizeof flag);
+    if (o->positional)
+        snprintf(left, len, "%s", o->metavar);
+    else if (o->kind == TSJOB_CHOICE)
+        snprintf(left, len, "%s", flag);
+    else
+        snprintf(left, len, "%s %s", flag, o->metavar);
+}
+
+const char *cli_stage_title(const char *stage)
+{
+    return !strcmp(stage, "sketch")    ? "Sketch parameters (with --sketch)"
+           : !strcmp(stage, "ppa")     ? "PPA parameters"
+           : !strcmp(stage, "amplify") ? "Amplification parameters"
+                                       : "Synthesis parameters";
+}
+
+int cli_rule_text(const tsjob_rule *r, char *line, size_t len)
+{
+    static const char *const kinds[] = {"needs", "excludes",     "goes with",
+                                        "or",    "needs one of", "or"};
+    int i, any = r->kind == TSJOB_ONE_OF || r->kind == TSJOB_ANY_OF;
+    size_t n = 0;
+    if (!strcmp(r->a, "output"))
+        return 0; /* the usage line says it */
+    n += (size_t)snprintf(line + n, len - n, "%s %s",
+                          r->a[0] == '@' ? "the sketch parameters" : r->a,
+                          any ? "," : kinds[r->kind]);
+    for (i = 0; r->b[i] && n < len; i++)
+        n += (size_t)snprintf(line + n, len - n, "%s %s",
+                              i ? (any || r->kind == TSJOB_NEEDS_ANY ? " or" : ",") : "", r->b[i]);
+    if (r->kind == TSJOB_ONE_OF && n < len)
+        snprintf(line + n, len - n, ": exactly one");
+    if (r->kind == TSJOB_ANY_OF && n < len)
+        snprintf(line + n, len - n, ": at least one");
+    return 1;
+}
+
+void cli_job_help(FILE *out, const tsjob_decl *job)
+{
+    const char *groups[8];
+    int n_groups = cli_groups(job, groups), g, s;
+    size_t k;
     for (g = 0; g < n_groups; g++) {
         fprintf(out, "%s:\n", groups[g]);
         for (k = 0; k < job->n_opts; k++) {
-            const tsjob_option *o = &job->opts[k];
-            char flag[64], left[160];
-            if (strcmp(o->group, groups[g]) != 0)
+            char left[160];
+            if (strcmp(job->opts[k].group, groups[g]) != 0)
                 continue;
-            cli_flag_of(o->name, flag, sizeof flag);
-            if (o->positional)
-                snprintf(left, sizeof left, "%s", o->metavar);
-            else if (o->kind == TSJOB_CHOICE)
-                snprintf(left, sizeof left, "%s", flag);
-            else
-                snprintf(left, sizeof left, "%s %s", flag, o->metavar);
-            cli_help_line(out, left, o->help);
+            cli_option_left(&job->opts[k], left, sizeof left);
+            cli_help_line(out, left, job->opts[k].help);
         }
         fputc('\n', out);
     }
     for (s = 0; job->stages[s]; s++) {
-        if (!strcmp(job->stages[s], "sketch"))
-            fprintf(out, "Sketch parameters (with --sketch):\n");
-        else
-            fprintf(out, "%s parameters:\n",
-                    !strcmp(job->stages[s], "ppa")       ? "PPA"
-                    : !strcmp(job->stages[s], "amplify") ? "Amplification"
-                                                         : "Synthesis");
+        fprintf(out, "%s:\n", cli_stage_title(job->stages[s]));
         cli_params_help(out, job->stages[s], NULL);
         fputc('\n', out);
     }
     fprintf(out, "Rules:\n");
     for (k = 0; k < job->n_rules; k++) {
-        const tsjob_rule *r = &job->rules[k];
         char line[256];
-        int i;
-        size_t n = 0;
-        static const char *const kinds[] = {"needs", "excludes",     "goes with",
-                                            "or",    "needs one of", "or"};
-        if (!strcmp(r->a, "output"))
-            continue; /* the usage line says it */
-        n += (size_t)snprintf(
-            line + n, sizeof line - n, "%s %s", r->a[0] == '@' ? "the sketch parameters" : r->a,
-            r->kind == TSJOB_ONE_OF || r->kind == TSJOB_ANY_OF ? "," : kinds[r->kind]);
-        for (i = 0; r->b[i] && n < sizeof line; i++)
-            n += (size_t)snprintf(line + n, sizeof line - n, "%s %s",
-                                  i ? (r->kind == TSJOB_ONE_OF || r->kind == TSJOB_ANY_OF ||
-                                               r->kind == TSJOB_NEEDS_ANY
-                                           ? " or"
-                                           : ",")
-                                    : "",
-                                  r->b[i]);
-        if (r->kind == TSJOB_ONE_OF && n < sizeof line)
-            snprintf(line + n, sizeof line - n, ": exactly one");
-        if (r->kind == TSJOB_ANY_OF && n < sizeof line)
-            snprintf(line + n, sizeof line - n, ": at least one");
-        fprintf(out, "  %s\n", line);
+        if (cli_rule_text(&job->rules[k], line, sizeof line))
+            fprintf(out, "  %s\n", line);
     }
 }
 
@@ -207,12 +221,43 @@ void cli_help_line(FILE *out, const char *left, const char *text)
     }
 }
 
+void cli_param_left(const ts_param_desc *d, char *left, size_t len)
+{
+    char flag[128];
+    cli_flag_of(d->name, flag, sizeof flag);
+    switch (d->type) {
+    case TS_PARAM_ENUM:
+        snprintf(left, len, "%s %s", flag, d->choices);
+        break;
+    case TS_PARAM_LENGTH:
+        snprintf(left, len, "%s L[m]", flag);
+        break;
+    default:
+        snprintf(left, len, "%s %s", flag, d->type == TS_PARAM_INT ? "N" : "X");
+    }
+}
+
+void cli_param_default(const ts_param_desc *d, char *buf, size_t len)
+{
+    if (d->type == TS_PARAM_ENUM) {
+        const char *w = d->choices, *bar;
+        int idx;
+        for (idx = 0; idx < (int)d->def && (bar = strchr(w, '|')); idx++)
+            w = bar + 1;
+        bar = strchr(w, '|');
+        snprintf(buf, len, "%.*s", bar ? (int)(bar - w) : (int)strlen(w), w);
+    } else {
+        snprintf(buf, len, "%g%s", d->def,
+                 d->type == TS_PARAM_LENGTH ? (d->def_unit ? " m" : " cells") : "");
+    }
+}
+
 void cli_params_help(FILE *out, const char *stage, const char *const *skip)
 {
     size_t n, k;
     const ts_param_desc *d = ts_params_describe(stage, &n);
     for (k = 0; k < n; k++) {
-        char flag[128], left[200];
+        char left[200], def[128];
         const char *const *s;
         int skipped = 0;
         for (s = skip; s && *s; s++)
@@ -220,29 +265,13 @@ void cli_params_help(FILE *out, const char *stage, const char *const *skip)
                 skipped = 1;
         if (skipped)
             continue;
-        cli_flag_of(d[k].name, flag, sizeof flag);
-        switch (d[k].type) {
-        case TS_PARAM_ENUM:
-            snprintf(left, sizeof left, "%s %s", flag, d[k].choices);
-            break;
-        case TS_PARAM_LENGTH:
-            snprintf(left, sizeof left, "%s L[m]", flag);
-            break;
-        default:
-            snprintf(left, sizeof left, "%s %s", flag, d[k].type == TS_PARAM_INT ? "N" : "X");
-        }
+        cli_param_left(&d[k], left, sizeof left);
         cli_help_line(out, left, d[k].help);
-        if (d[k].type == TS_PARAM_ENUM) {
-            const char *w = d[k].choices, *bar;
-            int idx;
-            for (idx = 0; idx < (int)d[k].def && (bar = strchr(w, '|')); idx++)
-                w = bar + 1;
-            bar = strchr(w, '|');
-            fprintf(out, "  %-32s default %.*s\n", "", bar ? (int)(bar - w) : (int)strlen(w), w);
-        } else {
-            fprintf(out, "  %-32s default %g%s, range %g..%g %s\n", "", d[k].def,
-                    d[k].type == TS_PARAM_LENGTH ? (d[k].def_unit ? " m" : " cells") : "", d[k].min,
-                    d[k].max, d[k].type == TS_PARAM_LENGTH ? "" : d[k].units);
-        }
+        cli_param_default(&d[k], def, sizeof def);
+        if (d[k].type == TS_PARAM_ENUM)
+            fprintf(out, "  %-32s default %s\n", "", def);
+        else
+            fprintf(out, "  %-32s default %s, range %g..%g %s\n", "", def, d[k].min, d[k].max,
+                    d[k].type == TS_PARAM_LENGTH ? "" : d[k].units);
     }
 }

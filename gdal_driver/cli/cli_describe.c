@@ -94,11 +94,22 @@ int cli_describe(int argc, char **argv)
     const char *const *stages = ts_params_stages();
     int i, first = 1;
     if (argc > 2 && (!strcmp(argv[2], "-h") || !strcmp(argv[2], "--help"))) {
-        printf("Usage: terrasynth describe [STAGE]\n\n"
+        printf("Usage: terrasynth describe [STAGE]\n"
+               "       terrasynth describe --markdown JOB (synopsis | parameters | stage:NAME)\n"
+               "\n"
                "Print the parameters of every stage (or one) as JSON: name, CLI flag, type,\n"
                "default, range, units, choices and help; and every job's options (inputs,\n"
                "target grid, constraints, outputs) and the rules between them. Front ends\n"
-               "(QGIS) read it.\n");
+               "(QGIS) read it. --markdown prints a part of a job's manual: its synopsis,\n"
+               "its parameters, or one stage's parameters.\n");
+        return 0;
+    }
+    if (argc > 2 && !strcmp(argv[2], "--markdown")) {
+        if (argc != 5 || cli_markdown(stdout, argv[3], argv[4]) != 0) {
+            fprintf(stderr, "terrasynth describe: --markdown takes a job (ppa, synth, amplify, "
+                            "dictionary, pixel) and a part (synopsis, parameters, stage:NAME)\n");
+            return EXIT_USAGE;
+        }
         return 0;
     }
     if (argc > 2) {

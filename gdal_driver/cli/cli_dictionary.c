@@ -1,7 +1,8 @@
 /*
  * cli_dictionary.c - `terrasynth dictionary build|info`: an amplification
  * dictionary built once from exemplars and reused (`terrasynth amplify
- * --dictionary`).  The job "dictionary" is declared in jobspec.c.
+ * --dictionary`).  The job "dictionary" is declared in jobs/declarations.c
+ * and built by jobs/job_amplify.c; build runs through cli_run.c.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -9,34 +10,57 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <cpl_string.h>
-
 #include "cli.h"
 #include "jobspec.h"
 #include "tsio.h"
 #include "tsjob.h"
 
-static void dictionary_help(FILE *out)
+typedef struct dictionary_state {
+    tsjob_amplify job;
+    size_t n_atoms;
+} dictionary_state;
+
+static int dictionary_build(void *st, cli_run *r, char *msg, size_t len)
 {
-    fprintf(out,
-            "Usage: terrasynth dictionary build D.tsd --exemplar EX --resolution M [options]\n"
-            "       terrasynth dictionary info D.tsd\n"
-            "\n"
-            "Build an amplification dictionary once (the exemplars resampled to cells of M\n"
-            "metres, the size of the amplified DEMs' cells, area-averaged by the factor, cut\n"
-            "into atoms) and reuse it: terrasynth amplify IN OUT --dictionary D.tsd. The file\n"
-            "is portable (little-endian, versioned); info prints what it holds.\n"
-            "\n");
-    cli_job_help(out, tsjob_find("dictionary"));
-    fprintf(out,
-            "\n"
-            "Common options:\n%s"
-            "\n"
-            "Example:\n"
-            "  terrasynth dictionary build alps.tsd --exemplar alps_25m.tif --resolution 25 "
-            "--factor 8\n",
-            cli_common_help);
+    return tsjob_build_amplify(r->values, &((dictionary_state *)st)->job, msg, len);
 }
+
+static int dictionary_compute(void *st, cli_run *r, tsio_err *err)
+{
+    dictionary_state *s = st;
+    return tsjob_dictionary_build(r->ctx, &s->job, r->outs.output, &s->n_atoms, err);
+}
+
+static void dictionary_report(void *st, cli_run *r)
+{
+    dictionary_state *s = st;
+    if (r->co->progress != PROGRESS_QUIET)
+        printf("dictionary: %zu atoms (factor %d, patch %d, cells of %g m)\n", s->n_atoms,
+               s->job.params.factor, s->job.params.patch, s->job.resolution);
+}
+
+const cli_job cli_dictionary_job = {
+    "dictionary",
+    "build an amplification dictionary once (build), or show one (info)",
+    "Usage: terrasynth dictionary build D.tsd --exemplar EX --resolution M [options]\n"
+    "       terrasynth dictionary info D.tsd\n"
+    "\n"
+    "Build an amplification dictionary once (the exemplars resampled to cells of M\n"
+    "metres, the size of the amplified DEMs' cells, area-averaged by the factor, cut\n"
+    "into atoms) and reuse it: terrasynth amplify IN OUT --dictionary D.tsd. The file\n"
+    "is portable (little-endian, versioned); info prints what it holds.\n",
+    "  terrasynth dictionary build alps.tsd --exemplar alps_25m.tif --resolution 25 "
+    "--factor 8\n",
+    3,
+    sizeof(dictionary_state),
+    dictionary_build,
+    NULL,
+    NULL,
+    dictionary_compute,
+    NULL,
+    dictionary_report,
+    NULL,
+};
 
 static int dictionary_info(const char *path)
 {
@@ -70,64 +94,17 @@ static int dictionary_info(const char *path)
 
 int cli_dictionary(int argc, char **argv)
 {
-    common_opts co = {"dictionary", NULL, NULL, PROGRESS_BAR, 0};
-    int i, rc = EXIT_RUN, progress_state = -1, staged = 0;
-    ts_ctx *ctx;
-    tsjob_amplify job;
-    tsio_err err;
-    tsjob_values v;
-    size_t n_atoms = 0;
-    char msg[1024] = "";
-    const char *out;
+    int i;
     for (i = 2; i < argc; i++)
         if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
-            dictionary_help(stdout);
+            cli_command_help(stdout, &cli_dictionary_job);
             return 0;
         }
-    if (argc >= 4 && !strcmp(argv[2], "info") && argc == 4)
+    if (argc == 4 && !strcmp(argv[2], "info"))
         return dictionary_info(argv[3]);
     if (argc < 3 || strcmp(argv[2], "build") != 0) {
         cli_usage_error("dictionary", "%s", "give build or info");
         return EXIT_USAGE;
     }
-    ctx = ts_ctx_new();
-    if (!ctx)
-        return EXIT_RUN;
-    tsjob_values_init(&v, tsjob_find("dictionary"));
-    if (cli_parse_argv(&v, argc, argv, 3, cli_skip_common, &co, msg, sizeof msg) != 0) {
-        if (msg[0])
-            cli_usage_error("dictionary", "%s", msg);
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    if (tsjob_build_amplify(&v, &job, msg, sizeof msg) != 0) {
-        cli_usage_error("dictionary", "%s", msg);
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    out = tsjob_get(&v, "output", 0);
-    ts_ctx_set_threads(ctx, co.threads);
-    cli_set_progress(ctx, co.progress, &progress_state);
-    tsio_stage_begin();
-    staged = 1;
-    if (tsjob_dictionary_build(ctx, &job, out, &n_atoms, &err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        goto done;
-    }
-    staged = 0;
-    if (tsio_stage_commit(&err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        goto done;
-    }
-    if (co.progress != PROGRESS_QUIET)
-        printf("dictionary: %zu atoms (factor %d, patch %d, cells of %g m)\n", n_atoms,
-               job.params.factor, job.params.patch, job.resolution);
-    rc = 0;
-done:
-    if (staged)
-        tsio_stage_abort();
-    tsjob_values_free(&v);
-    CSLDestroy(co.create_options);
-    ts_ctx_free(ctx);
-    return rc;
+    return cli_run_job(&cli_dictionary_job, argc, argv);
 }

@@ -1,10 +1,10 @@
 /*
- * cli_main.c - the `terrasynth` command-line program: the commands
- * (cli_ppa.c, cli_synth.c, cli_describe.c) and what they share.
+ * cli_main.c - the `terrasynth` command-line program: the table of
+ * commands, the options every command shares, progress.
  *
- * A thin front end: the jobs (tsjob.c) read with tsio, call the core and
- * write with tsio; options and rules come from the job declarations
- * (jobspec.c) and the core's parameter tables.  Errors are one line on
+ * A thin front end: the jobs (gdal_driver/jobs/) read with tsio, call the
+ * core and write with tsio; options and rules come from the job
+ * declarations and the core's parameter tables; cli_run.c runs any job.  Errors are one line on
  * stderr ("terrasynth: <file>: <problem>") and a non-zero exit: 1 for a
  * failed run, 2 for a usage error.
  *
@@ -130,43 +130,68 @@ int cli_skip_common(int argc, char **argv, int *i, void *user)
     return parse_common(co->cmd, co, argc, argv, i);
 }
 
-const char cli_common_help[] =
-    "  -of FORMAT                       GDAL output format (default: from the extension,\n"
-    "                                   else GTiff)\n"
-    "  -co KEY=VALUE                    creation option (repeatable)\n"
-    "  --threads N                      worker threads (default 0 = all cores)\n"
-    "  --max-memory M                   refuse a job that needs more (2G, 500M, 50%;\n"
-    "                                   default the machine's memory; TSYN_MAX_MEMORY)\n"
-    "  --progress-lines                 print 'PROGRESS <percent> <stage>' lines\n"
-    "  -q, --quiet                      no progress bar or summary\n";
+const cli_common_option cli_common_options[] = {
+    {"-of FORMAT", "GDAL output format (default: from the extension, else GTiff)"},
+    {"-co KEY=VALUE", "creation option (repeatable)"},
+    {"--threads N", "worker threads (default 0 = all cores)"},
+    {"--max-memory M", "refuse a job that needs more (2G, 500M, 50%; default the machine's "
+                       "memory; TSYN_MAX_MEMORY)"},
+    {"--progress-lines", "print 'PROGRESS <percent> <stage>' lines"},
+    {"-q, --quiet", "no progress bar or summary"},
+    {NULL, NULL},
+};
 
 /* ------------------------------------------------------------------ */
-/* terrasynth ppa                                                     */
+/* The commands                                                        */
 /* ------------------------------------------------------------------ */
+
+typedef struct command {
+    const char *name;
+    const cli_job *job;                /* a job run by cli_run_job ... */
+    int (*own)(int argc, char **argv); /* ... or a command of its own */
+    const char *summary;               /* (then its line in the help) */
+} command;
+
+static const command commands[] = {
+    {"ppa", &cli_ppa_job, NULL, NULL},
+    {"synth", &cli_synth_job, NULL, NULL},
+    {"amplify", &cli_amplify_job, NULL, NULL},
+    {"dictionary", &cli_dictionary_job, cli_dictionary, NULL},
+    {"pixel", &cli_pixel_job, NULL, NULL},
+    {"describe", NULL, cli_describe, "print every stage's parameters as JSON (for front ends)"},
+};
+
+const cli_job *cli_job_find(const char *name)
+{
+    size_t k;
+    for (k = 0; k < sizeof commands / sizeof commands[0]; k++)
+        if (commands[k].job && !strcmp(commands[k].job->name, name))
+            return commands[k].job;
+    return NULL;
+}
 
 static void main_help(FILE *out)
 {
+    size_t k;
     fprintf(out,
             "Usage: terrasynth COMMAND [options]\n"
             "\n"
             "TerraSynth %s: terrain synthesis from real DEMs.\n"
             "\n"
-            "Commands:\n"
-            "  ppa        map ridge and valley axes of a DEM (raster, vector lines, preview)\n"
-            "  synth      grow a new terrain from real DEMs, free or following a sketch\n"
-            "  amplify    make a coarse DEM finer with the detail of real terrain\n"
-            "  dictionary build an amplification dictionary once (build), or show one (info)\n"
-            "  pixel      grow a terrain cell by cell, coarse to fine (any window on its own)\n"
-            "  describe   print every stage's parameters as JSON (for front ends)\n"
-            "\n"
-            "'terrasynth COMMAND --help' lists a command's options with defaults and units.\n"
-            "  --version  print the version\n",
+            "Commands:\n",
             ts_version());
+    for (k = 0; k < sizeof commands / sizeof commands[0]; k++)
+        fprintf(out, "  %-10s %s\n", commands[k].name,
+                commands[k].summary ? commands[k].summary : commands[k].job->summary);
+    fprintf(out, "\n"
+                 "'terrasynth COMMAND --help' lists a command's options with defaults and units.\n"
+                 "  --version  print the version\n");
 }
 
 int main(int argc, char **argv)
 {
-    int rc;
+    int rc = -1;
+    size_t k;
     if (argc < 2) {
         main_help(stderr);
         return EXIT_USAGE;
@@ -182,19 +207,11 @@ int main(int argc, char **argv)
     GDALAllRegister();
     /* Ctrl-C, kill, a closed terminal: no unfinished output is left behind */
     tsio_cleanup_on_signals("terrasynth");
-    if (!strcmp(argv[1], "ppa"))
-        rc = cli_ppa(argc, argv);
-    else if (!strcmp(argv[1], "synth"))
-        rc = cli_synth(argc, argv);
-    else if (!strcmp(argv[1], "amplify"))
-        rc = cli_amplify(argc, argv);
-    else if (!strcmp(argv[1], "pixel"))
-        rc = cli_pixel(argc, argv);
-    else if (!strcmp(argv[1], "dictionary"))
-        rc = cli_dictionary(argc, argv);
-    else if (!strcmp(argv[1], "describe"))
-        rc = cli_describe(argc, argv);
-    else {
+    for (k = 0; k < sizeof commands / sizeof commands[0] && rc < 0; k++)
+        if (!strcmp(argv[1], commands[k].name))
+            rc = commands[k].own ? commands[k].own(argc, argv)
+                                 : cli_run_job(commands[k].job, argc, argv);
+    if (rc < 0) {
         fprintf(stderr, "terrasynth: unknown command '%s' (see 'terrasynth --help')\n", argv[1]);
         rc = EXIT_USAGE;
     }

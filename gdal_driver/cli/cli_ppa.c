@@ -1,157 +1,114 @@
 /*
  * cli_ppa.c - `terrasynth ppa`: ridge and valley axes of a DEM as a raster,
- * vector lines and a preview.  The job (gdal_driver/jobspec.c declares
- * its options and rules) and its files (tsjob.c) are shared with the
- * driver and QGIS; this is the command line around them.
+ * vector lines and a preview.  The job's options and rules are declared in
+ * jobs/declarations.c, the job itself is jobs/job_ppa.c; these are the
+ * command line's hooks around it (cli_run.c runs them).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include <cpl_conv.h>
-#include <cpl_string.h>
-#include <gdal.h>
-
 #include "cli.h"
 #include "jobspec.h"
-#include "recipe.h"
 #include "tsio.h"
 #include "tsjob.h"
 
-static void ppa_help(FILE *out)
-{
-    fprintf(out, "Usage: terrasynth ppa INPUT (OUTPUT | --recipe FILE.tsyn) [options]\n"
-                 "\n"
-                 "Map the ridge and valley axes of a DEM with the Profile recognition and Polygon\n"
-                 "breaking Algorithm (Chang, Song & Hsu 1998). OUTPUT is a Byte raster on the\n"
-                 "input's grid: 1 ridge, 2 valley, 3 both (a saddle on both axes), 0 none,\n"
-                 "255 where the input is nodata. Giving threshold sets threshold_fraction to 0\n"
-                 "and the other way round.\n"
-                 "\n");
-    cli_job_help(out, tsjob_find("ppa"));
-    fprintf(out,
-            "\n"
-            "Common options:\n%s"
-            "\n"
-            "Example:\n"
-            "  terrasynth ppa dem.tif axes.tif --both --lines axes.gpkg --preview axes.png\n",
-            cli_common_help);
-}
-
-int cli_ppa(int argc, char **argv)
-{
-    common_opts co = {"ppa", NULL, NULL, PROGRESS_BAR, 0};
-    const char *input = NULL, *recipe_path = NULL;
-    tsjob_outputs outs = {0};
-    int i, rc = EXIT_RUN, progress_state = -1, staged = 0;
-    ts_ctx *ctx = ts_ctx_new();
+typedef struct ppa_state {
     tsjob_ppa job;
     tsjob_ppa_result res;
-    tsio_err err;
-    ts_features *f = NULL;
-    size_t k;
-    tsjob_values v;
-    char msg[1024] = "";
+} ppa_state;
 
-    memset(&res, 0, sizeof res);
-    tsjob_values_init(&v, tsjob_find("ppa"));
-    if (!ctx) {
-        fprintf(stderr, "terrasynth: out of memory\n");
-        return EXIT_RUN;
-    }
-    for (i = 2; i < argc; i++)
-        if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
-            ppa_help(stdout);
-            rc = 0;
-            goto done;
-        }
-    if (cli_parse_argv(&v, argc, argv, 2, cli_skip_common, &co, msg, sizeof msg) != 0) {
-        if (msg[0])
-            cli_usage_error("ppa", "%s", msg);
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    if (tsjob_build_ppa(&v, &job, msg, sizeof msg) != 0) {
-        cli_usage_error("ppa", "%s", msg);
-        rc = EXIT_USAGE;
-        goto done;
-    }
-    input = job.input;
-    outs.output = tsjob_get(&v, "output", 0);
-    outs.lines = tsjob_get(&v, "lines", 0);
-    outs.preview = tsjob_get(&v, "preview", 0);
-    outs.format = co.format;
-    outs.create_options = (const char *const *)co.create_options;
-    recipe_path = tsjob_get(&v, "recipe", 0);
-    if (recipe_path) {
-        if (tsjob_ppa_check_recipe(&job, recipe_path, &err) != 0 ||
-            tsrecipe_write(recipe_path, &v, &err) != 0) {
-            fprintf(stderr, "terrasynth: %s\n", err.msg);
-            goto done;
-        }
-        rc = 0;
-        goto done;
-    }
-    /* the input is read and every output checked before the work starts; the
-     * outputs are written all or none (a stage) */
-    tsio_stage_begin();
-    staged = 1;
-    if (tsjob_ppa_prepare(&job, &res, &err) != 0 ||
-        tsjob_ppa_check_outputs(&job, &res, &outs, &err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        goto done;
-    }
-    if (res.warning.msg[0]) /* data read otherwise than the file says: even with -q */
-        fprintf(stderr, "terrasynth: warning: %s\n", res.warning.msg);
-    if (res.no_crs && co.progress != PROGRESS_QUIET)
-        fprintf(stderr, "terrasynth: warning: %s has no CRS: lengths are in cells\n", input);
-    ts_ctx_set_threads(ctx, co.threads);
-    cli_set_progress(ctx, co.progress, &progress_state);
-    if (tsjob_ppa_compute(ctx, &job, &res, &err) != 0 ||
-        tsjob_ppa_write(ctx, &res, &outs, &err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        goto done;
-    }
-    staged = 0; /* a failed commit cleans up itself */
-    if (tsio_stage_commit(&err) != 0) {
-        fprintf(stderr, "terrasynth: %s\n", err.msg);
-        goto done;
-    }
-    f = res.features;
-    if (co.progress != PROGRESS_QUIET && !f)
+static int ppa_build(void *st, cli_run *r, char *msg, size_t len)
+{
+    return tsjob_build_ppa(r->values, &((ppa_state *)st)->job, msg, len);
+}
+
+static int ppa_check_recipe(void *st, const char *path, tsio_err *err)
+{
+    return tsjob_ppa_check_recipe(&((ppa_state *)st)->job, path, err);
+}
+
+static int ppa_prepare(void *st, cli_run *r, tsio_err *err)
+{
+    ppa_state *s = st;
+    if (tsjob_ppa_prepare(&s->job, &s->res, err) != 0 ||
+        tsjob_ppa_check_outputs(&s->job, &s->res, &r->outs, err) != 0)
+        return -1;
+    if (s->res.warning.msg[0]) /* data read otherwise than the file says: even with -q */
+        fprintf(stderr, "terrasynth: warning: %s\n", s->res.warning.msg);
+    if (s->res.no_crs && r->co->progress != PROGRESS_QUIET)
+        fprintf(stderr, "terrasynth: warning: %s has no CRS: lengths are in cells\n", s->job.input);
+    return 0;
+}
+
+static int ppa_compute(void *st, cli_run *r, tsio_err *err)
+{
+    ppa_state *s = st;
+    return tsjob_ppa_compute(r->ctx, &s->job, &s->res, err);
+}
+
+static int ppa_write(void *st, cli_run *r, tsio_err *err)
+{
+    return tsjob_ppa_write(r->ctx, &((ppa_state *)st)->res, &r->outs, err);
+}
+
+static void ppa_report(void *st, cli_run *r)
+{
+    ppa_state *s = st;
+    const ts_features *f = s->res.features;
+    size_t k, nb = 0, ne = 0, np[3] = {0, 0, 0};
+    if (r->co->progress == PROGRESS_QUIET)
+        return;
+    if (!f) {
         printf("ppa: mapped in tiles of %d cells%s (%d branch reduction passes in the tiles, "
                "%zu chains held for the rest)\n",
-               res.tile_size,
-               res.auto_tiles ? ", the DEM being too large for memory in one piece" : "",
-               res.tiled.passes_in_tiles, res.tiled.chains_held);
-    if (co.progress != PROGRESS_QUIET && f) {
-        size_t nb = 0, ne = 0, np[3] = {0, 0, 0};
-        for (k = 0; k < f->n_nodes; k++) {
-            if (f->nodes[k].degree == 1)
-                ne++;
-            else
-                nb++;
-        }
-        for (k = 0; k < f->n_paths; k++)
-            np[f->paths[k].kind]++;
-        printf("ppa: %zu ridge paths, %zu valley paths, %zu branch points, %zu endpoints ",
-               np[TS_RIDGE], np[TS_VALLEY], nb, ne);
-        if (job.params.features == TS_PPA_BOTH)
-            printf("(thresholds: ridges %.3g m, valleys %.3g m)\n", f->threshold_used,
-                   f->threshold_used_valleys);
-        else
-            printf("(threshold %.3g m)\n", f->threshold_used);
+               s->res.tile_size,
+               s->res.auto_tiles ? ", the DEM being too large for memory in one piece" : "",
+               s->res.tiled.passes_in_tiles, s->res.tiled.chains_held);
+        return;
     }
-    rc = 0;
-done:
-    if (staged)
-        tsio_stage_abort();
-    tsjob_ppa_result_free(&res);
-    tsjob_values_free(&v);
-    CSLDestroy(co.create_options);
-    ts_ctx_free(ctx);
-    return rc;
+    for (k = 0; k < f->n_nodes; k++) {
+        if (f->nodes[k].degree == 1)
+            ne++;
+        else
+            nb++;
+    }
+    for (k = 0; k < f->n_paths; k++)
+        np[f->paths[k].kind]++;
+    printf("ppa: %zu ridge paths, %zu valley paths, %zu branch points, %zu endpoints ",
+           np[TS_RIDGE], np[TS_VALLEY], nb, ne);
+    if (s->job.params.features == TS_PPA_BOTH)
+        printf("(thresholds: ridges %.3g m, valleys %.3g m)\n", f->threshold_used,
+               f->threshold_used_valleys);
+    else
+        printf("(threshold %.3g m)\n", f->threshold_used);
 }
+
+static void ppa_free(void *st)
+{
+    tsjob_ppa_result_free(&((ppa_state *)st)->res);
+}
+
+const cli_job cli_ppa_job = {
+    "ppa",
+    "map ridge and valley axes of a DEM (raster, vector lines, preview)",
+    "Usage: terrasynth ppa INPUT (OUTPUT | --recipe FILE.tsyn) [options]\n"
+    "\n"
+    "Map the ridge and valley axes of a DEM with the Profile recognition and Polygon\n"
+    "breaking Algorithm (Chang, Song & Hsu 1998). OUTPUT is a Byte raster on the\n"
+    "input's grid: 1 ridge, 2 valley, 3 both (a saddle on both axes), 0 none,\n"
+    "255 where the input is nodata. Giving threshold sets threshold_fraction to 0\n"
+    "and the other way round.\n",
+    "  terrasynth ppa dem.tif axes.tif --both --lines axes.gpkg --preview axes.png\n",
+    2,
+    sizeof(ppa_state),
+    ppa_build,
+    ppa_check_recipe,
+    ppa_prepare,
+    ppa_compute,
+    ppa_write,
+    ppa_report,
+    ppa_free,
+};
