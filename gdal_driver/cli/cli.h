@@ -128,8 +128,8 @@ extern const cli_job cli_ppa_job, cli_synth_job, cli_amplify_job, cli_pixel_job,
 /* The job command `name`, or NULL (cli_main.c). */
 const cli_job *cli_job_find(const char *name);
 
-/* A part of a job's manual in Markdown: "synopsis", "parameters" or
- * "stage:NAME" (cli_markdown.c).  0, or -1 for an unknown job or part. */
+/* A part of a job's manual in Markdown: "synopsis", "parameters",
+ * "stage:NAME" or "recipe" (cli_markdown.c).  0, or -1 for an unknown job or part. */
 int cli_markdown(FILE *out, const char *job, const char *part);
 
 /* Commands of their own (dictionary info, describe) */

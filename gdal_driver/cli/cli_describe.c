@@ -95,7 +95,7 @@ int cli_describe(int argc, char **argv)
     int i, first = 1;
     if (argc > 2 && (!strcmp(argv[2], "-h") || !strcmp(argv[2], "--help"))) {
         printf("Usage: terrasynth describe [STAGE]\n"
-               "       terrasynth describe --markdown JOB (synopsis | parameters | stage:NAME)\n"
+               "       terrasynth describe --markdown JOB (synopsis | parameters | stage:NAME | recipe)\n"
                "\n"
                "Print the parameters of every stage (or one) as JSON: name, CLI flag, type,\n"
                "default, range, units, choices and help; and every job's options (inputs,\n"
@@ -107,7 +107,7 @@ int cli_describe(int argc, char **argv)
     if (argc > 2 && !strcmp(argv[2], "--markdown")) {
         if (argc != 5 || cli_markdown(stdout, argv[3], argv[4]) != 0) {
             fprintf(stderr, "terrasynth describe: --markdown takes a job (ppa, synth, amplify, "
-                            "dictionary, pixel) and a part (synopsis, parameters, stage:NAME)\n");
+                            "dictionary, pixel) and a part (synopsis, parameters, stage:NAME, recipe)\n");
             return EXIT_USAGE;
         }
         return 0;

@@ -4,7 +4,8 @@
  * the program takes: the SYNOPSIS (the command's usage lines), the
  * PARAMETERS (the options by group, each stage's parameters with default
  * and range, the rules between them, the common options), or one stage's
- * parameters alone (stage:NAME).  tools/manuals.py writes them into the
+ * parameters alone (stage:NAME), or how each option is written in a
+ * recipe (recipe).  tools/manuals.py writes them into the
  * manuals; tests/cli/test_manuals.py fails when a manual differs.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -157,6 +158,52 @@ static void md_parameters(FILE *out, const cli_job *cj)
     }
 }
 
+/* How each option of the job is written in a recipe (jobspec.h: the
+ * element's text, an attribute, a stage parameter as <Param>). */
+static void md_recipe(FILE *out, const cli_job *cj)
+{
+    const tsjob_decl *job = tsjob_find(cj->name);
+    size_t k;
+    int s;
+    fprintf(out, "| option | in a recipe (inside <%s>) |\n|---|---|\n", job->element);
+    for (k = 0; k < job->n_opts; k++) {
+        const tsjob_option *o = &job->opts[k];
+        char flag[64];
+        const char *at;
+        if (!o->xml)
+            continue;
+        cli_flag_of(o->name, flag, sizeof flag);
+        fprintf(out, "| `%s` | ", o->positional ? o->metavar : flag);
+        at = strchr(o->xml, '@');
+        if (o->max_count > 1 && (o->kind == TSJOB_PIN || o->kind == TSJOB_RULE ||
+                                 o->kind == TSJOB_NAMED || o->kind == TSJOB_PAIR))
+            fputs("repeatable: ", out);
+        if (o->kind == TSJOB_PIN)
+            fprintf(out, "`<%s xoff=\"\" yoff=\"\" width=\"\" height=\"\" x=\"\" y=\"\">FILE</%s>`",
+                    o->xml, o->xml);
+        else if (o->kind == TSJOB_RULE)
+            fprintf(out, "`<%s id=\"ID\">FILE</%s>`", o->xml, o->xml);
+        else if (o->kind == TSJOB_NAMED)
+            fprintf(out, "`<%s name=\"NAME\">FILE</%s>`", o->xml, o->xml);
+        else if (o->kind == TSJOB_PAIR)
+            fprintf(out, "`<%s choices=\"FILE\">FILE</%s>`", o->xml, o->xml);
+        else if (o->xml[0] == '@')
+            fprintf(out, "attribute `%s` of `<%s>`", o->xml + 1, job->element);
+        else if (!at)
+            fprintf(out, "`<%s>` text%s", o->xml, o->max_count > 1 ? ", repeatable" : "");
+        else if (strchr(at + 1, '@'))
+            fprintf(out, "attributes `%.*s` and `%s` of `<%.*s>`",
+                    (int)(strchr(at + 1, '@') - at - 1), at + 1, strchr(at + 1, '@') + 1,
+                    (int)(at - o->xml), o->xml);
+        else
+            fprintf(out, "attribute `%s` of `<%.*s>`", at + 1, (int)(at - o->xml), o->xml);
+        fputs(" |\n", out);
+    }
+    for (s = 0; job->stages[s]; s++)
+        fprintf(out, "| %s | `<Param name=\"NAME\">VALUE</Param>` |\n",
+                cli_stage_title(job->stages[s]));
+}
+
 int cli_markdown(FILE *out, const char *name, const char *part)
 {
     const cli_job *job = cli_job_find(name);
@@ -167,6 +214,8 @@ int cli_markdown(FILE *out, const char *name, const char *part)
         md_synopsis(out, job);
     else if (!strcmp(part, "parameters"))
         md_parameters(out, job);
+    else if (!strcmp(part, "recipe"))
+        md_recipe(out, job);
     else if (!strncmp(part, "stage:", 6) && ts_params_describe(part + 6, &n))
         md_stage(out, part + 6);
     else
