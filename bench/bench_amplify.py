@@ -1,10 +1,10 @@
 #!/usr/bin/python3
-# bench_amplify.py - benchmark of `terrasynth amplify` (issue 13): a 500 x 500 real coarse
+# bench_amplify.py - benchmark of `terrasynth amplify`: a 500 x 500 real coarse
 # DEM (the Alps at 200 m, ../shared/data/dem) amplified x10 to 5000 x 5000 with two real
 # exemplars (about 4000 atoms).  Prints the dictionary, matching and synthesis seconds the
 # program reports, the wall time and peak memory (the kernel's count for the spawned
 # process), and the same for the peer `gdalwarp -r cubic` to the same grid, run alongside,
-# with the ratio.  Goal (issue 13): <= 3 s in all on 2 cores, <= 1 GB.
+# with the ratio.  Goal: <= 3 s in all on 2 cores, <= 1 GB.
 #
 #   /usr/bin/python3 bench/bench_amplify.py [TERRASYNTH]
 #

@@ -1,10 +1,10 @@
 #!/usr/bin/python3
-# bench_pixel.py - benchmark of `terrasynth pixel` (issue 14): a 1024 x 1024 terrain from a
+# bench_pixel.py - benchmark of `terrasynth pixel`: a 1024 x 1024 terrain from a
 # 512 x 512 real exemplar (Big Tujunga, 30 m, ../shared/data/dem), and an 8192 x 8192 recipe
 # streamed through the TSYN driver by gdal_translate (block by block).  Prints the wall time
 # and peak memory (the kernel's count for the spawned process) of each, and the same for the
 # peer `gdalwarp -r cubic` to the same grids from the same exemplar, run alongside, with the
-# ratios.  Goals (issue 14): 1024^2 <= 2 s on 2 cores; the streamed 8192^2 <= 512 MB.
+# ratios.  Goals: 1024^2 <= 2 s on 2 cores; the streamed 8192^2 <= 512 MB.
 #
 #   /usr/bin/python3 bench/bench_pixel.py [TERRASYNTH [GDAL_DRIVER_PATH]]
 #

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-# bench_ppa_grass.py - `terrasynth ppa` against GRASS GIS, in the same run (issue 15).
+# bench_ppa_grass.py - `terrasynth ppa` against GRASS GIS, in the same run.
 #
 #  speed:  a SIZE x SIZE mosaic (mirror-tiled, no seams) of a projected DEM (Big Tujunga, UTM
 #          30 m) and of a geographic one (Zion, 3 arc-seconds): `terrasynth ppa --both` against

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-# bench_ppa_tiled.py - `terrasynth ppa --tile-size` (issue 15, DEMs larger than memory):
+# bench_ppa_tiled.py - `terrasynth ppa --tile-size` (DEMs larger than memory):
 # on SIZE x SIZE mirror mosaics of a real DEM (Big Tujunga, UTM 30 m), the PPA in one piece
 # and in tiles, in the same run: wall seconds, peak memory, bytes per cell, cells per second,
 # and whether the two rasters are the same bytes (they must be).  Sizes where the whole run

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""bench_scale: free patch synthesis past one run (issue 16), every figure printed.
+"""bench_scale: free patch synthesis past one run, every figure printed.
 
   /usr/bin/python3 bench/bench_scale.py [--terrasynth BIN] [--plugins DIR] [--tile 1024]
                                         [--exemplar DEM] [--quick] [--work DIR]

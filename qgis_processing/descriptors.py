@@ -5,7 +5,8 @@ The provider reads them from the executable when it loads (runner.describe) so
 the QGIS parameters always carry the core's names, defaults and ranges; FALLBACK
 (describe.json, written by the build) is used when no executable is found.
 tests/qgis compares it with `terrasynth describe`, so it cannot drift unnoticed.
-The "jobs" member gives each job's options (their limits) and rules.
+The "jobs" member gives each job's options (their limits) and rules, "common" the options
+every command takes; the rules are checked by the program itself (runner.check).
 
 A descriptor is a dict: name, flag, type (int | double | enum | length),
 default, min, max, units, choices (list or None), help, and for a length
@@ -117,37 +118,19 @@ def param(stage_name, name):
     return None
 
 
-def check_rules(job_name, given):
-    """The message of the first rule of a job (from `terrasynth describe`) that the set of
-    given option and parameter names breaks, else None: the same rules, in the same order and
-    with the same messages, as the program's (gdal_driver/jobs/)."""
-    j = job(job_name)
-    stages = {st: {d["name"] for d in stage(st)} for st in j.get("stages", [])}
+def job_option(job_name, name):
+    """An option of a job as `terrasynth describe` declares it (kind, min, max, max_count,
+    help, ...), or {}."""
+    for o in job(job_name).get("options", []):
+        if o.get("name") == name:
+            return o
+    return {}
 
-    def is_given(name):
-        if name.startswith("@"):
-            return next((n for n in sorted(stages.get(name[1:], ()), key=str) if n in given),
-                        None)
-        return name if name in given else None
 
-    for r in j.get("rules", []):
-        a = is_given(r["a"])
-        bs = [is_given(b) for b in r["b"]]
-        bad = None
-        if r["kind"] == "requires" and a:
-            bad = a if any(b is None for b in bs) else None
-        elif r["kind"] == "excludes" and a:
-            bad = next((b for b in bs if b), None)
-        elif r["kind"] == "together":
-            n = (a is not None) + sum(b is not None for b in bs)
-            bad = r["a"] if 0 < n < 1 + len(bs) else None
-        elif r["kind"] == "one_of":
-            n = (a is not None) + sum(b is not None for b in bs)
-            bad = r["a"] if n != 1 else None
-        elif r["kind"] == "needs_any" and a:
-            bad = a if all(b is None for b in bs) else None
-        elif r["kind"] == "any_of":
-            bad = r["a"] if a is None and all(b is None for b in bs) else None
-        if bad:
-            return r["message"].replace("%s", bad, 1)
-    return None
+def common(name):
+    """An option every command takes (threads, ...), as `terrasynth describe` declares it,
+    or {}."""
+    for o in _current["tables"].get("common", []):
+        if o.get("name") == name:
+            return o
+    return {}

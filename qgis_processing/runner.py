@@ -131,6 +131,19 @@ def describe(cli, timeout=30):
     return validate(json.loads(p.stdout))
 
 
+def check(argv, timeout=30):
+    """The program's own verdict on a command line (`--check`: its options and the rules
+    between them, nothing read or run): None, or its one-line message without the
+    "terrasynth JOB: " prefix and the "(see ...)" hint."""
+    p = subprocess.run(list(argv) + ["--check"], stdin=subprocess.DEVNULL, capture_output=True,
+                       text=True, timeout=timeout)
+    if p.returncode == 0:
+        return None
+    msg = error_message(p.stderr.splitlines(), p.returncode)
+    msg = re.sub(r"^terrasynth( [a-z]+)?: ", "", msg)
+    return re.sub(r" \(see 'terrasynth [a-z]+ --help'\)$", "", msg)
+
+
 # ---------------------------------------------------------------------------
 # Building argv (pure Python)
 # ---------------------------------------------------------------------------

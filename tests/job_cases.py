@@ -37,6 +37,14 @@ CASES = [
      "<Synth><Exemplar>EX</Exemplar><Grid width='100' height='100'/><Regions>EX</Regions></Synth>",
      {"EXEMPLARS": "EX", "WIDTH": 100, "HEIGHT": 100, "REGIONS": "EX"},
      "regions and region_exemplar go together"),
+    ("synth", ["--exemplar", "EX", "--size", "100x100", "--regions", "EX", "--region-exemplar",
+               "1=EX", "--region-exemplar", "1=EX"],
+     "<Synth><Exemplar>EX</Exemplar><Grid width='100' height='100'/><Regions>EX</Regions>"
+     "<RegionExemplar id='1'>EX</RegionExemplar><RegionExemplar id='1'>EX</RegionExemplar>"
+     "</Synth>",
+     {"EXEMPLARS": "EX", "WIDTH": 100, "HEIGHT": 100, "REGIONS": "EX",
+      "REGION_EXEMPLARS": "1=EX;1=EX"},
+     "region_exemplar: region 1 is given twice"),
     ("synth", ["--exemplar", "EX", "--size", "100x100", "--crs", "EPSG:32616"],
      "<Synth><Exemplar>EX</Exemplar><Grid width='100' height='100' crs='EPSG:32616'/></Synth>",
      {"EXEMPLARS": "EX", "WIDTH": 100, "HEIGHT": 100, "CRS": "EPSG:32616"},

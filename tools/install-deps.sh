@@ -3,7 +3,7 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 set -euo pipefail
 PKGS=(build-essential cmake pkg-config libgdal-dev gdal-bin python3-gdal python3-numpy
-      python3-scipy time  # time: peak memory of a run (tests/cli/test_limits.py, bench)
+      python3-scipy time  # time: peak memory of a run (tests/robustness/test_limits.py, bench)
       libproj-dev proj-bin libgeographiclib-dev libfftw3-dev python3-pytest clang
       libclang-rt-14-dev
       python3-qgis qgis-providers qgis  # QGIS provider tests (tests/qgis; qgis = qgis_process)

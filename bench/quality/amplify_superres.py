@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # amplify_superres.py - the super-resolution check of `terrasynth amplify` on real data
-# (issue 13): a real fine DEM is area-averaged by the factor, amplified back with a
+# a real fine DEM is area-averaged by the factor, amplified back with a
 # dictionary built from a DIFFERENT real DEM of the same style, and compared with the real
 # fine DEM, side by side with `gdalwarp -r cubic` of the same coarse input.  The figures
 # come from ../shared/eval/terrain_metrics.py (slope W1, power-spectrum slope; none of our

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-# pixel_drawings.py - `terrasynth pixel` guided by drawings (issue 14): three grey-level
+# pixel_drawings.py - `terrasynth pixel` guided by drawings: three grey-level
 # drawings (an X of bright ridges, a Y of dark valleys on a bright ground, a bright ring),
 # read with --guide-heights quantile (and stretch), over crops of five DEMs of ../shared/data/dem x seeds,
 # judged by the independent yardstick ../shared/eval/terrain_metrics.py: structure_r (goal

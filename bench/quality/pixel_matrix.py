@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-# pixel_matrix.py - the quality matrix of `terrasynth pixel` (issue 14): every DEM of
+# pixel_matrix.py - the quality matrix of `terrasynth pixel`: every DEM of
 # ../shared/data/dem x seeds, unguided, judged by the independent yardstick
 # ../shared/eval/terrain_metrics.py (seam_lap, seam_grad <= 1.2, slope_w1 <= 3 degrees), and
 # guided by a blurred copy of another part of the same DEM (structure_r >= 0.6).  Prints one

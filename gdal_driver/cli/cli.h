@@ -27,11 +27,16 @@ typedef struct common_opts {
     char **create_options; /* CSL list */
     progress_mode progress;
     int threads;
+    int check; /* --check: the job built, nothing run */
 } common_opts;
 
 /* Their flags and help, NULL-ended (parsed in cli_main.c). */
 typedef struct cli_common_option {
-    const char *left, *help;
+    const char *left; /* as --help shows it */
+    const char *name; /* as describe names it */
+    const char *kind; /* "int" (in min..max), "text" or "flag" */
+    double min, max;
+    const char *help;
 } cli_common_option;
 extern const cli_common_option cli_common_options[];
 

@@ -95,19 +95,22 @@ int cli_describe(int argc, char **argv)
     int i, first = 1;
     if (argc > 2 && (!strcmp(argv[2], "-h") || !strcmp(argv[2], "--help"))) {
         printf("Usage: terrasynth describe [STAGE]\n"
-               "       terrasynth describe --markdown JOB (synopsis | parameters | stage:NAME | recipe)\n"
+               "       terrasynth describe --markdown JOB (synopsis | parameters | stage:NAME | "
+               "recipe)\n"
                "\n"
                "Print the parameters of every stage (or one) as JSON: name, CLI flag, type,\n"
                "default, range, units, choices and help; and every job's options (inputs,\n"
                "target grid, constraints, outputs) and the rules between them. Front ends\n"
-               "(QGIS) read it. --markdown prints a part of a job's manual: its synopsis,\n"
-               "its parameters, or one stage's parameters.\n");
+               "(QGIS) read it, and the options every command takes (common). --markdown\n"
+               "prints a part of a job's manual: its synopsis, its parameters, one stage's\n"
+               "parameters, or its options' forms in a recipe.\n");
         return 0;
     }
     if (argc > 2 && !strcmp(argv[2], "--markdown")) {
         if (argc != 5 || cli_markdown(stdout, argv[3], argv[4]) != 0) {
-            fprintf(stderr, "terrasynth describe: --markdown takes a job (ppa, synth, amplify, "
-                            "dictionary, pixel) and a part (synopsis, parameters, stage:NAME, recipe)\n");
+            fprintf(stderr,
+                    "terrasynth describe: --markdown takes a job (ppa, synth, amplify, "
+                    "dictionary, pixel) and a part (synopsis, parameters, stage:NAME, recipe)\n");
             return EXIT_USAGE;
         }
         return 0;
@@ -168,6 +171,16 @@ int cli_describe(int argc, char **argv)
     }
     printf("\n  },\n");
     cli_describe_jobs(stdout);
-    printf("\n}\n");
+    printf(",\n  \"common\": [");
+    for (i = 0; cli_common_options[i].left; i++) {
+        const cli_common_option *c = &cli_common_options[i];
+        printf("%s\n    {\"name\": \"%s\", \"usage\": ", i ? "," : "", c->name);
+        json_string(stdout, c->left);
+        printf(", \"kind\": \"%s\", \"min\": %.17g, \"max\": %.17g, \"help\": ", c->kind, c->min,
+               c->max);
+        json_string(stdout, c->help);
+        printf("}");
+    }
+    printf("\n  ]\n}\n");
     return 0;
 }

@@ -83,6 +83,10 @@ static int parse_common(const char *cmd, common_opts *o, int argc, char **argv, 
         o->progress = PROGRESS_LINES;
         return 1;
     }
+    if (!strcmp(a, "--check")) {
+        o->check = 1;
+        return 1;
+    }
     if (!strcmp(a, "-of") || !strcmp(a, "-co") || !strcmp(a, "--threads") ||
         !strcmp(a, "--max-memory")) {
         if (!value) {
@@ -110,9 +114,12 @@ static int parse_common(const char *cmd, common_opts *o, int argc, char **argv, 
             /* the same option the GDAL driver reads (--config TSYN_MAX_MEMORY) */
             CPLSetConfigOption("TSYN_MAX_MEMORY", value);
         } else {
+            const cli_common_option *th = &cli_common_options[2];
             long t = strtol(value, &end, 10);
-            if (*end || t < 0 || t > 256) {
-                cli_usage_error(cmd, "--threads must be 0..256, not '%s'", value);
+            if (*end || !*value || t < th->min || t > th->max) {
+                char msg[96];
+                snprintf(msg, sizeof msg, "--threads must be %g..%g, not '%%s'", th->min, th->max);
+                cli_usage_error(cmd, msg, value);
                 return -1;
             }
             o->threads = (int)t;
@@ -131,14 +138,19 @@ int cli_skip_common(int argc, char **argv, int *i, void *user)
 }
 
 const cli_common_option cli_common_options[] = {
-    {"-of FORMAT", "GDAL output format (default: from the extension, else GTiff)"},
-    {"-co KEY=VALUE", "creation option (repeatable)"},
-    {"--threads N", "worker threads (default 0 = all cores)"},
-    {"--max-memory M", "refuse a job that needs more (2G, 500M, 50%; default the machine's "
-                       "memory; TSYN_MAX_MEMORY)"},
-    {"--progress-lines", "print 'PROGRESS <percent> <stage>' lines"},
-    {"-q, --quiet", "no progress bar or summary"},
-    {NULL, NULL},
+    {"-of FORMAT", "format", "text", 0, 0,
+     "GDAL output format (default: from the extension, else GTiff)"},
+    {"-co KEY=VALUE", "co", "text", 0, 0, "creation option (repeatable)"},
+    {"--threads N", "threads", "int", 0, 256, "worker threads (default 0 = all cores)"},
+    {"--max-memory M", "max_memory", "text", 0, 0,
+     "refuse a job that needs more (2G, 500M, 50%; default the machine's memory; "
+     "TSYN_MAX_MEMORY)"},
+    {"--progress-lines", "progress_lines", "flag", 0, 0,
+     "print 'PROGRESS <percent> <stage>' lines"},
+    {"-q, --quiet", "quiet", "flag", 0, 0, "no progress bar or summary"},
+    {"--check", "check", "flag", 0, 0,
+     "check the options and the rules between them, then exit: nothing is read or written"},
+    {NULL, NULL, NULL, 0, 0, NULL},
 };
 
 /* ------------------------------------------------------------------ */

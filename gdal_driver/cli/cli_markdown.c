@@ -185,8 +185,8 @@ static void md_recipe(FILE *out, const cli_job *cj)
             fprintf(out, "`<%s id=\"ID\">FILE</%s>`", o->xml, o->xml);
         else if (o->kind == TSJOB_NAMED)
             fprintf(out, "`<%s name=\"NAME\">FILE</%s>`", o->xml, o->xml);
-        else if (o->kind == TSJOB_PAIR)
-            fprintf(out, "`<%s choices=\"FILE\">FILE</%s>`", o->xml, o->xml);
+        else if (o->kind == TSJOB_PAIR) /* the attribute is named in `choices` */
+            fprintf(out, "`<%s %s=\"FILE\">FILE</%s>`", o->xml, o->choices, o->xml);
         else if (o->xml[0] == '@')
             fprintf(out, "attribute `%s` of `<%s>`", o->xml + 1, job->element);
         else if (!at)

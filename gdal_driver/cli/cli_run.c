@@ -73,7 +73,7 @@ static int run_built(const cli_job *job, void *st, cli_run *r)
 
 int cli_run_job(const cli_job *job, int argc, char **argv)
 {
-    common_opts co = {job->name, NULL, NULL, PROGRESS_BAR, 0};
+    common_opts co = {job->name, NULL, NULL, PROGRESS_BAR, 0, 0};
     cli_run r;
     tsjob_values v;
     char msg[1024] = "";
@@ -114,7 +114,7 @@ int cli_run_job(const cli_job *job, int argc, char **argv)
         rc = EXIT_USAGE;
         goto done;
     }
-    rc = run_built(job, st, &r) == 0 ? 0 : EXIT_RUN;
+    rc = co.check ? 0 : run_built(job, st, &r) == 0 ? 0 : EXIT_RUN;
 done:
     if (job->free)
         job->free(st);

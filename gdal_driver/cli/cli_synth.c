@@ -94,7 +94,7 @@ const cli_job cli_synth_job = {
     "Grow a new terrain of any size from real DEMs by non-feature patch synthesis\n"
     "(Zhou et al. 2007 section 4.2 and 5): patches matched by FFT masked SSD, cut in\n"
     "with graph-cut seams and smoothed with Poisson seam removal. OUTPUT is a Float32\n"
-    "DEM on the target grid with its CRS, geotransform and nodata (-9999).\n"
+    "DEM on the target grid with its CRS, geotransform and nodata (" TSIO_NODATA_TEXT ").\n"
     "Exemplars are resampled to the target's ground resolution when it differs.\n"
     "\n"
     "With --sketch, the terrain follows a drawing: bright strokes are ridges, dark\n"

@@ -30,38 +30,13 @@ import os
 import signal
 import sys
 import tempfile
-import xml.etree.ElementTree as ET
 
 PROG = "terrasynth-dask"
-# recipe methods whose every window is computed alone, the same bytes as the whole's
-BLOCK_EXACT = {"Pixel", "Amplify"}
 
 
 def fail(msg):
     sys.stderr.write("%s: %s\n" % (PROG, msg))
     sys.exit(1)
-
-
-def recipe_method(path):
-    """The recipe's method element (Pixel, Amplify, Synth, PPA, ...) and the files it names
-    (every element text that is an existing path, relative to the recipe's folder)."""
-    try:
-        root = ET.parse(path).getroot()
-    except (ET.ParseError, OSError) as e:
-        fail("%s: not a readable recipe (%s)" % (path, e))
-    method = next(iter(root), None)
-    if method is None:
-        fail("%s: the recipe has no method" % path)
-    base = os.path.dirname(os.path.abspath(path))
-    named = []
-    for el in root.iter():
-        for v in [el.text or ""] + list(el.attrib.values()):
-            v = v.strip()
-            if v and len(v) < 4096:
-                p = v if os.path.isabs(v) else os.path.join(base, v)
-                if os.path.isfile(p):
-                    named.append(p)
-    return method.tag, named
 
 
 def same_file(a, b):
@@ -96,18 +71,6 @@ def read_chunk(recipe, plugins, x, y, w, h):
     a = ds.GetRasterBand(1).ReadAsArray(x, y, w, h)
     ds = None
     return x, y, a
-
-
-def recipe_tiled(path):
-    """The recipe's tile size (its <Param name="tiled">), 0 when it has none."""
-    root = ET.parse(path).getroot()
-    for el in root.iter("Param"):
-        if el.get("name", "").lower() == "tiled":
-            try:
-                return int((el.text or "0").strip())
-            except ValueError:
-                return 0
-    return 0
 
 
 def _tiles_handle(recipe, plugins):
@@ -250,25 +213,31 @@ def main(argv=None):
         a.workers = 2
     if not os.path.isfile(a.recipe):
         fail("%s: no such recipe" % a.recipe)
-    method, named = recipe_method(a.recipe)
+    if a.plugins:
+        os.environ["GDAL_DRIVER_PATH"] = a.plugins
+    import numpy as np
+    from osgeo import gdal
+    gdal.UseExceptions()
+    # the recipe read by the TSYN driver (the library's parser and checks): its grid, and
+    # how it is made (metadata domain TSYN: JOB, WINDOWS any|tiles|whole, TILE_SIZE, the
+    # files it reads as INPUT_n)
+    try:
+        src = gdal.OpenEx(a.recipe, gdal.OF_RASTER | gdal.OF_READONLY, allowed_drivers=["TSYN"])
+    except RuntimeError as e:
+        fail("%s: %s" % (a.recipe, str(e).strip().splitlines()[-1]))
+    how = src.GetMetadata("TSYN") or {}
+    method, windows_alone = how.get("JOB", "?"), how.get("WINDOWS") == "any"
+    tile = int(how.get("TILE_SIZE", "0"))
+    named = [v for k, v in sorted(how.items()) if k.startswith("INPUT_")]
     for p in [a.recipe] + named:
         if same_file(p, a.output):
+            src = None
             fail("%s: the output would replace %s, which the job reads" % (a.output, p))
     if os.path.exists(a.output) and not os.path.isfile(a.output):
         fail("%s: not a regular file" % a.output)
     out_dir = os.path.dirname(os.path.abspath(a.output))
     if not os.path.isdir(out_dir) or not os.access(out_dir, os.W_OK):
         fail("%s: the folder is not writable" % a.output)
-
-    if a.plugins:
-        os.environ["GDAL_DRIVER_PATH"] = a.plugins
-    import numpy as np
-    from osgeo import gdal
-    gdal.UseExceptions()
-    try:
-        src = gdal.OpenEx(a.recipe, gdal.OF_RASTER | gdal.OF_READONLY, allowed_drivers=["TSYN"])
-    except RuntimeError as e:
-        fail("%s: %s" % (a.recipe, str(e).strip().splitlines()[-1]))
     W, H = src.RasterXSize, src.RasterYSize
     band = src.GetRasterBand(1)
     nodata = band.GetNoDataValue()
@@ -280,8 +249,7 @@ def main(argv=None):
     except ImportError:
         fail("needs python3-dask and python3-distributed (apt-get install python3-distributed)")
 
-    tile = recipe_tiled(a.recipe) if method == "Synth" else 0
-    chunk = a.chunk if method in BLOCK_EXACT else max(W, H)
+    chunk = a.chunk if windows_alone else max(W, H)
     windows = [(x, y, min(chunk, W - x), min(chunk, H - y))
                for y in range(0, H, chunk) for x in range(0, W, chunk)]
     fd, tmp = tempfile.mkstemp(prefix=".%s." % os.path.basename(a.output), suffix=".tif",
@@ -441,7 +409,7 @@ def main(argv=None):
         print("%s: %d x %d from %s (%s, %s) in %d %s" % (
             a.output, W, H, os.path.basename(a.recipe), method,
             "tile by tile, four waves" if tile else
-            "chunk by chunk" if method in BLOCK_EXACT else "whole raster, one task",
+            "chunk by chunk" if windows_alone else "whole raster, one task",
             len(windows), "tiles" if tile else "chunks"))
     return 0
 

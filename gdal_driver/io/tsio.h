@@ -25,6 +25,11 @@
 extern "C" {
 #endif
 
+/* The nodata value of every Float32 raster TerraSynth writes (the core's
+ * NaN), as a number and as text for messages and help. */
+#define TSIO_NODATA (-9999.0)
+#define TSIO_NODATA_TEXT "-9999"
+
 typedef struct tsio_err {
     char msg[1024];
 } tsio_err;

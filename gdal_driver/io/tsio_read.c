@@ -173,24 +173,10 @@ static void reader_close(struct tsio_reader *rd)
     free(rd);
 }
 
-/* Open band band_no of path: georeferencing, CRS and ground metrics into
- * out (no cells), the conversion into the reader. */
-static struct tsio_reader *open_impl(const char *path, int band_no, tsio_raster *out, tsio_err *err)
+/* GDAL's dataset of path, or NULL with a message saying why not. */
+static GDALDatasetH open_dataset(const char *path, tsio_err *err)
 {
-    struct tsio_reader *rd = calloc(1, sizeof *rd);
-    GDALDatasetH ds = NULL;
-    GDALRasterBandH band;
-    OGRSpatialReferenceH srs = NULL;
-    int w, h, nbands, ok = 0, mask_flags, known_unit;
-    double nodata = 0.0;
-    GDALDataType dt;
-    const char *unit;
-
-    if (!rd || !(rd->path = tsio__str_dup(path))) {
-        tsio_errf(err, path, "out of memory");
-        reader_close(rd);
-        return NULL;
-    }
+    GDALDatasetH ds;
     CPLErrorReset();
     ds = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, NULL, NULL,
                     NULL);
@@ -205,81 +191,98 @@ static struct tsio_reader *open_impl(const char *path, int band_no, tsio_raster 
             tsio_errf(err, path, "not a raster GDAL can open (%s)", g);
         else
             tsio_errf(err, path, "not a raster GDAL can open");
-        reader_close(rd);
-        return NULL;
     }
-    rd->ds = ds;
+    return ds;
+}
 
-    nbands = GDALGetRasterCount(ds);
+/* The size and bands of the dataset: band_no exists, the cells can be counted. */
+static int check_size(GDALDatasetH ds, const char *path, int band_no, tsio_err *err)
+{
+    int nbands = GDALGetRasterCount(ds), w, h;
     if (nbands < 1) {
         tsio_errf(err, path, "the file has no raster bands");
-        goto fail;
+        return -1;
     }
     if (band_no < 1 || band_no > nbands) {
         tsio_errf(err, path, "band %d does not exist (the file has %d band%s)", band_no, nbands,
                   nbands == 1 ? "" : "s");
-        goto fail;
+        return -1;
     }
     w = GDALGetRasterXSize(ds);
     h = GDALGetRasterYSize(ds);
     if (w <= 0 || h <= 0) {
         tsio_errf(err, path, "empty raster (%d x %d cells)", w, h);
-        goto fail;
+        return -1;
     }
     if ((size_t)w > SIZE_MAX / (size_t)h ||
         (size_t)w * (size_t)h > (size_t)PTRDIFF_MAX / sizeof(double)) {
         tsio_errf(err, path, "raster too large (%d x %d cells)", w, h);
-        goto fail;
+        return -1;
     }
-    rd->width = out->geo.width = w;
-    rd->height = out->geo.height = h;
+    return 0;
+}
 
-    /* geotransform */
-    if (GDALGetGeoTransform(ds, out->geo.gt) == CE_None) {
+/* The geotransform into geo (north-up, finite, no zero cell size; the identity
+ * without one). */
+static int read_geotransform(GDALDatasetH ds, const char *path, tsio_georef *geo, tsio_err *err)
+{
+    if (GDALGetGeoTransform(ds, geo->gt) == CE_None) {
         int i;
-        out->geo.has_gt = 1;
-        if (out->geo.gt[2] != 0.0 || out->geo.gt[4] != 0.0) {
+        geo->has_gt = 1;
+        if (geo->gt[2] != 0.0 || geo->gt[4] != 0.0) {
             tsio_errf(err, path, "rotated geotransforms are not supported");
-            goto fail;
+            return -1;
         }
         for (i = 0; i < 6; i++)
-            if (!isfinite(out->geo.gt[i])) {
+            if (!isfinite(geo->gt[i])) {
                 tsio_errf(err, path, "the geotransform is not finite");
-                goto fail;
+                return -1;
             }
-        if (out->geo.gt[1] == 0.0 || out->geo.gt[5] == 0.0) {
+        if (geo->gt[1] == 0.0 || geo->gt[5] == 0.0) {
             tsio_errf(err, path, "the geotransform has a zero cell size");
-            goto fail;
+            return -1;
         }
     } else {
         static const double identity[6] = {0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
-        memcpy(out->geo.gt, identity, sizeof identity);
-        out->geo.has_gt = 0;
+        memcpy(geo->gt, identity, sizeof identity);
+        geo->has_gt = 0;
     }
     CPLErrorReset();
+    return 0;
+}
 
-    /* CRS */
-    {
-        OGRSpatialReferenceH s = GDALGetSpatialRef(ds);
-        if (s) {
-            srs = OSRClone(s);
-            if (!srs) {
-                tsio_errf(err, path, "out of memory");
-                goto fail;
-            }
-            OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
-            out->geo.wkt = tsio__srs_to_wkt2(srs);
-            if (!out->geo.wkt) {
-                tsio__set_err_gdal(err, path, "cannot export the CRS as WKT");
-                goto fail;
-            }
-            out->geo.is_geographic = OSRIsGeographic(srs) ? 1 : 0;
-        }
+/* The CRS (a clone in *srs, traditional axis order) and its WKT into geo; none: *srs NULL. */
+static int read_crs(GDALDatasetH ds, const char *path, tsio_georef *geo, OGRSpatialReferenceH *srs,
+                    tsio_err *err)
+{
+    OGRSpatialReferenceH s = GDALGetSpatialRef(ds);
+    if (!s)
+        return 0;
+    *srs = OSRClone(s);
+    if (!*srs) {
+        tsio_errf(err, path, "out of memory");
+        return -1;
     }
+    OSRSetAxisMappingStrategy(*srs, OAMS_TRADITIONAL_GIS_ORDER);
+    geo->wkt = tsio__srs_to_wkt2(*srs);
+    if (!geo->wkt) {
+        tsio__set_err_gdal(err, path, "cannot export the CRS as WKT");
+        return -1;
+    }
+    geo->is_geographic = OSRIsGeographic(*srs) ? 1 : 0;
+    return 0;
+}
 
-    /* band properties */
-    band = rd->band = GDALGetRasterBand(ds, band_no);
-    dt = GDALGetRasterDataType(band);
+/* How the band's values become metres: nodata, scale and offset, the vertical unit
+ * (the band's, else a compound CRS's), the mask read when it adds to nodata. */
+static void read_band_conversion(struct tsio_reader *rd, int band_no, OGRSpatialReferenceH srs,
+                                 tsio_raster *out)
+{
+    GDALRasterBandH band = rd->band = GDALGetRasterBand(rd->ds, band_no);
+    GDALDataType dt = GDALGetRasterDataType(band);
+    double nodata;
+    int ok = 0, mask_flags, known_unit;
+    const char *unit;
     if (dt == GDT_Int64) {
         int64_t v = GDALGetRasterNoDataValueAsInt64(band, &ok);
         nodata = (double)v;
@@ -325,6 +328,34 @@ static struct tsio_reader *open_impl(const char *path, int band_no, tsio_raster 
      * test (and would read the data twice); any other mask is read. */
     if (!(mask_flags & GMF_ALL_VALID) && !(mask_flags == GMF_NODATA && rd->has_nodata))
         rd->mask_band = GDALGetMaskBand(band);
+}
+
+/* Open band band_no of path: georeferencing, CRS and ground metrics into
+ * out (no cells), the conversion into the reader. */
+static struct tsio_reader *open_impl(const char *path, int band_no, tsio_raster *out, tsio_err *err)
+{
+    struct tsio_reader *rd = calloc(1, sizeof *rd);
+    OGRSpatialReferenceH srs = NULL;
+    int h;
+
+    if (!rd || !(rd->path = tsio__str_dup(path))) {
+        tsio_errf(err, path, "out of memory");
+        reader_close(rd);
+        return NULL;
+    }
+    rd->ds = open_dataset(path, err);
+    if (!rd->ds) {
+        reader_close(rd);
+        return NULL;
+    }
+    if (check_size(rd->ds, path, band_no, err) != 0)
+        goto fail;
+    rd->width = out->geo.width = GDALGetRasterXSize(rd->ds);
+    rd->height = out->geo.height = h = GDALGetRasterYSize(rd->ds);
+    if (read_geotransform(rd->ds, path, &out->geo, err) != 0 ||
+        read_crs(rd->ds, path, &out->geo, &srs, err) != 0)
+        goto fail;
+    read_band_conversion(rd, band_no, srs, out);
 
     /* ground metrics */
     if (srs && out->geo.has_gt) {

@@ -305,20 +305,10 @@ done:
     return rc;
 }
 
-static int write_features_impl(const char *path, const tsio_georef *geo, const ts_features *f,
-                               const ts_grid_metrics *metrics, tsio_err *err)
+/* A features output makes sense: a path, features on the georeference's grid. */
+static int check_feature_args(const char *path, const tsio_georef *geo, const ts_features *f,
+                              tsio_err *err)
 {
-    out_name main_n, nodes_n;
-    char *nodes_stem = NULL;
-    const char *drv_name;
-    GDALDriverH drv;
-    GDALDatasetH ds = NULL, nds = NULL;
-    vec_ctx c;
-    int rc = -1, sibling, created = 0, ncreated = 0, i, slot = -1, nslot = -1, staged;
-
-    memset(&main_n, 0, sizeof main_n);
-    memset(&nodes_n, 0, sizeof nodes_n);
-    memset(&c, 0, sizeof c);
     if (!path || !path[0]) {
         tsio_errf(err, "(empty path)", "no output file given");
         return -1;
@@ -333,7 +323,73 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
                   geo->width, geo->height, f->width, f->height);
         return -1;
     }
-    if (check_features(f, path, err) != 0)
+    return check_features(f, path, err);
+}
+
+/* What the layer writers share: the features, the cells' ground metrics, the
+ * geotransform (cells without one) and the CRS. */
+static int vec_ctx_init(vec_ctx *c, const char *path, const tsio_georef *geo, const ts_features *f,
+                        const ts_grid_metrics *metrics, tsio_err *err)
+{
+    int i;
+    c->path = path;
+    c->f = f;
+    c->err = err;
+    c->metrics = (metrics && metrics->dx && metrics->dy) ? metrics : NULL;
+    if (geo && geo->has_gt) {
+        memcpy(c->gt, geo->gt, sizeof c->gt);
+        for (i = 0; i < 6; i++)
+            if (!isfinite(c->gt[i])) {
+                tsio_errf(err, path, "the geotransform is not finite");
+                return -1;
+            }
+    } else {
+        c->gt[1] = 1.0;
+        c->gt[5] = 1.0;
+    }
+    if (geo && geo->wkt && geo->wkt[0]) {
+        c->srs = tsio__srs_from_wkt(geo->wkt);
+        if (!c->srs) {
+            tsio_errf(err, path, "the CRS (WKT) is invalid");
+            return -1;
+        }
+    }
+    return 0;
+}
+
+/* The nodes in their own file (formats of one layer): its temporary dataset
+ * written and closed. */
+static int write_nodes_file(GDALDriverH drv, const out_name *nodes_n, vec_ctx *c)
+{
+    GDALDatasetH nds;
+    CPLErrorReset();
+    nds = GDALCreate(drv, nodes_n->temp, 0, 0, 0, GDT_Unknown, NULL);
+    if (!nds) {
+        tsio__set_err_gdal(c->err, nodes_n->final, "cannot create the file");
+        return -1;
+    }
+    if (write_nodes_layer(nds, c, nodes_n->final) != 0) {
+        GDALClose(nds);
+        return -1;
+    }
+    return tsio__close_checked(nds, nodes_n->final, c->err);
+}
+
+static int write_features_impl(const char *path, const tsio_georef *geo, const ts_features *f,
+                               const ts_grid_metrics *metrics, tsio_err *err)
+{
+    out_name main_n, nodes_n;
+    char *nodes_stem = NULL;
+    const char *drv_name;
+    GDALDriverH drv;
+    GDALDatasetH ds = NULL;
+    vec_ctx c;
+    int rc = -1, sibling, created = 0, ncreated = 0, i, slot = -1, nslot = -1, staged;
+
+    memset(&main_n, 0, sizeof main_n);
+    memset(&nodes_n, 0, sizeof nodes_n);
+    memset(&c, 0, sizeof c);
+    if (check_feature_args(path, geo, f, err) != 0)
         return -1;
     if (tsio__out_name_for(path, &main_n) != 0) {
         tsio_errf(err, path, "out of memory");
@@ -353,28 +409,8 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
     if (tsio__check_output_location(&main_n, path, err) != 0)
         goto done;
 
-    c.path = path;
-    c.f = f;
-    c.err = err;
-    c.metrics = (metrics && metrics->dx && metrics->dy) ? metrics : NULL;
-    if (geo && geo->has_gt) {
-        memcpy(c.gt, geo->gt, sizeof c.gt);
-        for (i = 0; i < 6; i++)
-            if (!isfinite(c.gt[i])) {
-                tsio_errf(err, path, "the geotransform is not finite");
-                goto done;
-            }
-    } else {
-        c.gt[1] = 1.0;
-        c.gt[5] = 1.0;
-    }
-    if (geo && geo->wkt && geo->wkt[0]) {
-        c.srs = tsio__srs_from_wkt(geo->wkt);
-        if (!c.srs) {
-            tsio_errf(err, path, "the CRS (WKT) is invalid");
-            goto done;
-        }
-    }
+    if (vec_ctx_init(&c, path, geo, f, metrics, err) != 0)
+        goto done;
 
     /* the paths (and, for multi-layer formats, the nodes) */
     CPLErrorReset();
@@ -402,19 +438,9 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
             tsio_errf(err, path, "out of memory");
             goto done;
         }
-        CPLErrorReset();
         ncreated = 1;
         nslot = tsio__temp_register(&nodes_n);
-        nds = GDALCreate(drv, nodes_n.temp, 0, 0, 0, GDT_Unknown, NULL);
-        if (!nds) {
-            tsio__set_err_gdal(err, nodes_n.final, "cannot create the file");
-            goto done;
-        }
-        if (write_nodes_layer(nds, &c, nodes_n.final) != 0)
-            goto done;
-        i = tsio__close_checked(nds, nodes_n.final, err);
-        nds = NULL;
-        if (i != 0)
+        if (write_nodes_file(drv, &nodes_n, &c) != 0)
             goto done;
     }
 
@@ -456,8 +482,6 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
 done:
     if (ds)
         GDALClose(ds);
-    if (nds)
-        GDALClose(nds);
     if (rc != 0) {
         if (created && main_n.temp)
             tsio__remove_temp_files(&main_n);

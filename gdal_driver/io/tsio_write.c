@@ -244,21 +244,11 @@ static const char *type_name(GDALDataType t)
     return n ? n : "?";
 }
 
-static int write_raster_impl(const char *path, const tsio_write_opts *opts,
-                             const char *forced_format, const tsio_georef *geo,
-                             const raster_src *src_in, int has_nodata, double nodata, tsio_err *err)
+/* The raster and its georeferencing make sense: 0, or -1 with a message. */
+static int check_raster_args(const char *path, const tsio_georef *geo, const raster_src *src,
+                             tsio_err *err)
 {
-    raster_src src_copy = *src_in;
-    raster_src *src = &src_copy;
-    int nodata_stored = 0;
-    GDALDriverH drv = NULL, mem_drv;
-    GDALDatasetH ds = NULL, mem = NULL;
-    char **copts = NULL;
-    const char *drv_name, *types;
-    out_name on;
-    int rc = -1, created = 0, i, can_create, can_copy, slot = -1;
-
-    memset(&on, 0, sizeof on);
+    int i;
     if (!path || !path[0]) {
         tsio_errf(err, "(empty path)", "no output file given");
         return -1;
@@ -279,134 +269,174 @@ static int write_raster_impl(const char *path, const tsio_write_opts *opts,
                 tsio_errf(err, path, "the geotransform is not finite");
                 return -1;
             }
-    if (tsio__out_name_for(path, &on) != 0) {
-        tsio_errf(err, path, "out of memory");
-        return -1;
-    }
+    return 0;
+}
 
-    /* driver */
+/* The driver that writes `path`: forced, asked for (-of) or from the extension, able to
+ * write files of the source's type; NULL with a message. */
+static GDALDriverH raster_driver(const char *path, const tsio_write_opts *opts,
+                                 const char *forced_format, const out_name *on,
+                                 const raster_src *src, tsio_err *err)
+{
+    GDALDriverH drv;
+    const char *drv_name, *types;
     if (forced_format) {
         drv = GDALGetDriverByName(forced_format);
         if (!drv) {
             tsio_errf(err, path, "the %s driver is not available", forced_format);
-            goto done;
+            return NULL;
         }
     } else if (opts && opts->format && opts->format[0]) {
         drv = GDALGetDriverByName(opts->format);
         if (!drv) {
             tsio_errf(err, path, "unknown output format %s", opts->format);
-            goto done;
+            return NULL;
         }
     } else {
         int refused = 0;
-        drv = raster_driver_for_ext(on.ext, &refused);
+        drv = raster_driver_for_ext(on->ext, &refused);
         if (refused) {
             tsio_errf(err, path, "cannot write VRT: choose a format that stores the cells");
-            goto done;
+            return NULL;
         }
         if (!drv) {
             tsio_errf(err, path, "the GTiff driver is not available");
-            goto done;
+            return NULL;
         }
     }
     drv_name = GDALGetDriverShortName(drv);
     if (!tsio__driver_has(drv, GDAL_DCAP_RASTER)) {
         tsio_errf(err, path, "format %s cannot write rasters", drv_name);
-        goto done;
+        return NULL;
     }
-    if (tsio__str_ieq(drv_name, "MEM") || tsio__str_ieq(drv_name, "VRT")) {
+    if (tsio__str_ieq(drv_name, "MEM") || tsio__str_ieq(drv_name, "VRT") ||
+        (!tsio__driver_has(drv, GDAL_DCAP_CREATE) &&
+         !tsio__driver_has(drv, GDAL_DCAP_CREATECOPY))) {
         tsio_errf(err, path, "format %s cannot write files", drv_name);
-        goto done;
-    }
-    can_create = tsio__driver_has(drv, GDAL_DCAP_CREATE);
-    can_copy = tsio__driver_has(drv, GDAL_DCAP_CREATECOPY);
-    if (!can_create && !can_copy) {
-        tsio_errf(err, path, "format %s cannot write files", drv_name);
-        goto done;
+        return NULL;
     }
     types = GDALGetMetadataItem(drv, GDAL_DMD_CREATIONDATATYPES, NULL);
     if (types && types[0] && !tsio__list_has_word(types, type_name(src->type))) {
         tsio_errf(err, path, "format %s cannot store %s data (it takes %s)", drv_name,
                   type_name(src->type), types);
-        goto done;
+        return NULL;
     }
+    return drv;
+}
 
-    /* creation options */
+/* The creation options given, checked against the driver (KEY=VALUE each), with the
+ * table of a GeoPackage named after the final file; 0 with *copts, or -1. */
+static int raster_create_options(const char *path, const tsio_write_opts *opts, GDALDriverH drv,
+                                 const out_name *on, char ***copts, tsio_err *err)
+{
+    int i;
     if (opts && opts->create_options) {
         for (i = 0; opts->create_options[i]; i++) {
             const char *o = opts->create_options[i];
             const char *eq = strchr(o, '=');
             if (!eq || eq == o) {
                 tsio_errf(err, path, "invalid creation option \"%s\" (expected KEY=VALUE)", o);
-                goto done;
+                return -1;
             }
-            copts = CSLAddString(copts, o);
+            *copts = CSLAddString(*copts, o);
         }
         CPLErrorReset();
-        if (copts && !GDALValidateCreationOptions(drv, (CSLConstList)copts)) {
+        if (*copts && !GDALValidateCreationOptions(drv, (CSLConstList)*copts)) {
             tsio__set_err_gdal(err, path, "invalid creation option");
-            goto done;
+            return -1;
         }
     }
     /* GeoPackage names its raster table after the file: use the final name */
-    if (tsio__str_ieq(drv_name, "GPKG") && !CSLFetchNameValue(copts, "RASTER_TABLE") && on.stem[0])
-        copts = CSLSetNameValue(copts, "RASTER_TABLE", on.stem);
+    if (tsio__str_ieq(GDALGetDriverShortName(drv), "GPKG") &&
+        !CSLFetchNameValue(*copts, "RASTER_TABLE") && on->stem[0])
+        *copts = CSLSetNameValue(*copts, "RASTER_TABLE", on->stem);
+    return 0;
+}
 
-    if (tsio__check_output_location(&on, path, err) != 0)
+/* The temporary file on.temp written: created and filled where the driver creates,
+ * else copied from a filled MEM dataset.  0, or -1 (the caller removes the file). */
+static int write_temp_raster(const char *path, GDALDriverH drv, const out_name *on, char **copts,
+                             const tsio_georef *geo, raster_src *src, int has_nodata, double nodata,
+                             tsio_err *err)
+{
+    const char *drv_name = GDALGetDriverShortName(drv);
+    GDALDatasetH ds = NULL, mem = NULL, target;
+    int nodata_stored = 0, rc = -1;
+    CPLErrorReset();
+    if (tsio__driver_has(drv, GDAL_DCAP_CREATE)) {
+        ds = GDALCreate(drv, on->temp, src->width, src->height, src->nbands, src->type, copts);
+        if (!ds) {
+            tsio__set_err_gdal(err, path, "cannot create the file");
+            return -1;
+        }
+        target = ds;
+    } else {
+        GDALDriverH mem_drv = GDALGetDriverByName("MEM");
+        if (!mem_drv) {
+            tsio_errf(err, path, "the MEM driver is not available");
+            return -1;
+        }
+        mem = GDALCreate(mem_drv, "", src->width, src->height, src->nbands, src->type, NULL);
+        if (!mem) {
+            tsio__set_err_gdal(err, path, "cannot create the in-memory copy");
+            return -1;
+        }
+        target = mem;
+    }
+    if (apply_georef(target, geo, src->nbands, has_nodata, nodata, &nodata_stored, path, err) !=
+            0 ||
+        settle_nodata(src, has_nodata, nodata_stored, drv_name, path, err) != 0 ||
+        fill_dataset(target, src, path, err) != 0)
+        goto done;
+    if (mem) {
+        CPLErrorReset();
+        ds = GDALCreateCopy(drv, on->temp, mem, FALSE, copts, NULL, NULL);
+        if (!ds) {
+            tsio__set_err_gdal(err, path, "cannot create the file");
+            goto done;
+        }
+    }
+    rc = tsio__close_checked(ds, path, err);
+    ds = NULL;
+done:
+    if (ds)
+        GDALClose(ds);
+    if (mem)
+        GDALClose(mem);
+    return rc;
+}
+
+static int write_raster_impl(const char *path, const tsio_write_opts *opts,
+                             const char *forced_format, const tsio_georef *geo,
+                             const raster_src *src_in, int has_nodata, double nodata, tsio_err *err)
+{
+    raster_src src_copy = *src_in;
+    GDALDriverH drv;
+    char **copts = NULL;
+    out_name on;
+    int rc = -1, created = 0, slot = -1;
+
+    memset(&on, 0, sizeof on);
+    if (check_raster_args(path, geo, &src_copy, err) != 0)
+        return -1;
+    if (tsio__out_name_for(path, &on) != 0) {
+        tsio_errf(err, path, "out of memory");
+        return -1;
+    }
+    drv = raster_driver(path, opts, forced_format, &on, &src_copy, err);
+    if (!drv || raster_create_options(path, opts, drv, &on, &copts, err) != 0 ||
+        tsio__check_output_location(&on, path, err) != 0)
         goto done;
     if (opts && opts->check_only) {
         rc = 0;
         goto done;
     }
-
-    /* write the temporary dataset */
-    CPLErrorReset();
+    /* write the temporary dataset, then move it into place, now or with the job's
+     * other outputs */
     created = 1;
     slot = tsio__temp_register(&on);
-    if (can_create) {
-        ds = GDALCreate(drv, on.temp, src->width, src->height, src->nbands, src->type, copts);
-        if (!ds) {
-            tsio__set_err_gdal(err, path, "cannot create the file");
-            goto done;
-        }
-        if (apply_georef(ds, geo, src->nbands, has_nodata, nodata, &nodata_stored, path, err) !=
-                0 ||
-            settle_nodata(src, has_nodata, nodata_stored, drv_name, path, err) != 0 ||
-            fill_dataset(ds, src, path, err) != 0)
-            goto done;
-        i = tsio__close_checked(ds, path, err);
-        ds = NULL;
-        if (i != 0)
-            goto done;
-    } else {
-        mem_drv = GDALGetDriverByName("MEM");
-        if (!mem_drv) {
-            tsio_errf(err, path, "the MEM driver is not available");
-            goto done;
-        }
-        mem = GDALCreate(mem_drv, "", src->width, src->height, src->nbands, src->type, NULL);
-        if (!mem) {
-            tsio__set_err_gdal(err, path, "cannot create the in-memory copy");
-            goto done;
-        }
-        if (apply_georef(mem, geo, src->nbands, has_nodata, nodata, &nodata_stored, path, err) !=
-                0 ||
-            settle_nodata(src, has_nodata, nodata_stored, drv_name, path, err) != 0 ||
-            fill_dataset(mem, src, path, err) != 0)
-            goto done;
-        CPLErrorReset();
-        ds = GDALCreateCopy(drv, on.temp, mem, FALSE, copts, NULL, NULL);
-        if (!ds) {
-            tsio__set_err_gdal(err, path, "cannot create the file");
-            goto done;
-        }
-        i = tsio__close_checked(ds, path, err);
-        ds = NULL;
-        if (i != 0)
-            goto done;
-    }
-
-    /* move it into place, now or with the job's other outputs */
+    if (write_temp_raster(path, drv, &on, copts, geo, &src_copy, has_nodata, nodata, err) != 0)
+        goto done;
     created = 0;
     if (tsio__finish_output(&on, path, slot, 1, err) != 0) {
         created = 1; /* not moved: its files go */
@@ -417,10 +447,6 @@ static int write_raster_impl(const char *path, const tsio_write_opts *opts,
     rc = 0;
 
 done:
-    if (ds)
-        GDALClose(ds);
-    if (mem)
-        GDALClose(mem);
     if (rc != 0 && created && on.temp)
         tsio__remove_temp_files(&on);
     tsio__temp_unregister(slot);

@@ -39,6 +39,11 @@ int tsjob_build_synth(tsjob_values *v, tsjob_synth *job, uint64_t *seed, char *m
         char *end;
         long id = strtol(s, &end, 10);
         const char *file = end + 1;
+        for (k = 0; k < job->n_region_rules; k++)
+            if (job->region_id[k] == (int)id) {
+                tsjob__msgf(msg, len, "region_exemplar: region %ld is given twice", id);
+                return -1;
+            }
         for (k = 0; k < job->n_exemplars; k++)
             if (!strcmp(job->exemplars[k], file))
                 break;

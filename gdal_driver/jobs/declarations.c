@@ -163,7 +163,7 @@ static const tsjob_option synth_opts[] = {
      0, NULL},
     OPT_SEED,
     {"output", TSJOB_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
-     "the terrain: a Float32 DEM on the target grid, nodata -9999", NULL, 1, NULL},
+     "the terrain: a Float32 DEM on the target grid, nodata " TSIO_NODATA_TEXT, NULL, 1, NULL},
     OPT_PREVIEW,
     {"debug_dir", TSJOB_OUTPUT, 1, 0, 0, "DIR", G_OUT,
      "seams.tif, source_exemplar.tif, source_x.tif, source_y.tif, order.tif (georeferenced); "
@@ -316,11 +316,11 @@ static const tsjob_option amplify_opts[] = {
      "Classes", 0, NULL},
     {"output", TSJOB_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
      "the amplified DEM: Float32 on the input's extent and CRS, factor times finer, "
-     "nodata -9999 where the input is nodata",
+     "nodata " TSIO_NODATA_TEXT " where the input is nodata",
      NULL, 2, NULL},
     {"out_layer", TSJOB_OUTPUT, TS_MAX_LAYERS, 0, 0, "NAME=FILE", G_OUT,
      "an extra layer the atoms carry (exemplar_layer NAME), on the output's grid (Float32, "
-     "nodata -9999); repeatable",
+     "nodata " TSIO_NODATA_TEXT "); repeatable",
      NULL, 0, NULL},
     {"out_classes", TSJOB_OUTPUT, 1, 0, 0, "FILE", G_OUT,
      "the atoms' classes on the output's grid (Byte, 0 = unlabelled)", NULL, 0, NULL},
@@ -399,7 +399,7 @@ static const tsjob_option pixel_opts[] = {
      "value), in spacings 0..2; instead of the one jitter",
      "JitterLevels", 0, NULL},
     {"output", TSJOB_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
-     "the terrain: a Float32 DEM on the target grid, nodata -9999", NULL, 1, NULL},
+     "the terrain: a Float32 DEM on the target grid, nodata " TSIO_NODATA_TEXT, NULL, 1, NULL},
     OPT_PREVIEW,
     {"debug_dir", TSJOB_OUTPUT, 1, 0, 0, "DIR", G_OUT,
      "source_exemplar.tif, source_x.tif, source_y.tif: where each cell's finest coordinate "

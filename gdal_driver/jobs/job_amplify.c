@@ -724,12 +724,12 @@ int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_re
             return -1;
     if (tsjob__distinct(outs, n_out, err))
         return -1;
-    if (tsio_write_float(o->output, &wo, &g1, &pr, -9999.0, err) != 0 ||
+    if (tsio_write_float(o->output, &wo, &g1, &pr, TSIO_NODATA, err) != 0 ||
         (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0) ||
         (o->out_classes && tsio_write_byte(o->out_classes, &wo, &g1, &bp, -1, err) != 0))
         return -1;
     for (l = 3; l < n_out; l++)
-        if (tsio_write_float(outs[l], &wo, &g1, &pr, -9999.0, err) != 0)
+        if (tsio_write_float(outs[l], &wo, &g1, &pr, TSIO_NODATA, err) != 0)
             return -1;
     return 0;
 }
@@ -739,11 +739,11 @@ int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjo
 {
     tsio_write_opts wo = {o->format, o->create_options, 0};
     int l;
-    if (tsio_write_float(o->output, &wo, &res->geo, &res->out, -9999.0, err) != 0)
+    if (tsio_write_float(o->output, &wo, &res->geo, &res->out, TSIO_NODATA, err) != 0)
         return -1;
     for (l = 0; o->out_layers && o->out_layers[l] && l < TS_MAX_LAYERS; l++)
         if (tsio_write_float(strchr(o->out_layers[l], '=') + 1, &wo, &res->geo,
-                             &res->layers[res->layer_of[l]], -9999.0, err) != 0)
+                             &res->layers[res->layer_of[l]], TSIO_NODATA, err) != 0)
             return -1;
     if (o->out_classes) {
         size_t n = (size_t)res->geo.width * (size_t)res->geo.height, k;

@@ -246,7 +246,7 @@ int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *
     if (tsjob__not_an_input(o->output, in, n, err) || tsjob__not_an_input(o->preview, in, n, err) ||
         tsjob__distinct(outs, 2, err))
         return -1;
-    if (tsio_write_float(o->output, &wo, &g1, &pr, -9999.0, err) != 0 ||
+    if (tsio_write_float(o->output, &wo, &g1, &pr, TSIO_NODATA, err) != 0 ||
         (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
         return -1;
     if (o->debug_dir) {
@@ -270,7 +270,7 @@ int tsjob_pixel_write(ts_ctx *ctx, const tsjob_pixel_result *res, const tsjob_ou
                       tsio_err *err)
 {
     tsio_write_opts wo = {o->format, o->create_options, 0};
-    if (tsio_write_float(o->output, &wo, &res->geo, &res->out, -9999.0, err) != 0)
+    if (tsio_write_float(o->output, &wo, &res->geo, &res->out, TSIO_NODATA, err) != 0)
         return -1;
     if (o->debug_dir && res->src_e) {
         const int32_t *maps[3] = {res->src_e, res->src_x, res->src_y};

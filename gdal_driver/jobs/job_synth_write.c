@@ -78,7 +78,7 @@ int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *
     g1.width = g1.height = 1;
     if (tsjob__not_an_input(o->output, in, n, err) || tsjob__not_an_input(o->preview, in, n, err))
         return -1;
-    if (tsio_write_float(o->output, &wo, &g1, &pr, -9999.0, err) != 0 ||
+    if (tsio_write_float(o->output, &wo, &g1, &pr, TSIO_NODATA, err) != 0 ||
         (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
         return -1;
     if (o->debug_dir) {
@@ -148,7 +148,7 @@ int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_res
                       const tsjob_outputs *o, tsio_err *err)
 {
     tsio_write_opts wo = {o->format, o->create_options, 0};
-    if (tsio_write_float(o->output, &wo, &res->geo, &res->out, -9999.0, err) != 0)
+    if (tsio_write_float(o->output, &wo, &res->geo, &res->out, TSIO_NODATA, err) != 0)
         return -1;
     if (o->preview &&
         tsjob__preview(ctx, o->preview, &res->out, &res->geo, res->metrics, NULL, err) != 0)

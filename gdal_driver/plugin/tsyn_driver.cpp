@@ -9,8 +9,8 @@
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <algorithm>
-#include <dlfcn.h>
 #include <cstring>
+#include <dlfcn.h>
 #include <vector>
 
 #include "cpl_multiproc.h"
@@ -34,6 +34,7 @@ class TSYNDataset final : public GDALPamDataset
     double m_gt[6] = {0, 1, 0, 0, 0, 1};
     bool m_has_gt = false;
     OGRSpatialReference m_srs{};
+    CPLStringList m_schedule; /* metadata domain "TSYN": how the recipe is made */
 
     bool Compute();
 
@@ -43,6 +44,9 @@ class TSYNDataset final : public GDALPamDataset
     static GDALDataset *Open(GDALOpenInfo *info);
     CPLErr GetGeoTransform(double *gt) override;
     const OGRSpatialReference *GetSpatialRef() const override;
+    char **GetMetadataDomainList() override;
+    char **GetMetadata(const char *domain) override;
+    const char *GetMetadataItem(const char *name, const char *domain) override;
 };
 
 class TSYNRasterBand final : public GDALPamRasterBand
@@ -105,6 +109,16 @@ GDALDataset *TSYNDataset::Open(GDALOpenInfo *info)
         ds->m_srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
     }
     ds->SetBand(1, new TSYNRasterBand(ds, static_cast<GDALDataType>(tsrecipe_gdal_type(recipe))));
+    /* for schedulers (the Dask runner): the job, how its windows are made, the
+     * files it reads; kept apart from PAM's metadata, so nothing is written */
+    ds->m_schedule.SetNameValue("JOB", tsrecipe_job_name(recipe));
+    ds->m_schedule.SetNameValue("WINDOWS", tsrecipe_schedule(recipe));
+    ds->m_schedule.SetNameValue("TILE_SIZE", CPLSPrintf("%d", tsrecipe_tile_size(recipe)));
+    {
+        const char *const *in = tsrecipe_inputs(recipe);
+        for (int i = 0; in && in[i]; i++)
+            ds->m_schedule.SetNameValue(CPLSPrintf("INPUT_%d", i + 1), in[i]);
+    }
     ds->SetDescription(info->pszFilename);
     ds->TryLoadXML();
     return ds;
@@ -119,6 +133,25 @@ CPLErr TSYNDataset::GetGeoTransform(double *gt)
 const OGRSpatialReference *TSYNDataset::GetSpatialRef() const
 {
     return m_srs.IsEmpty() ? nullptr : &m_srs;
+}
+
+char **TSYNDataset::GetMetadataDomainList()
+{
+    return BuildMetadataDomainList(GDALPamDataset::GetMetadataDomainList(), TRUE, "TSYN", nullptr);
+}
+
+char **TSYNDataset::GetMetadata(const char *domain)
+{
+    if (domain && EQUAL(domain, "TSYN"))
+        return m_schedule.List();
+    return GDALPamDataset::GetMetadata(domain);
+}
+
+const char *TSYNDataset::GetMetadataItem(const char *name, const char *domain)
+{
+    if (domain && EQUAL(domain, "TSYN"))
+        return m_schedule.FetchNameValue(name);
+    return GDALPamDataset::GetMetadataItem(name, domain);
 }
 
 bool TSYNDataset::Compute()
@@ -154,7 +187,7 @@ CPLErr TSYNRasterBand::IReadBlock(int bx, int by, void *image)
             return CE_Failure;
         }
         auto *dst = static_cast<float *>(image);
-        std::fill(dst, dst + static_cast<size_t>(nBlockXSize) * nBlockYSize, -9999.0f);
+        std::fill(dst, dst + static_cast<size_t>(nBlockXSize) * nBlockYSize, (float)TSIO_NODATA);
         for (int y = 0; y < h; y++)
             std::memcpy(dst + static_cast<size_t>(y) * nBlockXSize,
                         cells.data() + static_cast<size_t>(y) * w, static_cast<size_t>(w) * 4);

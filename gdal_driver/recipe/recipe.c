@@ -561,7 +561,7 @@ double tsrecipe_nodata(const tsrecipe *r)
 {
     if (r->method == TSRECIPE_PPA || r->map == TSJOB_MAP_SEAMS)
         return 255.0;
-    return r->map < 0 ? -9999.0 : -1.0;
+    return r->map < 0 ? TSIO_NODATA : -1.0;
 }
 
 static int recipe_compute_offline(tsrecipe *r, tsio_err *err)
@@ -617,7 +617,7 @@ static int recipe_compute_offline(tsrecipe *r, tsio_err *err)
             n = (size_t)r->synth_res.out.width * (size_t)r->synth_res.out.height;
             for (i = 0; i < n; i++)
                 if (isnan(r->synth_res.out.data[i]))
-                    r->synth_res.out.data[i] = -9999.0f;
+                    r->synth_res.out.data[i] = (float)TSIO_NODATA;
         }
     }
     recipe_depth--;
@@ -658,6 +658,28 @@ int tsrecipe_block_size(const tsrecipe *r)
     return r->method == TSRECIPE_PIXEL ? 512 : 256;
 }
 
+const char *tsrecipe_job_name(const tsrecipe *r)
+{
+    return r->values.job ? r->values.job->element : "";
+}
+
+const char *tsrecipe_schedule(const tsrecipe *r)
+{
+    if (r->method == TSRECIPE_SYNTH && r->synth.lazy)
+        return "tiles";
+    return tsrecipe_lazy(r) ? "any" : "whole";
+}
+
+int tsrecipe_tile_size(const tsrecipe *r)
+{
+    return r->method == TSRECIPE_SYNTH && r->synth.lazy ? r->synth.params.tiled : 0;
+}
+
+const char *const *tsrecipe_inputs(const tsrecipe *r)
+{
+    return (const char *const *)r->strings;
+}
+
 int tsrecipe_lazy(const tsrecipe *r)
 {
     return r->method == TSRECIPE_AMPLIFY || r->method == TSRECIPE_PIXEL ||
@@ -690,7 +712,7 @@ static int recipe_read_window_offline(tsrecipe *r, int x0, int y0, int w, int h,
         ts_ctx_free(ctx);
         for (i = 0; rc == 0 && i < n; i++)
             if (isnan(out[i]))
-                out[i] = -9999.0f; /* nodata as the driver declares it */
+                out[i] = (float)TSIO_NODATA; /* nodata as the driver declares it */
         return rc;
     }
     if (r->method == TSRECIPE_PIXEL) {
@@ -707,7 +729,7 @@ static int recipe_read_window_offline(tsrecipe *r, int x0, int y0, int w, int h,
     ts_ctx_free(ctx);
     for (i = 0; rc == 0 && i < n; i++)
         if (isnan(out[i]))
-            out[i] = -9999.0f; /* nodata as the driver declares it */
+            out[i] = (float)TSIO_NODATA; /* nodata as the driver declares it */
     return rc;
 }
 

@@ -43,13 +43,24 @@ int tsrecipe_compute(tsrecipe *r, tsio_err *err);
 const void *tsrecipe_data(const tsrecipe *r);
 /** A lazy recipe (amplify) keeps no whole output: after tsrecipe_compute (what
  *  every block shares), tsrecipe_read_window computes the cells [x0, x0+w) x
- *  [y0, y0+h) (Float32, nodata -9999), the same bytes as the whole would
+ *  [y0, y0+h) (Float32, nodata TSIO_NODATA), the same bytes as the whole would
  *  have; thread-safe. */
 int tsrecipe_lazy(const tsrecipe *r);
 /* The side of the blocks the driver serves (a pixel recipe's are larger: each block
  * recomputes the margins its levels need). */
 int tsrecipe_block_size(const tsrecipe *r);
 int tsrecipe_read_window(tsrecipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err);
+
+/** How a scheduler makes the recipe: its job ("PPA", "Synth", "Amplify",
+ *  "Pixel": the recipe's element), how its windows are made ("any": any
+ *  window alone, the same bytes as in the whole; "tiles": tile by tile, see
+ *  tsyn_tiles.h; "whole": the whole raster on the first read), the tile size
+ *  ("tiles", else 0), and the files it reads as GDAL opens them
+ *  (NULL-ended, owned by r). */
+const char *tsrecipe_job_name(const tsrecipe *r);
+const char *tsrecipe_schedule(const tsrecipe *r);
+int tsrecipe_tile_size(const tsrecipe *r);
+const char *const *tsrecipe_inputs(const tsrecipe *r);
 
 /** Write a recipe for a job from what a front end was given (jobspec.h;
  *  temporary file + rename).  Input paths are stored relative to the

@@ -7,11 +7,9 @@ import os
 from qgis.core import (
     QgsProcessing,
     QgsProcessingException,
-    QgsProcessingParameterDefinition,
     QgsProcessingParameterFile,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterMultipleLayers,
-    QgsProcessingParameterNumber,
     QgsProcessingParameterRasterDestination,
     QgsProcessingParameterRasterLayer,
     QgsProcessingParameterString,
@@ -59,7 +57,6 @@ run leaves no file. Same inputs give the same bytes.</p>
 
 class AmplifyAlgorithm(TerraSynthAlgorithm):
     STAGE = "amplify"
-    POSITIONAL = ("input", "output")
     NAME = "amplify"
     DISPLAY_NAME = "Amplify a coarse DEM"
     GROUP = "Terrain synthesis"
@@ -125,19 +122,10 @@ class AmplifyAlgorithm(TerraSynthAlgorithm):
         cls.setHelp("Wanted classes on the input's grid (--classes; 0 or nodata: any).")
         self.addParameter(cls)
         self.addDescriptorParameters()
-        Number = QgsProcessingParameterNumber
-        band = Number(self.BAND, self.tr("Band of every input"), Number.Integer,
-                      defaultValue=1, minValue=1, maxValue=65535)
-        band.setHelp("Band read from the input and the exemplars (--band).")
-        cell = Number(self.CELL_SIZE, self.tr("Cell size for rasters without CRS (metres)"),
-                      Number.Double, optional=True, minValue=0.0, maxValue=1e7)
-        cell.setHelp("Ground size of a cell in metres, for rasters with no CRS (--cell-size).")
-        threads = Number(self.THREADS, self.tr("Threads (0 = all cores)"), Number.Integer,
-                         defaultValue=0, minValue=0, maxValue=256)
-        threads.setHelp("Worker threads (--threads); results never depend on it.")
-        for p in (band, cell, threads):
-            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-            self.addParameter(p)
+        self.optionParameter(self.BAND, "band", "Band of every input")
+        self.optionParameter(self.CELL_SIZE, "cell_size",
+                             "Cell size for rasters without CRS (metres)")
+        self.optionParameter(self.THREADS, "threads", "Threads (0 = all cores)")
         self.addParameter(QgsProcessingParameterRasterDestination(
             self.OUTPUT, self.tr("Amplified DEM")))
         name = QgsProcessingParameterString(self.OUT_LAYER_NAME, self.tr("Carried layer name"),
@@ -153,15 +141,7 @@ class AmplifyAlgorithm(TerraSynthAlgorithm):
             createByDefault=False))
 
     def checkJob(self, parameters, context):  # noqa: N802
-        given = [is_set(parameters, self.EXEMPLARS) and bool(
-                     self.parameterAsLayerList(parameters, self.EXEMPLARS, context)),
-                 bool(self.parameterAsFile(parameters, self.DICTIONARY, context)),
-                 bool(self.parameterAsString(parameters, self.BIOMES, context).strip())]
-        if sum(given) != 1:
-            raise QgsProcessingException("give exemplars, a dictionary, or biomes (one of them)")
-        if is_set(parameters, self.CELL_SIZE) and \
-                self.parameterAsDouble(parameters, self.CELL_SIZE, context) <= 0:
-            raise QgsProcessingException("CELL_SIZE must be a positive number of metres")
+        # the dialog's pair of parameters for --out-layer NAME=FILE
         out_layer = self.parameterAsOutputLayer(parameters, self.OUT_LAYER, context)
         name = self.parameterAsString(parameters, self.OUT_LAYER_NAME, context).strip()
         if bool(out_layer) != bool(name):
@@ -177,8 +157,6 @@ class AmplifyAlgorithm(TerraSynthAlgorithm):
         preview = self.parameterAsFileOutput(parameters, self.PREVIEW, context) or ""
         if preview and os.path.splitext(preview)[1].lower() != ".png":
             raise QgsProcessingException("PREVIEW must be a .png file, not %s" % preview)
-        cell = (self.parameterAsDouble(parameters, self.CELL_SIZE, context)
-                if is_set(parameters, self.CELL_SIZE) else None)
         ex_classes = [gdal_source(lyr, self.EXEMPLAR_CLASSES) for lyr in
                       self.parameterAsLayerList(parameters, self.EXEMPLAR_CLASSES, context)]
         ex_layers = [line.strip() for line in
@@ -201,10 +179,9 @@ class AmplifyAlgorithm(TerraSynthAlgorithm):
                    ("classes", gdal_source(wanted, self.CLASSES) if wanted else None),
                    ("out_layer", "%s=%s" % (out_name, out_layer) if out_layer else None),
                    ("out_classes", out_classes or None),
-                   ("band", self.parameterAsInt(parameters, self.BAND, context)),
-                   ("cell_size", cell),
-                   ("threads", self.parameterAsInt(parameters, self.THREADS, context)),
                    ("preview", preview)]
+        options += [(n, self.optionValue(parameters, k, n, context)) for k, n in (
+                    (self.BAND, "band"), (self.CELL_SIZE, "cell_size"), (self.THREADS, "threads"))]
         results = {self.OUTPUT: output}
         if preview:
             results[self.PREVIEW] = preview

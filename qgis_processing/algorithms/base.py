@@ -7,6 +7,7 @@ from qgis.core import (
     QgsProcessingParameterDefinition,
     QgsProcessingParameterEnum,
     QgsProcessingParameterNumber,
+    QgsProcessingParameterString,
     QgsProviderRegistry,
 )
 from qgis.PyQt.QtCore import QCoreApplication
@@ -67,7 +68,6 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
     # descriptor tables whose parameters this algorithm shows (default: STAGE's); e.g.
     # ("synth", "sketch") for `terrasynth synth` with its --sketch options
     DESCRIPTOR_STAGES = None
-    POSITIONAL = ("output",)  # the job's options the program takes as plain arguments
 
     def __init__(self):
         super().__init__()
@@ -183,6 +183,46 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
                                      descriptors.LENGTH_UNITS[unit])
         return values
 
+    # -- the job's own options (band, cell size, seed) and the common ones --------
+    def optionParameter(self, key, name, label, advanced=True):  # noqa: N802
+        """A QGIS parameter for option `name` of the job, or one every command takes
+        (threads), with its kind, range and help as `terrasynth describe` declares them.
+        A seed is text: it takes the whole 64-bit range the program takes."""
+        o = descriptors.job_option(self.STAGE, name) or descriptors.common(name)
+        kind = o.get("kind")
+        if kind == "seed":
+            p = QgsProcessingParameterString(key, self.tr(label), defaultValue="0")
+        elif kind in ("int", "number"):
+            optional = kind == "number"
+            p = QgsProcessingParameterNumber(
+                key, self.tr(label),
+                QgsProcessingParameterNumber.Integer if kind == "int"
+                else QgsProcessingParameterNumber.Double,
+                defaultValue=None if optional else max(1 if name == "band" else 0,
+                                                       int(o.get("min", 0))),
+                optional=optional, minValue=float(o.get("min", 0)),
+                maxValue=float(o.get("max", 1e9)))
+        else:
+            raise ValueError("%s: no option %s in `terrasynth describe`" % (self.STAGE, name))
+        text = o.get("help", "")
+        p.setHelp("%s%s (%s)." % (text[:1].upper(), text[1:],
+                                   o.get("flag") or "--" + name.replace("_", "-")))
+        if advanced:
+            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+        self.addParameter(p)
+        return p
+
+    def optionValue(self, parameters, key, name, context):  # noqa: N802
+        """The value of an optionParameter for the command line (None when not given)."""
+        o = descriptors.job_option(self.STAGE, name) or descriptors.common(name)
+        if not is_set(parameters, key):
+            return None
+        if o.get("kind") == "seed":
+            return self.parameterAsString(parameters, key, context).strip()
+        if o.get("kind") == "int":
+            return self.parameterAsInt(parameters, key, context)
+        return self.parameterAsDouble(parameters, key, context)
+
     # -- checks and running ---------------------------------------------------
     def checkJob(self, parameters, context):  # noqa: N802
         """Cross-parameter checks; raise QgsProcessingException."""
@@ -193,14 +233,15 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
             return ok, msg
         try:
             self.checkJob(parameters, context)
-            argv, _ = self.buildCommand(parameters, context, cli=runner.EXECUTABLE)
+            argv, _ = self.buildCommand(parameters, context)
         except QgsProcessingException as e:
             return False, exception_text(e)
-        # the job's rules, from `terrasynth describe`, on what the program would be given:
-        # the program's own messages, before anything runs
-        given = {a[2:].replace("-", "_") for a in argv[2:] if a.startswith("--")}
-        given |= set(self.POSITIONAL)
-        msg = descriptors.check_rules(self.STAGE, given - {"progress_lines", "threads"})
+        # the job's rules are the program's: it checks the command line it would be given
+        # (--check: nothing read or run) and says what is wrong in its own words
+        try:
+            msg = runner.check(argv)
+        except (OSError, ValueError) as e:
+            return False, "terrasynth: %s" % e
         if msg:
             return False, msg
         return True, ""

@@ -7,7 +7,6 @@ import os
 from qgis.core import (
     QgsProcessing,
     QgsProcessingException,
-    QgsProcessingParameterDefinition,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterMultipleLayers,
     QgsProcessingParameterNumber,
@@ -15,6 +14,7 @@ from qgis.core import (
     QgsProcessingParameterRasterLayer,
 )
 
+from .. import descriptors
 from .base import TerraSynthAlgorithm, gdal_source, is_set
 
 # Condensed from algorithms/docs/pixel.md (the manual page).
@@ -40,7 +40,6 @@ same bytes, and any window equals the same window of a larger run.</p>
 
 class PixelAlgorithm(TerraSynthAlgorithm):
     STAGE = "pixel"
-    POSITIONAL = ("output",)
     NAME = "pixel"
     DISPLAY_NAME = "Grow terrain cell by cell (pixel synthesis)"
     GROUP = "Terrain synthesis"
@@ -84,25 +83,18 @@ class PixelAlgorithm(TerraSynthAlgorithm):
         self.addParameter(like)
         Number = QgsProcessingParameterNumber
         for key, label in ((self.WIDTH, "Width (cells)"), (self.HEIGHT, "Height (cells)")):
-            p = Number(key, self.tr(label), Number.Integer, optional=True, minValue=1,
-                       maxValue=1048576)
+            lo, hi = descriptors.option_range("pixel", "size", (1, 1048576))
+            p = Number(key, self.tr(label), Number.Integer, optional=True, minValue=int(lo),
+                       maxValue=int(hi))
             p.setHelp("Size of the output in cells, on the first exemplar's grid (--size), "
                       "without a guide or a grid.")
             self.addParameter(p)
         self.addDescriptorParameters()
-        seed = Number(self.SEED, self.tr("Random seed"), Number.Integer, defaultValue=0,
-                      minValue=0, maxValue=2147483647)
-        seed.setHelp("Random seed (--seed); same inputs and seed give identical bytes.")
-        self.addParameter(seed)
-        band = Number(self.BAND, self.tr("Band of every input"), Number.Integer,
-                      defaultValue=1, minValue=1, maxValue=65535)
-        cell = Number(self.CELL_SIZE, self.tr("Cell size for rasters without CRS (metres)"),
-                      Number.Double, optional=True, minValue=0.0, maxValue=1e7)
-        threads = Number(self.THREADS, self.tr("Threads (0 = all cores)"), Number.Integer,
-                         defaultValue=0, minValue=0, maxValue=256)
-        for p in (band, cell, threads):
-            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-            self.addParameter(p)
+        self.optionParameter(self.SEED, "seed", "Random seed", advanced=False)
+        self.optionParameter(self.BAND, "band", "Band of every input")
+        self.optionParameter(self.CELL_SIZE, "cell_size",
+                             "Cell size for rasters without CRS (metres)")
+        self.optionParameter(self.THREADS, "threads", "Threads (0 = all cores)")
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT,
                                                                   self.tr("Terrain")))
         self.addParameter(QgsProcessingParameterFileDestination(
@@ -133,14 +125,11 @@ class PixelAlgorithm(TerraSynthAlgorithm):
         if is_set(parameters, self.WIDTH):
             size = "%dx%d" % (self.parameterAsInt(parameters, self.WIDTH, context),
                               self.parameterAsInt(parameters, self.HEIGHT, context))
-        cell = (self.parameterAsDouble(parameters, self.CELL_SIZE, context)
-                if is_set(parameters, self.CELL_SIZE) else None)
-        options = [("exemplar", exemplars), ("guide", guide), ("like", like), ("size", size),
-                   ("seed", self.parameterAsInt(parameters, self.SEED, context)),
-                   ("band", self.parameterAsInt(parameters, self.BAND, context)),
-                   ("cell_size", cell),
-                   ("threads", self.parameterAsInt(parameters, self.THREADS, context)),
-                   ("preview", preview)]
+        options = [("exemplar", exemplars), ("guide", guide), ("like", like), ("size", size)]
+        options += [(n, self.optionValue(parameters, k, n, context)) for k, n in (
+                    (self.SEED, "seed"), (self.BAND, "band"), (self.CELL_SIZE, "cell_size"),
+                    (self.THREADS, "threads"))]
+        options += [("preview", preview)]
         results = {self.OUTPUT: output}
         if preview:
             results[self.PREVIEW] = preview

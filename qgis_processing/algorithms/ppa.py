@@ -8,16 +8,14 @@ from qgis.core import (
     QgsProcessingException,
     QgsProcessingOutputVectorLayer,
     QgsProcessingParameterBand,
-    QgsProcessingParameterDefinition,
     QgsProcessingParameterFileDestination,
-    QgsProcessingParameterNumber,
     QgsProcessingParameterRasterDestination,
     QgsProcessingParameterRasterLayer,
     QgsProcessingParameterVectorDestination,
     QgsProcessingUtils,
 )
 
-from .base import TerraSynthAlgorithm, gdal_source, is_set
+from .base import TerraSynthAlgorithm, gdal_source
 
 # Condensed from algorithms/docs/ppa.md (the manual page).
 HELP = """
@@ -78,7 +76,6 @@ leaves no file. Same input and parameters give the same bytes.</p>
 
 class PpaAlgorithm(TerraSynthAlgorithm):
     STAGE = "ppa"
-    POSITIONAL = ("input", "output")
     NAME = "ppa"
     DISPLAY_NAME = "Extract ridges and valleys (PPA)"
     GROUP = "Terrain analysis"
@@ -103,19 +100,9 @@ class PpaAlgorithm(TerraSynthAlgorithm):
         band.setHelp("Input band (--band); default 1.")
         self.addParameter(band)
         self.addDescriptorParameters()
-        cell = QgsProcessingParameterNumber(self.CELL_SIZE, self.tr("Cell size for a raster "
-                                                                    "without CRS (metres)"),
-                                            QgsProcessingParameterNumber.Double,
-                                            optional=True, minValue=0.0, maxValue=1e7)
-        cell.setHelp("Ground size of a cell in metres, for a raster with no CRS (--cell-size); "
-                     "otherwise lengths are in cells.")
-        threads = QgsProcessingParameterNumber(self.THREADS, self.tr("Threads (0 = all cores)"),
-                                               QgsProcessingParameterNumber.Integer,
-                                               defaultValue=0, minValue=0, maxValue=256)
-        threads.setHelp("Worker threads (--threads); results never depend on it.")
-        for p in (cell, threads):
-            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-            self.addParameter(p)
+        self.optionParameter(self.CELL_SIZE, "cell_size",
+                             "Cell size for a raster without CRS (metres)")
+        self.optionParameter(self.THREADS, "threads", "Threads (0 = all cores)")
         self.addParameter(QgsProcessingParameterRasterDestination(
             self.OUTPUT, self.tr("Ridges and valleys")))
         self.addParameter(QgsProcessingParameterVectorDestination(
@@ -126,11 +113,6 @@ class PpaAlgorithm(TerraSynthAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination(
             self.PREVIEW, self.tr("Preview"), fileFilter="PNG files (*.png)", optional=True,
             createByDefault=False))
-
-    def checkJob(self, parameters, context):  # noqa: N802
-        if is_set(parameters, self.CELL_SIZE) and \
-                self.parameterAsDouble(parameters, self.CELL_SIZE, context) <= 0:
-            raise QgsProcessingException("CELL_SIZE must be a positive number of metres")
 
     def prepareJob(self, parameters, context):  # noqa: N802
         layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)
@@ -146,11 +128,9 @@ class PpaAlgorithm(TerraSynthAlgorithm):
                 "'nodes', not %s" % lines)
         if preview and os.path.splitext(preview)[1].lower() != ".png":
             raise QgsProcessingException("PREVIEW must be a .png file, not %s" % preview)
-        cell = (self.parameterAsDouble(parameters, self.CELL_SIZE, context)
-                if is_set(parameters, self.CELL_SIZE) else None)
         options = [("band", self.parameterAsInt(parameters, self.BAND, context) or 1),
-                   ("cell_size", cell),
-                   ("threads", self.parameterAsInt(parameters, self.THREADS, context)),
+                   ("cell_size", self.optionValue(parameters, self.CELL_SIZE, "cell_size", context)),
+                   ("threads", self.optionValue(parameters, self.THREADS, "threads", context)),
                    ("lines", lines),
                    ("preview", preview)]
         results = {self.OUTPUT: output}

@@ -45,53 +45,10 @@ from .base import TerraSynthAlgorithm, gdal_source, is_set
 REGION_FIELD = "region"  # the integer field of a polygon REGIONS layer
 _INT_TYPES = (QVariant.Int, QVariant.LongLong, QVariant.UInt, QVariant.ULongLong)
 
-# FILE:XOFF,YOFF,W,H@X,Y - FILE is everything before the last ':' ahead of the numbers
-_PIN_RE = re.compile(r"^(?P<file>.+?)\s*:\s*(?P<xoff>\d+)\s*,\s*(?P<yoff>\d+)\s*,\s*"
-                     r"(?P<w>\d+)\s*,\s*(?P<h>\d+)\s*@\s*(?P<x>\d+)\s*,\s*(?P<y>\d+)$")
-_RULE_RE = re.compile(r"^(?P<id>[+-]?\d+)\s*=\s*(?P<file>\S.*)$")
-
-
 def _items(text):
-    """Non-empty items of a string, one per line or separated by ';'."""
+    """Non-empty items of a string, one per line or separated by ';' (the program checks
+    each: FILE:XOFF,YOFF,W,H@X,Y for a pin, ID=FILE for a region's exemplar)."""
     return [t.strip() for t in re.split(r"[;\r\n]+", text or "") if t.strip()]
-
-
-def parse_pins(text):
-    """PINS -> ['FILE:XOFF,YOFF,W,H@X,Y', ...] (normalised); raises on bad syntax."""
-    pins = []
-    for item in _items(text):
-        m = _PIN_RE.match(item)
-        if not m:
-            raise QgsProcessingException(
-                "PINS: '%s' is not FILE:XOFF,YOFF,W,H@X,Y (window XOFF,YOFF,W,H in the file's "
-                "own cells, its top-left at output cell X,Y; whole numbers >= 0)" % item)
-        v = {k: int(m.group(k)) for k in ("xoff", "yoff", "w", "h", "x", "y")}
-        if v["w"] < 1 or v["h"] < 1:
-            raise QgsProcessingException("PINS: '%s': the window's width and height must be "
-                                         "at least 1 cell" % item)
-        pins.append("%s:%d,%d,%d,%d@%d,%d" % (m.group("file").strip(), v["xoff"], v["yoff"],
-                                              v["w"], v["h"], v["x"], v["y"]))
-    limit = descriptors.max_count("synth", "pin", 16)
-    if len(pins) > limit:
-        raise QgsProcessingException("PINS: at most %d pins (%d given)" % (limit, len(pins)))
-    return pins
-
-
-def parse_region_rules(text):
-    """REGION_EXEMPLARS -> ['ID=FILE', ...]; raises on bad syntax or a repeated ID."""
-    rules, seen = [], set()
-    for item in _items(text):
-        m = _RULE_RE.match(item)
-        if not m:
-            raise QgsProcessingException(
-                "REGION_EXEMPLARS: '%s' is not ID=FILE (an integer region ID, '=', an "
-                "exemplar file)" % item)
-        rid = int(m.group("id"))
-        if rid in seen:
-            raise QgsProcessingException("REGION_EXEMPLARS: region %d is given twice" % rid)
-        seen.add(rid)
-        rules.append("%d=%s" % (rid, m.group("file").strip()))
-    return rules
 
 # Condensed from algorithms/docs/synth.md (the manual page).
 HELP = """
@@ -301,22 +258,11 @@ class SynthAlgorithm(TerraSynthAlgorithm):
                 p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
             self.addParameter(p)
         self.addDescriptorParameters()
-        seed = Number(self.SEED, self.tr("Random seed"), Number.Integer, defaultValue=0,
-                      minValue=0, maxValue=2147483647)
-        seed.setHelp("Random seed (--seed); same inputs and seed give identical bytes.")
-        self.addParameter(seed)
-        band = Number(self.BAND, self.tr("Band of the exemplars"), Number.Integer,
-                      defaultValue=1, minValue=1, maxValue=65535)
-        band.setHelp("Band read from every exemplar (--band).")
-        cell = Number(self.CELL_SIZE, self.tr("Cell size for rasters without CRS (metres)"),
-                      Number.Double, optional=True, minValue=0.0, maxValue=1e7)
-        cell.setHelp("Ground size of a cell in metres, for rasters with no CRS (--cell-size).")
-        threads = Number(self.THREADS, self.tr("Threads (0 = all cores)"), Number.Integer,
-                         defaultValue=0, minValue=0, maxValue=256)
-        threads.setHelp("Worker threads (--threads); results never depend on it.")
-        for p in (band, cell, threads):
-            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
-            self.addParameter(p)
+        self.optionParameter(self.SEED, "seed", "Random seed", advanced=False)
+        self.optionParameter(self.BAND, "band", "Band of the exemplars")
+        self.optionParameter(self.CELL_SIZE, "cell_size",
+                             "Cell size for rasters without CRS (metres)")
+        self.optionParameter(self.THREADS, "threads", "Threads (0 = all cores)")
         # constraints (advanced)
         pins = QgsProcessingParameterString(self.PINS, self.tr("Pinned windows"),
                                             multiLine=True, optional=True)
@@ -561,24 +507,21 @@ class SynthAlgorithm(TerraSynthAlgorithm):
     def constraintOptions(self, parameters, context):  # noqa: N802
         """[(option, value)] for --pin, --water, --regions, --heights; raises on errors."""
         options = []
-        pins = parse_pins(self.parameterAsString(parameters, self.PINS, context)
-                          if is_set(parameters, self.PINS) else "")
+        pins = _items(self.parameterAsString(parameters, self.PINS, context)
+                      if is_set(parameters, self.PINS) else "")
         options.append(("pin", pins or None))
         # WATER_MASK with WATER_LEVEL, REGIONS with REGION_EXEMPLARS: the job's rules
         options += [("water", self._raster(parameters, self.WATER_MASK, context)),
                     ("water_level", self.parameterAsDouble(parameters, self.WATER_LEVEL, context)
                      if is_set(parameters, self.WATER_LEVEL) else None)]
-        rules = parse_region_rules(self.parameterAsString(parameters, self.REGION_EXEMPLARS,
-                                                          context)
-                                   if is_set(parameters, self.REGION_EXEMPLARS) else "")
+        rules = _items(self.parameterAsString(parameters, self.REGION_EXEMPLARS, context)
+                       if is_set(parameters, self.REGION_EXEMPLARS) else "")
         options += [("regions", self._regions_source(parameters, context)
                      if is_set(parameters, self.REGIONS) else None),
                     ("region_exemplar", rules or None)]
         # ALPHA_H changed from its default without HEIGHTS is passed: the job's rule refuses it
         alpha_h = self.parameterAsDouble(parameters, self.ALPHA_H, context) \
             if is_set(parameters, self.ALPHA_H) else 1.0
-        if not alpha_h >= 0:
-            raise QgsProcessingException("ALPHA_H must be a number >= 0")
         if is_set(parameters, self.HEIGHTS) or alpha_h != 1.0:
             options += [("heights", self._raster(parameters, self.HEIGHTS, context)
                          if is_set(parameters, self.HEIGHTS) else None),
@@ -612,15 +555,13 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         debug_dir = self.parameterAsFileOutput(parameters, self.DEBUG_DIR, context) or ""
         if preview and os.path.splitext(preview)[1].lower() != ".png":
             raise QgsProcessingException("PREVIEW must be a .png file, not %s" % preview)
-        cell = (self.parameterAsDouble(parameters, self.CELL_SIZE, context)
-                if is_set(parameters, self.CELL_SIZE) else None)
         options = [("exemplar", exemplars)]
         options += self.targetOptions(parameters, context)
         options += self.constraintOptions(parameters, context)
-        options += [("seed", self.parameterAsInt(parameters, self.SEED, context)),
-                    ("band", self.parameterAsInt(parameters, self.BAND, context)),
-                    ("cell_size", cell),
-                    ("threads", self.parameterAsInt(parameters, self.THREADS, context)),
+        options += [(n, self.optionValue(parameters, k, n, context)) for k, n in (
+                        (self.SEED, "seed"), (self.BAND, "band"), (self.CELL_SIZE, "cell_size"),
+                        (self.THREADS, "threads"))]
+        options += [
                     ("preview", preview),
                     ("debug_dir", debug_dir)]
         results = {self.OUTPUT: output}

@@ -19,7 +19,7 @@ lowest) cell within 3 cells across the line.  Printed figures:
            --flank/2 cells off on both sides (valleys: lower): how much of the
            sketch is drawn as a ridge (valley) at that scale
 
-Used by the sketch tests (tests/cli/test_sketch_cli.py) and the figures in
+Used by the sketch tests (tests/cli/test_synth_sketch.py) and the figures in
 algorithms/docs/sketch.md.
 """
 import argparse

@@ -2,7 +2,7 @@
 """One declaration per job: the command line and recipes reject the same bad combinations with
 the same message (the rules live in gdal_driver/jobs/declarations.c alone; tests/qgis drives the QGIS
 provider with the same cases, tests/job_cases.py).  Also: options that do not apply are refused, not
-silently ignored (issue 11)."""
+silently ignored."""
 import os
 import subprocess
 import sys

@@ -126,6 +126,33 @@ def test_python_reads_blocks_and_windows(ppa_recipe):
     assert (band.ReadBlock(1, 1) is not None)
 
 
+def test_schedule_metadata(tmp_path):
+    """Metadata domain TSYN says how a recipe is made (what the Dask runner schedules by):
+    the job, whether any window is made alone, the tile size, and the files it reads as
+    GDAL opens them; reading it writes nothing beside the recipe."""
+    ex = tmp_path / "sub" / "ex.tif"
+    ex.parent.mkdir()
+    gdal.Translate(str(ex), JACKSBORO)
+    cases = {
+        "ppa": (["ppa", ex, "--both"], "PPA", "whole", 0),
+        "pixel": (["pixel", "--exemplar", ex, "--size", "64x64"], "Pixel", "any", 0),
+        "tiled": (["synth", "--exemplar", ex, "--size", "600x500", "--tiled", "256"], "Synth",
+                  "tiles", 256),
+        "synth": (["synth", "--exemplar", ex, "--size", "100x90"], "Synth", "whole", 0),
+    }
+    for name, (args, job, windows, tile) in cases.items():
+        recipe = tmp_path / (name + ".tsyn")
+        ts(*args, "--recipe", recipe)
+        before = sorted(os.listdir(tmp_path))
+        ds = gdal.Open(str(recipe))
+        md = ds.GetMetadata("TSYN")
+        assert "TSYN" in ds.GetMetadataDomainList()
+        assert md["JOB"] == job and md["WINDOWS"] == windows and md["TILE_SIZE"] == str(tile)
+        assert [v for k, v in md.items() if k.startswith("INPUT_")] == [str(ex)], md
+        ds = None
+        assert sorted(os.listdir(tmp_path)) == before
+
+
 def test_synth_recipe_equals_cli_and_warps(tmp_path):
     args = ["--exemplar", JACKSBORO, "--size", "160x150", "--seed", "5", "--patch-size", "32", "--overlap", "8"]
     ts("synth", *args, "--recipe", tmp_path / "s.tsyn")
@@ -347,7 +374,7 @@ def test_sketch_recipe_with_pin_and_water_equals_cli(tmp_path):
 
 def test_open_options_take_the_sketch_parameters(tmp_path):
     """-oo ALPHA_R=... and the other sketch parameters on a synth recipe with a sketch give
-    what the command line gives with the same flags (issue 11: they were refused)."""
+    what the command line gives with the same flags."""
     sketch = os.path.join(DATA, "sketches", "lambda_ridges.tif")
     args = ["--sketch", sketch, "--exemplar", JACKSBORO, "--seed", "3", "--patch-size", "32",
             "--overlap", "8"]
@@ -416,7 +443,7 @@ def test_open_option_map_serves_the_synthesis_maps(tmp_path):
         gdal.OpenEx(str(tmp_path / "p.tsyn"), open_options=["MAP=seams"])
 
 
-# ---------------------------------------------------------------- untrusted recipes (issue 12)
+# ---------------------------------------------------------------- untrusted recipes
 
 class Listener:
     """A local TCP port that records whether anything connected to it."""
@@ -527,8 +554,8 @@ SYNTH_GRID = "<Grid width='64' height='64' originX='0' originY='0' resolution='3
 ], ids=["exemplar", "sketch", "like", "water", "heights", "pin", "regions", "region_exemplar"])
 def test_recipe_loops_refused_at_open(tmp_path, element):
     """A loop through any input, direct or through another recipe, is refused when the
-    recipe is opened, in one line naming the chain (issue 12: it failed 8 levels deep, or
-    said "not a raster")."""
+    recipe is opened, in one line naming the chain (not 8 levels deep, and not as "not a
+    raster")."""
     import shutil
 
     shutil.copy(JACKSBORO, tmp_path / "dem.tif")

@@ -517,8 +517,9 @@ def test_synth_command_line_pins(jacksboro, tmp_path):
     out = str(tmp_path / "n.tif")
     base = {"EXEMPLARS": [jacksboro], "WIDTH": 64, "HEIGHT": 64, "OUTPUT": out}
     argv, _ = build("terrasynth:synth", dict(base, PINS="%s:1,2,30,40@5,6\n"
-                                             " C:/dem b.tif : 0, 0,8,8 @ 0,0 ;; /x/y.tif:3,4,5,6@7,8"
+                                             " C:/dem b.tif:0,0,8,8@0,0 ;; /x/y.tif:3,4,5,6@7,8"
                                              % jacksboro))
+    # one pin a line or between ';', passed as typed: the program reads and checks them
     assert values_of(argv, "--pin") == ["%s:1,2,30,40@5,6" % jacksboro,
                                         "C:/dem b.tif:0,0,8,8@0,0", "/x/y.tif:3,4,5,6@7,8"]
     assert argv[-1] == out
@@ -534,7 +535,7 @@ def test_synth_command_line_water_regions_heights(jacksboro, tmp_path):
     argv, _ = build("terrasynth:synth", {
         "EXEMPLARS": [jacksboro], "WIDTH": 64, "HEIGHT": 64, "OUTPUT": str(tmp_path / "n.tif"),
         "WATER_MASK": jacksboro, "WATER_LEVEL": 250.5, "REGIONS": str(regions),
-        "REGION_EXEMPLARS": "1=/d/a.tif; 2 = /d/b c.tif\n-3=/d/a.tif", "HEIGHTS": jacksboro,
+        "REGION_EXEMPLARS": "1=/d/a.tif; 2=/d/b c.tif\n-3=/d/a.tif", "HEIGHTS": jacksboro,
         "ALPHA_H": 0.25})
     kv = pairs(argv)
     assert kv["--water"] == jacksboro and kv["--water-level"] == "250.5"
@@ -600,14 +601,17 @@ def test_synth_command_line_polygon_regions(jacksboro, tmp_path):
     ({"WATER_LEVEL": 100}, "water and water_level go together"),
     ({"REGIONS": "JACKSBORO"}, "regions and region_exemplar go together"),
     ({"REGION_EXEMPLARS": "1=a.tif"}, "regions and region_exemplar go together"),
-    ({"REGIONS": "JACKSBORO", "REGION_EXEMPLARS": "one=a.tif"}, "is not ID=FILE"),
-    ({"REGIONS": "JACKSBORO", "REGION_EXEMPLARS": "1=a.tif;1=b.tif"}, "region 1 is given twice"),
-    ({"PINS": "JACKSBORO:1,2,3@4,5"}, "is not FILE:XOFF,YOFF,W,H@X,Y"),
-    ({"PINS": "JACKSBORO:1,2,3,4"}, "is not FILE:XOFF,YOFF,W,H@X,Y"),
-    ({"PINS": "1,2,3,4@5,6"}, "is not FILE:XOFF,YOFF,W,H@X,Y"),
-    ({"PINS": "JACKSBORO:-1,2,3,4@5,6"}, "is not FILE:XOFF,YOFF,W,H@X,Y"),
-    ({"PINS": "JACKSBORO:1,2,0,4@5,6"}, "at least 1 cell"),
-    ({"PINS": ";".join(["JACKSBORO:0,0,4,4@0,0"] * 17)}, "at most 16 pins"),
+    # the program's own messages (the dialog asks it: terrasynth synth ... --check)
+    ({"REGIONS": "JACKSBORO", "REGION_EXEMPLARS": "one=a.tif"},
+     "region_exemplar takes ID=FILE, not 'one=a.tif'"),
+    ({"REGIONS": "JACKSBORO", "REGION_EXEMPLARS": "1=a.tif;1=b.tif"},
+     "region_exemplar: region 1 is given twice"),
+    ({"PINS": "JACKSBORO:1,2,3@4,5"}, "pin takes FILE:XOFF,YOFF,W,H@X,Y"),
+    ({"PINS": "JACKSBORO:1,2,3,4"}, "pin takes FILE:XOFF,YOFF,W,H@X,Y"),
+    ({"PINS": "1,2,3,4@5,6"}, "pin takes FILE:XOFF,YOFF,W,H@X,Y"),
+    ({"PINS": "JACKSBORO:-1,2,3,4@5,6"}, "pin takes FILE:XOFF,YOFF,W,H@X,Y"),
+    ({"PINS": "JACKSBORO:1,2,0,4@5,6"}, "pin takes FILE:XOFF,YOFF,W,H@X,Y"),
+    ({"PINS": ";".join(["JACKSBORO:0,0,4,4@0,0"] * 17)}, "pin: at most 16"),
 ])
 def test_synth_constraint_errors(jacksboro, tmp_path, params, message):
     params = {k: (v.replace("JACKSBORO", jacksboro) if isinstance(v, str) else v)
@@ -954,7 +958,7 @@ def test_missing_input_file(cli, tmp_path):
 
 
 def test_synth_help_lists_every_sketch_parameter():
-    """The help names every sketch parameter the core declares (issue 11: it named three)."""
+    """The help names every sketch parameter the core declares."""
     from terrasynth_qgis import descriptors
 
     text = registry().algorithmById("terrasynth:synth").shortHelpString()
@@ -987,7 +991,7 @@ def test_amplify_dictionary_and_biomes(jacksboro, cli, tmp_path):
     argv, _ = build("terrasynth:amplify", {"INPUT": jacksboro, "DICTIONARY": str(d),
                                            "OUTPUT": str(tmp_path / "o.tif")})
     assert pairs(argv)["--dictionary"] == str(d)
-    with pytest.raises(Exception, match="give exemplars, a dictionary, or biomes"):
+    with pytest.raises(Exception, match="give at least one exemplar, or a dictionary, or biomes"):
         build("terrasynth:amplify", {"INPUT": jacksboro, "DICTIONARY": str(d),
                                      "EXEMPLARS": [jacksboro], "OUTPUT": str(tmp_path / "o.tif")})
 

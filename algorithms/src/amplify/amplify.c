@@ -297,12 +297,6 @@ static void back_project(ts_ctx *ctx, amp_work *w, amp_rect rr, ts_raster *res)
     ts__parallel_for(ctx, (size_t)(w->uy1 - w->uy0), bp_rows, w);
 }
 
-/* The fine cells [X0, X0 + out->width) x [Y0, Y0 + out->height) of the
- * amplified DEM: the patches over them and the coarse margin every
- * back-projection pass needs (two cells per pass, the cubic's reach) are
- * computed, nothing else.  Each cell is computed by the same operations in
- * the same order whatever the window, so a window is byte for byte the same
- * window of the whole. */
 /* Biome b's share of coarse cell (x, y): its weight over the sum of all
  * (equal shares where every weight is 0). */
 static double biome_share(const ts_raster *wts, int nd, int b, int x, int y)
@@ -361,99 +355,169 @@ static void blend_rows(void *arg, size_t begin, size_t end)
         }
 }
 
-static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_amplify_guide *guide,
-                            const ts_dictionary *const *dicts, const ts_raster *wts, int nd,
-                            const ts_amplify_params *params, int X0, int Y0, ts_raster *out,
-                            const ts_amplify_layers *lay, ts_amplify_info *info)
+/* The state of one window: its sizes, the coarse rectangles the passes
+ * read, the patches over them (global lattice) with their descriptors and
+ * matches, and the working rasters. */
+typedef struct amp_state {
+    int W, H, F, p, P, R, nd, K, use_l, use_c;
+    amp_rect reg[12], base;
+    int whole, c0, c1, r0, r1, ncols;
+    int *xs, *ys, *best;
+    size_t np;
+    float *ph, *pu, *pl, *pc, *px, *coef, *score, *win, *lwin, *window, *resbuf;
+    double *pa, *ps, *pnorm, *pab;
+    ts_raster buf, *bufs;
+} amp_state;
+
+/* The window's sizes and what it uses; the coarse cells under the window,
+ * and what each pass reads. */
+static void amp_state_init(amp_state *a, const ts_raster *coarse, const ts_amplify_guide *guide,
+                           const ts_dictionary *dict, int nd, const ts_amplify_params *params,
+                           int X0, int Y0, const ts_raster *out)
 {
-    const ts_dictionary *dict = dicts[0];
-    const ts_raster *drain = guide->drainage, *irr = guide->irradiance, *cls = guide->classes;
-    ts_raster *bufs = NULL;
-    double *pab = NULL;
-    int b;
-    int K = dict->n_classes;
-    int use_l = params->w_l > 0 && irr && dict->dl;
-    int use_c = params->w_c > 0 && cls && K > 0 && nd == 1;
-    float *pl = NULL, *pc = NULL, *px = NULL;
-    amp_patches pt;
-    int W = coarse->width, H = coarse->height, F = params->factor, p = params->patch;
-    int P = p * F, step = p / 2 > 0 ? p / 2 : 1, nx, ny, i, j, cx, cy, pass, R = params->refine;
-    int *xs = NULL, *ys = NULL, *best = NULL, c0, c1, r0, r1;
-    float *ph = NULL, *pu = NULL, *coef = NULL, *score = NULL, *win = NULL, *window = NULL;
-    float *lwin = NULL, *resbuf = NULL;
-    double *pa = NULL, *ps = NULL, *pnorm = NULL, w[AMP_NW], t0, t1;
-    ts_raster buf = {0, 0, 0, NULL}, res;
-    amp_rect foot, reg[12], base;
-    size_t np, pi;
-    int whole, ncols;
-    ts_status st = TS_OK;
-    amp_work wk;
-    memset(&wk, 0, sizeof wk);
-    /* the coarse cells under the window, and what each pass reads */
+    int W = coarse->width, H = coarse->height, F = params->factor, R = params->refine, pass;
+    amp_rect foot;
+    memset(a, 0, sizeof *a);
+    a->W = W;
+    a->H = H;
+    a->F = F;
+    a->p = params->patch;
+    a->P = a->p * F;
+    a->R = R;
+    a->nd = nd;
+    a->K = dict->n_classes;
+    a->use_l = params->w_l > 0 && guide->irradiance && dict->dl;
+    a->use_c = params->w_c > 0 && guide->classes && a->K > 0 && nd == 1;
     foot.x0 = X0 / F;
     foot.y0 = Y0 / F;
     foot.x1 = (X0 + out->width + F - 1) / F;
     foot.y1 = (Y0 + out->height + F - 1) / F;
-    reg[R + 1] = foot;
+    a->reg[R + 1] = foot;
     for (pass = R; pass >= 1; pass--)
-        reg[pass] = rect_grow(reg[pass + 1], 2, W, H);
-    base = R > 0 ? reg[1] : foot;
-    whole = X0 == 0 && Y0 == 0 && out->width == W * F && out->height == H * F;
-    /* the patches over the base rectangle (global lattice) */
-    xs = malloc((size_t)(W / step + 2) * sizeof *xs);
-    ys = malloc((size_t)(H / step + 2) * sizeof *ys);
-    if (!xs || !ys) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
-        goto done;
-    }
+        a->reg[pass] = rect_grow(a->reg[pass + 1], 2, W, H);
+    a->base = R > 0 ? a->reg[1] : foot;
+    a->whole = X0 == 0 && Y0 == 0 && out->width == W * F && out->height == H * F;
+}
+
+/* The patches over the base rectangle (global lattice): their origins, and
+ * the columns and rows in use. */
+static ts_status amp_lattice(ts_ctx *ctx, amp_state *a)
+{
+    int W = a->W, H = a->H, p = a->p, step = p / 2 > 0 ? p / 2 : 1, nx, ny, c0, c1, r0, r1;
+    int *xs, *ys;
+    a->xs = xs = malloc((size_t)(W / step + 2) * sizeof *xs);
+    a->ys = ys = malloc((size_t)(H / step + 2) * sizeof *ys);
+    if (!xs || !ys)
+        return ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
     nx = patch_origins(W, p, step, xs);
     ny = patch_origins(H, p, step, ys);
-    for (c0 = 0; c0 < nx && xs[c0] + p <= base.x0; c0++)
+    for (c0 = 0; c0 < nx && xs[c0] + p <= a->base.x0; c0++)
         ;
-    for (c1 = c0; c1 < nx && xs[c1] < base.x1; c1++)
+    for (c1 = c0; c1 < nx && xs[c1] < a->base.x1; c1++)
         ;
-    for (r0 = 0; r0 < ny && ys[r0] + p <= base.y0; r0++)
+    for (r0 = 0; r0 < ny && ys[r0] + p <= a->base.y0; r0++)
         ;
-    for (r1 = r0; r1 < ny && ys[r1] < base.y1; r1++)
+    for (r1 = r0; r1 < ny && ys[r1] < a->base.y1; r1++)
         ;
-    ncols = c1 - c0;
-    np = (size_t)ncols * (size_t)(r1 - r0);
-    ph = ts__malloc_array(np * (size_t)p * p, sizeof *ph);
-    pu = ts__malloc_array(np * (size_t)p * p, sizeof *pu);
-    pa = ts__malloc_array(np, sizeof *pa);
-    ps = ts__malloc_array(np, sizeof *ps);
-    pnorm = ts__malloc_array(np, sizeof *pnorm);
-    best = ts__malloc_array(np * (size_t)nd, sizeof *best);
-    coef = ts__malloc_array(np * (size_t)nd, sizeof *coef);
-    score = ts__malloc_array(np * (size_t)nd, sizeof *score);
+    a->c0 = c0;
+    a->c1 = c1;
+    a->r0 = r0;
+    a->r1 = r1;
+    a->ncols = c1 - c0;
+    a->np = (size_t)a->ncols * (size_t)(r1 - r0);
+    return TS_OK;
+}
+
+/* The patches' descriptors, their matches and the work arrays. */
+static ts_status amp_alloc(ts_ctx *ctx, amp_state *a, const ts_amplify_params *params)
+{
+    size_t np = a->np;
+    int p = a->p, nd = a->nd, K = a->K;
+    a->ph = ts__malloc_array(np * (size_t)p * p, sizeof *a->ph);
+    a->pu = ts__malloc_array(np * (size_t)p * p, sizeof *a->pu);
+    a->pa = ts__malloc_array(np, sizeof *a->pa);
+    a->ps = ts__malloc_array(np, sizeof *a->ps);
+    a->pnorm = ts__malloc_array(np, sizeof *a->pnorm);
+    a->best = ts__malloc_array(np * (size_t)nd, sizeof *a->best);
+    a->coef = ts__malloc_array(np * (size_t)nd, sizeof *a->coef);
+    a->score = ts__malloc_array(np * (size_t)nd, sizeof *a->score);
     if (nd > 1) {
-        pab = ts__malloc_array(np, sizeof *pab);
-        bufs = calloc((size_t)nd, sizeof *bufs);
+        a->pab = ts__malloc_array(np, sizeof *a->pab);
+        a->bufs = calloc((size_t)nd, sizeof *a->bufs);
     }
-    win = malloc((size_t)p * p * sizeof *win);
-    lwin = malloc((size_t)p * p * sizeof *lwin);
-    window = malloc((size_t)P * sizeof *window);
-    if (use_l)
-        pl = ts__malloc_array(np * (size_t)p * p, sizeof *pl);
-    if (use_c)
-        pc = ts__malloc_array(np * (size_t)K, sizeof *pc);
+    a->win = malloc((size_t)p * p * sizeof *a->win);
+    a->lwin = malloc((size_t)p * p * sizeof *a->lwin);
+    a->window = malloc((size_t)a->P * sizeof *a->window);
+    if (a->use_l)
+        a->pl = ts__malloc_array(np * (size_t)p * p, sizeof *a->pl);
+    if (a->use_c)
+        a->pc = ts__malloc_array(np * (size_t)K, sizeof *a->pc);
     if (params->w_x > 0)
-        px = ts__malloc_array(np * (size_t)p * p, sizeof *px);
-    resbuf =
-        ts__malloc_array((size_t)(base.x1 - base.x0) * (size_t)(base.y1 - base.y0), sizeof *resbuf);
-    if (!ph || !pu || !pa || !ps || !pnorm || !best || !coef || !score || !win || !lwin ||
-        !window || !resbuf || (use_l && !pl) || (use_c && !pc) || (params->w_x > 0 && !px) ||
-        (nd > 1 && (!pab || !bufs))) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu patches", np);
-        goto done;
-    }
-    /* the patches described as the atoms are (nodata cells take the patch's mean) */
-    t0 = now_s();
-    for (cy = r0; cy < r1; cy++)
-        for (cx = c0; cx < c1; cx++) {
+        a->px = ts__malloc_array(np * (size_t)p * p, sizeof *a->px);
+    a->resbuf = ts__malloc_array(
+        (size_t)(a->base.x1 - a->base.x0) * (size_t)(a->base.y1 - a->base.y0), sizeof *a->resbuf);
+    if (!a->ph || !a->pu || !a->pa || !a->ps || !a->pnorm || !a->best || !a->coef || !a->score ||
+        !a->win || !a->lwin || !a->window || !a->resbuf || (a->use_l && !a->pl) ||
+        (a->use_c && !a->pc) || (params->w_x > 0 && !a->px) || (nd > 1 && (!a->pab || !a->bufs)))
+        return ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu patches", np);
+    return TS_OK;
+}
+
+/* The wanted classes' shares in the patch at (x0, y0), scaled to unit
+ * length (0: any). */
+static void amp_patch_classes(const amp_state *a, const ts_raster *cls, int x0, int y0, float *c)
+{
+    int p = a->p, K = a->K, i, j;
+    double norm = 0;
+    memset(c, 0, (size_t)K * sizeof *c);
+    for (j = 0; j < p; j++)
+        for (i = 0; i < p; i++) {
+            int code = ts__class_code(TS_PIX(cls, x0 + i, y0 + j));
+            if (code > 0 && code <= K)
+                c[code - 1] += 1.0f;
+        }
+    for (i = 0; i < K; i++)
+        norm += (double)c[i] * c[i];
+    for (i = 0; i < K && norm > 0; i++)
+        c[i] = (float)(c[i] / sqrt(norm));
+}
+
+/* The irradiance of the patch at (x0, y0), described as the drainage is,
+ * into pl (nodata cells take the patch's mean). */
+static void amp_patch_irradiance(const amp_state *a, const ts_raster *irr, int x0, int y0,
+                                 float *pl)
+{
+    int p = a->p, nl = 0, i, j;
+    double lm = 0, um, urms;
+    for (j = 0; j < p; j++)
+        for (i = 0; i < p; i++) {
+            float v = TS_PIX(irr, x0 + i, y0 + j);
+            if (!isnan(v)) {
+                lm += v;
+                nl++;
+            }
+        }
+    lm = nl ? lm / nl : 0.0;
+    for (j = 0; j < p; j++)
+        for (i = 0; i < p; i++) {
+            float v = TS_PIX(irr, x0 + i, y0 + j);
+            a->lwin[j * p + i] = isnan(v) ? (float)lm : v;
+        }
+    ts__amp_normalise(a->lwin, p * p, pl, &um, &urms);
+}
+
+/* The patches described as the atoms are (nodata cells take the patch's mean). */
+static void amp_describe(amp_state *a, const ts_raster *coarse, const ts_amplify_guide *guide)
+{
+    const ts_raster *drain = guide->drainage;
+    int p = a->p, i, j, cx, cy;
+    const int *xs = a->xs, *ys = a->ys;
+    float *win = a->win, *lwin = a->lwin, *pl = a->pl, *px = a->px;
+    for (cy = a->r0; cy < a->r1; cy++)
+        for (cx = a->c0; cx < a->c1; cx++) {
             double m = 0, mu = 0, rms, um, urms;
             int nv = 0;
-            pi = (size_t)(cy - r0) * (size_t)ncols + (size_t)(cx - c0);
+            size_t pi = (size_t)(cy - a->r0) * (size_t)a->ncols + (size_t)(cx - a->c0);
             for (j = 0; j < p; j++)
                 for (i = 0; i < p; i++) {
                     float v = TS_PIX(coarse, xs[cx] + i, ys[cy] + j);
@@ -463,26 +527,13 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
                         nv++;
                     }
                 }
-            if (pc) { /* the wanted classes' shares, scaled to unit length (0: any) */
-                float *c = pc + pi * (size_t)K;
-                double norm = 0;
-                memset(c, 0, (size_t)K * sizeof *c);
-                for (j = 0; j < p; j++)
-                    for (i = 0; i < p; i++) {
-                        int code = ts__class_code(TS_PIX(cls, xs[cx] + i, ys[cy] + j));
-                        if (code > 0 && code <= K)
-                            c[code - 1] += 1.0f;
-                    }
-                for (i = 0; i < K; i++)
-                    norm += (double)c[i] * c[i];
-                for (i = 0; i < K && norm > 0; i++)
-                    c[i] = (float)(c[i] / sqrt(norm));
-            }
+            if (a->pc)
+                amp_patch_classes(a, guide->classes, xs[cx], ys[cy], a->pc + pi * (size_t)a->K);
             if (!nv) {
-                pa[pi] = NAN;
-                ps[pi] = pnorm[pi] = 0;
-                memset(ph + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *ph);
-                memset(pu + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *pu);
+                a->pa[pi] = NAN;
+                a->ps[pi] = a->pnorm[pi] = 0;
+                memset(a->ph + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *a->ph);
+                memset(a->pu + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *a->pu);
                 if (pl)
                     memset(pl + pi * (size_t)p * p, 0, (size_t)p * p * sizeof *pl);
                 if (px)
@@ -498,163 +549,260 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
                     lwin[j * p + i] =
                         isnan(v) ? (float)mu : (float)log1p(TS_PIX(drain, xs[cx] + i, ys[cy] + j));
                 }
-            ts__amp_normalise(win, p * p, ph + pi * (size_t)p * p, &pa[pi], &rms);
-            ts__amp_normalise(lwin, p * p, pu + pi * (size_t)p * p, &um, &urms);
+            ts__amp_normalise(win, p * p, a->ph + pi * (size_t)p * p, &a->pa[pi], &rms);
+            ts__amp_normalise(lwin, p * p, a->pu + pi * (size_t)p * p, &um, &urms);
             if (px)
                 ts__amp_context(coarse, xs[cx], ys[cy], p, px + pi * (size_t)p * p);
-            if (pl) { /* the irradiance, described as the drainage is */
-                double lm = 0;
-                int nl = 0;
-                for (j = 0; j < p; j++)
-                    for (i = 0; i < p; i++) {
-                        float v = TS_PIX(irr, xs[cx] + i, ys[cy] + j);
-                        if (!isnan(v)) {
-                            lm += v;
-                            nl++;
-                        }
-                    }
-                lm = nl ? lm / nl : 0.0;
-                for (j = 0; j < p; j++)
-                    for (i = 0; i < p; i++) {
-                        float v = TS_PIX(irr, xs[cx] + i, ys[cy] + j);
-                        lwin[j * p + i] = isnan(v) ? (float)lm : v;
-                    }
-                ts__amp_normalise(lwin, p * p, pl + pi * (size_t)p * p, &um, &urms);
-            }
-            ps[pi] = rms;
-            pnorm[pi] = rms * p; /* |P_e - P_a| */
+            if (pl)
+                amp_patch_irradiance(a, guide->irradiance, xs[cx], ys[cy], pl + pi * (size_t)p * p);
+            a->ps[pi] = rms;
+            a->pnorm[pi] = rms * p; /* |P_e - P_a| */
         }
-    if ((st = ts__progress(ctx, 0.05, "matching")) != TS_OK)
-        goto done;
-    ts__amp_weights(params, use_l, use_c, w);
+}
+
+/* The patches biome b weighs on (within a cell of them: what the
+ * interpolated shares reach) keep their mean altitude in pab; the others
+ * take NaN and are not matched. */
+static void amp_biome_patches(amp_state *a, const ts_raster *wts, int b)
+{
+    int W = a->W, H = a->H, p = a->p, nd = a->nd, cx, cy;
+    for (cy = a->r0; cy < a->r1; cy++)
+        for (cx = a->c0; cx < a->c1; cx++) {
+            int on = 0, x, y;
+            size_t pi = (size_t)(cy - a->r0) * (size_t)a->ncols + (size_t)(cx - a->c0);
+            for (y = a->ys[cy] - 1; y <= a->ys[cy] + p && !on; y++)
+                for (x = a->xs[cx] - 1; x <= a->xs[cx] + p; x++)
+                    if (x >= 0 && y >= 0 && x < W && y < H && biome_share(wts, nd, b, x, y) > 0) {
+                        on = 1;
+                        break;
+                    }
+            a->pab[pi] = on ? a->pa[pi] : NAN;
+        }
+}
+
+/* Every patch matched with the atoms of each biome's dictionary. */
+static ts_status amp_match(ts_ctx *ctx, amp_state *a, const ts_dictionary *const *dicts,
+                           const ts_raster *wts, const ts_amplify_params *params)
+{
+    size_t np = a->np;
+    double w[AMP_NW];
+    amp_patches pt;
+    int b;
+    ts__amp_weights(params, a->use_l, a->use_c, w);
     pt.n = np;
-    pt.ph = ph;
-    pt.pu = pu;
-    pt.pl = pl;
-    pt.pc = pc;
-    pt.px = px;
-    pt.pa = pa;
-    pt.ps = ps;
-    for (b = 0; b < nd; b++) {
-        if (nd > 1) {
-            /* the patches this biome weighs on (within a cell of them: what the
-             * interpolated shares reach); the others are not matched */
-            for (cy = r0; cy < r1; cy++)
-                for (cx = c0; cx < c1; cx++) {
-                    int on = 0, x, y;
-                    pi = (size_t)(cy - r0) * (size_t)ncols + (size_t)(cx - c0);
-                    for (y = ys[cy] - 1; y <= ys[cy] + p && !on; y++)
-                        for (x = xs[cx] - 1; x <= xs[cx] + p; x++)
-                            if (x >= 0 && y >= 0 && x < W && y < H &&
-                                biome_share(wts, nd, b, x, y) > 0) {
-                                on = 1;
-                                break;
-                            }
-                    pab[pi] = on ? pa[pi] : NAN;
-                }
-            pt.pa = pab;
+    pt.ph = a->ph;
+    pt.pu = a->pu;
+    pt.pl = a->pl;
+    pt.pc = a->pc;
+    pt.px = a->px;
+    pt.pa = a->pa;
+    pt.ps = a->ps;
+    for (b = 0; b < a->nd; b++) {
+        if (a->nd > 1) {
+            amp_biome_patches(a, wts, b);
+            pt.pa = a->pab;
         }
-        if (ts__match_atoms(ctx, dicts[b], &pt, w, best + (size_t)b * np, score + (size_t)b * np,
-                            coef + (size_t)b * np) != 0) {
-            st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for matching");
-            goto done;
-        }
+        if (ts__match_atoms(ctx, dicts[b], &pt, w, a->best + (size_t)b * np,
+                            a->score + (size_t)b * np, a->coef + (size_t)b * np) != 0)
+            return ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for matching");
     }
-    if ((st = ts__check_cancel(ctx)) != TS_OK)
-        goto done;
-    t1 = now_s();
-    if ((st = ts__progress(ctx, 0.6, "synthesis")) != TS_OK)
-        goto done;
+    return TS_OK;
+}
+
+/* What the row workers share, from the window's state; the working raster
+ * from fine cell (bx, by). */
+static void amp_work_init(amp_state *a, amp_work *wk, const ts_raster *coarse,
+                          const ts_dictionary *dict)
+{
+    wk->coarse = coarse;
+    wk->dict = dict;
+    wk->F = a->F;
+    wk->p = a->p;
+    wk->P = a->P;
+    wk->W = a->W;
+    wk->H = a->H;
+    wk->xs = a->xs;
+    wk->ys = a->ys;
+    wk->c0 = a->c0;
+    wk->c1 = a->c1;
+    wk->r0 = a->r0;
+    wk->r1 = a->r1;
+    wk->best = a->best;
+    wk->pa = a->pa;
+    wk->pnorm = a->pnorm;
+    wk->coef = a->coef;
+    wk->window = a->window;
+    wk->buf = &a->buf;
+    wk->bx = a->base.x0 * a->F;
+    wk->by = a->base.y0 * a->F;
+}
+
+/* The matched atoms blended into the working raster: each biome's
+ * reconstruction, then blended by the shares (section 5.5). */
+static ts_status amp_reconstruct(ts_ctx *ctx, amp_state *a, amp_work *wk, const ts_raster *coarse,
+                                 const ts_dictionary *const *dicts, const ts_raster *wts,
+                                 const ts_raster *out)
+{
+    int P = a->P, F = a->F, nd = a->nd, i, b;
+    size_t np = a->np;
     /* the falloff: sin^2 windows overlapping by half sum to one */
     for (i = 0; i < P; i++) {
         double sv = sin(3.14159265358979323846 * (i + 0.5) / P);
-        window[i] = (float)(sv * sv);
+        a->window[i] = (float)(sv * sv);
     }
     /* the working raster: the output itself for the whole grid */
-    if (whole) {
-        buf = *out;
-    } else if (ts_raster_alloc(ctx, (base.x1 - base.x0) * F, (base.y1 - base.y0) * F, &buf) !=
-               TS_OK) {
-        st = ctx->status;
-        goto done;
+    if (a->whole) {
+        a->buf = *out;
+    } else if (ts_raster_alloc(ctx, (a->base.x1 - a->base.x0) * F, (a->base.y1 - a->base.y0) * F,
+                               &a->buf) != TS_OK) {
+        return ctx->status;
     }
-    wk.coarse = coarse;
-    wk.dict = dict;
-    wk.F = F;
-    wk.p = p;
-    wk.P = P;
-    wk.W = W;
-    wk.H = H;
-    wk.xs = xs;
-    wk.ys = ys;
-    wk.c0 = c0;
-    wk.c1 = c1;
-    wk.r0 = r0;
-    wk.r1 = r1;
-    wk.best = best;
-    wk.pa = pa;
-    wk.pnorm = pnorm;
-    wk.coef = coef;
-    wk.window = window;
-    wk.buf = &buf;
-    wk.bx = base.x0 * F;
-    wk.by = base.y0 * F;
+    amp_work_init(a, wk, coarse, dicts[0]);
     if (nd == 1) {
-        ts__parallel_for(ctx, (size_t)buf.height, recon_rows, &wk);
+        ts__parallel_for(ctx, (size_t)a->buf.height, recon_rows, wk);
     } else {
-        /* each biome's reconstruction, then blended by the shares (section 5.5) */
         amp_blend bl;
-        for (b = 0; b < nd && !wk.fail; b++) {
-            if (ts_raster_alloc(ctx, buf.width, buf.height, &bufs[b]) != TS_OK) {
-                st = ctx->status;
-                goto done;
-            }
-            wk.dict = dicts[b];
-            wk.best = best + (size_t)b * np;
-            wk.coef = coef + (size_t)b * np;
-            wk.buf = &bufs[b];
-            ts__parallel_for(ctx, (size_t)buf.height, recon_rows, &wk);
+        for (b = 0; b < nd && !wk->fail; b++) {
+            if (ts_raster_alloc(ctx, a->buf.width, a->buf.height, &a->bufs[b]) != TS_OK)
+                return ctx->status;
+            wk->dict = dicts[b];
+            wk->best = a->best + (size_t)b * np;
+            wk->coef = a->coef + (size_t)b * np;
+            wk->buf = &a->bufs[b];
+            ts__parallel_for(ctx, (size_t)a->buf.height, recon_rows, wk);
         }
         bl.coarse = coarse;
         bl.wts = wts;
-        bl.bufs = bufs;
-        bl.buf = &buf;
+        bl.bufs = a->bufs;
+        bl.buf = &a->buf;
         bl.nd = nd;
         bl.F = F;
-        bl.bx = wk.bx;
-        bl.by = wk.by;
-        ts__parallel_for(ctx, (size_t)buf.height, blend_rows, &bl);
-        wk.dict = dict;
-        wk.best = best;
-        wk.coef = coef;
-        wk.buf = &buf;
+        bl.bx = wk->bx;
+        bl.by = wk->by;
+        ts__parallel_for(ctx, (size_t)a->buf.height, blend_rows, &bl);
+        wk->dict = dicts[0];
+        wk->best = a->best;
+        wk->coef = a->coef;
+        wk->buf = &a->buf;
     }
-    if (wk.fail) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
-        goto done;
-    }
-    res.data = resbuf;
+    if (wk->fail)
+        return ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
+    return TS_OK;
+}
+
+/* The back-projection passes; each updates what the next one reads (the
+ * last: the window). */
+static ts_status amp_refine(ts_ctx *ctx, amp_state *a, amp_work *wk, int X0, int Y0,
+                            const ts_raster *out)
+{
+    int F = a->F, R = a->R, pass;
+    ts_raster res;
+    ts_status st;
+    res.data = a->resbuf;
     for (pass = 1; pass <= R; pass++) {
-        /* this pass updates what the next one reads (the last: the window) */
         if (pass < R) {
-            wk.ux0 = reg[pass + 1].x0 * F;
-            wk.uy0 = reg[pass + 1].y0 * F;
-            wk.ux1 = reg[pass + 1].x1 * F;
-            wk.uy1 = reg[pass + 1].y1 * F;
+            wk->ux0 = a->reg[pass + 1].x0 * F;
+            wk->uy0 = a->reg[pass + 1].y0 * F;
+            wk->ux1 = a->reg[pass + 1].x1 * F;
+            wk->uy1 = a->reg[pass + 1].y1 * F;
         } else {
-            wk.ux0 = X0;
-            wk.uy0 = Y0;
-            wk.ux1 = X0 + out->width;
-            wk.uy1 = Y0 + out->height;
+            wk->ux0 = X0;
+            wk->uy0 = Y0;
+            wk->ux1 = X0 + out->width;
+            wk->uy1 = Y0 + out->height;
         }
-        back_project(ctx, &wk, reg[pass], &res);
-        if (wk.fail) {
-            st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
-            goto done;
-        }
+        back_project(ctx, wk, a->reg[pass], &res);
+        if (wk->fail)
+            return ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory");
         if ((st = ts__progress(ctx, 0.9 + 0.1 * pass / R, "back-projection")) != TS_OK)
-            goto done;
+            return st;
     }
+    return TS_OK;
+}
+
+/* The figures of the window: its patches and atoms, the time spent and the
+ * matches' mean score. */
+static void amp_info_fill(const amp_state *a, const ts_dictionary *const *dicts, double t0,
+                          double t1, ts_amplify_info *info)
+{
+    double sum = 0;
+    size_t used = 0, pi;
+    int b;
+    info->n_patches = a->np;
+    for (b = 0; b < a->nd; b++)
+        info->n_atoms += dicts[b]->n;
+    info->seconds_match = t1 - t0;
+    info->seconds_synthesis = now_s() - t1;
+    for (pi = 0; pi < a->np * (size_t)a->nd; pi++)
+        if (a->best[pi] >= 0) {
+            sum += a->score[pi];
+            used++;
+            if (a->coef[pi] < 0)
+                info->n_inverted++;
+        }
+    info->mean_score = used ? sum / used : 0;
+}
+
+/* Everything the window allocated. */
+static void amp_state_free(amp_state *a)
+{
+    int b;
+    if (!a->whole)
+        ts_raster_free(&a->buf);
+    free(a->xs);
+    free(a->ys);
+    free(a->best);
+    free(a->ph);
+    free(a->pu);
+    free(a->pa);
+    free(a->ps);
+    free(a->pnorm);
+    free(a->coef);
+    free(a->score);
+    free(a->win);
+    free(a->lwin);
+    free(a->window);
+    free(a->resbuf);
+    free(a->pl);
+    free(a->pc);
+    free(a->px);
+    free(a->pab);
+    for (b = 0; a->bufs && b < a->nd; b++)
+        ts_raster_free(&a->bufs[b]);
+    free(a->bufs);
+}
+
+/* The fine cells [X0, X0 + out->width) x [Y0, Y0 + out->height) of the
+ * amplified DEM: the patches over them and the coarse margin every
+ * back-projection pass needs (two cells per pass, the cubic's reach) are
+ * computed, nothing else.  Each cell is computed by the same operations in
+ * the same order whatever the window, so a window is byte for byte the same
+ * window of the whole. */
+static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_amplify_guide *guide,
+                            const ts_dictionary *const *dicts, const ts_raster *wts, int nd,
+                            const ts_amplify_params *params, int X0, int Y0, ts_raster *out,
+                            const ts_amplify_layers *lay, ts_amplify_info *info)
+{
+    double t0, t1;
+    amp_state a;
+    amp_work wk;
+    int j;
+    ts_status st;
+    memset(&wk, 0, sizeof wk);
+    amp_state_init(&a, coarse, guide, dicts[0], nd, params, X0, Y0, out);
+    if ((st = amp_lattice(ctx, &a)) != TS_OK || (st = amp_alloc(ctx, &a, params)) != TS_OK)
+        goto done;
+    t0 = now_s();
+    amp_describe(&a, coarse, guide);
+    if ((st = ts__progress(ctx, 0.05, "matching")) != TS_OK ||
+        (st = amp_match(ctx, &a, dicts, wts, params)) != TS_OK ||
+        (st = ts__check_cancel(ctx)) != TS_OK)
+        goto done;
+    t1 = now_s();
+    if ((st = ts__progress(ctx, 0.6, "synthesis")) != TS_OK ||
+        (st = amp_reconstruct(ctx, &a, &wk, coarse, dicts, wts, out)) != TS_OK ||
+        (st = amp_refine(ctx, &a, &wk, X0, Y0, out)) != TS_OK)
+        goto done;
     if (lay && (lay->layers || lay->classes)) {
         wk.lay = lay;
         wk.X0 = X0;
@@ -667,52 +815,15 @@ static ts_status amp_window(ts_ctx *ctx, const ts_raster *coarse, const ts_ampli
             goto done;
         }
     }
-    if (!whole)
+    if (!a.whole)
         for (j = 0; j < out->height; j++)
-            memcpy(&TS_PIX(out, 0, j), &TS_PIX(&buf, X0 - wk.bx, Y0 + j - wk.by),
+            memcpy(&TS_PIX(out, 0, j), &TS_PIX(&a.buf, X0 - wk.bx, Y0 + j - wk.by),
                    (size_t)out->width * sizeof(float));
-    if (info) {
-        double sum = 0;
-        size_t used = 0;
-        info->n_patches = np;
-        for (b = 0; b < nd; b++)
-            info->n_atoms += dicts[b]->n;
-        info->seconds_match = t1 - t0;
-        info->seconds_synthesis = now_s() - t1;
-        for (pi = 0; pi < np * (size_t)nd; pi++)
-            if (best[pi] >= 0) {
-                sum += score[pi];
-                used++;
-                if (coef[pi] < 0)
-                    info->n_inverted++;
-            }
-        info->mean_score = used ? sum / used : 0;
-    }
+    if (info)
+        amp_info_fill(&a, dicts, t0, t1, info);
     st = ts__progress(ctx, 1.0, "done");
 done:
-    if (!whole)
-        ts_raster_free(&buf);
-    free(xs);
-    free(ys);
-    free(best);
-    free(ph);
-    free(pu);
-    free(pa);
-    free(ps);
-    free(pnorm);
-    free(coef);
-    free(score);
-    free(win);
-    free(lwin);
-    free(window);
-    free(resbuf);
-    free(pl);
-    free(pc);
-    free(px);
-    free(pab);
-    for (b = 0; bufs && b < nd; b++)
-        ts_raster_free(&bufs[b]);
-    free(bufs);
+    amp_state_free(&a);
     return st;
 }
 

@@ -8,7 +8,7 @@
  *
  * The dot products of every patch with every atom are the cost: they are
  * computed over tiles (a block of patches against a block of atoms, so both
- * stay in cache), four sums at a time; tests/c/test_amplify.c checks the
+ * stay in cache), four sums at a time; tests/c/amplify/test_amplify.c checks the
  * choice against a plain loop over every atom.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later

@@ -339,23 +339,11 @@ static ts_raster raster_from(const ts_raster *r, int x, int y, int w, int h)
     return v;
 }
 
-TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, int n_exemplars,
-                                     const char *const *layer_names, int n_layers,
-                                     const ts_amplify_params *params, ts_dictionary **out)
+/* Check the extra layers' count and names: each of letters, digits, _ or -,
+ * none named twice.  TS_OK or the failure. */
+static ts_status dict_check_names(ts_ctx *ctx, const char *const *layer_names, int n_layers)
 {
-    ts_dictionary *d;
-    amp_source *src = NULL;
-    int n_src = 0, si;
-    size_t cap = 0;
-    int e, F, p, P, l, K = 0, want_l;
-    float *win = NULL, *lwin = NULL;
-    ts_status st = TS_OK;
-    ts__clear(ctx);
-    if (!out)
-        return ts__fail(ctx, TS_ERR_ARG, "amplify", "no output given");
-    *out = NULL;
-    if (!exemplars || n_exemplars < 1 || !params)
-        return ts__fail(ctx, TS_ERR_ARG, "amplify", "no exemplars given");
+    int l;
     if (n_layers < 0 || n_layers > TS_MAX_LAYERS || (n_layers > 0 && !layer_names))
         return ts__fail(ctx, TS_ERR_ARG, "amplify", "at most %d extra layers, each named",
                         TS_MAX_LAYERS);
@@ -372,12 +360,205 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
                 return ts__fail(ctx, TS_ERR_ARG, "amplify", "layer %s is named twice",
                                 layer_names[l]);
     }
+    return TS_OK;
+}
+
+/* The sources of exemplar e from src[*n_src] on: the low-resolution
+ * exemplar of phase 0, its drainage and irradiance; when it gives every
+ * window and fewer than the atoms asked for, more phases while the budget
+ * lasts.  *n_src counts them, *cap their atoms. */
+static ts_status dict_exemplar_sources(ts_ctx *ctx, const ts_exemplar *ex, int e,
+                                       const ts_amplify_params *params, amp_source *src, int *n_src,
+                                       size_t *cap)
+{
+    int F = params->factor, p = params->patch, P = p * F, want_l = params->w_l > 0;
+    int lw = ex->dem.width / F, lh = ex->dem.height / F, ph, budget;
+    if (lw < p || lh < p)
+        return ts__fail_input(ctx, TS_ERR_SIZE, e, "amplify",
+                              "exemplar %d: %d x %d cells is smaller than a patch of %d x %d "
+                              "cells at the output's resolution",
+                              e + 1, ex->dem.width, ex->dem.height, P, P);
+    budget = params->atoms;
+    for (ph = 0; ph < F * F && budget > 0; ph++) {
+        amp_source *s_ = &src[*n_src];
+        ts_raster shifted;
+        int w, h;
+        size_t count;
+        if (ph == 1 && src[*n_src - 1].step > 1)
+            break;
+        s_->e = e;
+        phase_offset(F, ph, &s_->ox, &s_->oy);
+        w = (ex->dem.width - s_->ox) / F;
+        h = (ex->dem.height - s_->oy) / F;
+        if (w < p || h < p)
+            continue;
+        shifted = raster_from(&ex->dem, s_->ox, s_->oy, w * F, h * F);
+        if (ts_raster_alloc(ctx, w, h, &s_->low) != TS_OK ||
+            ts_raster_alloc(ctx, w, h, &s_->drain) != TS_OK ||
+            ts_area_average(ctx, &shifted, F, &s_->low) != TS_OK ||
+            ts_drainage_area(ctx, &s_->low, &s_->drain) != TS_OK)
+            return ctx->status;
+        if (want_l && ex->lat && ex->dx > 0 && ex->dy > 0) {
+            /* the phase's cells are within a cell of phase 0's: its latitudes */
+            ts_exemplar exv = *ex;
+            ts_raster latv = raster_from(ex->lat, 0, 0, w, h), northv;
+            exv.lat = &latv;
+            if (ex->north) {
+                northv = raster_from(ex->north, 0, 0, w, h);
+                exv.north = &northv;
+            }
+            if (ts_raster_alloc(ctx, w, h, &s_->irr) != TS_OK ||
+                low_irradiance(ctx, &exv, &s_->low, F, &s_->irr) != TS_OK)
+                return ctx->status;
+        }
+        s_->step = lattice_step(w - p + 1, h - p + 1, budget);
+        count = (size_t)((w - p + s_->step) / s_->step) * (size_t)((h - p + s_->step) / s_->step);
+        *cap += count;
+        budget -= (int)count;
+        (*n_src)++;
+    }
+    return TS_OK;
+}
+
+/* The dictionary's arrays for cap atoms.  TS_OK or the failure. */
+static ts_status dict_alloc(ts_ctx *ctx, ts_dictionary *d, size_t cap, int want_l)
+{
+    int K = d->n_classes, n_layers = d->n_layers;
+    d->dh = ts__malloc_array(cap * (size_t)d->d, sizeof *d->dh);
+    d->du = ts__malloc_array(cap * (size_t)d->d, sizeof *d->du);
+    d->hh = ts__malloc_array(cap * (size_t)d->hd, sizeof *d->hh);
+    d->a = ts__malloc_array(cap, sizeof *d->a);
+    d->s = ts__malloc_array(cap, sizeof *d->s);
+    d->exemplar = ts__malloc_array(cap, sizeof *d->exemplar);
+    d->x = ts__malloc_array(cap, sizeof *d->x);
+    d->y = ts__malloc_array(cap, sizeof *d->y);
+    d->dx = ts__malloc_array(cap * (size_t)d->d, sizeof *d->dx);
+    if (want_l)
+        d->dl = ts__malloc_array(cap * (size_t)d->d, sizeof *d->dl);
+    if (K > 0) {
+        d->dc = ts__malloc_array(cap * (size_t)K, sizeof *d->dc);
+        d->hc = ts__malloc_array(cap * (size_t)d->hd, sizeof *d->hc);
+    }
+    if (n_layers > 0)
+        d->ll = ts__malloc_array(cap * (size_t)n_layers * (size_t)d->hd, sizeof *d->ll);
+    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y || !d->dx ||
+        (want_l && !d->dl) || (K > 0 && (!d->dc || !d->hc)) || (n_layers > 0 && !d->ll))
+        return ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu atoms", cap);
+    return TS_OK;
+}
+
+/* Atom k's irradiance descriptor D_l from the window at (x, y) of source
+ * sr (0 where the exemplar had no latitude).  lwin: p * p work. */
+static void dict_atom_irradiance(ts_dictionary *d, const amp_source *sr, int x, int y, size_t k,
+                                 float *lwin)
+{
+    float *dl = d->dl + k * (size_t)d->d;
+    int p = d->patch, ok = sr->irr.data != NULL, i, j;
+    double um, urms;
+    for (j = 0; j < p && ok; j++)
+        for (i = 0; i < p; i++) {
+            float v = TS_PIX(&sr->irr, x + i, y + j);
+            if (isnan(v)) {
+                ok = 0; /* no latitude there */
+                break;
+            }
+            lwin[j * p + i] = v;
+        }
+    if (ok)
+        ts__amp_normalise(lwin, d->d, dl, &um, &urms);
+    else
+        memset(dl, 0, (size_t)d->d * sizeof *dl);
+}
+
+/* Atom k's class codes and class vector from the fine window at (fx, fy)
+ * of ex (the shares of its cells in each class, scaled to unit length). */
+static void dict_atom_classes(ts_dictionary *d, const ts_exemplar *ex, int fx, int fy, size_t k)
+{
+    int K = d->n_classes, P = d->patch * d->factor, i, j;
+    unsigned char *hc = d->hc + k * (size_t)d->hd;
+    float *dc = d->dc + k * (size_t)K;
+    double norm = 0;
+    memset(dc, 0, (size_t)K * sizeof *dc);
+    for (j = 0; j < P; j++)
+        for (i = 0; i < P; i++) {
+            int c = ex->classes ? ts__class_code(TS_PIX(ex->classes, fx + i, fy + j)) : 0;
+            hc[j * P + i] = (unsigned char)c;
+            if (c > 0)
+                dc[c - 1] += 1.0f;
+        }
+    for (i = 0; i < K; i++)
+        norm += (double)dc[i] * dc[i];
+    for (i = 0; i < K && norm > 0; i++)
+        dc[i] = (float)(dc[i] / sqrt(norm));
+}
+
+/* The atom of the window at (x, y) of source sr, appended to d when it and
+ * its fine window are valid and it is not flat.  win, lwin: p * p work. */
+static void dict_add_atom(ts_dictionary *d, const ts_exemplar *ex, const amp_source *sr, int x,
+                          int y, float *win, float *lwin)
+{
+    const ts_raster *lowr = &sr->low;
+    int p = d->patch, F = d->factor, P = p * F, n_layers = d->n_layers, i, j, l;
+    int fx = x * F + sr->ox, fy = y * F + sr->oy; /* its fine window */
+    size_t k = d->n;
+    double mean, rms, um, urms;
+    if (!window_valid(lowr, x, y, p) || !window_valid(&ex->dem, fx, fy, P))
+        return;
+    for (j = 0; j < p; j++)
+        for (i = 0; i < p; i++) {
+            win[j * p + i] = TS_PIX(lowr, x + i, y + j);
+            lwin[j * p + i] = (float)log1p(TS_PIX(&sr->drain, x + i, y + j));
+        }
+    if (!ts__amp_normalise(win, d->d, d->dh + k * (size_t)d->d, &mean, &rms))
+        return; /* a flat atom has no shape to match or give */
+    ts__amp_normalise(lwin, d->d, d->du + k * (size_t)d->d, &um, &urms);
+    ts__amp_context(lowr, x, y, p, d->dx + k * (size_t)d->d);
+    if (d->dl)
+        dict_atom_irradiance(d, sr, x, y, k, lwin);
+    for (j = 0; j < P; j++)
+        for (i = 0; i < P; i++)
+            d->hh[k * (size_t)d->hd + (size_t)j * P + i] =
+                (float)((TS_PIX(&ex->dem, fx + i, fy + j) - mean) / (rms * sqrt((double)d->d)));
+    if (d->n_classes > 0)
+        dict_atom_classes(d, ex, fx, fy, k);
+    for (l = 0; l < n_layers; l++) {
+        float *ll = d->ll + (k * (size_t)n_layers + (size_t)l) * (size_t)d->hd;
+        for (j = 0; j < P; j++)
+            for (i = 0; i < P; i++)
+                ll[j * P + i] = TS_PIX(&ex->layers[l], fx + i, fy + j);
+    }
+    d->a[k] = mean;
+    d->s[k] = rms;
+    d->exemplar[k] = sr->e;
+    d->x[k] = fx;
+    d->y[k] = fy;
+    d->n++;
+}
+
+TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, int n_exemplars,
+                                     const char *const *layer_names, int n_layers,
+                                     const ts_amplify_params *params, ts_dictionary **out)
+{
+    ts_dictionary *d;
+    amp_source *src = NULL;
+    int n_src = 0, si;
+    size_t cap = 0;
+    int e, F, p, P, l, K = 0;
+    float *win = NULL, *lwin = NULL;
+    ts_status st = TS_OK;
+    ts__clear(ctx);
+    if (!out)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "no output given");
+    *out = NULL;
+    if (!exemplars || n_exemplars < 1 || !params)
+        return ts__fail(ctx, TS_ERR_ARG, "amplify", "no exemplars given");
+    if ((st = dict_check_names(ctx, layer_names, n_layers)) != TS_OK)
+        return st;
     if (ts_params_validate(ctx, "amplify", params) != TS_OK)
         return ctx->status;
     F = params->factor;
     p = params->patch;
     P = p * F;
-    want_l = params->w_l > 0;
     for (e = 0; e < n_exemplars; e++)
         if ((st = check_exemplar(ctx, &exemplars[e], e, n_layers, F, &K)) != TS_OK)
             return st;
@@ -399,162 +580,19 @@ TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, 
         strcpy(d->layer_names[l], layer_names[l]);
     /* the low-resolution exemplars (a phase or several), their drainage and irradiance,
      * and how many atoms */
-    for (e = 0; e < n_exemplars; e++) {
-        const ts_exemplar *ex = &exemplars[e];
-        int lw = ex->dem.width / F, lh = ex->dem.height / F, ph, budget;
-        if (lw < p || lh < p) {
-            st = ts__fail_input(ctx, TS_ERR_SIZE, e, "amplify",
-                                "exemplar %d: %d x %d cells is smaller than a patch of %d x %d "
-                                "cells at the output's resolution",
-                                e + 1, ex->dem.width, ex->dem.height, P, P);
+    for (e = 0; e < n_exemplars; e++)
+        if ((st = dict_exemplar_sources(ctx, &exemplars[e], e, params, src, &n_src, &cap)) !=
+                TS_OK ||
+            (st = ts__progress(ctx, 0.3 * (e + 1) / n_exemplars, "dictionary")) != TS_OK)
             goto done;
-        }
-        /* phase 0; when it gives every window and fewer than the atoms asked for, more
-         * phases while the budget lasts */
-        budget = params->atoms;
-        for (ph = 0; ph < F * F && budget > 0; ph++) {
-            amp_source *s_ = &src[n_src];
-            ts_raster shifted;
-            int w, h;
-            size_t count;
-            if (ph == 1 && src[n_src - 1].step > 1)
-                break;
-            s_->e = e;
-            phase_offset(F, ph, &s_->ox, &s_->oy);
-            w = (ex->dem.width - s_->ox) / F;
-            h = (ex->dem.height - s_->oy) / F;
-            if (w < p || h < p)
-                continue;
-            shifted = raster_from(&ex->dem, s_->ox, s_->oy, w * F, h * F);
-            if (ts_raster_alloc(ctx, w, h, &s_->low) != TS_OK ||
-                ts_raster_alloc(ctx, w, h, &s_->drain) != TS_OK ||
-                ts_area_average(ctx, &shifted, F, &s_->low) != TS_OK ||
-                ts_drainage_area(ctx, &s_->low, &s_->drain) != TS_OK) {
-                st = ctx->status;
-                goto done;
-            }
-            if (want_l && ex->lat && ex->dx > 0 && ex->dy > 0) {
-                /* the phase's cells are within a cell of phase 0's: its latitudes */
-                ts_exemplar exv = *ex;
-                ts_raster latv = raster_from(ex->lat, 0, 0, w, h), northv;
-                exv.lat = &latv;
-                if (ex->north) {
-                    northv = raster_from(ex->north, 0, 0, w, h);
-                    exv.north = &northv;
-                }
-                if (ts_raster_alloc(ctx, w, h, &s_->irr) != TS_OK ||
-                    low_irradiance(ctx, &exv, &s_->low, F, &s_->irr) != TS_OK) {
-                    st = ctx->status;
-                    goto done;
-                }
-            }
-            s_->step = lattice_step(w - p + 1, h - p + 1, budget);
-            count =
-                (size_t)((w - p + s_->step) / s_->step) * (size_t)((h - p + s_->step) / s_->step);
-            cap += count;
-            budget -= (int)count;
-            n_src++;
-        }
-        if ((st = ts__progress(ctx, 0.3 * (e + 1) / n_exemplars, "dictionary")) != TS_OK)
-            goto done;
-    }
-    d->dh = ts__malloc_array(cap * (size_t)d->d, sizeof *d->dh);
-    d->du = ts__malloc_array(cap * (size_t)d->d, sizeof *d->du);
-    d->hh = ts__malloc_array(cap * (size_t)d->hd, sizeof *d->hh);
-    d->a = ts__malloc_array(cap, sizeof *d->a);
-    d->s = ts__malloc_array(cap, sizeof *d->s);
-    d->exemplar = ts__malloc_array(cap, sizeof *d->exemplar);
-    d->x = ts__malloc_array(cap, sizeof *d->x);
-    d->y = ts__malloc_array(cap, sizeof *d->y);
-    d->dx = ts__malloc_array(cap * (size_t)d->d, sizeof *d->dx);
-    if (want_l)
-        d->dl = ts__malloc_array(cap * (size_t)d->d, sizeof *d->dl);
-    if (K > 0) {
-        d->dc = ts__malloc_array(cap * (size_t)K, sizeof *d->dc);
-        d->hc = ts__malloc_array(cap * (size_t)d->hd, sizeof *d->hc);
-    }
-    if (n_layers > 0)
-        d->ll = ts__malloc_array(cap * (size_t)n_layers * (size_t)d->hd, sizeof *d->ll);
-    if (!d->dh || !d->du || !d->hh || !d->a || !d->s || !d->exemplar || !d->x || !d->y || !d->dx ||
-        (want_l && !d->dl) || (K > 0 && (!d->dc || !d->hc)) || (n_layers > 0 && !d->ll)) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "amplify", "out of memory for %zu atoms", cap);
+    if ((st = dict_alloc(ctx, d, cap, params->w_l > 0)) != TS_OK)
         goto done;
-    }
     for (si = 0; si < n_src; si++) {
         const amp_source *sr = &src[si];
-        const ts_exemplar *ex = &exemplars[sr->e];
-        const ts_raster *lowr = &sr->low;
-        int lw = lowr->width, lh = lowr->height, x, y, i, j, step = sr->step;
-        for (y = 0; y + p <= lh; y += step)
-            for (x = 0; x + p <= lw; x += step) {
-                size_t k = d->n;
-                double mean, rms, um, urms;
-                int fx = x * F + sr->ox, fy = y * F + sr->oy; /* its fine window */
-                if (!window_valid(lowr, x, y, p) || !window_valid(&ex->dem, fx, fy, P))
-                    continue;
-                for (j = 0; j < p; j++)
-                    for (i = 0; i < p; i++) {
-                        win[j * p + i] = TS_PIX(lowr, x + i, y + j);
-                        lwin[j * p + i] = (float)log1p(TS_PIX(&sr->drain, x + i, y + j));
-                    }
-                if (!ts__amp_normalise(win, d->d, d->dh + k * (size_t)d->d, &mean, &rms))
-                    continue; /* a flat atom has no shape to match or give */
-                ts__amp_normalise(lwin, d->d, d->du + k * (size_t)d->d, &um, &urms);
-                ts__amp_context(lowr, x, y, p, d->dx + k * (size_t)d->d);
-                if (d->dl) {
-                    float *dl = d->dl + k * (size_t)d->d;
-                    int ok = sr->irr.data != NULL;
-                    for (j = 0; j < p && ok; j++)
-                        for (i = 0; i < p; i++) {
-                            float v = TS_PIX(&sr->irr, x + i, y + j);
-                            if (isnan(v)) {
-                                ok = 0; /* no latitude there */
-                                break;
-                            }
-                            lwin[j * p + i] = v;
-                        }
-                    if (ok)
-                        ts__amp_normalise(lwin, d->d, dl, &um, &urms);
-                    else
-                        memset(dl, 0, (size_t)d->d * sizeof *dl);
-                }
-                for (j = 0; j < P; j++)
-                    for (i = 0; i < P; i++)
-                        d->hh[k * (size_t)d->hd + (size_t)j * P + i] =
-                            (float)((TS_PIX(&ex->dem, fx + i, fy + j) - mean) /
-                                    (rms * sqrt((double)d->d)));
-                if (K > 0) {
-                    unsigned char *hc = d->hc + k * (size_t)d->hd;
-                    float *dc = d->dc + k * (size_t)K;
-                    double norm = 0;
-                    memset(dc, 0, (size_t)K * sizeof *dc);
-                    for (j = 0; j < P; j++)
-                        for (i = 0; i < P; i++) {
-                            int c = ex->classes
-                                        ? ts__class_code(TS_PIX(ex->classes, fx + i, fy + j))
-                                        : 0;
-                            hc[j * P + i] = (unsigned char)c;
-                            if (c > 0)
-                                dc[c - 1] += 1.0f;
-                        }
-                    for (i = 0; i < K; i++)
-                        norm += (double)dc[i] * dc[i];
-                    for (i = 0; i < K && norm > 0; i++)
-                        dc[i] = (float)(dc[i] / sqrt(norm));
-                }
-                for (l = 0; l < n_layers; l++) {
-                    float *ll = d->ll + (k * (size_t)n_layers + (size_t)l) * (size_t)d->hd;
-                    for (j = 0; j < P; j++)
-                        for (i = 0; i < P; i++)
-                            ll[j * P + i] = TS_PIX(&ex->layers[l], fx + i, fy + j);
-                }
-                d->a[k] = mean;
-                d->s[k] = rms;
-                d->exemplar[k] = sr->e;
-                d->x[k] = fx;
-                d->y[k] = fy;
-                d->n++;
-            }
+        int x, y;
+        for (y = 0; y + p <= sr->low.height; y += sr->step)
+            for (x = 0; x + p <= sr->low.width; x += sr->step)
+                dict_add_atom(d, &exemplars[sr->e], sr, x, y, win, lwin);
         if ((st = ts__progress(ctx, 0.3 + 0.7 * (si + 1) / n_src, "dictionary")) != TS_OK)
             goto done;
     }

@@ -5,6 +5,13 @@
  * steepest lower neighbour, and cells are visited from the highest down so
  * each passes its whole area on.
  *
+ * Why not ppa/drainage_area.c: that one fills depressions and crosses
+ * flats (priority flood) over DEMs of any size in tiles, for the channels
+ * the PPA keeps as valleys.  Here the drainage is a descriptor of small
+ * windows (an atom, a coarse input's patch) compared with each other: the
+ * same plain D8 on both sides, without filling, as the paper's particles
+ * run; flooding each window's pits would change what is compared.
+ *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <math.h>

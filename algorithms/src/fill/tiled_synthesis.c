@@ -1,6 +1,6 @@
 /*
  * tiled_synthesis.c - free patch synthesis in tiles, in four waves (a
- * TerraSynth addition for terrains past one run: issue 16).
+ * TerraSynth addition for terrains past one run).
  *
  * The grid is cut into tiles of T x T cells, tile (i, j) covering columns
  * [iT, (i+1)T) and rows [jT, (j+1)T): its core.  Tile (i, j) belongs to

@@ -33,6 +33,9 @@
  * read (passes x 4 x k/2 cells) and its parents' cover, and equals the same
  * window of any larger run byte for byte.
  *
+ * The exemplars are analysed by exemplar_analysis.c (ts_pixel_prepare),
+ * the guide's levels made by guide_stack.c (ts_pixel_guide_prepare).
+ *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <math.h>
@@ -40,7 +43,6 @@
 #include <string.h>
 
 #include "pixel.h"
-#include "relief_guide.h"
 
 uint64_t ts__pix_hash(int64_t x, int64_t y, int level, int stream, uint64_t seed)
 {
@@ -323,7 +325,8 @@ static void correct_rows(void *arg, size_t begin, size_t end)
 #define TARGET_FOR(cand)                                                                           \
     (v = (cand).e % nv,                                                                            \
      have[v] ? at + (size_t)v * dim : target_turned(j->ex, l, t, tr, tv, perm, v, have, at))
-            bc = usable(j->ex, l, cur) ? app_distance(j->ex, l, cur, TARGET_FOR(cur), nd) : INFINITY;
+            bc =
+                usable(j->ex, l, cur) ? app_distance(j->ex, l, cur, TARGET_FOR(cur), nd) : INFINITY;
             for (b = -r; b <= r; b++)
                 for (a = -r; a <= r; a++) {
                     pix_coord n = lv->s[(y + b) * (size_t)lv->w + x + a], c = n;
@@ -472,453 +475,6 @@ static void level_free(pix_level *lv)
     free(lv->hc);
     lv->s = lv->tmp = NULL;
     lv->hc = NULL;
-}
-
-typedef struct stack_job {
-    const ts_raster *exemplars;
-    ts_pixel_exemplars *ex;
-    int L, k, fail;
-} stack_job;
-
-/* Task t: exemplar t / (L + 1), level t % (L + 1), of the exemplars as given. */
-static void stack_levels(void *arg, size_t begin, size_t end)
-{
-    stack_job *j = arg;
-    size_t t;
-    for (t = begin; t < end; t++) {
-        int e = (int)(t / (size_t)(j->L + 1)), l = (int)(t % (size_t)(j->L + 1));
-        if (ts__pix_stack_level(&j->exemplars[e], j->L, j->ex->kl[j->L - l], j->L - l,
-                                &j->ex->stacks[e]) != 0)
-            j->fail = 1;
-    }
-}
-
-/* The window of a level of spacing sp: 3 x 3 from a spacing of 16 cells.
- * The coarse levels' neighbourhoods then reach as far as 5 x 5 at half the
- * spacing, so a fifth level fits the exemplar's safety margin and large
- * structures (a plain, a mountain front) come from coarser levels.
- * Measured on nine DEMs x three seeds: slope W1 2.2 degrees on average,
- * 21 of 27 within 3, against 2.6 and 19 of 27 with 5 x 5 at every level
- * and at most four levels. */
-#define COARSE_WINDOW(k, sp) ((sp) >= 16 && (k) > 3 ? 3 : (k))
-
-/* Every level's nodata cells take the value of the nearest valid cell (once
- * the usable cells, appearance vectors and similarity sets are made, which
- * read valid cells only).  The output's bands are read up to a spacing and a
- * half past a usable coordinate; a read that fell on nodata used to drop its
- * corner from the blend, which jumped where the read crossed the nodata's
- * edge: straight steps in outputs of exemplars with a nodata frame.  Filled,
- * the band runs on continuously, as past the raster's edges (clamped). */
-static ts_status pix_fill_nodata(ts_ctx *ctx, ts_pixel_exemplars *ex)
-{
-    int i, l;
-    for (i = 0; i < ex->n_given; i++) {
-        pix_stack *s = &ex->stacks[i];
-        size_t n = (size_t)s->width * (size_t)s->height, c, holes = 0;
-        unsigned char *m;
-        float *dist;
-        int32_t *nearest;
-        for (c = 0; c < n; c++)
-            holes += isnan(s->level[ex->levels][c]);
-        if (!holes || holes == n)
-            continue;
-        m = ts__malloc_array(n, 1);
-        dist = ts__malloc_array(n, sizeof *dist);
-        nearest = ts__malloc_array(n, sizeof *nearest);
-        if (!m || !dist || !nearest) {
-            free(m);
-            free(dist);
-            free(nearest);
-            return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the stacks");
-        }
-        for (c = 0; c < n; c++)
-            m[c] = !isnan(s->level[ex->levels][c]);
-        if (ts__distance_transform_nearest(ctx, m, s->width, s->height, dist, nearest) != TS_OK) {
-            free(m);
-            free(dist);
-            free(nearest);
-            return ctx->status;
-        }
-        for (l = 0; l <= ex->levels; l++)
-            for (c = 0; c < n; c++)
-                if (!m[c] && nearest[c] >= 0)
-                    s->level[l][c] = s->level[l][nearest[c]];
-        free(m);
-        free(dist);
-        free(nearest);
-    }
-    return TS_OK;
-}
-
-TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
-                                  const ts_pixel_params *params, ts_pixel_exemplars **out)
-{
-    ts_pixel_exemplars *ex;
-    int i, L, k, nv, minside = 1 << 30;
-    ts__clear(ctx);
-    if (!out)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "no output given");
-    *out = NULL;
-    if (!exemplars || n < 1 || !params)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "no exemplars given");
-    if (ts_params_validate(ctx, "pixel", params) != TS_OK)
-        return ctx->status;
-    if (params->rotations != 0 && params->rotations != 4 && params->rotations != 8)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "rotations must be 0, 4 or 8, not %d",
-                        params->rotations);
-    nv = params->rotations ? params->rotations : 1;
-    for (i = 0; i < n; i++)
-        if (!exemplars[i].data)
-            return ts__fail_input(ctx, TS_ERR_ARG, i, "pixel", "exemplar %d: no data", i + 1);
-    /* 0: chosen as Cruz et al. do, by the neighbourhoods' principal components */
-    k = params->window ? params->window : ts__pix_choose_window(exemplars, n);
-    if (k % 2 == 0)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "window must be odd, not %d", k);
-    for (i = 0; i < n; i++) {
-        if (exemplars[i].width < minside)
-            minside = exemplars[i].width;
-        if (exemplars[i].height < minside)
-            minside = exemplars[i].height;
-    }
-    L = params->levels;
-    if (L == 0) {
-        /* as many as leave a coarsest neighbourhood half the smallest exemplar, at most 5:
-         * with more, the coarsest level's safety margin leaves only the exemplar's centre
-         * to start from (measured: with 6, slope W1 3.6 degrees on average over nine DEMs,
-         * against 2.2 with 5) */
-        L = 1;
-        while (L < 5 && (1 << (L + 1)) * (COARSE_WINDOW(k, 1 << (L + 1)) - 1) + 1 <= minside / 2)
-            L++;
-    }
-    ex = calloc(1, sizeof *ex);
-    if (!ex || !(ex->stacks = calloc((size_t)n, sizeof *ex->stacks))) {
-        free(ex);
-        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
-    }
-    ex->n = n * nv;
-    ex->n_given = n;
-    ex->nv = nv;
-    for (i = 0; i <= L; i++)
-        ex->kl[i] = COARSE_WINDOW(k, 1 << (L - i));
-    if (!(ex->turn = calloc((size_t)n * (size_t)nv, sizeof *ex->turn))) {
-        free(ex->stacks);
-        free(ex);
-        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
-    }
-    for (i = 0; i < n * nv; i++) {  /* the inverse of turned_target, an affine map */
-        static const int m[4][6] = {/* ox, oy (in units of w - 1, h - 1), mxu, mxv, myu, myv */
-                                    {0, 0, 1, 0, 0, 1},
-                                    {1, 0, 0, -1, 1, 0},
-                                    {1, 1, -1, 0, 0, -1},
-                                    {0, 1, 0, 1, -1, 0}};
-        int w = exemplars[i / nv].width, h = exemplars[i / nv].height, q = i % nv % 4;
-        pix_turn *t = &ex->turn[i];
-        t->w = q % 2 ? h : w;
-        t->h = q % 2 ? w : h;
-        t->sw = w;
-        t->ox = m[q][0] * (w - 1);
-        t->oy = m[q][1] * (h - 1);
-        t->mxu = m[q][2];
-        t->mxv = m[q][3];
-        t->myu = m[q][4];
-        t->myv = m[q][5];
-        if (i % nv >= 4) { /* mirrored left-right first */
-            t->ox = w - 1 - t->ox;
-            t->mxu = -t->mxu;
-            t->mxv = -t->mxv;
-        }
-    }
-    ex->levels = L;
-    ex->window = k;
-    /* every exemplar's every level in parallel (the coarsest blur is the longest) */
-    {
-        stack_job sj = {exemplars, ex, L, k, 0};
-        for (i = 0; i < n; i++)
-            if (ts__pix_stack_alloc(&exemplars[i], L, &ex->stacks[i]) != 0)
-                sj.fail = 1;
-        if (!sj.fail)
-            ts__parallel_for(ctx, (size_t)n * (size_t)(L + 1), stack_levels, &sj);
-        for (i = 0; i < n && !sj.fail; i++)
-            if (ts__pix_stack_finish(&ex->stacks[i]) != 0)
-                sj.fail = 1;
-        if (sj.fail) {
-            ts_pixel_exemplars_free(ex);
-            return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the stacks");
-        }
-    }
-    for (i = 0; i < n; i++) {
-        int l;
-        for (l = 0; l <= L; l++)
-            if (ex->stacks[i].n_usable[l] == 0) {
-                ts_pixel_exemplars_free(ex);
-                return ts__fail_input(ctx, TS_ERR_SIZE, i, "pixel",
-                                      "exemplar %d (%d x %d cells) has no valid %d x %d "
-                                      "neighbourhood at spacing %d: fewer levels or a larger "
-                                      "exemplar",
-                                      i + 1, exemplars[i].width, exemplars[i].height, k, k,
-                                      1 << (L - l));
-            }
-    }
-    ex->rough = params->roughness_weight > 0 ? (float)sqrt(params->roughness_weight) : 0.0f;
-    if (ts__pix_appearance_build(ctx, ex, params->pca_energy) != 0) {
-        ts_pixel_exemplars_free(ex);
-        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the appearance space");
-    }
-    if (!(ex->cell_base = calloc((size_t)n, sizeof *ex->cell_base))) {
-        ts_pixel_exemplars_free(ex);
-        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
-    }
-    switch (ts__pix_similarity_build(ctx, ex, params->coherence)) {
-    case 0:
-        break;
-    case -2:
-        ts_pixel_exemplars_free(ex);
-        return ts__fail(ctx, TS_ERR_SIZE, "pixel",
-                        "the exemplars hold 2^31 cells or more: too many for similarity sets "
-                        "(coherence 1 or smaller exemplars)");
-    default:
-        ts_pixel_exemplars_free(ex);
-        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the similarity sets");
-    }
-    if (pix_fill_nodata(ctx, ex) != TS_OK) {
-        ts_pixel_exemplars_free(ex);
-        return ctx->status;
-    }
-    if (ts__pix_relief_build(ex) != 0) {
-        ts_pixel_exemplars_free(ex);
-        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
-    }
-    if (ts__progress(ctx, 1.0, "stacks") != TS_OK) {
-        ts_pixel_exemplars_free(ex);
-        return ctx->status;
-    }
-    *out = ex;
-    return TS_OK;
-}
-
-TS_API void ts_pixel_exemplars_free(ts_pixel_exemplars *ex)
-{
-    int i;
-    if (!ex)
-        return;
-    for (i = 0; i < ex->n_given; i++)
-        ts__pix_stack_free(&ex->stacks[i], ex->levels);
-    for (i = 0; i < 12; i++)
-        free(ex->basis[i]);
-    free(ex->stacks);
-    free(ex->turn);
-    free(ex->cell_base);
-    ts__pix_relief_free(&ex->relief);
-    free(ex);
-}
-
-TS_API int ts_pixel_levels(const ts_pixel_exemplars *ex)
-{
-    return ex ? ex->levels : 0;
-}
-
-TS_API int ts_pixel_window(const ts_pixel_exemplars *ex)
-{
-    return ex ? ex->window : 0;
-}
-
-/* The lattice step that samples `total` values with at most about 2^18. */
-static size_t pix_step(size_t total)
-{
-    size_t step = 1;
-    while (total / (step * step) > ((size_t)1 << 18))
-        step++;
-    return step;
-}
-
-/* Sorted samples of the exemplars' usable heights at the finest level (their nodata is
- * filled; every step-th of their lists one after the other) into *es, and of the guide's
- * values on a lattice into *gs, each about 2^18 at most; 0, or -1 (out of memory, or
- * either without a value; nothing is then allocated). */
-static int pix_samples(const ts_raster *guide, const ts_pixel_exemplars *ex, float **es,
-                       size_t *ne, float **gs, size_t *ng)
-{
-    size_t total = 0, j, step, lat;
-    int i, n, x, y;
-    *ne = *ng = 0;
-    n = TS_MIN(ex->n_given, 64);
-    for (i = 0; i < n; i++)
-        total += ex->stacks[i].n_usable[ex->levels];
-    step = pix_step(total);
-    lat = pix_step((size_t)guide->width * (size_t)guide->height); /* the guide's lattice */
-    *es = ts__malloc_array(total / step + 1, sizeof **es);
-    *gs = ts__malloc_array(((size_t)guide->width / lat + 1) * ((size_t)guide->height / lat + 1),
-                           sizeof **gs);
-    if (!*es || !*gs)
-        goto fail;
-    for (i = 0, j = 0; i < n; i++) {
-        const pix_stack *st = &ex->stacks[i];
-        size_t q;
-        for (q = 0; q < st->n_usable[ex->levels]; q++, j++)
-            if (j % step == 0)
-                (*es)[(*ne)++] = st->level[ex->levels][st->usable_list[ex->levels][q]];
-    }
-    for (y = 0; y < guide->height; y += (int)lat)
-        for (x = 0; x < guide->width; x += (int)lat)
-            if (!isnan(TS_PIX(guide, x, y)))
-                (*gs)[(*ng)++] = TS_PIX(guide, x, y);
-    if (!*ne || !*ng)
-        goto fail;
-    qsort(*es, *ne, sizeof **es, ts__float_cmp);
-    qsort(*gs, *ng, sizeof **gs, ts__float_cmp);
-    return 0;
-fail:
-    free(*es);
-    free(*gs);
-    *es = *gs = NULL;
-    return -1;
-}
-
-/* The 1st and 99th percentiles of sorted v[0, n). */
-static void pix_range_sorted(const float *v, size_t n, double range[2])
-{
-    size_t k = (size_t)(0.01 * (double)(n - 1) + 0.5);
-    range[0] = v[k];
-    range[1] = v[n - 1 - k];
-}
-
-TS_API int ts_pixel_guide_ranges(const ts_raster *guide, const ts_pixel_exemplars *ex,
-                                 double ex_range[2], double guide_range[2])
-{
-    float *es, *gs;
-    size_t ne, ng;
-    if (!guide || !guide->data || !ex || pix_samples(guide, ex, &es, &ne, &gs, &ng) != 0)
-        return -1;
-    pix_range_sorted(es, ne, ex_range);
-    pix_range_sorted(gs, ng, guide_range);
-    free(es);
-    free(gs);
-    return 0;
-}
-
-/* Where v falls among sorted s[0, n): the first index not below it and the first above. */
-static void pix_rank(const float *s, size_t n, float v, size_t *lo, size_t *hi)
-{
-    size_t a = 0, b = n;
-    while (a < b) {
-        size_t m = a + (b - a) / 2;
-        if (s[m] < v)
-            a = m + 1;
-        else
-            b = m;
-    }
-    *lo = a;
-    b = n;
-    while (a < b) {
-        size_t m = a + (b - a) / 2;
-        if (s[m] <= v)
-            a = m + 1;
-        else
-            b = m;
-    }
-    *hi = a;
-}
-
-/* The exemplars' height at quantile q of sorted e[0, n) (linear between samples). */
-static float pix_quantile(const float *e, size_t n, double q)
-{
-    double t = q * (double)(n - 1), f = floor(t);
-    size_t i = (size_t)f;
-    if (i + 1 >= n)
-        return e[n - 1];
-    return (float)(e[i] + (t - f) * (e[i + 1] - e[i]));
-}
-
-TS_API ts_status ts_pixel_guide_prepare(ts_ctx *ctx, const ts_raster *guide,
-                                        const ts_pixel_exemplars *ex,
-                                        const ts_pixel_params *params, ts_pixel_guide **out)
-{
-    ts_pixel_guide *g;
-    float *base, *es = NULL, *gs = NULL;
-    size_t ne = 0, ng = 0;
-    int l, y, L;
-    double scale = 1.0, shift = 0.0;
-    ts__clear(ctx);
-    if (!out)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "no output given");
-    *out = NULL;
-    if (!guide || !guide->data || !ex)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "missing guide or exemplars");
-    if (params && params->guide_heights == TS_GUIDE_STRETCH) {
-        /* the guide's 1st..99th percentiles onto the exemplars' */
-        double er[2], gr[2];
-        if (ts_pixel_guide_ranges(guide, ex, er, gr) != 0)
-            return ts__fail(ctx, TS_ERR_ARG, "pixel", "the guide or the exemplars have no value");
-        if (!(gr[1] > gr[0]))
-            return ts__fail(ctx, TS_ERR_ARG, "pixel",
-                            "the guide is flat (%g at its 1st and 99th percentiles): nothing "
-                            "to stretch",
-                            gr[0]);
-        scale = (er[1] - er[0]) / (gr[1] - gr[0]);
-        shift = er[0] - scale * gr[0];
-    }
-    if (params && params->guide_heights == TS_GUIDE_QUANTILE &&
-        pix_samples(guide, ex, &es, &ne, &gs, &ng) != 0)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel",
-                        "the guide or the exemplars have no value (or out of memory)");
-    L = ex->levels;
-    g = calloc(1, sizeof *g);
-    base = ts__malloc_array((size_t)guide->width * (size_t)guide->height, sizeof *base);
-    if (!g || !base || !(g->level = calloc((size_t)L + 1, sizeof *g->level))) {
-        free(g);
-        free(base);
-        free(es);
-        free(gs);
-        return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the guide");
-    }
-    g->width = guide->width;
-    g->height = guide->height;
-    g->levels = L;
-    for (y = 0; y < guide->height; y++) {
-        float *row = base + (size_t)y * guide->width;
-        int x;
-        memcpy(row, &TS_PIX(guide, 0, y), (size_t)guide->width * sizeof *base);
-        if (scale != 1.0 || shift != 0.0)
-            for (x = 0; x < guide->width; x++)
-                row[x] = (float)(scale * row[x] + shift);
-        if (es)
-            for (x = 0; x < guide->width; x++) {
-                /* the value's rank among the guide's (the middle of its ties), taken to
-                 * the exemplars' height of that rank, within their 1st..99th percentiles */
-                size_t lo, hi;
-                double q;
-                if (isnan(row[x]))
-                    continue;
-                pix_rank(gs, ng, row[x], &lo, &hi);
-                q = TS_MIN(0.99, TS_MAX(0.01, 0.5 * (double)(lo + hi) / (double)ng));
-                row[x] = pix_quantile(es, ne, q);
-            }
-    }
-    free(es);
-    free(gs);
-    for (l = 0; l <= L; l++) {
-        g->level[l] = ts__malloc_array((size_t)g->width * (size_t)g->height, sizeof **g->level);
-        if (!g->level[l] || ts__pix_blur(base, g->width, g->height,
-                                         l == L ? 0.0 : 0.5 * (1 << (L - l)), g->level[l]) != 0) {
-            free(base);
-            ts_pixel_guide_free(g);
-            return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory for the guide");
-        }
-    }
-    free(base);
-    *out = g;
-    return TS_OK;
-}
-
-TS_API void ts_pixel_guide_free(ts_pixel_guide *g)
-{
-    int l;
-    if (!g)
-        return;
-    for (l = 0; g->level && l <= g->levels; l++)
-        free(g->level[l]);
-    free(g->level);
-    free(g);
 }
 
 static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pixel_guide *guide,
@@ -1181,27 +737,34 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
         }
         /* initialise (level 0) or upsample and jitter */
         {
-            run_job rj = {ex, guide, params, coords, pre, &cur, NULL, l, L, hsp, jit, seed, 0, 0, 0,
-                          NULL, params->relief_scale > 0 ? params->relief_scale : ex->relief.scale,
+            run_job rj = {ex,
+                          guide,
+                          params,
+                          coords,
+                          pre,
+                          &cur,
+                          NULL,
+                          l,
+                          L,
+                          hsp,
+                          jit,
+                          seed,
+                          0,
+                          0,
+                          0,
+                          NULL,
+                          params->relief_scale > 0 ? params->relief_scale : ex->relief.scale,
                           relief};
             ts__parallel_for(ctx, (size_t)cur.h, init_rows, &rj);
         }
         /* correction */
         for (pass = 0; pass < params->passes; pass++)
             for (sub = 0; sub < 4; sub++) {
-                corr_job j = {ex,
-                              &cur,
-                              l,
-                              hsp,
-                              ex->kl[l],
-                              order[sub][0],
-                              order[sub][1],
-                              guide,
+                corr_job j = {ex, &cur, l, hsp, ex->kl[l], order[sub][0], order[sub][1], guide,
                               /* the guide steers the levels down to guide_spacing; the
                                * finer ones take their detail from the exemplars alone */
                               hsp >= params->guide_spacing ? params->guide_weight : 0.0,
-                              params->guide_mode == TS_GUIDE_ADD,
-                              0};
+                              params->guide_mode == TS_GUIDE_ADD, 0};
                 ts__parallel_for(ctx, (size_t)cur.h, height_rows, &j);
                 ts__parallel_for(ctx, (size_t)cur.h, correct_rows, &j);
                 if (j.fail) {
@@ -1227,8 +790,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
      * the four agree this is the exemplar's band there; across a seam between coherent
      * regions it blends, and the step is one band's, not the whole heights' */
     {
-        run_job rj = {ex, guide, params, coords, pre, &cur, out, L, L, 1, 0, seed, x0, y0, M, src, 0,
-                      relief};
+        run_job rj = {ex, guide, params, coords, pre, &cur, out, L, L,
+                      1,  0,     seed,   x0,     y0,  M,    src, 0, relief};
         ts__parallel_for(ctx, (size_t)out->height, output_rows, &rj);
     }
 done:

@@ -1,7 +1,7 @@
 /*
  * relief_start.c - where the coarsest level starts, without a guide (ours,
  * named as such: a TerraSynth addition to Lefebvre and Hoppe's
- * multiresolution synthesis; issue 14).
+ * multiresolution synthesis).
  *
  * Started from a coordinate per cell chosen at random, the corrections of
  * the coarsest level compare each cell's neighbourhood with heights drawn

@@ -8,7 +8,7 @@
  * spanning forest of the segment graph (the cycle property), so it is
  * computed here with Kruskal's algorithm: segments sorted by a stable LSD
  * radix sort on the weight, then a union-find with path halving and union
- * by size.  tests/c/test_ppa.c checks it against naive repeated polygon
+ * by size.  tests/c/ppa/test_ppa.c checks it against naive repeated polygon
  * breaking on random DEMs.
  * Cost: O(n) sort + O(n alpha(n)) union-find; memory 12 bytes/segment +
  * 8 bytes/cell.

@@ -573,12 +573,238 @@ static ts_status layout_kind_distances(ts_ctx *ctx, const ts_layout_spec *s, int
     return ts__distance_transform_nearest(ctx, m, s->width, s->height, b->dist_v, b->near_v);
 }
 
+/* The level of each exemplar's features: its main features of the kind,
+ * or, when it has none, its mean height. */
+static void layout_levels(ts_ctx *ctx, const ts_layout_spec *s, double *levels)
+{
+    int e;
+    for (e = 0; e < s->n_exemplars; e++) {
+        ts_raster_stats rs;
+        if (s->profs && s->profs[e].valid)
+            levels[e] = s->profs[e].level;
+        else if (ts_raster_stats_compute(ctx, &s->exemplars[e], &rs) == TS_OK)
+            levels[e] = rs.mean;
+    }
+    ts__clear(ctx);
+}
+
+/* Steepness of the guides and of the exemplars at both scales: gl and gc,
+ * the exemplars' over the guides'.  *found: 0 when no feature is on the
+ * grid.  shape: the layout's shape (both kinds), else NULL. */
+static ts_status layout_calibrate(ts_ctx *ctx, const layout_run_data *d, const float *shape,
+                                  double *gl, double *gc, int *found)
+{
+    const ts_layout_spec *s = d->s;
+    int W = s->width, H = s->height, e;
+    double g1, gc1;
+    ts_status st;
+    *found = 0;
+    if ((st = layout_reach_gradient(ctx, d->ws, d->dist, shape, s->nodata, W, H, d->c_l, d->sig_l,
+                                    INFINITY, &g1)) != TS_OK ||
+        (st = layout_reach_gradient(ctx, d->ws, d->dist, NULL, s->nodata, W, H, d->c_c, d->sig_c,
+                                    2.0 * d->c_c, &gc1)) != TS_OK ||
+        (st = layout_exemplar_gradients(ctx, s, d->sig_l, gl)) != TS_OK ||
+        (st = layout_exemplar_gradients(ctx, s, d->sig_c, gc)) != TS_OK)
+        return st;
+    if (!(g1 > 0) || !(gc1 > 0))
+        return TS_OK; /* no feature on the grid */
+    for (e = 0; e < s->n_exemplars; e++) {
+        gl[e] /= g1;
+        gc[e] /= gc1;
+    }
+    *found = 1;
+    return TS_OK;
+}
+
+/* r0 and r01: copies of out; returns the mean height of its cells away
+ * from fixed ones. */
+static double layout_copies(const layout_run_data *d, const ts_raster *out, float *r0, float *r01)
+{
+    int W = d->s->width, H = d->s->height, y;
+    size_t n = (size_t)W * (size_t)H, i, cnt = 0;
+    double mean_before = 0.0;
+    for (y = 0; y < H; y++) {
+        memcpy(r0 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+               (size_t)W * sizeof(float));
+        memcpy(r01 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+               (size_t)W * sizeof(float));
+    }
+    for (i = 0; i < n; i++)
+        if (!isnan(r0[i]) && !(d->fixd && d->fixd[i] < 2.0 * d->sig_l)) {
+            mean_before += r0[i];
+            cnt++;
+        }
+    return cnt ? mean_before / (double)cnt : 0.0;
+}
+
+/* The steepness that gives the output the exemplars' distribution of
+ * slopes (the patches' merging flattens a little; a steep exemplar's
+ * guide adds to its own slopes): the least Wasserstein distance of the
+ * gradient distributions, golden-section search over 0.35..2.5 times
+ * the calibrated steepness.  Above 1 the layout and the crest steepen
+ * together (r0 + lam corr); below 1 only the layout gentles (r01 + lam
+ * d01): the sketched features keep standing out over an exemplar whose
+ * land is mostly flat.  With the slope style after it (slope_style.c,
+ * which matches the distribution itself and never gentles near the
+ * strokes) the search starts at 1: the layout is never gentler than the
+ * exemplar at its scale.  *lam is left as it is without a distribution. */
+static ts_status layout_steepness(ts_ctx *ctx, const ts_layout_spec *s, const float *r0,
+                                  const float *corr, const float *r01, const float *d01,
+                                  float *work, double *lam)
+{
+    double target[LAYOUT_QUANTILES], q[LAYOUT_QUANTILES];
+    int W = s->width, H = s->height, e, k, n_t = 0, it;
+    double lo = log(s->steep_lo > 0 ? s->steep_lo : 0.35), hi = log(2.5);
+    double g = 0.5 * (sqrt(5.0) - 1.0), x1, x2, f1, f2;
+    memset(target, 0, sizeof target);
+    for (e = 0; e < s->n_exemplars; e++) {
+        const ts_raster *ex = &s->exemplars[e];
+        float *wk = ts__malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
+        if (!wk)
+            return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        if (layout_gradient_quantiles(ex->data, NULL, ex->stride, ex->width, ex->height, 0.0, wk,
+                                      q)) {
+            for (k = 0; k < LAYOUT_QUANTILES; k++)
+                target[k] += q[k];
+            n_t++;
+        }
+        free(wk);
+    }
+#define LAYOUT_MISFIT(lm)                                                                          \
+    ((lm) >= 1.0 ? layout_misfit(r0, corr, W, H, (lm), target, work)                               \
+                 : layout_misfit(r01, d01, W, H, (lm), target, work))
+    if (n_t) {
+        for (k = 0; k < LAYOUT_QUANTILES; k++)
+            target[k] /= n_t;
+        x1 = hi - g * (hi - lo);
+        x2 = lo + g * (hi - lo);
+        f1 = LAYOUT_MISFIT(exp(x1));
+        f2 = LAYOUT_MISFIT(exp(x2));
+        for (it = 0; it < 16; it++) {
+            if (f1 <= f2) {
+                hi = x2;
+                x2 = x1;
+                f2 = f1;
+                x1 = hi - g * (hi - lo);
+                f1 = LAYOUT_MISFIT(exp(x1));
+            } else {
+                lo = x1;
+                x1 = x2;
+                f1 = f2;
+                x2 = lo + g * (hi - lo);
+                f2 = LAYOUT_MISFIT(exp(x2));
+            }
+        }
+        *lam = exp(0.5 * (lo + hi));
+    }
+#undef LAYOUT_MISFIT
+    return TS_OK;
+}
+
+/* The layout moves heights about, not the land's mean height: the mean
+ * (over the cells of r0 away from fixed ones) is put back where the
+ * patches had it, mean_before (fading out near fixed cells). */
+static void layout_keep_mean(const layout_run_data *d, ts_raster *out, const float *r0,
+                             double mean_before)
+{
+    int W = d->s->width, H = d->s->height, x, y;
+    size_t n = (size_t)W * (size_t)H, i, cnt = 0;
+    const float *fixd = d->fixd;
+    double after = 0.0, shift;
+    for (i = 0; i < n; i++) {
+        double z = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
+        if (isnan(z) || isnan(r0[i]) || (fixd && fixd[i] < 2.0 * d->sig_l))
+            continue;
+        after += z;
+        cnt++;
+    }
+    shift = cnt ? (mean_before - after / (double)cnt) : 0.0;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            double w = 1.0;
+            i = (size_t)y * (size_t)W + (size_t)x;
+            if (isnan(TS_PIX(out, x, y)))
+                continue;
+            if (fixd) {
+                double t = fixd[i] / (2.0 * d->sig_l);
+                t = t > 1.0 ? 1.0 : t;
+                w = t * t * (3.0 - 2.0 * t);
+            }
+            TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * shift);
+        }
+}
+
+/* valleys: the floor along the sketch's features descends to the outlet
+ * cell by cell, the change fading out across the valley over an eighth of
+ * a patch (as a river would cut or fill its bed).  m, dist, nearest: the
+ * distances' work; d01: work, width*height. */
+static ts_status layout_valley_floors(ts_ctx *ctx, const layout_run_data *d, ts_raster *out,
+                                      unsigned char *m, float *dist, int32_t *nearest, float *d01)
+{
+    const ts_layout_spec *s = d->s;
+    int W = s->width, H = s->height, x, y;
+    size_t n = (size_t)W * (size_t)H, i;
+    double P = s->patch, rr = P / 8.0;
+    float *work = d->work, *corr = d->corr, *guide = d->guide;
+    const float *fixd = d->fixd;
+    ts_status st;
+    if (d->kind != TS_VALLEY) {
+        /* from here on the distances are to the valleys (all of them) */
+        for (i = 0; i < n; i++)
+            m[i] = (s->sketch_mask[i] & TS_VALLEY) != 0;
+        if ((st = ts__distance_transform_nearest(ctx, m, W, H, dist, nearest)) != TS_OK)
+            return st;
+    }
+    for (i = 0; i < n; i++) {
+        float v = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
+        work[i] = (s->sketch_mask[i] & TS_VALLEY) && !(fixd && fixd[i] < 1.0f) ? v : NAN;
+        corr[i] = work[i];
+    }
+    if ((st = ts__valley_descend(ctx, s, corr)) != TS_OK)
+        return st;
+    /* the change on the floor line, and its normalised blur at rr / 2
+     * (defined off the line too): the blur spreads across the valley,
+     * the rest (the floor's own cell-to-cell bumps, levelled) stays on
+     * the line, so the floor still descends cell by cell.  Spreading
+     * the change itself from each cell's nearest floor cell made
+     * stripes across the valley, one per step of the line's staircase */
+    for (i = 0; i < n; i++)
+        corr[i] = isnan(work[i]) || isnan(corr[i]) ? NAN : corr[i] - work[i];
+    if ((st = lblur(ctx, d->ws, corr, W, W, H, 0.5 * rr, guide)) != TS_OK)
+        return st;
+    /* the fall-off across the valley from the distance blurred at 2
+     * cells: the distance to a staircase of cells ripples along it (a
+     * third of a cell, once a step), and a floor moved by tens of
+     * metres drew those ripples as a ladder across the valley */
+    if ((st = lblur(ctx, d->ws, dist, W, W, H, 2.0, d01)) != TS_OK)
+        return st;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            double w;
+            i = (size_t)y * (size_t)W + (size_t)x;
+            if (nearest[i] < 0 || isnan(TS_PIX(out, x, y)) || isnan(guide[i]) ||
+                !(dist[i] < 3.0 * rr))
+                continue;
+            /* on the floor line its own change (the floor descends cell
+             * by cell), beside it the smooth part fading out */
+            w = isnan(corr[i]) ? d->strength * exp(-(d01[i] / rr) * (d01[i] / rr)) : d->strength;
+            if (fixd) {
+                double t = fixd[i] / (2.0 * rr);
+                t = t > 1.0 ? 1.0 : t;
+                w *= t * t * (3.0 - 2.0 * t);
+            }
+            TS_PIX(out, x, y) =
+                (float)(TS_PIX(out, x, y) + w * (isnan(corr[i]) ? guide[i] : corr[i]));
+        }
+    return TS_OK;
+}
+
 ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
                            const unsigned char *flags, double strength)
 {
-    int W = s->width, H = s->height, any_fixed = 0, e, x, y;
+    int W = s->width, H = s->height, any_fixed = 0, found, x, y;
     size_t n = (size_t)W * (size_t)H, i;
-    double P = s->patch, g1, gc1, lam = 1.0, mean_before = 0.0;
+    double P = s->patch, lam = 1.0, mean_before;
     unsigned char *m = ts__malloc_array(n, 1);
     float *dist = ts__malloc_array(n, sizeof(float));
     int32_t *nearest = ts__malloc_array(n, sizeof(int32_t));
@@ -606,16 +832,7 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
         goto done;
     }
-    /* the level of the features: the exemplar's main features of the kind,
-     * or, when it has none, its mean height */
-    for (e = 0; e < s->n_exemplars; e++) {
-        ts_raster_stats rs;
-        if (s->profs && s->profs[e].valid)
-            levels[e] = s->profs[e].level;
-        else if (ts_raster_stats_compute(ctx, &s->exemplars[e], &rs) == TS_OK)
-            levels[e] = rs.mean;
-    }
-    ts__clear(ctx);
+    layout_levels(ctx, s, levels);
     for (i = 0; i < n; i++) {
         m[i] = (s->sketch_mask[i] & s->kind) != 0;
         d.kind |= s->sketch_mask[i] & s->kind & (TS_RIDGE | TS_VALLEY);
@@ -647,7 +864,6 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     d.dist = dist;
     d.b = d.kind == (TS_RIDGE | TS_VALLEY) ? &both : NULL;
     d.near_v = d.b ? both.near_v : nearest;
-
     d.fixd = fixd;
     d.nearest = nearest;
     d.gl = gl;
@@ -667,109 +883,25 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         for (i = 0; i < n; i++)
             shape[i] = (float)layout_shape(&d, i, d.c_l);
     }
-    /* steepness of the guides and of the exemplars at both scales */
-    if ((st = layout_reach_gradient(ctx, &ws, dist, shape, s->nodata, W, H, d.c_l, d.sig_l,
-                                    INFINITY, &g1)) != TS_OK ||
-        (st = layout_reach_gradient(ctx, &ws, dist, NULL, s->nodata, W, H, d.c_c, d.sig_c,
-                                    2.0 * d.c_c, &gc1)) != TS_OK ||
-        (st = layout_exemplar_gradients(ctx, s, d.sig_l, gl)) != TS_OK ||
-        (st = layout_exemplar_gradients(ctx, s, d.sig_c, gc)) != TS_OK)
+    if ((st = layout_calibrate(ctx, &d, shape, gl, gc, &found)) != TS_OK || !found)
         goto done;
-    if (!(g1 > 0) || !(gc1 > 0))
-        goto done; /* no feature on the grid */
-    for (e = 0; e < s->n_exemplars; e++) {
-        gl[e] /= g1;
-        gc[e] /= gc1;
-    }
     /* the corrections are linear in the guides' steepness: the layout's
      * and the crest's together (out: both at 1, r0: both at 0), or the
      * layout's alone under the crest's at 1 (r01: layout at 0) */
-    for (y = 0; y < H; y++) {
-        memcpy(r0 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
-               (size_t)W * sizeof(float));
-        memcpy(r01 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
-               (size_t)W * sizeof(float));
-    }
+    mean_before = layout_copies(&d, out, r0, r01);
     r0r = ts_raster_wrap(r0, W, H, W);
     r01r = ts_raster_wrap(r01, W, H, W);
-    {
-        size_t cnt = 0;
-        for (i = 0; i < n; i++)
-            if (!isnan(r0[i]) && !(fixd && fixd[i] < 2.0 * d.sig_l)) {
-                mean_before += r0[i];
-                cnt++;
-            }
-        mean_before = cnt ? mean_before / (double)cnt : 0.0;
-    }
     if ((st = layout_run(ctx, &d, out, 1.0, 1.0)) != TS_OK ||
         (st = layout_run(ctx, &d, &r0r, 0.0, 0.0)) != TS_OK ||
         (st = layout_run(ctx, &d, &r01r, 0.0, 1.0)) != TS_OK)
         goto done;
-    /* the steepness that gives the output the exemplars' distribution of
-     * slopes (the patches' merging flattens a little; a steep exemplar's
-     * guide adds to its own slopes): the least Wasserstein distance of the
-     * gradient distributions, golden-section search over 0.35..2.5 times
-     * the calibrated steepness.  Above 1 the layout and the crest steepen
-     * together; below 1 only the layout gentles: the sketched features keep
-     * standing out over an exemplar whose land is mostly flat.  With the
-     * slope style after it (slope_style.c, which matches the distribution
-     * itself and never gentles near the strokes) the search starts at 1:
-     * the layout is never gentler than the exemplar at its scale */
     for (i = 0; i < n; i++) { /* the parts the steepness scales */
         float o = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
         corr[i] = o - r0[i];
         d01[i] = o - r01[i];
     }
-    {
-        double target[LAYOUT_QUANTILES], q[LAYOUT_QUANTILES];
-        int k, n_t = 0, it;
-        double lo = log(s->steep_lo > 0 ? s->steep_lo : 0.35), hi = log(2.5);
-        double g = 0.5 * (sqrt(5.0) - 1.0), x1, x2, f1, f2;
-        memset(target, 0, sizeof target);
-        for (e = 0; e < s->n_exemplars; e++) {
-            const ts_raster *ex = &s->exemplars[e];
-            float *wk = ts__malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
-            if (!wk) {
-                st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-                goto done;
-            }
-            if (layout_gradient_quantiles(ex->data, NULL, ex->stride, ex->width, ex->height, 0.0,
-                                          wk, q)) {
-                for (k = 0; k < LAYOUT_QUANTILES; k++)
-                    target[k] += q[k];
-                n_t++;
-            }
-            free(wk);
-        }
-#define LAYOUT_MISFIT(lm)                                                                          \
-    ((lm) >= 1.0 ? layout_misfit(r0, corr, W, H, (lm), target, work)                               \
-                 : layout_misfit(r01, d01, W, H, (lm), target, work))
-        if (n_t) {
-            for (k = 0; k < LAYOUT_QUANTILES; k++)
-                target[k] /= n_t;
-            x1 = hi - g * (hi - lo);
-            x2 = lo + g * (hi - lo);
-            f1 = LAYOUT_MISFIT(exp(x1));
-            f2 = LAYOUT_MISFIT(exp(x2));
-            for (it = 0; it < 16; it++) {
-                if (f1 <= f2) {
-                    hi = x2;
-                    x2 = x1;
-                    f2 = f1;
-                    x1 = hi - g * (hi - lo);
-                    f1 = LAYOUT_MISFIT(exp(x1));
-                } else {
-                    lo = x1;
-                    x1 = x2;
-                    f1 = f2;
-                    x2 = lo + g * (hi - lo);
-                    f2 = LAYOUT_MISFIT(exp(x2));
-                }
-            }
-            lam = exp(0.5 * (lo + hi));
-        }
-#undef LAYOUT_MISFIT
-    }
+    if ((st = layout_steepness(ctx, s, r0, corr, r01, d01, work, &lam)) != TS_OK)
+        goto done;
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
             i = (size_t)y * (size_t)W + (size_t)x;
@@ -777,90 +909,12 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
                 TS_PIX(out, x, y) =
                     (float)(lam >= 1.0 ? r0[i] + lam * corr[i] : r01[i] + lam * d01[i]);
         }
-    /* the layout moves heights about, not the land's mean height: the mean
-     * is put back where the patches had it (fading out near fixed cells) */
-    {
-        double after = 0.0, shift;
-        size_t cnt = 0;
-        for (i = 0; i < n; i++) {
-            double z = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
-            if (isnan(z) || isnan(r0[i]) || (fixd && fixd[i] < 2.0 * d.sig_l))
-                continue;
-            after += z;
-            cnt++;
-        }
-        shift = cnt ? (mean_before - after / (double)cnt) : 0.0;
-        for (y = 0; y < H; y++)
-            for (x = 0; x < W; x++) {
-                double w = 1.0;
-                i = (size_t)y * (size_t)W + (size_t)x;
-                if (isnan(TS_PIX(out, x, y)))
-                    continue;
-                if (fixd) {
-                    double t = fixd[i] / (2.0 * d.sig_l);
-                    t = t > 1.0 ? 1.0 : t;
-                    w = t * t * (3.0 - 2.0 * t);
-                }
-                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * shift);
-            }
-    }
+    layout_keep_mean(&d, out, r0, mean_before);
     if ((st = layout_press(ctx, &ws, s->exemplars, s->n_exemplars, out, fixd, d.sig_l, work,
                            corr)) != TS_OK)
         goto done;
-    /* valleys: the floor along the sketch's features descends to the
-     * outlet cell by cell, the change fading out across the valley over an
-     * eighth of a patch (as a river would cut or fill its bed) */
-    if (d.kind & TS_VALLEY) {
-        double rr = P / 8.0;
-        if (d.kind != TS_VALLEY) {
-            /* from here on the distances are to the valleys (all of them) */
-            for (i = 0; i < n; i++)
-                m[i] = (s->sketch_mask[i] & TS_VALLEY) != 0;
-            if ((st = ts__distance_transform_nearest(ctx, m, W, H, dist, nearest)) != TS_OK)
-                goto done;
-        }
-        for (i = 0; i < n; i++) {
-            float v = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
-            work[i] = (s->sketch_mask[i] & TS_VALLEY) && !(fixd && fixd[i] < 1.0f) ? v : NAN;
-            corr[i] = work[i];
-        }
-        if ((st = ts__valley_descend(ctx, s, corr)) != TS_OK)
-            goto done;
-        /* the change on the floor line, and its normalised blur at rr / 2
-         * (defined off the line too): the blur spreads across the valley,
-         * the rest (the floor's own cell-to-cell bumps, levelled) stays on
-         * the line, so the floor still descends cell by cell.  Spreading
-         * the change itself from each cell's nearest floor cell made
-         * stripes across the valley, one per step of the line's staircase */
-        for (i = 0; i < n; i++)
-            corr[i] = isnan(work[i]) || isnan(corr[i]) ? NAN : corr[i] - work[i];
-        if ((st = lblur(ctx, &ws, corr, W, W, H, 0.5 * rr, guide)) != TS_OK)
-            goto done;
-        /* the fall-off across the valley from the distance blurred at 2
-         * cells: the distance to a staircase of cells ripples along it (a
-         * third of a cell, once a step), and a floor moved by tens of
-         * metres drew those ripples as a ladder across the valley */
-        if ((st = lblur(ctx, &ws, dist, W, W, H, 2.0, d01)) != TS_OK)
-            goto done;
-        for (y = 0; y < H; y++)
-            for (x = 0; x < W; x++) {
-                double w;
-                i = (size_t)y * (size_t)W + (size_t)x;
-                if (nearest[i] < 0 || isnan(TS_PIX(out, x, y)) || isnan(guide[i]) ||
-                    !(dist[i] < 3.0 * rr))
-                    continue;
-                /* on the floor line its own change (the floor descends cell
-                 * by cell), beside it the smooth part fading out */
-                w = isnan(corr[i]) ? strength * exp(-(d01[i] / rr) * (d01[i] / rr)) : strength;
-                if (fixd) {
-                    double t = fixd[i] / (2.0 * rr);
-                    t = t > 1.0 ? 1.0 : t;
-                    w *= t * t * (3.0 - 2.0 * t);
-                }
-                TS_PIX(out, x, y) =
-                    (float)(TS_PIX(out, x, y) + w * (isnan(corr[i]) ? guide[i] : corr[i]));
-            }
-    }
+    if (d.kind & TS_VALLEY)
+        st = layout_valley_floors(ctx, &d, out, m, dist, nearest, d01);
 done:
     free(m);
     free(dist);

@@ -30,9 +30,8 @@
  * resampling floor on the cases measured (sketch.md).  Cost: one Poisson
  * solve per pass, to a loose relative residual (3e-3), started from the
  * current heights: the figures of the quality matrix are the same as at
- * 1e-5 in a third of the time (2000 x 2000: 4.2 s against 6.0 s at 1e-3),
- * but a change at the scale of the whole grid lags (all slopes doubled:
- * 2.4 % of the relief off, 0.005 % at 1e-6).
+ * 1e-5 in far less time, but a change at the scale of the whole grid lags
+ * (all slopes doubled: 2.4 % of the relief off, 0.005 % at 1e-6).
  *
  * Then no crease sharper than the exemplars' sharpest: a cell whose
  * |Laplacian| passes the exemplar's 99.99th percentile moves half-way
@@ -190,65 +189,69 @@ static double crease_cap(const float *a, ptrdiff_t stride, int w, int h, float *
     return i0 + 1 < n ? work[i0] + (pos - (double)i0) * (work[i0 + 1] - work[i0]) : work[n - 1];
 }
 
-ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *out)
+/* What the steps share: the spec, the grid, the heights u being styled,
+ * mask (the cells that move), group (per cell its exemplar, or NULL: one
+ * group), per group the wanted quantiles qe, the output's qo, the crease
+ * cap and has (1: a wanted distribution, 2: none of the output), and the
+ * work arrays. */
+typedef struct slope_work {
+    const ts_slope_style_spec *s;
+    int W, H, n_groups;
+    float *u, *gx, *gy, *fac, *work, *exwork, *keep;
+    unsigned char *mask;
+    int32_t *group;
+    double *qe, *qo, *cap;
+    char *has;
+} slope_work;
+
+/* The arrays of the passes (keep excepted).  TS_OK or the failure. */
+static ts_status slope_alloc(ts_ctx *ctx, slope_work *sw)
 {
-    int W = out->width, H = out->height, n_groups, grp, pass, x, y;
-    size_t n = (size_t)W * (size_t)H, i, ex_cap = 0;
-    float *u = NULL, *gx = NULL, *gy = NULL, *fac = NULL, *work = NULL, *exwork = NULL;
-    float *keep = NULL;
-    unsigned char *mask = NULL;
-    int32_t *group = NULL;
-    double *qe = NULL, *qo = NULL, *cap = NULL;
-    char *has = NULL;
-    ts_status st = TS_OK;
-    if (!(s->strength > 0) || W < 3 || H < 3 || s->n_exemplars < 1)
-        return TS_OK;
-    /* one group per exemplar when a region map chose them, else one */
-    n_groups = (s->cell_exemplar && s->n_exemplars > 1) ? s->n_exemplars : 1;
+    const ts_slope_style_spec *s = sw->s;
+    size_t n = (size_t)sw->W * (size_t)sw->H, ex_cap = 0;
+    int n_groups = sw->n_groups, grp;
     for (grp = 0; grp < s->n_exemplars; grp++) {
         const ts_raster *e = &s->exemplars[grp];
         ex_cap = TS_MAX(ex_cap, (size_t)e->width * (size_t)e->height);
     }
     ex_cap = TS_MIN(ex_cap, (size_t)SLOPE_SAMPLES * 2 + 4096);
-    u = ts__malloc_array(n, sizeof *u);
-    gx = ts__malloc_array(n, sizeof *gx);
-    gy = ts__malloc_array(n, sizeof *gy);
-    fac = ts__malloc_array(n, sizeof *fac);
-    work = ts__malloc_array(TS_MIN(n, (size_t)SLOPE_SAMPLES * 2 + 4096), sizeof *work);
-    exwork = ts__malloc_array(ex_cap, sizeof *exwork);
-    mask = ts__malloc_array(n, 1);
-    qe = ts__calloc_array((size_t)n_groups * SLOPE_Q, sizeof *qe);
-    qo = ts__calloc_array((size_t)n_groups * SLOPE_Q, sizeof *qo);
-    has = ts__calloc_array((size_t)n_groups, 1);
-    cap = ts__calloc_array((size_t)n_groups, sizeof *cap);
+    sw->u = ts__malloc_array(n, sizeof *sw->u);
+    sw->gx = ts__malloc_array(n, sizeof *sw->gx);
+    sw->gy = ts__malloc_array(n, sizeof *sw->gy);
+    sw->fac = ts__malloc_array(n, sizeof *sw->fac);
+    sw->work = ts__malloc_array(TS_MIN(n, (size_t)SLOPE_SAMPLES * 2 + 4096), sizeof *sw->work);
+    sw->exwork = ts__malloc_array(ex_cap, sizeof *sw->exwork);
+    sw->mask = ts__malloc_array(n, 1);
+    sw->qe = ts__calloc_array((size_t)n_groups * SLOPE_Q, sizeof *sw->qe);
+    sw->qo = ts__calloc_array((size_t)n_groups * SLOPE_Q, sizeof *sw->qo);
+    sw->has = ts__calloc_array((size_t)n_groups, 1);
+    sw->cap = ts__calloc_array((size_t)n_groups, sizeof *sw->cap);
     if (n_groups > 1)
-        group = ts__malloc_array(n, sizeof *group);
-    if (!u || !gx || !gy || !fac || !work || !exwork || !mask || !qe || !qo || !has || !cap ||
-        (n_groups > 1 && !group)) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, SLOPE_STAGE, "out of memory");
-        goto done;
-    }
-    if (s->features && s->keep_radius > 0) { /* distances to the sketch's features */
-        if (!(keep = ts__malloc_array(n, sizeof *keep))) {
-            st = ts__fail(ctx, TS_ERR_NOMEM, SLOPE_STAGE, "out of memory");
-            goto done;
-        }
-        for (i = 0; i < n; i++)
-            mask[i] = (s->features[i] & s->kind) != 0;
-        if ((st = ts__distance_transform(ctx, mask, W, H, keep)) != TS_OK)
-            goto done;
-    }
-    for (y = 0; y < H; y++)
-        memcpy(u + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
-               (size_t)W * sizeof *u);
-    for (i = 0; i < n; i++) {
-        mask[i] = !isnan(u[i]) && !(s->flags && (s->flags[i] & TS_CELL_FIXED));
-        if (group)
-            group[i] = s->cell_exemplar[i] >= 0 && s->cell_exemplar[i] < s->n_exemplars
-                           ? s->cell_exemplar[i]
-                           : -1;
-    }
-    /* the wanted distributions: per exemplar, or all exemplars pooled */
+        sw->group = ts__malloc_array(n, sizeof *sw->group);
+    if (!sw->u || !sw->gx || !sw->gy || !sw->fac || !sw->work || !sw->exwork || !sw->mask ||
+        !sw->qe || !sw->qo || !sw->has || !sw->cap || (n_groups > 1 && !sw->group))
+        return ts__fail(ctx, TS_ERR_NOMEM, SLOPE_STAGE, "out of memory");
+    return TS_OK;
+}
+
+/* The distances to the sketch's features, into keep.  mask: work. */
+static ts_status slope_keep_distances(ts_ctx *ctx, slope_work *sw)
+{
+    const ts_slope_style_spec *s = sw->s;
+    size_t n = (size_t)sw->W * (size_t)sw->H, i;
+    if (!(sw->keep = ts__malloc_array(n, sizeof *sw->keep)))
+        return ts__fail(ctx, TS_ERR_NOMEM, SLOPE_STAGE, "out of memory");
+    for (i = 0; i < n; i++)
+        sw->mask[i] = (s->features[i] & s->kind) != 0;
+    return ts__distance_transform(ctx, sw->mask, sw->W, sw->H, sw->keep);
+}
+
+/* The wanted distributions: per exemplar, or all exemplars pooled; and
+ * the sharpest crease of each group's exemplars. */
+static void slope_targets(slope_work *sw)
+{
+    const ts_slope_style_spec *s = sw->s;
+    int n_groups = sw->n_groups, grp;
     for (grp = 0; grp < n_groups; grp++) {
         double q[SLOPE_Q], c;
         int e, k, cnt = 0;
@@ -256,159 +259,231 @@ ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *
             const ts_raster *ex = &s->exemplars[e];
             if (n_groups > 1 && e != grp)
                 continue;
-            if (slope_quantiles(ex->data, ex->stride, ex->width, ex->height, NULL, 0, exwork, q)) {
+            if (slope_quantiles(ex->data, ex->stride, ex->width, ex->height, NULL, 0, sw->exwork,
+                                q)) {
                 for (k = 0; k < SLOPE_Q; k++)
-                    qe[(size_t)grp * SLOPE_Q + (size_t)k] += q[k];
+                    sw->qe[(size_t)grp * SLOPE_Q + (size_t)k] += q[k];
                 cnt++;
             }
-            c = crease_cap(ex->data, ex->stride, ex->width, ex->height, exwork);
+            c = crease_cap(ex->data, ex->stride, ex->width, ex->height, sw->exwork);
             if (!isnan(c))
-                cap[grp] = TS_MAX(cap[grp], c);
+                sw->cap[grp] = TS_MAX(sw->cap[grp], c);
         }
         if (cnt) {
             for (k = 0; k < SLOPE_Q; k++)
-                qe[(size_t)grp * SLOPE_Q + (size_t)k] /= cnt;
-            has[grp] = 1;
+                sw->qe[(size_t)grp * SLOPE_Q + (size_t)k] /= cnt;
+            sw->has[grp] = 1;
         }
     }
-    for (pass = 0; pass < SLOPE_STYLE_PASSES; pass++) {
-        ts_progress_saved sv;
-        for (grp = 0; grp < n_groups; grp++)
-            if (has[grp] && !slope_quantiles(u, W, W, H, group, grp, work,
-                                             qo + (size_t)grp * SLOPE_Q))
-                has[grp] = 2; /* no cell of the region has a gradient: left as it is */
-        for (y = 0; y < H; y++)
-            for (x = 0; x < W; x++) {
-                double g = slope_at(u, W, W, H, x, y), f = 1.0;
-                int32_t gi;
-                i = (size_t)y * (size_t)W + (size_t)x;
-                gi = group ? group[i] : 0;
-                if (!isnan(g) && gi >= 0 && has[gi] == 1 && g > 1e-9) {
-                    f = slope_map(g, qo + (size_t)gi * SLOPE_Q, qe + (size_t)gi * SLOPE_Q) / g;
-                    f = pow(TS_MAX(f, 1e-300), s->strength);
-                    f = TS_MIN(TS_MAX(f, 1.0 / SLOPE_FACTOR_MAX), SLOPE_FACTOR_MAX);
-                    if (keep && keep[i] < s->keep_radius && f < 1.0) {
-                        /* the sketch's features keep standing out: near them
-                         * slopes are gentled only down to the exemplar's
-                         * steepest half percent */
-                        double top = qe[(size_t)gi * SLOPE_Q + SLOPE_KEEP_Q];
-                        f = g > top ? TS_MAX(f, top / g) : 1.0;
-                    }
+}
+
+/* Every cell's factor (G^-1(F(g)) / g)^strength, clamped; near the
+ * sketch's features never gentler than the exemplar's steepest half
+ * percent. */
+static void slope_factors(slope_work *sw)
+{
+    const ts_slope_style_spec *s = sw->s;
+    int W = sw->W, H = sw->H, x, y;
+    const double *qo = sw->qo, *qe = sw->qe;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            double g = slope_at(sw->u, W, W, H, x, y), f = 1.0;
+            size_t i = (size_t)y * (size_t)W + (size_t)x;
+            int32_t gi = sw->group ? sw->group[i] : 0;
+            if (!isnan(g) && gi >= 0 && sw->has[gi] == 1 && g > 1e-9) {
+                f = slope_map(g, qo + (size_t)gi * SLOPE_Q, qe + (size_t)gi * SLOPE_Q) / g;
+                f = pow(TS_MAX(f, 1e-300), s->strength);
+                f = TS_MIN(TS_MAX(f, 1.0 / SLOPE_FACTOR_MAX), SLOPE_FACTOR_MAX);
+                if (sw->keep && sw->keep[i] < s->keep_radius && f < 1.0) {
+                    /* the sketch's features keep standing out: near them
+                     * slopes are gentled only down to the exemplar's
+                     * steepest half percent */
+                    double top = qe[(size_t)gi * SLOPE_Q + SLOPE_KEEP_Q];
+                    f = g > top ? TS_MAX(f, top / g) : 1.0;
                 }
-                fac[i] = (float)f;
             }
-        for (y = 0; y < H; y++)
-            for (x = 0; x < W; x++) {
-                i = (size_t)y * (size_t)W + (size_t)x;
-                gx[i] = x + 1 < W && !isnan(u[i]) && !isnan(u[i + 1])
+            sw->fac[i] = (float)f;
+        }
+}
+
+/* Each edge's wanted difference: its own times its cells' factor. */
+static void slope_edges(slope_work *sw)
+{
+    int W = sw->W, H = sw->H, x, y;
+    const float *u = sw->u, *fac = sw->fac;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            size_t i = (size_t)y * (size_t)W + (size_t)x;
+            sw->gx[i] = x + 1 < W && !isnan(u[i]) && !isnan(u[i + 1])
                             ? (float)(((double)u[i + 1] - u[i]) * slope_edge(fac[i], fac[i + 1]))
                             : 0.0f;
-                gy[i] = y + 1 < H && !isnan(u[i]) && !isnan(u[i + (size_t)W])
+            sw->gy[i] = y + 1 < H && !isnan(u[i]) && !isnan(u[i + (size_t)W])
                             ? (float)(((double)u[i + (size_t)W] - u[i]) *
                                       slope_edge(fac[i], fac[i + (size_t)W]))
                             : 0.0f;
-            }
+        }
+}
+
+/* The SLOPE_STYLE_PASSES passes: the output's distributions, the factors,
+ * the wanted differences and the heights that fit them (a solve that does
+ * not converge leaves u as it was and ends the passes). */
+static ts_status slope_passes(ts_ctx *ctx, slope_work *sw)
+{
+    const ts_slope_style_spec *s = sw->s;
+    int W = sw->W, H = sw->H, grp, pass;
+    ts_status st;
+    for (pass = 0; pass < SLOPE_STYLE_PASSES; pass++) {
+        ts_progress_saved sv;
+        for (grp = 0; grp < sw->n_groups; grp++)
+            if (sw->has[grp] && !slope_quantiles(sw->u, W, W, H, sw->group, grp, sw->work,
+                                                 sw->qo + (size_t)grp * SLOPE_Q))
+                sw->has[grp] = 2; /* no cell of the region has a gradient: left as it is */
+        slope_factors(sw);
+        slope_edges(sw);
         sv = ts__progress_push(ctx, (double)pass / SLOPE_STYLE_PASSES,
                                (double)(pass + 1) / SLOPE_STYLE_PASSES);
-        st = ts__poisson_solve_valid(ctx, W, H, mask, gx, gy, u,
+        st = ts__poisson_solve_valid(ctx, W, H, sw->mask, sw->gx, sw->gy, sw->u,
                                      s->tolerance > 0 ? s->tolerance : SLOPE_STYLE_TOLERANCE,
                                      1000 + 20 * (W + H));
         ts__progress_pop(ctx, sv);
         if (st == TS_ERR_NUMERIC) { /* not converged: u is as it was; keep it */
             ts__clear(ctx);
-            st = TS_OK;
-            break;
+            return TS_OK;
         }
         if (st != TS_OK)
-            goto done;
+            return st;
     }
-    /* no crease sharper than the exemplars' sharpest: a cell whose |Laplacian|
-     * passes its exemplar's cap moves half-way towards it, all cells of a
-     * sweep at once (Jacobi: the same result on any thread count).  A sweep
-     * looks only at the cells whose Laplacian the last one changed (the
-     * cells it moved and their four neighbours): the others were under the
-     * cap when last looked at and have not changed since, so this is the
-     * full sweep, exactly */
-    {
-        int32_t *list = NULL, *next = NULL;
-        float *val = NULL;
-        unsigned char *seen = NULL;
-        size_t n_list = 0;
-        list = ts__malloc_array(n, sizeof *list);
-        next = ts__malloc_array(n, sizeof *next);
-        val = ts__malloc_array(n, sizeof *val);
-        seen = ts__calloc_array(n, 1);
-        if (!list || !next || !val || !seen) {
-            free(list);
-            free(next);
-            free(val);
-            free(seen);
-            st = ts__fail(ctx, TS_ERR_NOMEM, SLOPE_STAGE, "out of memory");
-            goto done;
-        }
-        for (i = 0; i < n; i++)
-            list[n_list++] = (int32_t)i;
-        for (pass = 0; pass < CREASE_PASSES && n_list; pass++) {
-            size_t n_moved = 0, k, n_next = 0;
-            for (k = 0; k < n_list; k++) {
-                double l;
-                int32_t gi;
-                i = (size_t)list[k];
-                x = (int)(i % (size_t)W);
-                y = (int)(i / (size_t)W);
-                gi = group ? group[i] : 0;
-                if (!mask[i] || gi < 0 || !(cap[gi] > 0))
-                    continue;
-                l = crease_at(u, W, W, H, x, y);
-                if (isnan(l) || fabs(l) <= cap[gi])
-                    continue;
-                next[n_moved] = (int32_t)i;
-                val[n_moved++] = (float)(u[i] + 0.5 * (l - copysign(cap[gi], l)) / 4.0);
+    return TS_OK;
+}
+
+/* One crease sweep over the n_list cells of list: those past their cap
+ * move half-way towards it, all at once; the next sweep's cells (the moved
+ * ones and their neighbours, once each) into list.  Returns their count.
+ * next, val: work; seen: zero, left zero. */
+static size_t crease_sweep(slope_work *sw, int32_t *list, size_t n_list, int32_t *next, float *val,
+                           unsigned char *seen)
+{
+    int W = sw->W, H = sw->H, x, y;
+    float *u = sw->u;
+    size_t n_moved = 0, k, n_next = 0, i;
+    for (k = 0; k < n_list; k++) {
+        double l;
+        int32_t gi;
+        i = (size_t)list[k];
+        x = (int)(i % (size_t)W);
+        y = (int)(i / (size_t)W);
+        gi = sw->group ? sw->group[i] : 0;
+        if (!sw->mask[i] || gi < 0 || !(sw->cap[gi] > 0))
+            continue;
+        l = crease_at(u, W, W, H, x, y);
+        if (isnan(l) || fabs(l) <= sw->cap[gi])
+            continue;
+        next[n_moved] = (int32_t)i;
+        val[n_moved++] = (float)(u[i] + 0.5 * (l - copysign(sw->cap[gi], l)) / 4.0);
+    }
+    for (k = 0; k < n_moved; k++)
+        u[next[k]] = val[k];
+    /* the next sweep's cells: the moved ones and their neighbours, once each
+     * (a Jacobi sweep does not depend on the order it visits them) */
+    for (k = 0; k < n_moved; k++) {
+        size_t c = (size_t)next[k], d;
+        static const int dx[5] = {0, -1, 1, 0, 0}, dy[5] = {0, 0, 0, -1, 1};
+        for (d = 0; d < 5; d++) {
+            long xx = (long)(c % (size_t)W) + dx[d], yy = (long)(c / (size_t)W) + dy[d];
+            size_t q;
+            if (xx < 0 || yy < 0 || xx >= W || yy >= H)
+                continue;
+            q = (size_t)yy * (size_t)W + (size_t)xx;
+            if (!seen[q]) {
+                seen[q] = 1;
+                list[n_next++] = (int32_t)q;
             }
-            for (k = 0; k < n_moved; k++)
-                u[next[k]] = val[k];
-            /* the next sweep's cells: the moved ones and their neighbours, once each
-             * (a Jacobi sweep does not depend on the order it visits them) */
-            for (k = 0; k < n_moved; k++) {
-                size_t c = (size_t)next[k], d;
-                static const int dx[5] = {0, -1, 1, 0, 0}, dy[5] = {0, 0, 0, -1, 1};
-                for (d = 0; d < 5; d++) {
-                    long xx = (long)(c % (size_t)W) + dx[d], yy = (long)(c / (size_t)W) + dy[d];
-                    size_t q;
-                    if (xx < 0 || yy < 0 || xx >= W || yy >= H)
-                        continue;
-                    q = (size_t)yy * (size_t)W + (size_t)xx;
-                    if (!seen[q]) {
-                        seen[q] = 1;
-                        list[n_next++] = (int32_t)q;
-                    }
-                }
-            }
-            for (k = 0; k < n_next; k++)
-                seen[list[k]] = 0;
-            n_list = n_next;
         }
+    }
+    for (k = 0; k < n_next; k++)
+        seen[list[k]] = 0;
+    return n_next;
+}
+
+/* No crease sharper than the exemplars' sharpest: a cell whose |Laplacian|
+ * passes its exemplar's cap moves half-way towards it, all cells of a
+ * sweep at once (Jacobi: the same result on any thread count).  A sweep
+ * looks only at the cells whose Laplacian the last one changed (the cells
+ * it moved and their four neighbours): the others were under the cap when
+ * last looked at and have not changed since, so this is the full sweep,
+ * exactly. */
+static ts_status slope_creases(ts_ctx *ctx, slope_work *sw)
+{
+    size_t n = (size_t)sw->W * (size_t)sw->H, i, n_list = 0;
+    int32_t *list = ts__malloc_array(n, sizeof *list), *next = ts__malloc_array(n, sizeof *next);
+    float *val = ts__malloc_array(n, sizeof *val);
+    unsigned char *seen = ts__calloc_array(n, 1);
+    int pass;
+    if (!list || !next || !val || !seen) {
         free(list);
         free(next);
         free(val);
         free(seen);
+        return ts__fail(ctx, TS_ERR_NOMEM, SLOPE_STAGE, "out of memory");
     }
+    for (i = 0; i < n; i++)
+        list[n_list++] = (int32_t)i;
+    for (pass = 0; pass < CREASE_PASSES && n_list; pass++)
+        n_list = crease_sweep(sw, list, n_list, next, val, seen);
+    free(list);
+    free(next);
+    free(val);
+    free(seen);
+    return TS_OK;
+}
+
+ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *out)
+{
+    int W = out->width, H = out->height, y;
+    size_t n = (size_t)W * (size_t)H, i;
+    slope_work sw;
+    ts_status st = TS_OK;
+    if (!(s->strength > 0) || W < 3 || H < 3 || s->n_exemplars < 1)
+        return TS_OK;
+    memset(&sw, 0, sizeof sw);
+    sw.s = s;
+    sw.W = W;
+    sw.H = H;
+    /* one group per exemplar when a region map chose them, else one */
+    sw.n_groups = (s->cell_exemplar && s->n_exemplars > 1) ? s->n_exemplars : 1;
+    if ((st = slope_alloc(ctx, &sw)) != TS_OK)
+        goto done;
+    if (s->features && s->keep_radius > 0 && (st = slope_keep_distances(ctx, &sw)) != TS_OK)
+        goto done;
     for (y = 0; y < H; y++)
-        memcpy(out->data + (size_t)y * (size_t)out->stride, u + (size_t)y * (size_t)W,
-               (size_t)W * sizeof *u);
+        memcpy(sw.u + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
+               (size_t)W * sizeof *sw.u);
+    for (i = 0; i < n; i++) {
+        sw.mask[i] = !isnan(sw.u[i]) && !(s->flags && (s->flags[i] & TS_CELL_FIXED));
+        if (sw.group)
+            sw.group[i] = s->cell_exemplar[i] >= 0 && s->cell_exemplar[i] < s->n_exemplars
+                              ? s->cell_exemplar[i]
+                              : -1;
+    }
+    slope_targets(&sw);
+    if ((st = slope_passes(ctx, &sw)) != TS_OK || (st = slope_creases(ctx, &sw)) != TS_OK)
+        goto done;
+    for (y = 0; y < H; y++)
+        memcpy(out->data + (size_t)y * (size_t)out->stride, sw.u + (size_t)y * (size_t)W,
+               (size_t)W * sizeof *sw.u);
 done:
-    free(u);
-    free(gx);
-    free(gy);
-    free(fac);
-    free(work);
-    free(exwork);
-    free(mask);
-    free(group);
-    free(qe);
-    free(qo);
-    free(has);
-    free(cap);
-    free(keep);
+    free(sw.u);
+    free(sw.gx);
+    free(sw.gy);
+    free(sw.fac);
+    free(sw.work);
+    free(sw.exwork);
+    free(sw.mask);
+    free(sw.group);
+    free(sw.qe);
+    free(sw.qo);
+    free(sw.has);
+    free(sw.cap);
+    free(sw.keep);
     return st;
 }

@@ -106,7 +106,7 @@ def test_debug_dir_that_is_a_file(tmp_path, dem):
     assert not (tmp_path / "o.tif").exists()
 
 
-# ------------------------------------------------------------------ issue 12: nothing lost
+# ------------------------------------------------------------------ nothing lost
 
 def listing(d):
     """Every file under d with its content's digest (the directory's state)."""

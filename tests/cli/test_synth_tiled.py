@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""terrasynth synth --tiled (tiled_synthesis.c, issue 16): the same bytes on 1 and 2
+"""terrasynth synth --tiled (tiled_synthesis.c): the same bytes on 1 and 2
 threads and through a recipe; no seam along the tile borders by the independent yardstick
 (../shared/eval/terrain_metrics.py, when present); refusals in one line."""
 import json
@@ -170,8 +170,8 @@ def _largest_copy(d):
 
 
 def test_tiles_do_not_copy_the_exemplar(tmp_path):
-    """The tile lattice defect (issue 16): with a small exemplar, each tile became one
-    near-verbatim copy of it. With the usage cost (the default) no exemplar offset covers more
+    """The tile lattice defect: with a small exemplar, a tile must not become one near-verbatim
+    copy of it. With the usage cost (the default) no exemplar offset covers more
     than a few patches; with --usage 0 a tile-sized copy comes back (so the check can fail)."""
     base = ["--exemplar", JACKSBORO, "--size", "1024x1024", "--seed", 2, "--tiled", 256]
     run("synth", *base, "--debug-dir", tmp_path / "d", tmp_path / "o.tif", "-q")

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""Elevations no terrain has (issue 12, item 8): never quiet garbage.  A float's extreme
+"""Elevations no terrain has: never quiet garbage.  A float's extreme
 value (+-3.4e38, a nodata nobody declared) is read as nodata with a warning; any other
 value outside the Earth's -12000..9000 m is refused, naming the file and the first cell."""
 import os

@@ -274,7 +274,7 @@ def test_pins_and_water_are_kept(tmp_path, tiled):
     assert (z[150:190, 10:90] == 300).all()
     assert np.isfinite(z).all()
     # the shore (every cell touching the water, 8 neighbours) at or above the water: the lake
-    # lies in its basin (before the banks stage, 2026-11-25, part of it hung over lower land)
+    # lies in its basin (no part of it hangs over lower land)
     ring = np.zeros_like(mask, bool)
     ring[149:191, 9:91] = True
     ring &= mask == 0

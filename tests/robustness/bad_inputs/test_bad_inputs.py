@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""The bad-input suite (issue 12): every line of cases.txt is a command that must fail with
+"""The bad-input suite: every line of cases.txt is a command that must fail with
 its exit status and message, in one line, leaving its folder exactly as it was (every file
 hashed before and after).  Runs the CLI, the GDAL tools over recipes (the TSYN plugin) and
 VRT pixel functions."""
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(os.path.dirname(HERE))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(HERE)))
 TERRASYNTH = os.environ.get("TERRASYNTH", os.path.join(ROOT, "build", "gdal_driver", "terrasynth"))
 PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
 DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""No unbounded memory (issue 12, item 6): a job's memory is estimated from the sizes of its
+"""No unbounded memory: a job's memory is estimated from the sizes of its
 grids before anything is read or allocated, and refused past the machine's memory, or past
 --max-memory / TSYN_MAX_MEMORY, with a message that says how much is needed.  The same in
 the GDAL driver.  The estimate is checked against the peak the kernel measures."""

@@ -322,9 +322,9 @@ def test_region_polygons(tmp_path):
 
 def test_wanted_heights_with_a_sketch(tmp_path):
     """--heights with a sketch: the layout and the slope style, which know nothing of them,
-    gave a block wanted at the exemplar's 95th percentile a mean near the land's median
-    (2026-11-25: the wanted heights were lost with a sketch, kept without one); now each
-    block's mean comes within a tenth of the exemplar's range of its wanted height."""
+    must not give a block wanted at the exemplar's 95th percentile a mean near the land's
+    median: each block's mean comes within a tenth of the exemplar's range of its wanted
+    height."""
     sk = gdal.Open(LAMBDA)
     w, h = sk.RasterXSize, sk.RasterYSize
     e = gdal.Open(JACKSBORO).ReadAsArray().astype(np.float64)

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""`terrasynth pixel` end to end (issue 14): the target grid read back with GDAL, heights in
+"""`terrasynth pixel` end to end: the target grid read back with GDAL, heights in
 the exemplar's range (numpy), determinism across threads, seeds; recipes through the TSYN
 driver: the whole and any window (gdal_translate -srcwin) equal the command line's output,
 and a window of a 100 000 x 100 000 recipe equals the same window of a smaller one."""
@@ -255,7 +255,7 @@ def test_jitter_per_level(tmp_path):
 def test_appearance_space_and_similarity_sets(tmp_path):
     """--pca-energy and --coherence reach the core from the command line and from recipes (a
     window of the recipe equals the same window of the command line's output), change the
-    terrain, and are range-checked.  (Their correctness: tests/c/test_pixel.c against a
+    terrain, and are range-checked.  (Their correctness: tests/c/pixel/test_pixel.c against a
     plain SSD and a plain nearest-neighbour scan.)"""
     ex = crop(tmp_path, 120, 110)
     base = ["pixel", "--exemplar", ex, "--size", "200x160", "--seed", "3", "-q"]

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""`terrasynth amplify` end to end (issue 13): the output grid (extent, CRS, resolution,
+"""`terrasynth amplify` end to end: the output grid (extent, CRS, resolution,
 nodata) read back with GDAL; the output averages back to the input (numpy); recipes through
 the TSYN driver; determinism; and the super-resolution check on real data against
 `gdalwarp -r cubic`, judged by ../shared/eval/terrain_metrics.py (none of our code)."""

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""One rule each, said once (issue 12, item 9): seeds past 2^64-1 refused everywhere, a
+"""One rule each, said once: seeds past 2^64-1 refused everywhere, a
 grid past a pole refused by every job, no message prefixed twice."""
 import os
 import subprocess

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
-"""The soak (issue 12): many mixed runs, 8 at a time, in one folder: ppa, synth, recipe reads
+"""The soak: many mixed runs, 8 at a time, in one folder: ppa, synth, recipe reads
 through gdal_translate, valid and invalid inputs picked at random (seeded).  No crash, no
 sanitizer report, no temporary file left, and every valid output byte-identical to the same
 command run alone.  TS_SOAK_RUNS sets the number of runs (default 200)."""
@@ -13,7 +13,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(os.path.dirname(HERE))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(HERE)))
 TERRASYNTH = os.environ.get("TERRASYNTH", os.path.join(ROOT, "build", "gdal_driver", "terrasynth"))
 PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
 DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))

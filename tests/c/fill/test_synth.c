@@ -2,7 +2,7 @@
  * test_synth.c - non-feature patch synthesis: fills everything, never uses
  * exemplar nodata, keeps pre-filled and keep-nodata cells, deterministic,
  * clear errors.  (Visual and statistical checks on real DEMs are in
- * tests/cli/test_synth_cli.py.)
+ * tests/cli/test_synth.py.)
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
