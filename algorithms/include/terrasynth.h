@@ -273,6 +273,9 @@ typedef ts_status (*ts_window_write_fn)(void *user, int x0, int y0, int w, int h
  * before branch reduction (about a quarter of a chain per cell per kind).
  * min_drainage (valleys) needs the whole DEM: TS_ERR_ARG.
  */
+/* The tile sizes ts_ppa_extract_tiled takes (cells). */
+#define TS_PPA_TILE_MIN 16
+#define TS_PPA_TILE_MAX 16384
 typedef struct ts_ppa_tiled_stats {
     int passes_in_tiles; /* branch reduction passes run inside the tiles (0..3) */
     size_t chains_held;  /* chains of the whole held for the rest of the reduction */

@@ -21,6 +21,8 @@
 /* The declarations                                                    */
 /* ------------------------------------------------------------------ */
 
+#define TS_STR_(x) #x
+#define TS_STR(x) TS_STR_(x) /* a number as text */
 #define G_IN "Inputs"
 #define G_GRID "Target grid"
 #define G_CONS "Constraints"
@@ -242,8 +244,9 @@ static const tsjob_option ppa_opts[] = {
      NULL, 0, NULL},
     {"preview", TSJOB_OUTPUT, 1, 0, 0, "FILE.png", G_OUT,
      "hillshade with ridges (red) and valleys (blue)", NULL, 0, NULL},
-    {"tile_size", TSJOB_INT, 1, 0, 16384, "N", G_RUN,
-     "map the DEM in tiles of N x N cells (16..16384), read window by window three times: the "
+    {"tile_size", TSJOB_INT, 1, 0, TS_PPA_TILE_MAX, "N", G_RUN,
+     "map the DEM in tiles of N x N cells (" TS_STR(TS_PPA_TILE_MIN) ".." TS_STR(
+         TS_PPA_TILE_MAX) "), read window by window three times: the "
      "same raster as in one piece, in the memory of three rows of tiles and the axes' chains "
      "(DEMs larger than memory; not with lines or preview). 0 (default): in one piece, or, when "
      "it does not fit in memory, in the largest tiles (8192 .. 64) that do",

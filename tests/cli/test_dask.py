@@ -265,3 +265,34 @@ def test_a_dead_worker_loses_nothing(tmp_path):
         for p in procs:
             p.kill()
             p.wait()
+
+
+def test_runner_declares_the_tile_interface_as_its_header():
+    """The runner loads the plugin's tile functions with ctypes, which cannot read a C
+    header: each function it declares has as many arguments, in the same order of kinds
+    (pointer, int, array), as gdal_driver/recipe/tsyn_tiles.h gives it."""
+    import re
+
+    with open(os.path.join(ROOT, "gdal_driver", "recipe", "tsyn_tiles.h")) as f:
+        header = f.read()
+    with open(RUNNER) as f:
+        runner = f.read()
+
+    def kind_c(param):
+        if "[" in param:
+            return "array"
+        return "int" if re.match(r"^\s*int\s+\w+\s*$", param) else "pointer"
+
+    def kind_py(arg):
+        if re.search(r"c_int \* \d|c_void_p \* \d", arg):
+            return "array"
+        return "int" if arg.strip() == "ctypes.c_int" else "pointer"
+
+    declared = re.findall(r"lib\.(tsyn_\w+)\.argtypes = \[(.*?)\]", runner, re.S)
+    assert {n for n, _ in declared} == {"tsyn_tiles_open", "tsyn_tile_make", "tsyn_tile_rect"}
+    for name, args in declared:
+        m = re.search(r"\b%s\((.*?)\);" % name, header, re.S)
+        assert m, "%s is not in tsyn_tiles.h" % name
+        c = [kind_c(p) for p in m.group(1).split(",")]
+        py = [kind_py(a) for a in re.split(r",\s*(?![^()]*\))", " ".join(args.split()))]
+        assert c == py, "%s: header %s, runner %s" % (name, c, py)

@@ -42,13 +42,21 @@ static const ts_param_desc ppa_desc[] = {
      offsetof(ts_ppa_params, min_drainage)},
 };
 
+/* The sizes of patches and overlaps in cells, whatever unit they are given in. */
+#define PATCH_MIN 8
+#define PATCH_MAX 1024
+#define OVERLAP_MIN 2
+#define OVERLAP_MAX 512
+#define STR_(x) #x
+#define STR(x) STR_(x)
+
 static const ts_param_desc synth_desc[] = {
-    {"patch_size", TS_PARAM_LENGTH, 64, 8, 1024, TS_UNIT_CELLS, "cells or m", NULL,
+    {"patch_size", TS_PARAM_LENGTH, 64, PATCH_MIN, PATCH_MAX, TS_UNIT_CELLS, "cells or m", NULL,
      "Side of the square patches copied from the exemplars: a whole number of cells, or a "
      "number with suffix m for metres (turned into cells at the output grid's ground "
-     "resolution; 8..1024 cells either way).",
+     "resolution; " STR(PATCH_MIN) ".." STR(PATCH_MAX) " cells either way).",
      offsetof(ts_synth_params, patch_size)},
-    {"overlap", TS_PARAM_LENGTH, 16, 2, 512, TS_UNIT_CELLS, "cells or m", NULL,
+    {"overlap", TS_PARAM_LENGTH, 16, OVERLAP_MIN, OVERLAP_MAX, TS_UNIT_CELLS, "cells or m", NULL,
      "Width shared by neighbouring patches, where seams are cut and smoothed: cells, or "
      "metres with suffix m; at most half the patch.",
      offsetof(ts_synth_params, overlap)},
@@ -567,8 +575,8 @@ static ts_status synth_cells_of(ts_ctx *ctx, const char *name, const ts_length *
 
 ts_status ts__synth_cells(ts_ctx *ctx, const ts_synth_params *p, int *patch, int *overlap)
 {
-    if (synth_cells_of(ctx, "patch_size", &p->patch_size, 8, 1024, patch) != TS_OK ||
-        synth_cells_of(ctx, "overlap", &p->overlap, 2, 512, overlap) != TS_OK)
+    if (synth_cells_of(ctx, "patch_size", &p->patch_size, PATCH_MIN, PATCH_MAX, patch) != TS_OK ||
+        synth_cells_of(ctx, "overlap", &p->overlap, OVERLAP_MIN, OVERLAP_MAX, overlap) != TS_OK)
         return ctx->status;
     /* at most half: every cell is then covered by at most 4 patches; an overlap
      * near the patch size multiplies the work without limit (31 of 32: 86x) */
@@ -584,6 +592,7 @@ TS_API ts_status ts_synth_params_resolve(ts_ctx *ctx, ts_synth_params *params, d
 {
     ts_length *L[2];
     const char *names[2] = {"patch_size", "overlap"};
+    const int lo[2] = {PATCH_MIN, OVERLAP_MIN}, hi[2] = {PATCH_MAX, OVERLAP_MAX};
     int i, P, ov;
     ts__clear(ctx);
     if (!params)
@@ -600,10 +609,10 @@ TS_API ts_status ts_synth_params_resolve(ts_ctx *ctx, ts_synth_params *params, d
                             "(no CRS): give it in cells",
                             names[i], L[i]->value);
         cells = floor(L[i]->value / cell_m + 0.5);
-        if (!(cells >= (i ? 2 : 8) && cells <= (i ? 512 : 1024)))
+        if (!(cells >= lo[i] && cells <= hi[i]))
             return ts__fail(ctx, TS_ERR_ARG, "synth",
                             "%s = %gm is %.0f cells of %.4g m: must be %d..%d cells", names[i],
-                            L[i]->value, cells, cell_m, i ? 2 : 8, i ? 512 : 1024);
+                            L[i]->value, cells, cell_m, lo[i], hi[i]);
         L[i]->value = cells;
         L[i]->unit = TS_UNIT_CELLS;
     }

@@ -263,8 +263,9 @@ static ts_status tiled_check(ts_ctx *ctx, int width, int height, const ts_grid_m
     if (width < 2 || height < 2)
         return ts__fail(ctx, TS_ERR_SIZE, "ppa", "the DEM is %d x %d cells; at least 2 x 2 needed",
                         width, height);
-    if (tile_size < 16 || tile_size > 16384)
-        return ts__fail(ctx, TS_ERR_ARG, "ppa", "tile size %d: 16..16384 cells", tile_size);
+    if (tile_size < TS_PPA_TILE_MIN || tile_size > TS_PPA_TILE_MAX)
+        return ts__fail(ctx, TS_ERR_ARG, "ppa", "tile size %d: %d..%d cells", tile_size,
+                        TS_PPA_TILE_MIN, TS_PPA_TILE_MAX);
     if (metrics && (!metrics->dx || !metrics->dy))
         return ts__fail(ctx, TS_ERR_ARG, "ppa", "ground metrics without cell sizes");
     if (params->min_branch_length.unit == TS_UNIT_METRES && params->min_branch_length.value >= 0 &&
