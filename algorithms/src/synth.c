@@ -258,8 +258,12 @@ static ts_status sketch_begin(ts_ctx *ctx, sketch_run *r, const ts_raster *sketc
         } else if (!isnan(*o))
             r->flags[i] = TS_CELL_FIXED;
     }
-    /* the layout keeps away from these, not from the feature cores fixed later */
+    /* the layout keeps away from these, not from the feature cores fixed later;
+     * the valley breach also knows the water among them (an outlet) */
     memcpy(r->user_flags, r->flags, n_cells);
+    for (i = 0; constraints && constraints->cell_flags && i < n_cells; i++)
+        if (r->flags[i] == TS_CELL_FIXED && (constraints->cell_flags[i] & TS_CELL_WATER))
+            r->user_flags[i] |= TS_CELL_WATER;
     return TS_OK;
 }
 

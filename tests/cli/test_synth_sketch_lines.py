@@ -408,3 +408,76 @@ def test_grid_rules(tmp_path, drawn):
     r = run("synth", "--sketch", drawn / "lines.gpkg", "--size", "64x64", "--exemplar", JACKSBORO,
             tmp_path / "o.tif", check=False)
     assert r.returncode == 2 and "give no size" in r.stderr
+
+
+def test_valleys_drain_into_a_lake(tmp_path):
+    """A lake (--water) is an outlet as the grid's edge is: valleys drawn down to a lake in
+    the middle of the map end in it and hold no closed depression when water leaves by the
+    edge or the lake (numpy priority-flood seeded from both), and the land beside the lake
+    stays at or above its level."""
+    grid(tmp_path / "grid.tif")
+    cx, cy, r = 130, 110, 18
+    yy, xx = np.mgrid[0:H, 0:W]
+    lake = (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r
+    ds = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "lake.tif"), W, H, 1, gdal.GDT_Byte)
+    ds.SetGeoTransform((ORIGIN[0], RES, 0, ORIGIN[1], 0, -RES))
+    ds.SetProjection(utm().ExportToWkt())
+    ds.GetRasterBand(1).WriteArray(lake.astype(np.uint8))
+    ds = None
+    valleys = [[(130.4, 25.6), (128.2, 70.3), (130.5, 93.0)],
+               [(40.3, 60.2), (85.5, 90.7), (113.2, 104.6)],
+               [(215.7, 170.4), (170.3, 140.2), (145.1, 121.5)]]
+    lines = [("valley", v, None) for v in valleys]
+    lines += [("ridge", [(60.2, 20.5), (100.7, 45.3), (95.2, 80.1)], None),
+              ("ridge", [(200.6, 30.3), (170.4, 70.8), (165.3, 95.6)], None),
+              ("ridge", [(60.5, 190.2), (110.3, 165.5)], None)]
+    write_lines(tmp_path / "lines.gpkg", lines)
+    level = 260.0  # below the land around the lake, as a lake is
+    for seed in (1, 2):
+        out = tmp_path / ("o%d.tif" % seed)
+        run("synth", "--sketch", tmp_path / "lines.gpkg", "--like", tmp_path / "grid.tif",
+            "--exemplar", JACKSBORO, "--water", tmp_path / "lake.tif", "--water-level", level,
+            "--seed", seed, out, "--debug-dir", tmp_path / ("d%d" % seed), "-q")
+        z = gdal.Open(str(out)).ReadAsArray().astype(float)
+        assert np.all(z[lake] == level)
+        # the banks: every land cell beside the lake at or above its level
+        beside = dilate(lake) & ~lake
+        assert z[beside].min() >= level - 1e-3, z[beside].min()
+        # water leaves by the edge or into the lake: the flood starts from both
+        f = z.copy()
+        seen = lake.copy()
+        q = [(z[y, x], y, x) for y, x in zip(*np.nonzero(lake))]
+        for y in range(H):
+            for x in range(W):
+                if (y in (0, H - 1) or x in (0, W - 1)) and not seen[y, x]:
+                    q.append((z[y, x], y, x))
+                    seen[y, x] = True
+        heapq.heapify(q)
+        while q:
+            v, y, x = heapq.heappop(q)
+            for dy in (-1, 0, 1):
+                for dx in (-1, 0, 1):
+                    ny, nx = y + dy, x + dx
+                    if 0 <= ny < H and 0 <= nx < W and not seen[ny, nx]:
+                        seen[ny, nx] = True
+                        f[ny, nx] = max(f[ny, nx], v)
+                        heapq.heappush(q, (f[ny, nx], ny, nx))
+        valley = graph_cells(tmp_path / ("d%d" % seed) / "sketch_features.gpkg", "valley")
+        dep = f - z
+        assert (dep[valley & ~lake] > 0.01).mean() <= 0.01, (seed, (dep[valley] > 0.01).mean())
+        # each valley's lowest cell lies at the lake: the lake is its outlet
+        for v in valleys:
+            path = rasterised_line(v)
+            low = np.unravel_index(np.argmin(np.where(path & ~lake, z, np.inf)), z.shape)
+            d = np.hypot(low[1] - cx, low[0] - cy) - r
+            assert d <= 4, (seed, v[0], low, d)
+
+
+def rasterised_line(pts):
+    """The cells a polyline (cell coordinates) passes, densely sampled."""
+    m = np.zeros((H, W), bool)
+    for (c0, r0), (c1, r1) in zip(pts[:-1], pts[1:]):
+        n = int(max(abs(c1 - c0), abs(r1 - r0)) * 4) + 1
+        for t in np.linspace(0, 1, n):
+            m[int(r0 + t * (r1 - r0)), int(c0 + t * (c1 - c0))] = True
+    return m

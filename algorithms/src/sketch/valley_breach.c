@@ -4,8 +4,12 @@
  * carved so that it never rises on the way to its outlet, and the outlet
  * drains on: into another valley within a patch, along a straight channel,
  * or else out by the way water leaves it (the path of a priority-flood from
- * the grid's edge: over the lowest pass), carved the same way.  Carving only lowers cells
- * (breaching, not filling); the change fades out across the valley.
+ * the grid's edge and the user's water: over the lowest pass), carved the
+ * same way.  Carving only lowers cells (breaching, not filling); the change
+ * fades out across the valley.  A lake (water cells) is an outlet as the
+ * edge is: never carved into, the land beside it left at or above its level,
+ * and the land below its level that it reaches raised to it (its arms: a
+ * valley ending in a lake never runs below it).
  *
  * The valley cells of the feature graph make a graph of cells (consecutive
  * vertices joined).  In each network the outlet is the end cell that is
@@ -33,6 +37,8 @@ typedef struct breach {
     int32_t *down;      /* per carve cell: the next one downstream, -1 none */
     size_t n, cap;
     int32_t n_comp;
+    const unsigned char *flags; /* the user's cells (NULL: none) */
+    int *wdist; /* per grid cell: 8-neighbour steps to the nearest water cell (NULL: no water) */
 } breach;
 
 static const int BX[8] = {1, 1, 0, -1, -1, -1, 0, 1};
@@ -231,11 +237,11 @@ static fl_item fl_pop(fl_item *h, size_t *n)
     return top;
 }
 
-/* The way water leaves every cell (priority-flood from the grid's edge and
- * the cells beside nodata, Barnes et al. 2014): parent[c] the cell it was
- * flooded from, -1 on the edge.  Following parents from any cell leads to
+/* The way water leaves every cell (priority-flood from the grid's edge, the
+ * cells beside nodata and the user's water, Barnes et al. 2014): parent[c]
+ * the cell it was flooded from, -1 where it leaves.  Following parents from any cell leads to
  * the edge over the lowest pass (the path a depression spills by). */
-static int32_t *br_flood(const ts_raster *out)
+static int32_t *br_flood(const ts_raster *out, const unsigned char *flags)
 {
     int W = out->width, H = out->height, x, y, d;
     size_t n = (size_t)W * (size_t)H, hn = 0;
@@ -252,7 +258,8 @@ static int32_t *br_flood(const ts_raster *out)
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
             size_t c = (size_t)y * (size_t)W + (size_t)x;
-            int edge = x == 0 || y == 0 || x == W - 1 || y == H - 1;
+            int edge = x == 0 || y == 0 || x == W - 1 || y == H - 1 ||
+                       (flags && (flags[c] & TS_CELL_WATER)); /* a lake takes water too */
             parent[c] = -1;
             if (isnan(TS_PIX(out, x, y))) {
                 seen[c] = 1;
@@ -346,6 +353,8 @@ static int br_orient(breach *b, const ts_raster *out, int32_t **parent)
         size_t g = b->cell[i];
         int x = (int)(g % (size_t)b->W), y = (int)(g / (size_t)b->W);
         int border = TS_MIN(TS_MIN(x, b->W - 1 - x), TS_MIN(y, b->H - 1 - y));
+        if (b->wdist) /* a lake is an outlet as the edge is */
+            border = TS_MIN(border, b->wdist[g]);
         int32_t k = b->comp[i];
         int end = popcount8(b->adj[i]) <= 1;
         float zi = TS_PIX(out, x, y);
@@ -384,7 +393,7 @@ static int br_orient(breach *b, const ts_raster *out, int32_t **parent)
         } else {
             /* out by the way the water leaves: to the edge over the lowest
              * pass, carved (or into a valley met on the way) */
-            if (!*parent && !(*parent = br_flood(out)))
+            if (!*parent && !(*parent = br_flood(out, b->flags)))
                 goto done;
             if (br_spill(b, a, *parent) != 0)
                 goto done;
@@ -445,6 +454,115 @@ static double breach_steep(const ts_raster *out, float *work)
     return fmax(1e-3, (double)work[(size_t)(0.95 * (double)(k - 1))]);
 }
 
+/* Steps (8-neighbour) from every cell to the nearest water cell, breadth
+ * first; NULL when there is no water (or no memory: *fail). */
+static int *br_water_distance(const unsigned char *flags, int W, int H, int *fail)
+{
+    size_t n = (size_t)W * (size_t)H, i, head = 0, tail = 0;
+    int *d = NULL, k;
+    size_t *q = NULL;
+    *fail = 0;
+    for (i = 0; flags && i < n && !(flags[i] & TS_CELL_WATER); i++)
+        ;
+    if (!flags || i == n)
+        return NULL;
+    d = ts__malloc_array(n, sizeof *d);
+    q = ts__malloc_array(n, sizeof *q);
+    if (!d || !q) {
+        free(d);
+        free(q);
+        *fail = 1;
+        return NULL;
+    }
+    for (i = 0; i < n; i++) {
+        d[i] = INT_MAX;
+        if (flags[i] & TS_CELL_WATER) {
+            d[i] = 0;
+            q[tail++] = i;
+        }
+    }
+    for (head = 0; head < tail; head++) {
+        int x = (int)(q[head] % (size_t)W), y = (int)(q[head] / (size_t)W);
+        for (k = 0; k < 8; k++) {
+            int nx = x + BX[k], ny = y + BY[k];
+            size_t c;
+            if (nx < 0 || ny < 0 || nx >= W || ny >= H)
+                continue;
+            c = (size_t)ny * (size_t)W + (size_t)nx;
+            if (d[c] == INT_MAX) {
+                d[c] = d[q[head]] + 1;
+                q[tail++] = c;
+            }
+        }
+    }
+    free(q);
+    return d;
+}
+
+/* The lowest a cell may be carved to: the highest water level beside it
+ * (the land beside water ends at or above it, as water_banks.c leaves
+ * it); -inf away from water. */
+static float br_bank_floor(const ts_raster *out, const unsigned char *flags, size_t i)
+{
+    int x = (int)(i % (size_t)out->width), y = (int)(i / (size_t)out->width), k;
+    float lo = -INFINITY;
+    for (k = 0; flags && k < 8; k++) {
+        int nx = x + BX[k], ny = y + BY[k];
+        if (nx < 0 || ny < 0 || nx >= out->width || ny >= out->height)
+            continue;
+        if (flags[(size_t)ny * (size_t)out->width + (size_t)nx] & TS_CELL_WATER)
+            lo = fmaxf(lo, TS_PIX(out, nx, ny));
+    }
+    return lo;
+}
+
+/* A lake floods the land below its level that it reaches (a cell beside it,
+ * or beside land it floods): raised to the level, the lake's arm, so a
+ * valley ending in a lake never runs below it (lowest lakes first).  0, or
+ * -1 out of memory. */
+static int br_lake_arms(ts_raster *out, const unsigned char *flags)
+{
+    int W = out->width, H = out->height, d;
+    size_t n = (size_t)W * (size_t)H, c, hn = 0;
+    unsigned char *seen = ts__calloc_array(n, 1);
+    fl_item *h = ts__malloc_array(n + 1, sizeof *h);
+    uint32_t order = 0;
+    if (!seen || !h) {
+        free(seen);
+        free(h);
+        return -1;
+    }
+    for (c = 0; c < n; c++) {
+        seen[c] = (flags[c] & (TS_CELL_FIXED | TS_CELL_NODATA)) != 0;
+        if (flags[c] & TS_CELL_WATER) {
+            fl_item it = {TS_PIX(out, (int)(c % (size_t)W), (int)(c / (size_t)W)), order++,
+                          (int32_t)c};
+            fl_push(h, &hn, it);
+        }
+    }
+    while (hn) {
+        fl_item it = fl_pop(h, &hn);
+        int cx = (int)((size_t)it.cell % (size_t)W), cy = (int)((size_t)it.cell / (size_t)W);
+        for (d = 0; d < 8; d++) {
+            int nx = cx + BX[d], ny = cy + BY[d];
+            if (nx < 0 || ny < 0 || nx >= W || ny >= H)
+                continue;
+            c = (size_t)ny * (size_t)W + (size_t)nx;
+            if (seen[c] || !(TS_PIX(out, nx, ny) <= it.level))
+                continue; /* fixed, nodata, flooded already, or land above the lake */
+            seen[c] = 1;
+            TS_PIX(out, nx, ny) = it.level;
+            {
+                fl_item nt = {it.level, order++, (int32_t)c};
+                fl_push(h, &hn, nt);
+            }
+        }
+    }
+    free(seen);
+    free(h);
+    return 0;
+}
+
 ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
                             const unsigned char *flags, int patch)
 {
@@ -464,8 +582,17 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
     b.W = out->width;
     b.H = out->height;
     b.P = patch;
-    if (!(b.id = ts__malloc_array(n, sizeof *b.id)))
+    b.flags = flags;
+    {
+        int fail;
+        b.wdist = br_water_distance(flags, b.W, b.H, &fail);
+        if (fail)
+            return ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+    }
+    if (!(b.id = ts__malloc_array(n, sizeof *b.id))) {
+        free(b.wdist);
         return ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+    }
     for (i = 0; i < n; i++)
         b.id[i] = -1;
     if (br_build(&b, f) != 0 || (b.n && br_orient(&b, out, &parent) != 0)) {
@@ -523,7 +650,10 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
         if (m[i]) {
             int x = (int)(i % (size_t)b.W), y = (int)(i / (size_t)b.W);
             if (!(flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))))
-                TS_PIX(out, x, y) = distb[i];
+                TS_PIX(out, x, y) =
+                    b.wdist && b.wdist[i] == 1 /* never below the water beside it */
+                        ? fmaxf(distb[i], fminf(TS_PIX(out, x, y), br_bank_floor(out, flags, i)))
+                        : distb[i];
         }
     /* beside them: the nearest carved cell's change, fading out over rr or
      * over as far as the land's steep slopes (s_ref a cell) take to climb
@@ -540,7 +670,7 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
     for (i = 0; i < n; i++) {
         double r = nearest[i] >= 0 ? fmax(rr, 1.5 * fabs(delta[nearest[i]]) / s_ref) : rr;
         double t = dist[i] / r;
-        spread[i] = m[i] ? delta[i]
+        spread[i] = m[i]                           ? delta[i]
                     : (nearest[i] >= 0 && t < 3.0) ? (float)(exp(-t * t) * delta[nearest[i]])
                                                    : 0.0f;
     }
@@ -551,10 +681,18 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
         if (isnan(TS_PIX(out, x, y)) || (flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) ||
             m[i] || isnan(distb[i]))
             continue; /* the carved cells are set above */
-        TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + fmin(0.0, distb[i]));
+        {
+            float z = (float)(TS_PIX(out, x, y) + fmin(0.0, distb[i]));
+            if (b.wdist && b.wdist[i] == 1) /* never below the water beside it */
+                z = fmaxf(z, fminf(TS_PIX(out, x, y), br_bank_floor(out, flags, i)));
+            TS_PIX(out, x, y) = z;
+        }
     }
+    if (b.wdist && br_lake_arms(out, flags) != 0)
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
 done:
     free(parent);
+    free(b.wdist);
     free(b.id);
     free(b.cell);
     free(b.adj);
