@@ -927,8 +927,9 @@ typedef struct ts_pixel_params {
                             percentiles span the exemplars' (a drawing in grey levels);
                             TS_GUIDE_QUANTILE: each value to the exemplars' height of
                             the same rank (within their 1st..99th percentiles) */
-    int rotations;       /* 0: the exemplars as given; 4: also turned by 90, 180, 270 degrees;
-                            8: and mirrored */
+    int rotations;       /* 0: the exemplars as given; 2: also turned by 180 degrees; 4: also
+                            by 90 and 270; 8: and mirrored; -1 (default): 4 or 2 by the
+                            exemplars' grain (ts_pixel_variants) */
     int coherence;       /* K of the k-coherence similarity sets: candidates also the K - 1
                             exemplar cells most like each neighbour's (1: none) */
     double pca_energy;   /* share of the neighbourhoods' shape variance the compared
@@ -973,6 +974,15 @@ TS_API void ts_pixel_exemplars_free(ts_pixel_exemplars *ex);
 TS_API int ts_pixel_levels(const ts_pixel_exemplars *ex);
 /** The neighbourhood side k the stacks were prepared for (chosen when params->window is 0). */
 TS_API int ts_pixel_window(const ts_pixel_exemplars *ex);
+/** The candidates each exemplar gives (1, 2, 4 or 8: rotations, or what auto chose), and
+ *  the exemplars' grain: the coherence of their gradients' orientation, 0 (no preferred
+ *  direction) .. 1 (all one way).  Auto (rotations -1) turns by quarters only below
+ *  TS_PIXEL_ISOTROPIC, else by a half turn alone, which keeps the grain. */
+TS_API int ts_pixel_variants(const ts_pixel_exemplars *ex);
+TS_API double ts_pixel_grain(const ts_pixel_exemplars *ex);
+#define TS_PIXEL_ISOTROPIC 0.05
+/** Is `rotations` a value ts_pixel_params takes (-1 auto, 0, 2, 4, 8)? */
+TS_API int ts_pixel_rotations_valid(int rotations);
 
 /**
  * The output cells [x0, x0 + out->width) x [y0, y0 + out->height) of the
@@ -986,7 +996,7 @@ TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
 
 /** Where each output cell's finest coordinate points (caller-allocated,
  *  width * height of the window, row-major; any may be NULL): the candidate
- *  exemplar (exemplar index x rotations + the turn, mirrored ones after)
+ *  exemplar (exemplar index x ts_pixel_variants + the variant)
  *  and the cell in it. */
 typedef struct ts_pixel_sources {
     int32_t *exemplar, *x, *y;

@@ -65,10 +65,11 @@ static void pixel_report(void *st, cli_run *r)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",
                 s->job.exemplars[res->exemplar_no_crs - 1]);
     if (r->co->progress != PROGRESS_QUIET)
-        printf("pixel: %d x %d cells, %d levels, window %d, seed %llu; stacks %.2f s, synthesis "
-               "%.2f s\n",
+        printf("pixel: %d x %d cells, %d levels, window %d, %d views of each exemplar (grain "
+               "%.2f), seed %llu; stacks %.2f s, synthesis %.2f s\n",
                res->geo.width, res->geo.height, ts_pixel_levels(res->stacks),
-               ts_pixel_window(res->stacks), (unsigned long long)r->seed, res->seconds_stacks,
+               ts_pixel_window(res->stacks), ts_pixel_variants(res->stacks),
+               ts_pixel_grain(res->stacks), (unsigned long long)r->seed, res->seconds_stacks,
                res->seconds_synthesis);
 }
 

@@ -344,8 +344,9 @@ int tsjob_build_pixel(tsjob_values *v, tsjob_pixel *job, uint64_t *seed, char *m
         tsjob__msgf(msg, len, "window must be odd, not %d", job->params.window);
         return -1;
     }
-    if (job->params.rotations != 0 && job->params.rotations != 4 && job->params.rotations != 8) {
-        tsjob__msgf(msg, len, "rotations must be 0, 4 or 8, not %d", job->params.rotations);
+    if (!ts_pixel_rotations_valid(job->params.rotations)) {
+        tsjob__msgf(msg, len, "rotations must be -1, 0, 2, 4 or 8, not %d",
+                    job->params.rotations);
         return -1;
     }
     if ((s = tsjob_get(v, "band", 0)))

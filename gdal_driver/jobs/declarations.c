@@ -406,7 +406,7 @@ static const tsjob_option pixel_opts[] = {
     OPT_PREVIEW,
     {"debug_dir", TSJOB_OUTPUT, 1, 0, 0, "DIR", G_OUT,
      "source_exemplar.tif, source_x.tif, source_y.tif: where each cell's finest coordinate "
-     "points (the candidate exemplar: index x rotations + turn; the cell in it)",
+     "points (the candidate exemplar: index x variants + the variant; the cell in it)",
      NULL, 0, NULL},
     OPT_RECIPE,
 };

@@ -206,9 +206,11 @@ static const ts_param_desc pixel_desc[] = {
      "(quantile: a sketch drawn in grey levels, whose ground then takes the exemplars' most "
      "common heights).",
      offsetof(ts_pixel_params, guide_heights)},
-    {"rotations", TS_PARAM_INT, 4, 0, 8, TS_UNIT_CELLS, "", NULL,
-     "Candidates turned and mirrored (Cruz et al.): 0 the exemplars as given, 4 also turned "
-     "by 90, 180 and 270 degrees, 8 those and their mirror images.",
+    {"rotations", TS_PARAM_INT, -1, -1, 8, TS_UNIT_CELLS, "", NULL,
+     "Candidates turned and mirrored (Cruz et al.): 0 the exemplars as given, 2 also turned "
+     "by 180 degrees (every direction kept), 4 also by 90 and 270 degrees, 8 those and their "
+     "mirror images; -1 (auto): 4 for exemplars without a preferred direction (orientation "
+     "coherence of their gradients below 0.05), else 2, so a grained exemplar keeps its grain.",
      offsetof(ts_pixel_params, rotations)},
     {"coherence", TS_PARAM_INT, 1, 1, 8, TS_UNIT_CELLS, "", NULL,
      "K of the k-coherence search (Lefebvre and Hoppe): besides each neighbour's coherent "

@@ -353,8 +353,8 @@ static void correct_rows(void *arg, size_t begin, size_t end)
                         ts__pix_similar(j->ex, id, &e2, &cell);
                         ns = &j->ex->stacks[e2];
                         c.e = e2 * nv + q;
-                        turned_target(ns->width, ns->height, q % 4, q >= 4, cell % ns->width,
-                                      cell / ns->width, &c.u, &c.v);
+                        turned_target(ns->width, ns->height, j->ex->vturn[q], j->ex->vmirror[q],
+                                      cell % ns->width, cell / ns->width, &c.u, &c.v);
                         c.u -= a * hsp;
                         c.v -= b * hsp;
                         if (SAME(c, cur) || SAME(c, best) || !usable(j->ex, l, c))
@@ -409,8 +409,8 @@ static pix_coord random_coord(const ts_pixel_exemplars *ex, int l, uint64_t h)
     c.e = (int32_t)(h % (uint64_t)ex->n);
     s = &ex->stacks[c.e / ex->nv];
     idx = s->usable_list[l][(h >> 20) % s->n_usable[l]];
-    turned_target(s->width, s->height, c.e % ex->nv % 4, c.e % ex->nv >= 4, idx % s->width,
-                  idx / s->width, &c.u, &c.v);
+    turned_target(s->width, s->height, ex->vturn[c.e % ex->nv], ex->vmirror[c.e % ex->nv],
+                  idx % s->width, idx / s->width, &c.u, &c.v);
     return c;
 }
 
@@ -426,7 +426,7 @@ static pix_coord by_height_pick(const ts_pixel_exemplars *ex, int32_t e, size_t 
     if (i + 16 > n)
         i = n > 16 ? n - 16 : 0;
     pick = i + (size_t)((h >> 24) % (uint64_t)(n - i < 16 ? n - i : 16));
-    turned_target(s->width, s->height, e % ex->nv % 4, e % ex->nv >= 4,
+    turned_target(s->width, s->height, ex->vturn[e % ex->nv], ex->vmirror[e % ex->nv],
                   s->by_height[pick] % s->width, s->by_height[pick] / s->width, &c.u, &c.v);
     return c;
 }

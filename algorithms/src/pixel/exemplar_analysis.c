@@ -11,6 +11,7 @@
  */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "pixel.h"
 #include "relief_guide.h"
@@ -92,11 +93,30 @@ static ts_status pix_fill_nodata(ts_ctx *ctx, ts_pixel_exemplars *ex)
     return TS_OK;
 }
 
+/* The candidates of each exemplar: `rotations` of them, or (-1) as many as keep
+ * the exemplars' grain: without a preferred direction (coherence below
+ * TS_PIXEL_ISOTROPIC) the quarter turns, with one the half turn alone, which
+ * keeps every feature's direction (a mirror image keeps the mean direction
+ * of an axis-aligned grain but turns each oblique feature the other way: a
+ * fault's scarps then cross in chevrons).  vturn[v], vmirror[v]: variant v's
+ * quarter turns and mirror.  Returns nv. */
+static int pix_variants(int rotations, double grain, int vturn[8], int vmirror[8])
+{
+    int v, nv = rotations >= 0 ? (rotations ? rotations : 1) : grain < TS_PIXEL_ISOTROPIC ? 4 : 2;
+    for (v = 0; v < 8; v++) {
+        vturn[v] = v < nv ? (nv == 2 ? 2 * v : v % 4) : 0;
+        vmirror[v] = v < nv && v >= 4;
+    }
+    return nv;
+}
+
 TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n,
                                   const ts_pixel_params *params, ts_pixel_exemplars **out)
 {
     ts_pixel_exemplars *ex;
     int i, L, k, nv, minside = 1 << 30;
+    double grain;
+    int vturn[8], vmirror[8];
     ts__clear(ctx);
     if (!out)
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "no output given");
@@ -105,13 +125,14 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "no exemplars given");
     if (ts_params_validate(ctx, "pixel", params) != TS_OK)
         return ctx->status;
-    if (params->rotations != 0 && params->rotations != 4 && params->rotations != 8)
-        return ts__fail(ctx, TS_ERR_ARG, "pixel", "rotations must be 0, 4 or 8, not %d",
+    if (!ts_pixel_rotations_valid(params->rotations))
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "rotations must be -1, 0, 2, 4 or 8, not %d",
                         params->rotations);
-    nv = params->rotations ? params->rotations : 1;
     for (i = 0; i < n; i++)
         if (!exemplars[i].data)
             return ts__fail_input(ctx, TS_ERR_ARG, i, "pixel", "exemplar %d: no data", i + 1);
+    grain = ts__pix_grain(exemplars, n);
+    nv = pix_variants(params->rotations, grain, vturn, vmirror);
     /* 0: chosen as Cruz et al. do, by the neighbourhoods' principal components */
     k = params->window ? params->window : ts__pix_choose_window(exemplars, n);
     if (k % 2 == 0)
@@ -140,6 +161,9 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
     ex->n = n * nv;
     ex->n_given = n;
     ex->nv = nv;
+    ex->grain = grain;
+    memcpy(ex->vturn, vturn, sizeof vturn);
+    memcpy(ex->vmirror, vmirror, sizeof vmirror);
     for (i = 0; i <= L; i++)
         ex->kl[i] = COARSE_WINDOW(k, 1 << (L - i));
     if (!(ex->turn = calloc((size_t)n * (size_t)nv, sizeof *ex->turn))) {
@@ -153,7 +177,8 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
                                     {1, 0, 0, -1, 1, 0},
                                     {1, 1, -1, 0, 0, -1},
                                     {0, 1, 0, 1, -1, 0}};
-        int w = exemplars[i / nv].width, h = exemplars[i / nv].height, q = i % nv % 4;
+        int w = exemplars[i / nv].width, h = exemplars[i / nv].height;
+        int q = vturn[i % nv];
         pix_turn *t = &ex->turn[i];
         t->w = q % 2 ? h : w;
         t->h = q % 2 ? w : h;
@@ -164,7 +189,7 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
         t->mxv = m[q][3];
         t->myu = m[q][4];
         t->myv = m[q][5];
-        if (i % nv >= 4) { /* mirrored left-right first */
+        if (vmirror[i % nv]) { /* mirrored left-right first */
             t->ox = w - 1 - t->ox;
             t->mxu = -t->mxu;
             t->mxv = -t->mxv;
@@ -262,4 +287,39 @@ TS_API int ts_pixel_levels(const ts_pixel_exemplars *ex)
 TS_API int ts_pixel_window(const ts_pixel_exemplars *ex)
 {
     return ex ? ex->window : 0;
+}
+
+TS_API int ts_pixel_variants(const ts_pixel_exemplars *ex)
+{
+    return ex ? ex->nv : 0;
+}
+
+TS_API double ts_pixel_grain(const ts_pixel_exemplars *ex)
+{
+    return ex ? ex->grain : 0.0;
+}
+
+TS_API int ts_pixel_rotations_valid(int rotations)
+{
+    return rotations == -1 || rotations == 0 || rotations == 2 || rotations == 4 || rotations == 8;
+}
+
+double ts__pix_grain(const ts_raster *exemplars, int n)
+{
+    double jxx = 0.0, jyy = 0.0, jxy = 0.0;
+    int i, x, y;
+    for (i = 0; i < n; i++) {
+        const ts_raster *r = &exemplars[i];
+        for (y = 1; y + 1 < r->height; y++)
+            for (x = 1; x + 1 < r->width; x++) {
+                double gx = 0.5 * ((double)TS_PIX(r, x + 1, y) - TS_PIX(r, x - 1, y));
+                double gy = 0.5 * ((double)TS_PIX(r, x, y + 1) - TS_PIX(r, x, y - 1));
+                if (!isfinite(gx) || !isfinite(gy))
+                    continue; /* a neighbour is nodata */
+                jxx += gx * gx;
+                jyy += gy * gy;
+                jxy += gx * gy;
+            }
+    }
+    return jxx + jyy > 0.0 ? sqrt((jxx - jyy) * (jxx - jyy) + 4.0 * jxy * jxy) / (jxx + jyy) : 0.0;
 }

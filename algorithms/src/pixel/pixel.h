@@ -43,22 +43,30 @@ typedef struct ts_pixel_relief {
                        exemplars' relief at the coarsest spacing */
 } ts_pixel_relief;
 
+/* The exemplars' grain: the coherence of their gradients' orientation,
+ * |sum g^2 e^(2 i theta)| / sum |g|^2 over every cell with its four
+ * neighbours (0: no preferred direction, 1: all one way). */
+double ts__pix_grain(const ts_raster *exemplars, int n);
+
 struct ts_pixel_exemplars {
     int n;       /* candidates: the exemplars given x nv (coordinate e: exemplar e / nv, variant
-                    e % nv, turned by (e % nv) % 4 quarter turns, mirrored when (e % nv) >= 4) */
+                    e % nv, turned and mirrored as vturn and vmirror say) */
     int n_given; /* the exemplars given, each with a stack */
-    int nv;      /* variants per exemplar: 1, 4 or 8 */
+    int nv;      /* variants per exemplar: 1, 2, 4 or 8 */
+    int vturn[8], vmirror[8]; /* variant v: its quarter turns (counter-clockwise), and
+                                 whether it is mirrored left-right first */
+    double grain;             /* the exemplars' gradient orientation coherence (ts__pix_grain) */
     int levels, window;
-    int kl[12];        /* each level's window (the coarsest may be narrower) */
-    pix_stack *stacks; /* n_given */
-    pix_turn *turn;    /* n */
-    int coherence;     /* K of the k-coherence similarity sets (1: none) */
-    int64_t *cell_base; /* n_given: the first id of each exemplar's cells in the sets */
-    int dim[12];       /* each level's appearance dimension: 1 + principal directions kept
-                          (+ 1 with the roughness term: the last) */
-    float rough;       /* the roughness term's sqrt(lambda) (0: none): an appearance vector's
-                          last value is rough x the neighbourhood's roughness */
-    float *basis[12];  /* each level's principal directions, (dim - 1) rows of k * k */
+    int kl[12];             /* each level's window (the coarsest may be narrower) */
+    pix_stack *stacks;      /* n_given */
+    pix_turn *turn;         /* n */
+    int coherence;          /* K of the k-coherence similarity sets (1: none) */
+    int64_t *cell_base;     /* n_given: the first id of each exemplar's cells in the sets */
+    int dim[12];            /* each level's appearance dimension: 1 + principal directions kept
+                               (+ 1 with the roughness term: the last) */
+    float rough;            /* the roughness term's sqrt(lambda) (0: none): an appearance vector's
+                               last value is rough x the neighbourhood's roughness */
+    float *basis[12];       /* each level's principal directions, (dim - 1) rows of k * k */
     ts_pixel_relief relief; /* the relief start (its sample NULL until built) */
 };
 

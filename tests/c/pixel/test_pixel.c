@@ -335,6 +335,62 @@ static void test_appearance_space(void)
     ts_ctx_free(ctx);
 }
 
+/* Two views: the exemplar and its half turn (read as a plain loop turns it);
+ * by default (rotations -1) ridges all one way get those two, which keep
+ * their direction, and a cone (no preferred direction) the quarter turns;
+ * the grain against a slow sum of angles. */
+static void test_half_turn_and_auto(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_terrain(ctx, 41, 30, 12), ridges, cone;
+    ts_pixel_params p = ts_pixel_params_default();
+    ts_pixel_exemplars *E = NULL;
+    double sc = 0.0, ss = 0.0, sw = 0.0;
+    int x, y, bad = 0;
+    p.levels = 2;
+    p.rotations = 2;
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
+    CHECK(ts_pixel_variants(E) == 2);
+    for (y = 0; y < 30; y++)
+        for (x = 0; x < 41; x++)
+            bad += ts__pix_candidate_height(E, 2, 1, x, y) != TS_PIX(&ex, 40 - x, 29 - y);
+    CHECK_MSG(bad == 0, "%d cells of the half turn off", bad);
+    ts_pixel_exemplars_free(E);
+    p.rotations = -1;
+    CHECK(ts_raster_alloc(ctx, 120, 100, &ridges) == TS_OK);
+    CHECK(ts_raster_alloc(ctx, 100, 100, &cone) == TS_OK);
+    for (y = 0; y < 100; y++)
+        for (x = 0; x < 120; x++) {
+            TS_PIX(&ridges, x, y) = (float)(500 + 40 * sin(6.2831853 * (x + 0.5 * y) / 20.0));
+            if (x < 100) /* every direction alike: a cone on a square */
+                TS_PIX(&cone, x, y) = (float)(900 - hypot(x - 49.5, y - 49.5));
+        }
+    for (y = 1; y < 99; y++) /* the grain written out: sum of |g|^2 e^(2 i theta) */
+        for (x = 1; x < 119; x++) {
+            double gx = 0.5 * (TS_PIX(&ridges, x + 1, y) - TS_PIX(&ridges, x - 1, y));
+            double gy = 0.5 * (TS_PIX(&ridges, x, y + 1) - TS_PIX(&ridges, x, y - 1));
+            double g2 = gx * gx + gy * gy, th = atan2(gy, gx);
+            sc += g2 * cos(2 * th);
+            ss += g2 * sin(2 * th);
+            sw += g2;
+        }
+    CHECK(ts_pixel_prepare(ctx, &ridges, 1, &p, &E) == TS_OK);
+    CHECK_MSG(fabs(ts_pixel_grain(E) - hypot(sc, ss) / sw) < 1e-9 && ts_pixel_grain(E) > 0.9,
+              "grain %g, written out %g", ts_pixel_grain(E), hypot(sc, ss) / sw);
+    CHECK(ts_pixel_variants(E) == 2);
+    ts_pixel_exemplars_free(E);
+    CHECK(ts_pixel_prepare(ctx, &cone, 1, &p, &E) == TS_OK);
+    CHECK_MSG(ts_pixel_grain(E) < TS_PIXEL_ISOTROPIC && ts_pixel_variants(E) == 4,
+              "cone: grain %g, %d views", ts_pixel_grain(E), ts_pixel_variants(E));
+    ts_pixel_exemplars_free(E);
+    p.rotations = 3;
+    CHECK(ts_pixel_prepare(ctx, &cone, 1, &p, &E) == TS_ERR_ARG);
+    ts_raster_free(&ridges);
+    ts_raster_free(&cone);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
 /* A turned or mirrored candidate reads the exemplar's stack turned: the same
  * as the stack of the exemplar turned by a plain loop (blurred on its own). */
 static void test_turned_candidates(void)
@@ -910,6 +966,7 @@ static void test_guide_add(void)
     int x, y, seed;
     p.levels = 4;
     p.guide_mode = TS_GUIDE_ADD;
+    p.rotations = 4; /* a guide across the exemplar's grain needs the turned views */
     /* the guide's bands alone: the roughness term is off at steered levels, so with it the
      * steered levels would differ whatever the guide */
     p.roughness_weight = 0;
@@ -1022,6 +1079,7 @@ int main(int argc, char **argv)
         {"windows_anywhere", test_windows_anywhere},
         {"appearance_space", test_appearance_space},
         {"turned_candidates", test_turned_candidates},
+        {"half_turn_and_auto", test_half_turn_and_auto},
         {"kdtree_against_scan", test_kdtree_against_scan},
         {"similarity_sets", test_similarity_sets},
         {"errors", test_errors},
