@@ -77,6 +77,10 @@ const char *cli_stage_title(const char *stage);
 struct tsjob_rule;
 int cli_rule_text(const struct tsjob_rule *r, char *line, size_t len);
 /* "profile_length" -> "--profile-length" */
+/* The drainage stage's line of a job's summary (nothing for keep). */
+void cli_drainage_report(const ts_drainage_params *p, const ts_drainage_info *d, double seconds,
+                         int width, int height);
+
 void cli_flag_of(const char *name, char *buf, size_t len);
 /* One option's help: `left` (flag and value), then `text` wrapped at 50
  * columns beside it. */

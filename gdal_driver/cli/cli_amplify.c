@@ -82,6 +82,9 @@ static void amplify_report(void *st, cli_run *r)
                res->in.geo.width, res->in.geo.height, res->geo.width, res->geo.height,
                s->job.params.factor, res->info.n_patches, res->n_atoms, res->info.mean_score,
                res->seconds_dictionary, res->info.seconds_match, res->info.seconds_synthesis);
+    if (r->co->progress != PROGRESS_QUIET)
+        cli_drainage_report(&res->drainage, &res->drainage_info, res->seconds_drainage,
+                            res->geo.width, res->geo.height);
 }
 
 static void amplify_free(void *st)

@@ -146,8 +146,9 @@ const char *cli_stage_title(const char *stage)
 {
     return !strcmp(stage, "sketch")    ? "Sketch parameters (with --sketch)"
            : !strcmp(stage, "ppa")     ? "PPA parameters"
-           : !strcmp(stage, "amplify") ? "Amplification parameters"
-                                       : "Synthesis parameters";
+           : !strcmp(stage, "amplify")  ? "Amplification parameters"
+           : !strcmp(stage, "drainage") ? "Drainage parameters (after the method)"
+                                        : "Synthesis parameters";
 }
 
 int cli_rule_text(const tsjob_rule *r, char *line, size_t len)
@@ -274,4 +275,20 @@ void cli_params_help(FILE *out, const char *stage, const char *const *skip)
             fprintf(out, "  %-32s default %s, range %g..%g %s\n", "", def, d[k].min, d[k].max,
                     d[k].type == TS_PARAM_LENGTH ? "" : d[k].units);
     }
+}
+
+void cli_drainage_report(const ts_drainage_params *p, const ts_drainage_info *d, double seconds,
+                         int width, int height)
+{
+    static const char *const modes[] = {"keep", "breach", "fill"};
+    double cells = (double)width * (double)height;
+    char depth[64] = "";
+    if (p->mode == TS_DRAINAGE_KEEP)
+        return;
+    if (p->mode == TS_DRAINAGE_BREACH && p->max_depth > 0)
+        snprintf(depth, sizeof depth, ", cuts at most %.3g deep", p->max_depth);
+    printf("drainage: %s%s, %zu pits, %zu drained within %d cells; %zu cells changed (%.2f %%), "
+           "mean %.2f; %.2f s\n",
+           modes[p->mode], depth, d->pits, d->resolved, p->radius, d->cells_changed,
+           cells > 0 ? 100.0 * (double)d->cells_changed / cells : 0.0, d->mean_change, seconds);
 }

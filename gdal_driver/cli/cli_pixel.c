@@ -71,6 +71,9 @@ static void pixel_report(void *st, cli_run *r)
                ts_pixel_window(res->stacks), ts_pixel_variants(res->stacks),
                ts_pixel_grain(res->stacks), (unsigned long long)r->seed, res->seconds_stacks,
                res->seconds_synthesis);
+    if (r->co->progress != PROGRESS_QUIET)
+        cli_drainage_report(&res->drainage, &res->drainage_info, res->seconds_drainage,
+                            res->geo.width, res->geo.height);
 }
 
 static void pixel_free(void *st)

@@ -67,6 +67,9 @@ static int synth_compute(void *st, cli_run *r, tsio_err *err)
                 "with: the output does not follow it\n",
                 sketch_kinds(si->mode, "ridges or valleys"));
     ts_ctx_set_progress(r->ctx, NULL, NULL);
+    if (r->co->progress != PROGRESS_QUIET)
+        cli_drainage_report(&s->res.drainage, &s->res.drainage_info, s->res.seconds_drainage,
+                            s->res.geo.width, s->res.geo.height);
     if (s->res.exemplar_no_crs && r->co->progress != PROGRESS_QUIET)
         fprintf(stderr, "terrasynth: warning: %s has no CRS: used cell for cell\n",
                 s->job.exemplars[s->res.exemplar_no_crs - 1]);

@@ -6,7 +6,7 @@
 # SPDX-License-Identifier: GPL-2.0-or-later
 #
 #   terrasynth-dask RECIPE.tsyn OUT.tif [--workers N [--processes] | --scheduler ADDRESS]
-#                   [--chunk 2048] [--plugins DIR] [--no-overviews] [--stats] [-q]
+#                   [--chunk N] [--plugins DIR] [--no-overviews] [--stats] [-q]
 #
 # The workers open the recipe through the TSYN GDAL driver and each reads one chunk (a window
 # of the raster); the client writes the chunks as they come.  Methods that compute any window
@@ -14,7 +14,8 @@
 # (<Param name="tiled">) is one Dask task per tile: a tile's task takes the windows of its
 # earlier-wave neighbours (four waves, see algorithms/docs/synth.md) as its inputs, so Dask
 # runs the waves in order, each tile once, and moves the neighbours' windows between workers;
-# the task calls the plugin's tsyn_tile_make.  The others (synth in one piece, ppa) compute
+# the task calls the plugin's tsyn_tile_make; with the drainage stage a second task per tile
+# drains its core from the tiles within reach (tsyn_tile_drain).  The others (synth in one piece, ppa) compute
 # the whole raster on first read, so their recipe is read by one task as one chunk (the same
 # bytes, no gain in speed).  A chunk is a pure function of the recipe and its
 # window, so Dask recomputes the chunks of a worker that dies.  The output appears whole or
@@ -22,8 +23,7 @@
 # Ctrl-C); it never replaces the recipe or a file the recipe names.  A local cluster's workers
 # are threads of this process by default: the tile and chunk calls run in C with Python's
 # lock released, so threads compute side by side and share the windows without copying them
-# (worker processes, --processes, pay for pickling and moving every window: 2 workers, 8192^2
-# in tiles, 64.2 s as threads vs 71.7 s as processes here, 60.7 s in one process).  Debian
+# (worker processes, --processes, pay for pickling and moving every window).  Debian
 # packages only: python3-gdal, python3-numpy, python3-dask, python3-distributed.
 import argparse
 import os
@@ -106,6 +106,11 @@ def _tiles_open(recipe, plugins):
     lib.tsyn_tile_rect.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
                                    ctypes.c_int * 4, ctypes.c_int * 4, ctypes.c_char_p,
                                    ctypes.c_int]
+    lib.tsyn_tile_reach.argtypes = [ctypes.c_void_p]
+    lib.tsyn_tile_reach.restype = ctypes.c_int
+    lib.tsyn_tile_drain.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
+                                    ctypes.POINTER(ctypes.c_void_p), ctypes.c_void_p,
+                                    ctypes.c_char_p, ctypes.c_int]
     h, w, ht, t = ctypes.c_void_p(), ctypes.c_int(), ctypes.c_int(), ctypes.c_int()
     msg = ctypes.create_string_buffer(1024)
     if lib.tsyn_tiles_open(recipe.encode(), ctypes.byref(h), ctypes.byref(w), ctypes.byref(ht),
@@ -134,6 +139,25 @@ def make_tile(recipe, plugins, ti, tj, neighbours):
     return tuple(win), tuple(core), window
 
 
+def drain_tile(recipe, plugins, ti, tj, reach, tiles):
+    """Tile (ti, tj)'s core after the drainage stage (runs on a worker), from the windows of
+    the tiles within `reach` rings (tiles[(dj + reach) * (2 reach + 1) + di + reach], None off
+    the grid); returned as make_tile returns a window whose window is its core."""
+    import ctypes
+    import numpy as np
+    lib, h, W, H, T = _tiles_handle(recipe, plugins)
+    win, core = (ctypes.c_int * 4)(), (ctypes.c_int * 4)()
+    msg = ctypes.create_string_buffer(1024)
+    if lib.tsyn_tile_rect(h, ti, tj, win, core, msg, 1024) != 0:
+        raise RuntimeError(msg.value.decode(errors="replace"))
+    out = np.empty((core[3], core[2]), dtype=np.float32)
+    keep = [None if t is None else np.ascontiguousarray(t[2], dtype=np.float32) for t in tiles]
+    ptrs = (ctypes.c_void_p * len(keep))(*[None if t is None else t.ctypes.data for t in keep])
+    if lib.tsyn_tile_drain(h, ti, tj, ptrs, out.ctypes.data, msg, 1024) != 0:
+        raise RuntimeError(msg.value.decode(errors="replace"))
+    return tuple(core), tuple(core), out
+
+
 def worker_stats():
     """This process's peak resident set in MB and CPU seconds (runs on a worker)."""
     import resource
@@ -145,10 +169,11 @@ def wave(ti, tj):
     return (ti & 1) + 2 * (tj & 1)
 
 
-def tile_tasks(client, recipe, plugins, W, H, T):
+def tile_tasks(client, recipe, plugins, W, H, T, reach=0):
     """Submit a task per tile, each after the earlier-wave neighbours it takes (tiles in row
     order, a tile's needs first: Dask runs them in about that order, so the windows it holds
-    are a few tile rows)."""
+    are a few tile rows); with the drainage stage (reach > 0 rings of tiles) a task per tile
+    after them that drains its core."""
     nti, ntj = (W + T - 1) // T, (H + T - 1) // T
     futs = {}
 
@@ -178,7 +203,19 @@ def tile_tasks(client, recipe, plugins, W, H, T):
     for tj in range(ntj):
         for ti in range(nti):
             submit(ti, tj)
-    return futs
+    if not reach:
+        return futs
+    # the drainage stage: each core from the tiles within reach rings of it
+    drained = {}
+    for tj in range(ntj):
+        for ti in range(nti):
+            near = [futs.get((ti + di, tj + dj)) for dj in range(-reach, reach + 1)
+                    for di in range(-reach, reach + 1)]
+            drained[(ti, tj)] = client.submit(drain_tile, recipe, plugins, ti, tj, reach, near,
+                                              pure=True, retries=2, priority=-tj,
+                                              key="drain-%d-%d-%s" % (
+                                                  ti, tj, abs(hash((recipe, plugins)))))
+    return drained
 
 
 def main(argv=None):
@@ -192,7 +229,9 @@ def main(argv=None):
     ap.add_argument("--processes", action="store_true",
                     help="a local cluster's workers as processes (default: threads of this "
                          "process, which share the windows without copying them)")
-    ap.add_argument("--chunk", type=int, default=2048, help="chunk side in cells (default 2048)")
+    ap.add_argument("--chunk", type=int, default=None,
+                    help="chunk side in cells (default 2048, or 4 times the drainage stage's "
+                         "margin when larger)")
     ap.add_argument("--plugins", default=os.environ.get("GDAL_DRIVER_PATH", ""),
                     help="folder of the TSYN plugin for the workers (default: GDAL_DRIVER_PATH)")
     ap.add_argument("--no-overviews", action="store_true")
@@ -203,7 +242,7 @@ def main(argv=None):
     ap.add_argument("--stats", action="store_true",
                     help="print each worker's peak memory (resident set) and CPU time at the end")
     a = ap.parse_args(argv)
-    if a.chunk < 64 or a.chunk > 65536:
+    if a.chunk is not None and (a.chunk < 64 or a.chunk > 65536):
         fail("--chunk %d: give 64..65536 cells" % a.chunk)
     if a.workers is not None and a.workers < 1:
         fail("--workers %d: give at least 1" % a.workers)
@@ -219,8 +258,8 @@ def main(argv=None):
     from osgeo import gdal
     gdal.UseExceptions()
     # the recipe read by the TSYN driver (the library's parser and checks): its grid, and
-    # how it is made (metadata domain TSYN: JOB, WINDOWS any|tiles|whole, TILE_SIZE, the
-    # files it reads as INPUT_n)
+    # how it is made (metadata domain TSYN: JOB, WINDOWS any|tiles|whole, TILE_SIZE,
+    # DRAINAGE_MARGIN, the files it reads as INPUT_n)
     try:
         src = gdal.OpenEx(a.recipe, gdal.OF_RASTER | gdal.OF_READONLY, allowed_drivers=["TSYN"])
     except RuntimeError as e:
@@ -228,6 +267,9 @@ def main(argv=None):
     how = src.GetMetadata("TSYN") or {}
     method, windows_alone = how.get("JOB", "?"), how.get("WINDOWS") == "any"
     tile = int(how.get("TILE_SIZE", "0"))
+    # the cells round a window its drainage stage reads: chunks of "any" windows are by
+    # default at least 4 times as large, so the margin costs at most 2.25 x their cells
+    margin = int(how.get("DRAINAGE_MARGIN", "0"))
     named = [v for k, v in sorted(how.items()) if k.startswith("INPUT_")]
     for p in [a.recipe] + named:
         if same_file(p, a.output):
@@ -249,7 +291,7 @@ def main(argv=None):
     except ImportError:
         fail("needs python3-dask and python3-distributed (apt-get install python3-distributed)")
 
-    chunk = a.chunk if windows_alone else max(W, H)
+    chunk = (a.chunk or max(2048, 4 * margin)) if windows_alone else max(W, H)
     windows = [(x, y, min(chunk, W - x), min(chunk, H - y))
                for y in range(0, H, chunk) for x in range(0, W, chunk)]
     fd, tmp = tempfile.mkstemp(prefix=".%s." % os.path.basename(a.output), suffix=".tif",
@@ -319,7 +361,8 @@ def main(argv=None):
         pending = [] if tile else list(windows)
         futures = as_completed()
         if tile:  # one task per tile, the waves as dependencies
-            futs = tile_tasks(client, recipe, plugins, W, H, tile)
+            futs = tile_tasks(client, recipe, plugins, W, H, tile,
+                              -(-margin // tile) if margin else 0)
             windows = list(futs)
             futures = as_completed(list(futs.values()))
             futs = None  # the client keeps only what as_completed holds

@@ -25,12 +25,14 @@ int tsjob_build_synth(tsjob_values *v, tsjob_synth *job, uint64_t *seed, char *m
     memset(job, 0, sizeof *job);
     job->params = ts_synth_params_default();
     job->sketch_params = ts_sketch_params_default();
+    job->drainage = ts_drainage_params_default();
     job->alpha_h = 1.0;
     job->band = 1;
     *seed = 0;
     if (tsjob__check_values(v, msg, len) || tsjob__check_rules(v, cli, msg, len) ||
         tsjob__apply_params(v, "synth", &job->params, msg, len) ||
-        tsjob__apply_params(v, "sketch", &job->sketch_params, msg, len))
+        tsjob__apply_params(v, "sketch", &job->sketch_params, msg, len) ||
+        tsjob__apply_params(v, "drainage", &job->drainage, msg, len))
         return -1;
     for (i = 0; (s = tsjob_get(v, "exemplar", i)); i++)
         job->exemplars[job->n_exemplars++] = s;
@@ -188,11 +190,13 @@ int tsjob_build_amplify(tsjob_values *v, tsjob_amplify *job, char *msg, size_t l
     int i;
     memset(job, 0, sizeof *job);
     job->params = ts_amplify_params_default();
+    job->drainage = ts_drainage_params_default();
     job->band = 1;
     if (expand_weights(v, msg, len) || tsjob__check_values(v, msg, len) ||
         tsjob__check_rules(v, v->cli, msg, len))
         return -1;
-    if (tsjob__apply_params(v, "amplify", &job->params, msg, len))
+    if (tsjob__apply_params(v, "amplify", &job->params, msg, len) ||
+        tsjob__apply_params(v, "drainage", &job->drainage, msg, len))
         return -1;
     job->input = tsjob_get(v, "input", 0);
     if (!job->input && strcmp(v->job->name, "dictionary") != 0) {
@@ -329,10 +333,12 @@ int tsjob_build_pixel(tsjob_values *v, tsjob_pixel *job, uint64_t *seed, char *m
     int i;
     memset(job, 0, sizeof *job);
     job->params = ts_pixel_params_default();
+    job->drainage = ts_drainage_params_default();
     job->band = 1;
     *seed = 0;
     if (tsjob__check_values(v, msg, len) || tsjob__check_rules(v, v->cli, msg, len) ||
-        tsjob__apply_params(v, "pixel", &job->params, msg, len))
+        tsjob__apply_params(v, "pixel", &job->params, msg, len) ||
+        tsjob__apply_params(v, "drainage", &job->drainage, msg, len))
         return -1;
     for (i = 0; (s = tsjob_get(v, "exemplar", i)); i++)
         job->exemplars[job->n_exemplars++] = s;

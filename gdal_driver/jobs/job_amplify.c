@@ -493,6 +493,7 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
     int cy = res->in.geo.height / 2, F = job->params.factor;
     double in_dx = res->in.dx_m ? res->in.dx_m[cy] : job->cell_size;
     double in_dy = res->in.dy_m ? res->in.dy_m[cy] : job->cell_size;
+    res->drainage = job->drainage;
     if (job->n_biomes) {
         int b;
         for (b = 0; b < job->n_biomes; b++) {
@@ -554,6 +555,10 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
                   "(%.3g m), so their patterns repeat; give larger exemplars",
                   res->n_atoms, in_dx > 0 ? in_dx / F : 0.0);
 drainage:
+    /* the automatic depth from the input (what exemplars, a dictionary and biomes share),
+     * its creases spread over the factor's finer cells */
+    if (res->drainage.max_depth == -1)
+        res->drainage.max_depth = ts_drainage_depth_auto(&res->in.r, 1) / F;
     if (ts_raster_alloc(ctx, res->in.r.width, res->in.r.height, &res->drain) != TS_OK ||
         ts_drainage_area(ctx, &res->in.r, &res->drain) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
@@ -588,8 +593,9 @@ static ts_status job_amplify_biomes(ts_ctx *ctx, const tsjob_amplify *job,
                              info);
 }
 
-int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
-                         int x0, int y0, int w, int h, int serve, float *out, tsio_err *err)
+static int amplify_raw_window(ts_ctx *ctx, const tsjob_amplify *job,
+                              const tsjob_amplify_result *res, int x0, int y0, int w, int h,
+                              int serve, float *out, tsio_err *err)
 {
     ts_raster o = ts_raster_wrap(out, w, h, w), dem = {0, 0, 0, NULL}, cls = {0, 0, 0, NULL};
     ts_raster layers[TS_MAX_LAYERS];
@@ -629,6 +635,32 @@ done:
     return rc;
 }
 
+typedef struct amplify_raw_arg {
+    const tsjob_amplify *job;
+    const tsjob_amplify_result *res;
+} amplify_raw_arg;
+
+/* The DEM's window before the drainage stage (a tsjob_raw_fn). */
+static int amplify_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, float *out,
+                       unsigned char *flags, tsio_err *err)
+{
+    const amplify_raw_arg *a = arg;
+    (void)flags;
+    return amplify_raw_window(ctx, a->job, a->res, x0, y0, w, h, TSJOB_SERVE_DEM, out, err);
+}
+
+int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
+                         int x0, int y0, int w, int h, int serve, float *out, tsio_err *err)
+{
+    amplify_raw_arg a;
+    if (serve != TSJOB_SERVE_DEM) /* the layers and classes as the atoms carry them */
+        return amplify_raw_window(ctx, job, res, x0, y0, w, h, serve, out, err);
+    a.job = job;
+    a.res = res;
+    return tsjob_drained_window(ctx, &res->drainage, res->geo.width, res->geo.height, x0, y0, w,
+                                h, amplify_raw, &a, out, job->input, err);
+}
+
 int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                           tsio_err *err)
 {
@@ -662,12 +694,24 @@ int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_r
         lay.classes = &res->out_classes;
     }
     g = job_amplify_guide(job, res);
-    tsjob__progress_range(ctx, &jp, 0.2, 1.0);
+    tsjob__progress_range(ctx, &jp, 0.2, 0.95);
     if ((job->n_biomes ? job_amplify_biomes(ctx, job, res, 0, 0, &res->out, &res->info)
                        : ts_amplify_window(ctx, &res->in.r, &g, res->dict, &job->params, 0, 0,
                                            &res->out, &lay, &res->info)) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));
         goto done;
+    }
+    /* the drainage stage on the whole DEM: the bytes of every drained window */
+    tsjob__progress_range(ctx, &jp, 0.95, 1.0);
+    {
+        struct timespec t0, t1;
+        clock_gettime(CLOCK_MONOTONIC, &t0);
+        if (tsjob_drain(ctx, &res->drainage, &res->out, NULL, 0, 0, res->geo.width,
+                        res->geo.height, &res->drainage_info, job->input, err) != 0)
+            goto done;
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        res->seconds_drainage =
+            (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
     }
     rc = 0;
 done:

@@ -243,3 +243,54 @@ void tsjob__progress_range(ts_ctx *ctx, job_progress *p, double lo, double hi)
     p->hi = hi;
     ts_ctx_set_progress(ctx, tsjob__progress_cb, p);
 }
+
+/* ---- the drainage stage after every method ------------------------- */
+
+int tsjob_drain(ts_ctx *ctx, const ts_drainage_params *p, ts_raster *dem,
+                const unsigned char *flags, int64_t gx0, int64_t gy0, int W, int H,
+                ts_drainage_info *info, const char *what, tsio_err *err)
+{
+    if (ts_drainage_apply(ctx, dem, flags, gx0, gy0, W, H, p, info) != TS_OK) {
+        tsio_errf(err, what, "%s", ts_ctx_message(ctx));
+        return -1;
+    }
+    return 0;
+}
+
+int tsjob_drained_window(ts_ctx *ctx, const ts_drainage_params *p, int W, int H, int x0, int y0,
+                         int w, int h, tsjob_raw_fn raw, void *arg, float *out, const char *what,
+                         tsio_err *err)
+{
+    int M = ts_drainage_margin(p), ex0, ey0, ex1, ey1, ew, eh, y, rc = -1;
+    float *cells = NULL;
+    unsigned char *flags = NULL;
+    ts_raster r;
+    if (M == 0)
+        return raw(arg, ctx, x0, y0, w, h, out, NULL, err);
+    ex0 = x0 - M > 0 ? x0 - M : 0;
+    ey0 = y0 - M > 0 ? y0 - M : 0;
+    ex1 = x0 + w + M < W ? x0 + w + M : W;
+    ey1 = y0 + h + M < H ? y0 + h + M : H;
+    ew = ex1 - ex0;
+    eh = ey1 - ey0;
+    cells = malloc((size_t)ew * (size_t)eh * sizeof *cells);
+    flags = calloc((size_t)ew * (size_t)eh, 1);
+    if (!cells || !flags) {
+        tsio_errf(err, what, "out of memory for a window of %d x %d cells and its margin", w, h);
+        goto done;
+    }
+    if (raw(arg, ctx, ex0, ey0, ew, eh, cells, flags, err) != 0)
+        goto done;
+    r = ts_raster_wrap(cells, ew, eh, ew);
+    if (tsjob_drain(ctx, p, &r, flags, ex0, ey0, W, H, NULL, what, err) != 0)
+        goto done;
+    for (y = 0; y < h; y++)
+        memcpy(out + (size_t)y * (size_t)w,
+               cells + (size_t)(y0 - ey0 + y) * (size_t)ew + (size_t)(x0 - ex0),
+               (size_t)w * sizeof *out);
+    rc = 0;
+done:
+    free(cells);
+    free(flags);
+    return rc;
+}

@@ -93,6 +93,9 @@ int tsjob_pixel_setup(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *r
             res->exemplar_no_crs = i + 1;
         exr[i] = ex[i].r;
     }
+    res->drainage = job->drainage;
+    if (res->drainage.max_depth == -1)
+        res->drainage.max_depth = ts_drainage_depth_auto(exr, job->n_exemplars);
     clock_gettime(CLOCK_MONOTONIC, &t0);
     if (ts_pixel_prepare(ctx, exr, job->n_exemplars, &job->params, &res->stacks) != TS_OK) {
         int bad = ts_ctx_failed_input(ctx);
@@ -139,10 +142,19 @@ done:
     return rc;
 }
 
-int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res, int x0,
-                       int y0, int w, int h, float *out, tsio_err *err)
+typedef struct pixel_raw_arg {
+    const tsjob_pixel *job;
+    const tsjob_pixel_result *res;
+} pixel_raw_arg;
+
+/* The window before the drainage stage (a tsjob_raw_fn). */
+static int pixel_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, float *out,
+                     unsigned char *flags, tsio_err *err)
 {
+    const tsjob_pixel *job = ((pixel_raw_arg *)arg)->job;
+    const tsjob_pixel_result *res = ((pixel_raw_arg *)arg)->res;
     ts_raster o = ts_raster_wrap(out, w, h, w);
+    (void)flags;
     if ((res->guide
              ? ts_pixel_synthesize_guided(ctx, res->stacks, res->guide, &job->params, x0, y0, &o)
              : ts_pixel_synthesize(ctx, res->stacks, &job->params, x0, y0, &o)) != TS_OK) {
@@ -150,6 +162,16 @@ int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_re
         return -1;
     }
     return 0;
+}
+
+int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res, int x0,
+                       int y0, int w, int h, float *out, tsio_err *err)
+{
+    pixel_raw_arg a;
+    a.job = job;
+    a.res = res;
+    return tsjob_drained_window(ctx, &res->drainage, res->geo.width, res->geo.height, x0, y0, w,
+                                h, pixel_raw, &a, out, job->exemplars[0], err);
 }
 
 int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *res, tsio_err *err)
@@ -165,7 +187,7 @@ int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result 
         tsio_errf(err, "pixel", "%s", ts_ctx_message(ctx));
         goto done;
     }
-    tsjob__progress_range(ctx, &jp, 0.1, 1.0);
+    tsjob__progress_range(ctx, &jp, 0.1, 0.95);
     clock_gettime(CLOCK_MONOTONIC, &t0);
     if (job->keep_sources) {
         size_t n = (size_t)res->geo.width * (size_t)res->geo.height;
@@ -185,12 +207,25 @@ int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result 
             tsio_errf(err, job->exemplars[0], "%s", ts_ctx_message(ctx));
             goto done;
         }
-    } else if (tsjob_pixel_window(ctx, job, res, 0, 0, res->geo.width, res->geo.height,
-                                  res->out.data, err) != 0)
-        goto done;
+    } else {
+        pixel_raw_arg a;
+        a.job = job;
+        a.res = res;
+        if (pixel_raw(&a, ctx, 0, 0, res->geo.width, res->geo.height, res->out.data, NULL, err) !=
+            0)
+            goto done;
+    }
     clock_gettime(CLOCK_MONOTONIC, &t1);
     res->seconds_synthesis =
         (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    /* the drainage stage on the whole: the bytes of every drained window */
+    tsjob__progress_range(ctx, &jp, 0.95, 1.0);
+    if (tsjob_drain(ctx, &res->drainage, &res->out, NULL, 0, 0, res->geo.width, res->geo.height,
+                    &res->drainage_info, job->exemplars[0], err) != 0)
+        goto done;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    res->seconds_drainage =
+        (double)(t0.tv_sec - t1.tv_sec) + 1e-9 * (double)(t0.tv_nsec - t1.tv_nsec);
     rc = 0;
 done:
     ts_ctx_set_progress(ctx, jp.fn, jp.user);

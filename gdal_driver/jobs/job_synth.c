@@ -308,6 +308,14 @@ static int job_read_exemplars(const tsjob_synth *job, tsjob_synth_result *res, t
 static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, tsio_raster *ex,
                         int *x0, int *y0, int *w, int *h, tsio_err *err);
 
+/* The job's drainage stage with its automatic depth from the exemplars as read. */
+static void job_drainage_depth(const tsjob_synth *job, tsjob_synth_result *res, const ts_raster *exr)
+{
+    res->drainage = job->drainage;
+    if (res->drainage.max_depth == -1)
+        res->drainage.max_depth = ts_drainage_depth_auto(exr, job->n_exemplars);
+}
+
 int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err)
 {
     int i;
@@ -324,6 +332,7 @@ int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *r
         return -1;
     }
     res->n_ex = job->n_exemplars;
+    job_drainage_depth(job, res, res->exr);
     for (i = 0; i < job->n_pins; i++) {
         int *wn = res->pin_win[i];
         if (job_pin_read(job, res, i, &res->pin_ex[i], &wn[0], &wn[1], &wn[2], &wn[3], err) != 0)
@@ -379,39 +388,33 @@ static int job_grid_window(const char *path, const char *what, const tsjob_synth
     return rc;
 }
 
-/* The constraints of tile t's window, as job_constraints and
- * tsjob_synth_compute make them for the whole grid, cut to the window; the
- * fixed cells' values into t->window. */
-static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
-                                  const tsjob_synth_result *res, ts_synth_tile *t,
-                                  job_window_cons *wc, tsio_err *err)
+/* The water and pins of window win = {x, y, w, h} of the output grid: their
+ * TS_CELL_* into flags (w x h, zeroed), their values into `values` (the
+ * window's cells; may be NULL). */
+static int job_rect_flags(const tsjob_synth *job, const tsjob_synth_result *res, const int win[4],
+                          unsigned char *flags, ts_raster *values, tsio_err *err)
 {
-    int win[4], x, y, i;
-    size_t n, c;
-    float *tmp = NULL;
-    if (ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width, res->geo.height,
-                             t->ti, t->tj, win, NULL) != TS_OK) {
-        tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
-        return -1;
-    }
-    n = (size_t)win[2] * (size_t)win[3];
-    wc->cons = ts_synth_constraints_default();
-    wc->flags = calloc(n, 1);
-    tmp = malloc(n * sizeof *tmp);
-    if (!wc->flags || !tmp)
-        goto oom;
-    wc->cons.cell_flags = wc->flags;
+    size_t n = (size_t)win[2] * (size_t)win[3], c;
+    int i, x, y;
     if (job->water) {
+        float *tmp = malloc(n * sizeof *tmp);
+        if (!tmp) {
+            tsio_errf(err, job->water, "out of memory for the water mask's window");
+            return -1;
+        }
         if (job_grid_window(job->water, "the water mask", res, win[0], win[1], win[2], win[3], tmp,
-                            err) != 0)
-            goto fail;
+                            err) != 0) {
+            free(tmp);
+            return -1;
+        }
         for (c = 0; c < n; c++)
             if (!isnan(tmp[c]) && tmp[c] != 0) {
-                wc->flags[c] |= TS_CELL_FIXED | TS_CELL_WATER;
-                t->window
-                    .data[(c / (size_t)win[2]) * (size_t)t->window.stride + c % (size_t)win[2]] =
-                    (float)job->water_level;
+                flags[c] |= TS_CELL_FIXED | TS_CELL_WATER;
+                if (values)
+                    TS_PIX(values, (int)(c % (size_t)win[2]), (int)(c / (size_t)win[2])) =
+                        (float)job->water_level;
             }
+        free(tmp);
     }
     for (i = 0; i < job->n_pins; i++) {
         const tsjob_pin *p = &job->pins[i];
@@ -422,16 +425,50 @@ static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
         for (y = ya; y < yb; y++)
             for (x = xa; x < xb; x++) {
                 float v = TS_PIX(&res->pin_ex[i].r, pw[0] + x - p->x, pw[1] + y - p->y);
+                unsigned char *f = &flags[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])];
                 if (isnan(v))
                     continue;
-                TS_PIX(&t->window, x - win[0], y - win[1]) = v;
-                wc->flags[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])] =
-                    (unsigned char)((wc->flags[(size_t)(y - win[1]) * (size_t)win[2] +
-                                               (size_t)(x - win[0])] |
-                                     TS_CELL_FIXED) &
-                                    ~TS_CELL_WATER); /* a pin over water: land */
+                if (values)
+                    TS_PIX(values, x - win[0], y - win[1]) = v;
+                *f = (unsigned char)((*f | TS_CELL_FIXED) & ~TS_CELL_WATER); /* a pin over water: land */
             }
     }
+    return 0;
+}
+
+int tsjob_synth_window_flags(const tsjob_synth *job, const tsjob_synth_result *res, int x0, int y0,
+                             int w, int h, unsigned char *flags, tsio_err *err)
+{
+    int win[4];
+    win[0] = x0;
+    win[1] = y0;
+    win[2] = w;
+    win[3] = h;
+    return job_rect_flags(job, res, win, flags, NULL, err);
+}
+
+/* The constraints of tile t's window, as job_constraints and
+ * tsjob_synth_compute make them for the whole grid, cut to the window; the
+ * fixed cells' values into t->window. */
+static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
+                                  const tsjob_synth_result *res, ts_synth_tile *t,
+                                  job_window_cons *wc, tsio_err *err)
+{
+    int win[4];
+    size_t n;
+    if (ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width, res->geo.height,
+                             t->ti, t->tj, win, NULL) != TS_OK) {
+        tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
+        return -1;
+    }
+    n = (size_t)win[2] * (size_t)win[3];
+    wc->cons = ts_synth_constraints_default();
+    wc->flags = calloc(n, 1);
+    if (!wc->flags)
+        goto oom;
+    wc->cons.cell_flags = wc->flags;
+    if (job_rect_flags(job, res, win, wc->flags, &t->window, err) != 0)
+        goto fail;
     if (job->heights) {
         if (!(wc->heights = malloc(n * sizeof *wc->heights)))
             goto oom;
@@ -450,12 +487,10 @@ static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
         job_region_exemplars(job, wc->cell_ex, n);
         wc->cons.cell_exemplar = wc->cell_ex;
     }
-    free(tmp);
     return 0;
 oom:
     tsio_errf(err, "synth", "out of memory for a tile's constraints");
 fail:
-    free(tmp);
     return -1;
 }
 
@@ -561,6 +596,37 @@ done:
     return rc;
 }
 
+/* The drainage stage on the whole output: the water, the pins and the
+ * sketch's valley floors fixed, its ridges barriers a channel crosses only
+ * where it must. */
+static int job_drain_whole(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
+                           unsigned char *flags, job_progress *jp, tsio_err *err)
+{
+    size_t i, n = (size_t)res->geo.width * (size_t)res->geo.height;
+    struct timespec t0, t1;
+    int rc;
+    if (job->drainage.mode == TS_DRAINAGE_KEEP)
+        return 0;
+    tsjob__progress_range(ctx, jp, 0.95, 1.0);
+    if (res->sketch_features && res->sketch_features->mask &&
+        res->sketch_features->width == res->geo.width &&
+        res->sketch_features->height == res->geo.height)
+        for (i = 0; i < n; i++) {
+            if (res->sketch_features->mask[i] & TS_RIDGE)
+                flags[i] |= TS_CELL_BARRIER;
+            /* a drawn valley's floor, made to descend to its outlet, is kept as it is */
+            if (res->sketch_features->mask[i] & TS_VALLEY)
+                flags[i] |= TS_CELL_FIXED;
+        }
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    rc = tsjob_drain(ctx, &res->drainage, &res->out, flags, 0, 0, res->geo.width, res->geo.height,
+                     &res->drainage_info, job->sketch ? job->sketch : "synth", err);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    res->seconds_drainage =
+        (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    return rc;
+}
+
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
                         tsio_err *err)
 {
@@ -572,9 +638,11 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     tsio_raster heights;
     ts_synth_params params = res->params; /* lengths in cells */
     ts_synth_constraints cons = ts_synth_constraints_default();
+    job_progress jp;
     int i, rc = -1;
     memset(ex, 0, sizeof ex);
     memset(&heights, 0, sizeof heights);
+    ts_ctx_get_progress(ctx, &jp.fn, &jp.user);
     if (keep_maps) {
         if (res->params.tiled > 0) {
             /* in tiles, the maps of every tile's window too (up to 4 x the grid:
@@ -591,6 +659,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     }
     if (job_read_exemplars(job, res, ex, exr, err) != 0)
         goto done;
+    job_drainage_depth(job, res, exr);
     if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
         tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
         goto done;
@@ -603,6 +672,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     if (job_constraints(job, res, flags, err) != 0)
         goto done;
     cons.cell_flags = flags;
+    tsjob__progress_range(ctx, &jp, 0.0, job->drainage.mode ? 0.95 : 1.0);
     if (job->heights) {
         if (tsio_read_dem(job->heights, 1, &heights, err) != 0)
             goto done;
@@ -648,8 +718,11 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         job_core_err(ctx, job, "synth", err);
         goto done;
     }
+    if (job_drain_whole(ctx, job, res, flags, &jp, err) != 0)
+        goto done;
     rc = 0;
 done:
+    ts_ctx_set_progress(ctx, jp.fn, jp.user);
     free(flags);
     free(cell_ex);
     tsio_raster_free(&heights);

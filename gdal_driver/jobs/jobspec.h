@@ -88,7 +88,7 @@ typedef struct tsjob_decl {
     size_t n_opts;
     const tsjob_rule *rules;
     size_t n_rules;
-    const char *stages[3]; /* the core stages whose parameters the job takes (NULL-ended) */
+    const char *stages[4]; /* the core stages whose parameters the job takes (NULL-ended) */
     const char *element;   /* its element in a recipe ("PPA", "Synth", "Amplify") */
 } tsjob_decl;
 /* The job whose recipe element `node` is (a child of <TerraSynth>), or NULL. */

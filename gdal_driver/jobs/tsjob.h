@@ -37,6 +37,25 @@ typedef struct tsjob_outputs {
     const char *out_classes;
 } tsjob_outputs;
 
+/* ---- the drainage stage after every method ---- */
+
+/** ts_drainage_apply on dem (a window at gx0, gy0 of a W x H grid); errors
+ *  name `what`. */
+int tsjob_drain(ts_ctx *ctx, const ts_drainage_params *p, ts_raster *dem,
+                const unsigned char *flags, int64_t gx0, int64_t gy0, int W, int H,
+                ts_drainage_info *info, const char *what, tsio_err *err);
+/** A method's window before the drainage stage: cells [x0, x0+w) x [y0,
+ *  y0+h) of the grid into cells (w*h), and TS_CELL_* into flags (w*h,
+ *  zeroed; NULL when not wanted). */
+typedef int (*tsjob_raw_fn)(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, float *cells,
+                            unsigned char *flags, tsio_err *err);
+/** Window [x0, x0+w) x [y0, y0+h) of a W x H grid after the drainage
+ *  stage: raw's window grown by ts_drainage_margin, drained, cut: the same
+ *  bytes as that window of the whole grid drained. */
+int tsjob_drained_window(ts_ctx *ctx, const ts_drainage_params *p, int W, int H, int x0, int y0,
+                         int w, int h, tsjob_raw_fn raw, void *arg, float *out, const char *what,
+                         tsio_err *err);
+
 /* ---- ppa ---- */
 
 typedef struct tsjob_ppa {
@@ -115,6 +134,7 @@ typedef struct tsjob_synth {
     ts_synth_params params;
     const char *sketch; /* sketch-guided synthesis when not NULL: a raster or lines */
     ts_sketch_params sketch_params;
+    ts_drainage_params drainage; /* the drainage stage after the synthesis */
     /* a sketch of lines: its layer (NULL: the first of lines), the field of
      * the kinds (NULL: "kind") and of the heights (NULL: the Z values), the
      * snapping distance in cells (< 0: 2), and with grid.has_res the extent
@@ -156,6 +176,9 @@ typedef struct tsjob_synth_result {
     ts_features *sketch_features; /* the sketch's feature graph (sketch-guided only) */
     int sketch_lines;             /* the sketch is a layer of lines */
     ts_sketch_info sketch_info;
+    ts_drainage_params drainage;    /* the job's, its automatic depth set (setup, compute) */
+    ts_drainage_info drainage_info; /* after compute */
+    double seconds_drainage;
     ts_synth_maps maps; /* with keep_maps: where each cell came from (owned) */
     int has_maps;
     tsio_err warning; /* "" or one line a front end shows as a warning */
@@ -173,6 +196,10 @@ typedef struct tsjob_synth_result {
 int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err);
 /** Read the exemplars at the target's resolution and synthesize; with
  *  keep_maps, res->maps records where each cell came from. */
+/** TS_CELL_FIXED and TS_CELL_WATER of the water and pins over window
+ *  [x0, x0+w) x [y0, y0+h) of the output grid into flags (w*h, zeroed). */
+int tsjob_synth_window_flags(const tsjob_synth *job, const tsjob_synth_result *res, int x0, int y0,
+                             int w, int h, unsigned char *flags, tsio_err *err);
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
                         tsio_err *err);
 void tsjob_synth_result_free(tsjob_synth_result *res);
@@ -226,6 +253,7 @@ typedef struct tsjob_amplify {
     int band;
     double cell_size;
     ts_amplify_params params;
+    ts_drainage_params drainage; /* the drainage stage after the amplification */
     int lazy;               /* served window by window (the driver): no whole output */
     const char *dictionary; /* a dictionary file instead of exemplars */
     int shape_given;        /* factor or patch given: they must be the dictionary's */
@@ -249,6 +277,9 @@ typedef struct tsjob_amplify_result {
     tsio_georef geo; /* the output grid: the input's extent and CRS, factor finer */
     ts_raster out;   /* the amplified DEM (owned) */
     ts_amplify_info info;
+    ts_drainage_params drainage;    /* the job's, its automatic depth set (setup, compute) */
+    ts_drainage_info drainage_info; /* after compute */
+    double seconds_drainage;
     size_t n_atoms;
     double seconds_dictionary;
     int exemplar_no_crs; /* index+1 of an exemplar used cell for cell, or 0 */
@@ -312,6 +343,7 @@ typedef struct tsjob_pixel {
     tsjob_grid grid;
     const char *guide; /* a DEM on the output grid the terrain follows, or NULL */
     ts_pixel_params params;
+    ts_drainage_params drainage; /* the drainage stage after the synthesis */
     int lazy;         /* served window by window (the driver): no whole output */
     int keep_sources; /* compute keeps where each cell's coordinate points (debug_dir) */
 } tsjob_pixel;
@@ -324,6 +356,9 @@ typedef struct tsjob_pixel_result {
     ts_raster out;              /* the terrain (owned) */
     double seconds_stacks, seconds_synthesis;
     int32_t *src_e, *src_x, *src_y; /* with keep_sources (owned) */
+    ts_drainage_params drainage;    /* the job's, its automatic depth set (setup, compute) */
+    ts_drainage_info drainage_info; /* after compute */
+    double seconds_drainage;
     int exemplar_no_crs;
     tsio_err warning;
 } tsjob_pixel_result;

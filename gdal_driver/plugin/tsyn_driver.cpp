@@ -114,6 +114,8 @@ GDALDataset *TSYNDataset::Open(GDALOpenInfo *info)
     ds->m_schedule.SetNameValue("JOB", tsrecipe_job_name(recipe));
     ds->m_schedule.SetNameValue("WINDOWS", tsrecipe_schedule(recipe));
     ds->m_schedule.SetNameValue("TILE_SIZE", CPLSPrintf("%d", tsrecipe_tile_size(recipe)));
+    ds->m_schedule.SetNameValue("DRAINAGE_MARGIN",
+                                CPLSPrintf("%d", tsrecipe_drainage_margin(recipe)));
     {
         const char *const *in = tsrecipe_inputs(recipe);
         for (int i = 0; in && in[i]; i++)

@@ -653,9 +653,15 @@ const void *tsrecipe_data(const tsrecipe *r)
 
 int tsrecipe_block_size(const tsrecipe *r)
 {
+    int b, m = tsrecipe_drainage_margin(r);
     if (r->method == TSRECIPE_SYNTH && r->synth.lazy && r->synth_res.params.tiled < 256)
         return r->synth_res.params.tiled; /* a block inside one tile */
-    return r->method == TSRECIPE_PIXEL ? 512 : 256;
+    b = r->method == TSRECIPE_PIXEL ? 512 : 256;
+    /* a block computed with the drainage stage's margin round it: at least twice the
+     * margin, so the margin costs at most 4 x the block's cells */
+    while (b < 2 * m && b < 2048)
+        b *= 2;
+    return b;
 }
 
 const char *tsrecipe_job_name(const tsrecipe *r)
@@ -675,6 +681,20 @@ int tsrecipe_tile_size(const tsrecipe *r)
     return r->method == TSRECIPE_SYNTH && r->synth.lazy ? r->synth.params.tiled : 0;
 }
 
+int tsrecipe_drainage_margin(const tsrecipe *r)
+{
+    switch (r->method) {
+    case TSRECIPE_SYNTH: /* (the margin does not depend on the automatic depth) */
+        return ts_drainage_margin(&r->synth.drainage);
+    case TSRECIPE_PIXEL:
+        return ts_drainage_margin(&r->pixel.drainage);
+    case TSRECIPE_AMPLIFY:
+        return r->layer[0] ? 0 : ts_drainage_margin(&r->amplify.drainage);
+    default:
+        return 0;
+    }
+}
+
 const char *const *tsrecipe_inputs(const tsrecipe *r)
 {
     return (const char *const *)r->strings;
@@ -684,6 +704,17 @@ int tsrecipe_lazy(const tsrecipe *r)
 {
     return r->method == TSRECIPE_AMPLIFY || r->method == TSRECIPE_PIXEL ||
            (r->method == TSRECIPE_SYNTH && r->synth.lazy);
+}
+
+/* A window of a tiled synth recipe's tiles before the drainage stage, with
+ * the water and pins over it (a tsjob_raw_fn). */
+static int recipe_tiles_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, float *cells,
+                            unsigned char *flags, tsio_err *err)
+{
+    tsrecipe *r = arg;
+    if (tsrecipe__tiles_window(r, ctx, x0, y0, w, h, cells, err) != 0)
+        return -1;
+    return flags ? tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, err) : 0;
 }
 
 static int recipe_read_window_offline(tsrecipe *r, int x0, int y0, int w, int h, float *out,
@@ -708,7 +739,9 @@ static int recipe_read_window_offline(tsrecipe *r, int x0, int y0, int w, int h,
     }
     if (r->method == TSRECIPE_SYNTH) {
         ts_ctx_set_seed(ctx, r->seed);
-        rc = tsrecipe__tiles_window(r, ctx, x0, y0, w, h, out, err);
+        rc = tsjob_drained_window(ctx, &r->synth_res.drainage, tsrecipe_georef(r)->width,
+                                  tsrecipe_georef(r)->height, x0, y0, w, h, recipe_tiles_raw, r,
+                                  out, r->path, err);
         ts_ctx_free(ctx);
         for (i = 0; rc == 0 && i < n; i++)
             if (isnan(out[i]))

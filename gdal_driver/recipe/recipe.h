@@ -47,7 +47,8 @@ const void *tsrecipe_data(const tsrecipe *r);
  *  have; thread-safe. */
 int tsrecipe_lazy(const tsrecipe *r);
 /* The side of the blocks the driver serves (a pixel recipe's are larger: each block
- * recomputes the margins its levels need). */
+ * recomputes the margins its levels need; with the drainage stage at least twice its
+ * margin, up to 2048). */
 int tsrecipe_block_size(const tsrecipe *r);
 int tsrecipe_read_window(tsrecipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err);
 
@@ -60,6 +61,8 @@ int tsrecipe_read_window(tsrecipe *r, int x0, int y0, int w, int h, float *out, 
 const char *tsrecipe_job_name(const tsrecipe *r);
 const char *tsrecipe_schedule(const tsrecipe *r);
 int tsrecipe_tile_size(const tsrecipe *r);
+/* The cells round a window its drainage stage reads (0: none). */
+int tsrecipe_drainage_margin(const tsrecipe *r);
 const char *const *tsrecipe_inputs(const tsrecipe *r);
 
 /** Write a recipe for a job from what a front end was given (jobspec.h;

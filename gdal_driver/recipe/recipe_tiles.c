@@ -326,6 +326,86 @@ TSYN_EXPORT int tsyn_tile_make(void *handle, int ti, int tj, const float *const 
     return 0;
 }
 
+TSYN_EXPORT int tsyn_tile_reach(void *handle)
+{
+    tsrecipe *r = handle;
+    int M = ts_drainage_margin(&r->synth.drainage), T = r->synth_res.params.tiled;
+    return M ? (M + T - 1) / T : 0;
+}
+
+/* The tiles' cores the drained core of a tile reads (a tsjob_raw_fn). */
+typedef struct tile_drain_arg {
+    tsrecipe *r;
+    ts_ctx *ctx;
+    int ti, tj, reach;
+    const float *const *nb;
+} tile_drain_arg;
+
+static int tile_drain_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, float *cells,
+                          unsigned char *flags, tsio_err *err)
+{
+    tile_drain_arg *a = arg;
+    tsrecipe *r = a->r;
+    int T = r->synth_res.params.tiled, side = 2 * a->reach + 1, i, j, x, y;
+    /* each tile's part of the window out of its own window (the mosaic's
+     * cell (x, y) is tile (x / T, y / T)'s) */
+    for (j = y0 / T; j <= (y0 + h - 1) / T; j++)
+        for (i = x0 / T; i <= (x0 + w - 1) / T; i++) {
+            int di = i - a->ti, dj = j - a->tj, win[4];
+            int xa = i * T > x0 ? i * T : x0, xb = (i + 1) * T < x0 + w ? (i + 1) * T : x0 + w;
+            int ya = j * T > y0 ? j * T : y0, yb = (j + 1) * T < y0 + h ? (j + 1) * T : y0 + h;
+            const float *t = NULL;
+            if (di >= -a->reach && di <= a->reach && dj >= -a->reach && dj <= a->reach)
+                t = a->nb[(dj + a->reach) * side + di + a->reach];
+            if (!t || tile_rect(r, ctx, i, j, win, NULL) != 0) {
+                tsio_errf(err, r->path, "tile %d,%d: the tile %d,%d it reads is not given", a->ti,
+                          a->tj, i, j);
+                return -1;
+            }
+            for (y = ya; y < yb; y++)
+                for (x = xa; x < xb; x++)
+                    cells[(size_t)(y - y0) * (size_t)w + (size_t)(x - x0)] =
+                        t[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])];
+        }
+    return flags ? tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, err)
+                 : 0;
+}
+
+TSYN_EXPORT int tsyn_tile_drain(void *handle, int ti, int tj, const float *const *nb, float *core,
+                                char *msg, int n)
+{
+    tsrecipe *r = handle;
+    ts_ctx *ctx = ts_ctx_new();
+    tile_drain_arg a;
+    int c[4], rc;
+    tsio_err err;
+    if (!ctx) {
+        tsio_errf(&err, r->path, "out of memory");
+        copy_err(&err, msg, n);
+        return -1;
+    }
+    if (tile_rect(r, ctx, ti, tj, NULL, c) != 0) {
+        tsio_errf(&err, r->path, "%s", ts_ctx_message(ctx));
+        copy_err(&err, msg, n);
+        ts_ctx_free(ctx);
+        return -1;
+    }
+    a.r = r;
+    a.ctx = ctx;
+    a.ti = ti;
+    a.tj = tj;
+    a.reach = tsyn_tile_reach(handle);
+    a.nb = nb;
+    ts_ctx_set_threads(ctx, 1);
+    rc = tsjob_drained_window(ctx, &r->synth_res.drainage, r->synth_res.geo.width,
+                              r->synth_res.geo.height, c[0], c[1], c[2], c[3], tile_drain_raw, &a,
+                              core, r->path, &err);
+    ts_ctx_free(ctx);
+    if (rc != 0)
+        copy_err(&err, msg, n);
+    return rc;
+}
+
 TSYN_EXPORT void tsyn_tiles_close(void *handle)
 {
     tsrecipe_free(handle);

@@ -1,7 +1,7 @@
 /*
  * tsyn_tiles.h - the tiles of a tiled synth recipe, one by one: the C
  * interface gdal_TSYN.so exports for the Dask runner (dask/terrasynth_dask.py
- * loads it with ctypes and declares these four functions as here).
+ * loads it with ctypes and declares these functions as here).
  *
  * A tiled synth recipe (<Param name="tiled">T</Param>) is made in four
  * waves of tiles (algorithms/docs/synth.md); a tile's window takes the
@@ -35,6 +35,17 @@ int tsyn_tile_rect(void *handle, int ti, int tj, int win[4], int core[4], char *
  * own width), NULL where not needed. */
 int tsyn_tile_make(void *handle, int ti, int tj, const float *const nb[9], float *window, char *msg,
                    int n);
+
+/* How many rings of tiles round a tile the drainage stage reads for its
+ * core (0: the recipe keeps its depressions: the cores are the tiles'). */
+int tsyn_tile_reach(void *handle);
+
+/* Tile (ti, tj)'s core after the drainage stage into `core` (row by row, its
+ * own width), from the windows tsyn_tile_make gave of the tiles within
+ * `reach` rings of it, nb[(dj + reach) * (2 reach + 1) + di + reach], NULL
+ * off the grid. */
+int tsyn_tile_drain(void *handle, int ti, int tj, const float *const *nb, float *core, char *msg,
+                    int n);
 
 /* Close the handle (NULL: nothing). */
 void tsyn_tiles_close(void *handle);

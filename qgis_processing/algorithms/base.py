@@ -65,15 +65,16 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
     HELP = ""             # HTML, condensed from algorithms/docs/<stage>.md
     LABELS = {}           # descriptor name -> dialog label (default: from the name)
     ADVANCED = ()         # descriptor names shown under "Advanced parameters"
-    # descriptor tables whose parameters this algorithm shows (default: STAGE's); e.g.
-    # ("synth", "sketch") for `terrasynth synth` with its --sketch options
+    # descriptor tables whose parameters this algorithm shows (default: those `terrasynth
+    # describe` gives the job, e.g. synth, sketch and drainage for `terrasynth synth`)
     DESCRIPTOR_STAGES = None
 
     def __init__(self):
         super().__init__()
         self._descs = []
         self._desc_stage = {}  # descriptor name -> the table it comes from
-        for st in (self.DESCRIPTOR_STAGES or (self.STAGE,)):
+        for st in (self.DESCRIPTOR_STAGES or
+                   descriptors.job(self.STAGE).get("stages", [self.STAGE])):
             for d in descriptors.stage(st):
                 if d.get("type") in descriptors.KNOWN_TYPES:
                     self._descs.append(d)

@@ -148,7 +148,6 @@ class SynthAlgorithm(TerraSynthAlgorithm):
               "mode": "Sketch mode", "alpha_d": "Deformation cost weight (alpha_d)",
               "alpha_f": "Feature profile cost weight (alpha_f)"}
     ADVANCED = ("candidates", "alpha_g", "coarse_factor", "alpha_d", "alpha_f")
-    DESCRIPTOR_STAGES = ("synth", "sketch")
     SKETCH_STAGE = "sketch"  # its parameters are passed only with a SKETCH
 
     EXEMPLARS = "EXEMPLARS"

@@ -289,7 +289,8 @@ def test_runner_declares_the_tile_interface_as_its_header():
         return "int" if arg.strip() == "ctypes.c_int" else "pointer"
 
     declared = re.findall(r"lib\.(tsyn_\w+)\.argtypes = \[(.*?)\]", runner, re.S)
-    assert {n for n, _ in declared} == {"tsyn_tiles_open", "tsyn_tile_make", "tsyn_tile_rect"}
+    assert {n for n, _ in declared} == {"tsyn_tiles_open", "tsyn_tile_make", "tsyn_tile_rect",
+                                        "tsyn_tile_reach", "tsyn_tile_drain"}
     for name, args in declared:
         m = re.search(r"\b%s\((.*?)\);" % name, header, re.S)
         assert m, "%s is not in tsyn_tiles.h" % name

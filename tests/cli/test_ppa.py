@@ -289,7 +289,7 @@ def test_describe_json_matches_help():
     d = json.loads(run("describe").stdout)
     assert set(d["stages"]) >= {"ppa", "synth"}
     for stage, params in d["stages"].items():
-        helptext = run("synth" if stage == "sketch" else stage, "--help").stdout
+        helptext = run("synth" if stage in ("sketch", "drainage") else stage, "--help").stdout
         for p in params:
             assert p["flag"] == "--" + p["name"].replace("_", "-")
             assert p["min"] <= p["default"] <= p["max"]

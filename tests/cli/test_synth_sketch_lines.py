@@ -470,7 +470,7 @@ def test_valleys_drain_into_a_lake(tmp_path):
             path = rasterised_line(v)
             low = np.unravel_index(np.argmin(np.where(path & ~lake, z, np.inf)), z.shape)
             d = np.hypot(low[1] - cx, low[0] - cy) - r
-            assert d <= 4, (seed, v[0], low, d)
+            assert d <= 5, (seed, v[0], low, d)
 
 
 def rasterised_line(pts):

@@ -35,8 +35,8 @@ ALGORITHMS = {"ppa": ("Extract ridges and valleys (PPA)", "Terrain analysis"),
               "amplify": ("Amplify a coarse DEM", "Terrain synthesis"),
               "pixel": ("Grow terrain cell by cell (pixel synthesis)", "Terrain synthesis")}
 # the descriptor tables of `terrasynth describe` each algorithm shows
-DESCRIPTOR_STAGES = {"ppa": ("ppa",), "synth": ("synth", "sketch"), "amplify": ("amplify",),
-                     "pixel": ("pixel",)}
+DESCRIPTOR_STAGES = {"ppa": ("ppa",), "synth": ("synth", "sketch", "drainage"),
+                     "amplify": ("amplify", "drainage"), "pixel": ("pixel", "drainage")}
 ALG_STAGES = [(alg, st) for alg in sorted(DESCRIPTOR_STAGES) for st in DESCRIPTOR_STAGES[alg]]
 # parameters that are not the core's descriptors, and the CLI flag each maps to
 # (None: a positional file or an output QGIS reports, not a CLI option)

@@ -253,7 +253,32 @@ static const ts_param_desc pixel_desc[] = {
      offsetof(ts_pixel_params, roughness_weight)},
 };
 
-static const char *const stage_names[] = {"ppa", "synth", "sketch", "amplify", "pixel", NULL};
+static const ts_param_desc drainage_desc[] = {
+    {"drainage", TS_PARAM_ENUM, TS_DRAINAGE_BREACH, 0, 2, TS_UNIT_CELLS, "", "keep|breach|fill",
+     "What becomes of the closed depressions the synthesis leaves (ours, after Lindsay 2016): "
+     "keep them; breach them (a channel one cell wide cut from each pit along the cheapest "
+     "path to lower land or the grid's edge, never raising a cell); or fill them to their "
+     "spill height (flat lakes). "
+     "Water and pinned windows never change; a channel crosses a drawn ridge only where the land inside has no other way out.",
+     offsetof(ts_drainage_params, mode)},
+    {"drainage_radius", TS_PARAM_INT, 128, 1, TS_DRAINAGE_RADIUS_MAX, TS_UNIT_CELLS, "cells",
+     NULL,
+     "How far from its pit a channel or a fill reaches; a depression with no way out within "
+     "it is kept (a crater, a lake basin). Windows and tiles are computed with a margin of "
+     "four times this (twice with drainage_depth 0 or with fill).",
+     offsetof(ts_drainage_params, radius)},
+    {"drainage_depth", TS_PARAM_DOUBLE, -1.0, -1.0, 1e6, TS_UNIT_CELLS, "elevation units", NULL,
+     "The deepest a breach channel cuts (ours): a depression that needs a deeper one is first "
+     "filled up to its spill less this depth (a lake behind a notch instead of a slot through "
+     "a ridge), and one wider than the radius is kept. -1 (auto): an eighth of the 99.9th "
+     "percentile of the exemplars' |Laplacian| (amplify: the input's, divided by the factor): "
+     "a channel's crease, about twice its depth, a quarter of their sharpest; 0: no limit "
+     "(Lindsay's breaching).",
+     offsetof(ts_drainage_params, max_depth)},
+};
+
+static const char *const stage_names[] = {"ppa",   "synth",    "sketch", "amplify",
+                                          "pixel", "drainage", NULL};
 
 TS_API const char *const *ts_params_stages(void)
 {
@@ -281,6 +306,10 @@ TS_API const ts_param_desc *ts_params_describe(const char *stage, size_t *n)
     if (stage && strcmp(stage, "pixel") == 0) {
         *n = sizeof pixel_desc / sizeof pixel_desc[0];
         return pixel_desc;
+    }
+    if (stage && strcmp(stage, "drainage") == 0) {
+        *n = sizeof drainage_desc / sizeof drainage_desc[0];
+        return drainage_desc;
     }
     *n = 0;
     return NULL;
@@ -543,6 +572,13 @@ TS_API ts_pixel_params ts_pixel_params_default(void)
 {
     ts_pixel_params p;
     params_fill_defaults("pixel", &p, sizeof p);
+    return p;
+}
+
+TS_API ts_drainage_params ts_drainage_params_default(void)
+{
+    ts_drainage_params p;
+    params_fill_defaults("drainage", &p, sizeof p);
     return p;
 }
 

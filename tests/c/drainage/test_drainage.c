@@ -1,0 +1,365 @@
+/*
+ * test_drainage.c - the drainage stage against a slow, obviously-correct
+ * oracle: the depression fill by relaxation (Planchon and Darboux 2001: the
+ * water surface starts infinite inside and is lowered to max(z, lowest
+ * neighbour's) until nothing changes), which says how deep every closed
+ * depression is.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include "harness.h"
+#include "terrasynth.h"
+
+/* A rough surface full of pits: a tilted plane, bumps and noise. */
+static void make_surface(float *z, int w, int h, uint64_t seed)
+{
+    int x, y, k;
+    double cx[24], cy[24], a[24], r[24];
+    for (k = 0; k < 24; k++) {
+        cx[k] = th_uniform(&seed) * w;
+        cy[k] = th_uniform(&seed) * h;
+        a[k] = (th_uniform(&seed) - 0.5) * 40.0;
+        r[k] = 3.0 + th_uniform(&seed) * 12.0;
+    }
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            double v = 0.2 * x + 0.1 * y;
+            for (k = 0; k < 24; k++) {
+                double d2 = ((x - cx[k]) * (x - cx[k]) + (y - cy[k]) * (y - cy[k])) / (r[k] * r[k]);
+                v += a[k] * exp(-d2);
+            }
+            v += 3.0 * th_uniform(&seed);
+            z[(size_t)y * (size_t)w + (size_t)x] = (float)v;
+        }
+}
+
+/* The filled surface by relaxation (edge cells and cells beside nodata
+ * drain out); NaN stays NaN. */
+static void oracle_fill(const float *z, int w, int h, double *wat)
+{
+    int x, y, d, changed;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            size_t i = (size_t)y * (size_t)w + (size_t)x;
+            int edge = x == 0 || y == 0 || x == w - 1 || y == h - 1;
+            for (d = 0; !edge && d < 9; d++)
+                if (isnan(z[(size_t)(y + d / 3 - 1) * (size_t)w + (size_t)(x + d % 3 - 1)]))
+                    edge = 1;
+            wat[i] = isnan(z[i]) ? NAN : edge ? z[i] : INFINITY;
+        }
+    do {
+        changed = 0;
+        for (y = 1; y < h - 1; y++)
+            for (x = 1; x < w - 1; x++) {
+                size_t i = (size_t)y * (size_t)w + (size_t)x;
+                double lo = INFINITY, nv;
+                if (isnan(wat[i]))
+                    continue;
+                for (d = 0; d < 9; d++) {
+                    double v = wat[(size_t)(y + d / 3 - 1) * (size_t)w + (size_t)(x + d % 3 - 1)];
+                    if (d != 4 && !isnan(v) && v < lo)
+                        lo = v;
+                }
+                nv = lo > z[i] ? lo : z[i];
+                if (nv < wat[i]) {
+                    wat[i] = nv;
+                    changed = 1;
+                }
+            }
+    } while (changed);
+}
+
+/* The largest amount the oracle's fill raises a cell, and how many it
+ * raises by more than tol. */
+static double deepest(const float *z, int w, int h, double tol, size_t *n_over)
+{
+    double *wat = malloc((size_t)w * (size_t)h * sizeof *wat), worst = 0.0;
+    size_t i;
+    oracle_fill(z, w, h, wat);
+    *n_over = 0;
+    for (i = 0; i < (size_t)w * (size_t)h; i++) {
+        double d = wat[i] - z[i];
+        if (isnan(d))
+            continue;
+        if (d > worst)
+            worst = d;
+        if (d > tol)
+            (*n_over)++;
+    }
+    free(wat);
+    return worst;
+}
+
+static double g_depth = 0.0; /* max_depth of run() */
+
+static void run(ts_ctx *ctx, float *z, int w, int h, int mode, int radius, ts_drainage_info *info)
+{
+    ts_raster r = ts_raster_wrap(z, w, h, w);
+    ts_drainage_params p = ts_drainage_params_default();
+    p.mode = mode;
+    p.radius = radius;
+    p.max_depth = g_depth;
+    CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, info) == TS_OK);
+}
+
+/* With a radius that reaches everywhere, breach leaves no depression and
+ * raises no cell; fill gives the oracle's surface. */
+static void test_breach_and_fill_against_oracle(void)
+{
+    const int w = 96, h = 80;
+    size_t n = (size_t)w * h, i, over;
+    float *z0 = malloc(n * sizeof *z0), *zb = malloc(n * sizeof *zb), *zf = malloc(n * sizeof *zf);
+    double *wat = malloc(n * sizeof *wat), before;
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_info info;
+    uint64_t seed;
+    for (seed = 1; seed <= 3; seed++) {
+        make_surface(z0, w, h, seed * 77);
+        z0[40 * w + 50] = NAN; /* nodata drains out */
+        before = deepest(z0, w, h, 1e-3, &over);
+        CHECK_MSG(before > 5.0 && over > 50, "the surface has depressions (%g m, %zu)", before,
+                  over);
+        memcpy(zb, z0, n * sizeof *zb);
+        run(ctx, zb, w, h, TS_DRAINAGE_BREACH, 200, &info);
+        CHECK(info.pits > 0 && info.resolved == info.pits);
+        for (i = 0; i < n; i++)
+            CHECK(isnan(z0[i]) ? isnan(zb[i]) : zb[i] <= z0[i]);
+        CHECK_MSG(deepest(zb, w, h, 1e-3, &over) <= 1e-3, "breached: %zu cells still in pits",
+                  over);
+        /* the change is a channel, not a lowering of everything */
+        CHECK_MSG(info.cells_changed < n / 4, "%zu cells changed", info.cells_changed);
+        memcpy(zf, z0, n * sizeof *zf);
+        run(ctx, zf, w, h, TS_DRAINAGE_FILL, 200, &info);
+        oracle_fill(z0, w, h, wat);
+        for (i = 0; i < n; i++) {
+            if (isnan(z0[i])) {
+                CHECK(isnan(zf[i]));
+                continue;
+            }
+            CHECK_MSG(fabs(zf[i] - wat[i]) <= 1e-3, "cell %zu: %g filled, %g the oracle", i,
+                      (double)zf[i], wat[i]);
+        }
+    }
+    ts_ctx_free(ctx);
+    free(z0);
+    free(zb);
+    free(zf);
+    free(wat);
+}
+
+/* A small radius drains the small pits and keeps a basin too wide for it. */
+static void test_radius_keeps_wide_basins(void)
+{
+    const int w = 64, h = 64;
+    float *z = malloc((size_t)w * h * sizeof *z);
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_info info;
+    size_t over;
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            double r = hypot(x - 32.0, y - 32.0);
+            /* a crater: a rim at r = 20, a floor 30 m below it */
+            z[y * w + x] = (float)(r < 20 ? 70.0 + 1.5 * r : 100.0 - (r - 20) * 2.0);
+        }
+    run(ctx, z, w, h, TS_DRAINAGE_BREACH, 8, &info);
+    CHECK(info.pits == 1 && info.resolved == 0 && info.cells_changed == 0);
+    CHECK(deepest(z, w, h, 1.0, &over) > 25.0);
+    run(ctx, z, w, h, TS_DRAINAGE_BREACH, 40, &info);
+    CHECK(info.resolved == 1 && deepest(z, w, h, 1e-3, &over) <= 1e-3);
+    ts_ctx_free(ctx);
+    free(z);
+}
+
+/* Any window grown by the margin gives the whole's cells; any thread count
+ * the same bytes. */
+static void test_windows_and_threads(void)
+{
+    const int w = 150, h = 120, R = 6;
+    /* breach, breach with a deepest cut (fills, then channels on them), fill */
+    static const int modes[3] = {TS_DRAINAGE_BREACH, TS_DRAINAGE_BREACH, TS_DRAINAGE_FILL};
+    static const double depths[3] = {0.0, 1.0, 0.0};
+    static const int margins[3] = {2 * R + 2, 4 * R + 2, 2 * R + 2};
+    size_t n = (size_t)w * h;
+    float *z0 = malloc(n * sizeof *z0), *whole = malloc(n * sizeof *whole), *win;
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_params p = ts_drainage_params_default();
+    ts_raster r;
+    uint64_t s = 99;
+    int c, k, t, M;
+    make_surface(z0, w, h, 5);
+    for (k = 0; k < (int)n; k++) /* rough: pits everywhere, lakes beside lakes */
+        z0[k] += (float)(12.0 * th_uniform(&s));
+    p.radius = R;
+    win = malloc(n * sizeof *win);
+    for (c = 0; c < 3; c++) {
+        p.mode = modes[c];
+        p.max_depth = depths[c];
+        M = ts_drainage_margin(&p);
+        CHECK(M == margins[c]);
+        memcpy(whole, z0, n * sizeof *whole);
+        r = ts_raster_wrap(whole, w, h, w);
+        ts_ctx_set_threads(ctx, 1);
+        CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, NULL) == TS_OK);
+        CHECK(memcmp(whole, z0, n * sizeof *z0) != 0);
+        for (t = 2; t <= 5; t += 3) {
+            memcpy(win, z0, n * sizeof *win);
+            r = ts_raster_wrap(win, w, h, w);
+            ts_ctx_set_threads(ctx, t);
+            CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, NULL) == TS_OK);
+            CHECK_MSG(memcmp(win, whole, n * sizeof *win) == 0, "threads %d", t);
+        }
+        for (k = 0; k < 150; k++) {
+            int x0 = (int)(th_uniform(&s) * (w - 10)), y0 = (int)(th_uniform(&s) * (h - 10));
+            int ww = 1 + (int)(th_uniform(&s) * (w - x0)), hh = 1 + (int)(th_uniform(&s) * (h - y0));
+            int ex0 = x0 - M < 0 ? 0 : x0 - M, ey0 = y0 - M < 0 ? 0 : y0 - M;
+            int ex1 = x0 + ww + M > w ? w : x0 + ww + M, ey1 = y0 + hh + M > h ? h : y0 + hh + M;
+            int ew = ex1 - ex0, eh = ey1 - ey0, x, y, same = 1;
+            for (y = 0; y < eh; y++)
+                memcpy(win + (size_t)y * ew, z0 + (size_t)(ey0 + y) * w + ex0, (size_t)ew * 4);
+            r = ts_raster_wrap(win, ew, eh, ew);
+            CHECK(ts_drainage_apply(ctx, &r, NULL, ex0, ey0, w, h, &p, NULL) == TS_OK);
+            for (y = y0; y < y0 + hh; y++)
+                for (x = x0; x < x0 + ww; x++)
+                    if (memcmp(&win[(size_t)(y - ey0) * ew + (x - ex0)], &whole[(size_t)y * w + x],
+                               4) != 0)
+                        same = 0;
+            CHECK_MSG(same, "case %d window %d,%d %dx%d", c, x0, y0, ww, hh);
+        }
+    }
+    ts_ctx_free(ctx);
+    free(z0);
+    free(whole);
+    free(win);
+}
+
+/* The ring of a drawn ridge with the plane tilting down towards x = 0 and a
+ * pit just outside it uphill (hole_in 0) or inside it (hole_in 1). */
+static void ring_surface(float *z, unsigned char *fl, int w, int h, int hole_in)
+{
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            double d = hypot(x - 20.0, y - 20.0);
+            double hx = hole_in ? 20.0 : 29.0, dh = hypot(x - hx, y - 20.0);
+            z[y * w + x] = (float)(50.0 + 0.5 * x + (dh < 2.5 ? -6.0 + dh : 0.0) +
+                                   (d > 5.5 && d < 6.5 ? 1.0 : 0.0));
+            fl[y * w + x] = fabs(d - 6.0) < 0.5 ? TS_CELL_BARRIER : 0;
+        }
+}
+
+static size_t barrier_cells_changed(const float *z, const float *z0, const unsigned char *fl,
+                                    size_t n)
+{
+    size_t i, k = 0;
+    for (i = 0; i < n; i++)
+        k += (fl[i] & TS_CELL_BARRIER) && z[i] != z0[i];
+    return k;
+}
+
+/* A channel goes round a drawn ridge when it can, and crosses a ring drawn
+ * closed once, where the land inside has no other way out; fixed cells
+ * never change; keep changes nothing. */
+static void test_fixed_and_barriers(void)
+{
+    const int w = 48, h = 40;
+    size_t n = (size_t)w * h, i, over;
+    float *z = malloc(n * sizeof *z), *z0 = malloc(n * sizeof *z0);
+    unsigned char *fl = calloc(n, 1), *none = calloc(n, 1);
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_params p = ts_drainage_params_default();
+    ts_drainage_info info;
+    ts_raster r = ts_raster_wrap(z, w, h, w);
+    int x, y;
+    p.radius = 30;
+    /* outside, uphill: the straight way down crosses the ring twice */
+    ring_surface(z0, fl, w, h, 0);
+    memcpy(z, z0, n * sizeof *z);
+    CHECK(ts_drainage_apply(ctx, &r, none, 0, 0, w, h, &p, &info) == TS_OK);
+    CHECK(info.resolved == info.pits && barrier_cells_changed(z, z0, fl, n) > 0);
+    memcpy(z, z0, n * sizeof *z);
+    CHECK(ts_drainage_apply(ctx, &r, fl, 0, 0, w, h, &p, &info) == TS_OK);
+    CHECK(info.resolved == info.pits && deepest(z, w, h, 1e-3, &over) <= 1e-3);
+    CHECK_MSG(barrier_cells_changed(z, z0, fl, n) == 0, "%zu ridge cells carved",
+              barrier_cells_changed(z, z0, fl, n));
+    /* inside a closed ring: out over it, at one place (or between two of its cells) */
+    ring_surface(z0, fl, w, h, 1);
+    memcpy(z, z0, n * sizeof *z);
+    CHECK(ts_drainage_apply(ctx, &r, fl, 0, 0, w, h, &p, &info) == TS_OK);
+    CHECK(info.resolved == info.pits && deepest(z, w, h, 1e-3, &over) <= 1e-3);
+    CHECK_MSG(barrier_cells_changed(z, z0, fl, n) <= 2,
+              "%zu ridge cells carved", barrier_cells_changed(z, z0, fl, n));
+    /* fixed cells: a band across the slope, the pit below it */
+    memcpy(z, z0, n * sizeof *z);
+    for (y = 0; y < h; y++)
+        for (x = 8; x < 12; x++)
+            fl[y * w + x] = TS_CELL_FIXED;
+    CHECK(ts_drainage_apply(ctx, &r, fl, 0, 0, w, h, &p, &info) == TS_OK);
+    for (i = 0; i < n; i++)
+        if (fl[i] & TS_CELL_FIXED)
+            CHECK(z[i] == z0[i]);
+    p.mode = TS_DRAINAGE_KEEP;
+    memcpy(z, z0, n * sizeof *z);
+    CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, &info) == TS_OK);
+    CHECK(memcmp(z, z0, n * sizeof *z) == 0 && ts_drainage_margin(&p) == 0);
+    /* bad arguments: a message, no change */
+    p.mode = TS_DRAINAGE_BREACH;
+    p.radius = 0;
+    CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, NULL) == TS_ERR_ARG);
+    CHECK(strstr(ts_ctx_message(ctx), "radius") != NULL);
+    ts_ctx_free(ctx);
+    free(z);
+    free(z0);
+    free(fl);
+    free(none);
+}
+
+/* With a deepest cut, breach fills each depression to its spill less that
+ * depth, then cuts: no depression is left, only cells below a spill are
+ * raised, and hardly a cell is cut deeper. */
+static void test_breach_with_a_deepest_cut(void)
+{
+    const int w = 96, h = 80;
+    size_t n = (size_t)w * h, i, over, deeper;
+    float *z0 = malloc(n * sizeof *z0), *z = malloc(n * sizeof *z);
+    double *wat = malloc(n * sizeof *wat), depth;
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_info info;
+    uint64_t seed;
+    for (depth = 1.0; depth <= 8.0; depth *= 2.0)
+        for (seed = 1; seed <= 3; seed++) {
+            make_surface(z0, w, h, seed * 31);
+            memcpy(z, z0, n * sizeof *z);
+            g_depth = depth;
+            run(ctx, z, w, h, TS_DRAINAGE_BREACH, 200, &info);
+            g_depth = 0.0;
+            CHECK(info.pits > 0 && info.resolved == info.pits);
+            CHECK_MSG(deepest(z, w, h, 1e-3, &over) <= 1e-3,
+                      "depth %g seed %d: %zu cells still in pits (%g m)", depth, (int)seed, over,
+                      deepest(z, w, h, 1e-3, &over));
+            oracle_fill(z0, w, h, wat);
+            deeper = 0;
+            for (i = 0; i < n; i++) {
+                CHECK_MSG(z[i] <= wat[i] + 1e-3, "cell %zu raised above its spill", i);
+                deeper += z[i] < z0[i] - depth - 0.3;
+            }
+            /* deeper only where another depression's lake covers the way out */
+            CHECK_MSG(deeper <= n / 500, "depth %g: %zu cells cut deeper", depth, deeper);
+        }
+    ts_ctx_free(ctx);
+    free(z0);
+    free(z);
+    free(wat);
+}
+
+int main(int argc, char **argv)
+{
+    static const th_case cases[] = {
+        {"breach_and_fill_against_oracle", test_breach_and_fill_against_oracle},
+        {"radius_keeps_wide_basins", test_radius_keeps_wide_basins},
+        {"breach_with_a_deepest_cut", test_breach_with_a_deepest_cut},
+        {"windows_and_threads", test_windows_and_threads},
+        {"fixed_and_barriers", test_fixed_and_barriers},
+    };
+    return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
+}

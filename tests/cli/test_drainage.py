@@ -1,0 +1,197 @@
+# SPDX-License-Identifier: GPL-2.0-or-later
+"""The drainage stage after every method (--drainage keep|breach|fill): judged by a numpy
+priority-flood written out here (how much water each cell would hold), on the outputs of
+synth (free, tiled, a sketch), pixel and amplify; windows of a recipe equal the whole with
+the stage on; water and pinned cells never change; bad values refused in one line."""
+import heapq
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from osgeo import gdal
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tsutil import DATA, JACKSBORO, ROOT, plugin_env, run  # noqa: E402
+
+gdal.UseExceptions()
+PLUGINS = os.environ.get("TS_GDAL_PLUGINS", os.path.join(ROOT, "build", "gdalplugins"))
+LAMBDA = os.path.join(DATA, "sketches", "lambda_ridges.tif")
+
+
+def read(path):
+    ds = gdal.Open(str(path))
+    b = ds.GetRasterBand(1)
+    a = b.ReadAsArray().astype(np.float64)
+    if b.GetNoDataValue() is not None:
+        a[a == b.GetNoDataValue()] = np.nan
+    return a
+
+
+def filled(a):
+    """The water surface: a priority-flood from the grid's edge and from nodata (Barnes et
+    al. 2014, here in plain Python): each cell at least as high as the lowest way out."""
+    h, w = a.shape
+    wat = np.where(np.isfinite(a), np.inf, np.nan)
+    done = ~np.isfinite(a)
+    heap = []
+    for y in range(h):
+        for x in range(w):
+            if done[y, x]:
+                continue
+            near_nodata = any(0 <= y + dy < h and 0 <= x + dx < w and not np.isfinite(a[y + dy, x + dx])
+                              for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+            if y in (0, h - 1) or x in (0, w - 1) or near_nodata:
+                wat[y, x] = a[y, x]
+                done[y, x] = True
+                heapq.heappush(heap, (a[y, x], y, x))
+    while heap:
+        z, y, x = heapq.heappop(heap)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                v, u = y + dy, x + dx
+                if 0 <= v < h and 0 <= u < w and not done[v, u]:
+                    done[v, u] = True
+                    wat[v, u] = max(z, a[v, u])
+                    heapq.heappush(heap, (wat[v, u], v, u))
+    return wat
+
+
+def in_pits(a, tol=0.01):
+    """Share of the cells a flood would raise by more than tol."""
+    d = filled(a) - a
+    return float((d[np.isfinite(d)] > tol).mean())
+
+
+CASES = {
+    "synth": ["synth", "--exemplar", JACKSBORO, "--size", "200x160", "--seed", 3],
+    "tiled": ["synth", "--exemplar", JACKSBORO, "--size", "260x200", "--seed", 3, "--tiled", 128],
+    "sketch": ["synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", 1],
+    "pixel": ["pixel", "--exemplar", JACKSBORO, "--size", "200x160", "--seed", 3],
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_breach_drains_every_method(case, tmp_path):
+    """The output as synthesised holds water in pits.  Breached with no depth limit
+    (--drainage-depth 0) no cell is raised and no cell is left in a pit (within 1 cm), save
+    in a basin whose way out is farther than the radius.  By default (cuts at most the
+    automatic depth the summary gives) the pits hold at most half of that water's cells
+    (the rest in lakes wider than the radius), no cell is raised above the water's surface (lakes below their spills), and
+    hardly a cell is cut deeper than twice the depth."""
+    args = CASES[case]
+    run(*args, tmp_path / "keep.tif", "-q", "--drainage", "keep")
+    run(*args, tmp_path / "free.tif", "-q", "--drainage-depth", 0)
+    p = run(*args, tmp_path / "breach.tif")
+    m = re.search(r"drainage: breach, cuts at most ([\d.e+]+) deep", p.stdout)
+    assert m, p.stdout
+    depth = float(m.group(1))
+    keep, free, breach = (read(tmp_path / (n + ".tif")) for n in ("keep", "free", "breach"))
+    assert (np.isnan(keep) == np.isnan(breach)).all()
+    ok = np.isfinite(keep)
+    assert (free[ok] <= keep[ok]).all()  # a breach never raises a cell
+    before, after_free, after = in_pits(keep), in_pits(free), in_pits(breach)
+    print(case, "in pits: %.4f -> %.4f (no limit), %.4f (cuts <= %g)" % (
+        before, after_free, after, depth))
+    assert before > 0.01
+    # the lambda's closed ring holds one basin wider than the radius
+    assert after_free <= (0.15 if case == "sketch" else 0.001), after_free
+    # (the ring drawn closed keeps its basins: too wide for the radius, too deep to cut)
+    assert after <= (0.9 * before if case == "sketch" else max(0.5 * before, after_free + 0.002))
+    assert (breach[ok] <= filled(keep)[ok] + 1e-3).all()
+    assert float((breach[ok] < keep[ok] - 2 * depth - 0.01).mean()) < 0.002
+    assert float((free[ok] != keep[ok]).mean()) < 0.1
+
+
+def test_amplify_drains(tmp_path):
+    ds = gdal.Open(JACKSBORO)
+    z = ds.ReadAsArray().astype(np.float32)[:60, :80]
+    coarse = z.reshape(30, 2, 40, 2).mean(axis=(1, 3))
+    gt = list(ds.GetGeoTransform())
+    gt[1] *= 2
+    gt[5] *= 2
+    out = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "c.tif"), 40, 30, 1,
+                                               gdal.GDT_Float32)
+    out.SetGeoTransform(gt)
+    out.SetProjection(ds.GetProjection())
+    out.GetRasterBand(1).WriteArray(coarse)
+    out = None
+    args = ["amplify", tmp_path / "c.tif", "--exemplar", JACKSBORO, "--factor", 4, "-q"]
+    run(*args[:2], tmp_path / "keep.tif", *args[2:], "--drainage", "keep")
+    run(*args[:2], tmp_path / "breach.tif", *args[2:], "--drainage-depth", 0)
+    keep, breach = read(tmp_path / "keep.tif"), read(tmp_path / "breach.tif")
+    assert in_pits(keep) > 0.01 and in_pits(breach) <= 0.001
+    assert (breach <= keep).all()
+
+
+def test_fill_is_the_flood(tmp_path):
+    """--drainage fill raises every depression to its spill: the flood's surface (within a
+    millimetre) where the radius reaches every way out; nothing is lowered."""
+    args = ["pixel", "--exemplar", JACKSBORO, "--size", "120x100", "--seed", 5, "-q"]
+    run(*args, tmp_path / "keep.tif", "--drainage", "keep")
+    run(*args, tmp_path / "fill.tif", "--drainage", "fill")
+    keep, fill = read(tmp_path / "keep.tif"), read(tmp_path / "fill.tif")
+    assert np.abs(fill - filled(keep)).max() <= 1e-3
+    assert (fill >= keep).all() and (fill > keep).any()
+
+
+def test_deepest_cut(tmp_path):
+    """--drainage-depth D: depressions drained, no cell raised above the flood's surface,
+    hardly any cut deeper than D."""
+    args = ["pixel", "--exemplar", JACKSBORO, "--size", "160x120", "--seed", 6, "-q"]
+    run(*args, tmp_path / "keep.tif", "--drainage", "keep")
+    run(*args, tmp_path / "d.tif", "--drainage-depth", 5)
+    keep, d = read(tmp_path / "keep.tif"), read(tmp_path / "d.tif")
+    assert in_pits(d) <= 0.001
+    assert (d <= filled(keep) + 1e-3).all()
+    assert float((d < keep - 5.5).mean()) < 0.002
+
+
+def test_windows_equal_the_whole(tmp_path):
+    """A recipe's windows, each computed alone with the stage's margin (pixel: blocks of 512;
+    here windows read in a fresh process), equal the CLI's whole output."""
+    args = ["pixel", "--exemplar", JACKSBORO, "--size", "300x260", "--seed", 2]
+    run(*args, tmp_path / "whole.tif", "-q")
+    run(*args, "--recipe", tmp_path / "p.tsyn")
+    whole = gdal.Open(str(tmp_path / "whole.tif")).ReadAsArray()
+    for x0, y0, w, h in ((0, 0, 300, 260), (137, 91, 60, 70), (250, 200, 50, 60)):
+        out = tmp_path / ("w%d_%d.tif" % (x0, y0))
+        subprocess.run(["gdal_translate", "-q", "-srcwin", str(x0), str(y0), str(w), str(h),
+                        str(tmp_path / "p.tsyn"), str(out)], check=True, env=plugin_env(PLUGINS))
+        got = gdal.Open(str(out)).ReadAsArray()
+        assert got.tobytes() == whole[y0:y0 + h, x0:x0 + w].tobytes(), (x0, y0)
+
+
+def test_water_and_pins_stay(tmp_path):
+    """Water cells keep their level and pinned cells the pinned DEM's heights."""
+    mask = np.zeros((160, 200), np.uint8)
+    mask[60:90, 40:100] = 1
+    ds = gdal.Open(JACKSBORO)
+    m = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "w.tif"), 200, 160, 1, gdal.GDT_Byte)
+    gt = ds.GetGeoTransform()
+    m.SetGeoTransform(gt)
+    m.SetProjection(ds.GetProjection())
+    m.GetRasterBand(1).WriteArray(mask)
+    m = None
+    level = 350.0
+    run("synth", "--exemplar", JACKSBORO, "--size", "200x160", "--origin",
+        "%r,%r" % (gt[0], gt[3]), "--resolution", repr(gt[1]), "--crs", "EPSG:4326",
+        "--seed", 3, "--water", tmp_path / "w.tif", "--water-level", level,
+        "--pin", "%s:10,10,40,30@140,110" % JACKSBORO, tmp_path / "o.tif", "-q")
+    o = read(tmp_path / "o.tif")
+    assert (o[mask == 1] == np.float32(level)).all()
+    pin = ds.ReadAsArray()[10:40, 10:50].astype(np.float32)
+    assert (o[110:140, 140:180] == pin).all()
+
+
+@pytest.mark.parametrize("bad, says", [(["--drainage", "sometimes"], "drainage"),
+                                       (["--drainage-radius", "0"], "drainage_radius"),
+                                       (["--drainage-depth", "-2"], "drainage_depth")])
+def test_bad_values_refused(bad, says, tmp_path):
+    p = run("pixel", "--exemplar", JACKSBORO, "--size", "64x64", tmp_path / "o.tif", *bad,
+            check=False)
+    assert p.returncode != 0
+    assert len(p.stderr.strip().splitlines()) == 1 and says in p.stderr, p.stderr
+    assert not (tmp_path / "o.tif").exists()
