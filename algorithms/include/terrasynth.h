@@ -929,7 +929,8 @@ typedef struct ts_drainage_params {
                    each pit to lower land; _FILL: each depression raised to its spill */
     int radius; /* how far from its pit a channel or a fill reaches, in cells */
     double max_depth; /* breach: the deepest a channel cuts, in height units; a depression
-                         that needs more is filled to its spill less this first; 0: no
+                         that needs more is filled to its spill less this first (a pond of
+                         at most (radius / 4)^2 cells, else it is kept); 0: no
                          limit; -1 (automatic): a front end sets ts_drainage_depth_auto of
                          the exemplars (the core takes -1 as 0) */
 } ts_drainage_params;

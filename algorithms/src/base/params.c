@@ -269,8 +269,9 @@ static const ts_param_desc drainage_desc[] = {
      offsetof(ts_drainage_params, radius)},
     {"drainage_depth", TS_PARAM_DOUBLE, -1.0, -1.0, 1e6, TS_UNIT_CELLS, "elevation units", NULL,
      "The deepest a breach channel cuts (ours): a depression that needs a deeper one is first "
-     "filled up to its spill less this depth (a lake behind a notch instead of a slot through "
-     "a ridge), and one wider than the radius is kept. -1 (auto): an eighth of the 99.9th "
+     "filled up to its spill less this depth (a pond behind a notch instead of a slot through "
+     "a ridge); one whose pond would be wider than the radius or cover more than "
+     "(radius / 4)^2 cells is kept. -1 (auto): an eighth of the 99.9th "
      "percentile of the exemplars' |Laplacian| (amplify: the input's, divided by the factor): "
      "a channel's crease, about twice its depth, a quarter of their sharpest; 0: no limit "
      "(Lindsay's breaching).",

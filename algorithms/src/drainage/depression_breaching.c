@@ -38,6 +38,8 @@
 
 /* ---- declarations and window arithmetic ------------------------------ */
 
+/* the most cells a breach's lake may cover (a 32 x 32 pond for radius 128) */
+#define DR_LAKE_MAX(r) ((size_t)((r) / 4) * (size_t)((r) / 4))
 #define DR_AUTO_SAMPLE 1000000 /* cells sampled for the automatic depth */
 
 TS_API int ts_drainage_margin(const ts_drainage_params *p)
@@ -413,6 +415,15 @@ static double pit_level(const dr_job *j, double zp, double spill)
 /* Fill or breach, whichever changes the land less (Lindsay's hybrid): the
  * fill's volume (the spill less each cell below it) against the cheapest
  * channel's.  mm: the minimax search just made; tmp: scratch. */
+/* The number of cells of the depression below `level` that search s found. */
+static size_t lake_cells(const dr_scratch *s, double level)
+{
+    size_t c, n = 0, nb = (size_t)s->side * (size_t)s->side;
+    for (c = 0; c < nb; c++)
+        n += s->stamp[c] == s->epoch && s->cost[c] < level;
+    return n;
+}
+
 /* Does the depression below `level` that search s found reach the border
  * of its box (so it may go on past it: not known whole)? */
 static int lake_at_border(const dr_scratch *s, double level)
@@ -451,8 +462,8 @@ static int fill_pit(dr_job *j, dr_scratch *s, int px, int py)
     level = pit_level(j, zp, s->cost[found]);
     if (!(level > zp))
         return 1;
-    if (lake_at_border(s, level))
-        return 0; /* wider than the radius: kept */
+    if (lake_at_border(s, level) || lake_cells(s, level) > DR_LAKE_MAX(j->radius))
+        return 0; /* wider than the radius, or more than a small lake: kept */
     for (c = 0; c < nb; c++)
         if (s->stamp[c] == s->epoch && s->cost[c] < level) {
             size_t i = (size_t)box_index(j, s, px, py, (int)c);
@@ -488,8 +499,9 @@ static int breach_pit(dr_job *j, dr_scratch *s, dr_scratch *lake, int px, int py
         if (found < 0)
             return found == -2 ? -1 : 0;
         level = pit_level(j, zp, lake->cost[found]);
-        if (level > zp && lake_at_border(lake, level))
-            return 0; /* its lake wider than the radius: kept */
+        if (level > zp &&
+            (lake_at_border(lake, level) || lake_cells(lake, level) > DR_LAKE_MAX(j->radius)))
+            return 0; /* its lake wider than the radius, or more than a small lake: kept */
         /* a pit under another depression's lake: that lake's channel drains it */
         if ((double)j->lifted[(size_t)py * (size_t)j->w + (size_t)px] > level)
             return 1;
