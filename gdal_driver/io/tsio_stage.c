@@ -326,4 +326,7 @@ void tsio_cleanup_on_signals(const char *prog)
             continue;
         sigaction(sigs[i], &sa, NULL);
     }
+    /* a file size limit (ulimit -f): the write fails with EFBIG and the job says so and
+     * cleans up, instead of dying of SIGXFSZ with its temporary files left */
+    signal(SIGXFSZ, SIG_IGN);
 }

@@ -167,16 +167,17 @@ def test_special_files_are_not_replaced(tmp_path, dem):
     assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
 
 
-def run_with_file_limit(limit, *args):
-    """terrasynth with files capped at `limit` bytes (SIGXFSZ ignored, so a write past it
-    fails with EFBIG): a write that fails half way through the job."""
+def run_with_file_limit(limit, *args, ignore_xfsz=True):
+    """terrasynth with files capped at `limit` bytes (`ulimit -f`): a write that fails half
+    way through the job.  With ignore_xfsz the parent ignores SIGXFSZ; without, the signal
+    has its default action (a shell's `ulimit -f`), which the program must not die of."""
     import resource
     import signal
     import subprocess
     from tsutil import TERRASYNTH
 
     def cap():
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN if ignore_xfsz else signal.SIG_DFL)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
     return subprocess.run([TERRASYNTH, *map(str, args)], capture_output=True, text=True,
@@ -197,6 +198,21 @@ def test_a_failed_write_leaves_nothing(tmp_path, dem):
     # the same run without the cap writes all three
     run("ppa", dem, out, "--preview", png, "--lines", tmp_path / "p.gpkg", "-q")
     assert out.stat().st_size > 100_000 and png.exists() and (tmp_path / "p.gpkg").exists()
+
+
+@pytest.mark.parametrize("job", ["synth", "dictionary"])
+def test_a_file_size_limit_is_a_failed_write(tmp_path, dem, job):
+    """Under `ulimit -f` (SIGXFSZ at its default, which kills a process that writes past
+    the limit) the job fails in one line naming the file, exit 1, and leaves nothing."""
+    if job == "synth":
+        args = ["synth", "--exemplar", dem, "--size", "160x160", tmp_path / "o.tif", "-q"]
+    else:
+        args = ["dictionary", "build", tmp_path / "d.tsd", "--exemplar", dem, "--factor", 2,
+                "--resolution", 60]
+    p = run_with_file_limit(4_000, *args, ignore_xfsz=False)
+    assert p.returncode == 1, (p.returncode, p.stderr)
+    assert p.stderr.count("\n") == 1 and ("o.tif" in p.stderr or "d.tsd" in p.stderr), p.stderr
+    assert sorted(os.listdir(tmp_path)) == ["dem.tif"]
 
 
 def test_a_failed_synth_removes_the_debug_folder_it_made(tmp_path, dem):
