@@ -649,6 +649,13 @@ static int amplify_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, flo
     return amplify_raw_window(ctx, a->job, a->res, x0, y0, w, h, TSJOB_SERVE_DEM, out, err);
 }
 
+int tsjob_amplify_window_raw(ts_ctx *ctx, const tsjob_amplify *job,
+                             const tsjob_amplify_result *res, int x0, int y0, int w, int h,
+                             float *out, tsio_err *err)
+{
+    return amplify_raw_window(ctx, job, res, x0, y0, w, h, TSJOB_SERVE_DEM, out, err);
+}
+
 int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
                          int x0, int y0, int w, int h, int serve, float *out, tsio_err *err)
 {

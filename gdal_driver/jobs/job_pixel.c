@@ -164,6 +164,15 @@ static int pixel_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, float
     return 0;
 }
 
+int tsjob_pixel_window_raw(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res,
+                           int x0, int y0, int w, int h, float *out, tsio_err *err)
+{
+    pixel_raw_arg a;
+    a.job = job;
+    a.res = res;
+    return pixel_raw(&a, ctx, x0, y0, w, h, out, NULL, err);
+}
+
 int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res, int x0,
                        int y0, int w, int h, float *out, tsio_err *err)
 {

@@ -310,6 +310,10 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
  *  whole. */
 int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
                          int x0, int y0, int w, int h, int serve, float *out, tsio_err *err);
+/** The DEM's window before the drainage stage (what tsjob_amplify_window drains). */
+int tsjob_amplify_window_raw(ts_ctx *ctx, const tsjob_amplify *job,
+                             const tsjob_amplify_result *res, int x0, int y0, int w, int h,
+                             float *out, tsio_err *err);
 /** Setup, then the whole output into res->out. */
 int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                           tsio_err *err);
@@ -371,6 +375,9 @@ int tsjob_pixel_setup(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *r
  *  is the context's), the same bytes as that window of the whole. */
 int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res, int x0,
                        int y0, int w, int h, float *out, tsio_err *err);
+/** The window before the drainage stage (what tsjob_pixel_window drains). */
+int tsjob_pixel_window_raw(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res,
+                           int x0, int y0, int w, int h, float *out, tsio_err *err);
 /** Setup, then the whole grid into res->out. */
 int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *res,
                         tsio_err *err);

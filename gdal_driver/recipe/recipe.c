@@ -210,7 +210,9 @@ static int recipe_job(tsrecipe *r, CPLXMLNode *node, const char *const *oo, tsio
             return -1;
         }
         r->pixel.lazy = 1; /* computed block by block: tsrecipe_read_window */
-        return tsjob_pixel_prepare(&r->pixel, &r->pixel_res, err);
+        if (tsjob_pixel_prepare(&r->pixel, &r->pixel_res, err) != 0)
+            return -1;
+        return tsrecipe_drainage_margin(r) ? tsrecipe__raw_init(r, err) : 0;
     }
     if (r->method == TSRECIPE_AMPLIFY) {
         if (tsjob_build_amplify(&r->values, &r->amplify, msg, sizeof msg) != 0) {
@@ -229,7 +231,9 @@ static int recipe_job(tsrecipe *r, CPLXMLNode *node, const char *const *oo, tsio
             tsio_errf(err, r->path, "%s", err->msg);
             return -1;
         }
-        return tsjob_amplify_prepare(&r->amplify, &r->amplify_res, err);
+        if (tsjob_amplify_prepare(&r->amplify, &r->amplify_res, err) != 0)
+            return -1;
+        return tsrecipe_drainage_margin(r) ? tsrecipe__raw_init(r, err) : 0;
     }
     if (tsjob_build_synth(&r->values, &r->synth, &r->seed, msg, sizeof msg) != 0) {
         tsio_errf(err, r->path, "%s", msg);
@@ -534,6 +538,7 @@ void tsrecipe_free(tsrecipe *r)
     free(r->tiles);
     if (r->has_tile_lock)
         pthread_mutex_destroy(&r->tile_lock);
+    tsrecipe__raw_free(r);
     tsio_georef_free(&r->geo);
     tsjob_values_free(&r->values);
     CSLDestroy(r->strings);
@@ -653,15 +658,9 @@ const void *tsrecipe_data(const tsrecipe *r)
 
 int tsrecipe_block_size(const tsrecipe *r)
 {
-    int b, m = tsrecipe_drainage_margin(r);
     if (r->method == TSRECIPE_SYNTH && r->synth.lazy && r->synth_res.params.tiled < 256)
         return r->synth_res.params.tiled; /* a block inside one tile */
-    b = r->method == TSRECIPE_PIXEL ? 512 : 256;
-    /* a block computed with the drainage stage's margin round it: at least twice the
-     * margin, so the margin costs at most 4 x the block's cells */
-    while (b < 2 * m && b < 2048)
-        b *= 2;
-    return b;
+    return r->method == TSRECIPE_PIXEL ? 512 : 256;
 }
 
 const char *tsrecipe_job_name(const tsrecipe *r)
@@ -750,8 +749,18 @@ static int recipe_read_window_offline(tsrecipe *r, int x0, int y0, int w, int h,
     }
     if (r->method == TSRECIPE_PIXEL) {
         ts_ctx_set_seed(ctx, r->seed);
-        rc = tsjob_pixel_window(ctx, &r->pixel, &r->pixel_res, x0, y0, w, h, out, err);
+        rc = r->has_raw_lock ? tsrecipe__raw_drained(r, ctx, x0, y0, w, h, out, err)
+                             : tsjob_pixel_window(ctx, &r->pixel, &r->pixel_res, x0, y0, w, h,
+                                                  out, err);
         ts_ctx_free(ctx);
+        return rc;
+    }
+    if (r->has_raw_lock && !r->layer[0]) { /* the amplified DEM, drained */
+        rc = tsrecipe__raw_drained(r, ctx, x0, y0, w, h, out, err);
+        ts_ctx_free(ctx);
+        for (i = 0; rc == 0 && i < n; i++)
+            if (isnan(out[i]))
+                out[i] = (float)TSIO_NODATA; /* nodata as the driver declares it */
         return rc;
     }
     rc = tsjob_amplify_window(ctx, &r->amplify, &r->amplify_res, x0, y0, w, h,

@@ -47,8 +47,7 @@ const void *tsrecipe_data(const tsrecipe *r);
  *  have; thread-safe. */
 int tsrecipe_lazy(const tsrecipe *r);
 /* The side of the blocks the driver serves (a pixel recipe's are larger: each block
- * recomputes the margins its levels need; with the drainage stage at least twice its
- * margin, up to 2048). */
+ * recomputes the margins its levels need). */
 int tsrecipe_block_size(const tsrecipe *r);
 int tsrecipe_read_window(tsrecipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err);
 

@@ -50,6 +50,13 @@ struct tsrecipe {
     recipe_tile *tiles;
     size_t n_tiles, cap_tiles, tile_bytes;
     uint64_t tile_clock; /* the request being served */
+    /* pixel and amplify with the drainage stage: blocks of the method's output
+     * (recipe_raw.c), at most raw_limit bytes between requests */
+    pthread_mutex_t raw_lock;
+    int has_raw_lock;
+    recipe_tile *raw;
+    size_t n_raw, cap_raw, raw_bytes, raw_limit;
+    uint64_t raw_clock;
 };
 
 /* The cells [x0, x0+w) x [y0, y0+h) of a tiled synth recipe, from the tiles
@@ -57,5 +64,13 @@ struct tsrecipe {
  * cache's limit); thread-safe (recipe_tiles.c). */
 int tsrecipe__tiles_window(tsrecipe *r, ts_ctx *ctx, int x0, int y0, int w, int h, float *out,
                            tsio_err *err);
+
+/* recipe_raw.c: the cache of a pixel or amplify recipe's blocks (init reads
+ * TSYN_TILE_CACHE_MB), and a window after the drainage stage from them;
+ * thread-safe. */
+int tsrecipe__raw_init(tsrecipe *r, tsio_err *err);
+void tsrecipe__raw_free(tsrecipe *r);
+int tsrecipe__raw_drained(tsrecipe *r, ts_ctx *ctx, int x0, int y0, int w, int h, float *out,
+                          tsio_err *err);
 
 #endif

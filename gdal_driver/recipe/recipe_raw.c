@@ -1,0 +1,172 @@
+/*
+ * recipe_raw.c - the windows of a pixel or amplify recipe with the drainage
+ * stage: each window is drained from the method's cells round it (the
+ * stage's margin), which come from blocks of the method's output kept in a
+ * cache (the least recently used dropped past TSYN_TILE_CACHE_MB), so
+ * neighbouring windows do not compute the same cells again.  Any window
+ * equals that window of the whole: the method's blocks are its cells, and
+ * the stage depends only on the margin.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cpl_conv.h>
+
+#include "recipe_internal.h"
+
+#define RAW_BLOCK 512 /* cells: the side of a cached block of the method's output */
+
+static recipe_tile *raw_find(tsrecipe *r, int bi, int bj)
+{
+    size_t k;
+    for (k = 0; k < r->n_raw; k++)
+        if (r->raw[k].ti == bi && r->raw[k].tj == bj)
+            return &r->raw[k];
+    return NULL;
+}
+
+/* Drop the least recently used blocks not needed by this request past the limit. */
+static void raw_evict(tsrecipe *r)
+{
+    while (r->raw_bytes > r->raw_limit) {
+        size_t k, old = r->n_raw;
+        for (k = 0; k < r->n_raw; k++)
+            if (r->raw[k].used != r->raw_clock &&
+                (old == r->n_raw || r->raw[k].used < r->raw[old].used))
+                old = k;
+        if (old == r->n_raw)
+            return;
+        r->raw_bytes -= (size_t)r->raw[old].w * (size_t)r->raw[old].h * sizeof(float);
+        free(r->raw[old].cells);
+        r->raw[old] = r->raw[--r->n_raw];
+    }
+}
+
+/* Block (bi, bj) of the method's output, computed if not cached. */
+static recipe_tile *raw_block(tsrecipe *r, ts_ctx *ctx, int bi, int bj, tsio_err *err)
+{
+    const tsio_georef *g = tsrecipe_georef(r);
+    recipe_tile *t = raw_find(r, bi, bj), b;
+    if (t) {
+        t->used = r->raw_clock;
+        return t;
+    }
+    memset(&b, 0, sizeof b);
+    b.ti = bi;
+    b.tj = bj;
+    b.x0 = bi * RAW_BLOCK;
+    b.y0 = bj * RAW_BLOCK;
+    b.w = g->width - b.x0 < RAW_BLOCK ? g->width - b.x0 : RAW_BLOCK;
+    b.h = g->height - b.y0 < RAW_BLOCK ? g->height - b.y0 : RAW_BLOCK;
+    b.used = r->raw_clock;
+    b.cells = malloc((size_t)b.w * (size_t)b.h * sizeof *b.cells);
+    if (!b.cells) {
+        tsio_errf(err, r->path, "out of memory for a block of %d x %d cells", b.w, b.h);
+        return NULL;
+    }
+    if ((r->method == TSRECIPE_PIXEL
+             ? tsjob_pixel_window_raw(ctx, &r->pixel, &r->pixel_res, b.x0, b.y0, b.w, b.h,
+                                      b.cells, err)
+             : tsjob_amplify_window_raw(ctx, &r->amplify, &r->amplify_res, b.x0, b.y0, b.w, b.h,
+                                        b.cells, err)) != 0) {
+        free(b.cells);
+        return NULL;
+    }
+    if (r->n_raw == r->cap_raw) {
+        size_t c = r->cap_raw ? 2 * r->cap_raw : 16;
+        recipe_tile *n = realloc(r->raw, c * sizeof *n);
+        if (!n) {
+            free(b.cells);
+            tsio_errf(err, r->path, "out of memory for the block cache");
+            return NULL;
+        }
+        r->raw = n;
+        r->cap_raw = c;
+    }
+    r->raw[r->n_raw] = b;
+    r->raw_bytes += (size_t)b.w * (size_t)b.h * sizeof(float);
+    return &r->raw[r->n_raw++];
+}
+
+/* The method's cells [x0, x0+w) x [y0, y0+h) out of the cached blocks (a
+ * tsjob_raw_fn; the caller holds raw_lock). */
+static int raw_window(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, float *cells,
+                      unsigned char *flags, tsio_err *err)
+{
+    tsrecipe *r = arg;
+    int bi, bj, y;
+    (void)flags;
+    r->raw_clock++;
+    /* every block first marked as needed (so none is dropped while the window is made) */
+    for (bj = y0 / RAW_BLOCK; bj <= (y0 + h - 1) / RAW_BLOCK; bj++)
+        for (bi = x0 / RAW_BLOCK; bi <= (x0 + w - 1) / RAW_BLOCK; bi++) {
+            recipe_tile *t = raw_find(r, bi, bj);
+            if (t)
+                t->used = r->raw_clock;
+        }
+    for (bj = y0 / RAW_BLOCK; bj <= (y0 + h - 1) / RAW_BLOCK; bj++)
+        for (bi = x0 / RAW_BLOCK; bi <= (x0 + w - 1) / RAW_BLOCK; bi++) {
+            recipe_tile *t = raw_block(r, ctx, bi, bj, err);
+            int xa, xb, ya, yb;
+            if (!t)
+                return -1;
+            xa = t->x0 > x0 ? t->x0 : x0;
+            xb = t->x0 + t->w < x0 + w ? t->x0 + t->w : x0 + w;
+            ya = t->y0 > y0 ? t->y0 : y0;
+            yb = t->y0 + t->h < y0 + h ? t->y0 + t->h : y0 + h;
+            for (y = ya; y < yb; y++)
+                memcpy(cells + (size_t)(y - y0) * (size_t)w + (size_t)(xa - x0),
+                       t->cells + (size_t)(y - t->y0) * (size_t)t->w + (size_t)(xa - t->x0),
+                       (size_t)(xb - xa) * sizeof *cells);
+        }
+    raw_evict(r);
+    return 0;
+}
+
+int tsrecipe__raw_init(tsrecipe *r, tsio_err *err)
+{
+    const char *mb = CPLGetConfigOption("TSYN_TILE_CACHE_MB", "256");
+    char *end = NULL;
+    double v = strtod(mb, &end);
+    if (end == mb || *end || !(v >= 0 && v <= 1e6)) {
+        tsio_errf(err, r->path, "TSYN_TILE_CACHE_MB=%s: give megabytes, 0 to 1000000", mb);
+        return -1;
+    }
+    r->raw_limit = (size_t)(v * 1048576.0);
+    if (pthread_mutex_init(&r->raw_lock, NULL) != 0) {
+        tsio_errf(err, r->path, "out of resources for a lock");
+        return -1;
+    }
+    r->has_raw_lock = 1;
+    return 0;
+}
+
+void tsrecipe__raw_free(tsrecipe *r)
+{
+    size_t k;
+    for (k = 0; k < r->n_raw; k++)
+        free(r->raw[k].cells);
+    free(r->raw);
+    r->raw = NULL;
+    r->n_raw = r->cap_raw = r->raw_bytes = 0;
+    if (r->has_raw_lock)
+        pthread_mutex_destroy(&r->raw_lock);
+    r->has_raw_lock = 0;
+}
+
+int tsrecipe__raw_drained(tsrecipe *r, ts_ctx *ctx, int x0, int y0, int w, int h, float *out,
+                          tsio_err *err)
+{
+    const tsio_georef *g = tsrecipe_georef(r);
+    const ts_drainage_params *p =
+        r->method == TSRECIPE_PIXEL ? &r->pixel_res.drainage : &r->amplify_res.drainage;
+    int rc;
+    pthread_mutex_lock(&r->raw_lock);
+    rc = tsjob_drained_window(ctx, p, g->width, g->height, x0, y0, w, h, raw_window, r, out,
+                              r->path, err);
+    pthread_mutex_unlock(&r->raw_lock);
+    return rc;
+}
