@@ -437,6 +437,10 @@ def main(argv=None):
             elif levels:
                 dst.BuildOverviews("AVERAGE", levels)
         dst = None
+        # the mode any new file gets under the umask (mkstemp made the temporary 0600)
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(final, 0o666 & ~mask)
         os.replace(final, a.output)
     except Exception as e:  # one line, nothing left behind
         cleanup()

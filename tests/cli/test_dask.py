@@ -8,6 +8,7 @@ nothing behind.  Skips when python3-distributed is absent; not under the sanitiz
 runner is plain Python and its workers would each load the instrumented plugin: the plugin is
 checked under them by tests/gdal)."""
 import os
+import stat
 import subprocess
 import sys
 
@@ -124,6 +125,10 @@ def test_tiled_synth_recipe_tile_by_tile(tmp_path):
     st = gdal.Open(str(tmp_path / "d2.tif")).GetMetadata("IMAGE_STRUCTURE")
     assert (st.get("COMPRESSION"), st.get("PREDICTOR")) == (
         "ZSTD" if HAS_ZSTD else "DEFLATE", "3")  # no overviews
+    # the mode every new file gets under the umask, as with overviews (not mkstemp's 0600)
+    mask = os.umask(0)
+    os.umask(mask)
+    assert stat.S_IMODE(os.stat(tmp_path / "d2.tif").st_mode) == 0o666 & ~mask
     # another compression asked for: the same cells
     runner(recipe, tmp_path / "dd.tif", "--no-overviews", "--compress", "DEFLATE", "-q")
     st = gdal.Open(str(tmp_path / "dd.tif")).GetMetadata("IMAGE_STRUCTURE")
