@@ -60,7 +60,7 @@ def crease(a):
 
 
 def judge(path, tmp, cell=None):
-    """(sink share, landform histogram) by the yardstick's own GRASS session; a raster
+    """(sink share, landform histogram) by the yardstick's own GRASS run; a raster
     without a CRS (which GRASS cannot take) judged as a copy in UTM with cells of `cell` m."""
     import realism_metrics
     t = tempfile.mkdtemp(dir=tmp)

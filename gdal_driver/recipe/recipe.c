@@ -245,20 +245,14 @@ static int recipe_job(tsrecipe *r, CPLXMLNode *node, const char *const *oo, tsio
     }
     if (r->synth.params.tiled > 0) {
         /* tile by tile: tsrecipe_read_window makes the tiles a block needs */
-        const char *mb = CPLGetConfigOption("TSYN_TILE_CACHE_MB", "256");
-        char *end = NULL;
-        double v = strtod(mb, &end);
         if (r->map >= 0) {
             tsio_errf(err, r->path, "tiles (tiled %d) take no debug maps yet (MAP)",
                       r->synth.params.tiled);
             return -1;
         }
-        if (end == mb || *end || !(v >= 0 && v <= 1e6)) {
-            tsio_errf(err, r->path, "TSYN_TILE_CACHE_MB=%s: give megabytes, 0 to 1000000", mb);
+        if (tsrecipe__cache_limit(r, &r->synth.tile_cache, err) != 0)
             return -1;
-        }
         r->synth.lazy = 1;
-        r->synth.tile_cache = (size_t)(v * 1048576.0);
         if (pthread_mutex_init(&r->tile_lock, NULL) != 0) {
             tsio_errf(err, r->path, "out of resources for a lock");
             return -1;

@@ -65,6 +65,13 @@ struct tsrecipe {
 int tsrecipe__tiles_window(tsrecipe *r, ts_ctx *ctx, int x0, int y0, int w, int h, float *out,
                            tsio_err *err);
 
+/* The caches of made blocks (recipe_tiles.c): block (ti, tj) among t[0..n),
+ * or NULL; the least recently used not needed by the request `clock` dropped
+ * until *bytes <= limit; the limit TSYN_TILE_CACHE_MB sets (default 256 MB). */
+recipe_tile *tsrecipe__cache_find(recipe_tile *t, size_t n, int ti, int tj);
+void tsrecipe__cache_evict(recipe_tile *t, size_t *n, size_t *bytes, size_t limit, uint64_t clock);
+int tsrecipe__cache_limit(const tsrecipe *r, size_t *bytes, tsio_err *err);
+
 /* recipe_raw.c: the cache of a pixel or amplify recipe's blocks (init reads
  * TSYN_TILE_CACHE_MB), and a window after the drainage stage from them;
  * thread-safe. */

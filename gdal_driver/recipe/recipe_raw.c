@@ -13,43 +13,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <cpl_conv.h>
-
 #include "recipe_internal.h"
 
 #define RAW_BLOCK 512 /* cells: the side of a cached block of the method's output */
-
-static recipe_tile *raw_find(tsrecipe *r, int bi, int bj)
-{
-    size_t k;
-    for (k = 0; k < r->n_raw; k++)
-        if (r->raw[k].ti == bi && r->raw[k].tj == bj)
-            return &r->raw[k];
-    return NULL;
-}
-
-/* Drop the least recently used blocks not needed by this request past the limit. */
-static void raw_evict(tsrecipe *r)
-{
-    while (r->raw_bytes > r->raw_limit) {
-        size_t k, old = r->n_raw;
-        for (k = 0; k < r->n_raw; k++)
-            if (r->raw[k].used != r->raw_clock &&
-                (old == r->n_raw || r->raw[k].used < r->raw[old].used))
-                old = k;
-        if (old == r->n_raw)
-            return;
-        r->raw_bytes -= (size_t)r->raw[old].w * (size_t)r->raw[old].h * sizeof(float);
-        free(r->raw[old].cells);
-        r->raw[old] = r->raw[--r->n_raw];
-    }
-}
 
 /* Block (bi, bj) of the method's output, computed if not cached. */
 static recipe_tile *raw_block(tsrecipe *r, ts_ctx *ctx, int bi, int bj, tsio_err *err)
 {
     const tsio_georef *g = tsrecipe_georef(r);
-    recipe_tile *t = raw_find(r, bi, bj), b;
+    recipe_tile *t = tsrecipe__cache_find(r->raw, r->n_raw, bi, bj), b;
     if (t) {
         t->used = r->raw_clock;
         return t;
@@ -103,7 +75,7 @@ static int raw_window(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, floa
     /* every block first marked as needed (so none is dropped while the window is made) */
     for (bj = y0 / RAW_BLOCK; bj <= (y0 + h - 1) / RAW_BLOCK; bj++)
         for (bi = x0 / RAW_BLOCK; bi <= (x0 + w - 1) / RAW_BLOCK; bi++) {
-            recipe_tile *t = raw_find(r, bi, bj);
+            recipe_tile *t = tsrecipe__cache_find(r->raw, r->n_raw, bi, bj);
             if (t)
                 t->used = r->raw_clock;
         }
@@ -122,20 +94,14 @@ static int raw_window(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, floa
                        t->cells + (size_t)(y - t->y0) * (size_t)t->w + (size_t)(xa - t->x0),
                        (size_t)(xb - xa) * sizeof *cells);
         }
-    raw_evict(r);
+    tsrecipe__cache_evict(r->raw, &r->n_raw, &r->raw_bytes, r->raw_limit, r->raw_clock);
     return 0;
 }
 
 int tsrecipe__raw_init(tsrecipe *r, tsio_err *err)
 {
-    const char *mb = CPLGetConfigOption("TSYN_TILE_CACHE_MB", "256");
-    char *end = NULL;
-    double v = strtod(mb, &end);
-    if (end == mb || *end || !(v >= 0 && v <= 1e6)) {
-        tsio_errf(err, r->path, "TSYN_TILE_CACHE_MB=%s: give megabytes, 0 to 1000000", mb);
+    if (tsrecipe__cache_limit(r, &r->raw_limit, err) != 0)
         return -1;
-    }
-    r->raw_limit = (size_t)(v * 1048576.0);
     if (pthread_mutex_init(&r->raw_lock, NULL) != 0) {
         tsio_errf(err, r->path, "out of resources for a lock");
         return -1;

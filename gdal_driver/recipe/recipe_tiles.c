@@ -24,13 +24,18 @@
 
 /* ---- a tiled synth recipe, tile by tile ---------------------------- */
 
-static recipe_tile *tile_find(const tsrecipe *r, int ti, int tj)
+recipe_tile *tsrecipe__cache_find(recipe_tile *t, size_t n, int ti, int tj)
 {
     size_t k;
-    for (k = 0; k < r->n_tiles; k++)
-        if (r->tiles[k].ti == ti && r->tiles[k].tj == tj)
-            return &r->tiles[k];
+    for (k = 0; k < n; k++)
+        if (t[k].ti == ti && t[k].tj == tj)
+            return &t[k];
     return NULL;
+}
+
+static recipe_tile *tile_find(const tsrecipe *r, int ti, int tj)
+{
+    return tsrecipe__cache_find(r->tiles, r->n_tiles, ti, tj);
 }
 
 /* Add (ti, tj) to the list of wanted tiles unless there. */
@@ -54,22 +59,32 @@ static int want_add(int **list, size_t *n, size_t *cap, int ti, int tj)
     return 0;
 }
 
-/* Drop the least recently used tiles not needed by the request being
- * served until the cache is within its limit. */
-static void tiles_evict(tsrecipe *r)
+void tsrecipe__cache_evict(recipe_tile *t, size_t *n, size_t *bytes, size_t limit, uint64_t clock)
 {
-    while (r->tile_bytes > r->synth.tile_cache) {
-        size_t k, old = r->n_tiles;
-        for (k = 0; k < r->n_tiles; k++)
-            if (r->tiles[k].used != r->tile_clock &&
-                (old == r->n_tiles || r->tiles[k].used < r->tiles[old].used))
+    while (*bytes > limit) {
+        size_t k, old = *n;
+        for (k = 0; k < *n; k++)
+            if (t[k].used != clock && (old == *n || t[k].used < t[old].used))
                 old = k;
-        if (old == r->n_tiles)
+        if (old == *n)
             return;
-        r->tile_bytes -= (size_t)r->tiles[old].w * (size_t)r->tiles[old].h * sizeof(float);
-        free(r->tiles[old].cells);
-        r->tiles[old] = r->tiles[--r->n_tiles];
+        *bytes -= (size_t)t[old].w * (size_t)t[old].h * sizeof(float);
+        free(t[old].cells);
+        t[old] = t[--*n];
     }
+}
+
+int tsrecipe__cache_limit(const tsrecipe *r, size_t *bytes, tsio_err *err)
+{
+    const char *mb = CPLGetConfigOption("TSYN_TILE_CACHE_MB", "256");
+    char *end = NULL;
+    double v = strtod(mb, &end);
+    if (end == mb || *end || !(v >= 0 && v <= 1e6)) {
+        tsio_errf(err, r->path, "TSYN_TILE_CACHE_MB=%s: give megabytes, 0 to 1000000", mb);
+        return -1;
+    }
+    *bytes = (size_t)(v * 1048576.0);
+    return 0;
 }
 
 /* Where tile (ti, tj) lies: win and core = {x, y, w, h} (ts_synth_tile_window;
@@ -217,7 +232,8 @@ int tsrecipe__tiles_window(tsrecipe *r, ts_ctx *ctx, int x0, int y0, int w, int 
 oom:
     tsio_errf(err, r->path, "out of memory for the tiles");
 done:
-    tiles_evict(r);
+    tsrecipe__cache_evict(r->tiles, &r->n_tiles, &r->tile_bytes, r->synth.tile_cache,
+                          r->tile_clock);
     pthread_mutex_unlock(&r->tile_lock);
     free(batch);
     free(want);

@@ -52,12 +52,6 @@ TS_API int ts_drainage_margin(const ts_drainage_params *p)
     return 2 * p->radius + 2;
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 TS_API double ts_drainage_depth_auto(const ts_raster *exemplars, int n)
 {
     size_t total = 0, m = 0, step, k = 0;
@@ -90,7 +84,7 @@ TS_API double ts_drainage_depth_auto(const ts_raster *exemplars, int n)
         free(v);
         return 0.0;
     }
-    qsort(v, m, sizeof *v, cmp_float);
+    qsort(v, m, sizeof *v, ts__float_cmp);
     r = (double)v[(size_t)(0.999 * (double)(m - 1))] / 8.0;
     free(v);
     return r;
@@ -236,29 +230,16 @@ static int is_pit(const dr_job *j, int x, int y)
     return 1;
 }
 
-static void atomic_min_f(float *p, float v)
+/* *p = v where v is lower (up: higher), atomically: the result does not depend
+ * on the order the threads come in. */
+static void atomic_toward(float *p, float v, int up)
 {
     uint32_t *u = (uint32_t *)(void *)p;
     uint32_t old = __atomic_load_n(u, __ATOMIC_RELAXED), nw;
     float cur;
     for (;;) {
         memcpy(&cur, &old, sizeof cur);
-        if (!(v < cur))
-            return;
-        memcpy(&nw, &v, sizeof nw);
-        if (__atomic_compare_exchange_n(u, &old, nw, 0, __ATOMIC_RELAXED, __ATOMIC_RELAXED))
-            return;
-    }
-}
-
-static void atomic_max_f(float *p, float v)
-{
-    uint32_t *u = (uint32_t *)(void *)p;
-    uint32_t old = __atomic_load_n(u, __ATOMIC_RELAXED), nw;
-    float cur;
-    for (;;) {
-        memcpy(&cur, &old, sizeof cur);
-        if (!(v > cur))
+        if (!(up ? v > cur : v < cur))
             return;
         memcpy(&nw, &v, sizeof nw);
         if (__atomic_compare_exchange_n(u, &old, nw, 0, __ATOMIC_RELAXED, __ATOMIC_RELAXED))
@@ -474,7 +455,7 @@ static int fill_pit(dr_job *j, dr_scratch *s, int px, int py)
         if (s->stamp[c] == s->epoch && s->cost[c] < level) {
             size_t i = (size_t)box_index(j, s, px, py, (int)c);
             if ((double)j->z0[i] < level)
-                atomic_max_f(&j->lifted[i], (float)level);
+                atomic_toward(&j->lifted[i], (float)level, 1);
         }
     return 1;
 }
@@ -484,7 +465,6 @@ static int fill_pit(dr_job *j, dr_scratch *s, int px, int py)
  * cells on a profile falling evenly.  1 cut, 0 none, -1 out of memory. */
 static int breach_pit(dr_job *j, dr_scratch *s, dr_scratch *lake, int px, int py)
 {
-    const int side = s->side;
     const float zp = j->z0[(size_t)py * (size_t)j->w + (size_t)px];
     dr_query q;
     double level = zp;
@@ -545,12 +525,10 @@ static int breach_pit(dr_job *j, dr_scratch *s, dr_scratch *lake, int px, int py
                 v = below;
             if (j->flags && (j->flags[i] & TS_CELL_FIXED))
                 v = j->lifted[i]; /* a fixed target (water) is never changed */
-            atomic_min_f(&j->out[i], v);
+            atomic_toward(&j->out[i], v, 0);
             prev = v;
         }
-        (void)side;
-        if (top < j->out[(size_t)py * (size_t)j->w + (size_t)px])
-            atomic_min_f(&j->out[(size_t)py * (size_t)j->w + (size_t)px], top);
+        atomic_toward(&j->out[(size_t)py * (size_t)j->w + (size_t)px], top, 0);
     }
     return 1;
 }
