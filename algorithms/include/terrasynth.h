@@ -487,7 +487,8 @@ enum {
     /* with TS_CELL_FIXED: water; the land beside it ends at or above its value
        (water_banks.c, a TerraSynth addition) */
     TS_CELL_WATER = 8,
-    /* for the drainage stage: a drawn ridge, which no channel crosses */
+    /* for the drainage stage: a drawn ridge, which a channel crosses only where the land
+       has no other way out */
     TS_CELL_BARRIER = 16
 };
 
@@ -928,19 +929,27 @@ typedef struct ts_drainage_params {
     int mode;   /* TS_DRAINAGE_KEEP: as synthesised; _BREACH (default): a channel carved from
                    each pit to lower land; _FILL: each depression raised to its spill */
     int radius; /* how far from its pit a channel or a fill reaches, in cells */
-    double max_depth; /* breach: the deepest a channel cuts, in height units; a depression
-                         that needs more is filled to its spill less this first (a pond of
-                         at most (radius / 4)^2 cells, else it is kept); 0: no
-                         limit; -1 (automatic): a front end sets ts_drainage_depth_auto of
-                         the exemplars (the core takes -1 as 0) */
+    double max_depth; /* breach: the deepest a channel may cut, in height units; a depression
+                         that needs a deeper one is kept; 0: no limit; -1 (automatic):
+                         bank_slope times radius / 8 (no limit when bank_slope is 0) */
+    double bank_slope; /* breach: the slope of a channel's banks, in height units per cell: a
+                          cell within (cut / bank_slope) cells (at most radius / 2) of a channel
+                          cell cut deeper than bank_slope is lowered to the channel's height
+                          plus bank_slope times its distance (a gorge, not a slot); 0: none (a
+                          channel one cell wide); -1 (automatic): a front end sets
+                          ts_drainage_bank_slope_auto of the exemplars (the core takes -1 as 0) */
 } ts_drainage_params;
 
 TS_API ts_drainage_params ts_drainage_params_default(void);
 
-/** The automatic max_depth: an eighth of the 99.9th percentile of the exemplars' |Laplacian|
- *  (four neighbours; at most a million cells sampled in raster order): a channel's crease,
- *  about twice its depth, is a quarter of their sharpest; 0 when they have no interior cell. */
-TS_API double ts_drainage_depth_auto(const ts_raster *exemplars, int n);
+/** The deepest cut a breach makes with these parameters: max_depth, or for -1 bank_slope times
+ *  radius / 8 (0, no limit, when bank_slope is not above 0). */
+TS_API double ts_drainage_depth_of(const ts_drainage_params *p);
+
+/** The automatic bank_slope: the median of the exemplars' gradient magnitude (central
+ *  differences, height units per cell; at most a million cells sampled in raster order):
+ *  a channel's banks as steep as their typical land; 0 when they have no interior cell. */
+TS_API double ts_drainage_bank_slope_auto(const ts_raster *exemplars, int n);
 
 /** What the stage did: pits found, pits drained, cells changed and their mean change. */
 typedef struct ts_drainage_info {
@@ -950,7 +959,7 @@ typedef struct ts_drainage_info {
 
 /** The margin a window needs on each side (clipped at the grid's edge) for
  *  ts_drainage_apply to give the cells inside it exactly as on the whole
- *  grid: 2 radius + 2, or 4 radius + 2 for a breach with a deepest cut (0 for keep). */
+ *  grid: 2 radius + 2, and radius / 2 more for a breach with banks (0 for keep). */
 TS_API int ts_drainage_margin(const ts_drainage_params *p);
 
 /**
@@ -959,13 +968,13 @@ TS_API int ts_drainage_margin(const ts_drainage_params *p);
  * edge, like nodata, drains out.  Each pit (a cell lower than its eight
  * neighbours, ties by grid index) is drained on the surface as given:
  * breach lowers the cells of the cheapest path (the sum of heights above the
- * pit) to lower land or out, each a little below the one before, never
- * raising a cell (with max_depth, a depression needing a deeper cut is first
- * filled to its spill less max_depth); fill raises the cells of the
- * depression to its spill height.  A pit with no way out within radius
+ * pit) to lower land or out, each a little below the one before, and its
+ * banks (bank_slope) to slopes falling to it, never raising a cell (with
+ * max_depth, a depression needing a deeper cut is kept); fill raises the
+ * cells of the depression to its spill height.  A pit with no way out within radius
  * cells is kept.  `flags` (width x height, row-major, or NULL):
  * TS_CELL_NODATA cells are nodata; TS_CELL_FIXED cells never change and are
- * crossed only as a channel's end (water lower than the pit), and the land
+ * crossed only as a channel's end (water at or below the pit), and the land
  * beside TS_CELL_WATER is never cut below the water; a channel
  * crosses TS_CELL_BARRIER cells (drawn ridges), or a diagonal between two,
  * only where it has no other way out.  Only cells ts_drainage_margin or more

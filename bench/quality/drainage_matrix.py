@@ -8,7 +8,8 @@
 # the r.geomorphon landform histogram).  Goals: closed depressions <= 1.5 x the exemplar's
 # share + 0.2 percentage points; landforms within TV 0.06 of the exemplar's.  Also printed:
 # the sharpest creases (99.9th percentile of |Laplacian|, output over exemplar), the share of
-# cells the stage changes, their mean change, and the stage's time.
+# flat cells (slope under 0.5 degrees: the flat lakes a fill leaves; exemplar / kept /
+# breached), the share of cells the stage changes, their mean change, and the stage's time.
 #
 #   apt-get install grass-core
 #   /usr/bin/python3 bench/quality/drainage_matrix.py [--seeds 1,2,3] [--size 256] [--jobs 2]
@@ -52,6 +53,25 @@ def in_pits(a):
     from test_drainage import filled
     d = filled(a) - a
     return float((d[np.isfinite(d)] > 1.0).mean())
+
+
+def flat_share(path, cell=None):
+    """Share of the cells with data whose slope (central differences) is under 0.5 degrees;
+    `cell`: metres per cell of a raster without a CRS."""
+    ds = gdal.Open(path)
+    a = read(path)
+    gt = ds.GetGeoTransform()
+    cx, cy = abs(gt[1]), abs(gt[5])
+    srs = ds.GetSpatialRef()
+    if srs is None:
+        cx = cy = cell
+    elif srs.IsGeographic():
+        lat = np.radians(gt[3] + gt[5] * ds.RasterYSize / 2)
+        cx, cy = cx * 111320.0 * np.cos(lat), cy * 110574.0
+    gy, gx = np.gradient(a, cy, cx)
+    s = np.hypot(gx, gy)
+    s = s[np.isfinite(s)]
+    return float((s < np.tan(np.radians(0.5))).mean()) if s.size else 0.0
 
 
 def crease(a):
@@ -129,6 +149,7 @@ def one(job):
         row[mode] = a
         row[mode + "_sink"], row[mode + "_forms"] = judge(out, tmp, cell_of(name))
         row[mode + "_flood"] = in_pits(a)
+        row[mode + "_flat"] = flat_share(out, cell_of(name))
     k, b = row["keep"], row["breach"]
     ok = np.isfinite(k)
     ch = b[ok] != k[ok]
@@ -159,7 +180,8 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         ex = {}
         for p in dems:
-            ex[p] = judge(p, tmp, cell_of(os.path.basename(p))) + (crease(read(p)),)
+            ex[p] = judge(p, tmp, cell_of(os.path.basename(p))) + (
+                crease(read(p)), flat_share(p, cell_of(os.path.basename(p))))
         jobs = [(a.terrasynth, m, p, int(s), a.size, tmp, sketch, a.options.split())
                 for m in a.methods.split(",") for p in dems
                 for s in (a.seeds.split(",")[:1] if m == "amplify" else a.seeds.split(","))]
@@ -167,8 +189,8 @@ def main():
             rows = list(pool.map(one, jobs))
     print("| method | DEM | depressions (r.fill.dir): exemplar / kept / breached (goal) | "
           "full flood: kept / breached | landforms TV kept / breached | creases kept / breached "
-          "| cells changed | mean change m | stage s |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| flat cells: exemplar / kept / breached | cells changed | mean change m | stage s |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     met = total = tv_met = 0
     for m in a.methods.split(","):
         for p in dems:
@@ -177,7 +199,7 @@ def main():
             if bad:  # (a DEM too small for a sketch's patches at its resolution)
                 print("| %s | %s | not run: %s |" % (m, rs[0]["dem"], bad[0]["error"]))
                 continue
-            se, fe, ce = ex[p]
+            se, fe, ce, flat_e = ex[p]
             goal = 1.5 * se + 0.002
             ok = sum(r["breach_sink"] <= goal for r in rs)
             tvk = np.mean([0.5 * np.abs(np.array(r["keep_forms"]) - fe).sum() for r in rs])
@@ -186,13 +208,15 @@ def main():
             total += len(rs)
             tv_met += sum(t <= 0.06 for t in tvb)
             print("| %s | %s | %.2f %% / %.2f %% / %.2f %% (%d of %d <= %.2f %%) | %.1f %% / %.1f %%"
-                  " | %.3f / %.3f | %.2f / %.2f | %.2f %% | %.1f | %.2f |" % (
+                  " | %.3f / %.3f | %.2f / %.2f | %.2f %% / %.2f %% / %.2f %% | %.2f %% | %.1f | %.2f |" % (
                       m, rs[0]["dem"], 100 * se, 100 * np.mean([r["keep_sink"] for r in rs]),
                       100 * np.mean([r["breach_sink"] for r in rs]), ok, len(rs), 100 * goal,
                       100 * np.mean([r["keep_flood"] for r in rs]),
                       100 * np.mean([r["breach_flood"] for r in rs]),
                       tvk, np.mean(tvb), np.mean([r["crease_keep"] for r in rs]) / ce,
-                      np.mean([r["crease_breach"] for r in rs]) / ce,
+                      np.mean([r["crease_breach"] for r in rs]) / ce, 100 * flat_e,
+                      100 * np.mean([r["keep_flat"] for r in rs]),
+                      100 * np.mean([r["breach_flat"] for r in rs]),
                       100 * np.mean([r["changed"] for r in rs]),
                       np.mean([r["mean_change"] for r in rs]),
                       np.mean([r.get("seconds", 0.0) for r in rs])))

@@ -282,11 +282,14 @@ void cli_drainage_report(const ts_drainage_params *p, const ts_drainage_info *d,
 {
     static const char *const modes[] = {"keep", "breach", "fill"};
     double cells = (double)width * (double)height;
-    char depth[64] = "";
+    char depth[96] = "";
     if (p->mode == TS_DRAINAGE_KEEP)
         return;
-    if (p->mode == TS_DRAINAGE_BREACH && p->max_depth > 0)
-        snprintf(depth, sizeof depth, ", cuts at most %.3g deep", p->max_depth);
+    if (p->mode == TS_DRAINAGE_BREACH && p->bank_slope > 0)
+        snprintf(depth, sizeof depth, ", banks %.3g per cell", p->bank_slope);
+    if (p->mode == TS_DRAINAGE_BREACH && ts_drainage_depth_of(p) > 0)
+        snprintf(depth + strlen(depth), sizeof depth - strlen(depth), ", cuts at most %.3g deep",
+                 ts_drainage_depth_of(p));
     printf("drainage: %s%s, %zu pits, %zu drained within %d cells; %zu cells changed (%.2f %%), "
            "mean %.2f; %.2f s\n",
            modes[p->mode], depth, d->pits, d->resolved, p->radius, d->cells_changed,

@@ -555,10 +555,10 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
                   "(%.3g m), so their patterns repeat; give larger exemplars",
                   res->n_atoms, in_dx > 0 ? in_dx / F : 0.0);
 drainage:
-    /* the automatic depth from the input (what exemplars, a dictionary and biomes share),
-     * its creases spread over the factor's finer cells */
-    if (res->drainage.max_depth == -1)
-        res->drainage.max_depth = ts_drainage_depth_auto(&res->in.r, 1) / F;
+    /* the automatic bank slope from the input (what exemplars, a dictionary and biomes
+     * share), its gradients per the factor's finer cells */
+    if (res->drainage.bank_slope == -1)
+        res->drainage.bank_slope = ts_drainage_bank_slope_auto(&res->in.r, 1) / F;
     if (ts_raster_alloc(ctx, res->in.r.width, res->in.r.height, &res->drain) != TS_OK ||
         ts_drainage_area(ctx, &res->in.r, &res->drain) != TS_OK) {
         tsio_errf(err, job->input, "%s", ts_ctx_message(ctx));

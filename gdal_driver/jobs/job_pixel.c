@@ -94,8 +94,8 @@ int tsjob_pixel_setup(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *r
         exr[i] = ex[i].r;
     }
     res->drainage = job->drainage;
-    if (res->drainage.max_depth == -1)
-        res->drainage.max_depth = ts_drainage_depth_auto(exr, job->n_exemplars);
+    if (res->drainage.bank_slope == -1)
+        res->drainage.bank_slope = ts_drainage_bank_slope_auto(exr, job->n_exemplars);
     clock_gettime(CLOCK_MONOTONIC, &t0);
     if (ts_pixel_prepare(ctx, exr, job->n_exemplars, &job->params, &res->stacks) != TS_OK) {
         int bad = ts_ctx_failed_input(ctx);

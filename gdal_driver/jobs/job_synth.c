@@ -308,12 +308,12 @@ static int job_read_exemplars(const tsjob_synth *job, tsjob_synth_result *res, t
 static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, tsio_raster *ex,
                         int *x0, int *y0, int *w, int *h, tsio_err *err);
 
-/* The job's drainage stage with its automatic depth from the exemplars as read. */
-static void job_drainage_depth(const tsjob_synth *job, tsjob_synth_result *res, const ts_raster *exr)
+/* The job's drainage stage with its automatic bank slope from the exemplars as read. */
+static void job_drainage_banks(const tsjob_synth *job, tsjob_synth_result *res, const ts_raster *exr)
 {
     res->drainage = job->drainage;
-    if (res->drainage.max_depth == -1)
-        res->drainage.max_depth = ts_drainage_depth_auto(exr, job->n_exemplars);
+    if (res->drainage.bank_slope == -1)
+        res->drainage.bank_slope = ts_drainage_bank_slope_auto(exr, job->n_exemplars);
 }
 
 int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err)
@@ -332,7 +332,7 @@ int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *r
         return -1;
     }
     res->n_ex = job->n_exemplars;
-    job_drainage_depth(job, res, res->exr);
+    job_drainage_banks(job, res, res->exr);
     for (i = 0; i < job->n_pins; i++) {
         int *wn = res->pin_win[i];
         if (job_pin_read(job, res, i, &res->pin_ex[i], &wn[0], &wn[1], &wn[2], &wn[3], err) != 0)
@@ -618,6 +618,11 @@ static int job_drain_whole(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_resu
             if (res->sketch_features->mask[i] & TS_VALLEY)
                 flags[i] |= TS_CELL_FIXED;
         }
+    /* with a sketch, channels cut at most twice the banks' slope by default: a deeper
+     * one runs beside a drawn valley's fixed floor as a trench and leaves the floor
+     * standing as a wall (the sketch matrices' seams) */
+    if (job->sketch && res->drainage.max_depth == -1 && res->drainage.bank_slope > 0)
+        res->drainage.max_depth = 2.0 * res->drainage.bank_slope;
     clock_gettime(CLOCK_MONOTONIC, &t0);
     rc = tsjob_drain(ctx, &res->drainage, &res->out, flags, 0, 0, res->geo.width, res->geo.height,
                      &res->drainage_info, job->sketch ? job->sketch : "synth", err);
@@ -659,7 +664,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     }
     if (job_read_exemplars(job, res, ex, exr, err) != 0)
         goto done;
-    job_drainage_depth(job, res, exr);
+    job_drainage_banks(job, res, exr);
     if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
         tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
         goto done;

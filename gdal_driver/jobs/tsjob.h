@@ -176,7 +176,7 @@ typedef struct tsjob_synth_result {
     ts_features *sketch_features; /* the sketch's feature graph (sketch-guided only) */
     int sketch_lines;             /* the sketch is a layer of lines */
     ts_sketch_info sketch_info;
-    ts_drainage_params drainage;    /* the job's, its automatic depth set (setup, compute) */
+    ts_drainage_params drainage;    /* the job's, its automatic bank slope set (setup, compute) */
     ts_drainage_info drainage_info; /* after compute */
     double seconds_drainage;
     ts_synth_maps maps; /* with keep_maps: where each cell came from (owned) */
@@ -277,7 +277,7 @@ typedef struct tsjob_amplify_result {
     tsio_georef geo; /* the output grid: the input's extent and CRS, factor finer */
     ts_raster out;   /* the amplified DEM (owned) */
     ts_amplify_info info;
-    ts_drainage_params drainage;    /* the job's, its automatic depth set (setup, compute) */
+    ts_drainage_params drainage;    /* the job's, its automatic bank slope set (setup, compute) */
     ts_drainage_info drainage_info; /* after compute */
     double seconds_drainage;
     size_t n_atoms;
@@ -360,7 +360,7 @@ typedef struct tsjob_pixel_result {
     ts_raster out;              /* the terrain (owned) */
     double seconds_stacks, seconds_synthesis;
     int32_t *src_e, *src_x, *src_y; /* with keep_sources (owned) */
-    ts_drainage_params drainage;    /* the job's, its automatic depth set (setup, compute) */
+    ts_drainage_params drainage;    /* the job's, its automatic bank slope set (setup, compute) */
     ts_drainage_info drainage_info; /* after compute */
     double seconds_drainage;
     int exemplar_no_crs;

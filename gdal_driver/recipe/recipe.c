@@ -677,7 +677,7 @@ int tsrecipe_tile_size(const tsrecipe *r)
 int tsrecipe_drainage_margin(const tsrecipe *r)
 {
     switch (r->method) {
-    case TSRECIPE_SYNTH: /* (the margin does not depend on the automatic depth) */
+    case TSRECIPE_SYNTH: /* (the automatic bank slope, -1, takes the margin of banks) */
         return ts_drainage_margin(&r->synth.drainage);
     case TSRECIPE_PIXEL:
         return ts_drainage_margin(&r->pixel.drainage);

@@ -135,8 +135,7 @@ def test_super_resolution_beats_cubic(tmp_path, fine, exemplar, factor):
     write(tmp_path / "fine.tif", z.astype(np.float32), gt, s.GetProjection())
     write(tmp_path / "coarse.tif", c.astype(np.float32),
           [gt[0], gt[1] * factor, 0, gt[3], 0, gt[5] * factor], s.GetProjection())
-    # the amplification alone (with the drainage stage's ponds, Big Tujunga x8 from Mackay:
-    # slope W1 2.55 against cubic's 5.09; bench/README.md, "Drainage")
+    # the amplification alone (what the drainage stage changes: bench/README.md, "Drainage")
     run("amplify", tmp_path / "coarse.tif", tmp_path / "amp.tif", "--exemplar",
         os.path.join(SHARED, exemplar), "--factor", str(factor), "-q", "--drainage", "keep")
     subprocess.run(["gdalwarp", "-q", "-r", "cubic", "-tr", str(abs(gt[1])), str(abs(gt[1])),

@@ -73,36 +73,49 @@ CASES = {
 }
 
 
+def flat_share(a, tol=0.01):
+    """Share of the cells with data whose gradient (central differences) is under tol height
+    units per cell: the flat lakes a fill leaves."""
+    gy, gx = np.gradient(a)
+    g = np.hypot(gx, gy)
+    return float((g[np.isfinite(g)] < tol).mean())
+
+
+def crease(a):
+    lap = a[1:-1, 2:] + a[1:-1, :-2] + a[2:, 1:-1] + a[:-2, 1:-1] - 4 * a[1:-1, 1:-1]
+    return float(np.percentile(np.abs(lap[np.isfinite(lap)]), 99.9))
+
+
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_breach_drains_every_method(case, tmp_path):
-    """The output as synthesised holds water in pits.  Breached with no depth limit
-    (--drainage-depth 0) no cell is raised and no cell is left in a pit (within 1 cm), save
-    in a basin whose way out is farther than the radius.  By default (cuts at most the
-    automatic depth the summary gives) the pits hold at most half of that water's cells
-    (the rest in lakes wider than the radius), no cell is raised above the water's surface (lakes below their spills), and
-    hardly a cell is cut deeper than twice the depth."""
+    """The output as synthesised holds water in pits.  Breached, with one-cell channels
+    (--drainage-banks 0) or with banks (the default, at the slope the summary gives), no
+    cell is raised and no cell is left in a pit (within 1 cm), save in a basin whose way out
+    is farther than the radius; no flat is made; the banks soften the slots' creases."""
     args = CASES[case]
     run(*args, tmp_path / "keep.tif", "-q", "--drainage", "keep")
-    run(*args, tmp_path / "free.tif", "-q", "--drainage-depth", 0)
+    run(*args, tmp_path / "slot.tif", "-q", "--drainage-banks", 0)
     p = run(*args, tmp_path / "breach.tif")
-    m = re.search(r"drainage: breach, cuts at most ([\d.e+]+) deep", p.stdout)
+    m = re.search(r"drainage: breach, banks ([\d.e+]+) per cell", p.stdout)
     assert m, p.stdout
-    depth = float(m.group(1))
-    keep, free, breach = (read(tmp_path / (n + ".tif")) for n in ("keep", "free", "breach"))
+    banks = float(m.group(1))
+    keep, slot, breach = (read(tmp_path / (n + ".tif")) for n in ("keep", "slot", "breach"))
     assert (np.isnan(keep) == np.isnan(breach)).all()
     ok = np.isfinite(keep)
-    assert (free[ok] <= keep[ok]).all()  # a breach never raises a cell
-    before, after_free, after = in_pits(keep), in_pits(free), in_pits(breach)
-    print(case, "in pits: %.4f -> %.4f (no limit), %.4f (cuts <= %g)" % (
-        before, after_free, after, depth))
+    assert (slot[ok] <= keep[ok]).all() and (breach[ok] <= keep[ok]).all()  # never raised
+    before, after_slot, after = in_pits(keep), in_pits(slot), in_pits(breach)
+    print(case, "in pits: %.4f -> %.4f (slots), %.4f (banks %g); flats %.4f -> %.4f; "
+          "creases %.2f -> %.2f (slots), %.2f (banks); changed %.3f" % (
+              before, after_slot, after, banks, flat_share(keep), flat_share(breach),
+              crease(keep), crease(slot), crease(breach), float((breach[ok] != keep[ok]).mean())))
     assert before > 0.01
-    # the lambda's closed ring holds one basin wider than the radius
-    assert after_free <= (0.15 if case == "sketch" else 0.001), after_free
-    # (the ring drawn closed keeps its basins: too wide for the radius, too deep to cut)
-    assert after <= (0.9 * before if case == "sketch" else max(0.5 * before, after_free + 0.002))
-    assert (breach[ok] <= filled(keep)[ok] + 1e-3).all()
-    assert float((breach[ok] < keep[ok] - 2 * depth - 0.01).mean()) < 0.002
-    assert float((free[ok] != keep[ok]).mean()) < 0.1
+    # the lambda's closed ring holds a basin wider than the radius; with a sketch, channels
+    # cut at most twice the banks' slope by default, and deeper basins are kept
+    assert after_slot <= (0.15 if case == "sketch" else 0.001), after_slot
+    assert after <= (0.98 * before if case == "sketch" else 0.001), after
+    assert flat_share(breach) <= flat_share(keep) + 0.002
+    assert crease(breach) <= crease(slot) + 1e-6
+    assert float((breach[ok] != keep[ok]).mean()) < 0.2
 
 
 def test_amplify_drains(tmp_path):
@@ -120,7 +133,7 @@ def test_amplify_drains(tmp_path):
     out = None
     args = ["amplify", tmp_path / "c.tif", "--exemplar", JACKSBORO, "--factor", 4, "-q"]
     run(*args[:2], tmp_path / "keep.tif", *args[2:], "--drainage", "keep")
-    run(*args[:2], tmp_path / "breach.tif", *args[2:], "--drainage-depth", 0)
+    run(*args[:2], tmp_path / "breach.tif", *args[2:])
     keep, breach = read(tmp_path / "keep.tif"), read(tmp_path / "breach.tif")
     assert in_pits(keep) > 0.01 and in_pits(breach) <= 0.001
     assert (breach <= keep).all()
@@ -138,15 +151,15 @@ def test_fill_is_the_flood(tmp_path):
 
 
 def test_deepest_cut(tmp_path):
-    """--drainage-depth D: depressions drained, no cell raised above the flood's surface,
-    hardly any cut deeper than D."""
+    """--drainage-depth D: no cell cut deeper than D (and the channel's millimetre a cell),
+    none raised; the depressions that need more are kept."""
     args = ["pixel", "--exemplar", JACKSBORO, "--size", "160x120", "--seed", 6, "-q"]
     run(*args, tmp_path / "keep.tif", "--drainage", "keep")
-    run(*args, tmp_path / "d.tif", "--drainage-depth", 5)
-    keep, d = read(tmp_path / "keep.tif"), read(tmp_path / "d.tif")
-    assert in_pits(d) <= 0.001
-    assert (d <= filled(keep) + 1e-3).all()
-    assert float((d < keep - 5.5).mean()) < 0.002
+    run(*args, tmp_path / "d.tif", "--drainage-depth", 2)
+    run(*args, tmp_path / "all.tif")
+    keep, d, a = (read(tmp_path / n) for n in ("keep.tif", "d.tif", "all.tif"))
+    assert (d <= keep).all() and (d >= keep - 2.2).all()
+    assert in_pits(keep) > in_pits(d) > in_pits(a)
 
 
 def test_windows_equal_the_whole(tmp_path):
@@ -188,7 +201,8 @@ def test_water_and_pins_stay(tmp_path):
 
 @pytest.mark.parametrize("bad, says", [(["--drainage", "sometimes"], "drainage"),
                                        (["--drainage-radius", "0"], "drainage_radius"),
-                                       (["--drainage-depth", "-2"], "drainage_depth")])
+                                       (["--drainage-depth", "-2"], "drainage_depth"),
+                                       (["--drainage-banks", "-2"], "drainage_banks")])
 def test_bad_values_refused(bad, says, tmp_path):
     p = run("pixel", "--exemplar", JACKSBORO, "--size", "64x64", tmp_path / "o.tif", *bad,
             check=False)

@@ -48,15 +48,17 @@ def lambda_runs(tmp_path_factory):
             d / f"{order}.tif", "-q")
     run("synth", "--like", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", d / "unguided.tif", "-q")
     # the feature-patch constraints are measured on the patches alone (--layout 0
-    # --slope-style 0): the layout and slope stages would reshape the crest after them
+    # --slope-style 0 --drainage keep): the later stages would reshape the crest after them
+    alone = ["--layout", "0", "--slope-style", "0", "--drainage", "keep"]
     run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--alpha-r", "0",
-        "--layout", "0", "--slope-style", "0", d / "no_guide.tif", "-q")
-    run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--layout", "0",
-        "--slope-style", "0", d / "patches.tif", "-q")
+        *alone, d / "no_guide.tif", "-q")
+    run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", *alone,
+        d / "patches.tif", "-q")
     run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--alpha-s", "3",
-        "--layout", "0", "--slope-style", "0", d / "smooth.tif", "-q")
+        *alone, d / "smooth.tif", "-q")
+    # the synthesis's seams, without the drainage stage's channels across them
     run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", d / "dbg.tif",
-        "--debug-dir", d / "debug", "--preview", d / "lambda.png")
+        "--debug-dir", d / "debug", "--preview", d / "lambda.png", "--drainage", "keep")
     return d
 
 

@@ -256,26 +256,32 @@ static const ts_param_desc pixel_desc[] = {
 static const ts_param_desc drainage_desc[] = {
     {"drainage", TS_PARAM_ENUM, TS_DRAINAGE_BREACH, 0, 2, TS_UNIT_CELLS, "", "keep|breach|fill",
      "What becomes of the closed depressions the synthesis leaves (ours, after Lindsay 2016): "
-     "keep them; breach them (a channel one cell wide cut from each pit along the cheapest "
-     "path to lower land or the grid's edge, never raising a cell); or fill them to their "
-     "spill height (flat lakes). "
+     "keep them; breach them (a channel cut from each pit along the cheapest path to lower "
+     "land or the grid's edge, with banks falling to it where it cuts deep, never raising a "
+     "cell); or fill them to their spill height (flat lakes). "
      "Water and pinned windows never change; a channel crosses a drawn ridge only where the land inside has no other way out.",
      offsetof(ts_drainage_params, mode)},
     {"drainage_radius", TS_PARAM_INT, 128, 1, TS_DRAINAGE_RADIUS_MAX, TS_UNIT_CELLS, "cells",
      NULL,
      "How far from its pit a channel or a fill reaches; a depression with no way out within "
      "it is kept (a crater, a lake basin). Windows and tiles are computed with a margin of "
-     "four times this (twice with drainage_depth 0 or with fill).",
+     "two and a half times this (twice with drainage_banks 0 or with fill).",
      offsetof(ts_drainage_params, radius)},
     {"drainage_depth", TS_PARAM_DOUBLE, -1.0, -1.0, 1e6, TS_UNIT_CELLS, "elevation units", NULL,
-     "The deepest a breach channel cuts (ours): a depression that needs a deeper one is first "
-     "filled up to its spill less this depth (a pond behind a notch instead of a slot through "
-     "a ridge); one whose pond would be wider than the radius or cover more than "
-     "(radius / 4)^2 cells is kept. -1 (auto): an eighth of the 99.9th "
-     "percentile of the exemplars' |Laplacian| (amplify: the input's, divided by the factor): "
-     "a channel's crease, about twice its depth, a quarter of their sharpest; 0: no limit "
-     "(Lindsay's breaching).",
+     "The deepest a breach channel may cut: a depression that needs a deeper one is kept "
+     "(a basin the exemplars could hold: a lake, a crater, the inside of a ring drawn closed). "
+     "-1 (auto): the bank slope times an eighth of the radius (a gorge whose banks reach at "
+     "most that far each side; no limit without banks); 0: no limit.",
      offsetof(ts_drainage_params, max_depth)},
+    {"drainage_banks", TS_PARAM_DOUBLE, -1.0, -1.0, 1e6, TS_UNIT_CELLS,
+     "elevation units per cell", NULL,
+     "The slope of a breach channel's banks (ours): where a channel cuts deeper than this, the "
+     "land beside it is lowered to slopes falling to it at this slope, as far as the cut "
+     "needs (at most half the radius): a gorge through the dam instead of a slot one cell "
+     "wide. -1 (auto): the median gradient of the exemplars (amplify: of the input, divided "
+     "by the factor), so the banks are as steep as their typical land; 0: no banks "
+     "(Lindsay's breaching).",
+     offsetof(ts_drainage_params, bank_slope)},
 };
 
 static const char *const stage_names[] = {"ppa",   "synth",    "sketch", "amplify",

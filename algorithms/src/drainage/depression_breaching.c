@@ -10,7 +10,12 @@
  *   breach: the path of least cost (the sum of the heights its cells stand
  *     above the pit, plus a little per step) to a target: a cell lower than
  *     the pit, or one that drains out; the path's cells lowered each a
- *     little below the one before (Lindsay's small decrement), never raised.
+ *     little below the one before (Lindsay's small decrement), never raised;
+ *     where a cell is cut deeper than s / 16 (s the banks' slope), the
+ *     cells within cut / s of it (2 to radius / 2) lowered by the cut
+ *     tapered to nothing there (ours, cut_banks: banks falling to the
+ *     channel, a valley through the rim where Lindsay cuts a slot one cell
+ *     wide).
  *   fill: the path to a target whose highest cell is lowest (the spill);
  *     the cells reached below the spill's height raised to it.
  * The searches reach at most `radius` cells (Chebyshev) from their pit; a
@@ -18,12 +23,12 @@
  * (breach) or maximum (fill) of every pit's change: it does not depend on
  * the order the pits are taken in, so threads give the same bytes, and a
  * cell's result depends only on the cells within ts_drainage_margin of it
- * (2 radius + 2; 4 radius + 2 for a breach with a deepest cut, whose
- * channels are searched on the surface the fills made), so a window
+ * (2 radius + 2; radius / 2 more for a breach with banks), so a window
  * computed with that margin is the window of the whole.
  *
- * Cells flagged TS_CELL_FIXED (pins, water) never change and a channel never
- * crosses them unless they are its target (water below the pit takes it);
+ * Cells flagged TS_CELL_FIXED (pins, water, drawn valleys) never change and
+ * a channel never crosses them unless they are its target (water at or below
+ * the pit takes it); the land beside water is never cut below it;
  * a channel crosses TS_CELL_BARRIER cells (drawn ridges), or a diagonal
  * between two of them, only where it has no other way out (a ring drawn
  * closed spills over its lowest saddle, as water would).
@@ -38,21 +43,28 @@
 
 /* ---- declarations and window arithmetic ------------------------------ */
 
-/* the most cells a breach's lake may cover (a 32 x 32 pond for radius 128) */
+/* the most cells a fill's lake may cover (a 32 x 32 pond for radius 128) */
 #define DR_LAKE_MAX(r) ((size_t)((r) / 4) * (size_t)((r) / 4))
-#define DR_AUTO_SAMPLE 1000000 /* cells sampled for the automatic depth */
+#define DR_AUTO_SAMPLE 1000000 /* cells sampled for the automatic bank slope */
 
 TS_API int ts_drainage_margin(const ts_drainage_params *p)
 {
     if (!p || p->mode == TS_DRAINAGE_KEEP)
         return 0;
-    /* a channel (R) read on the filled surface (R), whose fills (R) read the surface (R) */
-    if (p->mode == TS_DRAINAGE_BREACH && p->max_depth != 0)
-        return 4 * p->radius + 2;
+    /* a channel (R from its pit) read on the surface (R), its banks (R / 2) */
+    if (p->mode == TS_DRAINAGE_BREACH && p->bank_slope != 0) /* -1: whatever it becomes */
+        return 2 * p->radius + p->radius / 2 + 2;
     return 2 * p->radius + 2;
 }
 
-TS_API double ts_drainage_depth_auto(const ts_raster *exemplars, int n)
+TS_API double ts_drainage_depth_of(const ts_drainage_params *p)
+{
+    if (!p || !(p->max_depth == -1))
+        return p ? p->max_depth : 0.0;
+    return p->bank_slope > 0 ? p->bank_slope * (double)p->radius / 8.0 : 0.0;
+}
+
+TS_API double ts_drainage_bank_slope_auto(const ts_raster *exemplars, int n)
 {
     size_t total = 0, m = 0, step, k = 0;
     float *v;
@@ -71,13 +83,13 @@ TS_API double ts_drainage_depth_auto(const ts_raster *exemplars, int n)
         const ts_raster *r0 = &exemplars[e];
         for (y = 1; y < r0->height - 1; y++)
             for (x = 1; x < r0->width - 1; x++, k++) {
-                float l;
+                float gx, gy;
                 if (k % step)
                     continue;
-                l = TS_PIX(r0, x - 1, y) + TS_PIX(r0, x + 1, y) + TS_PIX(r0, x, y - 1) +
-                    TS_PIX(r0, x, y + 1) - 4.0f * TS_PIX(r0, x, y);
-                if (!isnan(l))
-                    v[m++] = fabsf(l);
+                gx = 0.5f * (TS_PIX(r0, x + 1, y) - TS_PIX(r0, x - 1, y));
+                gy = 0.5f * (TS_PIX(r0, x, y + 1) - TS_PIX(r0, x, y - 1));
+                if (!isnan(gx) && !isnan(gy))
+                    v[m++] = hypotf(gx, gy);
             }
     }
     if (!m) {
@@ -85,9 +97,9 @@ TS_API double ts_drainage_depth_auto(const ts_raster *exemplars, int n)
         return 0.0;
     }
     qsort(v, m, sizeof *v, ts__float_cmp);
-    r = (double)v[(size_t)(0.999 * (double)(m - 1))] / 8.0;
+    r = (double)v[(m - 1) / 2];
     free(v);
-    return r;
+    return isfinite(r) ? r : 0.0;
 }
 
 /* ---- one search ------------------------------------------------------- */
@@ -120,6 +132,7 @@ typedef struct dr_job {
     int lo[2], hi[2]; /* pits looked for in [lo, hi) */
     int mode, radius, phase;
     double max_depth; /* > 0: no cut deeper (breach) */
+    double banks;     /* > 0: the banks' slope per cell (breach) */
     const int *pits;
     size_t n_pits;
     atomic_size_t resolved;
@@ -276,7 +289,7 @@ static int box_index(const dr_job *j, const dr_scratch *s, int px, int py, int a
 }
 
 /* The highest water level beside cell (x, y) (TS_CELL_WATER neighbours), or
- * -infinity. */
+ * -infinity: the land beside water is never cut below it. */
 static double shore_level(const dr_job *j, int x, int y)
 {
     double top = -INFINITY;
@@ -329,9 +342,9 @@ static int search(const dr_job *j, dr_scratch *s, int px, int py, const dr_query
         x = px + bx - R;
         y = py + by - R;
         i = (size_t)y * (size_t)j->w + (size_t)x;
-        if (it.at != start &&
-            ((double)q->z[i] < q->level || drains_out(j, x, y)))
-            return it.at;
+        if (it.at != start && ((double)q->z[i] < q->level || drains_out(j, x, y) ||
+                               (j->flags && (j->flags[i] & TS_CELL_FIXED))))
+            return it.at; /* (a fixed cell is pushed only at or below the level) */
         for (d = 0; d < 8; d++) {
             int u = x + DX[d], v = y + DY[d], bu = bx + DX[d], bv = by + DY[d], at;
             size_t ni;
@@ -346,8 +359,9 @@ static int search(const dr_job *j, dr_scratch *s, int px, int py, const dr_query
             at = bv * side + bu;
             if (isnan(zn) || (j->flags && (j->flags[ni] & TS_CELL_NODATA)))
                 continue;
-            /* fixed cells: only as a target */
-            if (j->flags && (j->flags[ni] & TS_CELL_FIXED) && !((double)zn < q->level))
+            /* fixed cells: only as a target, at or below the level (water at
+             * the pit's height takes its water) */
+            if (j->flags && (j->flags[ni] & TS_CELL_FIXED) && !((double)zn <= q->level))
                 continue;
             if (q->max_depth > 0 && (double)zn > q->level + q->max_depth)
                 continue;
@@ -381,21 +395,6 @@ static int search(const dr_job *j, dr_scratch *s, int px, int py, const dr_query
     return -1;
 }
 
-/* The level the pit's depression is filled to before its channel is cut:
- * the spill for fill; for breach the pit's own height, or the spill less
- * the deepest cut allowed where the channel would have to be deeper. */
-static double pit_level(const dr_job *j, double zp, double spill)
-{
-    if (j->mode == TS_DRAINAGE_FILL)
-        return (double)(float)spill;
-    if (j->max_depth > 0 && spill - zp > j->max_depth)
-        return (double)(float)(spill - j->max_depth); /* as the lake stores it */
-    return zp;
-}
-
-/* Fill or breach, whichever changes the land less (Lindsay's hybrid): the
- * fill's volume (the spill less each cell below it) against the cheapest
- * channel's.  mm: the minimax search just made; tmp: scratch. */
 /* The number of cells of the depression below `level` that search s found. */
 static size_t lake_cells(const dr_scratch *s, double level)
 {
@@ -423,9 +422,10 @@ static int lake_at_border(const dr_scratch *s, double level)
     return 0;
 }
 
-/* Phase 1 for pit (px, py): its depression raised to its level (nothing
- * when that is the pit's height).  1 done or nothing to do, 0 no way out
- * within the radius (or a fixed cell below the level), -1 out of memory. */
+/* Phase 1 (fill) for pit (px, py): its depression raised to its spill.  1
+ * done, 0 no way out within the radius, a lake wider than the radius or of
+ * more than DR_LAKE_MAX cells, or a fixed cell below the spill; -1 out of
+ * memory. */
 static int fill_pit(dr_job *j, dr_scratch *s, int px, int py)
 {
     const float zp = j->z0[(size_t)py * (size_t)j->w + (size_t)px];
@@ -440,7 +440,7 @@ static int fill_pit(dr_job *j, dr_scratch *s, int px, int py)
     found = search(j, s, px, py, &q);
     if (found < 0)
         return found == -2 ? -1 : 0;
-    level = pit_level(j, zp, s->cost[found]);
+    level = (double)(float)s->cost[found]; /* as the lake stores it */
     if (!(level > zp))
         return 1;
     if (lake_at_border(s, level) || lake_cells(s, level) > DR_LAKE_MAX(j->radius))
@@ -460,49 +460,74 @@ static int fill_pit(dr_job *j, dr_scratch *s, int px, int py)
     return 1;
 }
 
-/* Phase 2 for pit (px, py): the cheapest channel from its level (through
- * its filled part, no cut deeper than max_depth) to lower land or out, its
- * cells on a profile falling evenly.  1 cut, 0 none, -1 out of memory. */
-static int breach_pit(dr_job *j, dr_scratch *s, dr_scratch *lake, int px, int py)
+/* How far up its banks a cell d cells from the channel stands, in units of
+ * the banks' slope: d less a cell, rounded over the two cells next to the
+ * channel (d^2 / 4 there) so the valley's floor is not a V's crease. */
+static double bank_reach(double d)
+{
+    return d < 2.0 ? 0.25 * d * d : d - 1.0;
+}
+
+/* The banks of channel cell (cx, cy), cut to height hc from z: over the
+ * cells within rr = (z - hc) / banks of it (2 to radius / 2), the cut
+ * tapered to nothing at rr: with t = bank_reach(d) / bank_reach(rr) (d the
+ * cell's distance), land at least as high as z keeps its relief, lowered by
+ * the cut times (1 - t), lower land is lowered to hc + (z - hc) t if that is
+ * below it.  Fixed, barrier (a drawn ridge), nodata and off-grid cells are
+ * kept, and none goes below the water beside it. */
+static void cut_banks(dr_job *j, int cx, int cy, float hc, float z)
+{
+    const double cut = (double)z - (double)hc;
+    double rr;
+    int r, u, v;
+    if (!(j->banks > 0) || !(cut > j->banks / 16.0))
+        return;
+    rr = cut / j->banks;
+    if (rr < 2.0) /* a shallow cut: its neighbours halved, not a slot */
+        rr = 2.0;
+    if (rr > j->radius / 2)
+        rr = j->radius / 2;
+    r = (int)ceil(rr);
+    for (v = cy - r; v <= cy + r; v++)
+        for (u = cx - r; u <= cx + r; u++) {
+            double d = hypot((double)(u - cx), (double)(v - cy)), nv, zi, t;
+            size_t i;
+            if (!(d < rr) || (u == cx && v == cy) || u < 0 || v < 0 || u >= j->w ||
+                v >= j->h || off_grid(j, u, v))
+                continue;
+            i = (size_t)v * (size_t)j->w + (size_t)u;
+            zi = (double)j->z0[i];
+            if (isnan(zi) ||
+                (j->flags && (j->flags[i] & (TS_CELL_FIXED | TS_CELL_BARRIER | TS_CELL_NODATA))))
+                continue;
+            t = bank_reach(d) / bank_reach(rr);
+            nv = zi >= (double)z ? zi - cut * (1.0 - t) : (double)hc + cut * t;
+            if (!(nv < zi))
+                continue;
+            if (j->flags) {
+                double w = shore_level(j, u, v);
+                if (w > nv)
+                    nv = w;
+            }
+            atomic_toward(&j->out[i], (float)nv, 0);
+        }
+}
+
+/* Phase 2 for pit (px, py): the cheapest channel from the pit (no cut
+ * deeper than max_depth) to lower land or out, its cells on a profile
+ * falling evenly, and its banks.  1 cut, 0 none, -1 out of memory. */
+static int breach_pit(dr_job *j, dr_scratch *s, int px, int py)
 {
     const float zp = j->z0[(size_t)py * (size_t)j->w + (size_t)px];
+    const double level = zp;
     dr_query q;
-    double level = zp;
     int found, k, n;
     memset(&q, 0, sizeof q);
-    if (j->max_depth > 0) {
-        /* the level: the spill less the deepest cut, where that is above the pit */
-        q.z = j->z0;
-        q.minimax = 1;
-        q.level = zp;
-        found = search(j, lake, px, py, &q);
-        if (found < 0)
-            return found == -2 ? -1 : 0;
-        level = pit_level(j, zp, lake->cost[found]);
-        if (level > zp &&
-            (lake_at_border(lake, level) || lake_cells(lake, level) > DR_LAKE_MAX(j->radius)))
-            return 0; /* its lake wider than the radius, or more than a small lake: kept */
-        /* a pit under another depression's lake: that lake's channel drains it */
-        if ((double)j->lifted[(size_t)py * (size_t)j->w + (size_t)px] > level)
-            return 1;
-        q.max_depth = j->max_depth;
-    }
-    /* the channel on the filled surface: from the pit's lake (at its level) to
-     * lower land, never into another lake's bed */
-    q.z = j->lifted;
+    q.z = j->z0;
     q.minimax = 0;
     q.level = level;
+    q.max_depth = j->max_depth;
     found = search(j, s, px, py, &q);
-    if (found == -1 && q.max_depth > 0) {
-        /* the way over the spill raised by another lake: a cut up to twice as deep */
-        q.max_depth = 2 * j->max_depth;
-        found = search(j, s, px, py, &q);
-        if (found == -1 && level > zp) {
-            /* its lake is filled: never left closed, whatever the cut */
-            q.max_depth = 0;
-            found = search(j, s, px, py, &q);
-        }
-    }
     if (found < 0)
         return found == -2 ? -1 : 0;
     n = 0;
@@ -510,7 +535,7 @@ static int breach_pit(dr_job *j, dr_scratch *s, dr_scratch *lake, int px, int py
         s->path[n++] = k;
     {
         size_t ti = (size_t)box_index(j, s, px, py, found);
-        float zt = j->lifted[ti], top = (float)level, prev = top;
+        float zt = j->z0[ti], prev = zp;
         /* each cell a little below the one before (Lindsay's small
          * decrement), the cut no deeper than the level needs */
         double drop = DR_DECREMENT;
@@ -518,17 +543,21 @@ static int breach_pit(dr_job *j, dr_scratch *s, dr_scratch *lake, int px, int py
             drop = (level - (double)zt) / (double)(n - 1);
         for (k = n - 2; k >= 0; k--) { /* path[n - 1] is the pit */
             int at = s->path[k], step = n - 1 - k;
+            int cx = px + at % s->side - j->radius, cy = py + at / s->side - j->radius;
             size_t i = (size_t)box_index(j, s, px, py, at);
             float v = (float)(level - drop * (double)step);
             float below = nextafterf(prev, -INFINITY);
             if (v > below)
                 v = below;
             if (j->flags && (j->flags[i] & TS_CELL_FIXED))
-                v = j->lifted[i]; /* a fixed target (water) is never changed */
+                v = j->z0[i]; /* a fixed target (water) is never changed */
+            else if (j->flags && shore_level(j, cx, cy) > (double)v)
+                v = (float)shore_level(j, cx, cy); /* never below the water beside it */
             atomic_toward(&j->out[i], v, 0);
+            if (v < j->z0[i])
+                cut_banks(j, cx, cy, v, j->z0[i]);
             prev = v;
         }
-        atomic_toward(&j->out[(size_t)py * (size_t)j->w + (size_t)px], top, 0);
     }
     return 1;
 }
@@ -560,23 +589,19 @@ static void scratch_free(dr_scratch *s)
 static void drain_range(void *arg, size_t begin, size_t end)
 {
     dr_job *j = arg;
-    dr_scratch s, lake;
+    dr_scratch s;
     size_t k, done = 0;
-    int ok;
     memset(&s, 0, sizeof s);
-    memset(&lake, 0, sizeof lake);
-    ok = scratch_init(&s, j->radius) == 0 && scratch_init(&lake, j->radius) == 0;
-    if (!ok) {
+    if (scratch_init(&s, j->radius) != 0) {
         atomic_store(&j->failed, 1);
         scratch_free(&s);
-        scratch_free(&lake);
         return;
     }
     for (k = begin; k < end; k++) {
         int px = j->pits[k] % j->w, py = j->pits[k] / j->w, r;
         if ((k - begin) % 256 == 0 && (ts__cancelled(j->ctx) || atomic_load(&j->failed)))
             break;
-        r = j->phase == 1 ? fill_pit(j, &s, px, py) : breach_pit(j, &s, &lake, px, py);
+        r = j->phase == 1 ? fill_pit(j, &s, px, py) : breach_pit(j, &s, px, py);
         if (r < 0) {
             atomic_store(&j->failed, 1);
             break;
@@ -586,7 +611,6 @@ static void drain_range(void *arg, size_t begin, size_t end)
     if (j->phase == 2 || j->mode == TS_DRAINAGE_FILL)
         atomic_fetch_add(&j->resolved, done);
     scratch_free(&s);
-    scratch_free(&lake);
 }
 
 /* The pits in [lo, hi), in raster order. */
@@ -644,6 +668,9 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     if (!(p->max_depth >= 0 || p->max_depth == -1))
         return ts__fail(ctx, TS_ERR_ARG, "drainage", "depth %g is not -1, 0 or more",
                         p->max_depth);
+    if (!(p->bank_slope >= 0 || p->bank_slope == -1))
+        return ts__fail(ctx, TS_ERR_ARG, "drainage", "bank slope %g is not -1, 0 or more",
+                        p->bank_slope);
     if (p->radius < 1 || p->radius > TS_DRAINAGE_RADIUS_MAX)
         return ts__fail(ctx, TS_ERR_ARG, "drainage", "radius %d is not 1..%d", p->radius,
                         TS_DRAINAGE_RADIUS_MAX);
@@ -670,7 +697,8 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     j.z0 = z0;
     j.lifted = lifted;
     j.out = out;
-    j.max_depth = p->max_depth;
+    j.banks = p->bank_slope > 0 ? p->bank_slope : 0.0;
+    j.max_depth = ts_drainage_depth_of(p);
     j.flags = flags;
     j.w = dem->width;
     j.h = dem->height;
@@ -699,9 +727,8 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     j.n_pits = n_pits;
     atomic_init(&j.resolved, 0);
     atomic_init(&j.failed, 0);
-    /* phase 1: the depressions filled (fill), or filled up to the deepest cut
-     * allowed below their spill (breach with max_depth) */
-    if (st == TS_OK && n_pits && (p->mode == TS_DRAINAGE_FILL || p->max_depth > 0)) {
+    /* phase 1: the depressions filled (fill) */
+    if (st == TS_OK && n_pits && p->mode == TS_DRAINAGE_FILL) {
         j.phase = 1;
         ts__parallel_for(ctx, n_pits, drain_range, &j);
         st = drain_status(ctx, &j);

@@ -91,6 +91,7 @@ static double deepest(const float *z, int w, int h, double tol, size_t *n_over)
 }
 
 static double g_depth = 0.0; /* max_depth of run() */
+static double g_banks = 0.0; /* bank_slope of run() */
 
 static void run(ts_ctx *ctx, float *z, int w, int h, int mode, int radius, ts_drainage_info *info)
 {
@@ -99,6 +100,7 @@ static void run(ts_ctx *ctx, float *z, int w, int h, int mode, int radius, ts_dr
     p.mode = mode;
     p.radius = radius;
     p.max_depth = g_depth;
+    p.bank_slope = g_banks;
     CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, info) == TS_OK);
 }
 
@@ -176,10 +178,10 @@ static void test_radius_keeps_wide_basins(void)
 static void test_windows_and_threads(void)
 {
     const int w = 150, h = 120, R = 6;
-    /* breach, breach with a deepest cut (fills, then channels on them), fill */
+    /* breach (one-cell channels), breach with banks, fill */
     static const int modes[3] = {TS_DRAINAGE_BREACH, TS_DRAINAGE_BREACH, TS_DRAINAGE_FILL};
-    static const double depths[3] = {0.0, 1.0, 0.0};
-    static const int margins[3] = {2 * R + 2, 4 * R + 2, 2 * R + 2};
+    static const double banks[3] = {0.0, 1.5, 0.0};
+    static const int margins[3] = {2 * R + 2, 2 * R + R / 2 + 2, 2 * R + 2};
     size_t n = (size_t)w * h;
     float *z0 = malloc(n * sizeof *z0), *whole = malloc(n * sizeof *whole), *win;
     ts_ctx *ctx = ts_ctx_new();
@@ -194,7 +196,7 @@ static void test_windows_and_threads(void)
     win = malloc(n * sizeof *win);
     for (c = 0; c < 3; c++) {
         p.mode = modes[c];
-        p.max_depth = depths[c];
+        p.bank_slope = banks[c];
         M = ts_drainage_margin(&p);
         CHECK(M == margins[c]);
         memcpy(whole, z0, n * sizeof *whole);
@@ -307,6 +309,10 @@ static void test_fixed_and_barriers(void)
     p.radius = 0;
     CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, NULL) == TS_ERR_ARG);
     CHECK(strstr(ts_ctx_message(ctx), "radius") != NULL);
+    p.radius = 30;
+    p.bank_slope = -2.0;
+    CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, NULL) == TS_ERR_ARG);
+    CHECK(strstr(ts_ctx_message(ctx), "bank") != NULL);
     ts_ctx_free(ctx);
     free(z);
     free(z0);
@@ -314,42 +320,123 @@ static void test_fixed_and_barriers(void)
     free(none);
 }
 
-/* With a deepest cut, breach fills each depression to its spill less that
- * depth, then cuts: no depression is left, only cells below a spill are
- * raised, and hardly a cell is cut deeper. */
-static void test_breach_with_a_deepest_cut(void)
+/* With a deepest cut, breach cuts no deeper: a depression that needs more
+ * is kept; without a limit none is. */
+static void test_deepest_cut_keeps(void)
 {
     const int w = 96, h = 80;
-    size_t n = (size_t)w * h, i, over, deeper;
+    size_t n = (size_t)w * h, i, over;
     float *z0 = malloc(n * sizeof *z0), *z = malloc(n * sizeof *z);
-    double *wat = malloc(n * sizeof *wat), depth;
     ts_ctx *ctx = ts_ctx_new();
     ts_drainage_info info;
     uint64_t seed;
-    for (depth = 1.0; depth <= 8.0; depth *= 2.0)
-        for (seed = 1; seed <= 3; seed++) {
+    double depth;
+    for (seed = 1; seed <= 3; seed++)
+        for (depth = 1.0; depth <= 8.0; depth *= 2.0) {
+            size_t kept = 0;
             make_surface(z0, w, h, seed * 31);
             memcpy(z, z0, n * sizeof *z);
             g_depth = depth;
             run(ctx, z, w, h, TS_DRAINAGE_BREACH, 200, &info);
             g_depth = 0.0;
-            CHECK(info.pits > 0 && info.resolved == info.pits);
-            CHECK_MSG(deepest(z, w, h, 1e-3, &over) <= 1e-3,
-                      "depth %g seed %d: %zu cells still in pits (%g m)", depth, (int)seed, over,
-                      deepest(z, w, h, 1e-3, &over));
-            oracle_fill(z0, w, h, wat);
-            deeper = 0;
             for (i = 0; i < n; i++) {
-                CHECK_MSG(z[i] <= wat[i] + 1e-3, "cell %zu raised above its spill", i);
-                deeper += z[i] < z0[i] - depth - 0.3;
+                CHECK(z[i] <= z0[i]);
+                /* the channel's own fall below the pit: a millimetre a cell at most */
+                CHECK_MSG(z[i] >= z0[i] - depth - 0.2, "depth %g: cell %zu cut %g", depth, i,
+                          (double)(z0[i] - z[i]));
             }
-            /* deeper only where another depression's lake covers the way out */
-            CHECK_MSG(deeper <= n / 500, "depth %g: %zu cells cut deeper", depth, deeper);
+            kept = info.pits - info.resolved;
+            if (depth == 1.0)
+                CHECK_MSG(kept > 0 && deepest(z, w, h, 1.0, &over) > 1.0,
+                          "seed %d: a 1 m cut drains everything", (int)seed);
         }
     ts_ctx_free(ctx);
     free(z0);
     free(z);
-    free(wat);
+}
+
+/* A valley dammed by a ridge 40 m high across it: breached without banks,
+ * a slot one cell wide with creases as sharp as the cut; with banks, the
+ * same drainage (no pit left, no cell raised) through a gorge as wide as
+ * the cut over the slope, whose creases are those of the slope. */
+static void dam_surface(float *z, int w, int h)
+{
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            double dam = fabs(x - 32.0) < 4.0 ? 40.0 * (1.0 - fabs(x - 32.0) / 4.0) : 0.0;
+            z[y * w + x] = (float)(160.0 - 2.0 * x + 2.0 * fabs(y - 24.0) + dam);
+        }
+}
+
+static double sharpest_crease(const float *z, int w, int h)
+{
+    double m = 0.0;
+    int x, y;
+    for (y = 1; y < h - 1; y++)
+        for (x = 1; x < w - 1; x++) {
+            double l = fabs((double)z[y * w + x - 1] + z[y * w + x + 1] + z[(y - 1) * w + x] +
+                            z[(y + 1) * w + x] - 4.0 * z[y * w + x]);
+            if (l > m)
+                m = l;
+        }
+    return m;
+}
+
+static void test_banks(void)
+{
+    const int w = 64, h = 48;
+    const double s = 4.0;
+    size_t n = (size_t)w * h, i, over;
+    float *z0 = malloc(n * sizeof *z0), *slot = malloc(n * sizeof *slot),
+          *gorge = malloc(n * sizeof *gorge);
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_info info;
+    int y, wide = 0;
+    double c0, c1, c2;
+    dam_surface(z0, w, h);
+    CHECK(deepest(z0, w, h, 1.0, &over) > 30.0);
+    memcpy(slot, z0, n * sizeof *slot);
+    run(ctx, slot, w, h, TS_DRAINAGE_BREACH, 60, &info);
+    memcpy(gorge, z0, n * sizeof *gorge);
+    g_banks = s;
+    run(ctx, gorge, w, h, TS_DRAINAGE_BREACH, 60, &info);
+    g_banks = 0.0;
+    CHECK(info.pits == 1 && info.resolved == 1);
+    CHECK_MSG(deepest(gorge, w, h, 1e-3, &over) <= 1e-3, "%zu cells still in pits", over);
+    for (i = 0; i < n; i++)
+        CHECK(gorge[i] <= z0[i]);
+    for (y = 0; y < h; y++)
+        wide += gorge[y * w + 32] < z0[y * w + 32];
+    /* the cut at the crest, ~32 m, over the slope: ~8 cells each side */
+    CHECK_MSG(wide >= 12, "the gorge is %d cells wide at the crest", wide);
+    c0 = sharpest_crease(z0, w, h);
+    c1 = sharpest_crease(slot, w, h);
+    c2 = sharpest_crease(gorge, w, h);
+    CHECK_MSG(c1 > 3.0 * c0 && c2 < c0 + 3.0 * s, "creases: %g as given, %g slot, %g gorge", c0,
+              c1, c2);
+    /* the automatic deepest cut: the slope times an eighth of the radius; the dam
+     * needs ~32 m: kept with 4 x 60 / 8 = 30, drained with 4 x 72 / 8 = 36 */
+    {
+        ts_drainage_params p = ts_drainage_params_default();
+        ts_raster r = ts_raster_wrap(gorge, w, h, w);
+        p.bank_slope = s;
+        p.radius = 60;
+        CHECK(p.max_depth == -1 && ts_drainage_depth_of(&p) == 30.0);
+        memcpy(gorge, z0, n * sizeof *gorge);
+        CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, &info) == TS_OK);
+        CHECK(info.pits == 1 && info.resolved == 0 && memcmp(gorge, z0, n * sizeof *z0) == 0);
+        p.radius = 72;
+        memcpy(gorge, z0, n * sizeof *gorge);
+        CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, &info) == TS_OK);
+        CHECK(info.resolved == 1 && deepest(gorge, w, h, 1e-3, &over) <= 1e-3);
+        p.bank_slope = 0.0;
+        CHECK(ts_drainage_depth_of(&p) == 0.0);
+    }
+    ts_ctx_free(ctx);
+    free(z0);
+    free(slot);
+    free(gorge);
 }
 
 int main(int argc, char **argv)
@@ -357,7 +444,8 @@ int main(int argc, char **argv)
     static const th_case cases[] = {
         {"breach_and_fill_against_oracle", test_breach_and_fill_against_oracle},
         {"radius_keeps_wide_basins", test_radius_keeps_wide_basins},
-        {"breach_with_a_deepest_cut", test_breach_with_a_deepest_cut},
+        {"deepest_cut_keeps", test_deepest_cut_keeps},
+        {"banks", test_banks},
         {"windows_and_threads", test_windows_and_threads},
         {"fixed_and_barriers", test_fixed_and_barriers},
     };
