@@ -782,7 +782,7 @@ int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_re
     for (l = 3; l < n_out; l++)
         if (tsio_write_float(outs[l], &wo, &g1, &pr, TSIO_NODATA, err) != 0)
             return -1;
-    return 0;
+    return tsjob__preview_name(o->preview, err);
 }
 
 int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjob_outputs *o,

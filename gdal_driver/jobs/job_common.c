@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -159,6 +160,22 @@ int tsjob__not_an_input(const char *out, const char *const *inputs, int n, tsio_
             tsio_errf(err, out, "is an input (%s): an output never overwrites an input", inputs[i]);
             return -1;
         }
+    return 0;
+}
+
+/* A preview is written as PNG: its name must say so (a .jpg holding PNG
+ * bytes would fool the next program that opens it). */
+int tsjob__preview_name(const char *preview, tsio_err *err)
+{
+    const char *dot, *slash;
+    if (!preview)
+        return 0;
+    dot = strrchr(preview, '.');
+    slash = strrchr(preview, '/');
+    if (!dot || (slash && dot < slash) || strcasecmp(dot, ".png") != 0) {
+        tsio_errf(err, preview, "a preview is a PNG image: give a name ending in .png");
+        return -1;
+    }
     return 0;
 }
 

@@ -71,6 +71,8 @@ int tsjob__target_grid(const tsjob_grid *g, const char *first_exemplar, double c
 /* Refuse an output that is one of the inputs (by identity: a link or
  * another spelling of the path counts too). */
 int tsjob__not_an_input(const char *out, const char *const *inputs, int n, tsio_err *err);
+/* Refuse a preview name that does not end in .png (case aside). */
+int tsjob__preview_name(const char *preview, tsio_err *err);
 
 /* Two outputs of a job must be two files (-d: refused). */
 int tsjob__distinct(const char *const *outs, int n, tsio_err *err);

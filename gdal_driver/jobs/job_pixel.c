@@ -291,7 +291,8 @@ int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *
         tsjob__distinct(outs, 2, err))
         return -1;
     if (tsio_write_float(o->output, &wo, &g1, &pr, TSIO_NODATA, err) != 0 ||
-        (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
+        (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0) ||
+        tsjob__preview_name(o->preview, err))
         return -1;
     if (o->debug_dir) {
         char paths[3][4096];

@@ -168,7 +168,8 @@ int tsjob_ppa_check_outputs(const tsjob_ppa *job, const tsjob_ppa_result *res,
         return -1;
     if (tsio_write_byte(o->output, &wo, &res->in.geo, &probe, 255, err) != 0 ||
         (o->lines && tsio_check_vector_output(o->lines, err) != 0) ||
-        (o->preview && tsio_write_byte(o->preview, &png, &res->in.geo, &probe, -1, err) != 0))
+        (o->preview && tsio_write_byte(o->preview, &png, &res->in.geo, &probe, -1, err) != 0) ||
+        tsjob__preview_name(o->preview, err))
         return -1;
     return 0;
 }

@@ -111,7 +111,7 @@ int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *
         if (tsjob__distinct(outs, 2, err) != 0)
             return -1;
     }
-    return 0;
+    return tsjob__preview_name(o->preview, err);
 }
 
 /* With a sketch: its feature graph and the output's PPA axes as lines. */
