@@ -826,6 +826,8 @@ TS_API void ts_dictionary_shape(const ts_dictionary *dict, int *factor, int *pat
  *  class code of its classes (0: none), whether it has irradiance. */
 TS_API void ts_dictionary_layers(const ts_dictionary *dict, int *n_layers, int *n_classes,
                                  int *has_irradiance);
+/** How many atoms hold cells of class `code` (0 for a code out of 1..n_classes). */
+TS_API size_t ts_dictionary_class_atoms(const ts_dictionary *dict, int code);
 /** The name of extra layer i (NULL when out of range). */
 TS_API const char *ts_dictionary_layer_name(const ts_dictionary *dict, int i);
 

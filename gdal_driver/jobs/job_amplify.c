@@ -426,6 +426,33 @@ done:
     return rc;
 }
 
+/* A warning for the wanted class codes no atom holds: their cells are matched
+ * as unlabelled, which the user would not guess. */
+static void job_warn_missing_classes(const tsjob_amplify *job, tsjob_amplify_result *res)
+{
+    unsigned char seen[TS_MAX_CLASSES + 1] = {0};
+    char list[256] = "";
+    const ts_raster *c = &res->classes.r;
+    int x, y, k, n = 0;
+    for (y = 0; y < c->height; y++)
+        for (x = 0; x < c->width; x++) {
+            float v = TS_PIX(c, x, y);
+            if (v >= 1.0f && v <= (float)TS_MAX_CLASSES)
+                seen[(int)v] = 1;
+        }
+    for (k = 1; k <= TS_MAX_CLASSES; k++)
+        if (seen[k] && ts_dictionary_class_atoms(res->dict, k) == 0) {
+            if (strlen(list) < sizeof list - 16)
+                snprintf(list + strlen(list), sizeof list - strlen(list), "%s%d", n ? ", " : "", k);
+            n++;
+        }
+    if (n && !res->warning.msg[0])
+        tsio_errf(&res->warning, job->classes,
+                  "no atom holds class%s %s: %s cells are matched as unlabelled (label those "
+                  "classes in exemplar_classes)",
+                  n > 1 ? "es" : "", list, n > 1 ? "their" : "its");
+}
+
 /* After the dictionary: the input's irradiance (with w_l), the layers and
  * classes asked for found in the dictionary. */
 static int job_amplify_frame(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
@@ -484,6 +511,8 @@ static int job_amplify_frame(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplif
                   "wanted classes, but the atoms have none (give exemplar_classes)");
         return -1;
     }
+    if (job->classes)
+        job_warn_missing_classes(job, res);
     return 0;
 }
 

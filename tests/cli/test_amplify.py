@@ -322,6 +322,20 @@ def test_class_control_chooses_the_exemplar(tmp_path):
         rip, plain = (lpow, rpow) if left == 2 else (rpow, lpow)
         assert rip > 4 and plain < 2, (left, lpow, rpow)
         assert np.mean(oc[:, :m - 24] == left) > 0.97 and np.mean(oc[:, m + 24:] == 3 - left) > 0.97
+    # a wanted code no atom holds: its cells are matched as unlabelled, with a warning
+    want = np.full(c.shape, 1, np.float32)
+    want[:, :half] = 3
+    write(tmp_path / "want3.tif", want, cgt, wkt)
+    p = run("amplify", tmp_path / "coarse.tif", tmp_path / "o3.tif", "--exemplar",
+            tmp_path / "ex.tif", "--exemplar", tmp_path / "ripples.tif", "--exemplar-classes",
+            tmp_path / "c1.tif", "--exemplar-classes", tmp_path / "c2.tif", "--classes",
+            tmp_path / "want3.tif", "--factor", str(f), "-q")
+    assert "no atom holds class 3" in p.stderr, p.stderr
+    p = run("amplify", tmp_path / "coarse.tif", tmp_path / "o4.tif", "--exemplar",
+            tmp_path / "ex.tif", "--exemplar", tmp_path / "ripples.tif", "--exemplar-classes",
+            tmp_path / "c1.tif", "--exemplar-classes", tmp_path / "c2.tif", "--classes",
+            tmp_path / "want.tif", "--factor", str(f), "-q")
+    assert "no atom holds" not in p.stderr, p.stderr
     # without wanted classes both exemplars are used (ties go to the first: exemplar 1)
     run("amplify", tmp_path / "coarse.tif", tmp_path / "n.tif", "--exemplar", tmp_path / "ex.tif",
         "--exemplar", tmp_path / "ripples.tif", "--exemplar-classes", tmp_path / "c1.tif",

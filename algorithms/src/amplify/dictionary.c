@@ -190,6 +190,16 @@ TS_API void ts_dictionary_layers(const ts_dictionary *dict, int *n_layers, int *
         *has_irradiance = dict && dict->dl;
 }
 
+TS_API size_t ts_dictionary_class_atoms(const ts_dictionary *dict, int code)
+{
+    size_t a, n = 0;
+    if (!dict || !dict->dc || code < 1 || code > dict->n_classes)
+        return 0;
+    for (a = 0; a < dict->n; a++)
+        n += dict->dc[a * (size_t)dict->n_classes + (size_t)(code - 1)] > 0.0f;
+    return n;
+}
+
 TS_API const char *ts_dictionary_layer_name(const ts_dictionary *dict, int i)
 {
     return dict && i >= 0 && i < dict->n_layers ? dict->layer_names[i] : NULL;
