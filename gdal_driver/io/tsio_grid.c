@@ -82,13 +82,7 @@ int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err)
     }
     geo->width = GDALGetRasterXSize(ds);
     geo->height = GDALGetRasterYSize(ds);
-    geo->has_gt = GDALGetGeoTransform(ds, geo->gt) == CE_None;
-    if (!geo->has_gt) {
-        double id[6] = {0, 1, 0, 0, 0, 1};
-        memcpy(geo->gt, id, sizeof id);
-    }
-    if (geo->gt[2] != 0.0 || geo->gt[4] != 0.0) {
-        tsio_errf(err, path, "rotated geotransforms are not supported");
+    if (tsio__read_geotransform(ds, path, geo, err) != 0) {
         GDALClose(ds);
         return -1;
     }

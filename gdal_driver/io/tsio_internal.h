@@ -35,6 +35,9 @@ typedef struct out_name {
 int tsio__check_output_location(const out_name *o, const char *path, tsio_err *err);
 int tsio__driver_has(GDALDriverH drv, const char *cap);
 void tsio__ensure_registered(void);
+/* The geotransform of ds into geo (north-up, finite, no zero cell size; the
+ * identity without one, has_gt 0); -1 with a message naming path. */
+int tsio__read_geotransform(GDALDatasetH ds, const char *path, tsio_georef *geo, tsio_err *err);
 /* Copy GDAL's last error message (one line, maybe empty). */
 void tsio__gdal_last_msg(char *buf, size_t n);
 /* Does the space-separated `list` contain `word` (case-insensitive)? */

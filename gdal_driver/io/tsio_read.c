@@ -208,6 +208,11 @@ static int check_size(GDALDatasetH ds, const char *path, int band_no, tsio_err *
                   nbands == 1 ? "" : "s");
         return -1;
     }
+    if (GDALDataTypeIsComplex(GDALGetRasterDataType(GDALGetRasterBand(ds, band_no)))) {
+        tsio_errf(err, path, "band %d holds complex numbers (%s): a DEM's cells are real",
+                  band_no, GDALGetDataTypeName(GDALGetRasterDataType(GDALGetRasterBand(ds, band_no))));
+        return -1;
+    }
     w = GDALGetRasterXSize(ds);
     h = GDALGetRasterYSize(ds);
     if (w <= 0 || h <= 0) {
@@ -224,7 +229,7 @@ static int check_size(GDALDatasetH ds, const char *path, int band_no, tsio_err *
 
 /* The geotransform into geo (north-up, finite, no zero cell size; the identity
  * without one). */
-static int read_geotransform(GDALDatasetH ds, const char *path, tsio_georef *geo, tsio_err *err)
+int tsio__read_geotransform(GDALDatasetH ds, const char *path, tsio_georef *geo, tsio_err *err)
 {
     if (GDALGetGeoTransform(ds, geo->gt) == CE_None) {
         int i;
@@ -352,7 +357,7 @@ static struct tsio_reader *open_impl(const char *path, int band_no, tsio_raster 
         goto fail;
     rd->width = out->geo.width = GDALGetRasterXSize(rd->ds);
     rd->height = out->geo.height = h = GDALGetRasterYSize(rd->ds);
-    if (read_geotransform(rd->ds, path, &out->geo, err) != 0 ||
+    if (tsio__read_geotransform(rd->ds, path, &out->geo, err) != 0 ||
         read_crs(rd->ds, path, &out->geo, &srs, err) != 0)
         goto fail;
     read_band_conversion(rd, band_no, srs, out);

@@ -98,6 +98,19 @@ def template(tmp_path_factory):
     e[100:104, 200:204] = 1e30
     write_dem(w / "e30.tif", e, gt, wkt)
     write_dem(w / "pole.tif", z, (0, 0.01, 0, 92, 0, -0.01), wkt)
+    # a grid without meaning (cell size 0), complex numbers as elevations
+    (w / "zerocell.vrt").write_text(
+        '<VRTDataset rasterXSize="%d" rasterYSize="%d"><GeoTransform>%r, 0, 0, %r, 0, %r'
+        '</GeoTransform><VRTRasterBand dataType="Float32" band="1"><SimpleSource>'
+        '<SourceFilename relativeToVRT="1">dem.tif</SourceFilename><SourceBand>1</SourceBand>'
+        '</SimpleSource></VRTRasterBand></VRTDataset>'
+        % (z.shape[1], z.shape[0], gt[0], gt[3], gt[5]))
+    c = gdal.GetDriverByName("GTiff").Create(str(w / "complex.tif"), z.shape[1], z.shape[0], 1,
+                                             gdal.GDT_CFloat32)
+    c.SetGeoTransform(gt)
+    c.SetProjection(wkt)
+    c.GetRasterBand(1).WriteArray(z.astype(np.complex64))
+    c = None
     (w / "text.tif").write_text("this is not a raster\n")
     (w / "empty.tif").write_bytes(b"")
     (w / "broken.tsyn").write_text("<TerraSynth version='1'><Synth><Exemplar>")
