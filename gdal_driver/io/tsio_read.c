@@ -199,6 +199,7 @@ static GDALDatasetH open_dataset(const char *path, tsio_err *err)
 static int check_size(GDALDatasetH ds, const char *path, int band_no, tsio_err *err)
 {
     int nbands = GDALGetRasterCount(ds), w, h;
+    GDALDataType dt;
     if (nbands < 1) {
         tsio_errf(err, path, "the file has no raster bands");
         return -1;
@@ -208,9 +209,10 @@ static int check_size(GDALDatasetH ds, const char *path, int band_no, tsio_err *
                   nbands == 1 ? "" : "s");
         return -1;
     }
-    if (GDALDataTypeIsComplex(GDALGetRasterDataType(GDALGetRasterBand(ds, band_no)))) {
+    dt = GDALGetRasterDataType(GDALGetRasterBand(ds, band_no));
+    if (GDALDataTypeIsComplex(dt)) {
         tsio_errf(err, path, "band %d holds complex numbers (%s): a DEM's cells are real",
-                  band_no, GDALGetDataTypeName(GDALGetRasterDataType(GDALGetRasterBand(ds, band_no))));
+                  band_no, GDALGetDataTypeName(dt));
         return -1;
     }
     w = GDALGetRasterXSize(ds);

@@ -124,13 +124,12 @@ typedef struct dr_scratch {
 
 typedef struct dr_job {
     const float *z0;            /* the surface as given (w x h, row-major) */
-    float *lifted;              /* phase 1: z0 with the depressions' fills (atomic max) */
-    float *out;                 /* phase 2: lifted with the channels cut (atomic min) */
+    float *out; /* z0 with the fills (atomic max) or the channels and banks cut (atomic min) */
     const unsigned char *flags; /* or NULL */
     int w, h;
     int64_t gx0, gy0, gw, gh;
     int lo[2], hi[2]; /* pits looked for in [lo, hi) */
-    int mode, radius, phase;
+    int mode, radius;
     double max_depth; /* > 0: no cut deeper (breach) */
     double banks;     /* > 0: the banks' slope per cell (breach) */
     const int *pits;
@@ -455,7 +454,7 @@ static int fill_pit(dr_job *j, dr_scratch *s, int px, int py)
         if (s->stamp[c] == s->epoch && s->cost[c] < level) {
             size_t i = (size_t)box_index(j, s, px, py, (int)c);
             if ((double)j->z0[i] < level)
-                atomic_toward(&j->lifted[i], (float)level, 1);
+                atomic_toward(&j->out[i], (float)level, 1);
         }
     return 1;
 }
@@ -551,8 +550,11 @@ static int breach_pit(dr_job *j, dr_scratch *s, int px, int py)
                 v = below;
             if (j->flags && (j->flags[i] & TS_CELL_FIXED))
                 v = j->z0[i]; /* a fixed target (water) is never changed */
-            else if (j->flags && shore_level(j, cx, cy) > (double)v)
-                v = (float)shore_level(j, cx, cy); /* never below the water beside it */
+            else if (j->flags) {
+                double w = shore_level(j, cx, cy); /* never below the water beside it */
+                if (w > (double)v)
+                    v = (float)w;
+            }
             atomic_toward(&j->out[i], v, 0);
             if (v < j->z0[i])
                 cut_banks(j, cx, cy, v, j->z0[i]);
@@ -601,15 +603,14 @@ static void drain_range(void *arg, size_t begin, size_t end)
         int px = j->pits[k] % j->w, py = j->pits[k] / j->w, r;
         if ((k - begin) % 256 == 0 && (ts__cancelled(j->ctx) || atomic_load(&j->failed)))
             break;
-        r = j->phase == 1 ? fill_pit(j, &s, px, py) : breach_pit(j, &s, px, py);
+        r = j->mode == TS_DRAINAGE_FILL ? fill_pit(j, &s, px, py) : breach_pit(j, &s, px, py);
         if (r < 0) {
             atomic_store(&j->failed, 1);
             break;
         }
         done += (size_t)r;
     }
-    if (j->phase == 2 || j->mode == TS_DRAINAGE_FILL)
-        atomic_fetch_add(&j->resolved, done);
+    atomic_fetch_add(&j->resolved, done);
     scratch_free(&s);
 }
 
@@ -652,7 +653,7 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
                                    const ts_drainage_params *p, ts_drainage_info *info)
 {
     dr_job j;
-    float *z0 = NULL, *out = NULL, *lifted = NULL;
+    float *z0 = NULL, *out = NULL;
     int *pits = NULL;
     size_t n_pits = 0, i, n;
     int x, y, a;
@@ -681,21 +682,18 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     n = (size_t)dem->width * (size_t)dem->height;
     z0 = malloc(n * sizeof *z0);
     out = malloc(n * sizeof *out);
-    lifted = malloc(n * sizeof *lifted);
-    if (!z0 || !out || !lifted) {
+    if (!z0 || !out) {
         free(z0);
         free(out);
-        free(lifted);
         return ts__fail(ctx, TS_ERR_NOMEM, "drainage", "out of memory for %d x %d cells",
                         dem->width, dem->height);
     }
     for (y = 0; y < dem->height; y++)
         memcpy(z0 + (size_t)y * (size_t)dem->width, &TS_PIX(dem, 0, y),
                (size_t)dem->width * sizeof *z0);
-    memcpy(lifted, z0, n * sizeof *lifted);
+    memcpy(out, z0, n * sizeof *out);
     memset(&j, 0, sizeof j);
     j.z0 = z0;
-    j.lifted = lifted;
     j.out = out;
     j.banks = p->bank_slope > 0 ? p->bank_slope : 0.0;
     j.max_depth = ts_drainage_depth_of(p);
@@ -727,18 +725,8 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     j.n_pits = n_pits;
     atomic_init(&j.resolved, 0);
     atomic_init(&j.failed, 0);
-    /* phase 1: the depressions filled (fill) */
-    if (st == TS_OK && n_pits && p->mode == TS_DRAINAGE_FILL) {
-        j.phase = 1;
-        ts__parallel_for(ctx, n_pits, drain_range, &j);
-        st = drain_status(ctx, &j);
-        if (st == TS_OK)
-            st = ts__progress(ctx, 0.5, "drainage");
-    }
-    memcpy(out, lifted, n * sizeof *out);
-    /* phase 2: the channels */
-    if (st == TS_OK && n_pits && p->mode == TS_DRAINAGE_BREACH) {
-        j.phase = 2;
+    /* every pit's fill, or its channel and banks, searched on the surface as given */
+    if (st == TS_OK && n_pits) {
         ts__parallel_for(ctx, n_pits, drain_range, &j);
         st = drain_status(ctx, &j);
     }
@@ -765,6 +753,5 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     free(pits);
     free(z0);
     free(out);
-    free(lifted);
     return st;
 }
