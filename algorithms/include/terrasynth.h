@@ -987,6 +987,47 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
                                    int64_t gx0, int64_t gy0, int64_t gw, int64_t gh,
                                    const ts_drainage_params *params, ts_drainage_info *info);
 
+/* ------------------------------------------------------------------ */
+/* Streams: the flow lines of a DEM, with their Strahler order (ours)  */
+/* ------------------------------------------------------------------ */
+
+/** A link of a stream network: from a head or a confluence down to the
+ *  next confluence (its last vertex, the first of the link it flows into)
+ *  or to where the water leaves the DEM. */
+typedef struct ts_stream_link {
+    size_t first, count; /* its vertices, upstream to downstream (count >= 2) */
+    int order;           /* Strahler order: 1 from a head; i + 1 below where two of order i meet */
+    int64_t down;        /* the link it flows into; -1: it leaves the DEM */
+    double area;         /* drainage area of its own lowest cell, in cells (itself included) */
+} ts_stream_link;
+
+/** The streams of a width x height DEM: links in the raster order of their first cell;
+ *  vertices at cell centres (x, y) with the DEM's height z. */
+typedef struct ts_stream_network {
+    int width, height;
+    size_t n_links, n_verts;
+    ts_stream_link *links;
+    ts_feature_vertex *verts;
+} ts_stream_network;
+
+/**
+ * The stream network of a DEM: every cell draining at least min_area cells
+ * (>= 1; itself included), the flow as the PPA's drainage test defines it
+ * (depressions filled to their spill, flats crossed to their way out, each
+ * cell to its neighbour of least filled height, the DEM's edge and nodata
+ * as outlets), cut into links at confluences.  The DEM is read window by
+ * window (read, under a lock; in tiles held 9 bytes a cell); the network
+ * (16 bytes a stream cell while it is made) is caller-freed with
+ * ts_stream_network_free.  The same network on any thread count.
+ */
+TS_API ts_status ts_stream_network_extract_read(ts_ctx *ctx, int width, int height,
+                                        ts_window_read_fn read, void *user, double min_area,
+                                        ts_stream_network **out);
+/** The same of a DEM in memory. */
+TS_API ts_status ts_stream_network_extract(ts_ctx *ctx, const ts_raster *dem, double min_area,
+                                   ts_stream_network **out);
+TS_API void ts_stream_network_free(ts_stream_network *net);
+
 #include "terrasynth_pixel.h"
 
 #ifdef __cplusplus

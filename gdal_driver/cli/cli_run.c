@@ -107,6 +107,11 @@ int cli_run_job(const cli_job *job, int argc, char **argv)
     r.outs.lines = tsjob_get(&v, "lines", 0);
     r.outs.preview = tsjob_get(&v, "preview", 0);
     r.outs.debug_dir = tsjob_get(&v, "debug_dir", 0);
+    r.outs.flow_lines = tsjob_get(&v, "flow_lines", 0);
+    if (tsjob_get(&v, "flow_cells", 0))
+        r.outs.flow_cells = atof(tsjob_get(&v, "flow_cells", 0));
+    if (tsjob_get(&v, "flow_km2", 0))
+        r.outs.flow_km2 = atof(tsjob_get(&v, "flow_km2", 0));
     r.outs.format = co.format;
     r.outs.create_options = (const char *const *)co.create_options;
     if (job->build(st, &r, msg, sizeof msg) != 0) {

@@ -182,6 +182,17 @@ int tsio_write_features(const char *path, const tsio_georef *geo, const ts_featu
                         const ts_grid_metrics *metrics, tsio_err *err);
 
 /**
+ * Write a stream network (ts_stream_network_extract) as vectors, all or
+ * nothing like tsio_write_features: layer "streams", a LineString per link
+ * from upstream to downstream at cell centres, with fields link (its
+ * number), down (the link it flows into, NULL where it leaves the grid),
+ * strahler, area_cells, area_km2 (at its lower end's row; NULL without
+ * CRS), length_m (NULL without CRS), length_cells, elev_top, elev_bottom.
+ */
+int tsio_write_streams(const char *path, const tsio_georef *geo, const ts_stream_network *net,
+                       const ts_grid_metrics *metrics, tsio_err *err);
+
+/**
  * Read like tsio_read_dem, then resample to cells of target_dx_m x
  * target_dy_m metres on the ground (for exemplars whose resolution differs
  * from the output's): a projected raster is warped in its own CRS; a

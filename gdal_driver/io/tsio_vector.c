@@ -131,7 +131,8 @@ static void set_real_or_null(OGRFeatureH feat, int idx, double v)
 
 typedef struct vec_ctx {
     const char *path;
-    const ts_features *f;
+    const ts_features *f;           /* the PPA's features, or NULL for ... */
+    const ts_stream_network *net;   /* ... a stream network */
     const ts_grid_metrics *metrics; /* NULL: no metric lengths */
     double gt[6];
     OGRSpatialReferenceH srs;
@@ -146,6 +147,23 @@ static double cx(const vec_ctx *c, int x, int y)
 static double cy(const vec_ctx *c, int x, int y)
 {
     return c->gt[3] + ((double)x + 0.5) * c->gt[4] + ((double)y + 0.5) * c->gt[5];
+}
+
+/* The length of a chain of cells: in cells, and on the ground with metrics. */
+static void chain_length(const vec_ctx *c, const ts_feature_vertex *v, size_t count, double *len_c,
+                         double *len_m)
+{
+    size_t k;
+    *len_c = *len_m = 0.0;
+    for (k = 1; k < count; k++) {
+        int ddx = v[k].x - v[k - 1].x, ddy = v[k].y - v[k - 1].y;
+        *len_c += sqrt((double)ddx * ddx + (double)ddy * ddy);
+        if (c->metrics) {
+            double mx = 0.5 * (c->metrics->dx[v[k].y] + c->metrics->dx[v[k - 1].y]);
+            double my = 0.5 * (c->metrics->dy[v[k].y] + c->metrics->dy[v[k - 1].y]);
+            *len_m += sqrt((mx * ddx) * (mx * ddx) + (my * ddy) * (my * ddy));
+        }
+    }
 }
 
 static int write_paths_layer(GDALDatasetH ds, const vec_ctx *c)
@@ -183,7 +201,7 @@ static int write_paths_layer(GDALDatasetH ds, const vec_ctx *c)
         const ts_feature_path *p = &f->paths[i];
         const ts_feature_vertex *v = &f->verts[p->first];
         OGRGeometryH line = OGR_G_CreateGeometry(wkbLineString);
-        double len_c = 0.0, len_m = 0.0;
+        double len_c, len_m;
         size_t k, npts = p->count < 2 ? 2 : p->count;
         if (!line || npts > INT_MAX) {
             if (line)
@@ -196,15 +214,7 @@ static int write_paths_layer(GDALDatasetH ds, const vec_ctx *c)
             const ts_feature_vertex *q = &v[k < p->count ? k : p->count - 1];
             OGR_G_SetPoint_2D(line, (int)k, cx(c, q->x, q->y), cy(c, q->x, q->y));
         }
-        for (k = 1; k < p->count; k++) {
-            int ddx = v[k].x - v[k - 1].x, ddy = v[k].y - v[k - 1].y;
-            len_c += sqrt((double)ddx * ddx + (double)ddy * ddy);
-            if (c->metrics) {
-                double mx = 0.5 * (c->metrics->dx[v[k].y] + c->metrics->dx[v[k - 1].y]);
-                double my = 0.5 * (c->metrics->dy[v[k].y] + c->metrics->dy[v[k - 1].y]);
-                len_m += sqrt((mx * ddx) * (mx * ddx) + (my * ddy) * (my * ddy));
-            }
-        }
+        chain_length(c, v, p->count, &len_c, &len_m);
         OGR_F_SetFID(feat, OGRNullFID);
         OGR_F_SetFieldString(feat, i_kind, kind_name(p->kind));
         if (c->metrics)
@@ -305,6 +315,124 @@ done:
     return rc;
 }
 
+/* Layer "streams": a LineString per link, downstream, with its network. */
+static int write_streams_layer(GDALDatasetH ds, const vec_ctx *c)
+{
+    const ts_stream_network *net = c->net;
+    OGRLayerH layer;
+    OGRFeatureH feat = NULL;
+    int i_link, i_down, i_order, i_ac, i_akm, i_lm, i_lc, i_top, i_bot, rc = -1, tx = 0;
+    size_t i, k;
+
+    CPLErrorReset();
+    layer = GDALDatasetCreateLayer(ds, "streams", c->srs, wkbLineString, NULL);
+    if (!layer) {
+        tsio__set_err_gdal(c->err, c->path, "cannot create the layer \"streams\"");
+        return -1;
+    }
+    if (add_field(layer, "link", OFTInteger64, &i_link) ||
+        add_field(layer, "down", OFTInteger64, &i_down) ||
+        add_field(layer, "strahler", OFTInteger, &i_order) ||
+        add_field(layer, "area_cells", OFTReal, &i_ac) ||
+        add_field(layer, "area_km2", OFTReal, &i_akm) ||
+        add_field(layer, "length_m", OFTReal, &i_lm) ||
+        add_field(layer, "length_cells", OFTReal, &i_lc) ||
+        add_field(layer, "elev_top", OFTReal, &i_top) ||
+        add_field(layer, "elev_bottom", OFTReal, &i_bot)) {
+        tsio__set_err_gdal(c->err, c->path, "cannot create the fields of layer \"streams\"");
+        return -1;
+    }
+    tx = GDALDatasetStartTransaction(ds, FALSE) == OGRERR_NONE;
+    feat = OGR_F_Create(OGR_L_GetLayerDefn(layer));
+    if (!feat) {
+        tsio_errf(c->err, c->path, "out of memory");
+        goto done;
+    }
+    for (i = 0; i < net->n_links; i++) {
+        const ts_stream_link *L = &net->links[i];
+        const ts_feature_vertex *v = &net->verts[L->first], *low = &v[L->count - 1];
+        OGRGeometryH line = OGR_G_CreateGeometry(wkbLineString);
+        double len_c, len_m;
+        if (!line || L->count > INT_MAX) {
+            if (line)
+                OGR_G_DestroyGeometry(line);
+            tsio_errf(c->err, c->path, "cannot build the line of link %zu", i);
+            goto done;
+        }
+        OGR_G_SetPointCount(line, (int)L->count);
+        for (k = 0; k < L->count; k++)
+            OGR_G_SetPoint_2D(line, (int)k, cx(c, v[k].x, v[k].y), cy(c, v[k].x, v[k].y));
+        chain_length(c, v, L->count, &len_c, &len_m);
+        OGR_F_SetFID(feat, OGRNullFID);
+        OGR_F_SetFieldInteger64(feat, i_link, (GIntBig)i);
+        if (L->down >= 0)
+            OGR_F_SetFieldInteger64(feat, i_down, (GIntBig)L->down);
+        else
+            OGR_F_SetFieldNull(feat, i_down);
+        OGR_F_SetFieldInteger(feat, i_order, L->order);
+        OGR_F_SetFieldDouble(feat, i_ac, L->area);
+        if (c->metrics) {
+            set_real_or_null(feat, i_akm,
+                             L->area * c->metrics->dx[low->y] * c->metrics->dy[low->y] / 1e6);
+            set_real_or_null(feat, i_lm, len_m);
+        } else {
+            OGR_F_SetFieldNull(feat, i_akm);
+            OGR_F_SetFieldNull(feat, i_lm);
+        }
+        OGR_F_SetFieldDouble(feat, i_lc, len_c);
+        set_real_or_null(feat, i_top, v[0].z);
+        set_real_or_null(feat, i_bot, low->z);
+        OGR_F_SetGeometryDirectly(feat, line);
+        CPLErrorReset();
+        if (OGR_L_CreateFeature(layer, feat) != OGRERR_NONE) {
+            tsio__set_err_gdal(c->err, c->path, "cannot write a stream");
+            goto done;
+        }
+    }
+    if (tx) {
+        tx = 0;
+        CPLErrorReset();
+        if (GDALDatasetCommitTransaction(ds) != OGRERR_NONE) {
+            tsio__set_err_gdal(c->err, c->path, "cannot commit the streams");
+            goto done;
+        }
+    }
+    rc = 0;
+done:
+    if (feat)
+        OGR_F_Destroy(feat);
+    if (tx)
+        GDALDatasetRollbackTransaction(ds);
+    return rc;
+}
+
+/* A stream network output makes sense: links and vertices on the grid. */
+static int check_streams(const char *path, const tsio_georef *geo, const ts_stream_network *net,
+                         tsio_err *err)
+{
+    size_t i, k;
+    if ((net->n_links && !net->links) || (net->n_verts && !net->verts) ||
+        (geo && (geo->width != net->width || geo->height != net->height))) {
+        tsio_errf(err, path, "the stream network does not fit the grid");
+        return -1;
+    }
+    for (i = 0; i < net->n_links; i++) {
+        const ts_stream_link *L = &net->links[i];
+        if (L->count < 2 || L->count > net->n_verts || L->first > net->n_verts - L->count ||
+            L->down >= (int64_t)net->n_links) {
+            tsio_errf(err, path, "stream link %zu has invalid indices", i);
+            return -1;
+        }
+        for (k = L->first; k < L->first + L->count; k++)
+            if (net->verts[k].x < 0 || net->verts[k].y < 0 || net->verts[k].x >= net->width ||
+                net->verts[k].y >= net->height) {
+                tsio_errf(err, path, "stream link %zu has a vertex outside the grid", i);
+                return -1;
+            }
+    }
+    return 0;
+}
+
 /* A features output makes sense: a path, features on the georeference's grid. */
 static int check_feature_args(const char *path, const tsio_georef *geo, const ts_features *f,
                               tsio_err *err)
@@ -376,7 +504,8 @@ static int write_nodes_file(GDALDriverH drv, const out_name *nodes_n, vec_ctx *c
 }
 
 static int write_features_impl(const char *path, const tsio_georef *geo, const ts_features *f,
-                               const ts_grid_metrics *metrics, tsio_err *err)
+                               const ts_stream_network *net, const ts_grid_metrics *metrics,
+                               tsio_err *err)
 {
     out_name main_n, nodes_n;
     char *nodes_stem = NULL;
@@ -389,7 +518,11 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
     memset(&main_n, 0, sizeof main_n);
     memset(&nodes_n, 0, sizeof nodes_n);
     memset(&c, 0, sizeof c);
-    if (check_feature_args(path, geo, f, err) != 0)
+    if (net && (!path || !path[0])) {
+        tsio_errf(err, "(empty path)", "no output file given");
+        return -1;
+    }
+    if (net ? check_streams(path, geo, net, err) != 0 : check_feature_args(path, geo, f, err) != 0)
         return -1;
     if (tsio__out_name_for(path, &main_n) != 0) {
         tsio_errf(err, path, "out of memory");
@@ -411,6 +544,7 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
 
     if (vec_ctx_init(&c, path, geo, f, metrics, err) != 0)
         goto done;
+    c.net = net;
 
     /* the paths (and, for multi-layer formats, the nodes) */
     CPLErrorReset();
@@ -421,10 +555,11 @@ static int write_features_impl(const char *path, const tsio_georef *geo, const t
         tsio__set_err_gdal(err, path, "cannot create the file");
         goto done;
     }
-    if (write_paths_layer(ds, &c) != 0)
+    if ((net ? write_streams_layer(ds, &c) : write_paths_layer(ds, &c)) != 0)
         goto done;
-    sibling = single_layer_driver(drv_name) || !GDALDatasetTestCapability(ds, ODsCCreateLayer);
-    if (!sibling && write_nodes_layer(ds, &c, path) != 0)
+    sibling =
+        !net && (single_layer_driver(drv_name) || !GDALDatasetTestCapability(ds, ODsCCreateLayer));
+    if (!net && !sibling && write_nodes_layer(ds, &c, path) != 0)
         goto done;
     i = tsio__close_checked(ds, path, err);
     ds = NULL;
@@ -534,7 +669,25 @@ int tsio_write_features(const char *path, const tsio_georef *geo, const ts_featu
         err->msg[0] = '\0';
     tsio__ensure_registered();
     CPLPushErrorHandler(CPLQuietErrorHandler);
-    rc = write_features_impl(path, geo, f, metrics, err);
+    rc = write_features_impl(path, geo, f, NULL, metrics, err);
+    CPLErrorReset();
+    CPLPopErrorHandler();
+    return rc;
+}
+
+int tsio_write_streams(const char *path, const tsio_georef *geo, const ts_stream_network *net,
+                       const ts_grid_metrics *metrics, tsio_err *err)
+{
+    int rc;
+    if (err)
+        err->msg[0] = '\0';
+    if (!net) {
+        tsio_errf(err, path ? path : "(empty path)", "no stream network given");
+        return -1;
+    }
+    tsio__ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    rc = write_features_impl(path, geo, NULL, net, metrics, err);
     CPLErrorReset();
     CPLPopErrorHandler();
     return rc;

@@ -97,6 +97,44 @@
         "preview", TSJOB_OUTPUT, 1, 0, 0, "FILE.png", G_OUT, "hillshade of the result", NULL, 0,   \
             NULL                                                                                   \
     }
+/* the output's streams, on every job that writes a DEM (and ppa, of its input) */
+#define OPT_FLOW                                                                                   \
+    {"flow_lines",                                                                                 \
+     TSJOB_OUTPUT,                                                                                 \
+     1,                                                                                            \
+     0,                                                                                            \
+     0,                                                                                            \
+     "FILE.gpkg",                                                                                  \
+     G_OUT,                                                                                        \
+     "the DEM's streams as vector lines: layer 'streams', a line per link with its Strahler "      \
+     "order, drainage area and the link it flows into; format from the extension (.gpkg, "         \
+     ".shp, .geojson)",                                                                            \
+     NULL,                                                                                         \
+     0,                                                                                            \
+     NULL},                                                                                        \
+        {"flow_cells",                                                                             \
+         TSJOB_NUMBER,                                                                             \
+         1,                                                                                        \
+         2,                                                                                        \
+         1e12,                                                                                     \
+         "CELLS",                                                                                  \
+         G_OUT,                                                                                    \
+         "with flow_lines: a stream drains at least this many cells (default 1000)",               \
+         NULL,                                                                                     \
+         0,                                                                                        \
+         NULL},                                                                                    \
+    {                                                                                              \
+        "flow_km2", TSJOB_NUMBER, 1, 1e-9, 1e9, "KM2", G_OUT,                                      \
+            "with flow_lines: a stream drains at least this many square kilometres (instead of "   \
+            "flow_cells; needs a CRS or cell_size)",                                               \
+            NULL, 0, NULL                                                                          \
+    }
+#define RULES_FLOW                                                                                 \
+    {TSJOB_REQUIRES, "flow_cells", {"flow_lines", NULL}, "flow_cells goes with flow_lines"},       \
+        {TSJOB_REQUIRES, "flow_km2", {"flow_lines", NULL}, "flow_km2 goes with flow_lines"},       \
+    {                                                                                              \
+        TSJOB_EXCLUDES, "flow_cells", {"flow_km2", NULL}, "give flow_cells or flow_km2, not both"  \
+    }
 #define OPT_RECIPE                                                                                 \
     {                                                                                              \
         "recipe", TSJOB_OUTPUT, 1, 0, 0, "FILE.tsyn", G_OUT,                                       \
@@ -167,6 +205,7 @@ static const tsjob_option synth_opts[] = {
     {"output", TSJOB_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
      "the terrain: a Float32 DEM on the target grid, nodata " TSIO_NODATA_TEXT, NULL, 1, NULL},
     OPT_PREVIEW,
+    OPT_FLOW,
     {"debug_dir", TSJOB_OUTPUT, 1, 0, 0, "DIR", G_OUT,
      "seams.tif, source_exemplar.tif, source_x.tif, source_y.tif, order.tif (georeferenced); "
      "with a sketch also its features and the output's (GeoPackage)",
@@ -217,8 +256,9 @@ static const tsjob_rule synth_rules[] = {
     {TSJOB_REQUIRES, "@sketch", {"sketch", NULL}, "%s applies to a sketch: give sketch"},
     {TSJOB_EXCLUDES,
      "recipe",
-     {"output", "preview", "debug_dir", NULL},
+     {"output", "preview", "debug_dir", "flow_lines", NULL},
      "recipe writes the recipe instead of running the job: give no %s"},
+    RULES_FLOW,
     {TSJOB_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
 };
 
@@ -244,12 +284,15 @@ static const tsjob_option ppa_opts[] = {
      NULL, 0, NULL},
     {"preview", TSJOB_OUTPUT, 1, 0, 0, "FILE.png", G_OUT,
      "hillshade with ridges (red) and valleys (blue)", NULL, 0, NULL},
+    OPT_FLOW,
     {"tile_size", TSJOB_INT, 1, 0, TS_PPA_TILE_MAX, "N", G_RUN,
      "map the DEM in tiles of N x N cells (" TS_STR(TS_PPA_TILE_MIN) ".." TS_STR(
          TS_PPA_TILE_MAX) "), read window by window three times: the "
-     "same raster as in one piece, in the memory of three rows of tiles and the axes' chains "
-     "(DEMs larger than memory; not with lines or preview). 0 (default): in one piece, or, when "
-     "it does not fit in memory, in the largest tiles (8192 .. 64) that do",
+                          "same raster as in one piece, in the memory of three rows of tiles and "
+                          "the axes' chains "
+                          "(DEMs larger than memory; not with lines, preview or flow_lines). 0 "
+                          "(default): in one piece, or, when "
+                          "it does not fit in memory, in the largest tiles (8192 .. 64) that do",
      "TileSize", 0, NULL},
     OPT_RECIPE,
 };
@@ -273,8 +316,9 @@ static const tsjob_rule ppa_rules[] = {
      "give one of ridges, valleys, both (or features), not %s too"},
     {TSJOB_EXCLUDES,
      "recipe",
-     {"output", "lines", "preview", NULL},
+     {"output", "lines", "preview", "flow_lines", NULL},
      "recipe writes the recipe instead of running the job: give no %s"},
+    RULES_FLOW,
     {TSJOB_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
 };
 
@@ -328,6 +372,7 @@ static const tsjob_option amplify_opts[] = {
     {"out_classes", TSJOB_OUTPUT, 1, 0, 0, "FILE", G_OUT,
      "the atoms' classes on the output's grid (Byte, 0 = unlabelled)", NULL, 0, NULL},
     OPT_PREVIEW,
+    OPT_FLOW,
     OPT_RECIPE,
 };
 
@@ -342,8 +387,9 @@ static const tsjob_rule amplify_rules[] = {
      "biomes blend dictionaries: give no %s"},
     {TSJOB_EXCLUDES,
      "recipe",
-     {"output", "preview", "out_layer", "out_classes", NULL},
+     {"output", "preview", "out_layer", "out_classes", "flow_lines", NULL},
      "recipe writes the recipe instead of running the job: give no %s"},
+    RULES_FLOW,
     {TSJOB_EXCLUDES,
      "dictionary",
      {"exemplar_layer", "exemplar_classes", NULL},
@@ -404,6 +450,7 @@ static const tsjob_option pixel_opts[] = {
     {"output", TSJOB_OUTPUT, 1, 0, 0, "OUTPUT", G_OUT,
      "the terrain: a Float32 DEM on the target grid, nodata " TSIO_NODATA_TEXT, NULL, 1, NULL},
     OPT_PREVIEW,
+    OPT_FLOW,
     {"debug_dir", TSJOB_OUTPUT, 1, 0, 0, "DIR", G_OUT,
      "source_exemplar.tif, source_x.tif, source_y.tif: where each cell's finest coordinate "
      "points (the candidate exemplar: index x variants + the variant; the cell in it)",
@@ -426,8 +473,9 @@ static const tsjob_rule pixel_rules[] = {
     RULES_GRID_SIZE,
     {TSJOB_EXCLUDES,
      "recipe",
-     {"output", "preview", "debug_dir", NULL},
+     {"output", "preview", "debug_dir", "flow_lines", NULL},
      "recipe writes the recipe instead of running the job: give no %s"},
+    RULES_FLOW,
     {TSJOB_ONE_OF, "output", {"recipe", NULL}, "give OUTPUT (or recipe)"},
 };
 

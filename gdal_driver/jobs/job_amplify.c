@@ -678,9 +678,8 @@ static int amplify_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, flo
     return amplify_raw_window(ctx, a->job, a->res, x0, y0, w, h, TSJOB_SERVE_DEM, out, err);
 }
 
-int tsjob_amplify_window_raw(ts_ctx *ctx, const tsjob_amplify *job,
-                             const tsjob_amplify_result *res, int x0, int y0, int w, int h,
-                             float *out, tsio_err *err)
+int tsjob_amplify_window_raw(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
+                             int x0, int y0, int w, int h, float *out, tsio_err *err)
 {
     return amplify_raw_window(ctx, job, res, x0, y0, w, h, TSJOB_SERVE_DEM, out, err);
 }
@@ -693,8 +692,8 @@ int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_ampl
         return amplify_raw_window(ctx, job, res, x0, y0, w, h, serve, out, err);
     a.job = job;
     a.res = res;
-    return tsjob_drained_window(ctx, &res->drainage, res->geo.width, res->geo.height, x0, y0, w,
-                                h, amplify_raw, &a, out, job->input, err);
+    return tsjob_drained_window(ctx, &res->drainage, res->geo.width, res->geo.height, x0, y0, w, h,
+                                amplify_raw, &a, out, job->input, err);
 }
 
 int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
@@ -742,8 +741,8 @@ int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_r
     {
         struct timespec t0, t1;
         clock_gettime(CLOCK_MONOTONIC, &t0);
-        if (tsjob_drain(ctx, &res->drainage, &res->out, NULL, 0, 0, res->geo.width,
-                        res->geo.height, &res->drainage_info, job->input, err) != 0)
+        if (tsjob_drain(ctx, &res->drainage, &res->out, NULL, 0, 0, res->geo.width, res->geo.height,
+                        &res->drainage_info, job->input, err) != 0)
             goto done;
         clock_gettime(CLOCK_MONOTONIC, &t1);
         res->seconds_drainage =
@@ -811,6 +810,8 @@ int tsjob_amplify_check_outputs(const tsjob_amplify *job, const tsjob_amplify_re
     for (l = 3; l < n_out; l++)
         if (tsio_write_float(outs[l], &wo, &g1, &pr, TSIO_NODATA, err) != 0)
             return -1;
+    if (tsjob__flow_check(o, in, n, outs, n_out, &res->geo, NULL, err) != 0)
+        return -1;
     return tsjob__preview_name(o->preview, err);
 }
 
@@ -855,5 +856,5 @@ int tsjob_amplify_write(ts_ctx *ctx, const tsjob_amplify_result *res, const tsjo
         if (rc != 0)
             return -1;
     }
-    return 0;
+    return tsjob__flow_write(ctx, o, &res->out, &res->geo, NULL, err);
 }

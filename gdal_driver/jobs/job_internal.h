@@ -82,6 +82,17 @@ int tsjob__distinct(const char *const *outs, int n, tsio_err *err);
 int tsjob__preview(ts_ctx *ctx, const char *path, const ts_raster *dem, const tsio_georef *geo,
                    const ts_grid_metrics *metrics, const ts_features *f, tsio_err *err);
 
+/* The streams of a job's DEM (flow_lines, with flow_cells or flow_km2):
+ * before the work, the file checked (not an input, not one of the job's
+ * other outputs, a vector format) and flow_km2 refused without ground
+ * metrics; after it, the network of dem written.  metrics NULL: the grid's
+ * own (geo's CRS).  Nothing without flow_lines. */
+int tsjob__flow_check(const tsjob_outputs *o, const char *const *inputs, int n_in,
+                      const char *const *outs, int n_outs, const tsio_georef *geo,
+                      const ts_grid_metrics *metrics, tsio_err *err);
+int tsjob__flow_write(ts_ctx *ctx, const tsjob_outputs *o, const ts_raster *dem,
+                      const tsio_georef *geo, const ts_grid_metrics *metrics, tsio_err *err);
+
 /* Write one int map as Float32 with nodata -1. */
 int tsjob__int_map(const char *dir, const char *name, const tsio_georef *geo, const int32_t *v,
                    float *tmp, tsio_err *err);

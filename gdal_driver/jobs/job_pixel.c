@@ -179,8 +179,8 @@ int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_re
     pixel_raw_arg a;
     a.job = job;
     a.res = res;
-    return tsjob_drained_window(ctx, &res->drainage, res->geo.width, res->geo.height, x0, y0, w,
-                                h, pixel_raw, &a, out, job->exemplars[0], err);
+    return tsjob_drained_window(ctx, &res->drainage, res->geo.width, res->geo.height, x0, y0, w, h,
+                                pixel_raw, &a, out, job->exemplars[0], err);
 }
 
 int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *res, tsio_err *err)
@@ -308,7 +308,10 @@ int tsjob_pixel_check_outputs(const tsjob_pixel *job, const tsjob_pixel_result *
         if (tsjob__distinct(all, 5, err) != 0)
             return -1;
     }
-    return 0;
+    {
+        ts_grid_metrics m = {res->dx_m, res->dy_m};
+        return tsjob__flow_check(o, in, n, outs, 2, &res->geo, res->dx_m ? &m : NULL, err);
+    }
 }
 
 int tsjob_pixel_write(ts_ctx *ctx, const tsjob_pixel_result *res, const tsjob_outputs *o,
@@ -338,5 +341,8 @@ int tsjob_pixel_write(ts_ctx *ctx, const tsjob_pixel_result *res, const tsjob_ou
                            err) != 0)
             return -1;
     }
-    return 0;
+    {
+        ts_grid_metrics m = {res->dx_m, res->dy_m};
+        return tsjob__flow_write(ctx, o, &res->out, &res->geo, res->dx_m ? &m : NULL, err);
+    }
 }

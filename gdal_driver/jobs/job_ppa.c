@@ -155,10 +155,10 @@ int tsjob_ppa_check_outputs(const tsjob_ppa *job, const tsjob_ppa_result *res,
     tsio_write_opts wo = {o->format, o->create_options, 1};
     tsio_write_opts png = {"PNG", NULL, 1};
     const char *outs[3] = {o->output, o->lines, o->preview};
-    if (res->tile_size > 0 && (o->lines || o->preview)) {
+    if (res->tile_size > 0 && (o->lines || o->preview || o->flow_lines)) {
         tsio_errf(err, job->input,
-                  "mapped in tiles of %d cells (%s): lines and preview need the whole DEM in "
-                  "memory; give neither",
+                  "mapped in tiles of %d cells (%s): lines, preview and flow_lines need the "
+                  "whole DEM in memory; give none of them",
                   res->tile_size,
                   res->auto_tiles ? "too large for memory in one piece" : "as asked");
         return -1;
@@ -171,7 +171,7 @@ int tsjob_ppa_check_outputs(const tsjob_ppa *job, const tsjob_ppa_result *res,
         (o->preview && tsio_write_byte(o->preview, &png, &res->in.geo, &probe, -1, err) != 0) ||
         tsjob__preview_name(o->preview, err))
         return -1;
-    return 0;
+    return tsjob__flow_check(o, in, 1, outs, 3, &res->in.geo, res->metrics, err);
 }
 
 /* The tiled PPA: windows read from the open DEM, tiles into the output. */
@@ -239,7 +239,7 @@ int tsjob_ppa_write(ts_ctx *ctx, const tsjob_ppa_result *res, const tsjob_output
     if (o->preview && tsjob__preview(ctx, o->preview, &res->in.r, &res->in.geo, res->metrics,
                                      res->features, err) != 0)
         return -1;
-    return 0;
+    return tsjob__flow_write(ctx, o, &res->in.r, &res->in.geo, res->metrics, err);
 }
 
 int tsjob_ppa_check_recipe(const tsjob_ppa *job, const char *recipe, tsio_err *err)

@@ -111,6 +111,11 @@ int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *
         if (tsjob__distinct(outs, 2, err) != 0)
             return -1;
     }
+    {
+        const char *outs[2] = {o->output, o->preview};
+        if (tsjob__flow_check(o, in, n, outs, 2, &res->geo, res->metrics, err) != 0)
+            return -1;
+    }
     return tsjob__preview_name(o->preview, err);
 }
 
@@ -152,6 +157,8 @@ int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_res
         return -1;
     if (o->preview &&
         tsjob__preview(ctx, o->preview, &res->out, &res->geo, res->metrics, NULL, err) != 0)
+        return -1;
+    if (tsjob__flow_write(ctx, o, &res->out, &res->geo, res->metrics, err) != 0)
         return -1;
     if (o->debug_dir && res->has_maps) {
         const ts_synth_maps *m = &res->maps;

@@ -35,6 +35,10 @@ typedef struct tsjob_outputs {
      * and the atoms' classes */
     const char *const *out_layers;
     const char *out_classes;
+    /* the DEM's streams as lines (NULL: none), a stream draining at least flow_cells
+     * cells (0: 1000) or flow_km2 square kilometres (0: by cells) */
+    const char *flow_lines;
+    double flow_cells, flow_km2;
 } tsjob_outputs;
 
 /* ---- the drainage stage after every method ---- */

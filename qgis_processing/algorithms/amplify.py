@@ -139,6 +139,7 @@ class AmplifyAlgorithm(TerraSynthAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination(
             self.PREVIEW, self.tr("Preview"), fileFilter="PNG files (*.png)", optional=True,
             createByDefault=False))
+        self.addFlowParameters()
 
     def checkJob(self, parameters, context):  # noqa: N802
         # the dialog's pair of parameters for --out-layer NAME=FILE

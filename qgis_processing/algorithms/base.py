@@ -2,12 +2,14 @@
 """What every TerraSynth algorithm shares: the core's parameters built from its
 descriptor tables, checks, and the hand-over to runner.py."""
 from qgis.core import (
+    QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingException,
     QgsProcessingParameterDefinition,
     QgsProcessingParameterEnum,
     QgsProcessingParameterNumber,
     QgsProcessingParameterString,
+    QgsProcessingParameterVectorDestination,
     QgsProviderRegistry,
 )
 from qgis.PyQt.QtCore import QCoreApplication
@@ -224,6 +226,35 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
             return self.parameterAsInt(parameters, key, context)
         return self.parameterAsDouble(parameters, key, context)
 
+    # -- the streams of the DEM a job writes (flow_lines, flow_cells, flow_km2) --
+    FLOW_LINES = "FLOW_LINES"
+    FLOW_CELLS = "FLOW_CELLS"
+    FLOW_KM2 = "FLOW_KM2"
+
+    def addFlowParameters(self):  # noqa: N802
+        """The streams as lines (optional, GeoPackage) and their threshold."""
+        o = descriptors.job_option(self.STAGE, "flow_lines") or {}
+        p = QgsProcessingParameterVectorDestination(
+            self.FLOW_LINES, self.tr("Streams (flow lines)"),
+            QgsProcessing.TypeVectorLine, optional=True, createByDefault=False)
+        text = o.get("help", "")
+        p.setHelp("%s%s (--flow-lines)." % (text[:1].upper(), text[1:]))
+        self.addParameter(p)
+        self.optionParameter(self.FLOW_CELLS, "flow_cells", "Streams: least drainage area (cells)")
+        self.optionParameter(self.FLOW_KM2, "flow_km2", "Streams: least drainage area (km²)")
+
+    def addFlowJob(self, job, parameters, context):  # noqa: N802
+        """The streams' options, output and result added to a prepared job."""
+        path = self.parameterAsOutputLayer(parameters, self.FLOW_LINES, context) or ""
+        if not path:
+            return
+        job["options"] = list(job["options"]) + [
+            ("flow_lines", path),
+            ("flow_cells", self.optionValue(parameters, self.FLOW_CELLS, "flow_cells", context)),
+            ("flow_km2", self.optionValue(parameters, self.FLOW_KM2, "flow_km2", context))]
+        job["outputs"] = list(job["outputs"]) + [path]
+        job["results"][self.FLOW_LINES] = path
+
     # -- checks and running ---------------------------------------------------
     def checkJob(self, parameters, context):  # noqa: N802
         """Cross-parameter checks; raise QgsProcessingException."""
@@ -256,6 +287,8 @@ class TerraSynthAlgorithm(QgsProcessingAlgorithm):
         """(argv, job) for these parameters; nothing is run."""
         self.checkJob(parameters, context)
         job = self.prepareJob(parameters, context)
+        if self.parameterDefinition(self.FLOW_LINES) is not None:
+            self.addFlowJob(job, parameters, context)
         argv = runner.build_argv(cli or runner.find_cli(), self.STAGE,
                                  positional=job["positional"],
                                  params=self.descriptorValues(parameters, context),

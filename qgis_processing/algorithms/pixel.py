@@ -100,6 +100,7 @@ class PixelAlgorithm(TerraSynthAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination(
             self.PREVIEW, self.tr("Preview"), fileFilter="PNG files (*.png)", optional=True,
             createByDefault=False))
+        self.addFlowParameters()
 
     def checkJob(self, parameters, context):  # noqa: N802
         grids = [is_set(parameters, self.GUIDE), is_set(parameters, self.LIKE),

@@ -113,6 +113,7 @@ class PpaAlgorithm(TerraSynthAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination(
             self.PREVIEW, self.tr("Preview"), fileFilter="PNG files (*.png)", optional=True,
             createByDefault=False))
+        self.addFlowParameters()
 
     def prepareJob(self, parameters, context):  # noqa: N802
         layer = self.parameterAsRasterLayer(parameters, self.INPUT, context)

@@ -303,6 +303,7 @@ class SynthAlgorithm(TerraSynthAlgorithm):
         self.addParameter(QgsProcessingParameterFileDestination(
             self.PREVIEW, self.tr("Preview"), fileFilter="PNG files (*.png)", optional=True,
             createByDefault=False))
+        self.addFlowParameters()
         self.addParameter(QgsProcessingParameterFolderDestination(
             self.DEBUG_DIR, self.tr("Debug maps folder"), optional=True,
             createByDefault=False))

@@ -65,7 +65,7 @@ def rows(markdown):
     for line in markdown.split("\n"):
         if line.startswith("| `-"):
             cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
-            for flag in re.findall(r"(--[a-z][a-z-]*)", cells[0]):
+            for flag in re.findall(r"(--[a-z][a-z0-9-]*)", cells[0]):
                 out.setdefault(flag, cells)
     return out
 

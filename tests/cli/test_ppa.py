@@ -351,7 +351,7 @@ def test_tiles_chosen_from_memory(tmp_path):
     assert "too large for memory in one piece" in p.stdout and "tiles of" in p.stdout
     assert np.array_equal(read(auto)[1], read(one)[1])
     for extra, words in ((["--max-memory", "99M", "--lines", tmp_path / "l.gpkg"],
-                          "lines and preview"),
+                          "lines, preview and flow_lines"),
                          (["--max-memory", "90M"], "allow more memory")):
         out = tmp_path / "o.tif"
         p = run("ppa", JACKSBORO, out, "--both", *extra, check=False)
@@ -368,8 +368,9 @@ def test_tiles_progress_goes_one_way(tmp_path):
 
 def test_tiles_refuse_what_needs_the_whole(tmp_path):
     out = tmp_path / "o.tif"
-    for extra, words in ((["--lines", tmp_path / "l.gpkg"], "lines and preview"),
-                         (["--preview", tmp_path / "p.png"], "lines and preview"),
+    for extra, words in ((["--lines", tmp_path / "l.gpkg"], "lines, preview and flow_lines"),
+                         (["--preview", tmp_path / "p.png"], "lines, preview and flow_lines"),
+                         (["--flow-lines", tmp_path / "f.gpkg"], "lines, preview and flow_lines"),
                          ([], "16..16384")):
         tile = "8" if not extra else "64"
         p = run("ppa", JACKSBORO, out, "--tile-size", tile, *extra, check=False)

@@ -67,6 +67,9 @@ OTHER_FLAGS = {
               "CELL_SIZE": "--cell-size", "THREADS": "--threads", "OUTPUT": None,
               "PREVIEW": "--preview"},
 }
+# the streams of every job's DEM (base.addFlowParameters)
+for _flags in OTHER_FLAGS.values():
+    _flags.update(FLOW_LINES="--flow-lines", FLOW_CELLS="--flow-cells", FLOW_KM2="--flow-km2")
 # parameters whose flag is not --<name in kebab case>
 IRREGULAR_FLAGS = ("--size", "--origin", "--resolution", "--exemplar", "--pin", "--water",
                    "--sketch",
@@ -742,6 +745,26 @@ def test_ppa_loads_paths_and_nodes_layers(jacksboro, cli, tmp_path):
     assert any(s.startswith(lines) and "layername=paths" in s for s in sources)
     assert any(s.startswith(lines) and "layername=nodes" in s for s in sources)
     assert len(sources) == 3
+
+
+def test_streams_of_any_job(jacksboro, cli, tmp_path):
+    """FLOW_LINES on a job: the command line carries the threshold, the streams load as a
+    line layer with their Strahler order, on the DEM's CRS."""
+    flow = str(tmp_path / "streams.gpkg")
+    params = {"INPUT": jacksboro, "FEATURES": 1, "OUTPUT": str(tmp_path / "a.tif"),
+              "FLOW_LINES": flow, "FLOW_KM2": 0.5}
+    argv, job = build("terrasynth:ppa", params)
+    kv = pairs(argv)
+    assert kv["--flow-lines"] == flow and kv["--flow-km2"] == "0.5"
+    assert "--flow-cells" not in argv and job["results"]["FLOW_LINES"] == flow
+    res = processing_run("terrasynth:ppa", params)
+    streams = QgsVectorLayer(res["FLOW_LINES"], "streams", "ogr")
+    assert streams.isValid() and streams.geometryType() == QgsWkbTypes.LineGeometry
+    assert streams.featureCount() > 10
+    assert streams.crs() == QgsRasterLayer(jacksboro, "in").crs()
+    orders = {f["strahler"] for f in streams.getFeatures()}
+    assert 1 in orders and max(orders) >= 3
+    assert min(f["area_km2"] for f in streams.getFeatures()) >= 0.49
 
 
 def test_synth_run(jacksboro, cli, tmp_path):

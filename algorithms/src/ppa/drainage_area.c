@@ -200,10 +200,12 @@ typedef struct channel_io {
     double min_drainage;
 } channel_io;
 
-static void channel_emit(void *user, int x0, int y0, int w, int h, const float *area)
+static void channel_emit(void *user, int x0, int y0, int w, int h, const float *area,
+                         const unsigned char *dir)
 {
     channel_io *io = user;
     int x, y;
+    (void)dir;
     for (y = 0; y < h; y++)
         for (x = 0; x < w; x++)
             if (area[(size_t)y * (size_t)w + (size_t)x] >= io->min_drainage) {
@@ -249,10 +251,12 @@ ts_status ppa_raster_window(void *dem, int x0, int y0, int w, int h, float *buf)
     return TS_OK;
 }
 
-static void mem_emit(void *user, int x0, int y0, int w, int h, const float *area)
+static void mem_emit(void *user, int x0, int y0, int w, int h, const float *area,
+                     const unsigned char *dir)
 {
     mem_io *m = user;
     int y;
+    (void)dir;
     for (y = 0; y < h; y++)
         memcpy(m->area + (size_t)(y0 + y) * (size_t)m->dem->width + (size_t)x0,
                area + (size_t)y * (size_t)w, (size_t)w * sizeof *area);

@@ -583,7 +583,7 @@ emit:
         }
     }
     pthread_mutex_lock(&j->lock);
-    j->emit(j->emit_user, k->x0, k->y0, k->w, k->h, (const float *)k->acc);
+    j->emit(j->emit_user, k->x0, k->y0, k->w, k->h, (const float *)k->acc, k->dir);
     pthread_mutex_unlock(&j->lock);
     return 0;
 }

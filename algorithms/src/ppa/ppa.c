@@ -173,12 +173,6 @@ static void mask_apply(ts_ctx *ctx, size_t n, int op, unsigned char *to, const u
 /* The drainage's tiles in memory: one flood in one tile on few threads,
  * tiles side by side (each flooded once, the flow kept) on more: the same
  * areas either way. */
-static int ppa_drainage_tile(const ts_ctx *ctx)
-{
-    return ts__thread_count(ctx, 64) >= PPA_DRAINAGE_TILES_FROM ? PPA_DRAINAGE_TILE_THREADS
-                                                                 : PPA_DRAINAGE_TILE;
-}
-
 static void *valley_run(void *p)
 {
     valley_job *j = p;

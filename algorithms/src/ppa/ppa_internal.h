@@ -145,8 +145,10 @@ ts_status ppa_profile_targets(ts_ctx *ctx, const ts_raster *dem, int profile_len
  * under a lock), each tile's areas handed to emit (under the lock).  keep:
  * hold F, D and the flow of every cell (9 bytes a cell) so that each tile
  * is flooded once and never routed; else (bounded memory) tiles are routed
- * in rounds and once more for the areas. */
-typedef void (*ppa_area_fn)(void *user, int x0, int y0, int w, int h, const float *area);
+ * in rounds and once more for the areas.  dir (w*h) is each cell's flow:
+ * ppa_dir direction 0..7, PPA_DR_DIR_OUT off the DEM, 255 nodata. */
+typedef void (*ppa_area_fn)(void *user, int x0, int y0, int w, int h, const float *area,
+                            const unsigned char *dir);
 ts_status ppa_drainage(ts_ctx *ctx, int width, int height, int tile, int keep,
                        ts_window_read_fn read, void *user, ppa_area_fn emit, void *emit_user);
 /* The tiles of the flow routing: in one piece, one tile (one flood); in
@@ -163,6 +165,12 @@ ts_status ppa_drainage(ts_ctx *ctx, int width, int height, int tile, int keep,
 #ifndef PPA_DRAINAGE_TILE_THREADS
 #define PPA_DRAINAGE_TILE_THREADS 512
 #endif
+/* The tiles of a DEM in memory's flow routing with the context's threads. */
+static inline int ppa_drainage_tile(const ts_ctx *ctx)
+{
+    return ts__thread_count(ctx, 64) >= PPA_DRAINAGE_TILES_FROM ? PPA_DRAINAGE_TILE_THREADS
+                                                                 : PPA_DRAINAGE_TILE;
+}
 /* The drainage test: *bits (allocated here, a bit a cell, row-major) set on
  * the cells that drain at least min_drainage cells, by ppa_drainage. */
 ts_status ppa_channels(ts_ctx *ctx, int width, int height, int tile, int keep,

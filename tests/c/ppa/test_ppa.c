@@ -5,6 +5,7 @@
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include "harness.h"
+#include "naive_flow.h"
 #include "ppa_internal.h"
 #include "terrasynth.h"
 
@@ -839,108 +840,6 @@ static void test_kruskal_equals_naive(void)
 }
 
 /* ---- crossing diagonals: the lower one is dropped ---- */
-/* Drainage area by the definition (drainage_area.c), the slow way: F by
- * relaxation (F = height on the boundary, else max(height, least F of the
- * neighbours), repeated until nothing changes), D likewise on flats, each
- * cell's flow to its neighbour of least (F, D), and the area of a cell
- * counted by walking every cell's path down to where it leaves the DEM. */
-static void naive_drainage(const ts_raster *dem, float *area)
-{
-    int w = dem->width, h = dem->height, x, y, d, changed;
-    size_t n = (size_t)w * h, c, k;
-    float *F = malloc(n * sizeof *F);
-    unsigned *D = malloc(n * sizeof *D);
-    long *to = malloc(n * sizeof *to);
-    unsigned char *bnd = calloc(n, 1);
-#define NV(x, y) ((x) < 0 || (y) < 0 || (x) >= w || (y) >= h || isnan(TS_PIX(dem, x, y)))
-    for (y = 0; y < h; y++)
-        for (x = 0; x < w; x++) {
-            c = (size_t)y * w + x;
-            F[c] = NAN;
-            D[c] = UINT32_MAX;
-            if (NV(x, y))
-                continue;
-            for (d = 0; d < 8; d++)
-                if (NV(x + ppa_dir[d][0], y + ppa_dir[d][1]))
-                    bnd[c] = 1;
-            F[c] = bnd[c] ? TS_PIX(dem, x, y) : INFINITY;
-        }
-    do {
-        changed = 0;
-        for (y = 0; y < h; y++)
-            for (x = 0; x < w; x++) {
-                float lo = INFINITY, nf;
-                c = (size_t)y * w + x;
-                if (NV(x, y) || bnd[c])
-                    continue;
-                for (d = 0; d < 8; d++)
-                    if (!NV(x + ppa_dir[d][0], y + ppa_dir[d][1]))
-                        lo = fminf(lo, F[(size_t)(y + ppa_dir[d][1]) * w + x + ppa_dir[d][0]]);
-                nf = fmaxf(TS_PIX(dem, x, y), lo);
-                if (nf < F[c])
-                    F[c] = nf, changed = 1;
-            }
-    } while (changed);
-    for (y = 0; y < h; y++)
-        for (x = 0; x < w; x++) {
-            c = (size_t)y * w + x;
-            if (NV(x, y))
-                continue;
-            if (bnd[c])
-                D[c] = 0;
-            for (d = 0; d < 8; d++)
-                if (!NV(x + ppa_dir[d][0], y + ppa_dir[d][1]) &&
-                    F[(size_t)(y + ppa_dir[d][1]) * w + x + ppa_dir[d][0]] < F[c])
-                    D[c] = 0;
-        }
-    do {
-        changed = 0;
-        for (c = 0; c < n; c++) {
-            x = (int)(c % w);
-            y = (int)(c / w);
-            if (NV(x, y))
-                continue;
-            for (d = 0; d < 8; d++) {
-                size_t nb = (size_t)(y + ppa_dir[d][1]) * w + x + ppa_dir[d][0];
-                if (!NV(x + ppa_dir[d][0], y + ppa_dir[d][1]) && F[nb] == F[c] &&
-                    D[nb] != UINT32_MAX && D[nb] + 1 < D[c])
-                    D[c] = D[nb] + 1, changed = 1;
-            }
-        }
-    } while (changed);
-    for (c = 0; c < n; c++) {
-        long best = -1;
-        x = (int)(c % w);
-        y = (int)(c / w);
-        to[c] = -1;
-        if (NV(x, y) || bnd[c])
-            continue;
-        for (d = 0; d < 8; d++) {
-            long nb = (long)(y + ppa_dir[d][1]) * w + x + ppa_dir[d][0];
-            if (NV(x + ppa_dir[d][0], y + ppa_dir[d][1]))
-                continue;
-            if (F[nb] < F[best < 0 ? (long)c : best] ||
-                (F[nb] == F[best < 0 ? (long)c : best] && D[nb] < D[best < 0 ? (long)c : best]))
-                best = nb;
-        }
-        to[c] = best;
-    }
-#undef NV
-    for (c = 0; c < n; c++)
-        area[c] = isnan(F[c]) ? NAN : 0.0f;
-    for (c = 0; c < n; c++)
-        if (!isnan(F[c]))
-            for (k = c;; k = (size_t)to[k]) {
-                area[k] += 1.0f;
-                if (to[k] < 0)
-                    break;
-            }
-    free(F);
-    free(D);
-    free(to);
-    free(bnd);
-}
-
 static void test_drainage_area_equals_naive(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -966,7 +865,7 @@ static void test_drainage_area_equals_naive(void)
             }
         if (trial % 4 == 1)
             TS_PIX(&dem, w / 2, h / 2) = NAN, TS_PIX(&dem, w / 3, h / 2) = NAN;
-        naive_drainage(&dem, slow);
+        naive_flow(&dem, slow, NULL);
         {
             /* one tile, and tiles of 2, 3, 5 and 7 cells: flats and depressions across them */
             static const int tiles[] = {1 << 20, 2, 3, 5, 7};
@@ -1040,7 +939,7 @@ static void test_channels_by_default(void)
             TS_PIX(&dem, x, y) = (float)(30.0 * sin(0.13 * x) * cos(0.09 * y) +
                                          12.0 * sin(0.31 * x + 0.2 * y) + 0.8 * y +
                                          3.0 * th_uniform(&s));
-    naive_drainage(&dem, area);
+    naive_flow(&dem, area, NULL);
     CHECK(p.min_drainage == 200 && p.threshold_fraction == -1 && p.min_branch_length.value == -1);
     p.features = TS_PPA_BOTH;
     CHECK(ts_ppa_extract(ctx, &dem, NULL, &p, &fc) == TS_OK);
