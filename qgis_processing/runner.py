@@ -318,8 +318,11 @@ def temp_name_pattern(pid):
 
 
 def _cleanup(pid, outputs, output_dirs):
-    """Remove what a failed or canceled run left: the child's temporary files and any
-    output file or folder content created or replaced during the run."""
+    """Remove what a failed or canceled run created, and nothing else: the child's temporary
+    files (their names carry its pid), an output file that did not exist before the run (a
+    run cut short while it moved its outputs into place), and a folder the run created once
+    it is empty.  A file another program wrote meanwhile, or one that existed before (even
+    if replaced), is left alone."""
     pattern = temp_name_pattern(pid) if pid else None
     dirs = {os.path.dirname(os.path.abspath(p)) for p in outputs}
     dirs |= {os.path.abspath(d) for d in output_dirs}
@@ -330,18 +333,14 @@ def _cleanup(pid, outputs, output_dirs):
             if pattern.match(name):
                 _remove(os.path.join(d, name))
     for path, before in outputs.items():
-        now = _snapshot(path)
-        if now is not None and now != before and not os.path.isdir(path):
+        if before is None and os.path.isfile(path) and not os.path.islink(path):
             _remove(path)
     for d, before in output_dirs.items():
-        if before is None:  # the run created the folder
-            if os.path.isdir(d):
-                shutil.rmtree(d, ignore_errors=True)
-            continue
-        for name, snap in (_listing(d) or {}).items():
-            p = os.path.join(d, name)
-            if before.get(name) != snap and not os.path.isdir(p):
-                _remove(p)
+        if before is None and os.path.isdir(d):  # the run created the folder
+            try:
+                os.rmdir(d)  # only when nothing else is in it
+            except OSError:
+                pass
 
 
 def _pump(stream, kind, q):

@@ -282,6 +282,29 @@ def test_run_cancel_kills_the_child_and_removes_everything(fake):
     assert sorted(os.listdir(work)) == ["pid"]  # temporary files removed, no output
 
 
+def test_run_cancel_keeps_what_others_wrote(fake):
+    """A failed or canceled run removes only what it created: a file another program writes
+    into the output folders meanwhile stays, and so does a folder that is not empty."""
+    cmd, work = fake
+    out, dbg = str(work / "out.tif"), work / "debug"
+    dbg.mkdir()
+    (dbg / "mine.txt").write_text("before")
+
+    class Neighbour(Recorder):
+        def setProgress(self, p):  # noqa: N802
+            super().setProgress(p)
+            (work / "theirs.tif").write_text("written meanwhile")
+            (dbg / "mine.txt").write_text("changed meanwhile")
+            (dbg / "new.txt").write_text("new meanwhile")
+
+    with pytest.raises(runner.QgsProcessingException, match="canceled"):
+        runner.run(cmd + ["slow", out], Neighbour(cancel_after=2), outputs=[out],
+                   output_dirs=[str(dbg), str(work / "created")])
+    assert sorted(os.listdir(work)) == ["debug", "pid", "theirs.tif"]
+    assert sorted(os.listdir(dbg)) == ["mine.txt", "new.txt"]
+    assert (dbg / "mine.txt").read_text() == "changed meanwhile"
+
+
 def test_run_leaves_an_untouched_existing_output_alone(fake):
     cmd, work = fake
     out = work / "out.tif"
