@@ -94,6 +94,11 @@ typedef struct tsio_raster {
  *   each row's latitude; no CRS: dx_m = dy_m = NULL.
  */
 int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err);
+/** Read a drawing (a raster sketch) as grey levels: as tsio_read_raster of band 1, but a
+ *  paletted band gives its colours' luminance (0.299 R + 0.587 G + 0.114 B; an index with
+ *  no colour is an error) and red, green and blue bands 1-3 give theirs, so a white stroke
+ *  is bright whatever its index. */
+int tsio_read_drawing(const char *path, tsio_raster *out, tsio_err *err);
 /** Read an elevation raster: as tsio_read_raster, then the float's extreme
  *  values (|z| >= 1e38, an undeclared nodata) become NaN (counted in
  *  out->n_sentinels: the caller warns), and any other elevation outside

@@ -211,8 +211,8 @@ static int check_size(GDALDatasetH ds, const char *path, int band_no, tsio_err *
     }
     dt = GDALGetRasterDataType(GDALGetRasterBand(ds, band_no));
     if (GDALDataTypeIsComplex(dt)) {
-        tsio_errf(err, path, "band %d holds complex numbers (%s): a DEM's cells are real",
-                  band_no, GDALGetDataTypeName(dt));
+        tsio_errf(err, path, "band %d holds complex numbers (%s): a DEM's cells are real", band_no,
+                  GDALGetDataTypeName(dt));
         return -1;
     }
     w = GDALGetRasterXSize(ds);
@@ -507,6 +507,92 @@ int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err
     if (rc != 0)
         tsio_raster_free(out);
     return rc;
+}
+
+/* How a drawing stores its grey levels: 0 as values, 1 as indices into
+ * band 1's palette (lut: each index's luminance), 2 as red, green and blue
+ * in bands 1-3; -1 when the file cannot be opened. */
+static int drawing_kind(const char *path, float *lut, int *n_lut)
+{
+    GDALDatasetH ds = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY, NULL, NULL, NULL);
+    GDALRasterBandH b;
+    GDALColorTableH ct;
+    int kind = 0, i;
+    if (!ds)
+        return -1;
+    b = GDALGetRasterBand(ds, 1);
+    ct = b ? GDALGetRasterColorTable(b) : NULL;
+    if (ct && GDALGetRasterColorInterpretation(b) == GCI_PaletteIndex) {
+        *n_lut = GDALGetColorEntryCount(ct) < 65536 ? GDALGetColorEntryCount(ct) : 65536;
+        for (i = 0; i < *n_lut; i++) {
+            GDALColorEntry e;
+            GDALGetColorEntryAsRGB(ct, i, &e);
+            lut[i] = (float)(0.299 * e.c1 + 0.587 * e.c2 + 0.114 * e.c3);
+        }
+        kind = 1;
+    } else if (GDALGetRasterCount(ds) >= 3 && GDALGetRasterColorInterpretation(b) == GCI_RedBand &&
+               GDALGetRasterColorInterpretation(GDALGetRasterBand(ds, 2)) == GCI_GreenBand &&
+               GDALGetRasterColorInterpretation(GDALGetRasterBand(ds, 3)) == GCI_BlueBand) {
+        kind = 2;
+    }
+    GDALClose(ds);
+    return kind;
+}
+
+int tsio_read_drawing(const char *path, tsio_raster *out, tsio_err *err)
+{
+    float *lut = malloc(65536 * sizeof *lut);
+    int n_lut = 0, kind, rc = 0;
+    size_t i, n;
+    if (!lut) {
+        tsio_errf(err, path, "out of memory");
+        return -1;
+    }
+    tsio__ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    kind = drawing_kind(path, lut, &n_lut);
+    CPLPopErrorHandler();
+    if (tsio_read_raster(path, 1, out, err) != 0) {
+        free(lut);
+        return -1;
+    }
+    n = (size_t)out->r.width * (size_t)out->r.height;
+    if (kind == 1) {
+        for (i = 0; i < n; i++) {
+            float v = out->r.data[i];
+            if (isnan(v))
+                continue;
+            if (!(v >= 0 && v < (float)n_lut && v == floorf(v))) {
+                tsio_errf(err, path,
+                          "palette index %g at column %zu, row %zu has no colour "
+                          "(the palette has %d)",
+                          (double)v, i % (size_t)out->r.width, i / (size_t)out->r.width, n_lut);
+                tsio_raster_free(out);
+                free(lut);
+                return -1;
+            }
+            out->r.data[i] = lut[(int)v];
+        }
+    } else if (kind == 2) {
+        tsio_raster g, bl;
+        rc = tsio_read_raster(path, 2, &g, err);
+        if (rc == 0 && tsio_read_raster(path, 3, &bl, err) != 0) {
+            tsio_raster_free(&g);
+            rc = -1;
+        }
+        if (rc != 0) {
+            tsio_raster_free(out);
+            free(lut);
+            return -1;
+        }
+        for (i = 0; i < n; i++)
+            out->r.data[i] =
+                (float)(0.299 * out->r.data[i] + 0.587 * g.r.data[i] + 0.114 * bl.r.data[i]);
+        tsio_raster_free(&g);
+        tsio_raster_free(&bl);
+    }
+    free(lut);
+    return 0;
 }
 
 /* Elevations the Earth has (metres, with a margin): the deepest trench is

@@ -708,7 +708,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     } else if (job->sketch) {
         tsio_raster sk;
         int bad;
-        if (tsio_read_raster(job->sketch, 1, &sk, err) != 0)
+        if (tsio_read_drawing(job->sketch, &sk, err) != 0)
             goto done;
         bad =
             ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params, &params, &cons,

@@ -347,3 +347,50 @@ def test_wanted_heights_with_a_sketch(tmp_path):
     for v in (hi, lo):
         m = want == v
         assert abs(z[m].mean() - v) <= 0.1 * (hi - lo), (v, z[m].mean(), lo, hi)
+
+
+def _drawing(path, bands, ds_like, palette=None):
+    """A Byte drawing on ds_like's grid: bands is a list of arrays (1: grey or indices, 3: RGB)."""
+    out = gdal.GetDriverByName("GTiff").Create(str(path), ds_like.RasterXSize,
+                                               ds_like.RasterYSize, len(bands), gdal.GDT_Byte,
+                                               ["PHOTOMETRIC=RGB"] if len(bands) == 3 else [])
+    out.SetGeoTransform(ds_like.GetGeoTransform())
+    out.SetProjection(ds_like.GetProjection())
+    for i, a in enumerate(bands):
+        out.GetRasterBand(i + 1).WriteArray(a)
+    if palette is not None:
+        ct = gdal.ColorTable()
+        for i, rgb in enumerate(palette):
+            ct.SetColorEntry(i, tuple(int(c) for c in rgb) + (255,))
+        out.GetRasterBand(1).SetRasterColorTable(ct)
+        out.GetRasterBand(1).SetRasterColorInterpretation(gdal.GCI_PaletteIndex)
+    out = None
+
+
+def test_drawings_are_read_as_colours(tmp_path):
+    """A paletted drawing is read by its colours and an RGB one by its luminance: the same
+    terrain as the grey drawing numpy makes of them (a white stroke at index 0 is a ridge)."""
+    ds = gdal.Open(LAMBDA)
+    grey = np.clip(ds.ReadAsArray(), 0, 255).astype(np.uint8)
+    # the palette reversed: index i is the grey 255 - i
+    _drawing(tmp_path / "pal.tif", [255 - grey], ds, [(255 - i,) * 3 for i in range(256)])
+    _drawing(tmp_path / "rgb.tif", [grey, grey, grey], ds)
+    _drawing(tmp_path / "grey.tif", [grey], ds)
+    outs = {}
+    for name in ("grey", "pal", "rgb"):
+        run("synth", "--sketch", tmp_path / (name + ".tif"), "--exemplar", JACKSBORO, "--seed", 1,
+            "--drainage", "keep", tmp_path / (name + "_out.tif"), "-q")
+        outs[name] = gdal.Open(str(tmp_path / (name + "_out.tif"))).ReadAsArray()
+    assert np.array_equal(outs["pal"], outs["grey"])
+    assert np.array_equal(outs["rgb"], outs["grey"])
+    # an index with no colour in the palette is refused, naming it (a VRT's palette of 16)
+    vrt = gdal.Translate(str(tmp_path / "short.vrt"), str(tmp_path / "grey.tif"), format="VRT")
+    vrt = None
+    text = (tmp_path / "short.vrt").read_text()
+    entries = "".join('<Entry c1="0" c2="0" c3="0" c4="255"/>' for _ in range(16))
+    text = text.replace("<ColorInterp>Gray</ColorInterp>",
+                        "<ColorInterp>Palette</ColorInterp><ColorTable>%s</ColorTable>" % entries)
+    (tmp_path / "short.vrt").write_text(text)
+    p = run("synth", "--sketch", tmp_path / "short.vrt", "--exemplar", JACKSBORO,
+            tmp_path / "x.tif", check=False)
+    assert p.returncode != 0 and "has no colour (the palette has 16)" in p.stderr
