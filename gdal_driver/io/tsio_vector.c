@@ -700,15 +700,104 @@ int tsio_write_streams(const char *path, const tsio_georef *geo, const ts_stream
 int tsio_read_label_map(const char *path, const tsio_georef *geo, const char *field, int fill,
                         int32_t *values, tsio_err *err)
 {
-    return tsio_read_label_window(path, geo, 0, 0, geo->width, geo->height, field, fill, values,
-                                  err);
+    size_t i, n = (size_t)geo->width * (size_t)geo->height;
+    if (tsio_read_label_window(path, geo, 0, 0, geo->width, geo->height, field, fill, values,
+                               err) != 0)
+        return -1;
+    for (i = 0; i < n && values[i] == fill; i++)
+        ;
+    if (i == n) {
+        tsio_errf(err, path,
+                  "labels no cell of the output grid (no %s, or none over the grid): a map "
+                  "that labels nothing changes nothing",
+                  field);
+        return -1;
+    }
+    return 0;
+}
+
+/* A raster's labels: whole numbers (a float raster's 1.6 is not rounded to 2). */
+static int label_raster(const char *path, GDALRasterBandH b, int x0, int y0, int w, int h, int fill,
+                        int32_t *values, tsio_err *err)
+{
+    size_t i, n = (size_t)w * (size_t)h;
+    int has_nd = 0;
+    double nd = GDALGetRasterNoDataValue(b, &has_nd);
+    double *v = malloc((n ? n : 1) * sizeof *v);
+    if (!v) {
+        tsio_errf(err, path, "out of memory");
+        return -1;
+    }
+    if (GDALRasterIO(b, GF_Read, x0, y0, w, h, v, w, h, GDT_Float64, 0, 0) != CE_None) {
+        tsio__set_err_gdal(err, path, "cannot read the region map");
+        free(v);
+        return -1;
+    }
+    for (i = 0; i < n; i++) {
+        if (isnan(v[i]) || (has_nd && v[i] == nd)) {
+            values[i] = fill;
+            continue;
+        }
+        if (v[i] != floor(v[i]) || v[i] < -2147483647.0 || v[i] > 2147483647.0) {
+            tsio_errf(err, path,
+                      "region %.6g at column %zu, row %zu is not a whole number: region ids "
+                      "are integers",
+                      v[i], (size_t)x0 + i % (size_t)w, (size_t)y0 + i / (size_t)w);
+            free(v);
+            return -1;
+        }
+        values[i] = (int32_t)v[i];
+    }
+    free(v);
+    return 0;
+}
+
+/* A polygon layer whose field holds whole numbers: an Integer field, or a Real one whose
+ * values all are. */
+static int label_layer_ok(const char *path, OGRLayerH layer, const char *field, tsio_err *err)
+{
+    OGRFeatureDefnH defn = OGR_L_GetLayerDefn(layer);
+    int fi = OGR_FD_GetFieldIndex(defn, field);
+    OGRwkbGeometryType gt = wkbFlatten(OGR_L_GetGeomType(layer));
+    OGRFieldType t;
+    if (fi < 0) {
+        tsio_errf(err, path, "the polygon layer has no integer field \"%s\"", field);
+        return -1;
+    }
+    if (gt != wkbUnknown && gt != wkbPolygon && gt != wkbMultiPolygon &&
+        gt != wkbGeometryCollection && gt != wkbCurvePolygon && gt != wkbMultiSurface) {
+        tsio_errf(err, path, "its first layer holds %s, not polygons: draw the regions as polygons",
+                  OGRGeometryTypeToName(gt));
+        return -1;
+    }
+    t = OGR_Fld_GetType(OGR_FD_GetFieldDefn(defn, fi));
+    if (t == OFTReal) {
+        OGRFeatureH f;
+        OGR_L_ResetReading(layer);
+        while ((f = OGR_L_GetNextFeature(layer))) {
+            double v = OGR_F_GetFieldAsDouble(f, fi);
+            GIntBig fid = OGR_F_GetFID(f);
+            OGR_F_Destroy(f);
+            if (v != floor(v)) {
+                tsio_errf(err, path,
+                          "feature %lld: %s %.6g is not a whole number: region ids are integers",
+                          (long long)fid, field, v);
+                return -1;
+            }
+        }
+        OGR_L_ResetReading(layer);
+    } else if (t != OFTInteger && t != OFTInteger64) {
+        tsio_errf(err, path, "field \"%s\" holds %s: region ids are integers (an Integer field)",
+                  field, OGR_GetFieldTypeName(t));
+        return -1;
+    }
+    return 0;
 }
 
 int tsio_read_label_window(const char *path, const tsio_georef *geo, int x0, int y0, int w, int h,
                            const char *field, int fill, int32_t *values, tsio_err *err)
 {
     GDALDatasetH src, mem = NULL;
-    size_t i, n = (size_t)w * (size_t)h;
     double gt[6];
     int rc = -1;
     /* the window's own geotransform: its cells are the grid's */
@@ -726,34 +815,20 @@ int tsio_read_label_window(const char *path, const tsio_georef *geo, int x0, int
         goto done;
     }
     if (GDALGetRasterCount(src) > 0) {
-        GDALRasterBandH b = GDALGetRasterBand(src, 1);
-        int has_nd = 0;
-        double nd = GDALGetRasterNoDataValue(b, &has_nd);
         if (GDALGetRasterXSize(src) != geo->width || GDALGetRasterYSize(src) != geo->height) {
             tsio_errf(err, path, "the region map is %d x %d cells, the output %d x %d",
                       GDALGetRasterXSize(src), GDALGetRasterYSize(src), geo->width, geo->height);
             goto done;
         }
-        if (GDALRasterIO(b, GF_Read, x0, y0, w, h, values, w, h, GDT_Int32, 0, 0) != CE_None) {
-            tsio__set_err_gdal(err, path, "cannot read the region map");
-            goto done;
-        }
-        if (has_nd)
-            for (i = 0; i < n; i++)
-                if ((double)values[i] == nd)
-                    values[i] = fill;
-        rc = 0;
+        rc = label_raster(path, GDALGetRasterBand(src, 1), x0, y0, w, h, fill, values, err);
     } else if (GDALDatasetGetLayerCount(src) > 0) {
         OGRLayerH layer = GDALDatasetGetLayer(src, 0);
-        OGRFeatureDefnH defn = OGR_L_GetLayerDefn(layer);
         char *argv[] = {"-a", (char *)field, NULL};
         GDALRasterizeOptions *ro;
         int usage = 0;
         GDALDatasetH out;
-        if (OGR_FD_GetFieldIndex(defn, field) < 0) {
-            tsio_errf(err, path, "the polygon layer has no integer field \"%s\"", field);
+        if (label_layer_ok(path, layer, field, err) != 0)
             goto done;
-        }
         mem = GDALCreate(GDALGetDriverByName("MEM"), "", w, h, 1, GDT_Int32, NULL);
         if (!mem) {
             tsio_errf(err, path, "out of memory");

@@ -342,10 +342,10 @@ int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *r
 }
 
 /* Region ids (a label map's values) into the exemplar each takes, -1 for
- * any (--region-exemplar rules). */
-static void job_region_exemplars(const tsjob_synth *job, int32_t *cell_ex, size_t n)
+ * any (--region-exemplar rules); the number of cells a rule gives one. */
+static size_t job_region_exemplars(const tsjob_synth *job, int32_t *cell_ex, size_t n)
 {
-    size_t c;
+    size_t c, ruled = 0;
     int r;
     for (c = 0; c < n; c++) {
         int32_t id = cell_ex[c], ex_i = -1;
@@ -353,7 +353,9 @@ static void job_region_exemplars(const tsjob_synth *job, int32_t *cell_ex, size_
             if (job->region_id[r] == id)
                 ex_i = job->region_exemplar[r];
         cell_ex[c] = ex_i;
+        ruled += ex_i >= 0;
     }
+    return ruled;
 }
 
 /* A tile's window's part of the job's constraints (tsjob_synth_tiles). */
@@ -699,7 +701,11 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         }
         if (tsio_read_label_map(job->regions, &res->geo, "region", INT32_MIN, cell_ex, err) != 0)
             goto done;
-        job_region_exemplars(job, cell_ex, n);
+        if (job_region_exemplars(job, cell_ex, n) == 0) {
+            tsio_errf(err, job->regions,
+                      "no cell's region has a region_exemplar rule: the map changes nothing");
+            goto done;
+        }
         cons.cell_exemplar = cell_ex;
     }
     if (job->sketch && res->sketch_lines) {

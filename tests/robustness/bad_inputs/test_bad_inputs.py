@@ -22,7 +22,7 @@ DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))
 DEM = os.path.join(DATA, "jacksboro_fault_dem.tif")
 SKETCH = os.path.join(DATA, "sketches", "lambda_ridges.tif")
 
-from osgeo import gdal, osr  # noqa: E402
+from osgeo import gdal, ogr, osr  # noqa: E402
 
 gdal.UseExceptions()
 
@@ -111,6 +111,30 @@ def template(tmp_path_factory):
     c.SetProjection(wkt)
     c.GetRasterBand(1).WriteArray(z.astype(np.complex64))
     c = None
+    # region maps that say nothing usable: a fractional id, ids as text, points, far away
+    r = np.ones(z.shape, np.float32)
+    r[10:20, 10:20] = 1.6
+    write_dem(w / "regfloat.tif", r, gt, wkt)
+    cx, cy = gt[0] + gt[1] * z.shape[1] / 2, gt[3] + gt[5] * z.shape[0] / 2
+    far = gt[1] * z.shape[1] * 100
+    for name, geom, ftype, value, dx in (
+            ("regstr", ogr.wkbPolygon, ogr.OFTString, "2abc", 0),
+            ("regpts", ogr.wkbPoint, ogr.OFTInteger, 2, 0),
+            ("regfar", ogr.wkbPolygon, ogr.OFTInteger, 2, far)):
+        ds = ogr.GetDriverByName("GPKG").CreateDataSource(str(w / (name + ".gpkg")))
+        srs = osr.SpatialReference(wkt=wkt)
+        lyr = ds.CreateLayer("regions", srs, geom)
+        lyr.CreateField(ogr.FieldDefn("region", ftype))
+        f = ogr.Feature(lyr.GetLayerDefn())
+        f.SetField("region", value)
+        s_ = abs(gt[1]) * 20
+        wkt_g = ("POINT (%r %r)" % (cx + dx, cy) if geom == ogr.wkbPoint else
+                 "POLYGON ((%r %r, %r %r, %r %r, %r %r, %r %r))" % (
+                     cx + dx - s_, cy - s_, cx + dx + s_, cy - s_, cx + dx + s_, cy + s_,
+                     cx + dx - s_, cy + s_, cx + dx - s_, cy - s_))
+        f.SetGeometry(ogr.CreateGeometryFromWkt(wkt_g))
+        lyr.CreateFeature(f)
+        ds = None
     (w / "text.tif").write_text("this is not a raster\n")
     (w / "empty.tif").write_bytes(b"")
     (w / "broken.tsyn").write_text("<TerraSynth version='1'><Synth><Exemplar>")
