@@ -483,7 +483,10 @@ static int recipe_open_offline(const char *path, const char *const *oo, tsrecipe
         const CPLXMLNode *cn = NULL;
         const tsjob_decl *job = tsjob_find_element(top, &cn);
         node = (CPLXMLNode *)cn;
-        if (job) {
+        char msg[512];
+        if (job && tsrecipe_check_schema(job, top, node, msg, sizeof msg) != 0) {
+            tsio_errf(err, path, "%s", msg);
+        } else if (job) {
             r->method = !strcmp(job->name, "ppa")       ? TSRECIPE_PPA
                         : !strcmp(job->name, "synth")   ? TSRECIPE_SYNTH
                         : !strcmp(job->name, "pixel")   ? TSRECIPE_PIXEL
@@ -743,9 +746,9 @@ static int recipe_read_window_offline(tsrecipe *r, int x0, int y0, int w, int h,
     }
     if (r->method == TSRECIPE_PIXEL) {
         ts_ctx_set_seed(ctx, r->seed);
-        rc = r->has_raw_lock ? tsrecipe__raw_drained(r, ctx, x0, y0, w, h, out, err)
-                             : tsjob_pixel_window(ctx, &r->pixel, &r->pixel_res, x0, y0, w, h,
-                                                  out, err);
+        rc = r->has_raw_lock
+                 ? tsrecipe__raw_drained(r, ctx, x0, y0, w, h, out, err)
+                 : tsjob_pixel_window(ctx, &r->pixel, &r->pixel_res, x0, y0, w, h, out, err);
         ts_ctx_free(ctx);
         return rc;
     }

@@ -188,6 +188,86 @@ int tsrecipe_values_from_xml(tsjob_values *v, const CPLXMLNode *node,
     return 0;
 }
 
+/* ---- the schema: what the declarations give each element ---- */
+
+/* Does option o's recipe name (or its kind's own attributes) give element `elem` ("" for
+ * the job's element) the attribute `attr`? */
+static int option_has_attr(const tsjob_option *o, const char *elem, const char *attr)
+{
+    char e[64], a[64], b[64];
+    int parts, i;
+    if (!o->xml)
+        return 0;
+    parts = xml_split(o->xml, e, a, b, sizeof e);
+    if (!EQUAL(e, elem))
+        return 0;
+    if ((parts >= 1 && EQUAL(a, attr)) || (parts == 2 && EQUAL(b, attr)))
+        return 1;
+    if (o->kind == TSJOB_PIN)
+        for (i = 0; i < 6; i++)
+            if (EQUAL(pin_attrs[i], attr))
+                return 1;
+    return (o->kind == TSJOB_RULE && EQUAL(attr, "id")) ||
+           (o->kind == TSJOB_NAMED && EQUAL(attr, "name")) ||
+           (o->kind == TSJOB_PAIR && o->choices && EQUAL(attr, o->choices));
+}
+
+static int job_has(const tsjob_decl *job, const char *elem, const char *attr)
+{
+    size_t k;
+    for (k = 0; k < job->n_opts; k++) {
+        char e[64], a[64], b[64];
+        if (attr ? option_has_attr(&job->opts[k], elem, attr)
+                 : (job->opts[k].xml &&
+                    (xml_split(job->opts[k].xml, e, a, b, sizeof e), e[0] && EQUAL(e, elem))))
+            return 1;
+    }
+    return 0;
+}
+
+int tsrecipe_check_schema(const tsjob_decl *job, const CPLXMLNode *top, const CPLXMLNode *node,
+                          char *msg, size_t len)
+{
+    const CPLXMLNode *c, *d;
+    for (c = top->psChild; c; c = c->psNext) {
+        if (c->eType == CXT_Attribute && !EQUAL(c->pszValue, "version")) {
+            snprintf(msg, len, "<TerraSynth %s=...>: unknown attribute", c->pszValue);
+            return -1;
+        }
+        if (c->eType == CXT_Element && c != node) {
+            snprintf(msg, len, "<TerraSynth> holds <%s> besides <%s>: a recipe runs one job",
+                     c->pszValue, node->pszValue);
+            return -1;
+        }
+    }
+    for (c = node->psChild; c; c = c->psNext) {
+        int param = c->eType == CXT_Element && EQUAL(c->pszValue, "Param");
+        if (c->eType == CXT_Attribute && !job_has(job, "", c->pszValue)) {
+            snprintf(msg, len, "<%s %s=...>: unknown attribute", node->pszValue, c->pszValue);
+            return -1;
+        }
+        if (c->eType != CXT_Element)
+            continue;
+        if (!param && !job_has(job, c->pszValue, NULL)) {
+            snprintf(msg, len, "<%s> has no element <%s>", node->pszValue, c->pszValue);
+            return -1;
+        }
+        for (d = c->psChild; d; d = d->psNext) {
+            if (d->eType == CXT_Element) {
+                snprintf(msg, len, "<%s> holds <%s>: it takes no elements", c->pszValue,
+                         d->pszValue);
+                return -1;
+            }
+            if (d->eType == CXT_Attribute &&
+                !(param ? EQUAL(d->pszValue, "name") : job_has(job, c->pszValue, d->pszValue))) {
+                snprintf(msg, len, "<%s %s=...>: unknown attribute", c->pszValue, d->pszValue);
+                return -1;
+            }
+        }
+    }
+    return 0;
+}
+
 /* The child element `name` of node, created when missing. */
 static CPLXMLNode *xml_child(CPLXMLNode *node, const char *name)
 {

@@ -21,6 +21,12 @@ int tsrecipe_values_from_xml(tsjob_values *v, const CPLXMLNode *node,
 
 /* Write v as the job's element under root; `rel` turns a file name into its
  * form in the recipe (relative to it). */
+/* Refuse what the declarations do not give a recipe: an attribute of <TerraSynth> other
+ * than version, a second element beside the job's, an element or attribute the job's
+ * options do not name (a typo is refused, not ignored); 0, or -1 with msg. */
+int tsrecipe_check_schema(const tsjob_decl *job, const CPLXMLNode *top, const CPLXMLNode *node,
+                          char *msg, size_t len);
+
 void tsrecipe_values_to_xml(const tsjob_values *v, CPLXMLNode *root,
                             const char *(*rel)(void *user, const char *name), void *user);
 

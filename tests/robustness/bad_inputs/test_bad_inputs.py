@@ -67,6 +67,13 @@ RECIPES = {
     "pin_far.tsyn": "<Synth><Exemplar>dem.tif</Exemplar>" + GRID % "EPSG:32616" +
                     "<Pin xoff='2147483600' yoff='0' width='100' height='20' x='0' y='0'>"
                     "dem.tif</Pin></Synth>",
+    # a recipe's typos are refused, not ignored
+    "watter.tsyn": "<Synth><Exemplar>dem.tif</Exemplar>" + GRID % "EPSG:32616" +
+                   "<Watter level='300'>mask.tif</Watter></Synth>",
+    "sed.tsyn": "<Synth sed='5'><Exemplar>dem.tif</Exemplar>" + GRID % "EPSG:32616" + "</Synth>",
+    "bnd.tsyn": "<PPA><Input bnd='2'>dem.tif</Input></PPA>",
+    "two_jobs.tsyn": "<Synth><Exemplar>dem.tif</Exemplar>" + GRID % "EPSG:32616" +
+                     "</Synth><PPA><Input>dem.tif</Input></PPA>",
     "pin_off.tsyn": "<Synth><Exemplar>dem.tif</Exemplar>" + GRID % "EPSG:32616" +
                     "<Pin xoff='0' yoff='0' width='20' height='20' x='2147483640' y='0'>"
                     "dem.tif</Pin></Synth>",
