@@ -64,12 +64,27 @@ def tsyn_driver(plugins):
     return gdal, drv
 
 
+def _chunk_dataset(recipe, plugins):
+    """The recipe opened once per worker thread (a GDAL dataset is one thread's), kept on the
+    Dask worker object like the tile handles (_tiles_handle says why not a global)."""
+    import threading
+    gdal, _ = tsyn_driver(plugins)
+    try:
+        from distributed import get_worker
+        cache = get_worker().__dict__.setdefault("_terrasynth_chunks", {})
+    except (ImportError, ValueError):  # not on a worker: no cache
+        cache = {}
+    st = os.stat(recipe)  # a recipe rewritten in place is opened anew
+    key = (recipe, st.st_mtime_ns, st.st_size, threading.get_ident())
+    if key not in cache:
+        cache[key] = gdal.OpenEx(recipe, gdal.OF_RASTER | gdal.OF_READONLY,
+                                 allowed_drivers=["TSYN"])
+    return cache[key]
+
+
 def read_chunk(recipe, plugins, x, y, w, h):
     """One window of the recipe, read through the TSYN driver (runs on a worker)."""
-    gdal, _ = tsyn_driver(plugins)
-    ds = gdal.OpenEx(recipe, gdal.OF_RASTER | gdal.OF_READONLY, allowed_drivers=["TSYN"])
-    a = ds.GetRasterBand(1).ReadAsArray(x, y, w, h)
-    ds = None
+    a = _chunk_dataset(recipe, plugins).GetRasterBand(1).ReadAsArray(x, y, w, h)
     return x, y, a
 
 
@@ -163,6 +178,11 @@ def worker_stats():
     import resource
     u = resource.getrusage(resource.RUSAGE_SELF)
     return u.ru_maxrss / 1024.0, u.ru_utime + u.ru_stime
+
+
+def recipe_opens(dask_worker):
+    """How many times this worker opened the recipe for chunks (once per thread)."""
+    return len(dask_worker.__dict__.get("_terrasynth_chunks", {}))
 
 
 def wave(ti, tj):
@@ -417,6 +437,10 @@ def main(argv=None):
         elif a.stats:
             for w, (mb, cpu) in sorted(client.run(worker_stats).items()):
                 print("%s: worker %s peak memory %.0f MB, %.1f CPU s" % (PROG, w, mb, cpu))
+        if a.stats and windows_alone and not tile:
+            opens = client.run(recipe_opens)
+            print("%s: the recipe opened %d times on %d workers for %d chunks" % (
+                PROG, sum(opens.values()), len(opens), len(windows)))
         ob = None
         final = tmp
         if not a.no_overviews:

@@ -8,6 +8,7 @@ nothing behind.  Skips when python3-distributed is absent; not under the sanitiz
 runner is plain Python and its workers would each load the instrumented plugin: the plugin is
 checked under them by tests/gdal)."""
 import os
+import re
 import stat
 import subprocess
 import sys
@@ -68,11 +69,16 @@ def test_pixel_recipe_chunk_by_chunk(tmp_path, chunk, kind):
     recipe = tmp_path / "p.tsyn"
     run("pixel", "--exemplar", JACKSBORO, "--size", "300x260", "--seed", 5, "--recipe", recipe)
     translate(recipe, tmp_path / "gt.tif")
-    p = runner(recipe, tmp_path / "dask.tif", "--workers", 2, "--chunk", chunk,
+    p = runner(recipe, tmp_path / "dask.tif", "--workers", 2, "--chunk", chunk, "--stats",
                *([kind] if kind else []))
     assert "chunk by chunk" in p.stdout
     n = -(-300 // chunk) * -(-260 // chunk)
     assert f"in {n} chunks" in p.stdout
+    # the recipe is opened once per worker thread, not once per chunk
+    m = re.search(r"the recipe opened (\d+) times on 2 workers for (\d+) chunks", p.stdout)
+    assert m and int(m.group(2)) == n and 1 <= int(m.group(1)) <= 2 * (os.cpu_count() or 1)
+    if n > 4 * (os.cpu_count() or 1):
+        assert int(m.group(1)) < n
     same_raster(tmp_path / "dask.tif", tmp_path / "gt.tif")
     ds = gdal.Open(str(tmp_path / "dask.tif"))
     st = ds.GetMetadata("IMAGE_STRUCTURE")
