@@ -144,8 +144,8 @@ void cli_option_left(const tsjob_option *o, char *left, size_t len)
 
 const char *cli_stage_title(const char *stage)
 {
-    return !strcmp(stage, "sketch")    ? "Sketch parameters (with --sketch)"
-           : !strcmp(stage, "ppa")     ? "PPA parameters"
+    return !strcmp(stage, "sketch")     ? "Sketch parameters (with --sketch)"
+           : !strcmp(stage, "ppa")      ? "PPA parameters"
            : !strcmp(stage, "amplify")  ? "Amplification parameters"
            : !strcmp(stage, "drainage") ? "Drainage parameters (after the method)"
                                         : "Synthesis parameters";
@@ -282,7 +282,7 @@ void cli_drainage_report(const ts_drainage_params *p, const ts_drainage_info *d,
 {
     static const char *const modes[] = {"keep", "breach", "fill"};
     double cells = (double)width * (double)height;
-    char depth[96] = "";
+    char depth[160] = "";
     if (p->mode == TS_DRAINAGE_KEEP)
         return;
     if (p->mode == TS_DRAINAGE_BREACH && p->bank_slope > 0)
@@ -290,6 +290,9 @@ void cli_drainage_report(const ts_drainage_params *p, const ts_drainage_info *d,
     if (p->mode == TS_DRAINAGE_BREACH && ts_drainage_depth_of(p) > 0)
         snprintf(depth + strlen(depth), sizeof depth - strlen(depth), ", cuts at most %.3g deep",
                  ts_drainage_depth_of(p));
+    if (p->mode == TS_DRAINAGE_BREACH && p->shallow_depth > 0)
+        snprintf(depth + strlen(depth), sizeof depth - strlen(depth),
+                 " (%.3g beside drawn valleys)", p->shallow_depth);
     printf("drainage: %s%s, %zu pits, %zu drained within %d cells; %zu cells changed (%.2f %%), "
            "mean %.2f; %.2f s\n",
            modes[p->mode], depth, d->pits, d->resolved, p->radius, d->cells_changed,

@@ -309,7 +309,8 @@ static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, 
                         int *x0, int *y0, int *w, int *h, tsio_err *err);
 
 /* The job's drainage stage with its automatic bank slope from the exemplars as read. */
-static void job_drainage_banks(const tsjob_synth *job, tsjob_synth_result *res, const ts_raster *exr)
+static void job_drainage_banks(const tsjob_synth *job, tsjob_synth_result *res,
+                               const ts_raster *exr)
 {
     res->drainage = job->drainage;
     if (res->drainage.bank_slope == -1)
@@ -427,12 +428,14 @@ static int job_rect_flags(const tsjob_synth *job, const tsjob_synth_result *res,
         for (y = ya; y < yb; y++)
             for (x = xa; x < xb; x++) {
                 float v = TS_PIX(&res->pin_ex[i].r, pw[0] + x - p->x, pw[1] + y - p->y);
-                unsigned char *f = &flags[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])];
+                unsigned char *f =
+                    &flags[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])];
                 if (isnan(v))
                     continue;
                 if (values)
                     TS_PIX(values, x - win[0], y - win[1]) = v;
-                *f = (unsigned char)((*f | TS_CELL_FIXED) & ~TS_CELL_WATER); /* a pin over water: land */
+                *f = (unsigned char)((*f | TS_CELL_FIXED) &
+                                     ~TS_CELL_WATER); /* a pin over water: land */
             }
     }
     return 0;
@@ -601,6 +604,50 @@ done:
 /* The drainage stage on the whole output: the water, the pins and the
  * sketch's valley floors fixed, its ridges barriers a channel crosses only
  * where it must. */
+/* TS_CELL_SHALLOW on the cells within r (Chebyshev) of a drawn valley's floor: a
+ * running window along the rows, then along the columns; -1 out of memory. */
+static int mark_beside_valleys(unsigned char *flags, int w, int h, int r)
+{
+    unsigned char *row = malloc((size_t)w * (size_t)h);
+    int x, y;
+    if (!row)
+        return -1;
+    for (y = 0; y < h; y++) {
+        const unsigned char *f = flags + (size_t)y * (size_t)w;
+        unsigned char *o = row + (size_t)y * (size_t)w;
+        int last = -1 - r;
+        for (x = 0; x < w; x++) {
+            if (f[x] & TS_CELL_FIXED)
+                last = x;
+            o[x] = x - last <= r;
+        }
+        last = w + r + 1;
+        for (x = w - 1; x >= 0; x--) {
+            if (f[x] & TS_CELL_FIXED)
+                last = x;
+            o[x] |= last - x <= r;
+        }
+    }
+    for (x = 0; x < w; x++) {
+        int last = -1 - r;
+        for (y = 0; y < h; y++) {
+            if (row[(size_t)y * (size_t)w + (size_t)x])
+                last = y;
+            if (y - last <= r)
+                flags[(size_t)y * (size_t)w + (size_t)x] |= TS_CELL_SHALLOW;
+        }
+        last = h + r + 1;
+        for (y = h - 1; y >= 0; y--) {
+            if (row[(size_t)y * (size_t)w + (size_t)x])
+                last = y;
+            if (last - y <= r)
+                flags[(size_t)y * (size_t)w + (size_t)x] |= TS_CELL_SHALLOW;
+        }
+    }
+    free(row);
+    return 0;
+}
+
 static int job_drain_whole(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
                            unsigned char *flags, job_progress *jp, tsio_err *err)
 {
@@ -620,11 +667,14 @@ static int job_drain_whole(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_resu
             if (res->sketch_features->mask[i] & TS_VALLEY)
                 flags[i] |= TS_CELL_FIXED;
         }
-    /* with a sketch, channels cut at most twice the banks' slope by default: a deeper
-     * one runs beside a drawn valley's fixed floor as a trench and leaves the floor
-     * standing as a wall (the sketch matrices' seams) */
-    if (job->sketch && res->drainage.max_depth == -1 && res->drainage.bank_slope > 0)
-        res->drainage.max_depth = 2.0 * res->drainage.bank_slope;
+    /* with a sketch, a pit beside a drawn valley's floor (within a quarter of the radius)
+     * is cut at most twice the banks' slope deep by default: a deeper channel runs beside
+     * the fixed floor as a trench and leaves the floor standing as a wall (the sketch
+     * matrices' seams); pits farther off are cut as after any method */
+    if (job->sketch && res->drainage.max_depth == -1 && res->drainage.bank_slope > 0 &&
+        mark_beside_valleys(flags, res->geo.width, res->geo.height,
+                            res->drainage.radius >= 8 ? res->drainage.radius / 4 : 2) == 0)
+        res->drainage.shallow_depth = 2.0 * res->drainage.bank_slope;
     clock_gettime(CLOCK_MONOTONIC, &t0);
     rc = tsjob_drain(ctx, &res->drainage, &res->out, flags, 0, 0, res->geo.width, res->geo.height,
                      &res->drainage_info, job->sketch ? job->sketch : "synth", err);

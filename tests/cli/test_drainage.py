@@ -110,9 +110,10 @@ def test_breach_drains_every_method(case, tmp_path):
               crease(keep), crease(slot), crease(breach), float((breach[ok] != keep[ok]).mean())))
     assert before > 0.01
     # the lambda's closed ring holds a basin wider than the radius; with a sketch, channels
-    # cut at most twice the banks' slope by default, and deeper basins are kept
+    # from pits beside a drawn valley cut at most twice the banks' slope by default, and
+    # deeper basins there are kept (the rest drain as after any method)
     assert after_slot <= (0.15 if case == "sketch" else 0.001), after_slot
-    assert after <= (0.98 * before if case == "sketch" else 0.001), after
+    assert after <= (0.8 * before if case == "sketch" else 0.001), after
     assert flat_share(breach) <= flat_share(keep) + 0.002
     assert crease(breach) <= crease(slot) + 1e-6
     assert float((breach[ok] != keep[ok]).mean()) < 0.2

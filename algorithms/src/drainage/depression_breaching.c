@@ -123,15 +123,16 @@ typedef struct dr_scratch {
 } dr_scratch;
 
 typedef struct dr_job {
-    const float *z0;            /* the surface as given (w x h, row-major) */
-    float *out; /* z0 with the fills (atomic max) or the channels and banks cut (atomic min) */
+    const float *z0; /* the surface as given (w x h, row-major) */
+    float *out;      /* z0 with the fills (atomic max) or the channels and banks cut (atomic min) */
     const unsigned char *flags; /* or NULL */
     int w, h;
     int64_t gx0, gy0, gw, gh;
     int lo[2], hi[2]; /* pits looked for in [lo, hi) */
     int mode, radius;
-    double max_depth; /* > 0: no cut deeper (breach) */
-    double banks;     /* > 0: the banks' slope per cell (breach) */
+    double max_depth;     /* > 0: no cut deeper (breach) */
+    double shallow_depth; /* > 0: the same from a pit on a TS_CELL_SHALLOW cell */
+    double banks;         /* > 0: the banks' slope per cell (breach) */
     const int *pits;
     size_t n_pits;
     atomic_size_t resolved;
@@ -269,17 +270,17 @@ static int step_ok(const dr_job *j, int x, int y, int u, int v)
              (j->flags[(size_t)v * (size_t)j->w + (size_t)x] & TS_CELL_BARRIER));
 }
 
-#define DR_STEP_COST 1e-4 /* metres per step: the shorter of two equal channels */
-#define DR_DECREMENT 1e-3 /* height units: the fall from one channel cell to the next */
+#define DR_STEP_COST 1e-4   /* metres per step: the shorter of two equal channels */
+#define DR_DECREMENT 1e-3   /* height units: the fall from one channel cell to the next */
 #define DR_BARRIER_COST 1e7 /* metres: a channel over a drawn ridge, the last resort */
 
 /* What one search looks for from its pit. */
 typedef struct dr_query {
-    const float *z;        /* the surface searched */
-    int minimax;           /* 1: the path whose highest cell is lowest (the spill);
-                              0: the cheapest channel */
-    double level;          /* the pit's level: a target is lower */
-    double max_depth;      /* 0, or: cells higher than level + this are not crossed */
+    const float *z;   /* the surface searched */
+    int minimax;      /* 1: the path whose highest cell is lowest (the spill);
+                         0: the cheapest channel */
+    double level;     /* the pit's level: a target is lower */
+    double max_depth; /* 0, or: cells higher than level + this are not crossed */
 } dr_query;
 
 static int box_index(const dr_job *j, const dr_scratch *s, int px, int py, int at)
@@ -308,9 +309,9 @@ static double shore_level(const dr_job *j, int x, int y)
 }
 
 /* A search from pit (px, py) in its box: the box index of the target it
- * reaches (a cell lower than q->level, or one that drains out), -1 if none within the radius, -2 out of memory.  s->cost holds the
- * key of every cell reached (cost, or height of the path's highest cell),
- * s->parent the way back. */
+ * reaches (a cell lower than q->level, or one that drains out), -1 if none within the radius, -2
+ * out of memory.  s->cost holds the key of every cell reached (cost, or height of the path's
+ * highest cell), s->parent the way back. */
 static int search(const dr_job *j, dr_scratch *s, int px, int py, const dr_query *q)
 {
     const int R = j->radius, side = s->side, start = R * side + R;
@@ -491,8 +492,8 @@ static void cut_banks(dr_job *j, int cx, int cy, float hc, float z)
         for (u = cx - r; u <= cx + r; u++) {
             double d = hypot((double)(u - cx), (double)(v - cy)), nv, zi, t;
             size_t i;
-            if (!(d < rr) || (u == cx && v == cy) || u < 0 || v < 0 || u >= j->w ||
-                v >= j->h || off_grid(j, u, v))
+            if (!(d < rr) || (u == cx && v == cy) || u < 0 || v < 0 || u >= j->w || v >= j->h ||
+                off_grid(j, u, v))
                 continue;
             i = (size_t)v * (size_t)j->w + (size_t)u;
             zi = (double)j->z0[i];
@@ -526,6 +527,9 @@ static int breach_pit(dr_job *j, dr_scratch *s, int px, int py)
     q.minimax = 0;
     q.level = level;
     q.max_depth = j->max_depth;
+    if (j->shallow_depth > 0 && j->flags &&
+        (j->flags[(size_t)py * (size_t)j->w + (size_t)px] & TS_CELL_SHALLOW))
+        q.max_depth = j->shallow_depth;
     found = search(j, s, px, py, &q);
     if (found < 0)
         return found == -2 ? -1 : 0;
@@ -667,8 +671,7 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
         return ts__fail(ctx, TS_ERR_ARG, "drainage", "mode %d is not keep, breach or fill",
                         p->mode);
     if (!(p->max_depth >= 0 || p->max_depth == -1))
-        return ts__fail(ctx, TS_ERR_ARG, "drainage", "depth %g is not -1, 0 or more",
-                        p->max_depth);
+        return ts__fail(ctx, TS_ERR_ARG, "drainage", "depth %g is not -1, 0 or more", p->max_depth);
     if (!(p->bank_slope >= 0 || p->bank_slope == -1))
         return ts__fail(ctx, TS_ERR_ARG, "drainage", "bank slope %g is not -1, 0 or more",
                         p->bank_slope);
@@ -697,6 +700,7 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     j.out = out;
     j.banks = p->bank_slope > 0 ? p->bank_slope : 0.0;
     j.max_depth = ts_drainage_depth_of(p);
+    j.shallow_depth = p->shallow_depth > 0 ? p->shallow_depth : 0.0;
     j.flags = flags;
     j.w = dem->width;
     j.h = dem->height;

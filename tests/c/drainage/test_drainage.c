@@ -213,7 +213,8 @@ static void test_windows_and_threads(void)
         }
         for (k = 0; k < 150; k++) {
             int x0 = (int)(th_uniform(&s) * (w - 10)), y0 = (int)(th_uniform(&s) * (h - 10));
-            int ww = 1 + (int)(th_uniform(&s) * (w - x0)), hh = 1 + (int)(th_uniform(&s) * (h - y0));
+            int ww = 1 + (int)(th_uniform(&s) * (w - x0)),
+                hh = 1 + (int)(th_uniform(&s) * (h - y0));
             int ex0 = x0 - M < 0 ? 0 : x0 - M, ey0 = y0 - M < 0 ? 0 : y0 - M;
             int ex1 = x0 + ww + M > w ? w : x0 + ww + M, ey1 = y0 + hh + M > h ? h : y0 + hh + M;
             int ew = ex1 - ex0, eh = ey1 - ey0, x, y, same = 1;
@@ -289,8 +290,8 @@ static void test_fixed_and_barriers(void)
     memcpy(z, z0, n * sizeof *z);
     CHECK(ts_drainage_apply(ctx, &r, fl, 0, 0, w, h, &p, &info) == TS_OK);
     CHECK(info.resolved == info.pits && deepest(z, w, h, 1e-3, &over) <= 1e-3);
-    CHECK_MSG(barrier_cells_changed(z, z0, fl, n) <= 2,
-              "%zu ridge cells carved", barrier_cells_changed(z, z0, fl, n));
+    CHECK_MSG(barrier_cells_changed(z, z0, fl, n) <= 2, "%zu ridge cells carved",
+              barrier_cells_changed(z, z0, fl, n));
     /* fixed cells: a band across the slope, the pit below it */
     memcpy(z, z0, n * sizeof *z);
     for (y = 0; y < h; y++)
@@ -355,6 +356,61 @@ static void test_deepest_cut_keeps(void)
     free(z);
 }
 
+/* TS_CELL_SHALLOW: a pit on such a cell is cut at most shallow_depth deep.
+ * Every cell flagged with shallow_depth d gives the bytes of max_depth d;
+ * with shallow_depth 0 the flag changes nothing; half the cells flagged
+ * keep more pits than none and fewer than all (each pit on its own). */
+static void test_shallow_beside(void)
+{
+    const int w = 96, h = 80;
+    size_t n = (size_t)w * h, i, kept[3];
+    float *z0 = malloc(n * sizeof *z0), *za = malloc(n * sizeof *za), *zb = malloc(n * sizeof *zb);
+    unsigned char *flags = malloc(n);
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_params p = ts_drainage_params_default();
+    ts_drainage_info info;
+    ts_raster ra = ts_raster_wrap(za, w, h, w), rb = ts_raster_wrap(zb, w, h, w);
+    make_surface(z0, w, h, 4242);
+    p.radius = 200;
+    p.bank_slope = 0;
+    /* all flagged, shallow 1 m == a 1 m limit everywhere */
+    memcpy(za, z0, n * sizeof *za);
+    memcpy(zb, z0, n * sizeof *zb);
+    memset(flags, TS_CELL_SHALLOW, n);
+    p.max_depth = 0;
+    p.shallow_depth = 1.0;
+    CHECK(ts_drainage_apply(ctx, &ra, flags, 0, 0, w, h, &p, &info) == TS_OK);
+    kept[2] = info.pits - info.resolved;
+    p.max_depth = 1.0;
+    p.shallow_depth = 0;
+    CHECK(ts_drainage_apply(ctx, &rb, NULL, 0, 0, w, h, &p, &info) == TS_OK);
+    CHECK(!memcmp(za, zb, n * sizeof *za));
+    /* shallow 0: the flag changes nothing */
+    memcpy(za, z0, n * sizeof *za);
+    memcpy(zb, z0, n * sizeof *zb);
+    p.max_depth = 0;
+    CHECK(ts_drainage_apply(ctx, &ra, flags, 0, 0, w, h, &p, &info) == TS_OK);
+    kept[0] = info.pits - info.resolved;
+    CHECK(ts_drainage_apply(ctx, &rb, NULL, 0, 0, w, h, &p, &info) == TS_OK);
+    CHECK(!memcmp(za, zb, n * sizeof *za));
+    /* the left half flagged */
+    for (i = 0; i < n; i++)
+        flags[i] = (int)(i % (size_t)w) < w / 2 ? TS_CELL_SHALLOW : 0;
+    memcpy(za, z0, n * sizeof *za);
+    p.shallow_depth = 1.0;
+    CHECK(ts_drainage_apply(ctx, &ra, flags, 0, 0, w, h, &p, &info) == TS_OK);
+    kept[1] = info.pits - info.resolved;
+    CHECK_MSG(kept[0] < kept[1] && kept[1] < kept[2], "kept %zu, %zu, %zu", kept[0], kept[1],
+              kept[2]);
+    for (i = 0; i < n; i++)
+        CHECK(za[i] <= z0[i]);
+    ts_ctx_free(ctx);
+    free(z0);
+    free(za);
+    free(zb);
+    free(flags);
+}
+
 /* A valley dammed by a ridge 40 m high across it: breached without banks,
  * a slot one cell wide with creases as sharp as the cut; with banks, the
  * same drainage (no pit left, no cell raised) through a gorge as wide as
@@ -413,8 +469,8 @@ static void test_banks(void)
     c0 = sharpest_crease(z0, w, h);
     c1 = sharpest_crease(slot, w, h);
     c2 = sharpest_crease(gorge, w, h);
-    CHECK_MSG(c1 > 3.0 * c0 && c2 < c0 + 3.0 * s, "creases: %g as given, %g slot, %g gorge", c0,
-              c1, c2);
+    CHECK_MSG(c1 > 3.0 * c0 && c2 < c0 + 3.0 * s, "creases: %g as given, %g slot, %g gorge", c0, c1,
+              c2);
     /* the automatic deepest cut: the slope times an eighth of the radius; the dam
      * needs ~32 m: kept with 4 x 60 / 8 = 30, drained with 4 x 72 / 8 = 36 */
     {
@@ -445,6 +501,7 @@ int main(int argc, char **argv)
         {"breach_and_fill_against_oracle", test_breach_and_fill_against_oracle},
         {"radius_keeps_wide_basins", test_radius_keeps_wide_basins},
         {"deepest_cut_keeps", test_deepest_cut_keeps},
+        {"shallow_beside", test_shallow_beside},
         {"banks", test_banks},
         {"windows_and_threads", test_windows_and_threads},
         {"fixed_and_barriers", test_fixed_and_barriers},
