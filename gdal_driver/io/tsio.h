@@ -218,6 +218,13 @@ int tsio_read_raster_resampled(const char *path, int band, double target_dx_m, d
 int tsio_read_classes_resampled(const char *path, int band, double target_dx_m, double target_dy_m,
                                 double no_crs_cell_m, tsio_raster *out, tsio_err *err);
 
+/** Is g (the raster `path`, "the water mask") on grid (the job's, "output" or "input")?
+ *  The same size, and where both have them, the same geotransform (corners within a
+ *  thousandth of a cell, cell sizes within a millionth) and the same CRS; a raster with
+ *  neither a geotransform nor a CRS is taken by size.  0, or -1 with err. */
+int tsio_same_grid(const char *path, const char *what, const tsio_georef *g,
+                   const tsio_georef *grid, const char *grid_name, tsio_err *err);
+
 /** Georeferencing of a raster without reading its cells. */
 int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err);
 

@@ -268,7 +268,7 @@ static int stem_in_use(const char *dir, const char *tstem)
 /* Build from dir/stem/ext a final name, then pick an unused temporary name. */
 int tsio__out_name_make(const char *dir, const char *stem, const char *ext, out_name *o)
 {
-    char *base;
+    char *base, *short_stem = NULL;
     int k;
     memset(o, 0, sizeof *o);
     o->dir = tsio__str_dup(dir);
@@ -283,6 +283,23 @@ int tsio__out_name_make(const char *dir, const char *stem, const char *ext, out_
     free(base);
     if (!o->final)
         goto nomem;
+    {
+        /* the temporary name and GDAL's sidecars beside it (".aux.xml", "-journal": 12
+         * bytes kept) within a file name's 255 bytes: a long stem is cut (at a whole UTF-8
+         * character) in the temporary name, never in the final one */
+        size_t keep = 255 - 12 - (1 + 4 + 20 + 4) - (ext[0] ? 1 + strlen(ext) : 0), len;
+        len = strlen(stem);
+        if (strlen(ext) > 64)
+            keep = 64;
+        if (len > keep) {
+            while (keep > 0 && ((unsigned char)stem[keep] & 0xC0) == 0x80)
+                keep--;
+            short_stem = tsio__str_fmt("%.*s", (int)keep, stem);
+            if (!short_stem)
+                goto nomem;
+            stem = short_stem;
+        }
+    }
     for (k = 0; k < 1000; k++) {
         long pid = (long)getpid();
         o->tstem = k ? tsio__str_fmt(".%s.tmp%ld-%d", stem, pid, k)
@@ -296,13 +313,16 @@ int tsio__out_name_make(const char *dir, const char *stem, const char *ext, out_
         free(base);
         if (!o->temp)
             goto nomem;
-        if (!tsio__path_exists(o->temp, NULL) && !stem_in_use(dir, o->tstem))
+        if (!tsio__path_exists(o->temp, NULL) && !stem_in_use(dir, o->tstem)) {
+            free(short_stem);
             return 0;
+        }
         free(o->tstem);
         free(o->temp);
         o->tstem = o->temp = NULL;
     }
 nomem:
+    free(short_stem);
     tsio__out_name_free(o);
     return -1;
 }

@@ -99,6 +99,31 @@ int tsio_read_georef(const char *path, tsio_georef *geo, tsio_err *err)
     return 0;
 }
 
+/* A grid whose corners the Earth has: in a geographic CRS longitudes within +-540 degrees
+ * (latitudes past the poles are the ground metrics' to refuse, naming the latitude), in a
+ * projected one within +-1e8 of its units (2.5 times the Earth's circumference in metres),
+ * without a CRS within +-1e15. */
+static int grid_on_earth(const tsio_georef *geo, const char *crs, tsio_err *err)
+{
+    double x0 = geo->gt[0], y0 = geo->gt[3];
+    double x1 = x0 + geo->width * geo->gt[1], y1 = y0 + geo->height * geo->gt[5];
+    double bx = geo->is_geographic ? 540.0 : geo->wkt ? 1e8 : 1e15;
+    double by = geo->is_geographic ? INFINITY : bx;
+    int named = crs && crs[0] && strlen(crs) < 64 && !strchr(crs, '[');
+    if (!(fabs(x0) <= bx && fabs(x1) <= bx && fabs(y0) <= by && fabs(y1) <= by)) {
+        tsio_errf(err, "output grid",
+                  "its corners %.6g, %.6g and %.6g, %.6g lie where no place is in %s (within "
+                  "+-%g%s): check the origin and the resolution",
+                  x0, y0, x1, y1,
+                  named      ? crs
+                  : geo->wkt ? "its CRS"
+                             : "a grid without CRS",
+                  bx, geo->is_geographic ? " degrees of longitude" : "");
+        return -1;
+    }
+    return 0;
+}
+
 int tsio_georef_make(int width, int height, double origin_x, double origin_y, double res_x,
                      double res_y, const char *crs, tsio_georef *geo, tsio_err *err)
 {
@@ -129,12 +154,19 @@ int tsio_georef_make(int width, int height, double origin_x, double origin_y, do
             tsio_errf(err, crs, "not a CRS PROJ knows");
             return -1;
         }
+        if (!OSRIsProjected(srs) && !OSRIsGeographic(srs) && !OSRIsLocal(srs)) {
+            OSRDestroySpatialReference(srs);
+            tsio_errf(err, crs,
+                      "not a horizontal CRS (vertical, geocentric or another kind): a grid "
+                      "needs a projected or geographic one (EPSG:326xx, EPSG:4326, ...)");
+            return -1;
+        }
         OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
         geo->wkt = tsio__srs_to_wkt2(srs);
         geo->is_geographic = OSRIsGeographic(srs);
         OSRDestroySpatialReference(srs);
     }
-    return 0;
+    return grid_on_earth(geo, crs, err);
 }
 
 /* ------------------------------------------------------------------ */
@@ -219,4 +251,58 @@ done:
     if (srs)
         OSRDestroySpatialReference(srs);
     return rc;
+}
+
+/* ------------------------------------------------------------------ */
+/* A raster on another's grid                                          */
+/* ------------------------------------------------------------------ */
+
+int tsio_same_grid(const char *path, const char *what, const tsio_georef *g,
+                   const tsio_georef *grid, const char *grid_name, tsio_err *err)
+{
+    if (g->width != grid->width || g->height != grid->height) {
+        tsio_errf(err, path, "%s is %d x %d cells, the %s %d x %d", what, g->width, g->height,
+                  grid_name, grid->width, grid->height);
+        return -1;
+    }
+    if (g->has_gt && grid->has_gt) {
+        double cx = fabs(grid->gt[1]) + fabs(grid->gt[2]),
+               cy = fabs(grid->gt[4]) + fabs(grid->gt[5]);
+        int k, off = 0;
+        for (k = 0; k < 6; k++) {
+            double scale = (k == 0 || k == 1 || k == 2) ? cx : cy;
+            /* corners within a thousandth of a cell, cell sizes within a millionth */
+            double tol = (k == 0 || k == 3) ? 1e-3 * scale : 1e-6 * scale;
+            if (!(fabs(g->gt[k] - grid->gt[k]) <= tol))
+                off = 1;
+        }
+        if (off) {
+            double x0 = grid->gt[0], y0 = grid->gt[3];
+            double x1 = x0 + grid->width * grid->gt[1], y1 = y0 + grid->height * grid->gt[5];
+            tsio_errf(err, path,
+                      "%s is not on the %s's grid (its corner %.10g, %.10g, cells of %.6g; the "
+                      "%s's %.10g, %.10g, cells of %.6g): warp it onto it (gdalwarp -te %.10g "
+                      "%.10g %.10g %.10g -ts %d %d)",
+                      what, grid_name, g->gt[0], g->gt[3], g->gt[1], grid_name, x0, y0, grid->gt[1],
+                      x0 < x1 ? x0 : x1, y0 < y1 ? y0 : y1, x0 < x1 ? x1 : x0, y0 < y1 ? y1 : y0,
+                      grid->width, grid->height);
+            return -1;
+        }
+    }
+    if (g->wkt && g->wkt[0] && grid->wkt && grid->wkt[0]) {
+        OGRSpatialReferenceH a = tsio__srs_from_wkt(g->wkt), b = tsio__srs_from_wkt(grid->wkt);
+        int same = a && b && OSRIsSame(a, b);
+        if (a)
+            OSRDestroySpatialReference(a);
+        if (b)
+            OSRDestroySpatialReference(b);
+        if (!same) {
+            tsio_errf(err, path,
+                      "%s is in another CRS than the %s: warp it onto the %s's grid (gdalwarp "
+                      "-t_srs, -te and -ts of the %s)",
+                      what, grid_name, grid_name, grid_name);
+            return -1;
+        }
+    }
+    return 0;
 }

@@ -815,11 +815,17 @@ int tsio_read_label_window(const char *path, const tsio_georef *geo, int x0, int
         goto done;
     }
     if (GDALGetRasterCount(src) > 0) {
-        if (GDALGetRasterXSize(src) != geo->width || GDALGetRasterYSize(src) != geo->height) {
-            tsio_errf(err, path, "the region map is %d x %d cells, the output %d x %d",
-                      GDALGetRasterXSize(src), GDALGetRasterYSize(src), geo->width, geo->height);
+        tsio_georef rg;
+        const char *wkt = GDALGetProjectionRef(src);
+        int same;
+        memset(&rg, 0, sizeof rg);
+        rg.width = GDALGetRasterXSize(src);
+        rg.height = GDALGetRasterYSize(src);
+        rg.has_gt = GDALGetGeoTransform(src, rg.gt) == CE_None;
+        rg.wkt = wkt && wkt[0] ? (char *)wkt : NULL;
+        same = tsio_same_grid(path, "the region map", &rg, geo, "output", err);
+        if (same != 0)
             goto done;
-        }
         rc = label_raster(path, GDALGetRasterBand(src, 1), x0, y0, w, h, fill, values, err);
     } else if (GDALDatasetGetLayerCount(src) > 0) {
         OGRLayerH layer = GDALDatasetGetLayer(src, 0);

@@ -130,11 +130,8 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
             tsjob_amplify_result_free(res);
             return -1;
         }
-        if (res->classes.geo.width != res->in.geo.width ||
-            res->classes.geo.height != res->in.geo.height) {
-            tsio_errf(err, job->classes, "the classes are %d x %d cells, the input %d x %d",
-                      res->classes.geo.width, res->classes.geo.height, res->in.geo.width,
-                      res->in.geo.height);
+        if (tsio_same_grid(job->classes, "the class raster", &res->classes.geo, &res->in.geo,
+                           "input", err) != 0) {
             tsjob_amplify_result_free(res);
             return -1;
         }

@@ -378,9 +378,7 @@ static int job_grid_window(const char *path, const char *what, const tsjob_synth
     int rc;
     if (!rd)
         return -1;
-    if (hdr.geo.width != res->geo.width || hdr.geo.height != res->geo.height) {
-        tsio_errf(err, path, "%s is %d x %d cells, the output %d x %d", what, hdr.geo.width,
-                  hdr.geo.height, res->geo.width, res->geo.height);
+    if (tsio_same_grid(path, what, &hdr.geo, &res->geo, "output", err) != 0) {
         tsio_reader_close(rd);
         tsio_raster_free(&hdr);
         return -1;
@@ -477,7 +475,7 @@ static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
     if (job->heights) {
         if (!(wc->heights = malloc(n * sizeof *wc->heights)))
             goto oom;
-        if (job_grid_window(job->heights, "the heights", res, win[0], win[1], win[2], win[3],
+        if (job_grid_window(job->heights, "the heights raster", res, win[0], win[1], win[2], win[3],
                             wc->heights, err) != 0)
             goto fail;
         wc->cons.heights = wc->heights;
@@ -734,11 +732,9 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         if (tsio_read_dem(job->heights, 1, &heights, err) != 0)
             goto done;
         tsjob__warn_sentinels(&res->warning, job->heights, &heights);
-        if (heights.geo.width != res->geo.width || heights.geo.height != res->geo.height) {
-            tsio_errf(err, job->heights, "the heights are %d x %d cells, the output %d x %d",
-                      heights.geo.width, heights.geo.height, res->geo.width, res->geo.height);
+        if (tsio_same_grid(job->heights, "the heights raster", &heights.geo, &res->geo, "output",
+                           err) != 0)
             goto done;
-        }
         cons.heights = heights.r.data;
         cons.alpha_h = job->alpha_h;
     }
@@ -882,9 +878,7 @@ static int job_constraints(const tsjob_synth *job, tsjob_synth_result *res, unsi
         tsio_raster m;
         if (tsio_read_raster(job->water, 1, &m, err) != 0)
             return -1;
-        if (m.geo.width != W || m.geo.height != H) {
-            tsio_errf(err, job->water, "the water mask is %d x %d cells, the output %d x %d",
-                      m.geo.width, m.geo.height, W, H);
+        if (tsio_same_grid(job->water, "the water mask", &m.geo, &res->geo, "output", err) != 0) {
             tsio_raster_free(&m);
             return -1;
         }

@@ -159,8 +159,8 @@ char *tsrecipe_open_option_list(void)
             o = option_add(list, op->name,
                            op->kind == TSJOB_INT      ? "int"
                            : op->kind == TSJOB_NUMBER ? "float"
-                           : op->kind == TSJOB_SEED   ? "unsignedint"
-                                                      : "string",
+                                                      : "string", /* a seed: 64 bits, checked by
+                                                                     the job */
                            CPLSPrintf("%s (%s)", op->help, job->name));
             if (o && (op->kind == TSJOB_INT || op->kind == TSJOB_NUMBER)) {
                 CPLAddXMLAttributeAndValue(o, "min", CPLSPrintf("%.15g", op->min));

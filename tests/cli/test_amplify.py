@@ -470,7 +470,7 @@ def test_layers_and_classes_through_a_dictionary_file(tmp_path):
          "is not on the grid of its exemplar"),
         (["--exemplar", tmp_path / "ex.tif", "--exemplar-layer", "a b=x.tif"], 2,
          "exemplar_layer takes NAME=FILE"),
-        (["--dictionary", d, "--classes", tmp_path / "veg.tif"], 1, "the classes are"),
+        (["--dictionary", d, "--classes", tmp_path / "veg.tif"], 1, "the class raster is"),
         (["--dictionary", d, "--w-l", "0.3"], 1, "built without the irradiance"),
         (["--dictionary", d, "--exemplar-layer", "veg=%s" % (tmp_path / "veg.tif")], 2,
          "the dictionary holds the exemplars' layers and classes"),

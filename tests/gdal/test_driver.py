@@ -180,6 +180,9 @@ def test_open_options_override(tmp_path):
     assert other.tobytes() == arr(tmp_path / "s6.tif").tobytes()
     with pytest.raises(RuntimeError, match="patch_size"):
         gdal.OpenEx(str(tmp_path / "s.tsyn"), open_options=["PATCH_SIZE=5000"])
+    # a seed is taken as a 64-bit number without a word from GDAL's option check
+    p = tool("gdalinfo", "-oo", "SEED=18446744073709551615", tmp_path / "s.tsyn")
+    assert "not recognized" not in p.stderr and "Warning" not in p.stderr, p.stderr
 
 
 def test_nodata_round_trips(tmp_path):

@@ -277,3 +277,15 @@ def test_a_signal_while_writing_leaves_nothing(tmp_path, dem):
     import re
     assert re.search(r"interrupted: removed [1-9]\d* unfinished output file", err), err
     assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize("length", [200, 250])
+def test_long_names_are_written(tmp_path, dem, length):
+    """A name of up to 255 bytes is a valid output: its temporary twin (.NAME.tmpPID.tif and
+    GDAL's sidecars) must fit too, so a long stem is cut there, not refused after the work."""
+    stem = "x" * (length - 4 - 100) + "é" * 50  # é is two bytes: cuts keep whole characters
+    out = tmp_path / (stem + ".tif")
+    assert len(os.fsencode(out.name)) == length
+    run("synth", "--exemplar", dem, "--size", "64x64", "--seed", 1, out, "-q")
+    assert gdal.Open(str(out)).RasterXSize == 64
+    assert sorted(os.listdir(tmp_path)) == sorted(["dem.tif", out.name])  # nothing left

@@ -118,6 +118,11 @@ def template(tmp_path_factory):
     c.SetProjection(wkt)
     c.GetRasterBand(1).WriteArray(z.astype(np.complex64))
     c = None
+    # rasters of the same size on another grid: shifted 100 cells, in another CRS
+    write_dem(w / "mask_far.tif", m, (gt[0] + 100 * gt[1],) + tuple(gt[1:]), wkt)
+    utm = osr.SpatialReference()
+    utm.ImportFromEPSG(32616)
+    write_dem(w / "mask_crs.tif", m, gt, utm.ExportToWkt())
     # region maps that say nothing usable: a fractional id, ids as text, points, far away
     r = np.ones(z.shape, np.float32)
     r[10:20, 10:20] = 1.6
