@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Build and run the libFuzzer target for the recipe parser for a bounded
-# time (default 60 s): tools/fuzz.sh [SECONDS]
+# Build and run a libFuzzer target for a bounded time (default 60 s): the recipe
+# parser, or the dictionary format: tools/fuzz.sh [SECONDS] [recipe|dictionary]
 # SPDX-License-Identifier: GPL-2.0-or-later
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs=${1:-60}
+target=${2:-recipe}
 command -v clang >/dev/null || { echo "fuzz: clang not installed"; exit 1; }
 out=build-fuzz
 mkdir -p "$out/corpus"
@@ -12,8 +13,29 @@ cp tests/fuzz/corpus/* "$out/corpus/"
 san="-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined"
 cc="clang -std=c11 -D_GNU_SOURCE -D_POSIX_C_SOURCE=200809L -O1 -g $san -Wall -Wextra -Werror"
 inc="-I algorithms/include -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch -I gdal_driver/io -I gdal_driver/jobs -I gdal_driver/recipe $(pkg-config --cflags gdal proj fftw3f)"
-# the parser and everything it calls (core included) built instrumented
 version=$(sed -n 's/^project(TerraSynth VERSION \([0-9.]*\).*/\1/p' CMakeLists.txt)
+if [ "$target" = dictionary ]; then
+  # the core alone; seeds: the dictionaries of a small build (the file's 16-byte header cut)
+  cli=build/gdal_driver/terrasynth
+  [ -x "$cli" ] || { echo "fuzz: build the CLI first (it makes the seed dictionaries)"; exit 1; }
+  mkdir -p "$out/dict_corpus"
+  for f in 2 3; do
+    "$cli" dictionary build "$out/seed$f.tsd" --exemplar data/jacksboro_fault_dem.tif \
+      --resolution 45 --factor $f --atoms 64 -q 2>/dev/null || true
+    [ -f "$out/seed$f.tsd" ] && tail -c +17 "$out/seed$f.tsd" > "$out/dict_corpus/seed$f" &&
+      rm -f "$out/seed$f.tsd"
+  done
+  $cc -I algorithms/include -DTS_BUILDING_LIBRARY -o "$out/fuzz_dictionary" \
+    tests/fuzz/fuzz_dictionary.c algorithms/src/*.c algorithms/src/*/*.c \
+    -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch \
+    -I algorithms/src/pixel -I algorithms/src/amplify \
+    -DTS_VERSION_STRING="\"$version\"" $(pkg-config --cflags --libs fftw3f) -lm -lpthread
+  ASAN_OPTIONS=detect_leaks=1 "$out/fuzz_dictionary" -max_total_time="$secs" \
+    -rss_limit_mb=4096 -timeout=20 "$out/dict_corpus" 2>&1 | tail -n 5
+  echo "fuzz: $secs s of dictionaries without a crash"
+  exit 0
+fi
+# the parser and everything it calls (core included) built instrumented
 $cc $inc -DTS_BUILDING_LIBRARY -DTS_VERSION_STRING="\"$version\"" -o "$out/fuzz_recipe" \
   tests/fuzz/fuzz_recipe.c gdal_driver/recipe/*.c gdal_driver/jobs/*.c gdal_driver/io/*.c \
   algorithms/src/*.c algorithms/src/*/*.c \

@@ -74,14 +74,19 @@ static int dictionary_info(const char *path)
     if (tsjob_dictionary_read(ctx, path, &d, &res, &err) != 0) {
         fprintf(stderr, "terrasynth: %s\n", err.msg);
     } else {
-        int L, K, irr, l;
+        int L, K, irr, l, version = 0;
+        unsigned char h[16 + 12];
+        /* read whole and verified above: its format's version from the header */
+        if (tsio_read_head(path, h, sizeof h, &err) == (int)sizeof h)
+            version = h[24] | h[25] << 8;
         ts_dictionary_shape(d, &factor, &patch);
         ts_dictionary_layers(d, &L, &K, &irr);
-        printf("{\"file\": \"%s\", \"version\": 2, \"factor\": %d, \"patch\": %d, \"atoms\": %zu, "
+        printf("{\"file\": \"%s\", \"version\": %d, \"checksum\": \"%s\", \"factor\": %d, "
+               "\"patch\": %d, \"atoms\": %zu, "
                "\"resolution_m\": %.17g, \"input_cell_m\": %.17g, \"irradiance\": %s, "
                "\"classes\": %d, \"layers\": [",
-               path, factor, patch, ts_dictionary_size(d), res, res * factor,
-               irr ? "true" : "false", K);
+               path, version, version >= 3 ? "verified" : "none (version 2: build it again)",
+               factor, patch, ts_dictionary_size(d), res, res * factor, irr ? "true" : "false", K);
         for (l = 0; l < L; l++) /* names of letters, digits, _ and - */
             printf("%s\"%s\"", l ? ", " : "", ts_dictionary_layer_name(d, l));
         printf("]}\n");

@@ -194,14 +194,32 @@ int tsjob_amplify_adopt_dictionary(tsjob_amplify *job, tsio_err *err)
         got = tsio_read_head(path, h, sizeof h, err);
         if (got < 0)
             return -1;
+        if (got >= 8 && !memcmp(h, DICT_FILE_MAGIC, 8) && got < (int)sizeof h) {
+            tsio_errf(err, path, "damaged: cut to %d bytes (a dictionary's header alone has %d)",
+                      got, (int)sizeof h);
+            return -1;
+        }
         if (got < (int)sizeof h || memcmp(h, DICT_FILE_MAGIC, 8) != 0 ||
             memcmp(h + DICT_FILE_HEAD, "TSDICT\r\n", 8) != 0) {
             tsio_errf(err, path,
                       "not a TerraSynth dictionary (made by terrasynth dictionary build)");
             return -1;
         }
-        factor = h[DICT_FILE_HEAD + 12] | h[DICT_FILE_HEAD + 13] << 8;
-        patch = h[DICT_FILE_HEAD + 16] | h[DICT_FILE_HEAD + 17] << 8;
+        factor = (int)((uint32_t)h[DICT_FILE_HEAD + 12] | (uint32_t)h[DICT_FILE_HEAD + 13] << 8 |
+                       (uint32_t)h[DICT_FILE_HEAD + 14] << 16 |
+                       (uint32_t)(h[DICT_FILE_HEAD + 15] & 0x7f) << 24);
+        patch = (int)((uint32_t)h[DICT_FILE_HEAD + 16] | (uint32_t)h[DICT_FILE_HEAD + 17] << 8 |
+                      (uint32_t)h[DICT_FILE_HEAD + 18] << 16 |
+                      (uint32_t)(h[DICT_FILE_HEAD + 19] & 0x7f) << 24);
+        /* the ranges the format allows (ts_dictionary_from_bytes checks them again with
+         * the contents), before anything is estimated from them */
+        if (factor < 2 || factor > 16 || patch < 4 || patch > 64) {
+            tsio_errf(err, path,
+                      "damaged: its header says factor %d and patch %d (a dictionary "
+                      "has factor 2..16 and patch 4..64)",
+                      factor, patch);
+            return -1;
+        }
         if (shape_given && (factor != job->params.factor || patch != job->params.patch)) {
             tsio_errf(err, path,
                       "was built for factor %d and patch %d, not %d and %d: give %s, or "
@@ -350,9 +368,12 @@ static int job_build_dictionary(ts_ctx *ctx, const tsjob_amplify *job, double dx
             *no_crs = i + 1;
     }
     clock_gettime(CLOCK_MONOTONIC, &t0);
-    if (ts_dictionary_build(ctx, te, job->n_exemplars, names, job->n_layers, &job->params, dict) !=
-        TS_OK) {
+    ts_status bst =
+        ts_dictionary_build(ctx, te, job->n_exemplars, names, job->n_layers, &job->params, dict);
+    if (bst != TS_OK) {
         int bad = ts_ctx_failed_input(ctx);
+        if (bad < 0 && job->n_exemplars == 1 && bst == TS_ERR_NUMERIC)
+            bad = 0; /* no atom from one exemplar: that file is at fault */
         tsio_errf(err, bad >= 0 && bad < job->n_exemplars ? job->exemplars[bad] : what, "%s",
                   ts_ctx_message(ctx));
         goto done;

@@ -251,6 +251,29 @@ def test_dictionary_built_once_and_reused(tmp_path):
     p = run("dictionary", "info", tmp_path / "not.tsd", check=False)
     assert p.returncode == 1 and "not a TerraSynth dictionary" in p.stderr
     assert not (tmp_path / "c.tif").exists()
+    # damage a reader would take for data: one bit of a fine height (the output would be off
+    # by a metre), a NaN, the header's factor made 65535, the file cut inside its header;
+    # `info` verifies as amplify does
+    import struct
+    meta = js.loads(run("dictionary", "info", d).stdout)
+    # past the file's header, the core's, and the atoms' dh and du (patch x patch floats each)
+    hh = 16 + 52 + 2 * meta["atoms"] * meta["patch"] ** 2 * 4 + 100
+    cases = {"bit": bytearray(raw), "nan": bytearray(raw), "factor": bytearray(raw),
+             "cut": bytearray(raw[:40])}
+    cases["bit"][hh] ^= 0x10
+    cases["nan"][hh:hh + 4] = struct.pack("<f", float("nan"))
+    cases["factor"][16 + 12:16 + 14] = b"\xff\xff"
+    says = {"bit": "checksum does not match", "nan": "checksum does not match",
+            "factor": "its header says factor 65535", "cut": "damaged: cut to"}
+    for name, data in cases.items():
+        (tmp_path / (name + ".tsd")).write_bytes(bytes(data))
+        for cmd in (["dictionary", "info", tmp_path / (name + ".tsd")],
+                    ["amplify", tmp_path / "coarse.tif", tmp_path / "c.tif", "--dictionary",
+                     tmp_path / (name + ".tsd")]):
+            p = run(*cmd, check=False)
+            assert p.returncode == 1 and "damaged" in p.stderr, (name, p.stderr)
+            assert cmd[0] == "dictionary" or says[name] in p.stderr, (name, p.stderr)
+    assert not (tmp_path / "c.tif").exists()
 
 
 def test_multi_step_by_chaining(tmp_path):
@@ -439,7 +462,8 @@ def test_layers_and_classes_through_a_dictionary_file(tmp_path):
     run("dictionary", "build", d, "--exemplar", tmp_path / "ex.tif", *lay, "--factor", str(f),
         "--resolution", "%.6f" % res, "-q")
     info = js.loads(run("dictionary", "info", d).stdout)
-    assert info["layers"] == ["veg"] and info["classes"] == 2 and info["version"] == 2
+    assert info["layers"] == ["veg"] and info["classes"] == 2 and info["version"] == 3
+    assert info["checksum"] == "verified"
     outs = lambda p: ["--out-layer", "veg=%s" % (tmp_path / (p + "v.tif")), "--out-classes",  # noqa
                       tmp_path / (p + "c.tif")]
     run("amplify", tmp_path / "coarse.tif", tmp_path / "a.tif", "--exemplar", tmp_path / "ex.tif",

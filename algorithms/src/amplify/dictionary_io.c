@@ -5,15 +5,20 @@
  * untrusted data).  The core does no file I/O: the caller writes and reads
  * the bytes.
  *
- *   "TSDICT\r\n" (8 bytes), u32 version (2), u32 factor, u32 patch, u32 d,
+ *   "TSDICT\r\n" (8 bytes), u32 version (3), u32 factor, u32 patch, u32 d,
  *   u32 hd, u64 n, u32 flags (bit 0: irradiance), u32 n_classes K,
  *   u32 n_layers L, then L names of TS_LAYER_NAME bytes (0-padded), then
  *   f32 dh[n*d], f32 du[n*d], f32 hh[n*hd], f64 a[n], f64 s[n],
  *   i32 exemplar[n], i32 x[n], i32 y[n], f32 dx[n*d] (context), then f32 dl[n*d] (with the
- *   irradiance), f32 dc[n*K] and u8 hc[n*hd] (with classes), f32 ll[n*L*hd].
+ *   irradiance), f32 dc[n*K] and u8 hc[n*hd] (with classes), f32 ll[n*L*hd], and (version 3)
+ *   u64 FNV-1a of every byte before it: a changed or cut file is refused, not read.  Every
+ *   value is checked too (finite, within 1e7: no terrain has more); version 2 (no checksum)
+ *   is still read.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
+#include <float.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -21,7 +26,8 @@
 #include "amplify.h"
 
 #define DICT_MAGIC "TSDICT\r\n"
-#define DICT_VERSION 2u
+#define DICT_VERSION 3u
+#define DICT_SUM 8 /* the checksum's bytes */
 #define DICT_HEADER 52
 
 static int host_little(void)
@@ -62,6 +68,16 @@ static uint64_t get_u64(const unsigned char *p)
     return (uint64_t)get_u32(p) | (uint64_t)get_u32(p + 4) << 32;
 }
 
+/* FNV-1a, 64 bits (Fowler, Noll and Vo): every byte folds into the sum. */
+static uint64_t fnv1a(const unsigned char *p, size_t n)
+{
+    uint64_t h = 0xcbf29ce484222325ull;
+    size_t i;
+    for (i = 0; i < n; i++)
+        h = (h ^ p[i]) * 0x100000001b3ull;
+    return h;
+}
+
 static size_t dict_bytes(uint64_t n, uint32_t d, uint32_t hd, int irr, uint32_t K, uint32_t L)
 {
     return DICT_HEADER + (size_t)L * TS_LAYER_NAME +
@@ -79,7 +95,8 @@ TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
         return ts__fail(ctx, TS_ERR_ARG, "dictionary", "missing dictionary or output");
     n = dict->n;
     total = dict_bytes(n, (uint32_t)dict->d, (uint32_t)dict->hd, dict->dl != NULL,
-                       (uint32_t)dict->n_classes, (uint32_t)dict->n_layers);
+                       (uint32_t)dict->n_classes, (uint32_t)dict->n_layers) +
+            DICT_SUM;
     b = malloc(total);
     if (!b)
         return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory (%zu bytes)", total);
@@ -118,9 +135,42 @@ TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
     }
     if (dict->n_layers)
         le_copy(p, dict->ll, n * dict->n_layers * dict->hd, 4);
+    {
+        uint64_t sum = fnv1a(b, total - DICT_SUM);
+        put_u32(b + total - 8, (uint32_t)(sum & 0xffffffffu));
+        put_u32(b + total - 4, (uint32_t)(sum >> 32));
+    }
     *bytes = b;
     *len = total;
     return TS_OK;
+}
+
+/* Stored values no dictionary holds: the descriptors are unit vectors (or 0), so each
+ * component lies within +-1; the fine heights are normalised, within +-1e7; a carried
+ * layer may be NaN (no value there) but not infinite; indices and cells are not negative. */
+static int floats_bad(const float *v, size_t n, float lim, int nan_ok)
+{
+    size_t i;
+    for (i = 0; v && i < n; i++)
+        if (!(v[i] >= -lim && v[i] <= lim) && !(nan_ok && isnan(v[i])))
+            return 1;
+    return 0;
+}
+
+static int dict_values_bad(const ts_dictionary *d)
+{
+    size_t n = d->n, k, dd = (size_t)d->d, hd = (size_t)d->hd;
+    const float unit = 1.001f;
+    if (floats_bad(d->dh, n * dd, unit, 0) || floats_bad(d->du, n * dd, unit, 0) ||
+        floats_bad(d->dx, n * dd, unit, 0) || floats_bad(d->dl, n * dd, unit, 0) ||
+        floats_bad(d->dc, n * (size_t)d->n_classes, unit, 0) ||
+        floats_bad(d->hh, n * hd, 1e7f, 0) ||
+        floats_bad(d->ll, n * (size_t)d->n_layers * hd, FLT_MAX, 1))
+        return 1;
+    for (k = 0; k < n; k++)
+        if (d->exemplar[k] < 0 || d->x[k] < 0 || d->y[k] < 0)
+            return 1;
+    return 0;
 }
 
 TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *bytes, size_t len,
@@ -136,12 +186,26 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     if (!out)
         return ts__fail(ctx, TS_ERR_ARG, "dictionary", "no output given");
     *out = NULL;
+    if (bytes && len >= 8 && len < DICT_HEADER && !memcmp(bytes, DICT_MAGIC, 8))
+        return ts__fail(ctx, TS_ERR_ARG, "dictionary",
+                        "damaged: cut to %zu bytes (its header alone has %d)", len, DICT_HEADER);
     if (!bytes || len < DICT_HEADER || memcmp(bytes, DICT_MAGIC, 8) != 0)
         return ts__fail(ctx, TS_ERR_ARG, "dictionary", "not a TerraSynth dictionary");
     version = get_u32(bytes + 8);
-    if (version != DICT_VERSION)
+    if (version != DICT_VERSION && version != 2)
         return ts__fail(ctx, TS_ERR_ARG, "dictionary",
-                        "version %u; this TerraSynth reads version %u", version, DICT_VERSION);
+                        "version %u; this TerraSynth reads versions 2 and %u", version,
+                        DICT_VERSION);
+    if (version == DICT_VERSION) {
+        if (len < DICT_HEADER + DICT_SUM)
+            return ts__fail(ctx, TS_ERR_ARG, "dictionary", "damaged: cut to %zu bytes", len);
+        if (fnv1a(bytes, len - DICT_SUM) != get_u64(bytes + len - DICT_SUM))
+            return ts__fail(ctx, TS_ERR_ARG, "dictionary",
+                            "damaged: its checksum does not match its %zu bytes (changed or "
+                            "cut after it was built): build it again",
+                            len);
+        len -= DICT_SUM;
+    }
     factor = get_u32(bytes + 12);
     patch = get_u32(bytes + 16);
     dd = get_u32(bytes + 20);
@@ -174,8 +238,7 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
             d->layer_names[l][strspn(d->layer_names[l], "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmn"
                                                         "opqrstuvwxyz0123456789_-")] != 0) {
             ts_dictionary_free(d);
-            return ts__fail(ctx, TS_ERR_ARG, "dictionary", "damaged: layer %d has no name",
-                            l + 1);
+            return ts__fail(ctx, TS_ERR_ARG, "dictionary", "damaged: layer %d has no name", l + 1);
         }
     }
     if (flags & 1)
@@ -217,12 +280,17 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
         for (k = 0; k < d->n * hd; k++)
             if (d->hc[k] > K) {
                 ts_dictionary_free(d);
-                return ts__fail(ctx, TS_ERR_ARG, "dictionary", "damaged: a class code past %u",
-                                K);
+                return ts__fail(ctx, TS_ERR_ARG, "dictionary", "damaged: a class code past %u", K);
             }
     }
     if (L)
         le_copy((unsigned char *)d->ll, p, d->n * L * hd, 4);
+    if (dict_values_bad(d)) {
+        ts_dictionary_free(d);
+        return ts__fail(ctx, TS_ERR_ARG, "dictionary",
+                        "damaged: a value no dictionary holds (not a number, infinite, or "
+                        "out of its range)");
+    }
     /* what matching relies on: finite descriptors, a positive deviation */
     for (k = 0; k < d->n; k++)
         if (!(d->s[k] > 0) || !(d->a[k] == d->a[k]) || d->a[k] > 1e7 || d->a[k] < -1e7 ||

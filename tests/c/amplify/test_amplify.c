@@ -419,7 +419,8 @@ static void test_windows_equal_the_whole(void)
         D = NULL;
     }
     ts_raster_alloc(ctx, 10, 10, &win);
-    CHECK(ts_amplify_window(ctx, &in, &guide, D ? D : NULL, &p, 0, 0, &win, NULL, NULL) == TS_ERR_ARG);
+    CHECK(ts_amplify_window(ctx, &in, &guide, D ? D : NULL, &p, 0, 0, &win, NULL, NULL) ==
+          TS_ERR_ARG);
     ts_raster_free(&win);
     ts_raster_free(&ex);
     ts_raster_free(&in);
@@ -443,7 +444,7 @@ static void test_dictionary_bytes(void)
     p.factor = 3;
     CHECK(build1(ctx, &ex, &p, &D) == TS_OK);
     CHECK(ts_dictionary_to_bytes(ctx, D, &bytes, &len) == TS_OK);
-    CHECK(memcmp(bytes, "TSDICT\r\n", 8) == 0 && bytes[8] == 2 && bytes[12] == 3);
+    CHECK(memcmp(bytes, "TSDICT\r\n", 8) == 0 && bytes[8] == 3 && bytes[12] == 3);
     CHECK(ts_dictionary_from_bytes(ctx, bytes, len, &E) == TS_OK);
     ts_dictionary_shape(E, &f, &pa);
     CHECK(f == 3 && pa == p.patch && ts_dictionary_size(E) == ts_dictionary_size(D));
@@ -466,6 +467,42 @@ static void test_dictionary_bytes(void)
     bad[8] = 1;
     CHECK(ts_dictionary_from_bytes(ctx, bad, len, &E) == TS_ERR_ARG && !E);
     CHECK(strstr(ts_ctx_message(ctx), "version 1") != NULL);
+    /* one bit flipped anywhere in the contents: the checksum refuses it */
+    for (k = 0; k < 50; k++) {
+        size_t at = 52 + (size_t)(th_uniform(&rng) * (double)(len - 52 - 8));
+        memcpy(bad, bytes, len);
+        bad[at] ^= (unsigned char)(1u << (int)(th_uniform(&rng) * 8));
+        CHECK(ts_dictionary_from_bytes(ctx, bad, len, &E) == TS_ERR_ARG && !E);
+        CHECK(strstr(ts_ctx_message(ctx), "checksum") != NULL);
+    }
+    /* version 2 (no checksum) is read; there a NaN or a huge fine height is refused by its
+     * value (the fine heights follow 52 bytes of header, the two d-vectors) */
+    {
+        size_t hh_at = 52 + 2 * ts_dictionary_size(D) * (size_t)(p.patch * p.patch) * 4;
+        float nan = NAN, huge = 1e30f;
+        memcpy(bad, bytes, len - 8);
+        bad[8] = 2;
+        CHECK(ts_dictionary_from_bytes(ctx, bad, len - 8, &E) == TS_OK);
+        ts_dictionary_free(E);
+        E = NULL;
+        memcpy(bad + hh_at + 40, &nan, 4);
+        CHECK(ts_dictionary_from_bytes(ctx, bad, len - 8, &E) == TS_ERR_ARG && !E);
+        CHECK(strstr(ts_ctx_message(ctx), "a value no dictionary holds") != NULL);
+        memcpy(bad + hh_at + 40, &huge, 4);
+        CHECK(ts_dictionary_from_bytes(ctx, bad, len - 8, &E) == TS_ERR_ARG && !E);
+        /* the same value under a checksum made for it (FNV-1a here): refused by its value */
+        {
+            uint64_t h = 0xcbf29ce484222325ull;
+            size_t i;
+            bad[8] = 3;
+            for (i = 0; i < len - 8; i++)
+                h = (h ^ bad[i]) * 0x100000001b3ull;
+            for (i = 0; i < 8; i++)
+                bad[len - 8 + i] = (unsigned char)(h >> (8 * i));
+            CHECK(ts_dictionary_from_bytes(ctx, bad, len, &E) == TS_ERR_ARG && !E);
+            CHECK(strstr(ts_ctx_message(ctx), "a value no dictionary holds") != NULL);
+        }
+    }
     for (k = 0; k < 2000; k++) { /* random damage to the header: a clean refusal or a load */
         size_t at = (size_t)(th_uniform(&rng) * 52);
         memcpy(bad, bytes, len);
@@ -568,8 +605,8 @@ static void test_irradiance_planes(void)
     ts_grid_metrics m = {dx, dy};
     static const struct {
         double lat, beta_deg, az;
-    } cases[] = {{45, 0, 0}, {45, 30, 180}, {45, 30, 0}, {45, 25, 90}, {10, 20, 270},
-                 {-35, 30, 0}, {-35, 30, 180}, {65, 15, 135}};
+    } cases[] = {{45, 0, 0},    {45, 30, 180}, {45, 30, 0},    {45, 25, 90},
+                 {10, 20, 270}, {-35, 30, 0},  {-35, 30, 180}, {65, 15, 135}};
     ts_raster_alloc(ctx, 33, 33, &z);
     ts_raster_alloc(ctx, 33, 33, &lat);
     ts_raster_alloc(ctx, 33, 33, &out);
@@ -584,8 +621,8 @@ static void test_irradiance_planes(void)
         want = slow_irradiance(cases[c].lat, beta, cases[c].az * 3.14159265358979323846 / 180, -1);
         got = TS_PIX(&out, 16, 16);
         CHECK_MSG(fabs(got - want) <= 0.03 * want + 1.0,
-                  "lat %g slope %g facing %g: %g W/m2, the slow integration %g",
-                  cases[c].lat, cases[c].beta_deg, cases[c].az, got, want);
+                  "lat %g slope %g facing %g: %g W/m2, the slow integration %g", cases[c].lat,
+                  cases[c].beta_deg, cases[c].az, got, want);
     }
     /* the same plane with the grid turned: up at azimuth 90 (east) and the
      * terrain turned with it gives the same sunlight */

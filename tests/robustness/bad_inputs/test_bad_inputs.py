@@ -123,6 +123,7 @@ def template(tmp_path_factory):
     utm = osr.SpatialReference()
     utm.ImportFromEPSG(32616)
     write_dem(w / "mask_crs.tif", m, gt, utm.ExportToWkt())
+    write_dem(w / "flat.tif", np.full(z.shape, 300, np.float32), gt, wkt)
     # region maps that say nothing usable: a fractional id, ids as text, points, far away
     r = np.ones(z.shape, np.float32)
     r[10:20, 10:20] = 1.6
