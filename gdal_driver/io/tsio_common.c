@@ -428,8 +428,19 @@ int tsio__check_output_location(const out_name *o, const char *path, tsio_err *e
         tsio_errf(err, path, "is a directory");
         return -1;
     }
+    if (tsio__starts_with(o->final, "/vsi") && !tsio__starts_with(o->final, "/vsimem/")) {
+        /* archives (/vsizip/ ...), object stores and streams: no temporary name to rename
+         * into place (a /vsizip/ output failed after the work, leaving an empty archive) */
+        size_t n = strcspn(o->final + 1, "/") + 2;
+        tsio_errf(err, path,
+                  "is inside %.*s: outputs are written under a temporary name and moved into "
+                  "place, which archives, object stores and streams cannot do; write a plain "
+                  "file (and zip or upload it after)",
+                  (int)n, o->final);
+        return -1;
+    }
     if (tsio__starts_with(o->final, "/vsi"))
-        return 0; /* virtual file systems may have implicit directories */
+        return 0; /* /vsimem/ may have implicit directories */
     if (stat(o->final, &st) == 0 && !S_ISREG(st.st_mode)) {
         tsio_errf(err, path,
                   "is not a regular file (a device, FIFO or socket): outputs are "
