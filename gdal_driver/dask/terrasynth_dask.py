@@ -341,8 +341,15 @@ def main(argv=None):
         if a.scheduler:
             client = Client(a.scheduler)
         else:
+            # the workers' own logs stay quiet: a failed task is reported once, in one line,
+            # by this process (Dask's "Compute Failed" dumps were 19 lines a failure)
+            import logging
             cluster = LocalCluster(n_workers=a.workers, threads_per_worker=1,
-                                   processes=a.processes, dashboard_address=None)
+                                   processes=a.processes, dashboard_address=None,
+                                   silence_logs=logging.CRITICAL)
+            for name in ("distributed", "distributed.worker", "distributed.core",
+                         "distributed.nanny", "distributed.scheduler"):
+                logging.getLogger(name).setLevel(logging.CRITICAL)
             client = Client(cluster)
         drv = gdal.GetDriverByName("GTiff")
         if not os.environ.get("GDAL_CACHEMAX"):

@@ -102,7 +102,10 @@ void tsio_errf(tsio_err *err, const char *path, const char *fmt, ...)
     int n;
     if (!err)
         return;
-    n = snprintf(buf, sizeof buf, "%s: ", path ? path : "(null)");
+    if (path && strlen(path) > 300) /* a name that would crowd out the problem: its ends */
+        n = snprintf(buf, sizeof buf, "%.140s...%s: ", path, path + strlen(path) - 140);
+    else
+        n = snprintf(buf, sizeof buf, "%s: ", path ? path : "(null)");
     used = (n < 0) ? 0 : (size_t)n;
     if (used >= sizeof buf)
         used = sizeof buf - 1;

@@ -308,3 +308,23 @@ def test_runner_declares_the_tile_interface_as_its_header():
         c = [kind_c(p) for p in m.group(1).split(",")]
         py = [kind_py(a) for a in re.split(r",\s*(?![^()]*\))", " ".join(args.split()))]
         assert c == py, "%s: header %s, runner %s" % (name, c, py)
+
+
+@pytest.mark.parametrize("kind", ["--processes", None])
+def test_a_failing_task_is_one_line(tmp_path, kind):
+    """A recipe that opens but fails in the workers (an exemplar smaller than a patch): one
+    line naming the file, exit 1, no output, with or without -q (Dask's own dumps of each
+    failed task stay quiet)."""
+    src = gdal.Open(JACKSBORO)
+    small = gdal.Translate(str(tmp_path / "tiny.tif"), src, srcWin=[0, 0, 20, 20])
+    small = None
+    recipe = tmp_path / "t.tsyn"
+    run("synth", "--exemplar", tmp_path / "tiny.tif", "--size", "300x260", "--tiled", 128,
+        "--recipe", recipe)
+    for quiet in (["-q"], []):
+        p = runner(recipe, tmp_path / "o.tif", "--workers", 2, *([kind] if kind else []),
+                   *quiet, check=False)
+        lines = [ln for ln in p.stderr.splitlines() if ln.strip() and not ln.startswith("\r[")]
+        assert p.returncode == 1 and len(lines) == 1, p.stderr
+        assert "tiny.tif" in lines[0] and "smaller than a patch" in lines[0]
+        assert not (tmp_path / "o.tif").exists()

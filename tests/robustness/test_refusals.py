@@ -82,3 +82,14 @@ def test_no_prefix_said_twice(tmp_path):
         line = p.stderr.strip()
         assert "synth: synth:" not in line and "synth: synth" not in line, line
         assert line.count("\n") == 0
+
+
+def test_a_very_long_name_leaves_room_for_the_problem(tmp_path):
+    """A 5000-character input name is shortened in the message (its two ends), so the one
+    line still says what is wrong."""
+    name = tmp_path / ("a" * 5000 + ".tif")
+    p = run("ppa", name, tmp_path / "o.tif", check=False)
+    assert p.returncode == 1
+    line = p.stderr.strip()
+    assert len(line.splitlines()) == 1 and line.endswith(".tif: no such file"), line[-200:]
+    assert "..." in line and len(line) < 1024
