@@ -1,11 +1,13 @@
 /*
- * test_ppa_branch_edges.c - branch reduction at its boundary: a branch or an
- * isolated path exactly as long as the minimum stays, a little shorter goes
- * (the rule is "shorter than the minimum"), by hand-made forests whose
- * lengths are known.
+ * test_ppa_edges.c - the PPA's rules at their edges, by hand-made cases whose
+ * answer is known: branch reduction keeps a branch or an isolated path exactly
+ * as long as the minimum and removes one a little shorter (the rule is
+ * "shorter than the minimum"); target connection makes no diagonal with one
+ * nodata flank, whichever flank it is.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -75,11 +77,46 @@ static void test_side_branch(void)
     ts_ctx_free(ctx);
 }
 
+/* Two targets on a diagonal of a 2 x 2 block, one flank nodata, the other a plain cell:
+ * no segment between them (a feature never bridges a hole), for either diagonal and
+ * either flank. */
+static void test_diagonal_with_one_nodata_flank(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int diag, hole;
+    for (diag = 0; diag < 2; diag++)
+        for (hole = 0; hole < 2; hole++) {
+            /* diag 0: targets (0,0) and (1,1), flanks (1,0) and (0,1);
+             * diag 1: targets (1,0) and (0,1), flanks (0,0) and (1,1) */
+            float v[4] = {5, 6, 7, 8};
+            unsigned char t[4] = {0, 0, 0, 0};
+            int ta = diag ? 1 : 0, tb = diag ? 2 : 3, fa = diag ? 0 : 1, fb = diag ? 3 : 2;
+            ts_raster dem = ts_raster_wrap(v, 2, 2, 2);
+            ts_ppa_segment *segs = NULL;
+            size_t n = 0, i;
+            t[ta] = t[tb] = TS_RIDGE;
+            v[hole ? fb : fa] = NAN;
+            CHECK(ts_ppa_target_connection(ctx, &dem, t, TS_RIDGE, &segs, &n) == TS_OK);
+            for (i = 0; i < n; i++)
+                CHECK_MSG(!((segs[i].a == (uint32_t)ta && segs[i].b == (uint32_t)tb) ||
+                            (segs[i].a == (uint32_t)tb && segs[i].b == (uint32_t)ta)),
+                          "diagonal %d bridges the hole at cell %d", diag, hole ? fb : fa);
+            /* with no hole the diagonal is made */
+            free(segs);
+            v[hole ? fb : fa] = 6.5f;
+            CHECK(ts_ppa_target_connection(ctx, &dem, t, TS_RIDGE, &segs, &n) == TS_OK);
+            CHECK(n == 1);
+            free(segs);
+        }
+    ts_ctx_free(ctx);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
         {"isolated_path", test_isolated_path},
         {"side_branch", test_side_branch},
+        {"diagonal_with_one_nodata_flank", test_diagonal_with_one_nodata_flank},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }
