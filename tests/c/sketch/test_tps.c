@@ -137,13 +137,13 @@ static void test_bending_rigid_invariance(void)
         rigid(sx, sy, n, 0.7 + rep, 31.0, -17.0);
         rigid(dx, dy, n, 0.7 + rep, 31.0, -17.0);
         CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t1) == TS_OK);
-        CHECK_MSG(fabs(t1.bending - t0.bending) <= 1e-9 * t0.bending, "%.17g vs %.17g",
-                  t1.bending, t0.bending);
+        CHECK_MSG(fabs(t1.bending - t0.bending) <= 1e-9 * t0.bending, "%.17g vs %.17g", t1.bending,
+                  t0.bending);
         /* target moved on its own: the same map up to a rigid motion */
         rigid(dx, dy, n, -2.1, 400.0, 9.0);
         CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, 0.0, &t2) == TS_OK);
-        CHECK_MSG(fabs(t2.bending - t0.bending) <= 1e-9 * t0.bending, "%.17g vs %.17g",
-                  t2.bending, t0.bending);
+        CHECK_MSG(fabs(t2.bending - t0.bending) <= 1e-9 * t0.bending, "%.17g vs %.17g", t2.bending,
+                  t0.bending);
         for (i = 0; i < n; i++) { /* still interpolating after the move */
             double ox, oy;
             ts__tps_map(&t2, sx[i], sy[i], &ox, &oy);
@@ -216,8 +216,8 @@ static void test_lambda_smooths(void)
     for (k = 0; k < 5; k++) {
         ts_tps t;
         CHECK(ts__tps_fit(ctx, n, sx, sy, dx, dy, lambdas[k], &t) == TS_OK);
-        CHECK_MSG(t.bending <= prev * (1.0 + 1e-12), "lambda %g: %g > %g", lambdas[k],
-                  t.bending, prev);
+        CHECK_MSG(t.bending <= prev * (1.0 + 1e-12), "lambda %g: %g > %g", lambdas[k], t.bending,
+                  prev);
         prev = t.bending;
         if (k == 4)
             for (i = 0; i < n; i++) {
@@ -246,8 +246,8 @@ static int naive_tps(int n, const double *sx, const double *sy, const double *v,
     }
     for (i = 0; i < n; i++) {
         for (j = 0; j < n; j++)
-            m[3 + i][j] = kernel((sx[i] - sx[j]) * (sx[i] - sx[j]) +
-                                 (sy[i] - sy[j]) * (sy[i] - sy[j]));
+            m[3 + i][j] =
+                kernel((sx[i] - sx[j]) * (sx[i] - sx[j]) + (sy[i] - sy[j]) * (sy[i] - sy[j]));
         m[3 + i][i] += lambda;
         m[3 + i][n] = 1.0;
         m[3 + i][n + 1] = sx[i];
@@ -312,8 +312,8 @@ static void test_against_naive_solver(void)
         for (i = 0; i < n; i++) {
             int j;
             for (j = 0; j < n; j++) {
-                double kij = kernel((sx[i] - sx[j]) * (sx[i] - sx[j]) +
-                                    (sy[i] - sy[j]) * (sy[i] - sy[j]));
+                double kij =
+                    kernel((sx[i] - sx[j]) * (sx[i] - sx[j]) + (sy[i] - sy[j]) * (sy[i] - sy[j]));
                 be += kij * (wx[i] * wx[j] + wy[i] * wy[j]);
             }
         }
@@ -558,7 +558,8 @@ static void test_warp_curved_parallel(void)
             j0 = (int)floor(fy);
             tx = fx - i0;
             ty = fy - j0;
-            v = (1 - tx) * (1 - ty) * TS_PIX(&src, i0, j0) + tx * (1 - ty) * TS_PIX(&src, i0 + 1, j0) +
+            v = (1 - tx) * (1 - ty) * TS_PIX(&src, i0, j0) +
+                tx * (1 - ty) * TS_PIX(&src, i0 + 1, j0) +
                 (1 - tx) * ty * TS_PIX(&src, i0, j0 + 1) + tx * ty * TS_PIX(&src, i0 + 1, j0 + 1);
             CHECK_NEAR(TS_PIX(&big, x, y), v, 1e-4);
         }
@@ -656,6 +657,37 @@ static void test_folds(void)
     CHECK(ts__tps_fit(ctx, 5, sx, sy, dx, dy, 0.0, &t) == TS_OK);
     CHECK(ts__tps_folds(&t, 0, 0, 12, 13, 2.5));
     CHECK(!ts__tps_folds(&t, 0, 0, 12, 13, 9.5));
+    /* a fold caught by orientation alone: x' = x - x^3 / r^2 turns over past |x| = r /
+     * sqrt(3); the thin-plate spline through 15 of its points has at the samples -r, 0, r a
+     * Jacobian near diag(-0.9, 1), diag(1, 1), diag(-0.9, 1): areas and stretches within
+     * the limits, only the sign flipped at the sides */
+    {
+        double fx[15], fy[15], gx[15], gy[15], r = 10, j[4];
+        int a, b, k = 0;
+        for (b = -1; b <= 1; b++)
+            for (a = -2; a <= 2; a++, k++) { /* at most TS_TPS_MAX (16) points */
+                double x = r * a / 2.0, y = r * b;
+                fx[k] = x;
+                fy[k] = y;
+                gx[k] = x - x * x * x / (r * r);
+                gy[k] = y;
+            }
+        CHECK(ts__tps_fit(ctx, 15, fx, fy, gx, gy, 0.0, &t) == TS_OK);
+        /* the limits alone would pass it: at the 3 x 3 samples |det| and the stretch are
+         * near 1 */
+        for (b = -1; b <= 1; b++)
+            for (a = -1; a <= 1; a++) {
+                double d, f2, disc;
+                ts__tps_jacobian(&t, a * r, b * r, j);
+                d = j[0] * j[3] - j[1] * j[2];
+                f2 = 0.5 * (j[0] * j[0] + j[1] * j[1] + j[2] * j[2] + j[3] * j[3]);
+                disc = sqrt(fmax(f2 * f2 - d * d, 0.0));
+                CHECK_MSG(fabs(d) > 0.6 && fabs(d) < 1.6, "det %g at (%d, %d)", d, a, b);
+                CHECK(sqrt(f2 + disc) <= 1.5 * sqrt(fmax(f2 - disc, 0.0)));
+                CHECK(a == 0 ? d > 0 : d < 0);
+            }
+        CHECK(ts__tps_folds(&t, 0, 0, r, 3, 2.5));
+    }
     ts_ctx_free(ctx);
 }
 
