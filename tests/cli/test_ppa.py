@@ -295,6 +295,16 @@ def test_describe_json_matches_help():
             assert p["min"] <= p["default"] <= p["max"]
             if stage != "ppa" or p["name"] != "features":  # ppa spells features as --ridges etc.
                 assert p["flag"] in helptext, (stage, p["flag"])
+                # the help's default and range are the declaration's
+                lines = helptext.splitlines()
+                at = next(i for i, ln in enumerate(lines)
+                          if ln.strip().startswith(p["flag"] + " "))
+                said = next(ln.strip() for ln in lines[at + 1:] if ln.strip().startswith("default"))
+                if p["type"] == "enum":
+                    assert said == "default " + p["choices"][int(p["default"])], (p, said)
+                else:
+                    assert said.startswith("default %g" % p["default"]), (p, said)
+                    assert ", range %g..%g" % (p["min"], p["max"]) in said, (p, said)
     one = json.loads(run("describe", "ppa").stdout)
     assert list(one["stages"]) == ["ppa"]
     assert run("describe", "nosuchstage", check=False).returncode == 2

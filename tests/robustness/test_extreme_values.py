@@ -84,4 +84,10 @@ def test_feet_are_checked_after_units(tmp_path):
         z *= 3.28084
         z[5, 5] = 29000
     dem = dem_with(tmp_path, "ft.tif", feet, unit="ft")
-    run("ppa", dem, tmp_path / "p.tif", "-q")
+    out = run("ppa", dem, tmp_path / "p.tif").stdout
+    # read in metres: the automatic threshold is 0.25 % of the range in metres (feet would
+    # give 3.3 times more)
+    z = gdal.Open(str(dem)).ReadAsArray().astype(np.float64) * 0.3048
+    want = 0.0025 * (np.nanmax(z) - np.nanmin(z))
+    thr = float(out.split("threshold ")[1].split(" m")[0])
+    assert abs(thr - want) < 0.01 * want, (thr, want, out)
