@@ -99,6 +99,12 @@ int tsjob__int_map(const char *dir, const char *name, const tsio_georef *geo, co
 
 int tsjob__progress_cb(double done, const char *msg, void *user);
 
+/* The drainage stage on a synth job's whole output (job_synth_drain.c): flags (the
+ * constraints' TS_CELL_*, grid-sized) get the sketch's valley floors, ridges and the land
+ * beside drawn valleys; the time goes to res->seconds_drainage. */
+int tsjob__synth_drain_whole(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
+                             unsigned char *flags, job_progress *jp, tsio_err *err);
+
 void tsjob__progress_range(ts_ctx *ctx, job_progress *p, double lo, double hi);
 
 #endif
