@@ -509,10 +509,16 @@ int tsio_read_raster(const char *path, int band, tsio_raster *out, tsio_err *err
     return rc;
 }
 
-/* How a drawing stores its grey levels: 0 as values, 1 as indices into
- * band 1's palette (lut: each index's luminance), 2 as red, green and blue
- * in bands 1-3; -1 when the file cannot be opened. */
-static int drawing_kind(const char *path, float *lut, int *n_lut)
+/* Luminance of red, green and blue (Rec. 601), the grey a colour is drawn as. */
+static double luminance(double r, double g, double b)
+{
+    return 0.299 * r + 0.587 * g + 0.114 * b;
+}
+
+/* How a drawing stores its grey levels: 0 as values, 1 as indices into band 1's palette
+ * (*lut: each index's luminance, *n_lut entries, allocated here), 2 as red, green and
+ * blue in bands 1-3; -1 when the file cannot be opened or out of memory. */
+static int drawing_kind(const char *path, float **lut, int *n_lut)
 {
     GDALDatasetH ds = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY, NULL, NULL, NULL);
     GDALRasterBandH b;
@@ -523,13 +529,14 @@ static int drawing_kind(const char *path, float *lut, int *n_lut)
     b = GDALGetRasterBand(ds, 1);
     ct = b ? GDALGetRasterColorTable(b) : NULL;
     if (ct && GDALGetRasterColorInterpretation(b) == GCI_PaletteIndex) {
-        *n_lut = GDALGetColorEntryCount(ct) < 65536 ? GDALGetColorEntryCount(ct) : 65536;
-        for (i = 0; i < *n_lut; i++) {
+        *n_lut = GDALGetColorEntryCount(ct);
+        *lut = malloc((size_t)(*n_lut > 0 ? *n_lut : 1) * sizeof **lut);
+        for (i = 0; *lut && i < *n_lut; i++) {
             GDALColorEntry e;
             GDALGetColorEntryAsRGB(ct, i, &e);
-            lut[i] = (float)(0.299 * e.c1 + 0.587 * e.c2 + 0.114 * e.c3);
+            (*lut)[i] = (float)luminance(e.c1, e.c2, e.c3);
         }
-        kind = 1;
+        kind = *lut ? 1 : -1;
     } else if (GDALGetRasterCount(ds) >= 3 && GDALGetRasterColorInterpretation(b) == GCI_RedBand &&
                GDALGetRasterColorInterpretation(GDALGetRasterBand(ds, 2)) == GCI_GreenBand &&
                GDALGetRasterColorInterpretation(GDALGetRasterBand(ds, 3)) == GCI_BlueBand) {
@@ -539,60 +546,65 @@ static int drawing_kind(const char *path, float *lut, int *n_lut)
     return kind;
 }
 
-int tsio_read_drawing(const char *path, tsio_raster *out, tsio_err *err)
+/* Band 1's palette indices into their colours' grey (out, w x h cells); -1 naming a cell
+ * whose index has no colour. */
+static int grey_from_palette(const char *path, ts_raster *r, const float *lut, int n_lut,
+                             tsio_err *err)
 {
-    float *lut = malloc(65536 * sizeof *lut);
-    int n_lut = 0, kind, rc = 0;
-    size_t i, n;
-    if (!lut) {
-        tsio_errf(err, path, "out of memory");
-        return -1;
-    }
-    tsio__ensure_registered();
-    CPLPushErrorHandler(CPLQuietErrorHandler);
-    kind = drawing_kind(path, lut, &n_lut);
-    CPLPopErrorHandler();
-    if (tsio_read_raster(path, 1, out, err) != 0) {
-        free(lut);
-        return -1;
-    }
-    n = (size_t)out->r.width * (size_t)out->r.height;
-    if (kind == 1) {
-        for (i = 0; i < n; i++) {
-            float v = out->r.data[i];
-            if (isnan(v))
-                continue;
-            if (!(v >= 0 && v < (float)n_lut && v == floorf(v))) {
-                tsio_errf(err, path,
-                          "palette index %g at column %zu, row %zu has no colour "
-                          "(the palette has %d)",
-                          (double)v, i % (size_t)out->r.width, i / (size_t)out->r.width, n_lut);
-                tsio_raster_free(out);
-                free(lut);
-                return -1;
-            }
-            out->r.data[i] = lut[(int)v];
-        }
-    } else if (kind == 2) {
-        tsio_raster g, bl;
-        rc = tsio_read_raster(path, 2, &g, err);
-        if (rc == 0 && tsio_read_raster(path, 3, &bl, err) != 0) {
-            tsio_raster_free(&g);
-            rc = -1;
-        }
-        if (rc != 0) {
-            tsio_raster_free(out);
-            free(lut);
+    size_t i, n = (size_t)r->width * (size_t)r->height;
+    for (i = 0; i < n; i++) {
+        float v = r->data[i];
+        if (isnan(v))
+            continue;
+        if (!(v >= 0 && v < (float)n_lut && v == floorf(v))) {
+            tsio_errf(err, path,
+                      "palette index %g at column %zu, row %zu has no colour (the palette has %d)",
+                      (double)v, i % (size_t)r->width, i / (size_t)r->width, n_lut);
             return -1;
         }
-        for (i = 0; i < n; i++)
-            out->r.data[i] =
-                (float)(0.299 * out->r.data[i] + 0.587 * g.r.data[i] + 0.114 * bl.r.data[i]);
-        tsio_raster_free(&g);
-        tsio_raster_free(&bl);
+        r->data[i] = lut[(int)v];
     }
-    free(lut);
     return 0;
+}
+
+/* Band 1 (red, in r) with bands 2 and 3 into their grey. */
+static int grey_from_rgb(const char *path, ts_raster *r, tsio_err *err)
+{
+    size_t i, n = (size_t)r->width * (size_t)r->height;
+    tsio_raster g, b;
+    if (tsio_read_raster(path, 2, &g, err) != 0)
+        return -1;
+    if (tsio_read_raster(path, 3, &b, err) != 0) {
+        tsio_raster_free(&g);
+        return -1;
+    }
+    for (i = 0; i < n; i++)
+        r->data[i] = (float)luminance(r->data[i], g.r.data[i], b.r.data[i]);
+    tsio_raster_free(&g);
+    tsio_raster_free(&b);
+    return 0;
+}
+
+int tsio_read_drawing(const char *path, tsio_raster *out, tsio_err *err)
+{
+    float *lut = NULL;
+    int n_lut = 0, kind, rc;
+    tsio__ensure_registered();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    kind = drawing_kind(path, &lut, &n_lut);
+    CPLPopErrorHandler();
+    rc = tsio_read_raster(path, 1, out, err);
+    if (rc == 0 && kind < 0) { /* read, so opened: the palette's memory failed */
+        tsio_errf(err, path, "out of memory");
+        rc = -1;
+    } else if (rc == 0 && kind == 1)
+        rc = grey_from_palette(path, &out->r, lut, n_lut, err);
+    else if (rc == 0 && kind == 2)
+        rc = grey_from_rgb(path, &out->r, err);
+    if (rc != 0)
+        tsio_raster_free(out);
+    free(lut);
+    return rc;
 }
 
 /* Elevations the Earth has (metres, with a margin): the deepest trench is

@@ -166,244 +166,211 @@ static void chain_length(const vec_ctx *c, const ts_feature_vertex *v, size_t co
     }
 }
 
-static int write_paths_layer(GDALDatasetH ds, const vec_ctx *c)
-{
-    const ts_features *f = c->f;
+/* A layer being written: its feature (reused for every row), the fields' indices and
+ * whether a transaction is open. */
+#define VEC_MAX_FIELDS 12
+typedef struct vec_layer {
     OGRLayerH layer;
-    OGRFeatureH feat = NULL;
-    int i_kind, i_len_m, i_len_c, i_mean, i_min, i_max, i_start, i_end, rc = -1, tx = 0;
-    size_t i;
+    OGRFeatureH feat;
+    int tx;
+    int idx[VEC_MAX_FIELDS];
+} vec_layer;
 
+typedef struct vec_field {
+    const char *name;
+    OGRFieldType type;
+} vec_field;
+
+/* Create layer `name` of geometry g with its fields, open a transaction where the format
+ * has them, and the feature to fill; 0, or -1 with the error (naming `shown`). */
+static int layer_open(GDALDatasetH ds, const vec_ctx *c, const char *shown, const char *name,
+                      OGRwkbGeometryType g, const vec_field *fields, int n, vec_layer *L)
+{
+    int k;
+    memset(L, 0, sizeof *L);
     CPLErrorReset();
-    layer = GDALDatasetCreateLayer(ds, "paths", c->srs, wkbLineString, NULL);
-    if (!layer) {
-        tsio__set_err_gdal(c->err, c->path, "cannot create the layer \"paths\"");
+    L->layer = GDALDatasetCreateLayer(ds, name, c->srs, g, NULL);
+    if (!L->layer) {
+        tsio__set_err_gdal(c->err, shown, CPLSPrintf("cannot create the layer \"%s\"", name));
         return -1;
     }
-    if (add_field(layer, "kind", OFTString, &i_kind) ||
-        add_field(layer, "length_m", OFTReal, &i_len_m) ||
-        add_field(layer, "length_cells", OFTReal, &i_len_c) ||
-        add_field(layer, "mean_elev", OFTReal, &i_mean) ||
-        add_field(layer, "min_elev", OFTReal, &i_min) ||
-        add_field(layer, "max_elev", OFTReal, &i_max) ||
-        add_field(layer, "start_kind", OFTString, &i_start) ||
-        add_field(layer, "end_kind", OFTString, &i_end)) {
-        tsio__set_err_gdal(c->err, c->path, "cannot create the fields of layer \"paths\"");
+    for (k = 0; k < n; k++)
+        if (add_field(L->layer, fields[k].name, fields[k].type, &L->idx[k])) {
+            tsio__set_err_gdal(c->err, shown,
+                               CPLSPrintf("cannot create the fields of layer \"%s\"", name));
+            return -1;
+        }
+    L->tx = GDALDatasetStartTransaction(ds, FALSE) == OGRERR_NONE;
+    L->feat = OGR_F_Create(OGR_L_GetLayerDefn(L->layer));
+    if (!L->feat) {
+        tsio_errf(c->err, shown, "out of memory");
         return -1;
     }
-    tx = GDALDatasetStartTransaction(ds, FALSE) == OGRERR_NONE;
-    feat = OGR_F_Create(OGR_L_GetLayerDefn(layer));
-    if (!feat) {
-        tsio_errf(c->err, c->path, "out of memory");
-        goto done;
+    return 0;
+}
+
+/* Write the feature as filled (geometry included) as a new row. */
+static int layer_put(vec_layer *L, const vec_ctx *c, const char *shown, const char *what)
+{
+    CPLErrorReset();
+    if (OGR_L_CreateFeature(L->layer, L->feat) != OGRERR_NONE) {
+        tsio__set_err_gdal(c->err, shown, CPLSPrintf("cannot write a %s", what));
+        return -1;
     }
-    for (i = 0; i < f->n_paths; i++) {
-        const ts_feature_path *p = &f->paths[i];
-        const ts_feature_vertex *v = &f->verts[p->first];
-        OGRGeometryH line = OGR_G_CreateGeometry(wkbLineString);
-        double len_c, len_m;
-        size_t k, npts = p->count < 2 ? 2 : p->count;
-        if (!line || npts > INT_MAX) {
-            if (line)
-                OGR_G_DestroyGeometry(line);
-            tsio_errf(c->err, c->path, "cannot build the line of path %zu", i);
-            goto done;
-        }
-        OGR_G_SetPointCount(line, (int)npts);
-        for (k = 0; k < npts; k++) {
-            const ts_feature_vertex *q = &v[k < p->count ? k : p->count - 1];
-            OGR_G_SetPoint_2D(line, (int)k, cx(c, q->x, q->y), cy(c, q->x, q->y));
-        }
-        chain_length(c, v, p->count, &len_c, &len_m);
-        OGR_F_SetFID(feat, OGRNullFID);
-        OGR_F_SetFieldString(feat, i_kind, kind_name(p->kind));
-        if (c->metrics)
-            set_real_or_null(feat, i_len_m, len_m);
-        else
-            OGR_F_SetFieldNull(feat, i_len_m);
-        OGR_F_SetFieldDouble(feat, i_len_c, len_c);
-        set_real_or_null(feat, i_mean, p->zmean);
-        set_real_or_null(feat, i_min, p->zmin);
-        set_real_or_null(feat, i_max, p->zmax);
-        OGR_F_SetFieldString(feat, i_start, node_kind_name(f->nodes[p->node_a].degree));
-        OGR_F_SetFieldString(feat, i_end, node_kind_name(f->nodes[p->node_b].degree));
-        OGR_F_SetGeometryDirectly(feat, line);
-        CPLErrorReset();
-        if (OGR_L_CreateFeature(layer, feat) != OGRERR_NONE) {
-            tsio__set_err_gdal(c->err, c->path, "cannot write a path");
-            goto done;
-        }
-    }
-    if (tx) {
-        tx = 0;
+    return 0;
+}
+
+/* After the rows (ok: all written): commit, else roll back; the feature freed.  0 when
+ * ok and committed. */
+static int layer_close(GDALDatasetH ds, vec_layer *L, const vec_ctx *c, const char *shown,
+                       const char *what, int ok)
+{
+    int rc = ok ? 0 : -1;
+    if (ok && L->tx) {
+        L->tx = 0;
         CPLErrorReset();
         if (GDALDatasetCommitTransaction(ds) != OGRERR_NONE) {
-            tsio__set_err_gdal(c->err, c->path, "cannot commit the paths");
-            goto done;
+            tsio__set_err_gdal(c->err, shown, CPLSPrintf("cannot commit the %ss", what));
+            rc = -1;
         }
     }
-    rc = 0;
-done:
-    if (feat)
-        OGR_F_Destroy(feat);
-    if (tx)
+    if (L->feat)
+        OGR_F_Destroy(L->feat);
+    if (L->tx && rc != 0)
         GDALDatasetRollbackTransaction(ds);
     return rc;
 }
 
+/* A LineString through the centres of count cells (one cell: drawn as a point twice). */
+static OGRGeometryH chain_line(const vec_ctx *c, const ts_feature_vertex *v, size_t count)
+{
+    size_t k, npts = count < 2 ? 2 : count;
+    OGRGeometryH line;
+    if (npts > INT_MAX || !(line = OGR_G_CreateGeometry(wkbLineString)))
+        return NULL;
+    OGR_G_SetPointCount(line, (int)npts);
+    for (k = 0; k < npts; k++) {
+        const ts_feature_vertex *q = &v[k < count ? k : count - 1];
+        OGR_G_SetPoint_2D(line, (int)k, cx(c, q->x, q->y), cy(c, q->x, q->y));
+    }
+    return line;
+}
+
+static int write_paths_layer(GDALDatasetH ds, const vec_ctx *c)
+{
+    enum { KIND, LEN_M, LEN_C, MEAN, MIN, MAX, START, END, NF };
+    static const vec_field fields[NF] = {{"kind", OFTString},       {"length_m", OFTReal},
+                                         {"length_cells", OFTReal}, {"mean_elev", OFTReal},
+                                         {"min_elev", OFTReal},     {"max_elev", OFTReal},
+                                         {"start_kind", OFTString}, {"end_kind", OFTString}};
+    const ts_features *f = c->f;
+    vec_layer L;
+    size_t i;
+    int ok = layer_open(ds, c, c->path, "paths", wkbLineString, fields, NF, &L) == 0;
+    for (i = 0; ok && i < f->n_paths; i++) {
+        const ts_feature_path *p = &f->paths[i];
+        const ts_feature_vertex *v = &f->verts[p->first];
+        OGRGeometryH line = chain_line(c, v, p->count);
+        double len_c, len_m;
+        if (!line) {
+            tsio_errf(c->err, c->path, "cannot build the line of path %zu", i);
+            ok = 0;
+            break;
+        }
+        chain_length(c, v, p->count, &len_c, &len_m);
+        OGR_F_SetFID(L.feat, OGRNullFID);
+        OGR_F_SetFieldString(L.feat, L.idx[KIND], kind_name(p->kind));
+        if (c->metrics)
+            set_real_or_null(L.feat, L.idx[LEN_M], len_m);
+        else
+            OGR_F_SetFieldNull(L.feat, L.idx[LEN_M]);
+        OGR_F_SetFieldDouble(L.feat, L.idx[LEN_C], len_c);
+        set_real_or_null(L.feat, L.idx[MEAN], p->zmean);
+        set_real_or_null(L.feat, L.idx[MIN], p->zmin);
+        set_real_or_null(L.feat, L.idx[MAX], p->zmax);
+        OGR_F_SetFieldString(L.feat, L.idx[START], node_kind_name(f->nodes[p->node_a].degree));
+        OGR_F_SetFieldString(L.feat, L.idx[END], node_kind_name(f->nodes[p->node_b].degree));
+        OGR_F_SetGeometryDirectly(L.feat, line);
+        ok = layer_put(&L, c, c->path, "path") == 0;
+    }
+    return layer_close(ds, &L, c, c->path, "path", ok);
+}
+
 static int write_nodes_layer(GDALDatasetH ds, const vec_ctx *c, const char *shown_path)
 {
+    enum { KIND, DEGREE, ELEV, FEATURE, NF };
+    static const vec_field fields[NF] = {
+        {"kind", OFTString}, {"degree", OFTInteger}, {"elev", OFTReal}, {"feature", OFTString}};
     const ts_features *f = c->f;
-    OGRLayerH layer;
-    OGRFeatureH feat = NULL;
-    int i_kind, i_degree, i_elev, i_feature, rc = -1, tx = 0;
+    vec_layer L;
     size_t i;
-
-    CPLErrorReset();
-    layer = GDALDatasetCreateLayer(ds, "nodes", c->srs, wkbPoint, NULL);
-    if (!layer) {
-        tsio__set_err_gdal(c->err, shown_path, "cannot create the layer \"nodes\"");
-        return -1;
-    }
-    if (add_field(layer, "kind", OFTString, &i_kind) ||
-        add_field(layer, "degree", OFTInteger, &i_degree) ||
-        add_field(layer, "elev", OFTReal, &i_elev) ||
-        add_field(layer, "feature", OFTString, &i_feature)) {
-        tsio__set_err_gdal(c->err, shown_path, "cannot create the fields of layer \"nodes\"");
-        return -1;
-    }
-    tx = GDALDatasetStartTransaction(ds, FALSE) == OGRERR_NONE;
-    feat = OGR_F_Create(OGR_L_GetLayerDefn(layer));
-    if (!feat) {
-        tsio_errf(c->err, shown_path, "out of memory");
-        goto done;
-    }
-    for (i = 0; i < f->n_nodes; i++) {
+    int ok = layer_open(ds, c, shown_path, "nodes", wkbPoint, fields, NF, &L) == 0;
+    for (i = 0; ok && i < f->n_nodes; i++) {
         const ts_feature_node *n = &f->nodes[i];
         OGRGeometryH pt = OGR_G_CreateGeometry(wkbPoint);
         if (!pt) {
             tsio_errf(c->err, shown_path, "out of memory");
-            goto done;
+            ok = 0;
+            break;
         }
         OGR_G_SetPoint_2D(pt, 0, cx(c, n->x, n->y), cy(c, n->x, n->y));
-        OGR_F_SetFID(feat, OGRNullFID);
-        OGR_F_SetFieldString(feat, i_kind, node_kind_name(n->degree));
-        OGR_F_SetFieldInteger(feat, i_degree, n->degree);
-        set_real_or_null(feat, i_elev, n->z);
-        OGR_F_SetFieldString(feat, i_feature, kind_name(n->kind));
-        OGR_F_SetGeometryDirectly(feat, pt);
-        CPLErrorReset();
-        if (OGR_L_CreateFeature(layer, feat) != OGRERR_NONE) {
-            tsio__set_err_gdal(c->err, shown_path, "cannot write a node");
-            goto done;
-        }
+        OGR_F_SetFID(L.feat, OGRNullFID);
+        OGR_F_SetFieldString(L.feat, L.idx[KIND], node_kind_name(n->degree));
+        OGR_F_SetFieldInteger(L.feat, L.idx[DEGREE], n->degree);
+        set_real_or_null(L.feat, L.idx[ELEV], n->z);
+        OGR_F_SetFieldString(L.feat, L.idx[FEATURE], kind_name(n->kind));
+        OGR_F_SetGeometryDirectly(L.feat, pt);
+        ok = layer_put(&L, c, shown_path, "node") == 0;
     }
-    if (tx) {
-        tx = 0;
-        CPLErrorReset();
-        if (GDALDatasetCommitTransaction(ds) != OGRERR_NONE) {
-            tsio__set_err_gdal(c->err, shown_path, "cannot commit the nodes");
-            goto done;
-        }
-    }
-    rc = 0;
-done:
-    if (feat)
-        OGR_F_Destroy(feat);
-    if (tx)
-        GDALDatasetRollbackTransaction(ds);
-    return rc;
+    return layer_close(ds, &L, c, shown_path, "node", ok);
 }
 
 /* Layer "streams": a LineString per link, downstream, with its network. */
 static int write_streams_layer(GDALDatasetH ds, const vec_ctx *c)
 {
+    enum { LINK, DOWN, ORDER, AREA_C, AREA_KM2, LEN_M, LEN_C, TOP, BOTTOM, NF };
+    static const vec_field fields[NF] = {
+        {"link", OFTInteger64},    {"down", OFTInteger64}, {"strahler", OFTInteger},
+        {"area_cells", OFTReal},   {"area_km2", OFTReal},  {"length_m", OFTReal},
+        {"length_cells", OFTReal}, {"elev_top", OFTReal},  {"elev_bottom", OFTReal}};
     const ts_stream_network *net = c->net;
-    OGRLayerH layer;
-    OGRFeatureH feat = NULL;
-    int i_link, i_down, i_order, i_ac, i_akm, i_lm, i_lc, i_top, i_bot, rc = -1, tx = 0;
-    size_t i, k;
-
-    CPLErrorReset();
-    layer = GDALDatasetCreateLayer(ds, "streams", c->srs, wkbLineString, NULL);
-    if (!layer) {
-        tsio__set_err_gdal(c->err, c->path, "cannot create the layer \"streams\"");
-        return -1;
-    }
-    if (add_field(layer, "link", OFTInteger64, &i_link) ||
-        add_field(layer, "down", OFTInteger64, &i_down) ||
-        add_field(layer, "strahler", OFTInteger, &i_order) ||
-        add_field(layer, "area_cells", OFTReal, &i_ac) ||
-        add_field(layer, "area_km2", OFTReal, &i_akm) ||
-        add_field(layer, "length_m", OFTReal, &i_lm) ||
-        add_field(layer, "length_cells", OFTReal, &i_lc) ||
-        add_field(layer, "elev_top", OFTReal, &i_top) ||
-        add_field(layer, "elev_bottom", OFTReal, &i_bot)) {
-        tsio__set_err_gdal(c->err, c->path, "cannot create the fields of layer \"streams\"");
-        return -1;
-    }
-    tx = GDALDatasetStartTransaction(ds, FALSE) == OGRERR_NONE;
-    feat = OGR_F_Create(OGR_L_GetLayerDefn(layer));
-    if (!feat) {
-        tsio_errf(c->err, c->path, "out of memory");
-        goto done;
-    }
-    for (i = 0; i < net->n_links; i++) {
-        const ts_stream_link *L = &net->links[i];
-        const ts_feature_vertex *v = &net->verts[L->first], *low = &v[L->count - 1];
-        OGRGeometryH line = OGR_G_CreateGeometry(wkbLineString);
+    vec_layer L;
+    size_t i;
+    int ok = layer_open(ds, c, c->path, "streams", wkbLineString, fields, NF, &L) == 0;
+    for (i = 0; ok && i < net->n_links; i++) {
+        const ts_stream_link *S = &net->links[i];
+        const ts_feature_vertex *v = &net->verts[S->first], *low = &v[S->count - 1];
+        OGRGeometryH line = chain_line(c, v, S->count);
         double len_c, len_m;
-        if (!line || L->count > INT_MAX) {
-            if (line)
-                OGR_G_DestroyGeometry(line);
+        if (!line) {
             tsio_errf(c->err, c->path, "cannot build the line of link %zu", i);
-            goto done;
+            ok = 0;
+            break;
         }
-        OGR_G_SetPointCount(line, (int)L->count);
-        for (k = 0; k < L->count; k++)
-            OGR_G_SetPoint_2D(line, (int)k, cx(c, v[k].x, v[k].y), cy(c, v[k].x, v[k].y));
-        chain_length(c, v, L->count, &len_c, &len_m);
-        OGR_F_SetFID(feat, OGRNullFID);
-        OGR_F_SetFieldInteger64(feat, i_link, (GIntBig)i);
-        if (L->down >= 0)
-            OGR_F_SetFieldInteger64(feat, i_down, (GIntBig)L->down);
+        chain_length(c, v, S->count, &len_c, &len_m);
+        OGR_F_SetFID(L.feat, OGRNullFID);
+        OGR_F_SetFieldInteger64(L.feat, L.idx[LINK], (GIntBig)i);
+        if (S->down >= 0)
+            OGR_F_SetFieldInteger64(L.feat, L.idx[DOWN], (GIntBig)S->down);
         else
-            OGR_F_SetFieldNull(feat, i_down);
-        OGR_F_SetFieldInteger(feat, i_order, L->order);
-        OGR_F_SetFieldDouble(feat, i_ac, L->area);
+            OGR_F_SetFieldNull(L.feat, L.idx[DOWN]);
+        OGR_F_SetFieldInteger(L.feat, L.idx[ORDER], S->order);
+        OGR_F_SetFieldDouble(L.feat, L.idx[AREA_C], S->area);
         if (c->metrics) {
-            set_real_or_null(feat, i_akm,
-                             L->area * c->metrics->dx[low->y] * c->metrics->dy[low->y] / 1e6);
-            set_real_or_null(feat, i_lm, len_m);
+            set_real_or_null(L.feat, L.idx[AREA_KM2],
+                             S->area * c->metrics->dx[low->y] * c->metrics->dy[low->y] / 1e6);
+            set_real_or_null(L.feat, L.idx[LEN_M], len_m);
         } else {
-            OGR_F_SetFieldNull(feat, i_akm);
-            OGR_F_SetFieldNull(feat, i_lm);
+            OGR_F_SetFieldNull(L.feat, L.idx[AREA_KM2]);
+            OGR_F_SetFieldNull(L.feat, L.idx[LEN_M]);
         }
-        OGR_F_SetFieldDouble(feat, i_lc, len_c);
-        set_real_or_null(feat, i_top, v[0].z);
-        set_real_or_null(feat, i_bot, low->z);
-        OGR_F_SetGeometryDirectly(feat, line);
-        CPLErrorReset();
-        if (OGR_L_CreateFeature(layer, feat) != OGRERR_NONE) {
-            tsio__set_err_gdal(c->err, c->path, "cannot write a stream");
-            goto done;
-        }
+        OGR_F_SetFieldDouble(L.feat, L.idx[LEN_C], len_c);
+        set_real_or_null(L.feat, L.idx[TOP], v[0].z);
+        set_real_or_null(L.feat, L.idx[BOTTOM], low->z);
+        OGR_F_SetGeometryDirectly(L.feat, line);
+        ok = layer_put(&L, c, c->path, "stream") == 0;
     }
-    if (tx) {
-        tx = 0;
-        CPLErrorReset();
-        if (GDALDatasetCommitTransaction(ds) != OGRERR_NONE) {
-            tsio__set_err_gdal(c->err, c->path, "cannot commit the streams");
-            goto done;
-        }
-    }
-    rc = 0;
-done:
-    if (feat)
-        OGR_F_Destroy(feat);
-    if (tx)
-        GDALDatasetRollbackTransaction(ds);
-    return rc;
+    return layer_close(ds, &L, c, c->path, "stream", ok);
 }
 
 /* A stream network output makes sense: links and vertices on the grid. */

@@ -230,31 +230,43 @@ int tsjob__preview(ts_ctx *ctx, const char *path, const ts_raster *dem, const ts
     return rc;
 }
 
-/* The least drainage area of a stream in cells: flow_km2 over the mean
- * cell's ground area, or flow_cells (default 1000); -1 when flow_km2 has no
+/* The ground metrics the streams are measured with: the job's, else the grid's own
+ * (*dx, *dy allocated here, NULL without CRS); -1 on error. */
+static int flow_metrics(const tsio_georef *geo, const ts_grid_metrics *given, double **dx,
+                        double **dy, ts_grid_metrics *own, const ts_grid_metrics **use,
+                        tsio_err *err)
+{
+    *dx = *dy = NULL;
+    *use = given;
+    if (given)
+        return 0;
+    if (tsio_georef_metrics(geo, dx, dy, err) != 0)
+        return -1;
+    own->dx = *dx;
+    own->dy = *dy;
+    *use = *dx ? own : NULL;
+    return 0;
+}
+
+/* The least drainage area of a stream in cells: flow_km2 over the mean cell's ground
+ * area (metrics: flow_metrics'), or flow_cells (default 1000); -1 when flow_km2 has no
  * metrics or is below two cells. */
 static double flow_threshold(const tsjob_outputs *o, const tsio_georef *geo,
                              const ts_grid_metrics *metrics, tsio_err *err)
 {
-    double *dx = NULL, *dy = NULL, mean = 0, cells;
+    double mean = 0, cells;
     int y;
     if (!(o->flow_km2 > 0))
         return o->flow_cells > 0 ? o->flow_cells : 1000.0;
     if (!metrics) {
-        if (tsio_georef_metrics(geo, &dx, &dy, err) != 0)
-            return -1;
-        if (!dx) {
-            tsio_errf(err, o->flow_lines,
-                      "flow_km2 needs the ground size of the cells: the grid has no CRS (give "
-                      "flow_cells, or cell_size)");
-            return -1;
-        }
+        tsio_errf(err, o->flow_lines,
+                  "flow_km2 needs the ground size of the cells: the grid has no CRS (give "
+                  "flow_cells, or cell_size)");
+        return -1;
     }
     for (y = 0; y < geo->height; y++)
-        mean += metrics ? metrics->dx[y] * metrics->dy[y] : dx[y] * dy[y];
+        mean += metrics->dx[y] * metrics->dy[y];
     mean /= geo->height;
-    free(dx);
-    free(dy);
     cells = o->flow_km2 * 1e6 / mean;
     if (!(cells >= 2)) {
         tsio_errf(err, o->flow_lines,
@@ -269,49 +281,50 @@ int tsjob__flow_check(const tsjob_outputs *o, const char *const *inputs, int n_i
                       const char *const *outs, int n_outs, const tsio_georef *geo,
                       const ts_grid_metrics *metrics, tsio_err *err)
 {
-    int i;
+    const char *all[16];
+    const ts_grid_metrics *use;
+    ts_grid_metrics own;
+    double *dx, *dy;
+    int i, rc;
     if (!o->flow_lines)
         return 0;
     if (tsjob__not_an_input(o->flow_lines, inputs, n_in, err) != 0)
         return -1;
-    for (i = 0; i < n_outs; i++)
-        if (outs[i] && tsio_same_file(outs[i], o->flow_lines)) {
-            tsio_errf(err, o->flow_lines, "is also an output (%s): each output needs its own file",
-                      outs[i]);
-            return -1;
-        }
-    if (tsio_check_vector_output(o->flow_lines, err) != 0)
+    for (i = 0; i < n_outs && i < 15; i++)
+        all[i] = outs[i];
+    all[i] = o->flow_lines;
+    if (tsjob__distinct(all, i + 1, err) != 0 || tsio_check_vector_output(o->flow_lines, err) != 0)
         return -1;
     /* after the method: its DEM, the flow (9 bytes a cell) and the stream cells (16 bytes
      * each, a quarter of the cells at most but with the least thresholds) */
     if (tsio_check_memory((uint64_t)geo->width * (uint64_t)geo->height * 17u, o->flow_lines,
                           "a larger flow_cells, or no flow_lines", err) != 0)
         return -1;
-    return flow_threshold(o, geo, metrics, err) < 0 ? -1 : 0;
+    if (flow_metrics(geo, metrics, &dx, &dy, &own, &use, err) != 0)
+        return -1;
+    rc = flow_threshold(o, geo, use, err) < 0 ? -1 : 0;
+    free(dx);
+    free(dy);
+    return rc;
 }
 
 int tsjob__flow_write(ts_ctx *ctx, const tsjob_outputs *o, const ts_raster *dem,
                       const tsio_georef *geo, const ts_grid_metrics *metrics, tsio_err *err)
 {
-    double *dx = NULL, *dy = NULL, thr;
-    ts_grid_metrics m;
+    const ts_grid_metrics *use;
+    ts_grid_metrics own;
+    double *dx, *dy, thr;
     ts_stream_network *net = NULL;
     int rc = -1;
     if (!o->flow_lines)
         return 0;
-    if ((thr = flow_threshold(o, geo, metrics, err)) < 0)
+    if (flow_metrics(geo, metrics, &dx, &dy, &own, &use, err) != 0)
         return -1;
-    if (!metrics) {
-        if (tsio_georef_metrics(geo, &dx, &dy, err) != 0)
-            return -1;
-        m.dx = dx;
-        m.dy = dy;
-        metrics = dx ? &m : NULL;
-    }
-    if (ts_stream_network_extract(ctx, dem, thr, &net) != TS_OK)
+    thr = flow_threshold(o, geo, use, err);
+    if (thr >= 0 && ts_stream_network_extract(ctx, dem, thr, &net) != TS_OK)
         tsio_errf(err, o->flow_lines, "%s", ts_ctx_message(ctx));
-    else
-        rc = tsio_write_streams(o->flow_lines, geo, net, metrics, err);
+    else if (thr >= 0)
+        rc = tsio_write_streams(o->flow_lines, geo, net, use, err);
     ts_stream_network_free(net);
     free(dx);
     free(dy);

@@ -212,15 +212,21 @@ static int option_has_attr(const tsjob_option *o, const char *elem, const char *
            (o->kind == TSJOB_PAIR && o->choices && EQUAL(attr, o->choices));
 }
 
+/* Does one of the job's options name element `elem` (attr NULL), or give it attribute
+ * `attr`? */
 static int job_has(const tsjob_decl *job, const char *elem, const char *attr)
 {
     size_t k;
     for (k = 0; k < job->n_opts; k++) {
+        const tsjob_option *o = &job->opts[k];
         char e[64], a[64], b[64];
-        if (attr ? option_has_attr(&job->opts[k], elem, attr)
-                 : (job->opts[k].xml &&
-                    (xml_split(job->opts[k].xml, e, a, b, sizeof e), e[0] && EQUAL(e, elem))))
+        if (attr && option_has_attr(o, elem, attr))
             return 1;
+        if (!attr && o->xml) {
+            xml_split(o->xml, e, a, b, sizeof e);
+            if (e[0] && EQUAL(e, elem))
+                return 1;
+        }
     }
     return 0;
 }

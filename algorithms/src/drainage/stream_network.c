@@ -186,7 +186,7 @@ static int links_build(const sn_cell *c, size_t n, int W, const sn_forest *f,
     }
     for (i = 0; i < n; i++) {
         ts_stream_link *L;
-        size_t u = i, own;
+        size_t u = i, above = i; /* the cell before u along the link */
         if (link_at[i] == SN_NONE)
             continue;
         L = &net->links[net->n_links++];
@@ -199,16 +199,13 @@ static int links_build(const sn_cell *c, size_t n, int W, const sn_forest *f,
             v->z = NAN;
             if (u != i && (f->indeg[u] != 1 || f->down[u] == SN_NONE))
                 break;
+            above = u;
             u = f->down[u];
         }
         L->count = net->n_verts - L->first;
         L->down = f->indeg[u] >= 2 && link_at[u] != SN_NONE ? (int64_t)link_at[u] : -1;
         /* the area of its own lowest cell: above the confluence it ends at */
-        own = f->indeg[u] >= 2 ? L->first + L->count - 2 : L->first + L->count - 1;
-        L->area =
-            c[find_cell(c, n,
-                        (uint64_t)net->verts[own].y * (uint64_t)W + (uint64_t)net->verts[own].x)]
-                .area;
+        L->area = c[f->indeg[u] >= 2 ? above : u].area;
     }
     free(link_at);
     return 0;
