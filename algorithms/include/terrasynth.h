@@ -70,6 +70,12 @@ TS_API void ts_ctx_set_progress(ts_ctx *ctx, ts_progress_fn fn, void *user);
 /** The callback and user data set by ts_ctx_set_progress (to chain calls:
  *  a front end maps each call onto part of its own progress). */
 TS_API void ts_ctx_get_progress(const ts_ctx *ctx, ts_progress_fn *fn, void **user);
+/** A note for the user while a call works (a long stage ahead and what would
+ *  shorten it); stage and msg are borrowed for the call.  Called on the
+ *  caller's thread; never changes a result. */
+typedef void (*ts_notice_fn)(const char *stage, const char *msg, void *user);
+/** Notice callback and its user pointer (borrowed; may be NULL: no notices). */
+TS_API void ts_ctx_set_notice(ts_ctx *ctx, ts_notice_fn fn, void *user);
 TS_API void ts_ctx_set_seed(ts_ctx *ctx, uint64_t seed);
 TS_API uint64_t ts_ctx_seed(const ts_ctx *ctx);
 /** Worker threads; 0 = all online processors.  Results never depend on it. */

@@ -45,8 +45,19 @@ static int progress_bar(double done, const char *msg, void *user)
     return GDALTermProgress(done, NULL, NULL);
 }
 
+/* A note from the core while it works: a warning line (after the bar's dots). */
+static void notice_line(const char *stage, const char *msg, void *user)
+{
+    if (user)
+        fputc('\n', stderr);
+    fprintf(stderr, "terrasynth: warning: %s: %s\n", stage, msg);
+}
+
 void cli_set_progress(ts_ctx *ctx, progress_mode mode, int *state)
 {
+    static int bar = 1;
+    fflush(stdout);
+    ts_ctx_set_notice(ctx, notice_line, mode == PROGRESS_BAR ? &bar : NULL);
     if (mode == PROGRESS_BAR)
         ts_ctx_set_progress(ctx, progress_bar, NULL);
     else if (mode == PROGRESS_LINES)

@@ -337,6 +337,7 @@ def main(argv=None):
         signal.signal(s, on_signal)
 
     cluster = client = None
+    where = a.recipe  # what a failure is named after
     try:
         if a.scheduler:
             client = Client(a.scheduler)
@@ -344,8 +345,10 @@ def main(argv=None):
             # the workers' own logs stay quiet: a failed task is reported once, in one line,
             # by this process (Dask's "Compute Failed" dumps were 19 lines a failure)
             import logging
+            # (its HTTP server on a free loopback port: with None it takes 8787, or warns
+            # in three lines when another cluster has it)
             cluster = LocalCluster(n_workers=a.workers, threads_per_worker=1,
-                                   processes=a.processes, dashboard_address=None,
+                                   processes=a.processes, dashboard_address="127.0.0.1:0",
                                    silence_logs=logging.CRITICAL)
             for name in ("distributed", "distributed.worker", "distributed.core",
                          "distributed.nanny", "distributed.scheduler"):
@@ -404,6 +407,7 @@ def main(argv=None):
         held, nxt = {}, 0
         done = 0
         for fut in futures:
+            where = a.recipe  # a task's failure is the recipe's
             if tile:  # the tile's core out of its window
                 win, core, window = fut.result()
                 x, y = core[0], core[1]
@@ -416,6 +420,7 @@ def main(argv=None):
             else:
                 x, y, arr = fut.result()
             held[(y, x)] = arr
+            where = a.output  # a write's failure is the output's
             while nxt < len(order) and order[nxt] in held:
                 y, x = order[nxt]
                 ob.WriteArray(held.pop((y, x)), x, y)
@@ -435,6 +440,7 @@ def main(argv=None):
                 sys.stderr.flush()
         if not a.quiet:
             sys.stderr.write("\n")
+        where = a.output
         if held or nxt != len(order):
             raise RuntimeError("internal error: %d pieces left unwritten" % (len(order) - nxt))
         if a.stats and cluster is not None and not a.processes:
@@ -474,9 +480,25 @@ def main(argv=None):
         os.chmod(final, 0o666 & ~mask)
         os.replace(final, a.output)
     except Exception as e:  # one line, nothing left behind
+        # the output closed quietly first: closing it flushes what is left, and a full
+        # disk then raised again from the dataset's destructor (a Python traceback)
+        gdal.PushErrorHandler("CPLQuietErrorHandler")
+        gdal.DontUseExceptions()
+        try:
+            ob = dst = None
+        except Exception:
+            pass
+        gdal.UseExceptions()
+        gdal.PopErrorHandler()
+        msg = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
+        try:  # (before the cleanup frees what the output took)
+            st = os.statvfs(out_dir)
+            if where == a.output and st.f_bavail * st.f_frsize < (1 << 20):
+                msg = "no space left on its disk (%s)" % msg
+        except OSError:
+            pass
         cleanup()
-        fail("%s: %s" % (a.recipe, str(e).strip().splitlines()[-1] if str(e).strip() else
-                         type(e).__name__))
+        fail("%s: %s" % (where, msg))
     finally:
         if client is not None:
             client.close()

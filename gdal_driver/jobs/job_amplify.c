@@ -37,13 +37,76 @@ static int job_check_class_codes(const char *path, const ts_raster *r, tsio_err 
     return 0;
 }
 
+/* The atoms an exemplar gives whose phases have n1 windows each (the
+ * dictionary's rule: a lattice of the smallest step over phase 0 when it has
+ * more windows than asked for, else more phases while the budget lasts). */
+static uint64_t job_exemplar_atoms(uint64_t n1, uint64_t FF, uint64_t atoms)
+{
+    uint64_t step = 1, side;
+    if (n1 * FF <= atoms)
+        return n1 * FF;
+    if (n1 <= atoms)
+        return atoms;
+    while (n1 / (step * step) > atoms)
+        step++;
+    side = (uint64_t)sqrt((double)n1) / step + 1; /* a square exemplar's lattice, rounded up */
+    return side * side < atoms ? side * side : atoms;
+}
+
+/* The memory a dictionary takes while it is built from the job's exemplars
+ * with cells of out_area square metres, added to *need: each exemplar as read
+ * and at that resolution, its low-resolution sources, and the atoms (an
+ * exemplar gives at most the atoms asked for and at most one per cell at the
+ * output's resolution: F x F phases of (cells / F^2) windows; one phase on a
+ * lattice when it alone has more windows than atoms asked for).  A warning for
+ * an exemplar much coarser than the output.  *dict_bytes (may be NULL): the
+ * atoms' part alone. */
+static int job_dictionary_need(const tsjob_amplify *job, double out_area, uint64_t *need,
+                               uint64_t *dict_bytes, tsio_err *warning, tsio_err *err)
+{
+    const ts_amplify_params *p = &job->params;
+    uint64_t atoms_total = 0, biggest = 0, pp = (uint64_t)p->patch * p->patch;
+    uint64_t FF = (uint64_t)p->factor * p->factor, atom;
+    int i;
+    for (i = 0; i < job->n_exemplars; i++) {
+        uint64_t src, tgt;
+        double ratio;
+        if (tsjob__exemplar_cells(job->exemplars[i], out_area, job->cell_size, &src, &tgt, &ratio,
+                                  err) != 0)
+            return -1;
+        atoms_total += job_exemplar_atoms(tgt / FF, FF, (uint64_t)p->atoms);
+        *need += src * 4 + tgt * 16; /* as read, and at the output's resolution */
+        *need += tgt * 12;           /* the phases' low-resolution sources and drainage */
+        *need += (src * 4 + tgt * 8) * (uint64_t)job->n_layers; /* its layers, read one by one */
+        if (job->exemplar_classes[i])
+            *need += src * 4 + tgt * 8;
+        if (src > biggest)
+            biggest = src;
+        if (ratio > 4.0 && warning && !warning->msg[0])
+            tsio_errf(warning, job->exemplars[i],
+                      "its cells are %.1f times the output's on the ground: its detail is "
+                      "interpolated, not real (an exemplar at the output's resolution or finer "
+                      "gives real detail)",
+                      sqrt(ratio));
+    }
+    *need += biggest * JOB_MEM_EX_SOURCE_CELL;
+    /* an atom: three low-resolution descriptors (and the irradiance's), its
+     * detail, the layers' and classes' detail, its place and sorted keys */
+    atom = pp * 4 * (3 + (p->w_l > 0 ? 1 : 0)) + pp * FF * 4 * (1 + (uint64_t)job->n_layers) +
+           (job->exemplar_classes[0] ? pp * FF + 4 * TS_MAX_CLASSES : 0) + 80;
+    *need += atoms_total * atom;
+    if (dict_bytes)
+        *dict_bytes = atoms_total * atom;
+    return 0;
+}
+
 int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, tsio_err *err)
 {
     tsio_georef g;
     const ts_amplify_params *p = &job->params;
-    uint64_t need, atoms_total = 0, biggest = 0, cells_out;
+    uint64_t need, cells_out;
     double *dx = NULL, *dy = NULL, out_area = 0;
-    int F = p->factor, i, rc;
+    int F = p->factor, rc;
     memset(res, 0, sizeof *res);
     if (tsio_read_georef(job->input, &g, err) != 0)
         return -1;
@@ -69,30 +132,8 @@ int tsjob_amplify_prepare(const tsjob_amplify *job, tsjob_amplify_result *res, t
     tsjob__warn_cell_sizes(&res->warning, job->cell_size, job->input, &g,
                            (const char *const *)job->exemplars, job->n_exemplars);
     tsio_georef_free(&g);
-    for (i = 0; i < job->n_exemplars; i++) {
-        uint64_t src, tgt;
-        double ratio;
-        if (tsjob__exemplar_cells(job->exemplars[i], out_area, job->cell_size, &src, &tgt, &ratio,
-                                  err) != 0)
-            return -1;
-        atoms_total += (uint64_t)p->atoms;
-        need += src * 4 + tgt * 16; /* as read, and at the output's resolution */
-        need += (src * 4 + tgt * 8) * (uint64_t)job->n_layers; /* its layers, read one by one */
-        if (job->exemplar_classes[i])
-            need += src * 4 + tgt * 8;
-        if (src > biggest)
-            biggest = src;
-        if (ratio > 4.0 && !res->warning.msg[0])
-            tsio_errf(&res->warning, job->exemplars[i],
-                      "its cells are %.1f times the output's on the ground: its detail is "
-                      "interpolated, not real (an exemplar at the output's resolution or finer "
-                      "gives real detail)",
-                      sqrt(ratio));
-    }
-    need += biggest * JOB_MEM_EX_SOURCE_CELL;
-    need += atoms_total * ((uint64_t)p->patch * p->patch * ((uint64_t)F * F + 2) * 4 + 64);
-    need += atoms_total * (uint64_t)p->patch * p->patch * (uint64_t)F * F *
-            (4 * (uint64_t)job->n_layers + (job->exemplar_classes[0] ? 1 : 0));
+    if (job_dictionary_need(job, out_area, &need, NULL, &res->warning, err) != 0)
+        return -1;
     if (tsio_check_memory(need, "amplify",
                           "a smaller input, a smaller factor, fewer atoms or "
                           "exemplars nearer the output's resolution",
@@ -418,10 +459,18 @@ int tsjob_dictionary_build(ts_ctx *ctx, const tsjob_amplify *job, const char *pa
     ts_dictionary *dict = NULL;
     unsigned char head[DICT_FILE_HEAD], *bytes = NULL;
     size_t len = 0;
-    uint64_t bits;
-    /* the destination, before the work */
+    uint64_t bits, need = 0, dict_need;
+    /* the destination and the memory, before the work: the dictionary and its
+     * file's bytes are both held while it is written */
     if (tsjob__not_an_input(path, in, n, err) ||
-        tsio_write_bytes(path, NULL, 0, NULL, 0, 1, err) != 0)
+        tsio_write_bytes(path, NULL, 0, NULL, 0, 1, err) != 0 ||
+        job_dictionary_need(job, job->resolution * job->resolution, &need, &dict_need, NULL,
+                            err) != 0)
+        return -1;
+    if (tsio_check_memory(JOB_MEM_BASE + need + dict_need, "dictionary",
+                          "a coarser resolution, fewer atoms (--atoms), fewer exemplars or a "
+                          "smaller factor",
+                          err) != 0)
         return -1;
     if (job_build_dictionary(ctx, job, job->resolution, job->resolution, "dictionary", &dict, NULL,
                              NULL, NULL, err) != 0)

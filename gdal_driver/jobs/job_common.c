@@ -55,6 +55,16 @@ int tsjob__exemplar_cells(const char *path, double target_area, double cell_size
     }
     free(dx);
     free(dy);
+    /* resampled to the target's cells, a side past what a raster can hold is refused here
+     * (the cast below would wrap, and GDAL would be asked for a negative size) */
+    if ((double)g.width * sqrt(r) > (double)INT_MAX || (double)g.height * sqrt(r) > (double)INT_MAX) {
+        tsio_errf(err, path,
+                  "at the target's cells of %.3g m it would be %.3g x %.3g cells, more than a "
+                  "raster holds: give cells nearer its own",
+                  sqrt(target_area), (double)g.width * sqrt(r), (double)g.height * sqrt(r));
+        tsio_georef_free(&g);
+        return -1;
+    }
     tsio_georef_free(&g);
     *target = (uint64_t)((double)*source * r + 1.0);
     if (ratio)

@@ -28,7 +28,9 @@
     128                           /* per output cell with a sketch: PPA, features, guides, the     \
                                      slope style's Poisson system (~110 B/cell at its peak) */
 #define JOB_MEM_EX_SOURCE_CELL 12 /* per exemplar cell as read */
-#define JOB_MEM_EX_CELL 24        /* per exemplar cell at the target resolution: pyramid, FFT */
+#define JOB_MEM_EX_CELL 16 /* per exemplar cell at the target resolution: it, its pyramid,     \
+                              nodata and feature tables */
+#define JOB_MEM_EX_MATCH_CELL 32 /* per exemplar cell at its matching level: FFT spectra, rows */
 #define JOB_MEM_TILE_CELL 8       /* per cell of a tile being made: its window, flags, copy */
 #define JOB_MEM_TILED_CELL                                                                         \
     16 /* per output cell in tiles with debug maps: every tile's                                   \

@@ -18,6 +18,22 @@
 
 #include "job_internal.h"
 
+/* The cells of an exemplar of tgt cells at the level its patches are
+ * matched on (the placement's rule: the coarse factor as asked, rounded down
+ * to a power of two, or the smallest that brings it to 512 x 512 cells and
+ * keeps 8 coarse cells a patch). */
+static uint64_t job_synth_match_cells(const tsjob_synth_result *res, uint64_t tgt)
+{
+    int K = 0, cf = res->params.coarse_factor, P = (int)res->params.patch_size.value;
+    if (cf == 0)
+        while ((tgt >> (2 * K)) > 512 * 512 && (P >> (K + 1)) >= 8 && K + 1 < 5)
+            K++;
+    else
+        while ((2 << K) <= cf && K + 1 < 5)
+            K++;
+    return (tgt >> (2 * K)) + 1;
+}
+
 /* The whole job's memory against the limit, before any exemplar is read. */
 static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_result *res,
                                   tsio_err *err)
@@ -58,7 +74,7 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
         if (tsjob__exemplar_cells(job->exemplars[i], t_area, job->cell_size, &src, &tgt, NULL,
                                   err) != 0)
             return -1;
-        need += tgt * JOB_MEM_EX_CELL;
+        need += tgt * JOB_MEM_EX_CELL + job_synth_match_cells(res, tgt) * JOB_MEM_EX_MATCH_CELL;
         if (src > biggest)
             biggest = src; /* read one at a time */
     }

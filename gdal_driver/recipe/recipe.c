@@ -566,6 +566,12 @@ double tsrecipe_nodata(const tsrecipe *r)
     return r->map < 0 ? TSIO_NODATA : -1.0;
 }
 
+/* A note from the core while a recipe is computed: a GDAL warning. */
+static void recipe_notice(const char *stage, const char *msg, void *user)
+{
+    CPLError(CE_Warning, CPLE_AppDefined, "%s: %s: %s", (const char *)user, stage, msg);
+}
+
 static int recipe_compute_offline(tsrecipe *r, tsio_err *err)
 {
     ts_ctx *ctx;
@@ -583,6 +589,7 @@ static int recipe_compute_offline(tsrecipe *r, tsio_err *err)
         return -1;
     }
     ts_ctx_set_seed(ctx, r->seed);
+    ts_ctx_set_notice(ctx, recipe_notice, r->path);
     recipe_stack[recipe_depth++] = r->path;
     if (r->method == TSRECIPE_PPA) {
         rc = tsjob_ppa_prepare(&r->ppa, &r->ppa_res, err);

@@ -328,3 +328,38 @@ def test_a_failing_task_is_one_line(tmp_path, kind):
         assert p.returncode == 1 and len(lines) == 1, p.stderr
         assert "tiny.tif" in lines[0] and "smaller than a patch" in lines[0]
         assert not (tmp_path / "o.tif").exists()
+
+
+def test_a_full_disk_is_one_line(tmp_path):
+    """The output's file cannot grow (a file size limit: writes fail as on a full disk):
+    one line naming the output, exit 1, no Python traceback (closing the half-written file
+    raised again from its destructor), nothing left in the folder; and no warning about the
+    dashboard's port when another cluster holds it."""
+    import resource
+    import socket
+    recipe = tmp_path / "p.tsyn"
+    run("pixel", "--exemplar", JACKSBORO, "--size", "600x600", "--seed", 5, "--recipe", recipe)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64 << 10, 64 << 10))
+
+    held = socket.socket()
+    try:
+        held.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        held.bind(("127.0.0.1", 8787))
+        held.listen(1)
+    except OSError:
+        pass  # taken already: the same test
+    try:
+        p = subprocess.run([sys.executable, RUNNER, str(recipe), str(out_dir / "o.tif"),
+                            "--workers", "2", "-q"],
+                           capture_output=True, text=True, env=plugin_env(PLUGINS),
+                           timeout=600, preexec_fn=small_files)
+    finally:
+        held.close()
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+    assert p.returncode == 1 and len(lines) == 1, p.stderr
+    assert lines[0].startswith("terrasynth-dask: ") and "o.tif" in lines[0], lines[0]
+    assert os.listdir(out_dir) == []

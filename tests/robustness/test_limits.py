@@ -119,9 +119,31 @@ def peak_rss(argv, tmp_path):
     ["synth", "--sketch", os.path.join(os.path.dirname(JACKSBORO), "sketches",
                                        "lambda_ridges.tif"), "--exemplar", JACKSBORO],
     ["ppa", JACKSBORO],
+    # many exemplars matched at full resolution: the FFT spectra of every exemplar
+    ["synth", *["--exemplar", "{fine}"] * 16, "--size", "512x512", "--coarse-factor", "1",
+     "--candidates", "32"],
+    ["synth", "--exemplar", JACKSBORO, "--size", "1536x1024", "--tiled", "256"],
+    ["pixel", "--exemplar", JACKSBORO, "--size", "512x512", "--window", "7", "--coherence", "4"],
+    ["amplify", "{coarse}", "--exemplar", JACKSBORO, "--factor", "4"],
+    # a dictionary's atoms, held twice while the file is written: a lattice of phase 0
+    # (more windows than atoms), every phase (fewer)
+    ["dictionary", "build", "{dict}", "--exemplar", JACKSBORO, "--resolution", "30",
+     "--factor", "2", "--atoms", "100000"],
+    ["dictionary", "build", "{dict}", "--exemplar", JACKSBORO, "--exemplar", JACKSBORO,
+     "--resolution", "45", "--factor", "4", "--atoms", "50000"],
 ])
 def test_the_estimate_covers_the_measured_peak(tmp_path, args):
-    argv = [a.format(dbg=tmp_path / "dbg") for a in args] + [tmp_path / "o.tif", "-q"]
+    if "{coarse}" in args:
+        gdal.Warp(str(tmp_path / "coarse.tif"), JACKSBORO, xRes=0.0025, yRes=0.0025,
+                  resampleAlg="average")
+    if "{fine}" in args:  # 806 x 688 cells
+        gdal.Warp(str(tmp_path / "fine.tif"), JACKSBORO, xRes=0.000416666666667,
+                  yRes=0.000416666666667, resampleAlg="cubic")
+    argv = [a.format(dbg=tmp_path / "dbg", coarse=tmp_path / "coarse.tif",
+                     fine=tmp_path / "fine.tif", dict=tmp_path / "d.tsd") for a in args]
+    if args[0] != "dictionary":
+        argv += [tmp_path / "o.tif"]
+    argv += ["-q"]
     p = run(*argv, "--max-memory", "1K", check=False)
     m = NEEDS.search(p.stderr)
     assert m, p.stderr

@@ -4,6 +4,7 @@
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <pthread.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -95,6 +96,24 @@ TS_API void ts_ctx_set_progress(ts_ctx *ctx, ts_progress_fn fn, void *user)
 {
     ctx->progress = fn;
     ctx->progress_user = user;
+}
+
+TS_API void ts_ctx_set_notice(ts_ctx *ctx, ts_notice_fn fn, void *user)
+{
+    ctx->notice = fn;
+    ctx->notice_user = user;
+}
+
+void ts__notice(ts_ctx *ctx, const char *stage, const char *fmt, ...)
+{
+    char msg[512];
+    va_list ap;
+    if (!ctx->notice)
+        return;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    ctx->notice(stage, msg, ctx->notice_user);
 }
 
 TS_API void ts_ctx_get_progress(const ts_ctx *ctx, ts_progress_fn *fn, void **user)

@@ -30,6 +30,8 @@ struct ts_ctx {
     int input; /* the failing input (e.g. exemplar index), or -1 */
     ts_progress_fn progress;
     void *progress_user;
+    ts_notice_fn notice;
+    void *notice_user;
     double prog_lo, prog_hi; /* current sub-range of the overall progress */
     uint64_t seed;
     int threads;
@@ -74,6 +76,13 @@ void ts__clear(ts_ctx *ctx);
 /* Report progress `frac` (0..1) of the current sub-range; returns
  * TS_ERR_CANCELLED (message set) if the callback asked to stop. */
 ts_status ts__progress(ts_ctx *ctx, double frac, const char *msg);
+
+/* A note for the user (ts_ctx_set_notice): "<formatted text>" under stage. */
+void ts__notice(ts_ctx *ctx, const char *stage, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
 
 /* Narrow the progress range to [lo, hi] of the current range; restore
  * with ts__progress_pop(ctx, saved). */

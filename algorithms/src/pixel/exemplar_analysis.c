@@ -235,9 +235,12 @@ TS_API ts_status ts_pixel_prepare(ts_ctx *ctx, const ts_raster *exemplars, int n
         ts_pixel_exemplars_free(ex);
         return ts__fail(ctx, TS_ERR_NOMEM, "pixel", "out of memory");
     }
-    switch (ts__pix_similarity_build(ctx, ex, params->coherence)) {
+    switch (ts__pix_similarity_build(ctx, ex, params->coherence, PIX_NOTICE_SECONDS)) {
     case 0:
         break;
+    case -3:
+        ts_pixel_exemplars_free(ex);
+        return ctx->status;
     case -2:
         ts_pixel_exemplars_free(ex);
         return ts__fail(ctx, TS_ERR_SIZE, "pixel",

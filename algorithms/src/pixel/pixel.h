@@ -131,8 +131,13 @@ int ts__pix_kdtree_knn(const pix_kdtree *t, const float *q, int K,
                        int (*keep)(void *arg, int32_t i), void *arg, int32_t *out, float *d2);
 
 /* The k-coherence similarity sets of every level (K = coherence; 1: none):
- * 0, -1 when out of memory, -2 when the exemplars hold 2^31 cells or more. */
-int ts__pix_similarity_build(const ts_ctx *ctx, ts_pixel_exemplars *ex, int coherence);
+ * 0, -1 when out of memory, -2 when the exemplars hold 2^31 cells or more,
+ * -3 when cancelled (the failure recorded on ctx).  Reports progress and,
+ * when the rest will take longer than notice_seconds (PIX_NOTICE_SECONDS),
+ * a notice. */
+#define PIX_NOTICE_SECONDS 30.0
+int ts__pix_similarity_build(ts_ctx *ctx, ts_pixel_exemplars *ex, int coherence,
+                             double notice_seconds);
 /* A similarity set's id as exemplar and cell. */
 void ts__pix_similar(const ts_pixel_exemplars *ex, int32_t id, int *e, int32_t *cell);
 

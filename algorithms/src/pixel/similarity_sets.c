@@ -25,6 +25,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "pixel.h"
 
@@ -220,6 +221,7 @@ typedef struct sim_job {
     const float *pts;
     const int32_t *pt_e, *pt_cell;
     const pix_kdtree *tree;
+    size_t off; /* the batch's first point */
     int fail;
 } sim_job;
 
@@ -256,7 +258,7 @@ static void sim_rows(void *arg, size_t begin, size_t end)
         j->fail = 1;
         return;
     }
-    for (p = begin; p < end; p++) {
+    for (p = j->off + begin; p < j->off + end; p++) {
         const pix_stack *s = &j->ex->stacks[j->pt_e[p]];
         keep_arg ka = {j, j->pt_e[p], j->pt_cell[p] % s->width, j->pt_cell[p] / s->width,
                        1 << (j->ex->levels - j->l)};
@@ -271,9 +273,63 @@ static void sim_rows(void *arg, size_t begin, size_t end)
     free(d2);
 }
 
-int ts__pix_similarity_build(const ts_ctx *ctx, ts_pixel_exemplars *ex, int coherence)
+static double sim_now(void)
 {
-    int l, e, K = coherence - 1, rc = -1;
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+#define SIM_BATCHES 32        /* a level's points in this many steps: progress, cancel */
+
+/* Level l's sets in SIM_BATCHES steps (the same sets as in one: each point's
+ * search is its own), with progress and cancel between steps.  After a
+ * level's first step the rest of the analysis is projected from its rate
+ * (a finer level's as the square root of the values it compares): past
+ * notice_seconds, once, a notice says how long and what takes less.
+ * 0, -1 (a worker's memory; j->fail) or -3 (cancelled). */
+static int sim_level_batches(ts_ctx *ctx, sim_job *j, size_t n, int l, int levels, int coherence,
+                             double notice_seconds, int *noticed)
+{
+    size_t b, lo, hi;
+    double t0 = sim_now();
+    for (b = 0; b < SIM_BATCHES; b++) {
+        lo = n * b / SIM_BATCHES;
+        hi = n * (b + 1) / SIM_BATCHES;
+        j->off = lo;
+        if (hi > lo)
+            ts__parallel_for(ctx, hi - lo, sim_rows, j);
+        if (j->fail)
+            return -1;
+        if (ts__progress(ctx, 0.05 + 0.9 * (l + (b + 1.0) / SIM_BATCHES) / (levels + 1.0),
+                         "similarity sets") != TS_OK)
+            return -3;
+        if (b == 0 && !*noticed && hi > lo) {
+            double level = (sim_now() - t0) * SIM_BATCHES;
+            double rest = level * (SIM_BATCHES - 1.0) / SIM_BATCHES;
+            int k, minutes;
+            for (k = l + 1; k <= levels; k++) /* measured: between none and linear */
+                rest += level * sqrt((double)j->ex->dim[k] / j->ex->dim[l]);
+            minutes = (int)(rest / 60.0 + 0.5);
+            if (rest > notice_seconds) {
+                *noticed = 1;
+                ts__notice(ctx, "pixel",
+                           "the exemplars' similarity sets (coherence %d, up to %d values a "
+                           "neighbourhood, %zu cells a level) take about %d minute%s more: "
+                           "--pca-energy 0.95, a smaller --window, smaller exemplars or "
+                           "--coherence 1 take less",
+                           coherence, j->ex->dim[levels], n, minutes ? minutes : 1,
+                           minutes > 1 ? "s" : "");
+            }
+        }
+    }
+    return 0;
+}
+
+int ts__pix_similarity_build(ts_ctx *ctx, ts_pixel_exemplars *ex, int coherence,
+                             double notice_seconds)
+{
+    int l, e, K = coherence - 1, rc = -1, noticed = 0;
     int64_t base = 0;
     ex->coherence = coherence;
     if (K < 1)
@@ -327,9 +383,9 @@ int ts__pix_similarity_build(const ts_ctx *ctx, ts_pixel_exemplars *ex, int cohe
         j.tree = ts__pix_kdtree_build(pts, n, dim);
         if (!j.tree)
             goto fail;
-        ts__parallel_for(ctx, n, sim_rows, &j);
+        rc = sim_level_batches(ctx, &j, n, l, ex->levels, coherence, notice_seconds, &noticed);
         ts__pix_kdtree_free((pix_kdtree *)j.tree);
-        if (j.fail)
+        if (rc != 0 || j.fail)
             goto fail;
         /* the point ids as cells of all the exemplars in a row (ts__pix_similar) */
         for (e = 0; e < ex->n_given; e++) {
@@ -351,7 +407,7 @@ int ts__pix_similarity_build(const ts_ctx *ctx, ts_pixel_exemplars *ex, int cohe
         free(pts);
         free(pt_e);
         free(pt_cell);
-        return rc;
+        return rc < 0 ? rc : -1;
     }
     return 0;
 }

@@ -585,6 +585,81 @@ static void test_similarity_sets(void)
     ts_ctx_free(ctx);
 }
 
+typedef struct sim_watch {
+    int reports, back, notices;
+    double last;
+    char notice[512];
+    int cancel_at; /* stop at this "similarity sets" report (0: never) */
+} sim_watch;
+
+static int sim_progress(double done, const char *msg, void *user)
+{
+    sim_watch *w = user;
+    if (!msg || strcmp(msg, "similarity sets") != 0)
+        return 1;
+    w->back += done < w->last;
+    w->last = done;
+    return ++w->reports != w->cancel_at;
+}
+
+static void sim_notice(const char *stage, const char *msg, void *user)
+{
+    sim_watch *w = user;
+    w->notices++;
+    snprintf(w->notice, sizeof w->notice, "%s: %s", stage, msg);
+}
+
+/* The similarity sets report progress as they go (one level after another,
+ * never back), can be cancelled between steps, and say how long the rest
+ * takes once it is projected past the limit (0 s here: always); the sets
+ * are the same with or without watching. */
+static void test_similarity_progress(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = make_terrain(ctx, 64, 56, 21);
+    ts_pixel_params p = ts_pixel_params_default();
+    ts_pixel_exemplars *E = NULL, *F = NULL;
+    sim_watch w = {0, 0, 0, 0.0, "", 0};
+    int l, same = 1;
+    p.levels = 2;
+    p.coherence = 4;
+    ts_ctx_set_progress(ctx, sim_progress, &w);
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
+    CHECK_MSG(w.reports >= 3 * 32, "%d similarity-set reports", w.reports);
+    CHECK(w.back == 0);
+    CHECK(w.notices == 0); /* a small exemplar: far under PIX_NOTICE_SECONDS */
+    /* the same sets again, with a notice at any projected time */
+    p.coherence = 1;
+    ts_ctx_set_notice(ctx, sim_notice, &w);
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &F) == TS_OK);
+    CHECK(ts__pix_similarity_build(ctx, F, 4, 0.0) == 0);
+    CHECK_MSG(w.notices == 1, "%d notices", w.notices);
+    CHECK_MSG(strstr(w.notice, "pixel: ") == w.notice && strstr(w.notice, "similarity sets") &&
+                  strstr(w.notice, "minute") && strstr(w.notice, "--pca-energy"),
+              "notice '%s'", w.notice);
+    for (l = 0; l <= 2; l++) {
+        const pix_stack *a = &E->stacks[0], *b = &F->stacks[0];
+        size_t c;
+        CHECK(a->n_usable[l] == b->n_usable[l] && a->n_usable[l] > 0);
+        for (c = 0; c < a->n_usable[l]; c++) {
+            size_t at = (size_t)a->usable_list[l][c] * 3;
+            same &= !memcmp(a->sim[l] + at, b->sim[l] + at, 3 * sizeof *a->sim[l]);
+        }
+    }
+    CHECK(same);
+    ts_pixel_exemplars_free(F);
+    F = NULL;
+    /* cancelled at the fifth step: no exemplars, a cancelled status */
+    w.reports = 0;
+    w.cancel_at = 5;
+    p.coherence = 4;
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &F) == TS_ERR_CANCELLED && F == NULL);
+    CHECK(w.reports == 5);
+    ts_pixel_exemplars_free(E);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
 static void test_errors(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -1082,6 +1157,7 @@ int main(int argc, char **argv)
         {"half_turn_and_auto", test_half_turn_and_auto},
         {"kdtree_against_scan", test_kdtree_against_scan},
         {"similarity_sets", test_similarity_sets},
+        {"similarity_progress", test_similarity_progress},
         {"errors", test_errors},
         {"nodata_frame", test_nodata_frame},
         {"window_choice", test_window_choice},
