@@ -135,4 +135,19 @@ TS_API ts_status ts_pixel_synthesize_guided(ts_ctx *ctx, const ts_pixel_exemplar
                                             const ts_pixel_params *params, int64_t x0, int64_t y0,
                                             ts_raster *out);
 
+/**
+ * The terrain zoomed out by 2^k (1 <= k <= ts_pixel_levels; guide may be
+ * NULL): cell (X, Y) of the window covers the output cells [X 2^k,
+ * (X + 1) 2^k) x [Y 2^k, (Y + 1) 2^k).  The synthesis stopped at the level
+ * whose spacing is 2^k cells, each cell the sum of that level's and the
+ * coarser levels' bands at the block's middle: the same terrain without the
+ * detail finer than 2^k cells (a coarse synthesis, ours: not the average of
+ * the full-resolution cells).  Byte for byte the same window of any larger
+ * overview; the cost of its own cells, not of the 4^k cells under them.
+ */
+TS_API ts_status ts_pixel_synthesize_overview(ts_ctx *ctx, const ts_pixel_exemplars *ex,
+                                              const ts_pixel_guide *guide,
+                                              const ts_pixel_params *params, int k, int64_t x0,
+                                              int64_t y0, ts_raster *out);
+
 #endif /* TERRASYNTH_PIXEL_H */

@@ -183,6 +183,39 @@ int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_re
                                 pixel_raw, &a, out, job->exemplars[0], err);
 }
 
+int tsjob_pixel_overview(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res, int k,
+                         int x0, int y0, int w, int h, float *out, tsio_err *err)
+{
+    int L = ts_pixel_levels(res->stacks), kk = k < L ? k : L, b = 1 << (k - kk), x, y, i, j;
+    ts_raster o = ts_raster_wrap(out, w, h, w), fine = {0, 0, 0, NULL};
+    if (k < 1 || k > 30 || (uint64_t)w * b > INT_MAX / 2 || (uint64_t)h * b > INT_MAX / 2) {
+        tsio_errf(err, job->exemplars[0], "no overview of 2^%d for a window of %d x %d", k, w, h);
+        return -1;
+    }
+    if (b > 1 && ts_raster_alloc(ctx, w * b, h * b, &fine) != TS_OK) {
+        tsio_errf(err, job->exemplars[0], "out of memory for an overview's window");
+        return -1;
+    }
+    if (ts_pixel_synthesize_overview(ctx, res->stacks, res->guide, &job->params, kk,
+                                     (int64_t)x0 * b, (int64_t)y0 * b,
+                                     b > 1 ? &fine : &o) != TS_OK) {
+        tsio_errf(err, job->exemplars[0], "%s", ts_ctx_message(ctx));
+        ts_raster_free(&fine);
+        return -1;
+    }
+    /* past the coarsest level: its cells averaged over the blocks */
+    for (y = 0; b > 1 && y < h; y++)
+        for (x = 0; x < w; x++) {
+            double m = 0;
+            for (j = 0; j < b; j++)
+                for (i = 0; i < b; i++)
+                    m += TS_PIX(&fine, x * b + i, y * b + j);
+            TS_PIX(&o, x, y) = (float)(m / ((double)b * b));
+        }
+    ts_raster_free(&fine);
+    return 0;
+}
+
 int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *res, tsio_err *err)
 {
     job_progress jp;

@@ -382,6 +382,12 @@ int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_re
 /** The window before the drainage stage (what tsjob_pixel_window drains). */
 int tsjob_pixel_window_raw(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res,
                            int x0, int y0, int w, int h, float *out, tsio_err *err);
+/** After setup: cells [x0, x0+w) x [y0, y0+h) of the grid zoomed out by 2^k
+ *  (k >= 1; a cell covers 2^k x 2^k cells of the grid): the synthesis stopped
+ *  at the level of that spacing (ts_pixel_synthesize_overview), past the
+ *  coarsest level the coarsest one's cells averaged; before the drainage stage. */
+int tsjob_pixel_overview(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res, int k,
+                         int x0, int y0, int w, int h, float *out, tsio_err *err);
 /** Setup, then the whole grid into res->out. */
 int tsjob_pixel_compute(ts_ctx *ctx, const tsjob_pixel *job, tsjob_pixel_result *res,
                         tsio_err *err);

@@ -5,12 +5,15 @@
  * functions.  A recipe is computed once, on the first block read, under a
  * mutex, and served block by block from that cache; a lazy one (amplify)
  * computes only what every block shares then, and each block on its own.
+ * Pixel and amplify recipes have overviews (recipe_overviews.c), each a
+ * small dataset of its own whose blocks are made as they are read.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <algorithm>
 #include <cstring>
 #include <dlfcn.h>
+#include <memory>
 #include <vector>
 
 #include "cpl_multiproc.h"
@@ -24,9 +27,12 @@
 namespace
 {
 
+class TSYNOverviewDataset;
+
 class TSYNDataset final : public GDALPamDataset
 {
     friend class TSYNRasterBand;
+    friend class TSYNOverviewBand;
 
     tsrecipe *m_recipe = nullptr;
     CPLMutex *m_mutex = nullptr;
@@ -35,6 +41,7 @@ class TSYNDataset final : public GDALPamDataset
     bool m_has_gt = false;
     OGRSpatialReference m_srs{};
     CPLStringList m_schedule; /* metadata domain "TSYN": how the recipe is made */
+    std::vector<std::unique_ptr<TSYNOverviewDataset>> m_overviews;
 
     bool Compute();
 
@@ -61,6 +68,11 @@ class TSYNRasterBand final : public GDALPamRasterBand
         nBlockYSize = nBlockXSize;
     }
     CPLErr IReadBlock(int bx, int by, void *image) override;
+    CPLErr IRasterIO(GDALRWFlag rw, int x, int y, int w, int h, void *buf, int bw, int bh,
+                     GDALDataType type, GSpacing ps, GSpacing ls,
+                     GDALRasterIOExtraArg *extra) override;
+    int GetOverviewCount() override;
+    GDALRasterBand *GetOverview(int i) override;
     double GetNoDataValue(int *success) override
     {
         if (success)
@@ -69,9 +81,60 @@ class TSYNRasterBand final : public GDALPamRasterBand
     }
 };
 
+/* Overview i of a recipe: ceil(width / factor) x ceil(height / factor) cells,
+ * blocks of 256 made as they are read. */
+class TSYNOverviewBand final : public GDALRasterBand
+{
+    TSYNDataset *m_parent;
+    int m_index;
+
+  public:
+    TSYNOverviewBand(GDALDataset *ds, TSYNDataset *parent, int index)
+        : m_parent(parent), m_index(index)
+    {
+        poDS = ds;
+        nBand = 1;
+        eDataType = GDT_Float32;
+        nRasterXSize = ds->GetRasterXSize();
+        nRasterYSize = ds->GetRasterYSize();
+        nBlockXSize = nBlockYSize = 256;
+    }
+    CPLErr IReadBlock(int bx, int by, void *image) override;
+    double GetNoDataValue(int *success) override
+    {
+        return m_parent->GetRasterBand(1)->GetNoDataValue(success);
+    }
+};
+
+class TSYNOverviewDataset final : public GDALDataset
+{
+    double m_gt[6];
+    bool m_has_gt;
+    const OGRSpatialReference *m_srs;
+
+  public:
+    TSYNOverviewDataset(TSYNDataset *parent, int index, int factor, const double *gt, bool has_gt,
+                        const OGRSpatialReference *srs)
+        : m_has_gt(has_gt), m_srs(srs)
+    {
+        nRasterXSize = (parent->GetRasterXSize() + factor - 1) / factor;
+        nRasterYSize = (parent->GetRasterYSize() + factor - 1) / factor;
+        for (int k = 0; k < 6; k++)
+            m_gt[k] = gt[k] * (k == 0 || k == 3 ? 1 : factor);
+        SetBand(1, new TSYNOverviewBand(this, parent, index));
+    }
+    CPLErr GetGeoTransform(double *gt) override
+    {
+        std::memcpy(gt, m_gt, sizeof m_gt);
+        return m_has_gt ? CE_None : CE_Failure;
+    }
+    const OGRSpatialReference *GetSpatialRef() const override { return m_srs; }
+};
+
 TSYNDataset::~TSYNDataset()
 {
     FlushCache(true);
+    m_overviews.clear(); /* (they read the recipe) */
     tsrecipe_free(m_recipe);
     if (m_mutex)
         CPLDestroyMutex(m_mutex);
@@ -121,6 +184,10 @@ GDALDataset *TSYNDataset::Open(GDALOpenInfo *info)
         for (int i = 0; in && in[i]; i++)
             ds->m_schedule.SetNameValue(CPLSPrintf("INPUT_%d", i + 1), in[i]);
     }
+    for (int i = 0; i < tsrecipe_overview_count(recipe); i++)
+        ds->m_overviews.emplace_back(new TSYNOverviewDataset(
+            ds, i, tsrecipe_overview_factor(recipe, i), ds->m_gt, ds->m_has_gt,
+            ds->m_srs.IsEmpty() ? nullptr : &ds->m_srs));
     ds->SetDescription(info->pszFilename);
     ds->TryLoadXML();
     return ds;
@@ -205,6 +272,62 @@ CPLErr TSYNRasterBand::IReadBlock(int bx, int by, void *image)
         std::memcpy(static_cast<GByte *>(image) + static_cast<size_t>(y) * nBlockXSize * size,
                     data + (static_cast<size_t>(y0 + y) * nRasterXSize + x0) * size,
                     static_cast<size_t>(w) * size);
+    return CE_None;
+}
+
+int TSYNRasterBand::GetOverviewCount()
+{
+    return static_cast<int>(static_cast<TSYNDataset *>(poDS)->m_overviews.size());
+}
+
+GDALRasterBand *TSYNRasterBand::GetOverview(int i)
+{
+    auto &ov = static_cast<TSYNDataset *>(poDS)->m_overviews;
+    return i >= 0 && i < static_cast<int>(ov.size()) ? ov[i]->GetRasterBand(1) : nullptr;
+}
+
+/* A read zoomed out by more than 4 over more cells than this, with no
+ * overview to take them from, is refused with why (it would make every cell at
+ * full resolution: a 100 000^2 synth recipe for a 100 x 100 thumbnail). */
+constexpr double TSYN_ZOOMED_OUT_CELLS = 268435456.0; /* 16 384^2 */
+
+CPLErr TSYNRasterBand::IRasterIO(GDALRWFlag rw, int x, int y, int w, int h, void *buf, int bw,
+                                 int bh, GDALDataType type, GSpacing ps, GSpacing ls,
+                                 GDALRasterIOExtraArg *extra)
+{
+    auto *ds = static_cast<TSYNDataset *>(poDS);
+    if (rw == GF_Read && ds->m_overviews.empty() && tsrecipe_lazy(ds->m_recipe) &&
+        (w > 4.0 * bw || h > 4.0 * bh) && static_cast<double>(w) * h > TSYN_ZOOMED_OUT_CELLS) {
+        CPLError(CE_Failure, CPLE_AppDefined,
+                 "%s: a %s recipe has no overviews: reading %d x %d cells zoomed out to %d x %d "
+                 "would make every one of them at full resolution; read windows at full "
+                 "resolution, or make the terrain once (gdal_translate, terrasynth-dask) and "
+                 "read that file's overviews",
+                 ds->GetDescription(), tsrecipe_job_name(ds->m_recipe), w, h, bw, bh);
+        return CE_Failure;
+    }
+    return GDALPamRasterBand::IRasterIO(rw, x, y, w, h, buf, bw, bh, type, ps, ls, extra);
+}
+
+CPLErr TSYNOverviewBand::IReadBlock(int bx, int by, void *image)
+{
+    if (!m_parent->Compute())
+        return CE_Failure;
+    const int x0 = bx * nBlockXSize, y0 = by * nBlockYSize;
+    const int w = std::min(nBlockXSize, nRasterXSize - x0);
+    const int h = std::min(nBlockYSize, nRasterYSize - y0);
+    std::vector<float> cells(static_cast<size_t>(w) * h);
+    tsio_err err;
+    if (tsrecipe_read_overview(m_parent->m_recipe, m_index, x0, y0, w, h, cells.data(), &err) !=
+        0) {
+        CPLError(CE_Failure, CPLE_AppDefined, "%s", err.msg);
+        return CE_Failure;
+    }
+    auto *dst = static_cast<float *>(image);
+    std::fill(dst, dst + static_cast<size_t>(nBlockXSize) * nBlockYSize, (float)TSIO_NODATA);
+    for (int yy = 0; yy < h; yy++)
+        std::memcpy(dst + static_cast<size_t>(yy) * nBlockXSize,
+                    cells.data() + static_cast<size_t>(yy) * w, static_cast<size_t>(w) * 4);
     return CE_None;
 }
 

@@ -51,6 +51,15 @@ int tsrecipe_lazy(const tsrecipe *r);
 int tsrecipe_block_size(const tsrecipe *r);
 int tsrecipe_read_window(tsrecipe *r, int x0, int y0, int w, int h, float *out, tsio_err *err);
 
+/** Overviews (recipe_overviews.c): how many (0: none), the i-th's factor
+ *  (grid cells a cell covers along each axis; its grid is ceil(width /
+ *  factor) x ceil(height / factor)), and after tsrecipe_compute the cells
+ *  [x0, x0+w) x [y0, y0+h) of the i-th (Float32, nodata TSIO_NODATA). */
+int tsrecipe_overview_count(const tsrecipe *r);
+int tsrecipe_overview_factor(const tsrecipe *r, int i);
+int tsrecipe_read_overview(tsrecipe *r, int i, int x0, int y0, int w, int h, float *out,
+                           tsio_err *err);
+
 /** How a scheduler makes the recipe: its job ("PPA", "Synth", "Amplify",
  *  "Pixel": the recipe's element), how its windows are made ("any": any
  *  window alone, the same bytes as in the whole; "tiles": tile by tile, see

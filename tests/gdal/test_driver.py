@@ -590,3 +590,73 @@ def test_recipe_nesting_limit_names_the_chain(tmp_path):
         gdal.Open(str(tmp_path / "r0.tsyn"))
     # 8 deep is fine
     assert gdal.Open(str(tmp_path / "r3.tsyn")).RasterXSize == 64
+
+
+def test_pixel_recipe_overviews(tmp_path):
+    """A pixel recipe has overviews of 2^k (while 128 cells or more a side), on the grid GDAL
+    expects (ceil of the size over the factor, the cell size times the factor); each
+    follows the full-resolution terrain averaged over its blocks (the oracle: numpy's
+    block means of the whole read at full resolution); a 100 000^2 recipe gives a 100 x 100
+    thumbnail at once (it made every cell before: hours)."""
+    recipe = tmp_path / "p.tsyn"
+    ts("pixel", "--exemplar", JACKSBORO, "--size", "1000x600", "--seed", 4, "--recipe", recipe)
+    ds = gdal.Open(str(recipe))
+    band = ds.GetRasterBand(1)
+    assert band.GetOverviewCount() == 2  # 500, 250 (125 < 128: no more)
+    gt = ds.GetGeoTransform()
+    full = band.ReadAsArray().astype(np.float64)
+    for i, (w, h) in enumerate([(500, 300), (250, 150)]):
+        ov = band.GetOverview(i)
+        b = 2 ** (i + 1)
+        assert (ov.XSize, ov.YSize) == (w, h)
+        ogt = ov.GetDataset().GetGeoTransform()
+        assert ogt[0] == gt[0] and ogt[3] == gt[3] and abs(ogt[1] - gt[1] * b) < 1e-12
+        got = ov.ReadAsArray().astype(np.float64)
+        means = full[:h * b, :w * b].reshape(h, b, w, b).mean(axis=(1, 3))
+        corr = np.corrcoef(got.ravel(), means.ravel())[0, 1]
+        assert corr > 0.95, (b, corr)
+        assert np.sqrt(((got - means) ** 2).mean()) < 0.35 * means.std(), b
+        # a window alone is the same cells as the whole overview's
+        assert np.array_equal(ov.ReadAsArray(37, 11, 40, 30), got[11:41, 37:77])
+    ds = None
+    big = tmp_path / "big.tsyn"
+    ts("pixel", "--exemplar", JACKSBORO, "--size", "100000x100000", "--seed", 4,
+       "--recipe", big)
+    tool("gdal_translate", "-q", "-outsize", "100", "100", big, tmp_path / "thumb.tif")
+    t = arr(tmp_path / "thumb.tif")
+    assert t.shape == (100, 100) and np.isfinite(t).all() and t.std() > 1
+
+
+def test_amplify_recipe_overview_is_its_input(tmp_path):
+    """An amplify recipe's first overview (the factor) is its input, cell for cell; the
+    next ones the input averaged; the terrain averaged by the factor is close to it."""
+    coarse = tmp_path / "coarse.tif"
+    gdal.Warp(str(coarse), JACKSBORO, xRes=0.0025, yRes=0.0025, resampleAlg="average")
+    recipe = tmp_path / "a.tsyn"
+    ts("amplify", coarse, "--recipe", recipe, "--exemplar", JACKSBORO, "--factor", 4)
+    ds = gdal.Open(str(recipe))
+    band = ds.GetRasterBand(1)
+    c = arr(coarse).astype(np.float32)
+    assert band.GetOverviewCount() >= 1
+    assert np.array_equal(band.GetOverview(0).ReadAsArray(), c)
+    full = band.ReadAsArray().astype(np.float64)
+    H, W = c.shape
+    m = full[:H * 4, :W * 4].reshape(H, 4, W, 4).mean(axis=(1, 3))
+    assert np.median(np.abs(m - c)) < 2.0
+
+
+def test_a_huge_synth_recipe_zoomed_out_is_refused_with_why(tmp_path):
+    """A tiled synth recipe has no overviews: reading 65536^2 cells for a thumbnail is
+    refused at once in one line that says why and what to do (it would make every cell);
+    a small one zoomed out is read as before."""
+    big = tmp_path / "s.tsyn"
+    ts("synth", "--exemplar", JACKSBORO, "--size", "65536x65536", "--tiled", 256, "--seed", 3,
+       "--recipe", big)
+    p = tool("gdal_translate", "-q", "-outsize", "100", "100", big, tmp_path / "t.tif",
+             check=False)
+    assert p.returncode != 0 and "has no overviews" in p.stderr and "terrasynth-dask" in p.stderr
+    small = tmp_path / "m.tsyn"
+    ts("synth", "--exemplar", JACKSBORO, "--size", "600x400", "--tiled", 256, "--seed", 3,
+       "--recipe", small)
+    tool("gdal_translate", "-q", "-outsize", "60", "40", small, tmp_path / "m.tif")
+    assert arr(tmp_path / "m.tif").shape == (40, 60)

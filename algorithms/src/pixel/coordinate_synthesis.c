@@ -478,14 +478,14 @@ static void level_free(pix_level *lv)
 }
 
 static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pixel_guide *guide,
-                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out,
-                         const ts_pixel_sources *src);
+                         const ts_pixel_params *params, int k, int64_t x0, int64_t y0,
+                         ts_raster *out, const ts_pixel_sources *src);
 
 TS_API ts_status ts_pixel_synthesize(ts_ctx *ctx, const ts_pixel_exemplars *ex,
                                      const ts_pixel_params *params, int64_t x0, int64_t y0,
                                      ts_raster *out)
 {
-    return pix_run(ctx, ex, NULL, params, x0, y0, out, NULL);
+    return pix_run(ctx, ex, NULL, params, 0, x0, y0, out, NULL);
 }
 
 TS_API ts_status ts_pixel_synthesize_guided(ts_ctx *ctx, const ts_pixel_exemplars *ex,
@@ -496,7 +496,7 @@ TS_API ts_status ts_pixel_synthesize_guided(ts_ctx *ctx, const ts_pixel_exemplar
     ts__clear(ctx);
     if (!guide || (ex && guide->levels != ex->levels))
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "the guide was prepared for other stacks");
-    return pix_run(ctx, ex, guide, params, x0, y0, out, NULL);
+    return pix_run(ctx, ex, guide, params, 0, x0, y0, out, NULL);
 }
 
 TS_API ts_status ts_pixel_synthesize_sources(ts_ctx *ctx, const ts_pixel_exemplars *ex,
@@ -507,7 +507,21 @@ TS_API ts_status ts_pixel_synthesize_sources(ts_ctx *ctx, const ts_pixel_exempla
     ts__clear(ctx);
     if (guide && ex && guide->levels != ex->levels)
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "the guide was prepared for other stacks");
-    return pix_run(ctx, ex, guide, params, x0, y0, out, src);
+    return pix_run(ctx, ex, guide, params, 0, x0, y0, out, src);
+}
+
+TS_API ts_status ts_pixel_synthesize_overview(ts_ctx *ctx, const ts_pixel_exemplars *ex,
+                                              const ts_pixel_guide *guide,
+                                              const ts_pixel_params *params, int k, int64_t x0,
+                                              int64_t y0, ts_raster *out)
+{
+    ts__clear(ctx);
+    if (guide && ex && guide->levels != ex->levels)
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "the guide was prepared for other stacks");
+    if (ex && (k < 1 || k > ex->levels))
+        return ts__fail(ctx, TS_ERR_ARG, "pixel", "an overview of 2^%d: the stacks have %d levels",
+                        k, ex->levels);
+    return pix_run(ctx, ex, guide, params, k, x0, y0, out, NULL);
 }
 
 /* What a level's initialisation and the output's rows read. */
@@ -526,6 +540,7 @@ typedef struct run_job {
     const ts_pixel_sources *src;
     double relief_scale; /* the relief start's lattice spacing (level 0) */
     int relief;          /* level 0 from the relief start */
+    int top, k;          /* the output: levels 0..top summed, cells of 2^k output cells */
 } run_job;
 
 /* Rows [begin, end) of level l: level 0 from the hash (or the guide), finer
@@ -592,13 +607,15 @@ static void output_rows(void *arg, size_t begin, size_t end)
     const pix_region *pre = j->pre;
     ts_raster *out = j->out;
     const ts_pixel_sources *src = j->src;
-    int L = j->L, l, x, y;
-    int64_t x0 = j->x0, y0 = j->y0, M = j->M;
+    int L = j->L, l, x, y, k = j->k;
+    int64_t x0 = j->x0, y0 = j->y0, M = j->M, half = k ? (int64_t)1 << (k - 1) : 0;
     for (y = (int)begin; y < (int)end; y++)
         for (x = 0; x < out->width; x++) {
             double hsum = 0;
-            int64_t ax = x0 + x, ay = y0 + y;
-            for (l = 0; l <= L; l++) {
+            /* the output cell, or an overview cell's middle (its level-(L - k) cell) */
+            int64_t ax = (x0 + x) * ((int64_t)1 << k) + half;
+            int64_t ay = (y0 + y) * ((int64_t)1 << k) + half;
+            for (l = 0; l <= j->top; l++) {
                 int64_t sp = (int64_t)1 << (L - l);
                 double fx = ((double)ax + 0.5) / (double)sp - 0.5;
                 double fy = ((double)ay + 0.5) / (double)sp - 0.5;
@@ -678,10 +695,10 @@ static void output_rows(void *arg, size_t begin, size_t end)
 }
 
 static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pixel_guide *guide,
-                         const ts_pixel_params *params, int64_t x0, int64_t y0, ts_raster *out,
-                         const ts_pixel_sources *src)
+                         const ts_pixel_params *params, int k, int64_t x0, int64_t y0,
+                         ts_raster *out, const ts_pixel_sources *src)
 {
-    int L, l, pass, sub, relief;
+    int L, l, pass, sub, relief, top;
     int64_t M;
     pix_region need[12], pre[12];
     pix_level cur = {{0, 0, 0, 0}, 0, 0, NULL, NULL, NULL};
@@ -710,21 +727,22 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
         y0 > ((int64_t)1 << 40))
         return ts__fail(ctx, TS_ERR_ARG, "pixel", "the window's origin is beyond 2^40 cells");
     L = ex->levels;
+    top = L - k; /* an overview of 2^k stops at the level of that spacing */
     seed = ctx->seed;
     relief = (!guide || !(params->guide_weight > 0)) && params->start == TS_PIXEL_START_RELIEF;
     /* what the corrections read, and a cell more for the bands' interpolation */
     M = (int64_t)params->passes * 4 * (ex->kl[L] / 2) + 2;
     /* the regions each level computes, finest to coarsest */
-    need[L].x0 = x0;
-    need[L].y0 = y0;
-    need[L].x1 = x0 + out->width;
-    need[L].y1 = y0 + out->height;
-    for (l = L; l >= 0; l--) {
+    need[top].x0 = x0;
+    need[top].y0 = y0;
+    need[top].x1 = x0 + out->width;
+    need[top].y1 = y0 + out->height;
+    for (l = top; l >= 0; l--) {
         pre[l] = grow(need[l], (int64_t)params->passes * 4 * (ex->kl[l] / 2) + 2);
         if (l > 0)
             need[l - 1] = parent_cover(pre[l]);
     }
-    for (l = 0; l <= L; l++) {
+    for (l = 0; l <= top; l++) {
         int hsp = 1 << (L - l);
         double jit = params->n_jitter_levels > 0
                          ? params->jitter_levels[l - 1 < params->n_jitter_levels - 1
@@ -754,7 +772,9 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
                           0,
                           NULL,
                           params->relief_scale > 0 ? params->relief_scale : ex->relief.scale,
-                          relief};
+                          relief,
+                          top,
+                          k};
             ts__parallel_for(ctx, (size_t)cur.h, init_rows, &rj);
         }
         /* correction */
@@ -775,7 +795,7 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
             }
         if ((st = ts__check_cancel(ctx)) != TS_OK)
             goto done;
-        if ((st = ts__progress(ctx, (l + 1.0) / (L + 1), "synthesis")) != TS_OK)
+        if ((st = ts__progress(ctx, (l + 1.0) / (top + 1), "synthesis")) != TS_OK)
             goto done;
         /* the level's coordinates, kept for the next level and the output's bands */
         coords[l] = cur.s;
@@ -790,8 +810,8 @@ static ts_status pix_run(ts_ctx *ctx, const ts_pixel_exemplars *ex, const ts_pix
      * the four agree this is the exemplar's band there; across a seam between coherent
      * regions it blends, and the step is one band's, not the whole heights' */
     {
-        run_job rj = {ex, guide, params, coords, pre, &cur, out, L, L,
-                      1,  0,     seed,   x0,     y0,  M,    src, 0, relief};
+        run_job rj = {ex, guide, params, coords, pre, &cur, out, L, L, 1,  0,
+                      seed, x0,  y0,    M,      src,  0,   relief, top, k};
         ts__parallel_for(ctx, (size_t)out->height, output_rows, &rj);
     }
 done:

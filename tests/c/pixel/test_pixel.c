@@ -660,6 +660,68 @@ static void test_similarity_progress(void)
     ts_ctx_free(ctx);
 }
 
+/* Overviews: a window of the 2^k overview alone equals the same window of
+ * a larger one (negative origins too, any threads); and against the block
+ * means of the full-resolution terrain (the oracle: the overview is the
+ * terrain without the detail finer than 2^k cells), it follows them closely
+ * (correlation, RMS within a fraction of their spread). */
+static void test_overviews(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_pixel_params p = ts_pixel_params_default();
+    ts_raster ex = make_terrain(ctx, 128, 112, 31), full, ov, win;
+    ts_pixel_exemplars *E = NULL;
+    int k, x, y;
+    p.levels = 4;
+    CHECK(ts_pixel_prepare(ctx, &ex, 1, &p, &E) == TS_OK);
+    ts_ctx_set_seed(ctx, 9);
+    ts_raster_alloc(ctx, 256, 192, &full);
+    CHECK(ts_pixel_synthesize(ctx, E, &p, -64, 32, &full) == TS_OK);
+    CHECK(ts_pixel_synthesize_overview(ctx, E, NULL, &p, 0, 0, 0, &full) == TS_ERR_ARG);
+    CHECK(ts_pixel_synthesize_overview(ctx, E, NULL, &p, 5, 0, 0, &full) == TS_ERR_ARG);
+    for (k = 1; k <= 3; k++) {
+        int b = 1 << k, W = 256 / b, H = 192 / b, same = 1;
+        double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0, n = (double)W * H, corr, rms, sd;
+        ts_raster_alloc(ctx, W, H, &ov);
+        ts_ctx_set_threads(ctx, 2);
+        CHECK(ts_pixel_synthesize_overview(ctx, E, NULL, &p, k, -64 / b, 32 / b, &ov) == TS_OK);
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++) {
+                double m = 0, o = TS_PIX(&ov, x, y);
+                int i, j;
+                for (j = 0; j < b; j++)
+                    for (i = 0; i < b; i++)
+                        m += TS_PIX(&full, x * b + i, y * b + j);
+                m /= (double)b * b;
+                sa += o;
+                sb += m;
+                saa += o * o;
+                sbb += m * m;
+                sab += o * m;
+            }
+        sd = sqrt(sbb / n - (sb / n) * (sb / n));
+        corr = (sab / n - sa / n * sb / n) / (sqrt(saa / n - (sa / n) * (sa / n)) * sd);
+        rms = sqrt((saa - 2 * sab + sbb) / n);
+        CHECK_MSG(corr > 0.95 && rms < 0.35 * sd, "2^%d: correlation %.3f, rms %.2f (sd %.2f)", k,
+                  corr, rms, sd);
+        /* a window of it alone */
+        ts_raster_alloc(ctx, 7, 5, &win);
+        ts_ctx_set_threads(ctx, 1);
+        CHECK(ts_pixel_synthesize_overview(ctx, E, NULL, &p, k, -64 / b + 3, 32 / b + 2, &win) ==
+              TS_OK);
+        for (y = 0; y < 5; y++)
+            for (x = 0; x < 7; x++)
+                same &= memcmp(&TS_PIX(&win, x, y), &TS_PIX(&ov, 3 + x, 2 + y), 4) == 0;
+        CHECK_MSG(same, "2^%d: a window differs from the same cells of a larger overview", k);
+        ts_raster_free(&win);
+        ts_raster_free(&ov);
+    }
+    ts_pixel_exemplars_free(E);
+    ts_raster_free(&full);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
 static void test_errors(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -1158,6 +1220,7 @@ int main(int argc, char **argv)
         {"kdtree_against_scan", test_kdtree_against_scan},
         {"similarity_sets", test_similarity_sets},
         {"similarity_progress", test_similarity_progress},
+        {"overviews", test_overviews},
         {"errors", test_errors},
         {"nodata_frame", test_nodata_frame},
         {"window_choice", test_window_choice},
