@@ -497,7 +497,7 @@ enum {
        has no other way out */
     TS_CELL_BARRIER = 16,
     /* for the drainage stage: beside a drawn valley's floor, a pit here is cut at most
-       ts_drainage_params.shallow_depth deep */
+       ts_drainage_params.shallow_depth deep, and no channel cuts the cell deeper */
     TS_CELL_SHALLOW = 32
 };
 
@@ -949,8 +949,9 @@ typedef struct ts_drainage_params {
                           plus bank_slope times its distance (a gorge, not a slot); 0: none (a
                           channel one cell wide); -1 (automatic): a front end sets
                           ts_drainage_bank_slope_auto of the exemplars (the core takes -1 as 0) */
-    double shallow_depth; /* breach: the deepest cut from a pit on a TS_CELL_SHALLOW cell (a
-                             front end's, not a user's parameter); 0: max_depth */
+    double shallow_depth; /* breach: the deepest cut from a pit on a TS_CELL_SHALLOW cell,
+                             and of such a cell by any channel (a front end's, not a user's
+                             parameter); 0: max_depth */
 } ts_drainage_params;
 
 TS_API ts_drainage_params ts_drainage_params_default(void);

@@ -78,17 +78,18 @@ int tsjob__synth_drain_whole(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_re
             if (res->sketch_features->mask[i] & TS_VALLEY)
                 flags[i] |= TS_CELL_FIXED;
         }
-    /* with a sketch, a pit beside a drawn valley's floor (within a quarter of the radius)
-     * is cut at most twice the banks' slope deep by default: a deeper channel runs beside
-     * the fixed floor as a trench and leaves the floor standing as a wall (the sketch
-     * matrices' seams); pits farther off are cut as after any method */
+    /* with a sketch, the land beside a drawn valley's floor (within a quarter of the
+     * radius) is cut at most the banks' slope deep by default, by its own pits and by
+     * channels from farther off: a deeper channel runs beside the fixed floor as a trench
+     * and leaves the floor standing as a wall (the sketch matrices' seams); pits farther
+     * off are cut as after any method */
     if (job->sketch && res->drainage.max_depth == -1 && res->drainage.bank_slope > 0 &&
         res->sketch_features && res->sketch_features->mask &&
         res->sketch_features->width == res->geo.width &&
         res->sketch_features->height == res->geo.height &&
         mark_beside_valleys(flags, res->sketch_features->mask, res->geo.width, res->geo.height,
                             res->drainage.radius >= 8 ? res->drainage.radius / 4 : 2) == 0)
-        res->drainage.shallow_depth = 2.0 * res->drainage.bank_slope;
+        res->drainage.shallow_depth = 1.0 * res->drainage.bank_slope;
     clock_gettime(CLOCK_MONOTONIC, &t0);
     rc = tsjob_drain(ctx, &res->drainage, &res->out, flags, 0, 0, res->geo.width, res->geo.height,
                      &res->drainage_info, job->sketch ? job->sketch : "synth", err);

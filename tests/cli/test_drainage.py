@@ -109,9 +109,9 @@ def test_breach_drains_every_method(case, tmp_path):
               before, after_slot, after, banks, flat_share(keep), flat_share(breach),
               crease(keep), crease(slot), crease(breach), float((breach[ok] != keep[ok]).mean())))
     assert before > 0.01
-    # the lambda's closed ring holds a basin wider than the radius; with a sketch, channels
-    # from pits beside a drawn valley cut at most twice the banks' slope by default, and
-    # deeper basins there are kept (the rest drain as after any method)
+    # the lambda's closed ring holds a basin wider than the radius; with a sketch, the land
+    # beside a drawn valley is cut at most the banks' slope deep by default, and deeper
+    # basins there are kept (the rest drain as after any method)
     assert after_slot <= (0.15 if case == "sketch" else 0.001), after_slot
     assert after <= (0.8 * before if case == "sketch" else 0.001), after
     assert flat_share(breach) <= flat_share(keep) + 0.002

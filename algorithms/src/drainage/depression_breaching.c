@@ -281,6 +281,7 @@ typedef struct dr_query {
                          0: the cheapest channel */
     double level;     /* the pit's level: a target is lower */
     double max_depth; /* 0, or: cells higher than level + this are not crossed */
+    double shallow_depth; /* 0, or: TS_CELL_SHALLOW cells higher than level + this neither */
 } dr_query;
 
 static int box_index(const dr_job *j, const dr_scratch *s, int px, int py, int at)
@@ -364,6 +365,12 @@ static int search(const dr_job *j, dr_scratch *s, int px, int py, const dr_query
             if (j->flags && (j->flags[ni] & TS_CELL_FIXED) && !((double)zn <= q->level))
                 continue;
             if (q->max_depth > 0 && (double)zn > q->level + q->max_depth)
+                continue;
+            /* a shallow cell (beside a drawn valley's floor) is cut no deeper than the
+             * shallow depth by any pit's channel, not only by its own pits': a channel
+             * from farther off ran a trench along the fixed floor */
+            if (!q->minimax && q->shallow_depth > 0 && (j->flags[ni] & TS_CELL_SHALLOW) &&
+                (double)zn > q->level + q->shallow_depth)
                 continue;
             /* the land beside water is never cut below the water */
             if (!q->minimax && j->flags && shore_level(j, u, v) > q->level)
@@ -527,6 +534,7 @@ static int breach_pit(dr_job *j, dr_scratch *s, int px, int py)
     q.minimax = 0;
     q.level = level;
     q.max_depth = j->max_depth;
+    q.shallow_depth = j->flags ? j->shallow_depth : 0.0;
     if (j->shallow_depth > 0 && j->flags &&
         (j->flags[(size_t)py * (size_t)j->w + (size_t)px] & TS_CELL_SHALLOW))
         q.max_depth = j->shallow_depth;

@@ -439,6 +439,49 @@ static double sharpest_crease(const float *z, int w, int h)
     return m;
 }
 
+/* A shallow cell is cut no deeper than shallow_depth by any pit's channel:
+ * the dam's cells flagged (the pit above it is not), its 40 m breached with
+ * no flags; with them every flagged cell is lowered at most 5 m (the pit
+ * drains another way, over the valley's side to the grid's edge). */
+static void test_shallow_cells_any_channel(void)
+{
+    const int w = 64, h = 48;
+    size_t n = (size_t)w * h, i;
+    float *z0 = malloc(n * sizeof *z0), *z = malloc(n * sizeof *z);
+    unsigned char *flags = calloc(n, 1);
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_params p = ts_drainage_params_default();
+    ts_drainage_info info;
+    ts_raster r = ts_raster_wrap(z, w, h, w);
+    double cut = 0;
+    dam_surface(z0, w, h);
+    p.radius = 64;
+    p.bank_slope = 0;
+    p.max_depth = 0;
+    p.shallow_depth = 5.0;
+    memcpy(z, z0, n * sizeof *z);
+    CHECK(ts_drainage_apply(ctx, &r, flags, 0, 0, w, h, &p, &info) == TS_OK);
+    for (i = 0; i < n; i++)
+        if (z0[i] - z[i] > cut)
+            cut = z0[i] - z[i];
+    CHECK_MSG(cut > 30 && info.pits == info.resolved, "unflagged: deepest cut %.1f", cut);
+    for (i = 0; i < n; i++) /* the dam */
+        flags[i] = fabs((double)(i % (size_t)w) - 32.0) < 4.0 ? TS_CELL_SHALLOW : 0;
+    memcpy(z, z0, n * sizeof *z);
+    CHECK(ts_drainage_apply(ctx, &r, flags, 0, 0, w, h, &p, &info) == TS_OK);
+    cut = 0;
+    for (i = 0; i < n; i++) {
+        CHECK(z[i] <= z0[i]);
+        if (flags[i] && z0[i] - z[i] > cut)
+            cut = z0[i] - z[i];
+    }
+    CHECK_MSG(cut <= 5.0 + 1e-3, "a flagged cell cut %.2f deep by a channel from elsewhere", cut);
+    ts_ctx_free(ctx);
+    free(z0);
+    free(z);
+    free(flags);
+}
+
 static void test_banks(void)
 {
     const int w = 64, h = 48;
@@ -502,6 +545,7 @@ int main(int argc, char **argv)
         {"radius_keeps_wide_basins", test_radius_keeps_wide_basins},
         {"deepest_cut_keeps", test_deepest_cut_keeps},
         {"shallow_beside", test_shallow_beside},
+        {"shallow_cells_any_channel", test_shallow_cells_any_channel},
         {"banks", test_banks},
         {"windows_and_threads", test_windows_and_threads},
         {"fixed_and_barriers", test_fixed_and_barriers},
