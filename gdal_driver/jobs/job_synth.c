@@ -18,6 +18,18 @@
 
 #include "job_internal.h"
 
+/* The row whose ground cell size the exemplars, pins and lengths in metres
+ * take (on a geographic grid it varies by row): the middle row, or in tiles the
+ * first tile row's middle, so a world in tiles is anchored at its origin and
+ * keeps what it holds when it is made taller or wider. */
+static int job_synth_ref_row(const tsjob_synth *job, const tsio_georef *geo)
+{
+    int T = job->params.tiled;
+    if (T > 0)
+        return T / 2 < geo->height ? T / 2 : geo->height - 1;
+    return geo->height / 2;
+}
+
 /* The cells of an exemplar of tgt cells at the level its patches are
  * matched on (the placement's rule: the coarse factor as asked, rounded down
  * to a power of two, or the smallest that brings it to 512 x 512 cells and
@@ -67,7 +79,7 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
         need += cells *
                 (JOB_MEM_SYNTH_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0) + JOB_MEM_MAPS_CELL);
     }
-    int cy = res->geo.height / 2;
+    int cy = job_synth_ref_row(job, &res->geo);
     double t_area = res->dx_m ? res->dx_m[cy] * res->dy_m[cy] : 0.0;
     for (i = 0; i < job->n_exemplars; i++) {
         uint64_t src, tgt;
@@ -212,11 +224,11 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
     tsjob__warn_cell_sizes(&res->warning, job->cell_size, job->sketch ? job->sketch : g->like,
                            &res->geo, (const char *const *)job->exemplars, job->n_exemplars);
     /* lengths in metres become cells of the target grid (its ground cell
-     * size on the middle row: the exemplars are resampled to it too) */
+     * size on the reference row: the exemplars are resampled to it too) */
     res->params = job->params;
     ctx = ts_ctx_new();
     {
-        int cy = res->geo.height / 2;
+        int cy = job_synth_ref_row(job, &res->geo);
         double cell_m = res->dx_m ? sqrt(res->dx_m[cy] * res->dy_m[cy]) : 0.0;
         bad = !ctx || ts_synth_params_resolve(ctx, &res->params, cell_m) != TS_OK;
     }
@@ -299,7 +311,7 @@ static int job_alloc_maps(tsjob_synth_result *res, tsio_err *err)
 static int job_read_exemplars(const tsjob_synth *job, tsjob_synth_result *res, tsio_raster *ex,
                               ts_raster *exr, tsio_err *err)
 {
-    int i, cy = res->geo.height / 2, P = (int)res->params.patch_size.value;
+    int i, cy = job_synth_ref_row(job, &res->geo), P = (int)res->params.patch_size.value;
     for (i = 0; i < job->n_exemplars; i++) {
         double factor = 1.0;
         if (tsio_read_raster_resampled(job->exemplars[i], job->band, res->dx_m ? res->dx_m[cy] : 0,
@@ -765,7 +777,7 @@ static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, 
                         int *x0, int *y0, int *w, int *h, tsio_err *err)
 {
     const tsjob_pin *p = &job->pins[i];
-    int W = res->geo.width, H = res->geo.height, cy = H / 2;
+    int W = res->geo.width, H = res->geo.height, cy = job_synth_ref_row(job, &res->geo);
     double f = 1.0;
     if (tsio_read_raster_resampled(p->path, job->band, res->dx_m ? res->dx_m[cy] : 0,
                                    res->dy_m ? res->dy_m[cy] : 0, job->cell_size, ex, &f, err) != 0)

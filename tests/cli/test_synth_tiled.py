@@ -294,3 +294,22 @@ def test_no_crease_along_tile_borders(tmp_path, seed):
     r = _border_ratio(z, 128)
     print("border |Laplacian| P99 ratio %.3f" % r)
     assert r <= 1.2, r
+
+
+def test_a_world_in_tiles_keeps_its_content_when_extended(tmp_path):
+    """On a geographic grid (the exemplar's EPSG:4326, where a cell's ground size varies by
+    row) a world in tiles is anchored at its origin: the window at (800, 600), two tiles or
+    more from the right and bottom edges, of a 65536^2 recipe equals the same window of a
+    2000 x 1600 run by the CLI, and of a 4096 x 1800 recipe (the exemplars took the middle
+    row's cell size, which moved with the grid's height: up to 690 m apart).  The oracle is
+    the smaller world itself, made in one call.  (Within two tiles of a right or bottom edge
+    a tile's earlier-wave neighbours past the edge are missing: there the content depends on
+    the edge.)"""
+    args = ["--exemplar", JACKSBORO, "--seed", 7, "--tiled", 256]
+    run("synth", *args, "--size", "2000x1600", tmp_path / "small.tif", "-q")
+    small = gdal.Open(str(tmp_path / "small.tif")).ReadAsArray()
+    for size in ("65536x65536", "4096x1800"):
+        name = tmp_path / ("w%s.tsyn" % size)
+        run("synth", *args, "--size", size, "--recipe", name)
+        got = _window(name, 800, 600, 120, 90)
+        assert np.array_equal(got, small[600:690, 800:920]), size
