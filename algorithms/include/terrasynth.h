@@ -572,6 +572,13 @@ TS_API int ts_synth_tile_wave(int ti, int tj);
  * `width` cells wide; 2 B + 1 rows of tiles' windows are alive at once. */
 TS_API int ts_synth_tiled_band(int threads, int width, int tile);
 
+/** The pyramid level K (a factor of 2^K) a w x h exemplar's patches of
+ *  `patch` cells are matched on: coarse_factor rounded down to a power of
+ *  two, or (0, automatic) the smallest that brings the exemplar to at most
+ *  512 x 512 cells keeping 8 coarse cells a patch; at most 4.  The placement's
+ *  rule, for a front end's memory estimate too. */
+TS_API int ts_synth_match_level(int coarse_factor, int patch, int w, int h);
+
 /** One tile of a tiled synthesis, made on its own (ts_synth_tiles). */
 typedef struct ts_synth_tile {
     int ti, tj; /* tile (ti, tj): its core is columns [ti T, ti T + T), rows [tj T, tj T + T) */

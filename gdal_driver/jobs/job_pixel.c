@@ -186,7 +186,7 @@ int tsjob_pixel_window(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_re
 int tsjob_pixel_overview(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_result *res, int k,
                          int x0, int y0, int w, int h, float *out, tsio_err *err)
 {
-    int L = ts_pixel_levels(res->stacks), kk = k < L ? k : L, b = 1 << (k - kk), x, y, i, j;
+    int L = ts_pixel_levels(res->stacks), kk = k < L ? k : L, b = 1 << (k - kk);
     ts_raster o = ts_raster_wrap(out, w, h, w), fine = {0, 0, 0, NULL};
     if (k < 1 || k > 30 || (uint64_t)w * b > INT_MAX / 2 || (uint64_t)h * b > INT_MAX / 2) {
         tsio_errf(err, job->exemplars[0], "no overview of 2^%d for a window of %d x %d", k, w, h);
@@ -204,14 +204,11 @@ int tsjob_pixel_overview(ts_ctx *ctx, const tsjob_pixel *job, const tsjob_pixel_
         return -1;
     }
     /* past the coarsest level: its cells averaged over the blocks */
-    for (y = 0; b > 1 && y < h; y++)
-        for (x = 0; x < w; x++) {
-            double m = 0;
-            for (j = 0; j < b; j++)
-                for (i = 0; i < b; i++)
-                    m += TS_PIX(&fine, x * b + i, y * b + j);
-            TS_PIX(&o, x, y) = (float)(m / ((double)b * b));
-        }
+    if (b > 1 && ts_area_average(ctx, &fine, b, &o) != TS_OK) {
+        tsio_errf(err, job->exemplars[0], "%s", ts_ctx_message(ctx));
+        ts_raster_free(&fine);
+        return -1;
+    }
     ts_raster_free(&fine);
     return 0;
 }

@@ -30,19 +30,13 @@ static int job_synth_ref_row(const tsjob_synth *job, const tsio_georef *geo)
     return geo->height / 2;
 }
 
-/* The cells of an exemplar of tgt cells at the level its patches are
- * matched on (the placement's rule: the coarse factor as asked, rounded down
- * to a power of two, or the smallest that brings it to 512 x 512 cells and
- * keeps 8 coarse cells a patch). */
+/* The cells of an exemplar of tgt cells (taken square) at the level its
+ * patches are matched on (ts_synth_match_level). */
 static uint64_t job_synth_match_cells(const tsjob_synth_result *res, uint64_t tgt)
 {
-    int K = 0, cf = res->params.coarse_factor, P = (int)res->params.patch_size.value;
-    if (cf == 0)
-        while ((tgt >> (2 * K)) > 512 * 512 && (P >> (K + 1)) >= 8 && K + 1 < 5)
-            K++;
-    else
-        while ((2 << K) <= cf && K + 1 < 5)
-            K++;
+    double side = sqrt((double)tgt);
+    int s = side < (double)INT_MAX ? (int)side : INT_MAX;
+    int K = ts_synth_match_level(res->params.coarse_factor, (int)res->params.patch_size.value, s, s);
     return (tgt >> (2 * K)) + 1;
 }
 

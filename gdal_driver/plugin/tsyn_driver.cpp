@@ -131,6 +131,30 @@ class TSYNOverviewDataset final : public GDALDataset
     const OGRSpatialReference *GetSpatialRef() const override { return m_srs; }
 };
 
+/* Block (bx, by) of a Float32 band made by read(x0, y0, w, h, cells, err) over
+ * its part inside the raster, the rest nodata. */
+template <typename Read>
+CPLErr ReadFloatBlock(GDALRasterBand *band, int bx, int by, void *image, Read read)
+{
+    int nbx = 0, nby = 0;
+    band->GetBlockSize(&nbx, &nby);
+    const int x0 = bx * nbx, y0 = by * nby;
+    const int w = std::min(nbx, band->GetXSize() - x0);
+    const int h = std::min(nby, band->GetYSize() - y0);
+    std::vector<float> cells(static_cast<size_t>(w) * h);
+    tsio_err err;
+    if (read(x0, y0, w, h, cells.data(), &err) != 0) {
+        CPLError(CE_Failure, CPLE_AppDefined, "%s", err.msg);
+        return CE_Failure;
+    }
+    auto *dst = static_cast<float *>(image);
+    std::fill(dst, dst + static_cast<size_t>(nbx) * nby, (float)TSIO_NODATA);
+    for (int y = 0; y < h; y++)
+        std::memcpy(dst + static_cast<size_t>(y) * nbx, cells.data() + static_cast<size_t>(y) * w,
+                    static_cast<size_t>(w) * 4);
+    return CE_None;
+}
+
 TSYNDataset::~TSYNDataset()
 {
     FlushCache(true);
@@ -246,21 +270,10 @@ CPLErr TSYNRasterBand::IReadBlock(int bx, int by, void *image)
         return CE_Failure;
     if (tsrecipe_lazy(ds->m_recipe)) {
         /* computed block by block (with the margin it needs), never whole */
-        const int x0 = bx * nBlockXSize, y0 = by * nBlockYSize;
-        const int w = std::min(nBlockXSize, nRasterXSize - x0);
-        const int h = std::min(nBlockYSize, nRasterYSize - y0);
-        std::vector<float> cells(static_cast<size_t>(w) * h);
-        tsio_err err;
-        if (tsrecipe_read_window(ds->m_recipe, x0, y0, w, h, cells.data(), &err) != 0) {
-            CPLError(CE_Failure, CPLE_AppDefined, "%s", err.msg);
-            return CE_Failure;
-        }
-        auto *dst = static_cast<float *>(image);
-        std::fill(dst, dst + static_cast<size_t>(nBlockXSize) * nBlockYSize, (float)TSIO_NODATA);
-        for (int y = 0; y < h; y++)
-            std::memcpy(dst + static_cast<size_t>(y) * nBlockXSize,
-                        cells.data() + static_cast<size_t>(y) * w, static_cast<size_t>(w) * 4);
-        return CE_None;
+        return ReadFloatBlock(this, bx, by, image,
+                              [ds](int x, int y, int w, int h, float *cells, tsio_err *err) {
+                                  return tsrecipe_read_window(ds->m_recipe, x, y, w, h, cells, err);
+                              });
     }
     const auto *data = static_cast<const GByte *>(tsrecipe_data(ds->m_recipe));
     const int size = GDALGetDataTypeSizeBytes(eDataType);
@@ -313,22 +326,11 @@ CPLErr TSYNOverviewBand::IReadBlock(int bx, int by, void *image)
 {
     if (!m_parent->Compute())
         return CE_Failure;
-    const int x0 = bx * nBlockXSize, y0 = by * nBlockYSize;
-    const int w = std::min(nBlockXSize, nRasterXSize - x0);
-    const int h = std::min(nBlockYSize, nRasterYSize - y0);
-    std::vector<float> cells(static_cast<size_t>(w) * h);
-    tsio_err err;
-    if (tsrecipe_read_overview(m_parent->m_recipe, m_index, x0, y0, w, h, cells.data(), &err) !=
-        0) {
-        CPLError(CE_Failure, CPLE_AppDefined, "%s", err.msg);
-        return CE_Failure;
-    }
-    auto *dst = static_cast<float *>(image);
-    std::fill(dst, dst + static_cast<size_t>(nBlockXSize) * nBlockYSize, (float)TSIO_NODATA);
-    for (int yy = 0; yy < h; yy++)
-        std::memcpy(dst + static_cast<size_t>(yy) * nBlockXSize,
-                    cells.data() + static_cast<size_t>(yy) * w, static_cast<size_t>(w) * 4);
-    return CE_None;
+    return ReadFloatBlock(this, bx, by, image,
+                          [this](int x, int y, int w, int h, float *cells, tsio_err *err) {
+                              return tsrecipe_read_overview(m_parent->m_recipe, m_index, x, y, w,
+                                                            h, cells, err);
+                          });
 }
 
 } // namespace

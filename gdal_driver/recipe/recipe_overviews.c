@@ -34,9 +34,10 @@ int tsrecipe_overview_factor(const tsrecipe *r, int i)
         return 0;
     if (kind == TSRECIPE_PIXEL)
         return 1 << (i + 1);
-    return (int)((long long)r->amplify.params.factor << i > 1 << 30
-                     ? 0
-                     : (long long)r->amplify.params.factor << i);
+    {
+        long long f = (long long)r->amplify.params.factor << i;
+        return f > 1 << 30 ? 0 : (int)f; /* (none past 2^30) */
+    }
 }
 
 int tsrecipe_overview_count(const tsrecipe *r)

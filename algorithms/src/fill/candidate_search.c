@@ -173,6 +173,20 @@ double ts__place_usage_of(const placer *pl, const exemplar_data *ed, int x, int 
     return place_usage_weight(pl, u, 1) * (double)u->map[(size_t)py * (size_t)u->nx + (size_t)px];
 }
 
+TS_API int ts_synth_match_level(int coarse_factor, int patch, int w, int h)
+{
+    int K = 0;
+    if (coarse_factor == 0) {
+        while ((double)(w >> K) * (double)(h >> K) > 512.0 * 512.0 && (patch >> (K + 1)) >= 8 &&
+               K + 1 < TS__PLACE_MAX_LEVELS)
+            K++;
+    } else {
+        while ((2 << K) <= coarse_factor && K + 1 < TS__PLACE_MAX_LEVELS)
+            K++;
+    }
+    return K;
+}
+
 /* Prepare exemplar `index`: pyramid, nodata table, matcher, usage, feature windows. */
 ts_status ts__place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_raster *full, int index)
 {
@@ -196,18 +210,7 @@ ts_status ts__place_prepare_exemplar(placer *pl, exemplar_data *e, const ts_rast
                 e->nodata_sat[(size_t)y * W + (size_t)(x + 1)] + row;
         }
     }
-    /* coarse factor: as asked (rounded down to a power of two), or (0) the
-     * smallest that brings the exemplar to at most 512 x 512 cells, keeping
-     * at least 8 coarse cells a patch */
-    e->K = 0;
-    if (pl->p->s.coarse_factor == 0) {
-        while ((double)(w >> e->K) * (double)(h >> e->K) > 512.0 * 512.0 &&
-               (pl->P >> (e->K + 1)) >= 8 && e->K + 1 < TS__PLACE_MAX_LEVELS)
-            e->K++;
-    } else {
-        while ((2 << e->K) <= pl->p->s.coarse_factor && e->K + 1 < TS__PLACE_MAX_LEVELS)
-            e->K++;
-    }
+    e->K = ts_synth_match_level(pl->p->s.coarse_factor, pl->P, w, h);
     e->level[0] = *full;
     for (k = 1; k <= e->K; k++) {
         const ts_raster *src = &e->level[k - 1];
