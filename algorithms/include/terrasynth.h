@@ -634,6 +634,7 @@ typedef struct ts_sketch_params {
     double alpha_r;  /* weight of the relief guide (sketched ridges stand high) */
     double layout;   /* 0..1: how far the sketch sets the relief above a third of a patch */
     double slope_style; /* 0..1: how far the output's slopes take the exemplars' distribution */
+    double crest_relief; /* 0..1: how far drawn crests take the exemplars' peaks and saddles */
 } ts_sketch_params;
 
 TS_API ts_sketch_params ts_sketch_params_default(void);

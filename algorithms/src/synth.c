@@ -103,6 +103,7 @@ typedef struct sketch_run {
     size_t n_es;
     ts_relief_profile *profs[2]; /* per exemplar: [0] ridges, [1] valleys */
     unsigned char **ex_features; /* per exemplar: its main features of the kinds (or NULL) */
+    ts__crest_library *crest;    /* per exemplar: its crests' pieces (ridges, with the layout) */
     float *guide;
     int n_ex;
 } sketch_run;
@@ -125,6 +126,10 @@ static void sketch_run_free(sketch_run *r)
         for (e = 0; e < r->n_ex; e++)
             free(r->ex_features[e]);
     free(r->ex_features);
+    if (r->crest)
+        for (e = 0; e < r->n_ex; e++)
+            ts__crest_library_free(&r->crest[e]);
+    free(r->crest);
     ts_features_free(r->own_sf);
 }
 
@@ -159,6 +164,8 @@ static ts_status sketch_exemplar(ts_ctx *ctx, sketch_run *r, const ts_raster *ex
         if ((r->kind & (k ? TS_VALLEY : TS_RIDGE)) && (sp->alpha_r > 0 || sp->layout > 0))
             st = ts__relief_profile_measure(ctx, ex, ef->mask, k ? TS_VALLEY : TS_RIDGE, P,
                                             &r->profs[k][e]);
+    if (st == TS_OK && (r->kind & TS_RIDGE) && sp->layout > 0 && sp->crest_relief > 0)
+        st = ts__crest_library_measure(ctx, ef, P, &r->crest[e]);
     if (st == TS_OK) {
         /* the fill keeps away from these (section 4.2) */
         ne = (size_t)ef->width * (size_t)ef->height;
@@ -245,7 +252,9 @@ static ts_status sketch_begin(ts_ctx *ctx, sketch_run *r, const ts_raster *sketc
     for (k = 0; k < 2; k++)
         r->profs[k] = ts__calloc_array((size_t)n_exemplars, sizeof *r->profs[k]);
     r->ex_features = ts__calloc_array((size_t)n_exemplars, sizeof *r->ex_features);
-    if (!r->flags || !r->user_flags || !r->profs[0] || !r->profs[1] || !r->ex_features)
+    r->crest = ts__calloc_array((size_t)n_exemplars, sizeof *r->crest);
+    if (!r->flags || !r->user_flags || !r->profs[0] || !r->profs[1] || !r->ex_features ||
+        !r->crest)
         return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     for (i = 0; i < n_cells; i++) {
         size_t y = i / (size_t)W, x = i % (size_t)W;
@@ -350,6 +359,8 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
         ls.patch = P;
         ls.features = r->sf;
         ls.steep_lo = sp->slope_style > 0 ? 1.0 : 0.35;
+        ls.crest = sp->crest_relief > 0 ? r->crest : NULL;
+        ls.crest_relief = sp->crest_relief;
         st = ts__layout_apply(ctx, &ls, out, r->user_flags, sp->layout);
         if (st == TS_OK)
             st = ts__progress(ctx, sp->slope_style > 0 ? 0.97 : 1.0, "layout");

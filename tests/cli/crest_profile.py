@@ -19,8 +19,10 @@ lowest) cell within 3 cells across the line.  Printed figures:
            --flank/2 cells off on both sides (valleys: lower): how much of the
            sketch is drawn as a ridge (valley) at that scale
 
-Used by the sketch tests (tests/cli/test_synth_sketch.py) and the figures in
-algorithms/docs/sketch.md.
+polylines, line_stands, figures and main_ridges give the crest figures of
+bench/quality/crest_matrix.py (bend and cross-section spread along drawn
+ridges and along a DEM's main ridges).  Used by the sketch tests
+(tests/cli/test_synth_sketch.py) and the bench.
 """
 import argparse
 import math
@@ -100,14 +102,9 @@ def flank_heights(z, line, off, both=False):
 
 
 def measure(output, gpkg, valleys=False, spacing=16, flank=31):
-    ds = gdal.Open(str(output))
-    band = ds.GetRasterBand(1)
-    z = band.ReadAsArray().astype(float)
-    nd = band.GetNoDataValue()
-    if nd is not None:
-        z[z == nd] = np.nan
+    z, gt = read(output)
     bends, steps, allz, stands, helds = [], [], [], [], []
-    for pts in lines_in_cells(gpkg, ds.GetGeoTransform()):
+    for pts in lines_in_cells(gpkg, gt):
         line = resample(pts)
         if line is None:
             continue
@@ -136,6 +133,71 @@ def measure(output, gpkg, valleys=False, spacing=16, flank=31):
         "stand": float(np.mean(np.concatenate(stands))) if stands else math.nan,
         "held": float(np.mean(np.concatenate(helds))) if helds else math.nan,
     }
+
+
+def polylines(gpkg, layer, gt, kind=None):
+    """The lines of `layer` (only those whose field kind is `kind`, when given) in cells."""
+    ds = ogr.Open(str(gpkg))
+    lay = ds.GetLayerByName(layer)
+    inv = gdal.InvGeoTransform(gt)
+    out = []
+    for f in lay:
+        if kind and f.GetField("kind") != kind:
+            continue
+        g = f.GetGeometryRef()
+        pts = [(inv[0] + inv[1] * g.GetX(i) + inv[2] * g.GetY(i),
+                inv[3] + inv[4] * g.GetX(i) + inv[5] * g.GetY(i)) for i in range(g.GetPointCount())]
+        if len(pts) >= 2:
+            out.append(np.array(pts))
+    return out
+
+
+def line_stands(z, lines, patch, min_len):
+    """Per line at least min_len cells long: its crest heights and how far they stand above
+    the land patch/4 and patch/2 cells off on both sides (the ends' patch/8 left out)."""
+    out, k = [], max(1, patch // 8)
+    for pts in lines:
+        line = resample(pts)
+        if line is None or len(line) < min_len:
+            continue
+        c = crest_heights(z, line, False)[k:-k]
+        line = line[k:-k]
+        out.append((c, c - flank_heights(z, line, patch // 4),
+                    c - flank_heights(z, line, patch // 2)))
+    return out
+
+
+def figures(profs, patch):
+    """bend: RMS of z(s - P/2) - 2 z(s) + z(s + P/2) (peaks and saddles about a patch apart);
+    cv: spread over mean of the stand at P/4 (how much the cross-section varies along the
+    crest); stand: mean stand at P/2.  None without a line longer than a patch."""
+    S = patch // 2
+    b = [c[:-2 * S] - 2 * c[S:-S] + c[2 * S:] for c, _, _ in profs if len(c) > 2 * S]
+    if not b:
+        return None
+    b = np.concatenate(b)
+    s4 = np.concatenate([p[1] for p in profs])
+    s2 = np.concatenate([p[2] for p in profs])
+    b, s4, s2 = b[np.isfinite(b)], s4[np.isfinite(s4)], s2[np.isfinite(s2)]
+    return {"bend": float(np.sqrt(np.mean(b * b))),
+            "cv": float(np.std(s4) / max(np.mean(s4), 1e-9)), "stand": float(np.mean(s2))}
+
+
+def main_ridges(profs):
+    """The upper half of the lines by their mean stand at P/2 (a DEM's main ridges)."""
+    st = [np.nanmean(p[2]) for p in profs]
+    med = float(np.median(st))
+    return [p for p, s in zip(profs, st) if s >= med]
+
+
+def read(path):
+    ds = gdal.Open(str(path))
+    band = ds.GetRasterBand(1)
+    z = band.ReadAsArray().astype(float)
+    nd = band.GetNoDataValue()
+    if nd is not None:
+        z[z == nd] = np.nan
+    return z, ds.GetGeoTransform()
 
 
 def main():

@@ -2,6 +2,7 @@
 """Sketch-guided synthesis (`terrasynth synth --sketch`): the output follows
 the sketch (measured with PPA), keeps the exemplar's style, sits on the
 sketch's grid with its nodata; errors; determinism."""
+import math
 import os
 
 import numpy as np
@@ -47,6 +48,9 @@ def lambda_runs(tmp_path_factory):
         run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--order", order,
             d / f"{order}.tif", "-q")
     run("synth", "--like", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", d / "unguided.tif", "-q")
+    for relief, name in (("0", "one_level.tif"), ("1", "full_relief.tif")):
+        run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "1", "--crest-relief",
+            relief, d / name, "-q")
     # the feature-patch constraints are measured on the patches alone (--layout 0
     # --slope-style 0 --drainage keep): the later stages would reshape the crest after them
     alone = ["--layout", "0", "--slope-style", "0", "--drainage", "keep"]
@@ -101,6 +105,30 @@ def test_layout_makes_the_sketched_ridges_stand_out(lambda_runs):
           f"{patches['stand']:.0f} m; held {laid['held']:.2f} / {patches['held']:.2f}")
     assert laid["stand"] > 1.25 * patches["stand"]
     assert laid["held"] > patches["held"]
+
+
+def test_crests_rise_and_fall_with_the_exemplars_peaks_and_saddles(lambda_runs, tmp_path):
+    """Along the drawn ridges, peaks and saddles about a patch apart, measured as along the
+    exemplar's own main ridges: closer to the exemplar's with the crest relief than at one
+    level, and the ridges still drawn as ridges."""
+    d = lambda_runs
+    run("ppa", JACKSBORO, tmp_path / "ppa.tif", "--ridges", "--lines", tmp_path / "ex.gpkg", "-q")
+    z, gt = crest_profile.read(JACKSBORO)
+    ex = crest_profile.figures(crest_profile.main_ridges(crest_profile.line_stands(
+        z, crest_profile.polylines(tmp_path / "ex.gpkg", "paths", gt), PATCH, 3 * PATCH // 2)), PATCH)
+    got = {}
+    for name in ("full_relief.tif", "tree.tif", "one_level.tif"):
+        z, gt = crest_profile.read(d / name)
+        got[name] = crest_profile.figures(crest_profile.line_stands(
+            z, crest_profile.polylines(d / "debug" / "sketch_features.gpkg", "paths", gt), PATCH,
+            PATCH + 1), PATCH)
+    on, dflt, off = got["full_relief.tif"], got["tree.tif"], got["one_level.tif"]
+    print(f"bend {PATCH // 2}: exemplar {ex['bend']:.0f} m, crest relief 1 {on['bend']:.0f} m, "
+          f"default {dflt['bend']:.0f} m, 0 {off['bend']:.0f} m; cross-section spread "
+          f"{ex['cv']:.2f} / {on['cv']:.2f} / {dflt['cv']:.2f} / {off['cv']:.2f}")
+    assert abs(math.log(on["bend"] / ex["bend"])) < abs(math.log(off["bend"] / ex["bend"]))
+    assert off["bend"] < dflt["bend"] < on["bend"]
+    assert crest(d, "full_relief.tif")["held"] > 0.9 * crest(d, "one_level.tif")["held"]
 
 
 def test_path_smoothness_smooths_the_crest(lambda_runs):

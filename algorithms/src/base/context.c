@@ -259,6 +259,19 @@ int ts__float_cmp(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+uint64_t ts__hash_words(uint64_t seed, const uint64_t *words, int n)
+{
+    uint64_t z = seed ^ 0x9e3779b97f4a7c15ull;
+    int i;
+    for (i = 0; i < n; i++) {
+        z += words[i] * 0xbf58476d1ce4e5b9ull + 0x9e3779b97f4a7c15ull;
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+        z ^= z >> 31;
+    }
+    return z;
+}
+
 void *ts__malloc_array(size_t n, size_t size)
 {
     if (size && n > SIZE_MAX / size)

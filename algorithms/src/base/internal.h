@@ -186,6 +186,9 @@ double ts__now(void);
 void *ts__malloc_array(size_t n, size_t size);
 /* qsort comparator of floats, ascending (no NaN given) */
 int ts__float_cmp(const void *a, const void *b);
+/* A 64-bit hash of seed and words[0..n) (splitmix64 steps, one a word):
+ * the randomness of a stage that must not depend on order or threads. */
+uint64_t ts__hash_words(uint64_t seed, const uint64_t *words, int n);
 void *ts__calloc_array(size_t n, size_t size);
 
 #define TS_PI 3.14159265358979323846

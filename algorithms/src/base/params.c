@@ -129,6 +129,12 @@ static const ts_param_desc sketch_desc[] = {
      "output's resolution, after the layout: gradients rescaled by quantile mapping, "
      "directions kept, heights refitted by a Poisson solve (0 = off).",
      offsetof(ts_sketch_params, slope_style)},
+    {"crest_relief", TS_PARAM_DOUBLE, 0.4, 0.0, 1.0, TS_UNIT_CELLS, "fraction", NULL,
+     "How far drawn crests rise and fall with the exemplars' own peaks and saddles (their "
+     "main ridges' heights between a quarter patch and two patches, laid along the strokes "
+     "by the seed) on top of the patches' own: 0 one level along each ridge; at 1 the "
+     "deepest saddles can break a drawn ridge.",
+     offsetof(ts_sketch_params, crest_relief)},
 };
 
 static const ts_param_desc amplify_desc[] = {

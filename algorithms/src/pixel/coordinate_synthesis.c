@@ -46,16 +46,8 @@
 
 uint64_t ts__pix_hash(int64_t x, int64_t y, int level, int stream, uint64_t seed)
 {
-    uint64_t z = seed ^ 0x9e3779b97f4a7c15ull;
     uint64_t words[4] = {(uint64_t)x, (uint64_t)y, (uint64_t)level, (uint64_t)stream};
-    int i;
-    for (i = 0; i < 4; i++) {
-        z += words[i] * 0xbf58476d1ce4e5b9ull + 0x9e3779b97f4a7c15ull;
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        z ^= z >> 31;
-    }
-    return z;
+    return ts__hash_words(seed, words, 4);
 }
 
 double ts__pix_ssd(const float *level, int width, int u, int v, int k, int h, const float *t)

@@ -16,13 +16,18 @@
  *            features, s = +1 for ridges, -1 for valleys, f_c(d) =
  *            c (1 - exp(-d / c)) (the land keeps falling away from a ridge,
  *            ever more gently, over about 2c), level the mean height of the
- *            exemplar's main features of that kind;
+ *            exemplar's main features of that kind, along ridges plus the
+ *            exemplar's own peaks and saddles (crest_profile.c), faded
+ *            with d (the part finer than sigma_l, which the blur would
+ *            drop, is added as it is);
  *   crest    at sigma_c = P/8, after the layout, fading out as
  *            exp(-(2d/P)^2):
  *            T_c(x) = crest(p(x)) - s G_c f_{P/4}(d(x)), p(x) the nearest
  *            feature cell, crest() the output along the features smoothed
- *            over sigma_c: the crest keeps its own rises and saddles along
- *            the stroke, and stands out across it.
+ *            over sigma_c (the crest profile's offsets unsmoothed, the
+ *            flanks taking only their faded share): the crest keeps its
+ *            own rises and saddles along the stroke, and stands out across
+ *            it.
  *
  * G is chosen so that the guide, blurred at its scale, is on average as
  * steep as the exemplar blurred at that scale: the layout carries the
@@ -171,6 +176,32 @@ static void layout_pick(const ts_layout_spec *s, const double *gain, const doubl
     }
 }
 
+/* The weight of a change at cell i: 1, fading out smoothly within 2 sigma
+ * of fixed cells (fixd: the distance to them, or NULL). */
+static double layout_fade(const float *fixd, size_t i, double sigma)
+{
+    double t;
+    if (!fixd)
+        return 1.0;
+    t = fixd[i] / (2.0 * sigma);
+    t = t > 1.0 ? 1.0 : t;
+    return t * t * (3.0 - 2.0 * t);
+}
+
+/* out += strength * add, fading out within 2 sigma of fixed cells. */
+static void layout_add(ts_raster *out, const float *add, double strength, const float *fixd,
+                       double sigma)
+{
+    int W = out->width, H = out->height, x, y;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++) {
+            size_t i = (size_t)y * (size_t)W + (size_t)x;
+            if (!isnan(TS_PIX(out, x, y)))
+                TS_PIX(out, x, y) =
+                    (float)(TS_PIX(out, x, y) + strength * layout_fade(fixd, i, sigma) * add[i]);
+        }
+}
+
 /* out += weight * blur_sigma(guide - out), weight = strength *
  * fade(fixed) * (near > 0 ? exp(-(d / near)^2) : 1). */
 static ts_status layout_correct(ts_ctx *ctx, const layout_ws *ws, ts_raster *out,
@@ -195,11 +226,7 @@ static ts_status layout_correct(ts_ctx *ctx, const layout_ws *ws, ts_raster *out
             c = corr[i];
             if (isnan(TS_PIX(out, x, y)) || isnan(c))
                 continue;
-            if (fixd) {
-                double t = fixd[i] / (2.0 * sigma);
-                t = t > 1.0 ? 1.0 : t;
-                w *= t * t * (3.0 - 2.0 * t);
-            }
+            w *= layout_fade(fixd, i, sigma);
             if (near > 0)
                 w *= exp(-(dist[i] / near) * (dist[i] / near));
             if (gate)
@@ -243,6 +270,9 @@ typedef struct layout_run_data {
     const int32_t *nearest, *near_v;
     const layout_both *b; /* with both kinds, else NULL */
     const double *gl, *gc, *levels;
+    const float *crest, *crest_hp; /* the ridges' peaks and saddles (ts__crest_field) and
+                                      their part finer than the layout's blur, or NULL */
+    float *crest_s;                /* crest on the ridges smoothed as the crest pass smooths */
     float *guide, *work, *corr, *corr2;
     const layout_ws *ws;
 } layout_run_data;
@@ -302,6 +332,8 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
         layout_pick(s, d->gl, d->levels, i, &g, &level);
         if ((d->kind & TS_VALLEY) && d->near_v[i] >= 0)
             level = d->corr[d->near_v[i]];
+        if (d->crest)
+            level += d->crest[i];
         d->guide[i] = (s->nodata && s->nodata[i]) || !isfinite(d->dist[i])
                           ? NAN
                           : (float)(level + lam * g * layout_shape(d, i, d->c_l));
@@ -309,6 +341,8 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
     if ((st = layout_correct(ctx, d->ws, r, d->guide, d->sig_l, d->strength, d->fixd, d->dist, 0.0,
                              NULL, d->work, d->corr)) != TS_OK)
         return st;
+    if (d->crest_hp) /* what the layout's blur leaves out of the peaks and saddles */
+        layout_add(r, d->crest_hp, d->strength, d->fixd, d->sig_l);
     /* the crest: the output along the features of each kind, smoothed along
      * them over a quarter patch, standing out across them */
     layout_on_features(d, r, d->kind == (TS_RIDGE | TS_VALLEY) ? TS_RIDGE : d->kind, d->work);
@@ -328,6 +362,9 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
             continue;
         }
         base = d->corr[p];
+        if (d->crest) /* the peaks and saddles not smoothed along the crest; the
+                       * flanks take only their faded share */
+            base += d->crest[i] - d->crest_s[p];
         if (d->b && !(s->sketch_mask[p] & TS_RIDGE)) {
             base = d->corr2[p]; /* the floor of the nearest valley */
             sign = -1.0;
@@ -459,11 +496,7 @@ static ts_status layout_press(ts_ctx *ctx, const layout_ws *ws, const ts_raster 
                     continue;
                 want = L < lo ? lo - margin * (1.0 - exp((L - lo) / margin))
                               : hi + margin * (1.0 - exp((hi - L) / margin));
-                if (fixd) {
-                    double t = fixd[i] / (2.0 * sigma);
-                    t = t > 1.0 ? 1.0 : t;
-                    w = t * t * (3.0 - 2.0 * t);
-                }
+                w = layout_fade(fixd, i, sigma);
                 TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * (want - L));
             }
     return st;
@@ -725,11 +758,7 @@ static void layout_keep_mean(const layout_run_data *d, ts_raster *out, const flo
             i = (size_t)y * (size_t)W + (size_t)x;
             if (isnan(TS_PIX(out, x, y)))
                 continue;
-            if (fixd) {
-                double t = fixd[i] / (2.0 * d->sig_l);
-                t = t > 1.0 ? 1.0 : t;
-                w = t * t * (3.0 - 2.0 * t);
-            }
+            w = layout_fade(fixd, i, d->sig_l);
             TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * shift);
         }
 }
@@ -788,11 +817,7 @@ static ts_status layout_valley_floors(ts_ctx *ctx, const layout_run_data *d, ts_
             /* on the floor line its own change (the floor descends cell
              * by cell), beside it the smooth part fading out */
             w = isnan(corr[i]) ? d->strength * exp(-(d01[i] / rr) * (d01[i] / rr)) : d->strength;
-            if (fixd) {
-                double t = fixd[i] / (2.0 * rr);
-                t = t > 1.0 ? 1.0 : t;
-                w *= t * t * (3.0 - 2.0 * t);
-            }
+            w *= layout_fade(fixd, i, rr);
             TS_PIX(out, x, y) =
                 (float)(TS_PIX(out, x, y) + w * (isnan(corr[i]) ? guide[i] : corr[i]));
         }
@@ -816,7 +841,7 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     double *gl = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *gc = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *levels = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
-    float *fixd = NULL, *shape = NULL;
+    float *fixd = NULL, *shape = NULL, *crest = NULL, *crest_hp = NULL;
     layout_both both;
     layout_run_data d;
     layout_ws ws;
@@ -844,6 +869,12 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         goto done;
     if ((st = layout_kind_distances(ctx, s, d.kind, P, m, nearest, &both)) != TS_OK)
         goto done;
+    if ((d.kind & TS_RIDGE) &&
+        (st = ts__crest_field(ctx, s->features, s->crest, s->n_exemplars, s->cell_exemplar,
+                              s->patch, d.kind == (TS_RIDGE | TS_VALLEY) ? both.dist_vf : NULL,
+                              P / 4.0, P / 3.0, s->crest_relief, &crest, &crest_hp)) !=
+             TS_OK)
+        goto done;
     if (any_fixed) {
         /* the corrections fade out towards fixed cells, which keep their values */
         if (!(fixd = ts__malloc_array(n, sizeof(float)))) {
@@ -869,6 +900,8 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     d.gl = gl;
     d.gc = gc;
     d.levels = levels;
+    d.crest = crest;
+    d.crest_hp = crest_hp;
     d.guide = guide;
     d.work = work;
     d.corr = corr;
@@ -885,6 +918,16 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     }
     if ((st = layout_calibrate(ctx, &d, shape, gl, gc, &found)) != TS_OK || !found)
         goto done;
+    if (crest) {
+        if (!(d.crest_s = ts__malloc_array(n, sizeof(float)))) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+            goto done;
+        }
+        for (i = 0; i < n; i++)
+            work[i] = (s->sketch_mask[i] & TS_RIDGE) ? crest[i] : NAN;
+        if ((st = lblur(ctx, &ws, work, W, W, H, 2.0 * d.sig_c, d.crest_s)) != TS_OK)
+            goto done;
+    }
     /* the corrections are linear in the guides' steepness: the layout's
      * and the crest's together (out: both at 1, r0: both at 0), or the
      * layout's alone under the crest's at 1 (r01: layout at 0) */
@@ -921,6 +964,9 @@ done:
     free(nearest);
     layout_both_free(&both);
     free(shape);
+    free(crest);
+    free(crest_hp);
+    free(d.crest_s);
     free(d.corr2);
     free(guide);
     free(work);
@@ -934,64 +980,5 @@ done:
     free(fixd);
     free(ws.v);
     free(ws.m);
-    return st;
-}
-
-ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heights,
-                                  double alpha_h, const unsigned char *flags, int patch)
-{
-    int W = out->width, H = out->height, x, y;
-    size_t n = (size_t)W * (size_t)H, i, any = 0;
-    double s = alpha_h < 1.0 ? alpha_h : 1.0, sigma = patch / 3.0;
-    float *r, *c, *d;
-    unsigned char *m;
-    ts_status st;
-    if (!heights || !(s > 0))
-        return TS_OK;
-    for (i = 0; i < n && !any; i++)
-        any = !isnan(heights[i]);
-    if (!any)
-        return TS_OK;
-    r = ts__malloc_array(n, sizeof *r);
-    c = ts__malloc_array(n, sizeof *c);
-    d = ts__malloc_array(n, sizeof *d);
-    m = ts__malloc_array(n, 1);
-    if (!r || !c || !d || !m) {
-        free(r);
-        free(c);
-        free(d);
-        free(m);
-        return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-    }
-    /* the residual on the cells with a wanted height, its mean over them
-     * within sigma (the NaN-aware blur: a region's local mean, a line's mean
-     * along it), fading out over sigma away from them: regions and lines
-     * alike come to their wanted heights, the detail below sigma stays */
-    for (y = 0; y < H; y++)
-        for (x = 0; x < W; x++) {
-            float z = TS_PIX(out, x, y);
-            i = (size_t)y * (size_t)W + (size_t)x;
-            r[i] = isnan(z) || isnan(heights[i]) ? NAN : heights[i] - z;
-            m[i] = !isnan(heights[i]);
-        }
-    st = ts__blur_nan(ctx, r, W, W, H, sigma, c);
-    if (st == TS_OK)
-        st = ts__distance_transform(ctx, m, W, H, d);
-    if (st == TS_OK)
-        for (y = 0; y < H; y++)
-            for (x = 0; x < W; x++) {
-                double fade;
-                i = (size_t)y * (size_t)W + (size_t)x;
-                if ((flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) ||
-                    isnan(TS_PIX(out, x, y)) || isnan(c[i]))
-                    continue;
-                fade = d[i] / sigma;
-                fade = exp(-fade * fade);
-                TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + s * fade * c[i]);
-            }
-    free(r);
-    free(c);
-    free(d);
-    free(m);
     return st;
 }

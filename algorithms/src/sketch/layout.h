@@ -8,6 +8,7 @@
 #define TS_LAYOUT_H
 
 #include "internal.h"
+#include "crest_profile.h"
 #include "relief_guide.h"
 
 /* Radius of the three box passes that approximate a Gaussian of sigma. */
@@ -43,6 +44,9 @@ typedef struct ts_layout_spec {
     const ts_features *features;    /* the sketch's feature graph (valleys descend along
                                        its paths), or NULL */
     double steep_lo;                /* least steepness factor searched (0 = 0.35) */
+    const ts__crest_library *crest; /* per exemplar: its crests' pieces (crest_profile.c),
+                                       or NULL: ridges at one level */
+    double crest_relief;            /* 0..1: the pieces' heights taken */
 } ts_layout_spec;
 
 /* Along the valley paths of spec->features (level: width*height,
