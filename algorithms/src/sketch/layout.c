@@ -270,8 +270,8 @@ typedef struct layout_run_data {
     const int32_t *nearest, *near_v;
     const layout_both *b; /* with both kinds, else NULL */
     const double *gl, *gc, *levels;
-    const float *crest, *crest_hp; /* the ridges' peaks and saddles (ts__crest_field) and
-                                      their part finer than the layout's blur, or NULL */
+    float *crest, *crest_hp; /* the ridges' peaks and saddles (ts__crest_field) and their
+                                part finer than the layout's blur, or NULL (owned) */
     float *crest_s;                /* crest on the ridges smoothed as the crest pass smooths */
     float *guide, *work, *corr, *corr2;
     const layout_ws *ws;
@@ -824,6 +824,26 @@ static ts_status layout_valley_floors(ts_ctx *ctx, const layout_run_data *d, ts_
     return TS_OK;
 }
 
+/* The ridges' peaks and saddles (crest_profile.c) for the layout pass
+ * and the crest pass: d->crest, d->crest_hp, and d->crest_s, the crest on
+ * the ridges smoothed as the crest pass smooths the output's. */
+static ts_status layout_crest_setup(ts_ctx *ctx, layout_run_data *d)
+{
+    const ts_layout_spec *s = d->s;
+    size_t n = (size_t)s->width * (size_t)s->height, i;
+    double P = s->patch;
+    ts_status st = ts__crest_field(ctx, s->features, s->crest, s->n_exemplars, s->cell_exemplar,
+                                   s->patch, d->b ? d->b->dist_vf : NULL, P / 4.0, d->sig_l,
+                                   s->crest_relief, &d->crest, &d->crest_hp);
+    if (st != TS_OK || !d->crest)
+        return st;
+    if (!(d->crest_s = ts__malloc_array(n, sizeof(float))))
+        return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+    for (i = 0; i < n; i++)
+        d->work[i] = (s->sketch_mask[i] & TS_RIDGE) ? d->crest[i] : NAN;
+    return lblur(ctx, d->ws, d->work, s->width, s->width, s->height, 2.0 * d->sig_c, d->crest_s);
+}
+
 ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
                            const unsigned char *flags, double strength)
 {
@@ -841,7 +861,7 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     double *gl = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *gc = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
     double *levels = ts__calloc_array((size_t)s->n_exemplars, sizeof(double));
-    float *fixd = NULL, *shape = NULL, *crest = NULL, *crest_hp = NULL;
+    float *fixd = NULL, *shape = NULL;
     layout_both both;
     layout_run_data d;
     layout_ws ws;
@@ -869,12 +889,6 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
         goto done;
     if ((st = layout_kind_distances(ctx, s, d.kind, P, m, nearest, &both)) != TS_OK)
         goto done;
-    if ((d.kind & TS_RIDGE) &&
-        (st = ts__crest_field(ctx, s->features, s->crest, s->n_exemplars, s->cell_exemplar,
-                              s->patch, d.kind == (TS_RIDGE | TS_VALLEY) ? both.dist_vf : NULL,
-                              P / 4.0, P / 3.0, s->crest_relief, &crest, &crest_hp)) !=
-             TS_OK)
-        goto done;
     if (any_fixed) {
         /* the corrections fade out towards fixed cells, which keep their values */
         if (!(fixd = ts__malloc_array(n, sizeof(float)))) {
@@ -900,8 +914,6 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     d.gl = gl;
     d.gc = gc;
     d.levels = levels;
-    d.crest = crest;
-    d.crest_hp = crest_hp;
     d.guide = guide;
     d.work = work;
     d.corr = corr;
@@ -918,16 +930,8 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     }
     if ((st = layout_calibrate(ctx, &d, shape, gl, gc, &found)) != TS_OK || !found)
         goto done;
-    if (crest) {
-        if (!(d.crest_s = ts__malloc_array(n, sizeof(float)))) {
-            st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-            goto done;
-        }
-        for (i = 0; i < n; i++)
-            work[i] = (s->sketch_mask[i] & TS_RIDGE) ? crest[i] : NAN;
-        if ((st = lblur(ctx, &ws, work, W, W, H, 2.0 * d.sig_c, d.crest_s)) != TS_OK)
-            goto done;
-    }
+    if ((d.kind & TS_RIDGE) && (st = layout_crest_setup(ctx, &d)) != TS_OK)
+        goto done;
     /* the corrections are linear in the guides' steepness: the layout's
      * and the crest's together (out: both at 1, r0: both at 0), or the
      * layout's alone under the crest's at 1 (r01: layout at 0) */
@@ -964,8 +968,8 @@ done:
     free(nearest);
     layout_both_free(&both);
     free(shape);
-    free(crest);
-    free(crest_hp);
+    free(d.crest);
+    free(d.crest_hp);
     free(d.crest_s);
     free(d.corr2);
     free(guide);
