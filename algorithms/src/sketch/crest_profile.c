@@ -19,7 +19,9 @@
  * layout adds the offsets to its level along the ridges, fading with the
  * distance from them (layout.c): a peak over a quarter patch, so it stands
  * out above its flanks; a saddle over a patch, so the land around a pass
- * is low too and the ridge stays convex across it.
+ * is low too and the ridge stays convex across it; with valleys drawn too,
+ * both fade out over two patches towards them, so valley walls are no
+ * steeper.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -296,7 +298,7 @@ ts_status ts__crest_field(ts_ctx *ctx, const ts_features *sf, const ts__crest_li
         double o = near[i] >= 0 ? off[near[i]] : 0.0;
         double w = gain * exp(-dist[i] / (o < 0.0 ? 4.0 * reach : reach));
         if (valley_dist) {
-            double t = valley_dist[i] / patch;
+            double t = valley_dist[i] / (2.0 * patch);
             t = t > 1.0 ? 1.0 : t;
             w *= t * t * (3.0 - 2.0 * t);
         }

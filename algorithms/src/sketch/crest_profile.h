@@ -41,7 +41,8 @@ ts_status ts__crest_offsets(ts_ctx *ctx, const ts_features *sf, const ts__crest_
  * ridge path cell times exp(-d / reach) (a peak), exp(-d / (4 reach)) (a
  * saddle: a negative offset), d the distance to it, and, when
  * valley_dist (the distance to the valleys) is given, times a smoothstep
- * of valley_dist / patch (nothing on a valley floor); add_hp = add less
+ * of valley_dist / (2 patch) (nothing on a valley floor, and valley walls
+ * no steeper); add_hp = add less
  * its Gaussian blur at sigma.  Both library-allocated width*height floats
  * (free()), NULL when no ridge has a profile. */
 ts_status ts__crest_field(ts_ctx *ctx, const ts_features *sf, const ts__crest_library *libs,
