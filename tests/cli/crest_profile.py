@@ -33,25 +33,6 @@ from osgeo import gdal, ogr
 gdal.UseExceptions()
 
 
-def lines_in_cells(gpkg, gt):
-    ds = ogr.Open(str(gpkg))
-    layer = ds.GetLayerByName("paths")
-    inv = gdal.InvGeoTransform(gt)
-    out = []
-    for f in layer:
-        g = f.GetGeometryRef()
-        pts = []
-        for i in range(g.GetPointCount()):
-            x, y = g.GetX(i), g.GetY(i)
-            px = inv[0] + inv[1] * x + inv[2] * y
-            py = inv[3] + inv[4] * x + inv[5] * y
-            pts.append((px, py))
-        if len(pts) >= 2:
-            out.append(np.array(pts))
-    ds = None
-    return out
-
-
 def resample(pts, step=1.0):
     d = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
     s = np.concatenate([[0.0], np.cumsum(d)])
@@ -104,7 +85,7 @@ def flank_heights(z, line, off, both=False):
 def measure(output, gpkg, valleys=False, spacing=16, flank=31):
     z, gt = read(output)
     bends, steps, allz, stands, helds = [], [], [], [], []
-    for pts in lines_in_cells(gpkg, gt):
+    for pts in polylines(gpkg, "paths", gt):
         line = resample(pts)
         if line is None:
             continue

@@ -71,17 +71,33 @@ static int crest_resample(const ts_feature_vertex *v, const double *s, size_t n,
     return 1;
 }
 
-/* Gaussian (sigma) of z[0..m) at k, weights renormalised over the piece. */
-static double crest_gauss(const double *z, size_t m, size_t k, double sigma)
+/* A Gaussian of sigma cut at 3 sigma: w[d] = exp(-(d / sigma)^2 / 2) for
+ * d = 0..r (library-allocated, free(); NULL when out of memory). */
+static double *crest_kernel(double sigma, long *r)
 {
-    long r = (long)ceil(3.0 * sigma), a = (long)k - r, b = (long)k + r, i;
+    long d;
+    double *w;
+    *r = (long)ceil(3.0 * sigma);
+    w = ts__malloc_array((size_t)*r + 1, sizeof(double));
+    for (d = 0; w && d <= *r; d++) {
+        double u = (double)d / sigma;
+        w[d] = exp(-0.5 * u * u);
+    }
+    return w;
+}
+
+/* The Gaussian (kernel w, radius r) of z[0..m) at k, its weights
+ * renormalised over the piece. */
+static double crest_gauss(const double *z, size_t m, size_t k, const double *w, long r)
+{
+    long a = (long)k - r, b = (long)k + r, i;
     double sw = 0.0, sz = 0.0;
     a = a < 0 ? 0 : a;
     b = b >= (long)m ? (long)m - 1 : b;
     for (i = a; i <= b; i++) {
-        double u = (double)(i - (long)k) / sigma, w = exp(-0.5 * u * u);
-        sw += w;
-        sz += w * z[i];
+        double wi = w[labs(i - (long)k)];
+        sw += wi;
+        sz += wi * z[i];
     }
     return sz / sw;
 }
@@ -90,7 +106,8 @@ ts_status ts__crest_library_measure(ts_ctx *ctx, const ts_features *ef, int patc
                                     ts__crest_library *lib)
 {
     size_t p, total = 0, used = 0, np = 0, k, longest = 0;
-    double *s = NULL, *z = NULL;
+    double *s = NULL, *z = NULL, *w_lo = NULL, *w_hi = NULL;
+    long r_lo, r_hi;
     ts_status st = TS_OK;
     memset(lib, 0, sizeof *lib);
     if (!ef || patch < 8)
@@ -107,7 +124,9 @@ ts_status ts__crest_library_measure(ts_ctx *ctx, const ts_features *ef, int patc
     lib->start = ts__malloc_array(np + 1, sizeof(size_t));
     s = ts__malloc_array(longest, sizeof(double));
     z = ts__malloc_array(longest, sizeof(double));
-    if (!lib->z || !lib->start || !s || !z) {
+    w_lo = crest_kernel(patch / 4.0, &r_lo);
+    w_hi = crest_kernel(2.0 * patch, &r_hi);
+    if (!lib->z || !lib->start || !s || !z || !w_lo || !w_hi) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "crest profile", "out of memory");
         goto done;
     }
@@ -122,8 +141,8 @@ ts_status ts__crest_library_measure(ts_ctx *ctx, const ts_features *ef, int patc
         if (s[fp->count - 1] + 1.0 < patch || !crest_resample(v, s, fp->count, z, &m))
             continue;
         for (k = 0; k < m; k++)
-            lib->z[used + k] = (float)(crest_gauss(z, m, k, patch / 4.0) -
-                                       crest_gauss(z, m, k, 2.0 * patch));
+            lib->z[used + k] =
+                (float)(crest_gauss(z, m, k, w_lo, r_lo) - crest_gauss(z, m, k, w_hi, r_hi));
         used += m;
         lib->start[++lib->n_pieces] = used;
         if ((st = ts__progress(ctx, 0.0, "crest profile")) != TS_OK)
@@ -132,6 +151,8 @@ ts_status ts__crest_library_measure(ts_ctx *ctx, const ts_features *ef, int patc
 done:
     free(s);
     free(z);
+    free(w_lo);
+    free(w_hi);
     if (st != TS_OK || !lib->n_pieces)
         ts__crest_library_free(lib);
     return st;
@@ -173,9 +194,7 @@ static void crest_chain(const ts__crest_library *lib, uint64_t seed, size_t path
                         int B, double *prof)
 {
     size_t pos = 0, j = 0;
-    for (pos = 0; pos < m; pos++)
-        prof[pos] = 0.0;
-    pos = 0;
+    memset(prof, 0, m * sizeof *prof);
     for (;;) {
         uint64_t w[3] = {(uint64_t)path, (uint64_t)j, 1}, h1, h2;
         size_t k, len, u, avail, t;

@@ -362,13 +362,12 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
             continue;
         }
         base = d->corr[p];
-        if (d->crest) /* the peaks and saddles not smoothed along the crest; the
-                       * flanks take only their faded share */
-            base += d->crest[i] - d->crest_s[p];
         if (d->b && !(s->sketch_mask[p] & TS_RIDGE)) {
             base = d->corr2[p]; /* the floor of the nearest valley */
             sign = -1.0;
-        }
+        } else if (d->crest) /* the peaks and saddles not smoothed along the
+                              * crest; the flanks take only their faded share */
+            base += d->crest[i] - d->crest_s[p];
         d->guide[i] = (float)(base - sign * lam_c * g * layout_reach(d->dist[i], d->c_c));
     }
     return layout_correct(ctx, d->ws, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
@@ -830,8 +829,9 @@ static ts_status layout_valley_floors(ts_ctx *ctx, const layout_run_data *d, ts_
 static ts_status layout_crest_setup(ts_ctx *ctx, layout_run_data *d)
 {
     const ts_layout_spec *s = d->s;
-    size_t n = (size_t)s->width * (size_t)s->height, i;
+    size_t n = (size_t)s->width * (size_t)s->height;
     double P = s->patch;
+    ts_raster cr;
     ts_status st = ts__crest_field(ctx, s->features, s->crest, s->n_exemplars, s->cell_exemplar,
                                    s->patch, d->b ? d->b->dist_vf : NULL, P / 4.0, d->sig_l,
                                    s->crest_relief, &d->crest, &d->crest_hp);
@@ -839,8 +839,8 @@ static ts_status layout_crest_setup(ts_ctx *ctx, layout_run_data *d)
         return st;
     if (!(d->crest_s = ts__malloc_array(n, sizeof(float))))
         return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-    for (i = 0; i < n; i++)
-        d->work[i] = (s->sketch_mask[i] & TS_RIDGE) ? d->crest[i] : NAN;
+    cr = ts_raster_wrap(d->crest, s->width, s->height, s->width);
+    layout_on_features(d, &cr, TS_RIDGE, d->work);
     return lblur(ctx, d->ws, d->work, s->width, s->width, s->height, 2.0 * d->sig_c, d->crest_s);
 }
 
