@@ -496,8 +496,9 @@ enum {
     /* for the drainage stage: a drawn ridge, which a channel crosses only where the land
        has no other way out */
     TS_CELL_BARRIER = 16,
-    /* for the drainage stage: beside a drawn valley's floor, a pit here is cut at most
-       ts_drainage_params.shallow_depth deep, and no channel cuts the cell deeper */
+    /* for the drainage stage: beside a drawn valley's floor, a pit here lower than the
+       floor is cut at most ts_drainage_params.shallow_depth deep, and no channel below the
+       floor cuts the cell deeper */
     TS_CELL_SHALLOW = 32
 };
 
@@ -958,8 +959,11 @@ typedef struct ts_drainage_params {
                           channel one cell wide); -1 (automatic): a front end sets
                           ts_drainage_bank_slope_auto of the exemplars (the core takes -1 as 0) */
     double shallow_depth; /* breach: the deepest cut from a pit on a TS_CELL_SHALLOW cell,
-                             and of such a cell by any channel (a front end's, not a user's
-                             parameter); 0: max_depth */
+                             and of such a cell by any channel, where the channel runs below
+                             the nearest TS_CELL_FIXED cell (within radius / 2 + 2 cells: a
+                             drawn valley's floor; a channel at or above it is a side gully
+                             down to the floor, cut as deep as max_depth allows); a front
+                             end's, not a user's parameter; 0: max_depth */
 } ts_drainage_params;
 
 TS_API ts_drainage_params ts_drainage_params_default(void);
@@ -981,7 +985,8 @@ typedef struct ts_drainage_info {
 
 /** The margin a window needs on each side (clipped at the grid's edge) for
  *  ts_drainage_apply to give the cells inside it exactly as on the whole
- *  grid: 2 radius + 2, and radius / 2 more for a breach with banks (0 for keep). */
+ *  grid: 2 radius + 2, radius / 2 more for a breach with banks, and radius / 2 + 2 more for
+ *  a breach with shallow_depth (0 for keep). */
 TS_API int ts_drainage_margin(const ts_drainage_params *p);
 
 /**

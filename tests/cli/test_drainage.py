@@ -69,6 +69,8 @@ CASES = {
     "synth": ["synth", "--exemplar", JACKSBORO, "--size", "200x160", "--seed", 3],
     "tiled": ["synth", "--exemplar", JACKSBORO, "--size", "260x200", "--seed", 3, "--tiled", 128],
     "sketch": ["synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", 1],
+    "sketch_valleys": ["synth", "--sketch", os.path.join(DATA, "sketches", "ridges_valleys.tif"),
+                       "--exemplar", JACKSBORO, "--seed", 1],
     "pixel": ["pixel", "--exemplar", JACKSBORO, "--size", "200x160", "--seed", 3],
 }
 
@@ -109,11 +111,14 @@ def test_breach_drains_every_method(case, tmp_path):
               before, after_slot, after, banks, flat_share(keep), flat_share(breach),
               crease(keep), crease(slot), crease(breach), float((breach[ok] != keep[ok]).mean())))
     assert before > 0.01
-    # the lambda's closed ring holds a basin wider than the radius; with a sketch, the land
-    # beside a drawn valley is cut at most the banks' slope deep by default, and deeper
-    # basins there are kept (the rest drain as after any method)
-    assert after_slot <= (0.15 if case == "sketch" else 0.001), after_slot
-    assert after <= (0.8 * before if case == "sketch" else 0.001), after
+    # the lambda's closed ring holds a basin wider than the radius; with a sketch, a channel
+    # beside a drawn valley running lower than its floor is cut at most the banks' slope deep
+    # by default, and deeper basins there are kept (the rest drain as after any method);
+    # drawn valleys' floors follow the synthesis's thalweg and side gullies run down to them,
+    # so few cells stay in pits there
+    sketch = case.startswith("sketch")
+    assert after_slot <= (0.15 if sketch else 0.001), after_slot
+    assert after <= (0.8 * before if case == "sketch" else 0.025 if sketch else 0.001), after
     assert flat_share(breach) <= flat_share(keep) + 0.002
     assert crease(breach) <= crease(slot) + 1e-6
     assert float((breach[ok] != keep[ok]).mean()) < 0.2

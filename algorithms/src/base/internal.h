@@ -186,6 +186,15 @@ double ts__now(void);
 void *ts__malloc_array(size_t n, size_t size);
 /* qsort comparator of floats, ascending (no NaN given) */
 int ts__float_cmp(const void *a, const void *b);
+
+/* Per cell of a w x h grid, the height z of the nearest TS_CELL_FIXED cell with data in
+ * `flags`, NaN where none is within `reach` cells: nearest by the chamfer distance (5 a step
+ * along a row or column, 7 diagonally, at most 5 reach), ties to the first in raster order.
+ * Exact (two raster passes: a cell's neighbour on its way to the nearest fixed cell holds
+ * that cell or one as near and earlier), so a window with a margin of reach gives the
+ * whole's values inside it.  malloc'ed; NULL out of memory.  (drainage) */
+float *ts__nearest_fixed_levels(const float *z, const unsigned char *flags, int w, int h,
+                                int reach);
 /* A 64-bit hash of seed and words[0..n) (splitmix64 steps, one a word):
  * the randomness of a stage that must not depend on order or threads. */
 uint64_t ts__hash_words(uint64_t seed, const uint64_t *words, int n);

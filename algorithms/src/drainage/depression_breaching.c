@@ -46,15 +46,23 @@
 /* the most cells a fill's lake may cover (a 32 x 32 pond for radius 128) */
 #define DR_LAKE_MAX(r) ((size_t)((r) / 4) * (size_t)((r) / 4))
 #define DR_AUTO_SAMPLE 1000000 /* cells sampled for the automatic bank slope */
+/* how far the floor beside a shallow cell is looked for: past the band of shallow cells a
+ * front end marks (a quarter of the radius, Chebyshev) */
+#define DR_FLOOR_REACH(r) ((r) / 2 + 2)
 
 TS_API int ts_drainage_margin(const ts_drainage_params *p)
 {
+    int m;
     if (!p || p->mode == TS_DRAINAGE_KEEP)
         return 0;
-    /* a channel (R from its pit) read on the surface (R), its banks (R / 2) */
+    /* a channel (R from its pit) read on the surface (R), its banks (R / 2), the floor
+     * beside a shallow cell it crosses */
+    m = 2 * p->radius + 2;
     if (p->mode == TS_DRAINAGE_BREACH && p->bank_slope != 0) /* -1: whatever it becomes */
-        return 2 * p->radius + p->radius / 2 + 2;
-    return 2 * p->radius + 2;
+        m += p->radius / 2;
+    if (p->mode == TS_DRAINAGE_BREACH && p->shallow_depth > 0)
+        m += DR_FLOOR_REACH(p->radius);
+    return m;
 }
 
 TS_API double ts_drainage_depth_of(const ts_drainage_params *p)
@@ -132,6 +140,8 @@ typedef struct dr_job {
     int mode, radius;
     double max_depth;     /* > 0: no cut deeper (breach) */
     double shallow_depth; /* > 0: the same from a pit on a TS_CELL_SHALLOW cell */
+    const float *floor;   /* with shallow_depth: per cell, the nearest fixed cell's height
+                             (ts__nearest_fixed_levels), NaN none */
     double banks;         /* > 0: the banks' slope per cell (breach) */
     const int *pits;
     size_t n_pits;
@@ -367,10 +377,11 @@ static int search(const dr_job *j, dr_scratch *s, int px, int py, const dr_query
             if (q->max_depth > 0 && (double)zn > q->level + q->max_depth)
                 continue;
             /* a shallow cell (beside a drawn valley's floor) is cut no deeper than the
-             * shallow depth by any pit's channel, not only by its own pits': a channel
-             * from farther off ran a trench along the fixed floor */
+             * shallow depth by any pit's channel, not only by its own pits' (a channel
+             * from farther off ran a trench along the fixed floor), unless the channel
+             * stays at or above the floor nearest the cell: a side gully down to it */
             if (!q->minimax && q->shallow_depth > 0 && (j->flags[ni] & TS_CELL_SHALLOW) &&
-                (double)zn > q->level + q->shallow_depth)
+                (double)zn > q->level + q->shallow_depth && !(q->level >= (double)j->floor[ni]))
                 continue;
             /* the land beside water is never cut below the water */
             if (!q->minimax && j->flags && shore_level(j, u, v) > q->level)
@@ -536,8 +547,9 @@ static int breach_pit(dr_job *j, dr_scratch *s, int px, int py)
     q.max_depth = j->max_depth;
     q.shallow_depth = j->flags ? j->shallow_depth : 0.0;
     if (j->shallow_depth > 0 && j->flags &&
-        (j->flags[(size_t)py * (size_t)j->w + (size_t)px] & TS_CELL_SHALLOW))
-        q.max_depth = j->shallow_depth;
+        (j->flags[(size_t)py * (size_t)j->w + (size_t)px] & TS_CELL_SHALLOW) &&
+        !(level >= (double)j->floor[(size_t)py * (size_t)j->w + (size_t)px]))
+        q.max_depth = j->shallow_depth; /* a pit below the floor beside it */
     found = search(j, s, px, py, &q);
     if (found < 0)
         return found == -2 ? -1 : 0;
@@ -574,6 +586,80 @@ static int breach_pit(dr_job *j, dr_scratch *s, int px, int py)
         }
     }
     return 1;
+}
+
+/* ---- the floor beside the shallow cells --------------------------------- */
+
+/* Is source (sx, sy) before (tx, ty) in raster order? */
+static int src_before(int sx, int sy, int tx, int ty)
+{
+    return sy < ty || (sy == ty && sx < tx);
+}
+
+float *ts__nearest_fixed_levels(const float *z, const unsigned char *flags, int w, int h,
+                                int reach)
+{
+    static const int NX[4] = {-1, 0, 1, -1}, NY[4] = {-1, -1, -1, 0};
+    size_t n = (size_t)w * (size_t)h, i;
+    int32_t *d = malloc(n * sizeof *d);
+    int16_t *ox = malloc(n * sizeof *ox), *oy = malloc(n * sizeof *oy);
+    float *lv = malloc(n * sizeof *lv);
+    const int32_t cap = 5 * (reach < 0 ? 0 : reach > 4096 ? 4096 : reach);
+    int pass, x, y, k;
+    if (!d || !ox || !oy || !lv) {
+        free(d);
+        free(ox);
+        free(oy);
+        free(lv);
+        return NULL;
+    }
+    for (i = 0; i < n; i++) {
+        d[i] = (flags[i] & TS_CELL_FIXED) && !isnan(z[i]) ? 0 : INT32_MAX;
+        ox[i] = oy[i] = 0;
+    }
+    /* forward: from the neighbours above and to the left; backward: below and right */
+    for (pass = 0; pass < 2; pass++) {
+        const int s = pass ? -1 : 1;
+        int yy, xx;
+        for (yy = 0; yy < h; yy++)
+            for (xx = 0; xx < w; xx++) {
+                size_t c;
+                x = pass ? w - 1 - xx : xx;
+                y = pass ? h - 1 - yy : yy;
+                c = (size_t)y * (size_t)w + (size_t)x;
+                for (k = 0; k < 4; k++) {
+                    int u = x + s * NX[k], v = y + s * NY[k], sx, sy;
+                    size_t nb;
+                    int32_t nd;
+                    if (u < 0 || v < 0 || u >= w || v >= h)
+                        continue;
+                    nb = (size_t)v * (size_t)w + (size_t)u;
+                    if (d[nb] == INT32_MAX)
+                        continue;
+                    nd = d[nb] + (NX[k] && NY[k] ? 7 : 5);
+                    if (nd > cap)
+                        continue;
+                    sx = u + ox[nb];
+                    sy = v + oy[nb];
+                    if (nd < d[c] ||
+                        (nd == d[c] && src_before(sx, sy, x + ox[c], y + oy[c]))) {
+                        d[c] = nd;
+                        ox[c] = (int16_t)(sx - x);
+                        oy[c] = (int16_t)(sy - y);
+                    }
+                }
+            }
+    }
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            i = (size_t)y * (size_t)w + (size_t)x;
+            lv[i] = d[i] == INT32_MAX ? NAN
+                                      : z[(size_t)(y + oy[i]) * (size_t)w + (size_t)(x + ox[i])];
+        }
+    free(d);
+    free(ox);
+    free(oy);
+    return lv;
 }
 
 /* ---- the stage ---------------------------------------------------------- */
@@ -665,7 +751,7 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
                                    const ts_drainage_params *p, ts_drainage_info *info)
 {
     dr_job j;
-    float *z0 = NULL, *out = NULL;
+    float *z0 = NULL, *out = NULL, *floor = NULL;
     int *pits = NULL;
     size_t n_pits = 0, i, n;
     int x, y, a;
@@ -708,8 +794,19 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     j.out = out;
     j.banks = p->bank_slope > 0 ? p->bank_slope : 0.0;
     j.max_depth = ts_drainage_depth_of(p);
-    j.shallow_depth = p->shallow_depth > 0 ? p->shallow_depth : 0.0;
+    j.shallow_depth = p->shallow_depth > 0 && flags ? p->shallow_depth : 0.0;
     j.flags = flags;
+    /* the floor a shallow cell stands beside: the nearest fixed cell within the
+     * reach of the shallow cells' band (a quarter of the radius, diagonally) */
+    if (j.shallow_depth > 0 && p->mode == TS_DRAINAGE_BREACH &&
+        !(floor = ts__nearest_fixed_levels(z0, flags, dem->width, dem->height,
+                                           DR_FLOOR_REACH(p->radius)))) {
+        free(z0);
+        free(out);
+        return ts__fail(ctx, TS_ERR_NOMEM, "drainage", "out of memory for %d x %d cells",
+                        dem->width, dem->height);
+    }
+    j.floor = floor;
     j.w = dem->width;
     j.h = dem->height;
     j.gx0 = gx0;
@@ -763,6 +860,7 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
         st = ts__progress(ctx, 1.0, "drainage");
     }
     free(pits);
+    free(floor);
     free(z0);
     free(out);
     return st;

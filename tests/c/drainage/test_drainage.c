@@ -9,6 +9,7 @@
  */
 #include "harness.h"
 #include "terrasynth.h"
+#include "internal.h"
 
 /* A rough surface full of pits: a tilted plane, bumps and noise. */
 static void make_surface(float *z, int w, int h, uint64_t seed)
@@ -178,12 +179,16 @@ static void test_radius_keeps_wide_basins(void)
 static void test_windows_and_threads(void)
 {
     const int w = 150, h = 120, R = 6;
-    /* breach (one-cell channels), breach with banks, fill */
-    static const int modes[3] = {TS_DRAINAGE_BREACH, TS_DRAINAGE_BREACH, TS_DRAINAGE_FILL};
-    static const double banks[3] = {0.0, 1.5, 0.0};
-    static const int margins[3] = {2 * R + 2, 2 * R + R / 2 + 2, 2 * R + 2};
+    /* breach (one-cell channels), breach with banks, fill; breach with banks beside a
+     * fixed floor (a line across the grid, the cells within 5 of it shallow) */
+    static const int modes[4] = {TS_DRAINAGE_BREACH, TS_DRAINAGE_BREACH, TS_DRAINAGE_FILL,
+                                 TS_DRAINAGE_BREACH};
+    static const double banks[4] = {0.0, 1.5, 0.0, 1.5}, shallow[4] = {0, 0, 0, 2.0};
+    static const int margins[4] = {2 * R + 2, 2 * R + R / 2 + 2, 2 * R + 2,
+                                   2 * R + R / 2 + 2 + R / 2 + 2};
     size_t n = (size_t)w * h;
     float *z0 = malloc(n * sizeof *z0), *whole = malloc(n * sizeof *whole), *win;
+    unsigned char *fl = calloc(n, 1), *wfl = malloc(n), *use;
     ts_ctx *ctx = ts_ctx_new();
     ts_drainage_params p = ts_drainage_params_default();
     ts_raster r;
@@ -193,22 +198,34 @@ static void test_windows_and_threads(void)
     for (k = 0; k < (int)n; k++) /* rough: pits everywhere, lakes beside lakes */
         z0[k] += (float)(12.0 * th_uniform(&s));
     p.radius = R;
+    for (k = 0; k < (int)n; k++) {
+        int dy = k / w - (40 + (k % w) / 5);
+        fl[k] = dy == 0 ? TS_CELL_FIXED : abs(dy) <= 5 ? TS_CELL_SHALLOW : 0;
+    }
+    memcpy(whole, z0, n * sizeof *whole);
+    for (k = 0; k < (int)n; k++) /* the floor below the land beside it: gullies to it */
+        if (fl[k] & TS_CELL_FIXED)
+            whole[k] = z0[k] - 25.0f;
     win = malloc(n * sizeof *win);
-    for (c = 0; c < 3; c++) {
+    for (c = 0; c < 4; c++) {
+        use = shallow[c] > 0 ? fl : NULL;
+        if (use)
+            memcpy(z0, whole, n * sizeof *z0);
         p.mode = modes[c];
         p.bank_slope = banks[c];
+        p.shallow_depth = shallow[c];
         M = ts_drainage_margin(&p);
         CHECK(M == margins[c]);
         memcpy(whole, z0, n * sizeof *whole);
         r = ts_raster_wrap(whole, w, h, w);
         ts_ctx_set_threads(ctx, 1);
-        CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, NULL) == TS_OK);
+        CHECK(ts_drainage_apply(ctx, &r, use, 0, 0, w, h, &p, NULL) == TS_OK);
         CHECK(memcmp(whole, z0, n * sizeof *z0) != 0);
         for (t = 2; t <= 5; t += 3) {
             memcpy(win, z0, n * sizeof *win);
             r = ts_raster_wrap(win, w, h, w);
             ts_ctx_set_threads(ctx, t);
-            CHECK(ts_drainage_apply(ctx, &r, NULL, 0, 0, w, h, &p, NULL) == TS_OK);
+            CHECK(ts_drainage_apply(ctx, &r, use, 0, 0, w, h, &p, NULL) == TS_OK);
             CHECK_MSG(memcmp(win, whole, n * sizeof *win) == 0, "threads %d", t);
         }
         for (k = 0; k < 150; k++) {
@@ -218,10 +235,13 @@ static void test_windows_and_threads(void)
             int ex0 = x0 - M < 0 ? 0 : x0 - M, ey0 = y0 - M < 0 ? 0 : y0 - M;
             int ex1 = x0 + ww + M > w ? w : x0 + ww + M, ey1 = y0 + hh + M > h ? h : y0 + hh + M;
             int ew = ex1 - ex0, eh = ey1 - ey0, x, y, same = 1;
-            for (y = 0; y < eh; y++)
+            for (y = 0; y < eh; y++) {
                 memcpy(win + (size_t)y * ew, z0 + (size_t)(ey0 + y) * w + ex0, (size_t)ew * 4);
+                memcpy(wfl + (size_t)y * ew, fl + (size_t)(ey0 + y) * w + ex0, (size_t)ew);
+            }
             r = ts_raster_wrap(win, ew, eh, ew);
-            CHECK(ts_drainage_apply(ctx, &r, NULL, ex0, ey0, w, h, &p, NULL) == TS_OK);
+            CHECK(ts_drainage_apply(ctx, &r, use ? wfl : NULL, ex0, ey0, w, h, &p, NULL) ==
+                  TS_OK);
             for (y = y0; y < y0 + hh; y++)
                 for (x = x0; x < x0 + ww; x++)
                     if (memcmp(&win[(size_t)(y - ey0) * ew + (x - ex0)], &whole[(size_t)y * w + x],
@@ -234,6 +254,8 @@ static void test_windows_and_threads(void)
     free(z0);
     free(whole);
     free(win);
+    free(fl);
+    free(wfl);
 }
 
 /* The ring of a drawn ridge with the plane tilting down towards x = 0 and a
@@ -538,6 +560,138 @@ static void test_banks(void)
     free(gorge);
 }
 
+/* ts__nearest_fixed_levels against the obvious search: every fixed cell's
+ * chamfer distance (7 a diagonal step, 5 a straight one) to every cell, the
+ * nearest within 5 reach, ties to the first in raster order; and a window
+ * with a margin of reach gives the whole's values inside it. */
+static void test_nearest_fixed_levels(void)
+{
+    const int w = 61, h = 47, reach = 7;
+    size_t n = (size_t)w * h, i;
+    float *z = malloc(n * sizeof *z), *lv, *wl;
+    unsigned char *fl = malloc(n), *wfl = malloc(n);
+    uint64_t s = 17;
+    int x, y, k, bad = 0;
+    for (i = 0; i < n; i++) {
+        z[i] = (float)(1000.0 * th_uniform(&s));
+        fl[i] = th_uniform(&s) < 0.015 ? TS_CELL_FIXED : th_uniform(&s) < 0.3 ? TS_CELL_SHALLOW : 0;
+    }
+    z[5 * w + 5] = NAN; /* a fixed cell without data is no floor */
+    fl[5 * w + 5] = TS_CELL_FIXED;
+    lv = ts__nearest_fixed_levels(z, fl, w, h, reach);
+    CHECK(lv != NULL);
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            long best = -1, bd = 0;
+            float want;
+            for (i = 0; i < n; i++) {
+                long ax = labs((long)(i % (size_t)w) - x), ay = labs((long)(i / (size_t)w) - y);
+                long d = 7 * (ax < ay ? ax : ay) + 5 * (labs(ax - ay));
+                if (!(fl[i] & TS_CELL_FIXED) || isnan(z[i]) || d > 5 * reach)
+                    continue;
+                if (best < 0 || d < bd) { /* raster order: the first of equals kept */
+                    best = (long)i;
+                    bd = d;
+                }
+            }
+            want = best < 0 ? NAN : z[best];
+            i = (size_t)y * (size_t)w + (size_t)x;
+            if (!(lv[i] == want || (isnan(lv[i]) && isnan(want))))
+                bad++;
+        }
+    CHECK_MSG(bad == 0, "%d cells differ from the search", bad);
+    for (k = 0; k < 40; k++) {
+        int x0 = (int)(th_uniform(&s) * (w - 1)), y0 = (int)(th_uniform(&s) * (h - 1));
+        int ww = 1 + (int)(th_uniform(&s) * (w - x0)), hh = 1 + (int)(th_uniform(&s) * (h - y0));
+        int ex0 = x0 - reach < 0 ? 0 : x0 - reach, ey0 = y0 - reach < 0 ? 0 : y0 - reach;
+        int ex1 = x0 + ww + reach > w ? w : x0 + ww + reach;
+        int ey1 = y0 + hh + reach > h ? h : y0 + hh + reach, ew = ex1 - ex0, eh = ey1 - ey0;
+        float *wz = malloc((size_t)ew * (size_t)eh * sizeof *wz);
+        for (y = 0; y < eh; y++) {
+            memcpy(wz + (size_t)y * ew, z + (size_t)(ey0 + y) * w + ex0, (size_t)ew * 4);
+            memcpy(wfl + (size_t)y * ew, fl + (size_t)(ey0 + y) * w + ex0, (size_t)ew);
+        }
+        wl = ts__nearest_fixed_levels(wz, wfl, ew, eh, reach);
+        CHECK(wl != NULL);
+        for (y = y0; y < y0 + hh; y++)
+            for (x = x0; x < x0 + ww; x++)
+                if (memcmp(&wl[(size_t)(y - ey0) * ew + (x - ex0)], &lv[(size_t)y * w + x], 4))
+                    bad++;
+        CHECK_MSG(bad == 0, "window %d,%d %dx%d", x0, y0, ww, hh);
+        free(wl);
+        free(wz);
+    }
+    free(lv);
+    free(z);
+    free(fl);
+    free(wfl);
+}
+
+/* Beside a drawn valley's floor (a fixed row falling to the grid's left
+ * edge, the land rising 1 a cell from it, the rows within 25 shallow), two
+ * bowls dug into the valley's side: one whose bottom stands above the floor
+ * beside it is drained by a side gully cut deeper than the shallow depth;
+ * one whose bottom is below the floor is cut no deeper than it; no cell is
+ * cut deeper than the shallow depth below the floor nearest it. */
+static void test_gully_to_the_floor(void)
+{
+    const int w = 80, h = 60;
+    size_t n = (size_t)w * h, i;
+    float *z0 = malloc(n * sizeof *z0), *z = malloc(n * sizeof *z), *lv;
+    unsigned char *fl = malloc(n);
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_params p = ts_drainage_params_default();
+    ts_raster r = ts_raster_wrap(z, w, h, w);
+    double cut_a = 0, cut_b = 0;
+    size_t left;
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            double floor_ = 40.0 - 0.2 * x, v = floor_ + fabs(y - 30.0);
+            double ra = hypot(x - 40.0, y - 8.0), rb = hypot(x - 20.0, y - 8.0);
+            v -= 20.0 * exp(-ra * ra / 25.0) + 30.0 * exp(-rb * rb / 25.0);
+            z0[y * w + x] = (float)v;
+            fl[y * w + x] = y == 30 ? TS_CELL_FIXED : abs(y - 30) <= 25 ? TS_CELL_SHALLOW : 0;
+        }
+    CHECK(z0[8 * w + 40] > z0[30 * w + 40] && z0[8 * w + 20] < z0[30 * w + 20]);
+    p.radius = 64;
+    p.bank_slope = 0;
+    p.max_depth = 0;
+    p.shallow_depth = 3.0;
+    memcpy(z, z0, n * sizeof *z);
+    CHECK(ts_drainage_apply(ctx, &r, fl, 0, 0, w, h, &p, NULL) == TS_OK);
+    lv = ts__nearest_fixed_levels(z0, fl, w, h, p.radius / 2 + 2);
+    CHECK(lv != NULL);
+    for (i = 0; i < n; i++) {
+        double c = (double)z0[i] - z[i];
+        CHECK(c >= 0);
+        if ((int)(i % (size_t)w) < 30 && c > cut_b)
+            cut_b = c;
+        if ((int)(i % (size_t)w) >= 30 && c > cut_a)
+            cut_a = c;
+        CHECK_MSG(c <= 3.0 + 1e-3 || z[i] >= lv[i] - 1.0,
+                  "cell %zu cut %.1f to %.1f below its floor %.1f", i, c, z[i], lv[i]);
+    }
+    CHECK_MSG(cut_a > 3.5 && cut_b <= 3.0 + 1e-3, "above the floor cut %.1f, below it %.1f",
+              cut_a, cut_b);
+    deepest(z, w, h, 0.5, &left);
+    CHECK_MSG(left > 0, "the bowl below the floor drained");
+    /* the lower bowl away: no pit left once the upper one drains */
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            double rb = hypot(x - 20.0, y - 8.0);
+            z[y * w + x] = (float)(z0[y * w + x] + 30.0 * exp(-rb * rb / 25.0));
+        }
+    CHECK(ts_drainage_apply(ctx, &r, fl, 0, 0, w, h, &p, NULL) == TS_OK);
+    deepest(z, w, h, 0.5, &left);
+    CHECK_MSG(left == 0, "%zu cells in pits with the upper bowl alone", left);
+    free(lv);
+    ts_ctx_free(ctx);
+    free(z0);
+    free(z);
+    free(fl);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -546,6 +700,8 @@ int main(int argc, char **argv)
         {"deepest_cut_keeps", test_deepest_cut_keeps},
         {"shallow_beside", test_shallow_beside},
         {"shallow_cells_any_channel", test_shallow_cells_any_channel},
+        {"nearest_fixed_levels", test_nearest_fixed_levels},
+        {"gully_to_the_floor", test_gully_to_the_floor},
         {"banks", test_banks},
         {"windows_and_threads", test_windows_and_threads},
         {"fixed_and_barriers", test_fixed_and_barriers},
