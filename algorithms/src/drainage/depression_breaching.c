@@ -139,7 +139,8 @@ typedef struct dr_job {
     int lo[2], hi[2]; /* pits looked for in [lo, hi) */
     int mode, radius;
     double max_depth;     /* > 0: no cut deeper (breach) */
-    double shallow_depth; /* > 0: the same from a pit on a TS_CELL_SHALLOW cell */
+    double shallow_depth; /* > 0 (a breach with flags): the same from a pit on a
+                             TS_CELL_SHALLOW cell below the floor beside it */
     const float *floor;   /* with shallow_depth: per cell, the nearest fixed cell's height
                              (ts__nearest_fixed_levels), NaN none */
     double banks;         /* > 0: the banks' slope per cell (breach) */
@@ -545,8 +546,8 @@ static int breach_pit(dr_job *j, dr_scratch *s, int px, int py)
     q.minimax = 0;
     q.level = level;
     q.max_depth = j->max_depth;
-    q.shallow_depth = j->flags ? j->shallow_depth : 0.0;
-    if (j->shallow_depth > 0 && j->flags &&
+    q.shallow_depth = j->shallow_depth;
+    if (j->shallow_depth > 0 &&
         (j->flags[(size_t)py * (size_t)j->w + (size_t)px] & TS_CELL_SHALLOW) &&
         !(level >= (double)j->floor[(size_t)py * (size_t)j->w + (size_t)px]))
         q.max_depth = j->shallow_depth; /* a pit below the floor beside it */
@@ -794,11 +795,12 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     j.out = out;
     j.banks = p->bank_slope > 0 ? p->bank_slope : 0.0;
     j.max_depth = ts_drainage_depth_of(p);
-    j.shallow_depth = p->shallow_depth > 0 && flags ? p->shallow_depth : 0.0;
+    j.shallow_depth =
+        p->shallow_depth > 0 && flags && p->mode == TS_DRAINAGE_BREACH ? p->shallow_depth : 0.0;
     j.flags = flags;
     /* the floor a shallow cell stands beside: the nearest fixed cell within the
      * reach of the shallow cells' band (a quarter of the radius, diagonally) */
-    if (j.shallow_depth > 0 && p->mode == TS_DRAINAGE_BREACH &&
+    if (j.shallow_depth > 0 &&
         !(floor = ts__nearest_fixed_levels(z0, flags, dem->width, dem->height,
                                            DR_FLOOR_REACH(p->radius)))) {
         free(z0);

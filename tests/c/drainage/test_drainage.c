@@ -202,15 +202,12 @@ static void test_windows_and_threads(void)
         int dy = k / w - (40 + (k % w) / 5);
         fl[k] = dy == 0 ? TS_CELL_FIXED : abs(dy) <= 5 ? TS_CELL_SHALLOW : 0;
     }
-    memcpy(whole, z0, n * sizeof *whole);
-    for (k = 0; k < (int)n; k++) /* the floor below the land beside it: gullies to it */
-        if (fl[k] & TS_CELL_FIXED)
-            whole[k] = z0[k] - 25.0f;
     win = malloc(n * sizeof *win);
     for (c = 0; c < 4; c++) {
         use = shallow[c] > 0 ? fl : NULL;
-        if (use)
-            memcpy(z0, whole, n * sizeof *z0);
+        for (k = 0; use && k < (int)n; k++) /* the floor below the land beside it: gullies */
+            if (fl[k] & TS_CELL_FIXED)
+                z0[k] -= 25.0f;
         p.mode = modes[c];
         p.bank_slope = banks[c];
         p.shallow_depth = shallow[c];
