@@ -9,8 +9,10 @@
  *   B. scaled to 2000 x 2000, from a 4096 x 4096 exemplar (the DEM
  *      reflect-tiled).
  * Prints seconds (features, fill stages) and peak RSS; for B the goal line
- * "goal: < 15 s and < 2048 MB: PASS/FAIL".  Skipped (exit 0) when the
- * default DEM is absent.
+ * "goal: < 15 s and < 2048 MB: PASS/FAIL".  Each case then runs free
+ * synthesis of the same grid from the same exemplar in the same process,
+ * its peer, and prints both times and their ratio (goal: <= 1.5, MET or
+ * MISS).  Skipped (exit 0) when the default DEM is absent.
  */
 #define _POSIX_C_SOURCE 200809L
 
@@ -60,6 +62,27 @@ static ts_raster scaled(const ts_raster *s, int n)
     return r;
 }
 
+/* Free synthesis of a w x h grid from ex, the sketch's peer: its seconds, or
+ * a negative number on failure. */
+static double free_peer(int w, int h, const ts_raster *ex)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_synth_params p = ts_synth_params_default();
+    ts_raster out;
+    double t0, t = -1.0;
+    ts_ctx_set_seed(ctx, 1);
+    if (ts_raster_alloc(ctx, w, h, &out) == TS_OK) {
+        t0 = bench_now_s();
+        if (ts_synth_patches(ctx, ex, 1, &p, NULL, &out, NULL) == TS_OK)
+            t = bench_now_s() - t0;
+        else
+            fprintf(stderr, "bench_sketch: free synthesis: %s\n", ts_ctx_message(ctx));
+        ts_raster_free(&out);
+    }
+    ts_ctx_free(ctx);
+    return t;
+}
+
 static int run_case(const char *name, const ts_raster *sketch, const ts_raster *ex, double goal_s,
                     double goal_mb)
 {
@@ -89,13 +112,24 @@ static int run_case(const char *name, const ts_raster *sketch, const ts_raster *
                name, sketch->width, sketch->height, ex->width, ex->height, t, info.n_sites,
                info.n_feature_patches, info.n_exemplar_sites, maps.n_patches, bench_peak_rss_mb());
         printf("  stages: sketch PPA %.2f s, exemplar PPA and relief profiles %.2f s, feature "
-               "patches (guide, matching, warps, cuts) %.2f s, fill %.2f s, layout %.2f s\n",
+               "patches (guide, matching, warps, cuts) %.2f s, fill %.2f s, layout %.2f s, slope "
+               "style %.2f s, heights, banks and valley floors %.2f s\n",
                info.seconds_sketch_ppa, info.seconds_exemplar_ppa, info.seconds_features,
-               info.seconds_fill, info.seconds_layout);
+               info.seconds_fill, info.seconds_layout, info.seconds_slope_style,
+               info.seconds_finish);
         printf("  fill stages: prepare %.2f s, match %.2f s, graph cut %.2f s, Poisson %.2f s\n",
                maps.seconds_prepare, maps.seconds_match, maps.seconds_cut, maps.seconds_poisson);
         if (goal_s > 0)
             bench_goal_line(t, goal_s, goal_mb);
+    }
+    if (!rc) {
+        double tf = free_peer(sketch->width, sketch->height, ex);
+        if (tf > 0)
+            printf("  against free synthesis of the same grid: sketch %.2f s, free %.2f s, ratio "
+                   "%.2f (goal <= 1.5: %s)\n",
+                   t, tf, t / tf, t / tf <= 1.5 ? "MET" : "MISS");
+        else
+            rc = 1;
     }
     ts_raster_free(&out);
     ts_ctx_free(ctx);

@@ -647,9 +647,11 @@ typedef struct ts_sketch_info {
     size_t n_feature_patches;/* of which placed */
     size_t n_exemplar_sites; /* candidate feature patches found in the exemplars */
     /* wall seconds: PPA on the sketch, PPA (and relief profiles) on the
-     * exemplars, feature patch placement, the non-feature fill, the layout */
+     * exemplars, feature patch placement, the non-feature fill, the layout,
+     * the slope style, the rest (wanted heights, water banks, drawn valleys'
+     * floors) */
     double seconds_sketch_ppa, seconds_exemplar_ppa, seconds_features, seconds_fill;
-    double seconds_layout;
+    double seconds_layout, seconds_slope_style, seconds_finish;
 } ts_sketch_info;
 
 /**

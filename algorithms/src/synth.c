@@ -336,14 +336,17 @@ static ts_status sketch_features_placed(ts_ctx *ctx, sketch_run *r, ts__fill *fi
     return st;
 }
 
-/* Steps 6-9, after the fill: the layout, the slope style, the wanted
- * heights, the water banks. */
+/* Steps 6-10, after the fill: the layout, the slope style, the wanted
+ * heights, the water banks, the drawn valleys' floors; times[0..2]: the
+ * seconds of the layout, of the slope style and of the rest. */
 static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill *fill,
                                const ts_raster *exemplars, int n_exemplars,
                                const ts_sketch_params *sp,
-                               const ts_synth_constraints *constraints, ts_raster *out, int P)
+                               const ts_synth_constraints *constraints, ts_raster *out, int P,
+                               double *times)
 {
     ts_status st = TS_OK;
+    double t0 = ts__now();
     /* 6. the relief the sketch lays out */
     if (sp->layout > 0) {
         ts_layout_spec ls;
@@ -365,6 +368,8 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
         if (st == TS_OK)
             st = ts__progress(ctx, sp->slope_style > 0 ? 0.97 : 1.0, "layout");
     }
+    times[0] = ts__now() - t0;
+    t0 = ts__now();
     /* 7. the exemplars' distribution of slopes (ours, slope_style.c) */
     if (st == TS_OK && sp->slope_style > 0) {
         ts_slope_style_spec ss;
@@ -386,6 +391,8 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
             st = ts__layout_press_range(ctx, exemplars, n_exemplars, out, r->user_flags, P);
         ts__progress_pop(ctx, sv2);
     }
+    times[1] = ts__now() - t0;
+    t0 = ts__now();
     /* 8. the user's wanted heights, which the layout and the slope style do
      * not know, kept at large scale (ours, layout.c) */
     if (st == TS_OK && constraints && (sp->layout > 0 || sp->slope_style > 0))
@@ -397,6 +404,7 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
     /* 10. drawn valleys that drain to their outlets (ours, valley_breach.c) */
     if (st == TS_OK && (r->kind & TS_VALLEY) && sp->layout > 0)
         st = ts__valley_breach(ctx, r->sf, out, r->user_flags, P);
+    times[2] = ts__now() - t0;
     return st;
 }
 
@@ -436,10 +444,9 @@ static ts_status sketch_stages(ts_ctx *ctx, sketch_run *r, const ts_raster *exem
     st = ts__fill_run(ctx, exemplars, n_exemplars, &fill, out, maps);
     ts__progress_pop(ctx, sv);
     times[3] = ts__now() - t0;
-    t0 = ts__now();
     if (st == TS_OK)
-        st = sketch_finish(ctx, r, &fill, exemplars, n_exemplars, sp, constraints, out, P);
-    times[4] = ts__now() - t0;
+        st = sketch_finish(ctx, r, &fill, exemplars, n_exemplars, sp, constraints, out, P,
+                           times + 4);
     return st;
 }
 
@@ -452,6 +459,8 @@ static void sketch_info_times(ts_sketch_info *info, const double *times)
     info->seconds_features = times[2];
     info->seconds_fill = times[3];
     info->seconds_layout = times[4];
+    info->seconds_slope_style = times[5];
+    info->seconds_finish = times[6];
 }
 
 /* PPA parameters for the sketch and, changed per exemplar, for them. */
@@ -482,7 +491,7 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
     ts_progress_saved sv;
     ts_status st;
     int P = 0, mode;
-    double t0 = ts__now(), times[5] = {0, 0, 0, 0, 0}, ground = NAN;
+    double t0 = ts__now(), times[7] = {0, 0, 0, 0, 0, 0, 0}, ground = NAN;
     ts__clear(ctx);
     memset(&r, 0, sizeof r);
     if (sketch_features)
@@ -541,7 +550,7 @@ TS_API ts_status ts_synth_sketch_features(ts_ctx *ctx, const ts_features *featur
     ts_status st;
     int P = 0;
     size_t i, n;
-    double times[5] = {0, 0, 0, 0, 0};
+    double times[7] = {0, 0, 0, 0, 0, 0, 0};
     ts__clear(ctx);
     memset(&r, 0, sizeof r);
     if (info)

@@ -186,6 +186,9 @@ double ts__now(void);
 void *ts__malloc_array(size_t n, size_t size);
 /* qsort comparator of floats, ascending (no NaN given) */
 int ts__float_cmp(const void *a, const void *b);
+/* Sorts n floats (no NaN) ascending in O(n): the same order as a stable sort by
+ * ts__float_cmp (equal values, +0 and -0 among them, keep their order).  (raster.c) */
+void ts__sort_floats(float *v, size_t n);
 
 /* Per cell of a w x h grid, the height z of the nearest TS_CELL_FIXED cell with data in
  * `flags`, NaN where none is within `reach` cells: nearest by the chamfer distance (5 a step

@@ -1,9 +1,11 @@
 /*
- * raster.c - float raster views: wrap, allocate, statistics.
+ * raster.c - float raster views: wrap, allocate, statistics; the sort of
+ * float samples the statistics share.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <stdlib.h>
+#include <string.h>
 
 #include "internal.h"
 
@@ -95,4 +97,75 @@ TS_API ts_status ts_raster_stats_compute(ts_ctx *ctx, const ts_raster *r, ts_ras
     out->mean = mean;
     out->stddev = sqrt(sum2 / (double)nv);
     return TS_OK;
+}
+
+/* ---- sorting float samples ------------------------------------------ */
+
+#define SORT_BITS 11
+#define SORT_BUCKETS (1u << SORT_BITS)
+
+/* An unsigned key in the floats' order: the sign bit flipped on positives,
+ * every bit on negatives; -0 takes +0's key (they compare equal). */
+static inline uint32_t sort_key(float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    if (u == 0x80000000u)
+        u = 0;
+    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+/* Least-significant-digit radix sort on the keys, three digits of 11, 11
+ * and 10 bits: stable, so values that compare equal keep their order (as
+ * a stable comparison sort leaves them), in 3 + 1 passes over the data. */
+void ts__sort_floats(float *v, size_t n)
+{
+    size_t(*cnt)[SORT_BUCKETS];
+    float *tmp, *src = v, *dst;
+    size_t i;
+    int d;
+    if (n < 64) { /* insertion sort: stable */
+        for (i = 1; i < n; i++) {
+            float x = v[i];
+            uint32_t k = sort_key(x);
+            size_t j = i;
+            for (; j > 0 && sort_key(v[j - 1]) > k; j--)
+                v[j] = v[j - 1];
+            v[j] = x;
+        }
+        return;
+    }
+    tmp = ts__malloc_array(n, sizeof *tmp);
+    cnt = ts__calloc_array(3, sizeof *cnt);
+    if (!tmp || !cnt) { /* a stable merge sort in glibc: the same order */
+        free(tmp);
+        free(cnt);
+        qsort(v, n, sizeof *v, ts__float_cmp);
+        return;
+    }
+    for (i = 0; i < n; i++) {
+        uint32_t k = sort_key(v[i]);
+        cnt[0][k & (SORT_BUCKETS - 1)]++;
+        cnt[1][(k >> SORT_BITS) & (SORT_BUCKETS - 1)]++;
+        cnt[2][k >> (2 * SORT_BITS)]++;
+    }
+    dst = tmp;
+    for (d = 0; d < 3; d++) {
+        size_t sum = 0, b, c;
+        int shift = d * SORT_BITS;
+        for (b = 0; b < SORT_BUCKETS; b++) {
+            c = cnt[d][b];
+            cnt[d][b] = sum;
+            sum += c;
+        }
+        for (i = 0; i < n; i++) {
+            uint32_t k = sort_key(src[i]) >> shift;
+            dst[cnt[d][k & (SORT_BUCKETS - 1)]++] = src[i];
+        }
+        src = dst;
+        dst = src == tmp ? v : tmp;
+    }
+    memcpy(v, src, n * sizeof *v); /* three passes: the result is in tmp */
+    free(tmp);
+    free(cnt);
 }

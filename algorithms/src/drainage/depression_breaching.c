@@ -104,7 +104,7 @@ TS_API double ts_drainage_bank_slope_auto(const ts_raster *exemplars, int n)
         free(v);
         return 0.0;
     }
-    qsort(v, m, sizeof *v, ts__float_cmp);
+    ts__sort_floats(v, m);
     r = (double)v[(m - 1) / 2];
     free(v);
     return isfinite(r) ? r : 0.0;

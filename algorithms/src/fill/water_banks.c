@@ -54,7 +54,7 @@ static double median_step(const ts_raster *r, const unsigned char *flags)
         free(v);
         return 0.0;
     }
-    qsort(v, n, sizeof *v, ts__float_cmp);
+    ts__sort_floats(v, n);
     med = v[n / 2];
     free(v);
     return med;

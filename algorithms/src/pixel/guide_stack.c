@@ -55,8 +55,8 @@ static int pix_samples(const ts_raster *guide, const ts_pixel_exemplars *ex, flo
                 (*gs)[(*ng)++] = TS_PIX(guide, x, y);
     if (!*ne || !*ng)
         goto fail;
-    qsort(*es, *ne, sizeof **es, ts__float_cmp);
-    qsort(*gs, *ng, sizeof **gs, ts__float_cmp);
+    ts__sort_floats(*es, *ne);
+    ts__sort_floats(*gs, *ng);
     return 0;
 fail:
     free(*es);

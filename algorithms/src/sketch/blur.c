@@ -16,6 +16,7 @@
 typedef struct blur_job {
     int w, h, r;   /* box radius */
     double *v, *m; /* value * weight and weight, w*h, blurred in place */
+    int n_arr;     /* 2: both; 1: v alone (no NaN: the weights are separable) */
     atomic_int failed;
 } blur_job;
 
@@ -51,7 +52,8 @@ static void blur_rows(void *arg, size_t b, size_t e)
     for (y = b; y < e; y++)
         for (p = 0; p < 3; p++) {
             box_line(j->v + y * (size_t)j->w, (size_t)j->w, 1, j->r, tmp);
-            box_line(j->m + y * (size_t)j->w, (size_t)j->w, 1, j->r, tmp);
+            if (j->n_arr > 1)
+                box_line(j->m + y * (size_t)j->w, (size_t)j->w, 1, j->r, tmp);
         }
     free(tmp);
 }
@@ -74,7 +76,7 @@ static void blur_cols(void *arg, size_t b, size_t e)
     for (x0 = b; x0 < e; x0 += BLUR_BLOCK) {
         size_t bw = TS_MIN((size_t)BLUR_BLOCK, e - x0), y, c;
         int arr, p;
-        for (arr = 0; arr < 2; arr++) {
+        for (arr = 0; arr < j->n_arr; arr++) {
             double *a = arr ? j->m : j->v;
             for (p = 0; p < 3; p++) {
                 for (y = 0; y < h; y++)
@@ -108,12 +110,28 @@ int ts__blur_radius(double sigma)
     return r < 0 ? 0 : r;
 }
 
-/* ts__blur_nan with caller buffers v and m (w * h doubles each). */
+/* The three box passes of radius r over n ones, into a (n doubles). */
+static void blur_ones(double *a, size_t n, int r, double *tmp)
+{
+    size_t i;
+    int p;
+    for (i = 0; i < n; i++)
+        a[i] = 1.0;
+    for (p = 0; p < 3; p++)
+        box_line(a, n, 1, r, tmp);
+}
+
+/* ts__blur_nan with caller buffers v and m (w * h doubles each).  Without
+ * NaN the weights are 1 everywhere, and their blur is the product of the
+ * blurs of a row and a column of ones: whole numbers below 2^53 (boxes of
+ * at most 2^8 cells: (2^8)^6), so both ways give the same doubles; only v
+ * is blurred then. */
 static void blur_nan_ws(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h, double sigma,
                         float *out, double *v, double *m, atomic_int *failed)
 {
     blur_job j;
     int x, y;
+    size_t n_nan = 0;
     j.w = w;
     j.h = h;
     j.r = ts__blur_radius(sigma);
@@ -127,14 +145,28 @@ static void blur_nan_ws(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, i
             int bad = isnan(row[x]);
             vr[x] = bad ? 0.0 : row[x];
             mr[x] = bad ? 0.0 : 1.0;
+            n_nan += (size_t)bad;
         }
     }
+    j.n_arr = n_nan == 0 && 2 * j.r + 1 <= 256 && (size_t)w * (size_t)h >= (size_t)(w + h) * 2
+                  ? 1
+                  : 2;
     if (j.r > 0) {
         ts__parallel_for(ctx, (size_t)h, blur_rows, &j);
         if (!atomic_load(&j.failed))
             ts__parallel_for(ctx, (size_t)w, blur_cols, &j);
     }
-    {
+    if (j.n_arr == 1 && j.r > 0) { /* m's first w + h cells: the row's and the column's */
+        double *mx = m, *my = m + w, *tmp = m + w + h;
+        blur_ones(mx, (size_t)w, j.r, tmp);
+        blur_ones(my, (size_t)h, j.r, tmp);
+        for (y = h - 1; y >= 0; y--) {
+            double *vr = v + (size_t)y * (size_t)w, fy = my[y];
+            float *o = out + (size_t)y * (size_t)w;
+            for (x = 0; x < w; x++)
+                o[x] = (float)(vr[x] / (mx[x] * fy));
+        }
+    } else {
         size_t i, n = (size_t)w * (size_t)h;
         for (i = 0; i < n; i++)
             out[i] = m[i] > 1e-9 ? (float)(v[i] / m[i]) : NAN;

@@ -416,7 +416,7 @@ static int layout_gradient_quantiles(const float *a, const float *b, ptrdiff_t s
         }
     if (!n)
         return 0;
-    qsort(work, n, sizeof *work, ts__float_cmp);
+    ts__sort_floats(work, n);
     for (k = 0; k < LAYOUT_QUANTILES; k++) {
         double pos = (0.5 + 0.5 * (double)k) / 100.0 * (double)(n - 1);
         size_t i0 = (size_t)pos;
@@ -439,7 +439,7 @@ static double layout_percentile(const ts_raster *r, double p, float *work)
                 work[n++] = TS_PIX(r, x, y);
     if (!n)
         return NAN;
-    qsort(work, n, sizeof *work, ts__float_cmp);
+    ts__sort_floats(work, n);
     pos = p / 100.0 * (double)(n - 1);
     i0 = (size_t)pos;
     return i0 + 1 < n ? work[i0] + (pos - (double)i0) * (work[i0 + 1] - work[i0]) : work[n - 1];

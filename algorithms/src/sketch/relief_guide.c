@@ -82,16 +82,46 @@ typedef struct edt_job {
     atomic_int failed; /* a worker could not get its buffers */
 } edt_job;
 
+#define EDT_BLOCK 16 /* columns the vertical pass gathers together */
+
+/* The vertical pass over columns [b, e), EDT_BLOCK adjacent columns at a
+ * time: gathered row by row (along memory) into one line each, each line
+ * transformed, the results scattered back row by row. */
+static void edt_columns(edt_job *j, size_t b, size_t e, double *f, double *d, int *arg, int *v,
+                        double *z)
+{
+    size_t W = (size_t)j->width, H = (size_t)j->height, k0, i, c;
+    for (k0 = b; k0 < e; k0 += EDT_BLOCK) {
+        size_t bw = TS_MIN((size_t)EDT_BLOCK, e - k0);
+        for (i = 0; i < H; i++)
+            for (c = 0; c < bw; c++)
+                f[c * H + i] = j->rows[i * W + k0 + c];
+        for (c = 0; c < bw; c++)
+            edt_1d(f + c * H, (int)H, d + c * H, j->nearest ? arg + c * H : NULL, v, z);
+        for (i = 0; i < H; i++)
+            for (c = 0; c < bw; c++) {
+                size_t o = i * W + k0 + c;
+                j->dist[o] = (float)sqrt(d[c * H + i]);
+                if (j->nearest) {
+                    /* the nearest row, then that row's nearest column */
+                    int r = arg[c * H + i];
+                    int32_t col = r < 0 ? -1 : j->row_arg[(size_t)r * W + k0 + c];
+                    j->nearest[o] = col < 0 ? -1 : (int32_t)((size_t)r * W + (size_t)col);
+                }
+            }
+    }
+}
+
 /* Rows [b, e) (pass 0) or columns [b, e) (pass 1), with private buffers. */
 static void edt_range(edt_job *j, size_t b, size_t e, int pass)
 {
     int n = TS_MAX(j->width, j->height), i;
-    size_t k;
-    double *f = ts__malloc_array((size_t)n, sizeof(double));
-    double *d = ts__malloc_array((size_t)n, sizeof(double));
+    size_t k, lines = pass ? EDT_BLOCK : 1;
+    double *f = ts__malloc_array((size_t)n * lines, sizeof(double));
+    double *d = ts__malloc_array((size_t)n * lines, sizeof(double));
     double *z = ts__malloc_array((size_t)n + 1, sizeof(double));
     int *v = ts__malloc_array((size_t)n, sizeof(int));
-    int *arg = ts__malloc_array((size_t)n, sizeof(int));
+    int *arg = ts__malloc_array((size_t)n * lines, sizeof(int));
     if (!f || !d || !z || !v || !arg) {
         atomic_store(&j->failed, 1);
     } else if (pass == 0) {
@@ -105,21 +135,7 @@ static void edt_range(edt_job *j, size_t b, size_t e, int pass)
                     j->row_arg[k * (size_t)j->width + (size_t)i] = arg[i];
         }
     } else {
-        for (k = b; k < e; k++) {
-            for (i = 0; i < j->height; i++)
-                f[i] = j->rows[(size_t)i * (size_t)j->width + k];
-            edt_1d(f, j->height, d, j->nearest ? arg : NULL, v, z);
-            for (i = 0; i < j->height; i++)
-                j->dist[(size_t)i * (size_t)j->width + k] = (float)sqrt(d[i]);
-            if (j->nearest)
-                for (i = 0; i < j->height; i++) {
-                    /* the nearest row, then that row's nearest column */
-                    int r = arg[i];
-                    int32_t c = r < 0 ? -1 : j->row_arg[(size_t)r * (size_t)j->width + k];
-                    j->nearest[(size_t)i * (size_t)j->width + k] =
-                        c < 0 ? -1 : (int32_t)((size_t)r * (size_t)j->width + (size_t)c);
-                }
-        }
+        edt_columns(j, b, e, f, d, arg, v, z);
     }
     free(f);
     free(d);

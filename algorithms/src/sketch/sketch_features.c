@@ -35,7 +35,7 @@ static float *sketch_sample(const ts_raster *s, size_t *n)
         for (x = 0; x < s->width; x += step)
             if (!isnan(TS_PIX(s, x, y)) && *n < cap)
                 v[(*n)++] = TS_PIX(s, x, y);
-    qsort(v, *n, sizeof *v, ts__float_cmp);
+    ts__sort_floats(v, *n);
     return v;
 }
 

@@ -108,7 +108,7 @@ static size_t slope_quantiles(const float *a, ptrdiff_t stride, int w, int h, co
         }
     if (n < 16)
         return 0;
-    qsort(work, n, sizeof *work, ts__float_cmp);
+    ts__sort_floats(work, n);
     for (k = 0; k < SLOPE_Q; k++) {
         double pos = (double)k / (SLOPE_Q - 1) * (double)(n - 1);
         size_t i0 = (size_t)pos;
@@ -183,7 +183,7 @@ static double crease_cap(const float *a, ptrdiff_t stride, int w, int h, float *
         }
     if (n < 1024)
         return NAN;
-    qsort(work, n, sizeof *work, ts__float_cmp);
+    ts__sort_floats(work, n);
     pos = CREASE_QUANTILE * (double)(n - 1);
     i0 = (size_t)pos;
     return i0 + 1 < n ? work[i0] + (pos - (double)i0) * (work[i0 + 1] - work[i0]) : work[n - 1];
@@ -279,13 +279,14 @@ static void slope_targets(slope_work *sw)
 
 /* Every cell's factor (G^-1(F(g)) / g)^strength, clamped; near the
  * sketch's features never gentler than the exemplar's steepest half
- * percent. */
-static void slope_factors(slope_work *sw)
+ * percent (rows [y0, y1)). */
+static void slope_factors(void *arg, size_t y0, size_t y1)
 {
+    slope_work *sw = arg;
     const ts_slope_style_spec *s = sw->s;
     int W = sw->W, H = sw->H, x, y;
     const double *qo = sw->qo, *qe = sw->qe;
-    for (y = 0; y < H; y++)
+    for (y = (int)y0; y < (int)y1; y++)
         for (x = 0; x < W; x++) {
             double g = slope_at(sw->u, W, W, H, x, y), f = 1.0;
             size_t i = (size_t)y * (size_t)W + (size_t)x;
@@ -306,12 +307,14 @@ static void slope_factors(slope_work *sw)
         }
 }
 
-/* Each edge's wanted difference: its own times its cells' factor. */
-static void slope_edges(slope_work *sw)
+/* Each edge's wanted difference: its own times its cells' factor (rows
+ * [y0, y1)). */
+static void slope_edges(void *arg, size_t y0, size_t y1)
 {
+    const slope_work *sw = arg;
     int W = sw->W, H = sw->H, x, y;
     const float *u = sw->u, *fac = sw->fac;
-    for (y = 0; y < H; y++)
+    for (y = (int)y0; y < (int)y1; y++)
         for (x = 0; x < W; x++) {
             size_t i = (size_t)y * (size_t)W + (size_t)x;
             sw->gx[i] = x + 1 < W && !isnan(u[i]) && !isnan(u[i + 1])
@@ -338,8 +341,8 @@ static ts_status slope_passes(ts_ctx *ctx, slope_work *sw)
             if (sw->has[grp] && !slope_quantiles(sw->u, W, W, H, sw->group, grp, sw->work,
                                                  sw->qo + (size_t)grp * SLOPE_Q))
                 sw->has[grp] = 2; /* no cell of the region has a gradient: left as it is */
-        slope_factors(sw);
-        slope_edges(sw);
+        ts__parallel_for(ctx, (size_t)H, slope_factors, sw);
+        ts__parallel_for(ctx, (size_t)H, slope_edges, sw);
         sv = ts__progress_push(ctx, (double)pass / SLOPE_STYLE_PASSES,
                                (double)(pass + 1) / SLOPE_STYLE_PASSES);
         st = ts__poisson_solve_valid(ctx, W, H, sw->mask, sw->gx, sw->gy, sw->u,

@@ -450,7 +450,7 @@ static double breach_steep(const ts_raster *out, float *work)
         }
     if (!k)
         return 1.0;
-    qsort(work, k, sizeof *work, ts__float_cmp);
+    ts__sort_floats(work, k);
     return fmax(1e-3, (double)work[(size_t)(0.95 * (double)(k - 1))]);
 }
 

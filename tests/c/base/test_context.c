@@ -13,6 +13,7 @@
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
@@ -240,6 +241,54 @@ static void test_thread_pool(void)
     ts_ctx_free(ctx); /* joins the workers (ASan/TSan would see them leak) */
 }
 
+/* The reference order: by ts__float_cmp, equal values by their index (a
+ * stable sort, spelled out). */
+typedef struct sort_ref {
+    float v;
+    size_t i;
+} sort_ref;
+
+static int sort_ref_cmp(const void *a, const void *b)
+{
+    const sort_ref *x = a, *y = b;
+    int c = ts__float_cmp(&x->v, &y->v);
+    return c ? c : (x->i > y->i) - (x->i < y->i);
+}
+
+static void test_sort_floats(void)
+{
+    static const size_t sizes[] = {0, 1, 2, 5, 63, 64, 65, 300, 4097, 100000};
+    static const float specials[] = {0.0f, -0.0f, INFINITY, -INFINITY, 1e-40f, -1e-40f,
+                                     FLT_MAX, -FLT_MAX, 1.0f, -1.0f};
+    uint64_t rng = 12345;
+    size_t k, i;
+    for (k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
+        int round;
+        for (round = 0; round < 3; round++) {
+            size_t n = sizes[k];
+            float *v = malloc((n ? n : 1) * sizeof *v), *w = malloc((n ? n : 1) * sizeof *w);
+            sort_ref *r = malloc((n ? n : 1) * sizeof *r);
+            for (i = 0; i < n; i++) {
+                double u = th_uniform(&rng);
+                /* round 0: wide values; 1: few distinct ones (ties); 2: specials mixed in */
+                v[i] = round == 0   ? (float)((u - 0.5) * pow(10.0, 40.0 * th_uniform(&rng) - 20.0))
+                       : round == 1 ? (float)floor(u * 7.0) - 3.0f
+                                    : (u < 0.3 ? specials[(size_t)(u * 33.3) % 10] : (float)(u - 0.6));
+                r[i].v = v[i];
+                r[i].i = i;
+            }
+            qsort(r, n, sizeof *r, sort_ref_cmp);
+            for (i = 0; i < n; i++)
+                w[i] = r[i].v;
+            ts__sort_floats(v, n);
+            CHECK_MSG(n == 0 || memcmp(v, w, n * sizeof *v) == 0, "n %zu round %d", n, round);
+            free(v);
+            free(w);
+            free(r);
+        }
+    }
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -248,6 +297,7 @@ int main(int argc, char **argv)
         {"child_cancel", test_child_cancel},
         {"ppa_cancel_with_worker", test_ppa_cancel_with_worker},
         {"thread_pool", test_thread_pool},
+        {"sort_floats", test_sort_floats},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
 }
