@@ -12,7 +12,7 @@ mkdir -p "$out/corpus"
 cp tests/fuzz/corpus/* "$out/corpus/"
 san="-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined"
 cc="clang -std=c11 -D_GNU_SOURCE -D_POSIX_C_SOURCE=200809L -O1 -g $san -Wall -Wextra -Werror"
-inc="-I algorithms/include -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch -I gdal_driver/io -I gdal_driver/jobs -I gdal_driver/recipe $(pkg-config --cflags gdal proj fftw3f)"
+inc="-I algorithms/include -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch -I gdal_driver/io -I gdal_driver/jobs -I gdal_driver/recipe $(pkg-config --cflags gdal proj fftw3f fftw3)"
 version=$(sed -n 's/^project(TerraSynth VERSION \([0-9.]*\).*/\1/p' CMakeLists.txt)
 if [ "$target" = dictionary ]; then
   # the core alone; seeds: the dictionaries of a small build (the file's 16-byte header cut)
@@ -29,7 +29,7 @@ if [ "$target" = dictionary ]; then
     tests/fuzz/fuzz_dictionary.c algorithms/src/*.c algorithms/src/*/*.c \
     -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch \
     -I algorithms/src/pixel -I algorithms/src/amplify \
-    -DTS_VERSION_STRING="\"$version\"" $(pkg-config --cflags --libs fftw3f) -lm -lpthread
+    -DTS_VERSION_STRING="\"$version\"" $(pkg-config --cflags --libs fftw3f fftw3) -lm -lpthread
   ASAN_OPTIONS=detect_leaks=1 "$out/fuzz_dictionary" -max_total_time="$secs" \
     -rss_limit_mb=4096 -timeout=20 "$out/dict_corpus" 2>&1 | tail -n 5
   echo "fuzz: $secs s of dictionaries without a crash"
@@ -39,7 +39,7 @@ fi
 $cc $inc -DTS_BUILDING_LIBRARY -DTS_VERSION_STRING="\"$version\"" -o "$out/fuzz_recipe" \
   tests/fuzz/fuzz_recipe.c gdal_driver/recipe/*.c gdal_driver/jobs/*.c gdal_driver/io/*.c \
   algorithms/src/*.c algorithms/src/*/*.c \
-  $(pkg-config --libs gdal proj fftw3f) -lm -lpthread
+  $(pkg-config --libs gdal proj fftw3f fftw3) -lm -lpthread
 # a recipe can name inputs that do not exist: GDAL's own allocations are not ours
 ASAN_OPTIONS=detect_leaks=1 "$out/fuzz_recipe" -max_total_time="$secs" -rss_limit_mb=4096 \
   -timeout=20 "$out/corpus" 2>&1 | tail -n 5

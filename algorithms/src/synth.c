@@ -383,6 +383,7 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
         ss.features = r->sf->mask;
         ss.kind = r->kind;
         ss.keep_radius = P / 2.0;
+        ss.scale = P;
         sv2 = ts__progress_push(ctx, 0.97, 1.0);
         st = ts__slope_style(ctx, &ss, out);
         /* steeper slopes over a grid larger than the exemplar can carry the

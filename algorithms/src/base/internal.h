@@ -178,6 +178,13 @@ void ts__matcher_cost(ts_matcher *m, const float *cost, double weight);
 ts_status ts__poisson_solve_valid(ts_ctx *ctx, int w, int h, const unsigned char *mask,
                                   const float *gx, const float *gy, float *u, double tolerance,
                                   int max_iter);
+/* poisson.c: every cell of a w x h grid (stride w, no NaN in u) an unknown: the u that
+ * minimises sum over edges (u_q - u_p - g)^2 + screen sum (u - u0)^2 (u0: u on entry; g: gx,
+ * gy as for ts_poisson_solve), exactly, by two cosine transforms; screen >= 0 (0: the pure
+ * Neumann problem, the mean of u0 kept; > 0 damps changes wider than about 1 / sqrt(screen)
+ * cells).  TS_ERR_ARG on non-finite input, u unchanged on failure. */
+ts_status ts__poisson_screened_whole(ts_ctx *ctx, int w, int h, const float *gx, const float *gy,
+                                     float *u, double screen);
 
 /* Seconds on a monotonic clock (for stage timings). */
 double ts__now(void);

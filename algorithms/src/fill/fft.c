@@ -1,6 +1,7 @@
 /*
- * fft.c - FFTW3 (single precision) wrapper: fast sizes, aligned buffers,
- * and plan creation/destruction under one lock.
+ * fft.c - FFTW3 wrapper (single precision, and the double-precision cosine
+ * transform of the Poisson solver): fast sizes, aligned buffers, and plan
+ * creation/destruction under one lock.
  *
  * The FFTW planner (and everything but fftwf_execute*) is not thread-safe,
  * so planner calls and fftwf_malloc/fftwf_free go through fft_planner_lock:
@@ -93,5 +94,24 @@ void ts__fft_destroy(fftwf_plan plan)
         return;
     pthread_mutex_lock(&fft_planner_lock);
     fftwf_destroy_plan(plan);
+    pthread_mutex_unlock(&fft_planner_lock);
+}
+
+fftw_plan ts__fft_plan_dct_2d(int w, int h, double *buf, int inverse)
+{
+    fftw_plan p;
+    fftw_r2r_kind kind = inverse ? FFTW_REDFT01 : FFTW_REDFT10;
+    pthread_mutex_lock(&fft_planner_lock);
+    p = fftw_plan_r2r_2d(h, w, buf, buf, kind, kind, FFTW_ESTIMATE);
+    pthread_mutex_unlock(&fft_planner_lock);
+    return p;
+}
+
+void ts__fft_destroy_double(fftw_plan plan)
+{
+    if (!plan)
+        return;
+    pthread_mutex_lock(&fft_planner_lock);
+    fftw_destroy_plan(plan);
     pthread_mutex_unlock(&fft_planner_lock);
 }

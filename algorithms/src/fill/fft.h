@@ -1,6 +1,7 @@
 /*
- * fft.h - a small private wrapper around FFTW3 in single precision: sizes,
- * aligned buffers and the few plan shapes the core uses.  Not installed.
+ * fft.h - a small private wrapper around FFTW3, in single precision but for
+ * one cosine transform in double: sizes, aligned buffers and the few plan
+ * shapes the core uses.  Not installed.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -38,5 +39,13 @@ fftwf_plan ts__fft_plan_columns(int n, int count, fftwf_complex *buf, int sign);
 
 /* Destroy a plan under the planner lock (NULL-safe). */
 void ts__fft_destroy(fftwf_plan plan);
+
+/* In double precision: the 2-D discrete cosine transform of a w x h grid at
+ * stride w (rows of w), in place: DCT-II (FFTW_REDFT10) both ways when
+ * !inverse, DCT-III (FFTW_REDFT01) when inverse, unnormalised (the two in
+ * turn multiply by 4 w h).  `buf` from ts__fft_alloc.  NULL if FFTW cannot
+ * plan; destroy with ts__fft_destroy_double. */
+fftw_plan ts__fft_plan_dct_2d(int w, int h, double *buf, int inverse);
+void ts__fft_destroy_double(fftw_plan plan);
 
 #endif

@@ -11,11 +11,20 @@
  * a relative residual of 1e-6), each O(n); memory about 70 bytes per unknown
  * plus 4 per cell of the box, one allocation per call.  Reentrant.
  *
+ * A whole grid of unknowns with no nodata, optionally screened (pulled
+ * towards its initial values), is solved directly by
+ * ts__poisson_screened_whole: the grid's Laplacian with free edges is
+ * diagonal in the cosine basis (DCT-II, the eigenvectors
+ * cos(pi k (j + 1/2) / n) of a path's Laplacian, eigenvalues
+ * 2 - 2 cos(pi k / n) per axis), so two transforms, O(n log n), solve it
+ * exactly to rounding.
+ *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <stdlib.h>
 #include <string.h>
 
+#include "fft.h"
 #include "internal.h"
 
 #define POISSON_STAGE "poisson"
@@ -517,6 +526,75 @@ static ts_status poisson_run(ts_ctx *ctx, const poisson_grid *g, double tol, int
     }
     free(s.comps);
     free(block);
+    return st;
+}
+
+/* (internal.h) (L + screen) u = b + screen u0 over a whole grid, in the
+ * cosine basis: u^ = (b^ + screen u0^) / (lambda + screen), the constant
+ * mode u0's (the mean kept). */
+ts_status ts__poisson_screened_whole(ts_ctx *ctx, int w, int h, const float *gx, const float *gy,
+                                     float *u, double screen)
+{
+    size_t n = (size_t)w * (size_t)h, c;
+    double *a = ts__fft_alloc(n, sizeof *a), *lx = ts__malloc_array((size_t)w, sizeof *lx);
+    double *ly = ts__malloc_array((size_t)h, sizeof *ly), mean = 0.0;
+    fftw_plan fwd = NULL, inv = NULL;
+    ts_status st = TS_OK;
+    int x, y;
+    if (w <= 0 || h <= 0 || !gx || !gy || !u || !(screen >= 0.0) || !isfinite(screen)) {
+        st = ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "grid %d x %d or screen %g is invalid", w,
+                      h, screen);
+        goto done;
+    }
+    if (a && lx && ly) {
+        fwd = ts__fft_plan_dct_2d(w, h, a, 0);
+        inv = ts__fft_plan_dct_2d(w, h, a, 1);
+    }
+    if (!fwd || !inv) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, POISSON_STAGE, "cannot allocate for %d x %d cells", w, h);
+        goto done;
+    }
+    /* b: per cell the sum of the wanted differences to its neighbours */
+    for (y = 0, c = 0; y < h; y++)
+        for (x = 0; x < w; x++, c++) {
+            double b = 0.0;
+            if ((x > 0 && !isfinite(gx[c - 1])) || (y > 0 && !isfinite(gy[c - (size_t)w])) ||
+                (x + 1 < w && !isfinite(gx[c])) || (y + 1 < h && !isfinite(gy[c]))) {
+                st = ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE,
+                              "guidance is not finite next to (%d, %d)", x, y);
+                goto done;
+            }
+            b += x > 0 ? (double)gx[c - 1] : 0.0;
+            b += y > 0 ? (double)gy[c - (size_t)w] : 0.0;
+            b -= x + 1 < w ? (double)gx[c] : 0.0;
+            b -= y + 1 < h ? (double)gy[c] : 0.0;
+            if (!isfinite(u[c])) {
+                st = ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "value at (%d, %d) is not finite",
+                              x, y);
+                goto done;
+            }
+            a[c] = b + screen * (double)u[c];
+            mean += u[c];
+        }
+    mean /= (double)n;
+    for (x = 0; x < w; x++)
+        lx[x] = 2.0 - 2.0 * cos(TS_PI * x / w);
+    for (y = 0; y < h; y++)
+        ly[y] = 2.0 - 2.0 * cos(TS_PI * y / h);
+    fftw_execute(fwd);
+    for (y = 0, c = 0; y < h; y++)
+        for (x = 0; x < w; x++, c++)
+            a[c] = c ? a[c] / (lx[x] + ly[y] + screen) : 0.0;
+    fftw_execute(inv);
+    for (c = 0; c < n; c++)
+        u[c] = (float)(mean + a[c] / (4.0 * (double)n));
+    st = ts__progress(ctx, 1.0, "poisson");
+done:
+    ts__fft_destroy_double(fwd);
+    ts__fft_destroy_double(inv);
+    ts__fft_free(a);
+    free(lx);
+    free(ly);
     return st;
 }
 

@@ -1,7 +1,8 @@
 /*
  * blur.c - the NaN-aware Gaussian blur the sketch stages share (three box
- * passes, so O(cells) for any sigma), and the mean gradient they calibrate
- * steepness with.
+ * passes, so O(cells) for any sigma, on the thread pool), and the mean
+ * gradients (the output's, the exemplars' blurred) they calibrate steepness
+ * with.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -13,93 +14,100 @@
 
 /* ---- NaN-aware blur ------------------------------------------------- */
 
+#define BLUR_LINES 16 /* rows or columns a pass runs through together */
+
 typedef struct blur_job {
     int w, h, r;   /* box radius */
     double *v, *m; /* value * weight and weight, w*h, blurred in place */
     int n_arr;     /* 2: both; 1: v alone (no NaN: the weights are separable) */
-    atomic_int failed;
+    const float *in;
+    ptrdiff_t stride; /* of in */
+    float *out;       /* w*h, stride w */
+    const double *mx, *my; /* the weights' blur along a row and a column, or NULL: m */
+    atomic_int failed, has_nan;
 } blur_job;
 
-/* One box pass of radius r over n samples at stride s (in place). */
-static void box_line(double *a, size_t n, size_t s, int r, double *tmp)
+/* One box pass of radius R along n steps over bw interleaved lines (line c's
+ * step i at src[i * bw + c]), from src into dst: running sums, all lines at
+ * once (independent chains, along memory). */
+static void box_pass(const double *src, double *dst, size_t n, size_t bw, size_t R)
 {
-    size_t i;
-    double acc = 0.0;
-    size_t R = (size_t)r;
-    for (i = 0; i < n; i++)
-        tmp[i] = a[i * s];
+    double acc[BLUR_LINES];
+    size_t i, c;
+    for (c = 0; c < bw; c++)
+        acc[c] = 0.0;
     for (i = 0; i < R && i < n; i++)
-        acc += tmp[i];
+        for (c = 0; c < bw; c++)
+            acc[c] += src[i * bw + c];
     for (i = 0; i < n; i++) {
         if (i + R < n)
-            acc += tmp[i + R];
+            for (c = 0; c < bw; c++)
+                acc[c] += src[(i + R) * bw + c];
         if (i > R)
-            acc -= tmp[i - R - 1];
-        a[i * s] = acc;
+            for (c = 0; c < bw; c++)
+                acc[c] -= src[(i - R - 1) * bw + c];
+        memcpy(dst + i * bw, acc, bw * sizeof *acc);
     }
+}
+
+/* The three box passes over lines [b, e) of the array(s) of j: lines are
+ * rows (vertical 0: step 1 along a line, w between lines) or columns
+ * (vertical 1: w along a line, 1 between lines).  BLUR_LINES adjacent lines
+ * at a time, gathered once into interleaved form, passed between two
+ * buffers, written back once. */
+static void blur_lines(blur_job *j, size_t b, size_t e, int vertical)
+{
+    size_t w = (size_t)j->w, n = vertical ? (size_t)j->h : w, R = (size_t)j->r, l0;
+    size_t step = vertical ? w : 1, gap = vertical ? 1 : w;
+    double *tmp = ts__malloc_array(2 * n * BLUR_LINES, sizeof *tmp);
+    if (!tmp) {
+        atomic_store(&j->failed, 1);
+        return;
+    }
+    for (l0 = b; l0 < e; l0 += BLUR_LINES) {
+        size_t bw = TS_MIN((size_t)BLUR_LINES, e - l0), i, c;
+        int arr, p;
+        for (arr = 0; arr < j->n_arr; arr++) {
+            double *a = (arr ? j->m : j->v) + l0 * gap, *src = tmp, *dst = tmp + n * bw;
+            for (i = 0; i < n; i++)
+                for (c = 0; c < bw; c++)
+                    src[i * bw + c] = a[i * step + c * gap];
+            for (p = 0; p < 3; p++) {
+                double *t;
+                box_pass(src, dst, n, bw, R);
+                t = src;
+                src = dst;
+                dst = t;
+            }
+            for (i = 0; i < n; i++)
+                for (c = 0; c < bw; c++)
+                    a[i * step + c * gap] = src[i * bw + c];
+        }
+    }
+    free(tmp);
 }
 
 static void blur_rows(void *arg, size_t b, size_t e)
 {
-    blur_job *j = arg;
-    double *tmp = ts__malloc_array((size_t)j->w, sizeof *tmp);
-    size_t y;
-    int p;
-    if (!tmp) {
-        atomic_store(&j->failed, 1);
-        return;
-    }
-    for (y = b; y < e; y++)
-        for (p = 0; p < 3; p++) {
-            box_line(j->v + y * (size_t)j->w, (size_t)j->w, 1, j->r, tmp);
-            if (j->n_arr > 1)
-                box_line(j->m + y * (size_t)j->w, (size_t)j->w, 1, j->r, tmp);
-        }
-    free(tmp);
+    blur_lines(arg, b, e, 0);
 }
 
-#define BLUR_BLOCK 32 /* columns a vertical pass runs through together */
-
-/* The vertical passes, over blocks of adjacent columns so that every step
- * runs along memory: for each block a copy of its columns, then running
- * sums over the rows for all its columns at once. */
 static void blur_cols(void *arg, size_t b, size_t e)
 {
-    blur_job *j = arg;
-    size_t h = (size_t)j->h, w = (size_t)j->w, R = (size_t)j->r, x0;
-    double *tmp = ts__malloc_array(h * BLUR_BLOCK, sizeof *tmp);
-    double acc[BLUR_BLOCK];
-    if (!tmp) {
-        atomic_store(&j->failed, 1);
-        return;
-    }
-    for (x0 = b; x0 < e; x0 += BLUR_BLOCK) {
-        size_t bw = TS_MIN((size_t)BLUR_BLOCK, e - x0), y, c;
-        int arr, p;
-        for (arr = 0; arr < j->n_arr; arr++) {
-            double *a = arr ? j->m : j->v;
-            for (p = 0; p < 3; p++) {
-                for (y = 0; y < h; y++)
-                    memcpy(tmp + y * bw, a + y * w + x0, bw * sizeof *tmp);
-                for (c = 0; c < bw; c++)
-                    acc[c] = 0.0;
-                for (y = 0; y < R && y < h; y++)
-                    for (c = 0; c < bw; c++)
-                        acc[c] += tmp[y * bw + c];
-                for (y = 0; y < h; y++) {
-                    double *row = a + y * w + x0;
-                    if (y + R < h)
-                        for (c = 0; c < bw; c++)
-                            acc[c] += tmp[(y + R) * bw + c];
-                    if (y > R)
-                        for (c = 0; c < bw; c++)
-                            acc[c] -= tmp[(y - R - 1) * bw + c];
-                    memcpy(row, acc, bw * sizeof *acc);
-                }
-            }
-        }
-    }
-    free(tmp);
+    blur_lines(arg, b, e, 1);
+}
+
+/* The three box passes of radius r over n ones, into a (n doubles; tmp:
+ * 2 n more). */
+static void blur_ones(double *a, size_t n, int r, double *tmp)
+{
+    size_t i;
+    int p;
+    for (i = 0; i < n; i++)
+        tmp[i] = 1.0;
+    for (p = 0; p < 3; p++)
+        box_pass(p % 2 ? tmp + n : tmp, p % 2 ? tmp : tmp + n, n, 1, (size_t)r);
+    memcpy(a, tmp + n, n * sizeof *a);
 }
 
 int ts__blur_radius(double sigma)
@@ -110,15 +118,41 @@ int ts__blur_radius(double sigma)
     return r < 0 ? 0 : r;
 }
 
-/* The three box passes of radius r over n ones, into a (n doubles). */
-static void blur_ones(double *a, size_t n, int r, double *tmp)
+/* Rows [b, e) of the input into v (0 on NaN) and m (its weight). */
+static void blur_load(void *arg, size_t b, size_t e)
 {
-    size_t i;
-    int p;
-    for (i = 0; i < n; i++)
-        a[i] = 1.0;
-    for (p = 0; p < 3; p++)
-        box_line(a, n, 1, r, tmp);
+    blur_job *j = arg;
+    size_t y, x, w = (size_t)j->w;
+    int any = 0;
+    for (y = b; y < e; y++) {
+        const float *row = j->in + (ptrdiff_t)y * j->stride;
+        double *vr = j->v + y * w, *mr = j->m + y * w;
+        for (x = 0; x < w; x++) {
+            int bad = isnan(row[x]);
+            vr[x] = bad ? 0.0 : row[x];
+            mr[x] = bad ? 0.0 : 1.0;
+            any |= bad;
+        }
+    }
+    if (any)
+        atomic_store(&j->has_nan, 1);
+}
+
+/* Rows [b, e) of the output: v / m, m from mx and my when they are set. */
+static void blur_store(void *arg, size_t b, size_t e)
+{
+    blur_job *j = arg;
+    size_t y, x, w = (size_t)j->w;
+    for (y = b; y < e; y++) {
+        const double *vr = j->v + y * w, *mr = j->m + y * w;
+        float *o = j->out + y * w;
+        if (j->mx)
+            for (x = 0; x < w; x++)
+                o[x] = (float)(vr[x] / (j->mx[x] * j->my[y]));
+        else
+            for (x = 0; x < w; x++)
+                o[x] = mr[x] > 1e-9 ? (float)(vr[x] / mr[x]) : NAN;
+    }
 }
 
 /* ts__blur_nan with caller buffers v and m (w * h doubles each).  Without
@@ -130,25 +164,20 @@ static void blur_nan_ws(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, i
                         float *out, double *v, double *m, atomic_int *failed)
 {
     blur_job j;
-    int x, y;
-    size_t n_nan = 0;
     j.w = w;
     j.h = h;
     j.r = ts__blur_radius(sigma);
     j.v = v;
     j.m = m;
+    j.in = in;
+    j.stride = stride;
+    j.out = out;
+    j.mx = j.my = NULL;
     atomic_init(&j.failed, 0);
-    for (y = 0; y < h; y++) {
-        const float *row = in + (ptrdiff_t)y * stride;
-        double *vr = v + (size_t)y * (size_t)w, *mr = m + (size_t)y * (size_t)w;
-        for (x = 0; x < w; x++) {
-            int bad = isnan(row[x]);
-            vr[x] = bad ? 0.0 : row[x];
-            mr[x] = bad ? 0.0 : 1.0;
-            n_nan += (size_t)bad;
-        }
-    }
-    j.n_arr = n_nan == 0 && 2 * j.r + 1 <= 256 && (size_t)w * (size_t)h >= (size_t)(w + h) * 2
+    atomic_init(&j.has_nan, 0);
+    ts__parallel_for(ctx, (size_t)h, blur_load, &j);
+    j.n_arr = !atomic_load(&j.has_nan) && 2 * j.r + 1 <= 256 &&
+                      (size_t)w * (size_t)h >= (size_t)(w + h) * 3
                   ? 1
                   : 2;
     if (j.r > 0) {
@@ -157,20 +186,13 @@ static void blur_nan_ws(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, i
             ts__parallel_for(ctx, (size_t)w, blur_cols, &j);
     }
     if (j.n_arr == 1 && j.r > 0) { /* m's first w + h cells: the row's and the column's */
-        double *mx = m, *my = m + w, *tmp = m + w + h;
-        blur_ones(mx, (size_t)w, j.r, tmp);
-        blur_ones(my, (size_t)h, j.r, tmp);
-        for (y = h - 1; y >= 0; y--) {
-            double *vr = v + (size_t)y * (size_t)w, fy = my[y];
-            float *o = out + (size_t)y * (size_t)w;
-            for (x = 0; x < w; x++)
-                o[x] = (float)(vr[x] / (mx[x] * fy));
-        }
-    } else {
-        size_t i, n = (size_t)w * (size_t)h;
-        for (i = 0; i < n; i++)
-            out[i] = m[i] > 1e-9 ? (float)(v[i] / m[i]) : NAN;
+        double *tmp = m + w + h; /* 2 max(w, h) more */
+        j.mx = m;
+        j.my = m + w;
+        blur_ones(m, (size_t)w, j.r, tmp);
+        blur_ones(m + w, (size_t)h, j.r, tmp);
     }
+    ts__parallel_for(ctx, (size_t)h, blur_store, &j);
     if (atomic_load(&j.failed))
         atomic_store(failed, 1);
 }
@@ -197,6 +219,56 @@ ts_status ts__blur_nan(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, in
     free(m);
     if (!v || !m || atomic_load(&failed))
         return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+    return TS_OK;
+}
+
+/* Mean gradient (per cell) of every exemplar blurred at sigma (0 where
+ * unknown), measured on the exemplar averaged over f x f cells first, f the
+ * largest power of two up to sigma / 3 (a blur that wide hardly sees the
+ * difference; a 4096 x 4096 exemplar would otherwise be blurred whole). */
+ts_status ts__exemplar_gradients(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                 double sigma, double *g)
+{
+    int e, f = 1;
+    while (2 * f <= sigma / 3.0)
+        f *= 2;
+    for (e = 0; e < n_exemplars; e++) {
+        const ts_raster *ex = &exemplars[e];
+        int cw = ex->width / f, ch = ex->height / f, x, y, u, v;
+        float *small =
+            cw > 2 && ch > 2 ? ts__malloc_array((size_t)cw * (size_t)ch, sizeof(float)) : NULL;
+        float *eb = small ? ts__malloc_array((size_t)cw * (size_t)ch, sizeof(float)) : NULL;
+        ts_status st;
+        g[e] = 0.0;
+        if (cw <= 2 || ch <= 2)
+            continue;
+        if (!small || !eb) {
+            free(small);
+            free(eb);
+            return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        }
+        for (y = 0; y < ch; y++)
+            for (x = 0; x < cw; x++) {
+                double sum = 0.0;
+                int cnt = 0;
+                for (v = 0; v < f; v++)
+                    for (u = 0; u < f; u++) {
+                        float z = TS_PIX(ex, x * f + u, y * f + v);
+                        if (!isnan(z)) {
+                            sum += z;
+                            cnt++;
+                        }
+                    }
+                small[(size_t)y * (size_t)cw + (size_t)x] = cnt ? (float)(sum / cnt) : NAN;
+            }
+        st = ts__blur_nan(ctx, small, cw, cw, ch, sigma / f, eb);
+        if (st == TS_OK)
+            g[e] = ts__mean_gradient(eb, cw, ch) / f;
+        free(small);
+        free(eb);
+        if (st != TS_OK)
+            return st;
+    }
     return TS_OK;
 }
 

@@ -102,56 +102,6 @@ done:
     return st;
 }
 
-/* Mean gradient (per cell) of every exemplar blurred at sigma (0 where
- * unknown), measured on the exemplar averaged over f x f cells first, f the
- * largest power of two up to sigma / 3 (a blur that wide hardly sees the
- * difference; a 4096 x 4096 exemplar would otherwise be blurred whole). */
-static ts_status layout_exemplar_gradients(ts_ctx *ctx, const ts_layout_spec *s, double sigma,
-                                           double *g)
-{
-    int e, f = 1;
-    while (2 * f <= sigma / 3.0)
-        f *= 2;
-    for (e = 0; e < s->n_exemplars; e++) {
-        const ts_raster *ex = &s->exemplars[e];
-        int cw = ex->width / f, ch = ex->height / f, x, y, u, v;
-        float *small =
-            cw > 2 && ch > 2 ? ts__malloc_array((size_t)cw * (size_t)ch, sizeof(float)) : NULL;
-        float *eb = small ? ts__malloc_array((size_t)cw * (size_t)ch, sizeof(float)) : NULL;
-        ts_status st;
-        g[e] = 0.0;
-        if (cw <= 2 || ch <= 2)
-            continue;
-        if (!small || !eb) {
-            free(small);
-            free(eb);
-            return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-        }
-        for (y = 0; y < ch; y++)
-            for (x = 0; x < cw; x++) {
-                double sum = 0.0;
-                int cnt = 0;
-                for (v = 0; v < f; v++)
-                    for (u = 0; u < f; u++) {
-                        float z = TS_PIX(ex, x * f + u, y * f + v);
-                        if (!isnan(z)) {
-                            sum += z;
-                            cnt++;
-                        }
-                    }
-                small[(size_t)y * (size_t)cw + (size_t)x] = cnt ? (float)(sum / cnt) : NAN;
-            }
-        st = ts__blur_nan(ctx, small, cw, cw, ch, sigma / f, eb);
-        if (st == TS_OK)
-            g[e] = ts__mean_gradient(eb, cw, ch) / f;
-        free(small);
-        free(eb);
-        if (st != TS_OK)
-            return st;
-    }
-    return TS_OK;
-}
-
 /* The steepness and level that cell i takes: its region's exemplar, or the
  * mean over the exemplars (those with a steepness). */
 static void layout_pick(const ts_layout_spec *s, const double *gain, const double *levels, size_t i,
@@ -202,6 +152,34 @@ static void layout_add(ts_raster *out, const float *add, double strength, const 
         }
 }
 
+/* What layout_correct's second loop reads. */
+typedef struct layout_apply_job {
+    ts_raster *out;
+    const float *corr, *fixd, *dist, *gate;
+    double sigma, strength, near;
+} layout_apply_job;
+
+/* Rows [y0, y1) of out += weight * corr (layout_correct). */
+static void layout_apply_rows(void *arg, size_t y0, size_t y1)
+{
+    const layout_apply_job *j = arg;
+    ts_raster *out = j->out;
+    int W = out->width, x, y;
+    for (y = (int)y0; y < (int)y1; y++)
+        for (x = 0; x < W; x++) {
+            size_t i = (size_t)y * (size_t)W + (size_t)x;
+            double w = j->strength, c = j->corr[i];
+            if (isnan(TS_PIX(out, x, y)) || isnan(c))
+                continue;
+            w *= layout_fade(j->fixd, i, j->sigma);
+            if (j->near > 0)
+                w *= exp(-(j->dist[i] / j->near) * (j->dist[i] / j->near));
+            if (j->gate)
+                w *= j->gate[i];
+            TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * c);
+        }
+}
+
 /* out += weight * blur_sigma(guide - out), weight = strength *
  * fade(fixed) * (near > 0 ? exp(-(d / near)^2) : 1). */
 static ts_status layout_correct(ts_ctx *ctx, const layout_ws *ws, ts_raster *out,
@@ -210,29 +188,24 @@ static ts_status layout_correct(ts_ctx *ctx, const layout_ws *ws, ts_raster *out
                                 const float *gate, float *work, float *corr)
 {
     int W = out->width, H = out->height, x, y;
-    size_t i;
+    layout_apply_job j;
     ts_status st;
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
-            i = (size_t)y * (size_t)W + (size_t)x;
+            size_t i = (size_t)y * (size_t)W + (size_t)x;
             work[i] = guide[i] - TS_PIX(out, x, y); /* NaN where either is */
         }
     if ((st = lblur(ctx, ws, work, W, W, H, sigma, corr)) != TS_OK)
         return st;
-    for (y = 0; y < H; y++)
-        for (x = 0; x < W; x++) {
-            double w = strength, c;
-            i = (size_t)y * (size_t)W + (size_t)x;
-            c = corr[i];
-            if (isnan(TS_PIX(out, x, y)) || isnan(c))
-                continue;
-            w *= layout_fade(fixd, i, sigma);
-            if (near > 0)
-                w *= exp(-(dist[i] / near) * (dist[i] / near));
-            if (gate)
-                w *= gate[i];
-            TS_PIX(out, x, y) = (float)(TS_PIX(out, x, y) + w * c);
-        }
+    j.out = out;
+    j.corr = corr;
+    j.fixd = fixd;
+    j.dist = dist;
+    j.gate = gate;
+    j.sigma = sigma;
+    j.strength = strength;
+    j.near = near;
+    ts__parallel_for(ctx, (size_t)H, layout_apply_rows, &j);
     return TS_OK;
 }
 
@@ -305,6 +278,57 @@ static void layout_on_features(const layout_run_data *d, const ts_raster *r, int
                       : NAN;
 }
 
+/* A guide's cells [b, e) for layout_run: the layout's (layout_guide_cells)
+ * or the crest's (layout_crest_cells), the guides' steepness times lam. */
+typedef struct layout_guide_job {
+    const layout_run_data *d;
+    double lam;
+} layout_guide_job;
+
+static void layout_guide_cells(void *arg, size_t b, size_t e)
+{
+    const layout_guide_job *j = arg;
+    const layout_run_data *d = j->d;
+    const ts_layout_spec *s = d->s;
+    size_t i;
+    for (i = b; i < e; i++) {
+        double g, level;
+        layout_pick(s, d->gl, d->levels, i, &g, &level);
+        if ((d->kind & TS_VALLEY) && d->near_v[i] >= 0)
+            level = d->corr[d->near_v[i]];
+        if (d->crest)
+            level += d->crest[i];
+        d->guide[i] = (s->nodata && s->nodata[i]) || !isfinite(d->dist[i])
+                          ? NAN
+                          : (float)(level + j->lam * g * layout_shape(d, i, d->c_l));
+    }
+}
+
+static void layout_crest_cells(void *arg, size_t b, size_t e)
+{
+    const layout_guide_job *j = arg;
+    const layout_run_data *d = j->d;
+    const ts_layout_spec *s = d->s;
+    size_t i;
+    for (i = b; i < e; i++) {
+        double g, level, sign = d->kind == TS_VALLEY ? -1.0 : 1.0, base;
+        int32_t p = d->nearest[i];
+        layout_pick(s, d->gc, d->levels, i, &g, &level);
+        if ((s->nodata && s->nodata[i]) || p < 0) {
+            d->guide[i] = NAN;
+            continue;
+        }
+        base = d->corr[p];
+        if (d->b && !(s->sketch_mask[p] & TS_RIDGE)) {
+            base = d->corr2[p]; /* the floor of the nearest valley */
+            sign = -1.0;
+        } else if (d->crest) /* the peaks and saddles not smoothed along the
+                              * crest; the flanks take only their faded share */
+            base += d->crest[i] - d->crest_s[p];
+        d->guide[i] = (float)(base - sign * j->lam * g * layout_reach(d->dist[i], d->c_c));
+    }
+}
+
 /* Both corrections on r (the output's size), the guides' steepness times
  * lam: the layout everywhere, then the crest near the features. */
 static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r, double lam,
@@ -313,6 +337,7 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
     const ts_layout_spec *s = d->s;
     int W = s->width, H = s->height;
     size_t n = (size_t)W * (size_t)H, i;
+    layout_guide_job j;
     ts_status st;
     if (d->kind & TS_VALLEY) {
         /* valley floors at the output's own level, smoothed along them over
@@ -327,17 +352,9 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
         if ((st = lblur(ctx, d->ws, d->work, W, W, H, 0.5 * s->patch, d->corr)) != TS_OK)
             return st;
     }
-    for (i = 0; i < n; i++) {
-        double g, level;
-        layout_pick(s, d->gl, d->levels, i, &g, &level);
-        if ((d->kind & TS_VALLEY) && d->near_v[i] >= 0)
-            level = d->corr[d->near_v[i]];
-        if (d->crest)
-            level += d->crest[i];
-        d->guide[i] = (s->nodata && s->nodata[i]) || !isfinite(d->dist[i])
-                          ? NAN
-                          : (float)(level + lam * g * layout_shape(d, i, d->c_l));
-    }
+    j.d = d;
+    j.lam = lam;
+    ts__parallel_for(ctx, n, layout_guide_cells, &j);
     if ((st = layout_correct(ctx, d->ws, r, d->guide, d->sig_l, d->strength, d->fixd, d->dist, 0.0,
                              NULL, d->work, d->corr)) != TS_OK)
         return st;
@@ -353,23 +370,8 @@ static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r,
         if ((st = lblur(ctx, d->ws, d->work, W, W, H, 2.0 * d->sig_c, d->corr2)) != TS_OK)
             return st;
     }
-    for (i = 0; i < n; i++) {
-        double g, level, sign = d->kind == TS_VALLEY ? -1.0 : 1.0, base;
-        int32_t p = d->nearest[i];
-        layout_pick(s, d->gc, d->levels, i, &g, &level);
-        if ((s->nodata && s->nodata[i]) || p < 0) {
-            d->guide[i] = NAN;
-            continue;
-        }
-        base = d->corr[p];
-        if (d->b && !(s->sketch_mask[p] & TS_RIDGE)) {
-            base = d->corr2[p]; /* the floor of the nearest valley */
-            sign = -1.0;
-        } else if (d->crest) /* the peaks and saddles not smoothed along the
-                              * crest; the flanks take only their faded share */
-            base += d->crest[i] - d->crest_s[p];
-        d->guide[i] = (float)(base - sign * lam_c * g * layout_reach(d->dist[i], d->c_c));
-    }
+    j.lam = lam_c;
+    ts__parallel_for(ctx, n, layout_crest_cells, &j);
     return layout_correct(ctx, d->ws, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
                           0.5 * s->patch, d->b ? d->b->gate : NULL, d->work, d->corr);
 }
@@ -635,8 +637,8 @@ static ts_status layout_calibrate(ts_ctx *ctx, const layout_run_data *d, const f
                                     INFINITY, &g1)) != TS_OK ||
         (st = layout_reach_gradient(ctx, d->ws, d->dist, NULL, s->nodata, W, H, d->c_c, d->sig_c,
                                     2.0 * d->c_c, &gc1)) != TS_OK ||
-        (st = layout_exemplar_gradients(ctx, s, d->sig_l, gl)) != TS_OK ||
-        (st = layout_exemplar_gradients(ctx, s, d->sig_c, gc)) != TS_OK)
+        (st = ts__exemplar_gradients(ctx, s->exemplars, s->n_exemplars, d->sig_l, gl)) != TS_OK ||
+        (st = ts__exemplar_gradients(ctx, s->exemplars, s->n_exemplars, d->sig_c, gc)) != TS_OK)
         return st;
     if (!(g1 > 0) || !(gc1 > 0))
         return TS_OK; /* no feature on the grid */

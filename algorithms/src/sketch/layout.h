@@ -29,6 +29,11 @@ ts_status ts__blur_nan_buffers(ts_ctx *ctx, const float *in, ptrdiff_t stride, i
 /* Mean gradient magnitude (central differences, per cell) over the cells
  * whose four neighbours are valid; 0 when there is none. */
 double ts__mean_gradient(const float *a, int w, int h);
+/* Mean gradient (per cell) of each of the n exemplars blurred at sigma, into g
+ * (0 where unknown), measured on the exemplar averaged over f x f cells first
+ * (f the largest power of two up to sigma / 3).  (blur.c) */
+ts_status ts__exemplar_gradients(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                 double sigma, double *g);
 
 typedef struct ts_layout_spec {
     const unsigned char *sketch_mask; /* width*height: the sketch's feature bits */

@@ -28,10 +28,17 @@
  * One pass moves the distribution most of the way (the least-squares fit
  * cannot honour every edge); SLOPE_STYLE_PASSES passes get within the
  * resampling floor on the cases measured (sketch.md).  Cost: one Poisson
- * solve per pass, to a loose relative residual (3e-3), started from the
- * current heights: the figures of the quality matrix are the same as at
- * 1e-5 in far less time, but a change at the scale of the whole grid lags
- * (all slopes doubled: 2.4 % of the relief off, 0.005 % at 1e-6).
+ * solve per pass.  On a grid with no nodata and no fixed cell (the usual
+ * sketch) it is direct (two cosine transforms, poisson.c) and screened:
+ * it minimises the misfit of the differences plus 1 / scale^2 times the
+ * squared change of the heights, so the slopes take the wanted mix while
+ * the layout's relief wider than about `scale` cells (a patch) stays where
+ * the layout put it (an exact fit integrates the steeper or gentler slopes
+ * across the whole grid: hundreds of metres of large-scale change that
+ * undo the layout).  Otherwise iterative, to a loose relative residual
+ * (3e-3), started from the current heights, which lags at large scales
+ * much the same way (all slopes doubled: 2.4 % of the relief off, 0.005 %
+ * at 1e-6).
  *
  * Then no crease sharper than the exemplars' sharpest: a cell whose
  * |Laplacian| passes the exemplar's 99.99th percentile moves half-way
@@ -197,6 +204,7 @@ static double crease_cap(const float *a, ptrdiff_t stride, int w, int h, float *
 typedef struct slope_work {
     const ts_slope_style_spec *s;
     int W, H, n_groups;
+    int whole; /* every cell moves (no nodata, none fixed): the direct solve */
     float *u, *gx, *gy, *fac, *work, *exwork, *keep;
     unsigned char *mask;
     int32_t *group;
@@ -293,7 +301,8 @@ static void slope_factors(void *arg, size_t y0, size_t y1)
             int32_t gi = sw->group ? sw->group[i] : 0;
             if (!isnan(g) && gi >= 0 && sw->has[gi] == 1 && g > 1e-9) {
                 f = slope_map(g, qo + (size_t)gi * SLOPE_Q, qe + (size_t)gi * SLOPE_Q) / g;
-                f = pow(TS_MAX(f, 1e-300), s->strength);
+                if (s->strength != 1.0) /* (the default: f itself) */
+                    f = pow(TS_MAX(f, 1e-300), s->strength);
                 f = TS_MIN(TS_MAX(f, 1.0 / SLOPE_FACTOR_MAX), SLOPE_FACTOR_MAX);
                 if (sw->keep && sw->keep[i] < s->keep_radius && f < 1.0) {
                     /* the sketch's features keep standing out: near them
@@ -345,9 +354,13 @@ static ts_status slope_passes(ts_ctx *ctx, slope_work *sw)
         ts__parallel_for(ctx, (size_t)H, slope_edges, sw);
         sv = ts__progress_push(ctx, (double)pass / SLOPE_STYLE_PASSES,
                                (double)(pass + 1) / SLOPE_STYLE_PASSES);
-        st = ts__poisson_solve_valid(ctx, W, H, sw->mask, sw->gx, sw->gy, sw->u,
-                                     s->tolerance > 0 ? s->tolerance : SLOPE_STYLE_TOLERANCE,
-                                     1000 + 20 * (W + H));
+        if (sw->whole)
+            st = ts__poisson_screened_whole(ctx, W, H, sw->gx, sw->gy, sw->u,
+                                            s->scale > 0 ? 1.0 / (s->scale * s->scale) : 0.0);
+        else
+            st = ts__poisson_solve_valid(ctx, W, H, sw->mask, sw->gx, sw->gy, sw->u,
+                                         s->tolerance > 0 ? s->tolerance : SLOPE_STYLE_TOLERANCE,
+                                         1000 + 20 * (W + H));
         ts__progress_pop(ctx, sv);
         if (st == TS_ERR_NUMERIC) { /* not converged: u is as it was; keep it */
             ts__clear(ctx);
@@ -468,6 +481,9 @@ ts_status ts__slope_style(ts_ctx *ctx, const ts_slope_style_spec *s, ts_raster *
                               ? s->cell_exemplar[i]
                               : -1;
     }
+    sw.whole = 1;
+    for (i = 0; i < n && sw.whole; i++)
+        sw.whole = sw.mask[i];
     slope_targets(&sw);
     if ((st = slope_passes(ctx, &sw)) != TS_OK || (st = slope_creases(ctx, &sw)) != TS_OK)
         goto done;

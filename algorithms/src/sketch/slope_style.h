@@ -23,8 +23,11 @@ typedef struct ts_slope_style_spec {
     int kind;                      /* the bit of `features` that counts (TS_RIDGE, TS_VALLEY) */
     double keep_radius;            /* within this many cells of them slopes are never gentled */
     double strength;              /* 0..1: the factors' exponent (0 = off) */
-    double tolerance;             /* of the Poisson solves; 0 = SLOPE_STYLE_TOLERANCE (loose:
-                                     the largest scales lag a little, see slope_style.c) */
+    double tolerance;             /* of the iterative Poisson solves (a grid with nodata or
+                                     fixed cells); 0 = SLOPE_STYLE_TOLERANCE (loose: the
+                                     largest scales lag a little, see slope_style.c) */
+    double scale;                 /* cells: on a grid with neither, the heights change over
+                                     about this far at most (a screened solve; 0 = exact) */
 } ts_slope_style_spec;
 
 /* Quantile-map the output's gradient magnitudes onto the exemplars' and fit

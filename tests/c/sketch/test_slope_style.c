@@ -95,7 +95,7 @@ static void test_halved_comes_back(void)
     ts_raster ex, out;
     ts_slope_style_spec s;
     double shift, err = 0.0, range = 0.0, m0;
-    int x, y;
+    int x, y, pass;
     CHECK(ts_raster_alloc(ctx, W, H, &ex) == TS_OK);
     CHECK(ts_raster_alloc(ctx, W, H, &out) == TS_OK);
     for (y = 0; y < H; y++)
@@ -116,19 +116,27 @@ static void test_halved_comes_back(void)
         }
     printf("     halved slopes: max error %.3g m over a relief of %.0f m\n", err, range);
     CHECK_MSG(err < 0.001 * range, "max error %g", err);
-    /* the default (loose) tolerance: the scale of the whole grid lags a little */
-    for (y = 0; y < H; y++)
-        for (x = 0; x < W; x++)
-            TS_PIX(&out, x, y) = (float)(700.0 + 0.5 * hills(x, y, 0.3));
-    s.tolerance = 0.0;
-    CHECK(ts__slope_style(ctx, &s, &out) == TS_OK);
-    shift = mean_valid(&out) - mean_valid(&ex);
-    err = 0.0;
-    for (y = 0; y < H; y++)
-        for (x = 0; x < W; x++)
-            err = fmax(err, fabs(TS_PIX(&out, x, y) - shift - TS_PIX(&ex, x, y)));
-    printf("     the same at the default tolerance: max error %.3g m\n", err);
-    CHECK_MSG(err < 0.05 * range, "max error %g", err);
+    /* the default tolerance: a whole grid is solved directly, as exactly; with
+     * one nodata cell the solve is iterative and the scale of the whole grid
+     * lags a little */
+    for (pass = 0; pass < 2; pass++) {
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++)
+                TS_PIX(&out, x, y) = (float)(700.0 + 0.5 * hills(x, y, 0.3));
+        if (pass)
+            TS_PIX(&out, W / 3, H / 2) = NAN;
+        s.tolerance = 0.0;
+        CHECK(ts__slope_style(ctx, &s, &out) == TS_OK);
+        shift = mean_valid(&out) - mean_valid(&ex);
+        err = 0.0;
+        for (y = 0; y < H; y++)
+            for (x = 0; x < W; x++)
+                if (!isnan(TS_PIX(&out, x, y)))
+                    err = fmax(err, fabs(TS_PIX(&out, x, y) - shift - TS_PIX(&ex, x, y)));
+        printf("     the same at the default tolerance, %s: max error %.3g m\n",
+               pass ? "one nodata cell" : "whole grid", err);
+        CHECK_MSG(err < (pass ? 0.05 : 0.001) * range, "max error %g", err);
+    }
     ts_raster_free(&ex);
     ts_raster_free(&out);
     ts_ctx_free(ctx);
