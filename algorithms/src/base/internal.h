@@ -174,10 +174,14 @@ void ts__matcher_cost(ts_matcher *m, const float *cost, double weight);
 
 /* poisson.c: ts_poisson_solve with NaN cells of u left out (neither
  * unknowns nor boundary: the edges to them carry no guidance), so a grid
- * with nodata can be solved whole.  Does not clear ctx. */
+ * with nodata can be solved whole; screen > 0 adds screen (u - u0) to every
+ * unknown's equation (u0: u on entry; the least-squares fit of the
+ * differences plus screen times the squared change, as in
+ * ts__poisson_screened_whole; no component floats then).  Does not clear
+ * ctx. */
 ts_status ts__poisson_solve_valid(ts_ctx *ctx, int w, int h, const unsigned char *mask,
                                   const float *gx, const float *gy, float *u, double tolerance,
-                                  int max_iter);
+                                  int max_iter, double screen);
 /* poisson.c: every cell of a w x h grid (stride w, no NaN in u) an unknown: the u that
  * minimises sum over edges (u_q - u_p - g)^2 + screen sum (u - u0)^2 (u0: u on entry; g: gx,
  * gy as for ts_poisson_solve), exactly, by two cosine transforms; screen >= 0 (0: the pure

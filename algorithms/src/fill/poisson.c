@@ -46,6 +46,7 @@ typedef struct poisson_grid {
     const unsigned char *labels;
     const float *seam_gx, *seam_gy; /* seam mode: guidance across the seam, or NULL = 0 */
     int skip_nan;                   /* solve mode: NaN cells left out, as in seam mode */
+    double screen;                  /* solve mode: + screen (u - u0) in every row, or 0 */
 } poisson_grid;
 
 /* A pinned pure-Neumann component: queue[start .. start+len-1], target mean. */
@@ -70,6 +71,7 @@ typedef struct poisson_system {
     unsigned char *deg, *link, *seen; /* n: |N(p)|, POISSON_LEFT|RIGHT, BFS mark */
     double *x, *r, *z, *d, *q, *s;    /* s: 1 / MIC(0) pivot */
     double shift;                     /* x = u - shift, for a residual that ignores the datum */
+    double screen;                    /* added to every diagonal entry (0: none) */
     poisson_float_comp *comps;
     size_t n_comps, cap_comps;
 } poisson_system;
@@ -238,6 +240,7 @@ static ts_status poisson_assemble(ts_ctx *ctx, const poisson_grid *g, poisson_sy
     for (i = 0; i < n; i++) {
         s->r[i] -= (double)(s->deg[i] - poisson_links(s, i)) * s->shift;
         s->x[i] -= s->shift;
+        s->r[i] += s->screen * s->x[i]; /* screened: the pull towards u0 */
     }
     return TS_OK;
 }
@@ -266,6 +269,8 @@ static int32_t poisson_bfs(poisson_system *s, int32_t head, int32_t tail)
 static ts_status poisson_pin(poisson_system *s)
 {
     int32_t n = s->n, i, tail = 0;
+    if (s->screen > 0.0)
+        return TS_OK; /* screened: no component floats */
     memset(s->seen, 0, (size_t)n);
     for (i = 0; i < n; i++)
         if (s->deg[i] > poisson_links(s, i)) { /* has a Dirichlet neighbour */
@@ -338,15 +343,15 @@ static void poisson_mic_factor(poisson_system *s)
     int32_t n = s->n, i, j;
     double *sv = s->s;
     for (i = 0; i < n; i++) {
-        double e = s->deg[i];
+        double e = s->deg[i] + s->screen;
         if (s->link[i] & POISSON_LEFT) {
             j = i - 1;
             e -= sv[j] * (1.0 + POISSON_MIC_TAU * (double)(s->dn[j] != n));
         }
         if ((j = s->up[i]) != n)
             e -= sv[j] * (1.0 + POISSON_MIC_TAU * (double)((s->link[j] & POISSON_RIGHT) != 0));
-        if (e < POISSON_MIC_SIGMA * s->deg[i])
-            e = s->deg[i];
+        if (e < POISSON_MIC_SIGMA * (s->deg[i] + s->screen))
+            e = s->deg[i] + s->screen;
         sv[i] = 1.0 / e;
     }
 }
@@ -374,7 +379,7 @@ static double poisson_residual(poisson_system *s)
     for (i = 0; i < n; i++) {
         double h = ((link[i] & POISSON_LEFT) ? x[i - 1] : 0.0) +
                    ((link[i] & POISSON_RIGHT) ? x[i + 1] : 0.0);
-        r[i] -= deg[i] * x[i] - (h + x[up[i]] + x[dn[i]]);
+        r[i] -= (deg[i] + s->screen) * x[i] - (h + x[up[i]] + x[dn[i]]);
         rr += r[i] * r[i];
     }
     return rr;
@@ -393,7 +398,7 @@ static double poisson_pass_a(poisson_system *s, double beta)
         double h =
             ((link[i] & POISSON_LEFT) ? d[i - 1] : 0.0) + ((link[i] & POISSON_RIGHT) ? right : 0.0);
         d[i] = di;
-        q[i] = deg[i] * di - (h + d[up[i]] + below);
+        q[i] = (deg[i] + s->screen) * di - (h + d[up[i]] + below);
         dq += di * q[i];
         di = right;
     }
@@ -484,6 +489,7 @@ static ts_status poisson_run(ts_ctx *ctx, const poisson_grid *g, double tol, int
     ts_status st;
     int32_t i;
     memset(&s, 0, sizeof s);
+    s.screen = g->screen;
     n = poisson_box(g, &s);
     if (n == 0)
         return ts__progress(ctx, 1.0, "poisson");
@@ -598,19 +604,22 @@ done:
     return st;
 }
 
-/* Solve mode over a w x h grid at stride w (skip_nan: NaN cells left out). */
+/* Solve mode over a w x h grid at stride w (skip_nan: NaN cells left out;
+ * screen: see ts__poisson_solve_valid). */
 static ts_status poisson_solve_grid(ts_ctx *ctx, int w, int h, const unsigned char *mask,
                                     const float *gx, const float *gy, float *u, double tolerance,
-                                    int max_iter, int skip_nan)
+                                    int max_iter, int skip_nan, double screen)
 {
     poisson_grid g;
     if (w <= 0 || h <= 0)
         return ts__fail(ctx, TS_ERR_SIZE, POISSON_STAGE, "grid %d x %d is empty", w, h);
     if (!mask || !gx || !gy || !u)
         return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "missing mask, guidance or values");
-    if (!(tolerance > 0.0) || !isfinite(tolerance) || max_iter < 0)
-        return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "tolerance %g or max_iter %d is invalid",
-                        tolerance, max_iter);
+    if (!(tolerance > 0.0) || !isfinite(tolerance) || max_iter < 0 || !(screen >= 0.0) ||
+        !isfinite(screen))
+        return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE,
+                        "tolerance %g, max_iter %d or screen %g is invalid", tolerance, max_iter,
+                        screen);
     memset(&g, 0, sizeof g);
     g.w = w;
     g.h = h;
@@ -620,6 +629,7 @@ static ts_status poisson_solve_grid(ts_ctx *ctx, int w, int h, const unsigned ch
     g.gx = gx;
     g.gy = gy;
     g.skip_nan = skip_nan;
+    g.screen = screen;
     return poisson_run(ctx, &g, tolerance, max_iter);
 }
 
@@ -641,14 +651,14 @@ TS_API ts_status ts_poisson_solve(ts_ctx *ctx, int w, int h, const unsigned char
                                   int max_iter)
 {
     ts__clear(ctx);
-    return poisson_solve_grid(ctx, w, h, mask, gx, gy, u, tolerance, max_iter, 0);
+    return poisson_solve_grid(ctx, w, h, mask, gx, gy, u, tolerance, max_iter, 0, 0.0);
 }
 
 ts_status ts__poisson_solve_valid(ts_ctx *ctx, int w, int h, const unsigned char *mask,
                                   const float *gx, const float *gy, float *u, double tolerance,
-                                  int max_iter)
+                                  int max_iter, double screen)
 {
-    return poisson_solve_grid(ctx, w, h, mask, gx, gy, u, tolerance, max_iter, 1);
+    return poisson_solve_grid(ctx, w, h, mask, gx, gy, u, tolerance, max_iter, 1, screen);
 }
 
 TS_API ts_status ts_poisson_seam_remove(ts_ctx *ctx, ts_raster *merged, const unsigned char *labels,

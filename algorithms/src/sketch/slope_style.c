@@ -28,17 +28,15 @@
  * One pass moves the distribution most of the way (the least-squares fit
  * cannot honour every edge); SLOPE_STYLE_PASSES passes get within the
  * resampling floor on the cases measured (sketch.md).  Cost: one Poisson
- * solve per pass.  On a grid with no nodata and no fixed cell (the usual
- * sketch) it is direct (two cosine transforms, poisson.c) and screened:
- * it minimises the misfit of the differences plus 1 / scale^2 times the
- * squared change of the heights, so the slopes take the wanted mix while
- * the layout's relief wider than about `scale` cells (a patch) stays where
- * the layout put it (an exact fit integrates the steeper or gentler slopes
- * across the whole grid: hundreds of metres of large-scale change that
- * undo the layout).  Otherwise iterative, to a loose relative residual
- * (3e-3), started from the current heights, which lags at large scales
- * much the same way (all slopes doubled: 2.4 % of the relief off, 0.005 %
- * at 1e-6).
+ * solve per pass, screened: it minimises the misfit of the differences
+ * plus 1 / scale^2 times the squared change of the heights, so the slopes
+ * take the wanted mix while the layout's relief wider than about `scale`
+ * cells (a patch) stays where the layout put it (an exact fit integrates
+ * the steeper or gentler slopes across the whole grid: hundreds of metres
+ * of large-scale change that undo the layout).  On a grid with no nodata
+ * and no fixed cell (the usual sketch) the solve is direct (two cosine
+ * transforms, poisson.c); otherwise iterative (MIC-PCG) to a loose
+ * relative residual (3e-3), started from the current heights.
  *
  * Then no crease sharper than the exemplars' sharpest: a cell whose
  * |Laplacian| passes the exemplar's 99.99th percentile moves half-way
@@ -343,6 +341,7 @@ static ts_status slope_passes(ts_ctx *ctx, slope_work *sw)
 {
     const ts_slope_style_spec *s = sw->s;
     int W = sw->W, H = sw->H, grp, pass;
+    double screen = s->scale > 0 ? 1.0 / (s->scale * s->scale) : 0.0;
     ts_status st;
     for (pass = 0; pass < SLOPE_STYLE_PASSES; pass++) {
         ts_progress_saved sv;
@@ -355,12 +354,11 @@ static ts_status slope_passes(ts_ctx *ctx, slope_work *sw)
         sv = ts__progress_push(ctx, (double)pass / SLOPE_STYLE_PASSES,
                                (double)(pass + 1) / SLOPE_STYLE_PASSES);
         if (sw->whole)
-            st = ts__poisson_screened_whole(ctx, W, H, sw->gx, sw->gy, sw->u,
-                                            s->scale > 0 ? 1.0 / (s->scale * s->scale) : 0.0);
+            st = ts__poisson_screened_whole(ctx, W, H, sw->gx, sw->gy, sw->u, screen);
         else
             st = ts__poisson_solve_valid(ctx, W, H, sw->mask, sw->gx, sw->gy, sw->u,
                                          s->tolerance > 0 ? s->tolerance : SLOPE_STYLE_TOLERANCE,
-                                         1000 + 20 * (W + H));
+                                         1000 + 20 * (W + H), screen);
         ts__progress_pop(ctx, sv);
         if (st == TS_ERR_NUMERIC) { /* not converged: u is as it was; keep it */
             ts__clear(ctx);

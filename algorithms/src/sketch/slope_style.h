@@ -26,8 +26,8 @@ typedef struct ts_slope_style_spec {
     double tolerance;             /* of the iterative Poisson solves (a grid with nodata or
                                      fixed cells); 0 = SLOPE_STYLE_TOLERANCE (loose: the
                                      largest scales lag a little, see slope_style.c) */
-    double scale;                 /* cells: on a grid with neither, the heights change over
-                                     about this far at most (a screened solve; 0 = exact) */
+    double scale;                 /* cells: the heights change over about this far at most
+                                     (a screened solve; 0 = an exact fit) */
 } ts_slope_style_spec;
 
 /* Quantile-map the output's gradient magnitudes onto the exemplars' and fit

@@ -265,7 +265,7 @@ static void test_nan_cells_reference(void)
                     gd[c] = 0.0;
             }
             CHECK(ref_solve(w, h, cls, gr, gd, ref));
-            CHECK_MSG(ts__poisson_solve_valid(ctx, w, h, mask, gx, gy, u, 1e-10, 1000) == TS_OK,
+            CHECK_MSG(ts__poisson_solve_valid(ctx, w, h, mask, gx, gy, u, 1e-10, 1000, 0.0) == TS_OK,
                       "%s", ts_ctx_message(ctx));
             for (c = 0; c < n; c++)
                 if (!isnan(ref[c]))
@@ -429,6 +429,85 @@ static void test_whole_grid_direct(void)
         free(u);
         free(v);
     }
+    ts_ctx_free(ctx);
+}
+
+/* ts__poisson_solve_valid screened: on a whole grid the same u as the
+ * cosine-transform solve; with NaN cells and fixed cells the screened
+ * normal equations hold on every unknown (its edges to used cells only,
+ * fixed cells as boundary values). */
+static void test_screened_cg(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    uint64_t seed = 41;
+    int w = 97, h = 83, x, y, round;
+    size_t n = (size_t)w * h, c;
+    unsigned char *mask = malloc(n);
+    float *gx = malloc(n * sizeof *gx), *gy = malloc(n * sizeof *gy);
+    float *u = malloc(n * sizeof *u), *v = malloc(n * sizeof *v), *u0 = malloc(n * sizeof *u0);
+    double s = 1.0 / 144.0;
+    for (round = 0; round < 2; round++) {
+        double err = 0.0, worst_r = 0.0;
+        for (c = 0; c < n; c++) {
+            x = (int)(c % (size_t)w);
+            y = (int)(c / (size_t)w);
+            mask[c] = 1;
+            gx[c] = (float)(0.4 * sin(0.07 * y) + th_uniform(&seed) - 0.5 + 0.3);
+            gy[c] = (float)(0.3 * cos(0.05 * x) + th_uniform(&seed) - 0.5);
+            u[c] = v[c] = u0[c] = (float)(500.0 + 20.0 * th_uniform(&seed));
+            if (round == 1 && ((x - 30) * (x - 30) + (y - 40) * (y - 40) < 60 || x == w - 1))
+                u[c] = v[c] = u0[c] = NAN; /* nodata: a hole and the last column */
+            if (round == 1 && x > 60 && x < 70 && y > 10 && y < 20)
+                mask[c] = 0; /* fixed */
+        }
+        CHECK_MSG(ts__poisson_solve_valid(ctx, w, h, mask, gx, gy, u, 1e-10, 5000, s) == TS_OK,
+                  "%s", ts_ctx_message(ctx));
+        if (round == 0) {
+            CHECK(ts__poisson_screened_whole(ctx, w, h, gx, gy, v, s) == TS_OK);
+            for (c = 0; c < n; c++)
+                err = fmax(err, fabs((double)u[c] - v[c]));
+            CHECK_MSG(err < 1e-3, "whole grid: CG against the transform %g", err);
+        }
+        for (y = 0; y < h; y++)
+            for (x = 0; x < w; x++) {
+                size_t i = (size_t)y * w + x;
+                double lu = 0.0, b = 0.0;
+                if (!mask[i] || isnan(u0[i])) {
+                    if (round == 1)
+                        CHECK(isnan(u0[i]) ? isnan(u[i]) : u[i] == u0[i]);
+                    continue;
+                }
+                if (x > 0 && !isnan(u[i - 1])) {
+                    lu += (double)u[i] - u[i - 1];
+                    b += gx[i - 1];
+                }
+                if (x + 1 < w && !isnan(u[i + 1])) {
+                    lu += (double)u[i] - u[i + 1];
+                    b -= gx[i];
+                }
+                if (y > 0 && !isnan(u[i - (size_t)w])) {
+                    lu += (double)u[i] - u[i - (size_t)w];
+                    b += gy[i - (size_t)w];
+                }
+                if (y + 1 < h && !isnan(u[i + (size_t)w])) {
+                    lu += (double)u[i] - u[i + (size_t)w];
+                    b -= gy[i];
+                }
+                worst_r = fmax(worst_r, fabs(lu + s * ((double)u[i] - u0[i]) - b));
+            }
+        printf("     screened CG, %s: worst residual %.2e%s\n",
+               round ? "holes and fixed cells" : "whole grid", worst_r,
+               round ? "" : " (against the transform below)");
+        if (round == 0)
+            printf("     whole grid: CG against the transform %.2e\n", err);
+        CHECK_MSG(worst_r < 2e-3, "residual %g", worst_r);
+    }
+    free(mask);
+    free(gx);
+    free(gy);
+    free(u);
+    free(v);
+    free(u0);
     ts_ctx_free(ctx);
 }
 
@@ -983,6 +1062,7 @@ int main(int argc, char **argv)
         {"dense_reference", test_dense_reference},
         {"nan_cells_reference", test_nan_cells_reference},
         {"whole_grid_direct", test_whole_grid_direct},
+        {"screened_cg", test_screened_cg},
         {"manufactured", test_manufactured},
         {"iterations_and_time", test_iterations_and_time},
         {"trivial_and_empty", test_trivial_and_empty},
