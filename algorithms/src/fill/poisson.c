@@ -548,8 +548,8 @@ ts_status ts__poisson_screened_whole(ts_ctx *ctx, int w, int h, const float *gx,
     ts_status st = TS_OK;
     int x, y;
     if (w <= 0 || h <= 0 || !gx || !gy || !u || !(screen >= 0.0) || !isfinite(screen)) {
-        st = ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "grid %d x %d or screen %g is invalid", w,
-                      h, screen);
+        st = ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "grid %d x %d or screen %g is invalid", w, h,
+                      screen);
         goto done;
     }
     if (a && lx && ly) {
@@ -575,8 +575,8 @@ ts_status ts__poisson_screened_whole(ts_ctx *ctx, int w, int h, const float *gx,
             b -= x + 1 < w ? (double)gx[c] : 0.0;
             b -= y + 1 < h ? (double)gy[c] : 0.0;
             if (!isfinite(u[c])) {
-                st = ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "value at (%d, %d) is not finite",
-                              x, y);
+                st = ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "value at (%d, %d) is not finite", x,
+                              y);
                 goto done;
             }
             a[c] = b + screen * (double)u[c];

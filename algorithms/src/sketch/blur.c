@@ -21,8 +21,8 @@ typedef struct blur_job {
     double *v, *m; /* value * weight and weight, w*h, blurred in place */
     int n_arr;     /* 2: both; 1: v alone (no NaN: the weights are separable) */
     const float *in;
-    ptrdiff_t stride; /* of in */
-    float *out;       /* w*h, stride w */
+    ptrdiff_t stride;      /* of in */
+    float *out;            /* w*h, stride w */
     const double *mx, *my; /* the weights' blur along a row and a column, or NULL: m */
     atomic_int failed, has_nan;
 } blur_job;
@@ -186,7 +186,7 @@ static void blur_nan_ws(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, i
             ts__parallel_for(ctx, (size_t)w, blur_cols, &j);
     }
     if (j.n_arr == 1 && j.r > 0) { /* m's first w + h cells: the row's and the column's */
-        double *tmp = m + w + h; /* 2 max(w, h) more */
+        double *tmp = m + w + h;   /* 2 max(w, h) more */
         j.mx = m;
         j.my = m + w;
         blur_ones(m, (size_t)w, j.r, tmp);
@@ -290,4 +290,3 @@ double ts__mean_gradient(const float *a, int w, int h)
         }
     return cnt ? sum / (double)cnt : 0.0;
 }
-
