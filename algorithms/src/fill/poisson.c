@@ -541,17 +541,18 @@ static ts_status poisson_run(ts_ctx *ctx, const poisson_grid *g, double tol, int
 ts_status ts__poisson_screened_whole(ts_ctx *ctx, int w, int h, const float *gx, const float *gy,
                                      float *u, double screen)
 {
-    size_t n = (size_t)w * (size_t)h, c;
-    double *a = ts__fft_alloc(n, sizeof *a), *lx = ts__malloc_array((size_t)w, sizeof *lx);
-    double *ly = ts__malloc_array((size_t)h, sizeof *ly), mean = 0.0;
+    size_t n, c;
+    double *a, *lx, *ly, mean = 0.0;
     fftw_plan fwd = NULL, inv = NULL;
     ts_status st = TS_OK;
     int x, y;
-    if (w <= 0 || h <= 0 || !gx || !gy || !u || !(screen >= 0.0) || !isfinite(screen)) {
-        st = ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "grid %d x %d or screen %g is invalid", w, h,
-                      screen);
-        goto done;
-    }
+    if (w <= 0 || h <= 0 || !gx || !gy || !u || !(screen >= 0.0) || !isfinite(screen))
+        return ts__fail(ctx, TS_ERR_ARG, POISSON_STAGE, "grid %d x %d or screen %g is invalid", w,
+                        h, screen);
+    n = (size_t)w * (size_t)h;
+    a = ts__fft_alloc(n, sizeof *a);
+    lx = ts__malloc_array((size_t)w, sizeof *lx);
+    ly = ts__malloc_array((size_t)h, sizeof *ly);
     if (a && lx && ly) {
         fwd = ts__fft_plan_dct_2d(w, h, a, 0);
         inv = ts__fft_plan_dct_2d(w, h, a, 1);

@@ -13,6 +13,42 @@
 
 /* ---- a whole grid with no nodata (the cosine-transform path) ---- */
 
+/* The worst residual of the screened normal equations over the unknowns
+ * (mask set, u0 not NaN): per cell sum over its neighbours with a value of
+ * (u_p - u_q) + s (u_p - u0_p) - b_p, b_p the guidance on those edges
+ * (fixed cells enter as boundary values). */
+static double screened_residual(int w, int h, const unsigned char *mask, const float *gx,
+                                const float *gy, const float *u, const float *u0, double s)
+{
+    double worst = 0.0;
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            size_t i = (size_t)y * w + x;
+            double lu = 0.0, b = 0.0;
+            if (!mask[i] || isnan(u0[i]))
+                continue;
+            if (x > 0 && !isnan(u[i - 1])) {
+                lu += (double)u[i] - u[i - 1];
+                b += gx[i - 1];
+            }
+            if (x + 1 < w && !isnan(u[i + 1])) {
+                lu += (double)u[i] - u[i + 1];
+                b -= gx[i];
+            }
+            if (y > 0 && !isnan(u[i - (size_t)w])) {
+                lu += (double)u[i] - u[i - (size_t)w];
+                b += gy[i - (size_t)w];
+            }
+            if (y + 1 < h && !isnan(u[i + (size_t)w])) {
+                lu += (double)u[i] - u[i + (size_t)w];
+                b -= gy[i];
+            }
+            worst = fmax(worst, fabs(lu + s * ((double)u[i] - u0[i]) - b));
+        }
+    return worst;
+}
+
 /* ts__poisson_screened_whole, unscreened: against the dense oracle (small
  * grids, thin ones included) and against MIC-PCG to a tight tolerance (a
  * larger grid), the initial mean kept; screened: the normal equations
@@ -94,33 +130,12 @@ static void test_whole_grid_direct(void)
         {
             double s = 1.0 / 400.0, worst_r = 0.0, tilt0, tilt1;
             float *u0 = malloc(n * sizeof *u0);
-            int x, y;
+            int y;
             memcpy(u0, u, n * sizeof *u);
             for (c = 0; c < n; c++)
                 gx[c] += 0.5f; /* every step east 0.5 higher */
             CHECK(ts__poisson_screened_whole(ctx, w, h, gx, gy, u, s) == TS_OK);
-            for (y = 0; y < h; y++)
-                for (x = 0; x < w; x++) {
-                    size_t i = (size_t)y * w + x;
-                    double lu = 0.0, b = 0.0;
-                    if (x > 0) {
-                        lu += (double)u[i] - u[i - 1];
-                        b += gx[i - 1];
-                    }
-                    if (x + 1 < w) {
-                        lu += (double)u[i] - u[i + 1];
-                        b -= gx[i];
-                    }
-                    if (y > 0) {
-                        lu += (double)u[i] - u[i - (size_t)w];
-                        b += gy[i - (size_t)w];
-                    }
-                    if (y + 1 < h) {
-                        lu += (double)u[i] - u[i + (size_t)w];
-                        b -= gy[i];
-                    }
-                    worst_r = fmax(worst_r, fabs(lu + s * ((double)u[i] - u0[i]) - b));
-                }
+            worst_r = screened_residual(w, h, mask, gx, gy, u, u0, s);
             tilt0 = tilt1 = 0.0;
             for (y = 0; y < h; y++) {
                 tilt0 += (double)u0[(size_t)y * w + w - 1] - u0[(size_t)y * w];
@@ -187,33 +202,10 @@ static void test_screened_cg(void)
                 err = fmax(err, fabs((double)u[c] - v[c]));
             CHECK_MSG(err < 1e-3, "whole grid: CG against the transform %g", err);
         }
-        for (y = 0; y < h; y++)
-            for (x = 0; x < w; x++) {
-                size_t i = (size_t)y * w + x;
-                double lu = 0.0, b = 0.0;
-                if (!mask[i] || isnan(u0[i])) {
-                    if (round == 1)
-                        CHECK(isnan(u0[i]) ? isnan(u[i]) : u[i] == u0[i]);
-                    continue;
-                }
-                if (x > 0 && !isnan(u[i - 1])) {
-                    lu += (double)u[i] - u[i - 1];
-                    b += gx[i - 1];
-                }
-                if (x + 1 < w && !isnan(u[i + 1])) {
-                    lu += (double)u[i] - u[i + 1];
-                    b -= gx[i];
-                }
-                if (y > 0 && !isnan(u[i - (size_t)w])) {
-                    lu += (double)u[i] - u[i - (size_t)w];
-                    b += gy[i - (size_t)w];
-                }
-                if (y + 1 < h && !isnan(u[i + (size_t)w])) {
-                    lu += (double)u[i] - u[i + (size_t)w];
-                    b -= gy[i];
-                }
-                worst_r = fmax(worst_r, fabs(lu + s * ((double)u[i] - u0[i]) - b));
-            }
+        for (c = 0; c < n; c++)
+            if (round == 1 && (!mask[c] || isnan(u0[c])))
+                CHECK(isnan(u0[c]) ? isnan(u[c]) : u[c] == u0[c]);
+        worst_r = screened_residual(w, h, mask, gx, gy, u, u0, s);
         printf("     screened CG, %s: worst residual %.2e%s\n",
                round ? "holes and fixed cells" : "whole grid", worst_r,
                round ? "" : " (against the transform below)");
