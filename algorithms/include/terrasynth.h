@@ -478,6 +478,8 @@ typedef struct ts_synth_maps {
     int32_t *source_x, *source_y; /* its position in that exemplar */
     int32_t *order;           /* index of the placed patch the cell came from, -1 if none */
     unsigned char *seams;     /* 1 on cells next to a graph-cut seam */
+    unsigned char *valley_floor; /* sketches: 1 on the floors the drawn valleys were carved
+                                    along (0 on entry) */
     /* added to by the call: patches placed (also the index the next patch
      * gets in `order`) and seconds spent per stage (match, cut and Poisson
      * summed over placements that run side by side, so together they can

@@ -343,7 +343,7 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
                                const ts_raster *exemplars, int n_exemplars,
                                const ts_sketch_params *sp,
                                const ts_synth_constraints *constraints, ts_raster *out, int P,
-                               double *times)
+                               ts_synth_maps *maps, double *times)
 {
     ts_status st = TS_OK;
     double t0 = ts__now();
@@ -404,7 +404,8 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
         st = ts__water_banks(ctx, out, constraints->cell_flags, P);
     /* 10. drawn valleys that drain to their outlets (ours, valley_breach.c) */
     if (st == TS_OK && (r->kind & TS_VALLEY) && sp->layout > 0)
-        st = ts__valley_breach(ctx, r->sf, out, r->user_flags, P);
+        st = ts__valley_breach(ctx, r->sf, out, r->user_flags, P,
+                               maps ? maps->valley_floor : NULL);
     times[2] = ts__now() - t0;
     return st;
 }
@@ -446,7 +447,7 @@ static ts_status sketch_stages(ts_ctx *ctx, sketch_run *r, const ts_raster *exem
     ts__progress_pop(ctx, sv);
     times[3] = ts__now() - t0;
     if (st == TS_OK)
-        st = sketch_finish(ctx, r, &fill, exemplars, n_exemplars, sp, constraints, out, P,
+        st = sketch_finish(ctx, r, &fill, exemplars, n_exemplars, sp, constraints, out, P, maps,
                            times + 4);
     return st;
 }

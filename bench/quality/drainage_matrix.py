@@ -10,6 +10,8 @@
 # the sharpest creases (99.9th percentile of |Laplacian|, output over exemplar), the share of
 # flat cells (slope under 0.5 degrees: the flat lakes a fill leaves; exemplar / kept /
 # breached), the share of cells the stage changes, their mean change, and the stage's time.
+# The sketch sets its own grid (3 arcsec), so its rows are judged again against each exemplar
+# averaged to the output's cells (a second table).
 #
 #   apt-get install grass-core
 #   /usr/bin/python3 bench/quality/drainage_matrix.py [--seeds 1,2,3] [--size 256] [--jobs 2]
@@ -72,6 +74,32 @@ def flat_share(path, cell=None):
     s = np.hypot(gx, gy)
     s = s[np.isfinite(s)]
     return float((s < np.tan(np.radians(0.5))).mean()) if s.size else 0.0
+
+
+def ground_cell(path, cell=None):
+    """Metres per cell (the mean of x and y; geographic grids at their middle row)."""
+    ds = gdal.Open(path)
+    gt = ds.GetGeoTransform()
+    srs = ds.GetSpatialRef()
+    if srs is None:
+        return cell
+    cx, cy = abs(gt[1]), abs(gt[5])
+    if srs.IsGeographic():
+        lat = np.radians(gt[3] + gt[5] * ds.RasterYSize / 2)
+        cx, cy = cx * 111320.0 * np.cos(lat), cy * 110574.0
+    return 0.5 * (cx + cy)
+
+
+def averaged_to(p, metres, tmp):
+    """The DEM averaged to cells of `metres` (in its own CRS, or its own cells without one):
+    the exemplar as a synthesis on such a grid sees it."""
+    own = ground_cell(p, cell_of(os.path.basename(p)))
+    ds = gdal.Open(p)
+    k = metres / own
+    out = os.path.join(tmp, os.path.basename(p)[:-4] + "_at_%dm.tif" % round(metres))
+    gdal.Translate(out, ds, width=max(1, round(ds.RasterXSize / k)),
+                   height=max(1, round(ds.RasterYSize / k)), resampleAlg="average")
+    return out
 
 
 def crease(a):
@@ -222,7 +250,42 @@ def main():
                       np.mean([r.get("seconds", 0.0) for r in rs])))
     print("\ndepressions within goal: %d of %d runs; landforms within TV 0.06: %d of %d"
           % (met, total, tv_met, total))
+    if "sketch" in a.methods.split(","):
+        sketch_at_output_cells(rows, dems, sketch)
     return 0
+
+
+def sketch_at_output_cells(rows, dems, sketch):
+    """The sketch sets the output's grid (3 arcsec here), so its rows are also judged
+    against the exemplar averaged to the output's cells: the landforms, pits and creases
+    of the land at the scale the output has."""
+    metres = ground_cell(sketch)
+    print("\nSketch rows against the exemplar averaged to the output's cells (%.0f m):" % metres)
+    print("| DEM | depressions: exemplar there / breached (goal) | landforms TV breached | "
+          "creases breached |")
+    print("|---|---|---|---|")
+    met = total = tv_met = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        for p in dems:
+            rs = [r for r in rows if r["method"] == "sketch"
+                  and r["dem"] == os.path.basename(p)[:-4]]
+            if not rs or any("error" in r for r in rs):
+                continue
+            q = averaged_to(p, metres, tmp)
+            se, fe = judge(q, tmp, metres)
+            ce = crease(read(q))
+            goal = 1.5 * se + 0.002
+            ok = sum(r["breach_sink"] <= goal for r in rs)
+            tvb = [0.5 * np.abs(np.array(r["breach_forms"]) - fe).sum() for r in rs]
+            met += ok
+            total += len(rs)
+            tv_met += sum(t <= 0.06 for t in tvb)
+            print("| %s | %.2f %% / %.2f %% (%d of %d <= %.2f %%) | %.3f | %.2f |" % (
+                rs[0]["dem"], 100 * se, 100 * np.mean([r["breach_sink"] for r in rs]), ok,
+                len(rs), 100 * goal, np.mean(tvb),
+                np.mean([r["crease_breach"] for r in rs]) / ce))
+    print("\nat the output's cells: depressions within goal %d of %d runs; landforms within "
+          "TV 0.06: %d of %d" % (met, total, tv_met, total))
 
 
 if __name__ == "__main__":

@@ -624,7 +624,7 @@ done:
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
                         tsio_err *err)
 {
-    ts_synth_maps *maps = NULL;
+    ts_synth_maps *maps = NULL, floor_only;
     tsio_raster ex[TSJOB_MAX_EXEMPLARS];
     ts_raster exr[TSJOB_MAX_EXEMPLARS];
     unsigned char *flags = NULL;
@@ -650,6 +650,18 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         if (job_alloc_maps(res, err) != 0)
             return -1;
         maps = &res->maps;
+    }
+    if (job->sketch) { /* the floors the drawn valleys are carved along, for the drainage */
+        res->maps.valley_floor = calloc((size_t)res->geo.width * (size_t)res->geo.height, 1);
+        if (!res->maps.valley_floor) {
+            tsio_errf(err, job->sketch, "out of memory");
+            return -1;
+        }
+        if (!maps) {
+            memset(&floor_only, 0, sizeof floor_only);
+            floor_only.valley_floor = res->maps.valley_floor;
+            maps = &floor_only;
+        }
     }
     if (job_read_exemplars(job, res, ex, exr, err) != 0)
         goto done;
@@ -864,6 +876,7 @@ void tsjob_synth_result_free(tsjob_synth_result *res)
     free(res->maps.source_y);
     free(res->maps.order);
     free(res->maps.seams);
+    free(res->maps.valley_floor);
     free(res->dx_m);
     free(res->dy_m);
     ts_raster_free(&res->out);

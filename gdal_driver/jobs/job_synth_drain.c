@@ -11,27 +11,28 @@
 
 #include "job_internal.h"
 
-/* TS_CELL_SHALLOW on the cells within r (Chebyshev) of a drawn valley's floor (mask's
- * TS_VALLEY cells; not water or pins): a running window along the rows, then along the
+/* TS_CELL_SHALLOW on the cells within r (Chebyshev) of a drawn valley's floor (floor's
+ * non-zero cells): a running window along the rows, then along the
  * columns; -1 out of memory. */
-static int mark_beside_valleys(unsigned char *flags, const unsigned char *mask, int w, int h, int r)
+static int mark_beside_valleys(unsigned char *flags, const unsigned char *floor, int w, int h,
+                               int r)
 {
     unsigned char *row = malloc((size_t)w * (size_t)h);
     int x, y;
     if (!row)
         return -1;
     for (y = 0; y < h; y++) {
-        const unsigned char *f = mask + (size_t)y * (size_t)w;
+        const unsigned char *f = floor + (size_t)y * (size_t)w;
         unsigned char *o = row + (size_t)y * (size_t)w;
         int last = -1 - r;
         for (x = 0; x < w; x++) {
-            if (f[x] & TS_VALLEY)
+            if (f[x])
                 last = x;
             o[x] = x - last <= r;
         }
         last = w + r + 1;
         for (x = w - 1; x >= 0; x--) {
-            if (f[x] & TS_VALLEY)
+            if (f[x])
                 last = x;
             o[x] |= last - x <= r;
         }
@@ -71,23 +72,21 @@ int tsjob__synth_drain_whole(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_re
     if (res->sketch_features && res->sketch_features->mask &&
         res->sketch_features->width == res->geo.width &&
         res->sketch_features->height == res->geo.height)
-        for (i = 0; i < n; i++) {
+        for (i = 0; i < n; i++)
             if (res->sketch_features->mask[i] & TS_RIDGE)
                 flags[i] |= TS_CELL_BARRIER;
-            /* a drawn valley's floor, made to descend to its outlet, is kept as it is */
-            if (res->sketch_features->mask[i] & TS_VALLEY)
-                flags[i] |= TS_CELL_FIXED;
-        }
+    /* a drawn valley's floor, made to descend to its outlet, is kept as it is */
+    for (i = 0; res->maps.valley_floor && i < n; i++)
+        if (res->maps.valley_floor[i])
+            flags[i] |= TS_CELL_FIXED;
     /* with a sketch, the land beside a drawn valley's floor (within a quarter of the
      * radius) is cut at most the banks' slope deep by default, by its own pits and by
      * channels from farther off: a deeper channel runs beside the fixed floor as a trench
      * and leaves the floor standing as a wall (the sketch matrices' seams); pits farther
      * off are cut as after any method */
     if (job->sketch && res->drainage.max_depth == -1 && res->drainage.bank_slope > 0 &&
-        res->sketch_features && res->sketch_features->mask &&
-        res->sketch_features->width == res->geo.width &&
-        res->sketch_features->height == res->geo.height &&
-        mark_beside_valleys(flags, res->sketch_features->mask, res->geo.width, res->geo.height,
+        res->maps.valley_floor &&
+        mark_beside_valleys(flags, res->maps.valley_floor, res->geo.width, res->geo.height,
                             res->drainage.radius >= 8 ? res->drainage.radius / 4 : 2) == 0)
         res->drainage.shallow_depth = 1.0 * res->drainage.bank_slope;
     clock_gettime(CLOCK_MONOTONIC, &t0);

@@ -422,3 +422,16 @@ def test_drawings_are_read_as_colours(tmp_path):
     p = run("synth", "--sketch", tmp_path / "short.vrt", "--exemplar", JACKSBORO,
             tmp_path / "x.tif", check=False)
     assert p.returncode != 0 and "has no colour (the palette has 16)" in p.stderr
+
+
+def test_debug_maps_leave_the_terrain_as_it_is(tmp_path):
+    """--debug-dir only records where cells came from: the terrain is the same cell for cell
+    (each fill patch draws from the stream of its place in the fill, whatever the maps count
+    before it; a build keying it on the maps' count fails here)."""
+    run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "2", tmp_path / "a.tif",
+        "-q")
+    run("synth", "--sketch", LAMBDA, "--exemplar", JACKSBORO, "--seed", "2", tmp_path / "b.tif",
+        "-q", "--debug-dir", tmp_path / "debug")
+    a = gdal.Open(str(tmp_path / "a.tif")).ReadAsArray()
+    b = gdal.Open(str(tmp_path / "b.tif")).ReadAsArray()
+    assert np.array_equal(a, b)

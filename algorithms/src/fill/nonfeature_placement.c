@@ -199,6 +199,7 @@ static ts_status placer_second(const placer *a, placer *b)
     b->n_ex = a->n_ex;
     b->P = a->P;
     b->rng0 = a->rng0;
+    b->map_index0 = a->map_index0;
     b->n_cands_cap = a->n_cands_cap;
     b->shares_ex = 1;
     b->ex = calloc((size_t)a->n_ex, sizeof *b->ex);
@@ -453,6 +454,9 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
     memset(&pl2, 0, sizeof pl2);
     memset(&q, 0, sizeof q);
     alloc_failed = placer_init(&pl, ctx, f, out, maps, n_exemplars);
+    /* a patch's random draws follow its place in this run, whatever the
+     * maps count before it (the same terrain with and without maps) */
+    pl.map_index0 = first_index;
     step = pl.P - (int)params->overlap.value;
     xs = ts__malloc_array((size_t)out->width / (size_t)step + 2, sizeof *xs);
     ys = ts__malloc_array((size_t)out->height / (size_t)step + 2, sizeof *ys);
@@ -497,9 +501,9 @@ ts_status ts__fill_run(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
         frac = 0.1 + 0.9 * (double)placed / (double)(placed + n_needed);
         sv = ts__progress_push(ctx, frac, frac);
         if (pick2 < 0)
-            st = ts__place_one(&pl, &pos[pick], placed + first_index);
+            st = ts__place_one(&pl, &pos[pick], placed);
         else
-            st = place_pair(&pl, &pl2, ca, cb, &pos[pick], &pos[pick2], placed + first_index);
+            st = place_pair(&pl, &pl2, ca, cb, &pos[pick], &pos[pick2], placed);
         ts__progress_pop(ctx, sv);
         if (st != TS_OK)
             goto done;

@@ -44,6 +44,7 @@ typedef struct ts__placer {
     ts_raster *out;
     const unsigned char *flags; /* TS_CELL_* per output cell, or NULL */
     ts_synth_maps *maps;
+    int map_index0; /* the maps' index of the run's first patch (patches placed before it) */
     ts__exemplar_data *ex;
     int n_ex;
     int P;         /* patch size */

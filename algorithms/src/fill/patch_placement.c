@@ -65,7 +65,8 @@ static ts_status place_merge(placer *pl, const placement *q, int e, int sx, int 
             pl->src_y[y * P + x] = sy + y;
         }
     return ts__merger_apply(pl->ctx, &pl->merger, pl->out, pl->flags, q->x, q->y, pl->target,
-                            pl->best_labels, pl->maps, e, pl->src_x, pl->src_y, index);
+                            pl->best_labels, pl->maps, e, pl->src_x, pl->src_y,
+                            pl->map_index0 + index);
 }
 
 typedef struct cut_job {

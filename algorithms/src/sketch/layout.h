@@ -84,11 +84,13 @@ ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heig
                                   double alpha_h, const unsigned char *flags, int patch);
 
 /* Drawn valleys that drain (valley_breach.c): the floor along every valley
- * of `f` carved so it never rises on the way to its outlet, the outlet
+ * of `f`, moved onto the valley's lowest line within patch / 10 cells of the
+ * drawn one, carved so it never rises on the way to its outlet, the outlet
  * joined to the grid's edge or another valley within `patch` cells by a
- * carved channel; cells only lowered, the change fading out across the
- * valley; flags (may be NULL): TS_CELL_FIXED and TS_CELL_NODATA cells never
- * change. */
+ * carved channel; the floor's heights fitted at the least cost (cuts
+ * and fills), the change fading out across the valley; flags (may be
+ * NULL): TS_CELL_FIXED and TS_CELL_NODATA cells never change; floor_out
+ * (may be NULL; width x height, 0 on entry) gets 1 on the floor cells. */
 ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
-                            const unsigned char *flags, int patch);
+                            const unsigned char *flags, int patch, unsigned char *floor_out);
 #endif

@@ -5,11 +5,13 @@
  * drains on: into another valley within a patch, along a straight channel,
  * or else out by the way water leaves it (the path of a priority-flood from
  * the grid's edge and the user's water: over the lowest pass), carved the
- * same way.  Carving only lowers cells (breaching, not filling); the change
- * fades out across the valley.  A lake (water cells) is an outlet as the
- * edge is: never carved into, the land beside it left at or above its level,
- * and the land below its level that it reaches raised to it (its arms: a
- * valley ending in a lake never runs below it).
+ * same way.  The floor runs along the valley's own lowest line near the
+ * drawn one, its heights fitted at the least cost (a wall cut, a deep pit
+ * on the floor filled: valley_floor.c); the change fades out across the
+ * valley.  A lake (water cells) is an outlet as the edge is: never carved
+ * into, the land beside it left at or above its level, and the land below
+ * its level that it reaches raised to it (its arms: a valley ending in a
+ * lake never runs below it).
  *
  * The valley cells of the feature graph make a graph of cells (consecutive
  * vertices joined).  In each network the outlet is the end cell that is
@@ -17,7 +19,7 @@
  * lowest, then the first in raster order); networks that reach the edge
  * are joined first, and a network never drains into one that drains into
  * it.  Breadth first from the outlet every cell gets its downstream cell;
- * cells are carved upstream first: z(down) = min(z(down), z(cell)).
+ * then the floor moves onto the thalweg and its heights are fitted.
  * Cost: O(valley cells + patch^2 per network end).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -26,25 +28,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "layout.h"
+#include "valley_breach.h"
 
-typedef struct breach {
-    int W, H, P;
-    int32_t *id;        /* per grid cell: its carve cell, -1 none */
-    size_t *cell;       /* per carve cell: its grid cell */
-    unsigned char *adj; /* per carve cell: 8 direction bits (valley cells only) */
-    int32_t *comp;      /* per carve cell: its network (-1: a channel cell) */
-    int32_t *down;      /* per carve cell: the next one downstream, -1 none */
-    size_t n, cap;
-    int32_t n_comp;
-    const unsigned char *flags; /* the user's cells (NULL: none) */
-    int *wdist; /* per grid cell: 8-neighbour steps to the nearest water cell (NULL: no water) */
-} breach;
-
-static const int BX[8] = {1, 1, 0, -1, -1, -1, 0, 1};
-static const int BY[8] = {0, 1, 1, 1, 0, -1, -1, -1};
-
-static int32_t br_add(breach *b, size_t c)
+int32_t ts__breach_add(breach *b, size_t c)
 {
     if (b->id[c] >= 0)
         return b->id[c];
@@ -82,14 +68,6 @@ static int br_dir(int dx, int dy)
     return -1;
 }
 
-static int popcount8(unsigned v)
-{
-    int n = 0;
-    for (; v; v &= v - 1)
-        n++;
-    return n;
-}
-
 /* The valley cells and their joins; networks labelled breadth first. */
 static int br_build(breach *b, const ts_features *f)
 {
@@ -103,7 +81,7 @@ static int br_build(breach *b, const ts_features *f)
             int32_t a;
             if (v->x < 0 || v->y < 0 || v->x >= b->W || v->y >= b->H)
                 continue;
-            if ((a = br_add(b, (size_t)v->y * (size_t)b->W + (size_t)v->x)) < 0)
+            if ((a = ts__breach_add(b, (size_t)v->y * (size_t)b->W + (size_t)v->x)) < 0)
                 return -1;
             if (j) {
                 const ts_feature_vertex *u = v - 1;
@@ -185,7 +163,7 @@ static int br_channel(breach *b, int32_t a, int tx, int ty)
         int32_t o = b->id[g];
         if (o >= 0 && b->comp[o] == own)
             continue; /* its own network: the channel starts beyond it */
-        if (o < 0 && (o = br_add(b, g)) < 0)
+        if (o < 0 && (o = ts__breach_add(b, g)) < 0)
             return -1;
         b->down[prev] = o;
         if (b->comp[o] >= 0)
@@ -193,48 +171,6 @@ static int br_channel(breach *b, int32_t a, int tx, int ty)
         prev = o;
     }
     return 0;
-}
-
-/* A binary heap of (level, arrival) keys for the flood. */
-typedef struct fl_item {
-    float level;
-    uint32_t order;
-    int32_t cell;
-} fl_item;
-
-static int fl_less(const fl_item *a, const fl_item *b)
-{
-    return a->level < b->level || (a->level == b->level && a->order < b->order);
-}
-
-static void fl_push(fl_item *h, size_t *n, fl_item it)
-{
-    size_t i = (*n)++;
-    while (i > 0 && fl_less(&it, &h[(i - 1) / 2])) {
-        h[i] = h[(i - 1) / 2];
-        i = (i - 1) / 2;
-    }
-    h[i] = it;
-}
-
-static fl_item fl_pop(fl_item *h, size_t *n)
-{
-    fl_item top = h[0], last = h[--(*n)];
-    size_t i = 0;
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= *n)
-            break;
-        if (c + 1 < *n && fl_less(&h[c + 1], &h[c]))
-            c++;
-        if (!fl_less(&h[c], &last))
-            break;
-        h[i] = h[c];
-        i = c;
-    }
-    if (*n)
-        h[i] = last;
-    return top;
 }
 
 /* The way water leaves every cell (priority-flood from the grid's edge, the
@@ -307,7 +243,7 @@ static int br_spill(breach *b, int32_t a, const int32_t *parent)
     while (g >= 0) {
         int32_t o = b->id[(size_t)g];
         if (!(o >= 0 && b->comp[o] == own)) {
-            if (o < 0 && (o = br_add(b, (size_t)g)) < 0)
+            if (o < 0 && (o = ts__breach_add(b, (size_t)g)) < 0)
                 return -1;
             b->down[prev] = o;
             if (b->comp[o] >= 0)
@@ -564,7 +500,7 @@ static int br_lake_arms(ts_raster *out, const unsigned char *flags)
 }
 
 ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
-                            const unsigned char *flags, int patch)
+                            const unsigned char *flags, int patch, unsigned char *floor_out)
 {
     breach b;
     int32_t *parent = NULL;
@@ -601,9 +537,23 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
     }
     if (!b.n)
         goto done;
+    if (!(delta = ts__malloc_array(n, sizeof *delta))) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+        goto done;
+    }
+    s_ref = breach_steep(out, delta);
+    if (ts__valley_thalweg(ctx, &b, out, fmax(2.0, patch / 10.0), 0.25 * s_ref) != 0) {
+        st = ts_ctx_status(ctx) != TS_OK
+                 ? ts_ctx_status(ctx)
+                 : ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+        goto done;
+    }
+    if (floor_out)
+        for (i = 0; i < b.n; i++)
+            if (b.comp[i] >= 0)
+                floor_out[b.cell[i]] = 1;
     indeg = ts__calloc_array(b.n, sizeof *indeg);
     queue = ts__malloc_array(b.n, sizeof *queue);
-    delta = ts__malloc_array(n, sizeof *delta);
     spread = ts__malloc_array(n, sizeof *spread);
     dist = ts__malloc_array(n, sizeof *dist);
     distb = ts__malloc_array(n, sizeof *distb);
@@ -612,7 +562,6 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
     }
-    s_ref = breach_steep(out, delta);
     /* carved upstream first (Kahn's order over the downstream links) */
     for (i = 0; i < n; i++)
         delta[i] = NAN;
@@ -626,17 +575,13 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
         if (!indeg[i])
             queue[tail++] = i;
     for (head = 0; head < tail; head++) {
-        int32_t c = (int32_t)queue[head], d = b.down[c];
-        if (d < 0)
-            continue;
-        {
-            size_t gc = b.cell[c], gd = b.cell[d];
-            int fixed = flags && (flags[gd] & (TS_CELL_FIXED | TS_CELL_NODATA));
-            if (!fixed && !isnan(delta[gc]) && !isnan(delta[gd]) && delta[gc] < delta[gd])
-                delta[gd] = delta[gc];
-        }
-        if (--indeg[d] == 0)
+        int32_t d = b.down[queue[head]];
+        if (d >= 0 && --indeg[d] == 0)
             queue[tail++] = (size_t)d;
+    }
+    if (ts__valley_fit_floor(&b, flags, queue, tail, delta) != 0) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+        goto done;
     }
     /* the change: exact on the carved cells, blurred and fading out beside
      * them (as the layout's valley floors) */
@@ -659,8 +604,9 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
      * over as far as the land's steep slopes (s_ref a cell) take to climb
      * its depth, whichever is wider (a carved floor becomes a valley
      * bottom, a cut through a pass a gorge with the land's own walls, not a
-     * slot), then smoothed over a cell and a half so that no step of the
-     * line's staircase shows */
+     * slot; a fill raises the land beside it up to the floor at most), then
+     * smoothed over a cell and a half so that no step of the line's
+     * staircase shows */
     if (!(nearest = ts__malloc_array(n, sizeof *nearest))) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
@@ -678,15 +624,17 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
         goto done;
     for (i = 0; i < n; i++) {
         int x = (int)(i % (size_t)b.W), y = (int)(i / (size_t)b.W);
-        if (isnan(TS_PIX(out, x, y)) || (flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) ||
-            m[i] || isnan(distb[i]))
+        float z0 = TS_PIX(out, x, y), z;
+        if (isnan(z0) || (flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) || m[i] ||
+            isnan(distb[i]))
             continue; /* the carved cells are set above */
-        {
-            float z = (float)(TS_PIX(out, x, y) + fmin(0.0, distb[i]));
-            if (b.wdist && b.wdist[i] == 1) /* never below the water beside it */
-                z = fmaxf(z, fminf(TS_PIX(out, x, y), br_bank_floor(out, flags, i)));
-            TS_PIX(out, x, y) = z;
-        }
+        z = (float)(z0 + fmin(0.0, distb[i]));
+        if (distb[i] > 0.0f && nearest[i] >= 0)
+            z = fminf(z0 + distb[i], fmaxf(z0, TS_PIX(out, (int)((size_t)nearest[i] % (size_t)b.W),
+                                                      (int)((size_t)nearest[i] / (size_t)b.W))));
+        if (b.wdist && b.wdist[i] == 1) /* never below the water beside it */
+            z = fmaxf(z, fminf(z0, br_bank_floor(out, flags, i)));
+        TS_PIX(out, x, y) = z;
     }
     if (b.wdist && br_lake_arms(out, flags) != 0)
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");

@@ -11,6 +11,8 @@
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
+#include <limits.h>
+
 #include "harness.h"
 #include "layout.h"
 #include "relief_guide.h"
@@ -266,6 +268,33 @@ static void drains_naive(const float *z, int W, int H, unsigned char *dr)
     }
 }
 
+/* The highest level among the floor cells nearest cell c (brute force). */
+static float nearest_floor_level(const unsigned char *fo, const float *z, int W, int H, int c)
+{
+    long best = LONG_MAX;
+    float lvl = -INFINITY;
+    int i;
+    for (i = 0; i < W * H; i++)
+        if (fo[i]) {
+            long dx = i % W - c % W, dy = i / W - c / W, d = dx * dx + dy * dy;
+            if (d < best || (d == best && z[i] > lvl)) {
+                lvl = d < best ? z[i] : fmaxf(lvl, z[i]);
+                best = d;
+            }
+        }
+    return lvl;
+}
+
+/* Whether a vertex of f lies within r cells (Chebyshev) of (x, y). */
+static int near_cell(const ts_features *f, int x, int y, int r)
+{
+    size_t k;
+    for (k = 0; k < f->n_verts; k++)
+        if (abs(f->verts[k].x - x) <= r && abs(f->verts[k].y - y) <= r)
+            return 1;
+    return 0;
+}
+
 static void test_valley_breach(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -273,8 +302,10 @@ static void test_valley_breach(void)
     float *z = malloc((size_t)W * H * sizeof(float)), *z0 = malloc((size_t)W * H * sizeof(float));
     float *level = malloc((size_t)W * H * sizeof(float));
     unsigned char *dr = malloc((size_t)W * H), *fl = calloc((size_t)W * H, 1);
+    unsigned char *fo = malloc((size_t)W * H);
     y_net *g = malloc(sizeof *g);
     uint64_t s = 21;
+    int cut;
     for (rep = 0; rep < 8; rep++) {
         ts_raster r = ts_raster_wrap(z, W, H, W);
         size_t k;
@@ -290,21 +321,43 @@ static void test_valley_breach(void)
         if (rep % 2)
             fl[12 * W + 3] = TS_CELL_FIXED; /* a fixed cell off the valleys */
         memcpy(z0, z, (size_t)W * H * sizeof(float));
-        CHECK(ts__valley_breach(ctx, &g->f, &r, fl, 16) == TS_OK);
+        memset(fo, 0, (size_t)W * H);
+        CHECK(ts__valley_breach(ctx, &g->f, &r, fl, 16, fo) == TS_OK);
+        /* fixed cells stay; the floor may be filled where that moves fewer metres
+         * than cutting, and the land beside a filled floor rises to it at most */
         for (x = 0; x < W * H; x++)
-            if (z[x] > z0[x] || ((fl[x] & TS_CELL_FIXED) && z[x] != z0[x]))
+            if (((fl[x] & TS_CELL_FIXED) && z[x] != z0[x]) ||
+                (!fo[x] && z[x] > z0[x] && z[x] > nearest_floor_level(fo, z, W, H, x) + 1e-3f))
                 bad = 1;
-        CHECK_MSG(!bad, "a cell raised or a fixed cell moved");
+        CHECK_MSG(!bad, "a fixed cell moved, or land rose above the floor beside it");
+        /* the floor (within 2 cells of the drawn one, patch / 10 at least 2)
+         * drains, and it passes within 2 cells of every drawn cell */
         drains_naive(z, W, H, dr);
+        for (x = 0; x < W * H; x++)
+            if (fo[x]) {
+                CHECK_MSG(dr[x], "rep %d: floor cell %d,%d holds water", rep, x % W, x / W);
+                CHECK_MSG(near_cell(&g->f, x % W, x / W, 2), "rep %d: floor cell %d,%d far", rep,
+                          x % W, x / W);
+            }
         for (k = 0; k < g->f.n_verts; k++) {
             const ts_feature_vertex *v = &g->f.verts[k];
-            CHECK_MSG(dr[v->y * W + v->x], "rep %d: valley cell %d,%d holds water", rep, v->x,
-                      v->y);
+            int dx, dy, hit = 0;
+            for (dy = -2; dy <= 2; dy++)
+                for (dx = -2; dx <= 2; dx++)
+                    if (v->x + dx >= 0 && v->x + dx < W && v->y + dy >= 0 && v->y + dy < H)
+                        hit |= fo[(v->y + dy) * W + v->x + dx];
+            CHECK_MSG(hit, "rep %d: no floor near valley cell %d,%d", rep, v->x, v->y);
         }
-        /* the wall is cut where the trunk crosses it, a gorge whose walls rise
-         * away from the cut */
-        CHECK(z[20 * W + 6] < 600.0f);
-        CHECK(z[2 * W + 6] > z[12 * W + 6] && z[12 * W + 6] > z[20 * W + 6]);
+        /* the wall is cut where the trunk's floor crosses it, and lowered beside
+         * the cut (a gorge, not a one-cell slot), less far off */
+        for (cut = -1, x = 18; x <= 22; x++)
+            if (fo[x * W + 6])
+                cut = x;
+        CHECK(cut >= 0 && z[cut * W + 6] < 600.0f);
+        CHECK_MSG(cut >= 0 && z[(cut - 2) * W + 6] < 600.0f &&
+                      z[2 * W + 6] >= z[(cut - 2) * W + 6] && z[(cut - 2) * W + 6] > z[cut * W + 6],
+                  "rep %d: the wall 2 cells off the cut at row %d is not lowered towards it", rep,
+                  cut);
         memset(fl, 0, (size_t)W * H);
     }
     free(z);
@@ -312,6 +365,7 @@ static void test_valley_breach(void)
     free(level);
     free(dr);
     free(fl);
+    free(fo);
     free(g);
     ts_ctx_free(ctx);
 }
@@ -362,6 +416,144 @@ static void one_valley_path(ts_features *ff, ts_feature_node nn[2], ts_feature_p
     ff->n_paths = 1;
     ff->verts = vv;
     ff->n_verts = n;
+}
+
+/* The floor follows the valley's own lowest line: a V valley whose bottom
+ * wanders up to 2 cells either side of the straight drawn line (rising away
+ * from the outlet on the edge at y = 0).  The floor is the bottom, row by row
+ * (the cells the land is lowest in; only the ends join the drawn end cells),
+ * it drains and nothing beside it holds water; a floor carved along the drawn
+ * line would dam the bottom wherever it lies off the line. */
+static int bottom_x(int y)
+{
+    return 30 + (int)lround(2.0 * sin(y / 5.0));
+}
+
+static void test_valley_thalweg(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int W = 60, H = 48, x, y;
+    float *z = malloc((size_t)W * H * sizeof(float));
+    unsigned char *dr = malloc((size_t)W * H), *fo = calloc((size_t)W * H, 1);
+    ts_feature_vertex vv[48];
+    ts_feature_node nn[2];
+    ts_feature_path pp[1];
+    ts_features ff;
+    ts_raster r = ts_raster_wrap(z, W, H, W);
+    for (y = 0; y < H; y++) {
+        vv[y] = (ts_feature_vertex){30, y, 0};
+        for (x = 0; x < W; x++)
+            z[y * W + x] = (float)(500.0 + 2.0 * y + 6.0 * abs(x - bottom_x(y)));
+    }
+    one_valley_path(&ff, nn, pp, vv, (size_t)H, W, H);
+    CHECK(ts__valley_breach(ctx, &ff, &r, NULL, 16, fo) == TS_OK);
+    for (y = 3; y < H - 3; y++) {
+        int n = 0;
+        CHECK_MSG(fo[y * W + bottom_x(y)], "row %d: the bottom at %d is not the floor", y,
+                  bottom_x(y));
+        for (x = 0; x < W; x++)
+            n += fo[y * W + x];
+        CHECK_MSG(n <= 2, "row %d: %d floor cells", y, n);
+    }
+    drains_naive(z, W, H, dr);
+    for (x = 0; x < W * H; x++)
+        CHECK_MSG(dr[x], "cell %d,%d holds water", x % W, x / W);
+    free(z);
+    free(dr);
+    free(fo);
+    ts_ctx_free(ctx);
+}
+
+/* The floor's fit against the least total change a dynamic program finds
+ * (the best heights of a monotone fit in weighted L1 are among the data's;
+ * a metre filled costs eight cut): a straight
+ * valley rising from its outlet at y = 0, with a wall across it, a pit on its
+ * floor and noise.  The floor (the valley's bottom, the drawn line here) must
+ * never rise towards the outlet and cost no more than the optimum: the
+ * wall cut (2 cells), the pit filled (1 cell). */
+/* A metre filled costs 8 metres cut (valley_floor.c's TS_FLOOR_FILL). */
+static double fill_cut_cost(double z, double t)
+{
+    return t > z ? 8.0 * (t - z) : z - t;
+}
+
+static double monotone_l1_optimum(const double *z, int n)
+{
+    double *v = malloc((size_t)n * sizeof *v), *dp = malloc((size_t)n * sizeof *dp), best;
+    int i, k, j;
+    for (i = 0; i < n; i++)
+        v[i] = z[i];
+    for (i = 1; i < n; i++) /* the candidate heights, sorted */
+        for (j = i; j > 0 && v[j - 1] > v[j]; j--) {
+            double t = v[j];
+            v[j] = v[j - 1];
+            v[j - 1] = t;
+        }
+    for (k = 0; k < n; k++)
+        dp[k] = fill_cut_cost(z[0], v[k]);
+    for (i = 1; i < n; i++) { /* t_i >= t_(i-1): the best of the lower candidates */
+        double run = INFINITY;
+        for (k = 0; k < n; k++) {
+            run = fmin(run, dp[k]);
+            dp[k] = run + fill_cut_cost(z[i], v[k]);
+        }
+    }
+    for (best = INFINITY, k = 0; k < n; k++)
+        best = fmin(best, dp[k]);
+    free(v);
+    free(dp);
+    return best;
+}
+
+static void test_floor_fit(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int W = 61, H = 60, x, y, rep;
+    float *z = malloc((size_t)W * H * sizeof(float)), *z0 = malloc((size_t)W * H * sizeof(float));
+    unsigned char *fo = malloc((size_t)W * H);
+    double floor0[60], change;
+    ts_feature_vertex vv[60];
+    ts_feature_node nn[2];
+    ts_feature_path pp[1];
+    ts_features ff;
+    ts_raster r = ts_raster_wrap(z, W, H, W);
+    uint64_t s = 7;
+    for (rep = 0; rep < 6; rep++) {
+        for (y = 0; y < H; y++) {
+            double f = 500.0 + 2.0 * y + 10.0 * th_uniform(&s);
+            if (y == 10 || y == 11)
+                f += 150.0; /* a wall across */
+            if (y == 30)
+                f -= 60.0; /* a pit on the floor */
+            floor0[y] = f;
+            vv[y] = (ts_feature_vertex){30, y, 0};
+            for (x = 0; x < W; x++)
+                z[y * W + x] = (float)(f + 50.0 * abs(x - 30));
+        }
+        memcpy(z0, z, (size_t)W * H * sizeof(float));
+        one_valley_path(&ff, nn, pp, vv, (size_t)H, W, H);
+        memset(fo, 0, (size_t)W * H);
+        CHECK(ts__valley_breach(ctx, &ff, &r, NULL, 16, fo) == TS_OK);
+        for (y = 0, change = 0.0; y < H; y++) {
+            CHECK_MSG(fo[y * W + 30], "rep %d: row %d's bottom is not the floor", rep, y);
+            if (y)
+                CHECK_MSG(z[y * W + 30] >= z[(y - 1) * W + 30], "rep %d: the floor falls at %d",
+                          rep, y);
+            floor0[y] = (double)z0[y * W + 30];
+            change += fill_cut_cost(floor0[y], (double)z[y * W + 30]);
+        }
+        {
+            double opt = monotone_l1_optimum(floor0, H);
+            CHECK_MSG(change <= opt + 1e-2 * H, "rep %d: the floor moved %.2f m, the optimum %.2f",
+                      rep, change, opt);
+        }
+        CHECK(z[10 * W + 30] < z0[10 * W + 30] - 100.0f); /* the wall cut */
+        CHECK(z[30 * W + 30] > z0[30 * W + 30] + 20.0f);  /* the pit filled */
+    }
+    free(z);
+    free(z0);
+    free(fo);
+    ts_ctx_free(ctx);
 }
 
 /* ---- a valley floor made to descend leaves no stripes across the valley ----
@@ -528,6 +720,8 @@ int main(int argc, char **argv)
     static const th_case cases[] = {
         {"nearest_brute_force", test_nearest_brute_force},
         {"valley_breach", test_valley_breach},
+        {"valley_thalweg", test_valley_thalweg},
+        {"floor_fit", test_floor_fit},
         {"blur_direct", test_blur_direct},
         {"descend", test_descend},
         {"valley_no_stripes", test_valley_no_stripes},
