@@ -9,6 +9,9 @@ TERRASYNTH = os.environ.get("TERRASYNTH", os.path.join(ROOT, "build", "gdal_driv
 DATA = os.environ.get("TS_DATA_DIR", os.path.join(ROOT, "data"))
 SHARED = os.environ.get("TS_SHARED_DEM_DIR", os.path.join(ROOT, "..", "shared", "data", "dem"))
 JACKSBORO = os.path.join(DATA, "jacksboro_fault_dem.tif")
+# A drawn valley's floor is the valley's own lowest line within a tenth of a patch of the drawn
+# one: with the default 64-cell patch, within 6 cells of it.
+FLOOR_REACH = 6
 
 
 def run(*args, check=True):

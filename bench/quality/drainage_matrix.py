@@ -60,33 +60,31 @@ def in_pits(a):
 def flat_share(path, cell=None):
     """Share of the cells with data whose slope (central differences) is under 0.5 degrees;
     `cell`: metres per cell of a raster without a CRS."""
-    ds = gdal.Open(path)
-    a = read(path)
-    gt = ds.GetGeoTransform()
-    cx, cy = abs(gt[1]), abs(gt[5])
-    srs = ds.GetSpatialRef()
-    if srs is None:
-        cx = cy = cell
-    elif srs.IsGeographic():
-        lat = np.radians(gt[3] + gt[5] * ds.RasterYSize / 2)
-        cx, cy = cx * 111320.0 * np.cos(lat), cy * 110574.0
-    gy, gx = np.gradient(a, cy, cx)
+    cx, cy = ground_cells(path, cell)
+    gy, gx = np.gradient(read(path), cy, cx)
     s = np.hypot(gx, gy)
     s = s[np.isfinite(s)]
     return float((s < np.tan(np.radians(0.5))).mean()) if s.size else 0.0
 
 
-def ground_cell(path, cell=None):
-    """Metres per cell (the mean of x and y; geographic grids at their middle row)."""
+def ground_cells(path, cell=None):
+    """Metres per cell in x and in y (geographic grids at their middle row); `cell`: metres
+    per cell of a raster without a CRS."""
     ds = gdal.Open(path)
     gt = ds.GetGeoTransform()
     srs = ds.GetSpatialRef()
     if srs is None:
-        return cell
+        return cell, cell
     cx, cy = abs(gt[1]), abs(gt[5])
     if srs.IsGeographic():
         lat = np.radians(gt[3] + gt[5] * ds.RasterYSize / 2)
         cx, cy = cx * 111320.0 * np.cos(lat), cy * 110574.0
+    return cx, cy
+
+
+def ground_cell(path, cell=None):
+    """Metres per cell (the mean of x and y)."""
+    cx, cy = ground_cells(path, cell)
     return 0.5 * (cx + cy)
 
 

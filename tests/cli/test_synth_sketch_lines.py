@@ -13,7 +13,7 @@ import pytest
 from osgeo import gdal, ogr, osr
 from scipy import ndimage
 
-from tsutil import JACKSBORO, run  # noqa: E402
+from tsutil import FLOOR_REACH, JACKSBORO, run  # noqa: E402
 
 gdal.UseExceptions()
 ogr.UseExceptions()
@@ -234,11 +234,6 @@ def priority_flood(z):
                     f[ny, nx] = max(f[ny, nx], v)
                     heapq.heappush(q, (f[ny, nx], ny, nx))
     return f
-
-
-# The floor of a drawn valley is the valley's own lowest line within a tenth of a patch (64
-# cells here) of the drawn one: a drawn cell's floor lies within 6 cells of it.
-FLOOR_REACH = 6
 
 
 def test_drawn_valleys_hold_no_closed_depression(drawn):

@@ -20,7 +20,7 @@ import sys
 import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from tsutil import SHARED, run  # noqa: E402
+from tsutil import FLOOR_REACH, SHARED, run  # noqa: E402
 
 EVAL = os.path.normpath(os.path.join(SHARED, "..", "..", "eval"))
 METRICS = os.path.join(EVAL, "terrain_metrics.py")
@@ -149,7 +149,7 @@ def test_valleys_descend(sketches, tmp_path, seed):
     ds = gdal.Open(str(out))
     z, gt = ds.ReadAsArray(), ds.GetGeoTransform()
     from scipy import ndimage
-    z = ndimage.minimum_filter(z, size=13)
+    z = ndimage.minimum_filter(z, size=2 * FLOOR_REACH + 1)
     vec = ogr.Open(str(dbg / "sketch_features.gpkg"))  # kept open: the layer lives in it
     paths = vec.GetLayerByName("paths")
     n_paths = 0

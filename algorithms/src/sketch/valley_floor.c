@@ -23,8 +23,10 @@
  * cells (the cells nearest that network; no fixed, nodata or channel cell),
  * the least-cost path from every head (an end, or a cell another network's
  * channel comes into) to the network's outlet, a step costing its length x
- * (its height above the lowest land within w of it + kappa: on the valley's
- * bottom a step costs kappa, beside it more), replaces the drawn cells as
+ * (its height above the lowest land within w of it + kappa (1 + (d / w)^2),
+ * d its distance from the drawn line: on the valley's bottom a step costs
+ * about kappa, beside it more, a flat floor follows the line), replaces the
+ * drawn cells as
  * the floor; a head the corridor does not join to its outlet keeps its drawn
  * way down.  Dijkstra with ties by cell index: one result.  0, -1 out of
  * memory. */
@@ -171,9 +173,7 @@ int ts__valley_thalweg(ts_ctx *ctx, breach *b, const ts_raster *out, double w, d
             if (a < 0)
                 goto done;
             b->comp[a] = lab[i];
-            m[i] = 1;
-        } else
-            m[i] = 0;
+        }
     for (i = 0; i < n0; i++)
         if (ocomp[i] < 0 && ts__breach_add(b, ocell[i]) < 0)
             goto done;
