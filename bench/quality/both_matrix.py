@@ -71,7 +71,11 @@ def drainage(metrics, out, sketch, exemplar, tmp, cache):
     """drainage_metrics.py on the output (the exemplar's sink share computed once)."""
     cmd = [sys.executable, metrics, "--out", with_crs(out, tmp), "--sketch", sketch]
     p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode != 0:
+    if p.returncode != 0:  # said once: valley flow and ridge cross then print as '-'
+        if "said" not in cache:
+            cache["said"] = True
+            print("both_matrix: drainage_metrics.py failed (%s)" % (
+                p.stderr.strip().splitlines() or ["no message"])[-1], file=sys.stderr)
         return {}
     d = json.loads(p.stdout)
     if exemplar not in cache:
