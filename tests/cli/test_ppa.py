@@ -263,6 +263,7 @@ def test_usage_errors_exit_2():
 SHARED_DEMS = sorted(f for f in os.listdir(SHARED) if f.endswith(".tif")) if os.path.isdir(SHARED) else []
 
 
+@pytest.mark.matrix
 @pytest.mark.skipif(not SHARED_DEMS, reason="../shared/data/dem not present")
 @pytest.mark.parametrize("name", [n for n in SHARED_DEMS if "etopo5" not in n] or ["none"])
 def test_real_dem_axes_follow_terrain(tmp_path, name):

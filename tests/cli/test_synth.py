@@ -229,6 +229,7 @@ def test_errors_are_one_line_and_leave_nothing(tmp_path, extra, words):
 SHARED_DEMS = sorted(f for f in os.listdir(SHARED) if f.endswith(".tif")) if os.path.isdir(SHARED) else []
 
 
+@pytest.mark.matrix
 @pytest.mark.skipif(not SHARED_DEMS, reason="../shared/data/dem not present")
 @pytest.mark.parametrize("name", [n for n in SHARED_DEMS if "etopo5" not in n] or ["none"])
 def test_real_dems_grow_seamless_terrain(tmp_path, name):

@@ -61,6 +61,7 @@ def sketches(tmp_path_factory):
     return d
 
 
+@pytest.mark.matrix
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("cls,sketch,exemplar,cell", CASES, ids=[c[0] for c in CASES])
 def test_meets_the_goal(sketches, tmp_path, cls, sketch, exemplar, cell, seed):
@@ -175,6 +176,7 @@ BOTH_CASES = [  # class, sketch, exemplar, cell size of CRS-less rasters
 ]
 
 
+@pytest.mark.matrix
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("form", ["painted", "lines"])
 @pytest.mark.parametrize("cls,sketch,exemplar,cell", BOTH_CASES, ids=[c[0] for c in BOTH_CASES])

@@ -18,7 +18,7 @@
  * nearest the grid's edge or another network within a patch (ties: the
  * lowest, then the first in raster order); networks that reach the edge
  * are joined first, and a network never drains into one that drains into
- * it.  Breadth first from the outlet every cell gets its downstream cell;
+ * it (its channel passes such a network by).  Breadth first from the outlet every cell gets its downstream cell;
  * then the floor moves onto the thalweg and its heights are fitted.
  * Cost: O(valley cells + patch^2 per network end).
  *
@@ -29,6 +29,9 @@
 #include <string.h>
 
 #include "valley_breach.h"
+
+/* The rounded foot of a cut's walls, cells */
+#define TS_WALL_ROUND 2.0
 
 int32_t ts__breach_add(breach *b, size_t c)
 {
@@ -120,6 +123,36 @@ static int br_build(breach *b, const ts_features *f)
     return 0;
 }
 
+/* Whether network k drains (on) into network own (or is it) */
+static int br_drains_into(const int32_t *drains, int32_t k, int32_t own)
+{
+    for (; k >= 0 && k != own; k = drains[k])
+        ;
+    return k == own;
+}
+
+/* The network the water of carve cell o reaches: its own, or the one its
+ * channel leads into; -2 out at the edge or a lake. */
+static int32_t br_dest(const breach *b, int32_t o)
+{
+    while (o >= 0 && b->comp[o] < 0)
+        o = b->down[o];
+    return o >= 0 ? b->comp[o] : -2;
+}
+
+/* Where a channel of network own met carve cell o: 1 it ends there (the
+ * water joins o's network or channel, *reached the network it drains to),
+ * 0 it passes by (o is own's, or drains (on) into own: joining it would
+ * make water run in a ring). */
+static int br_meets(const breach *b, int32_t o, int32_t own, const int32_t *drains, int32_t *reached)
+{
+    int32_t t = br_dest(b, o);
+    if (b->comp[o] == own || br_drains_into(drains, t, own))
+        return 0;
+    *reached = t;
+    return 1;
+}
+
 /* The nearest cell of a network other than `own` within a patch of carve
  * cell a (its carve cell, or -1), and the distance (INT_MAX when none). */
 static int br_other(const breach *b, int32_t a, int32_t own, const int32_t *drains, int32_t *hit)
@@ -129,15 +162,12 @@ static int br_other(const breach *b, int32_t a, int32_t own, const int32_t *drai
     *hit = -1;
     for (v = TS_MAX(0, y - b->P); v <= TS_MIN(b->H - 1, y + b->P); v++)
         for (u = TS_MAX(0, x - b->P); u <= TS_MIN(b->W - 1, x + b->P); u++) {
-            int32_t o = b->id[(size_t)v * (size_t)b->W + (size_t)u], r;
+            int32_t o = b->id[(size_t)v * (size_t)b->W + (size_t)u];
             int d;
             if (o < 0 || b->comp[o] < 0 || b->comp[o] == own)
                 continue;
-            /* never into a network that drains (on) into this one */
-            for (r = b->comp[o]; r >= 0 && r != own; r = drains[r])
-                ;
-            if (r == own)
-                continue;
+            if (br_drains_into(drains, b->comp[o], own))
+                continue; /* never into a network that drains (on) into this one */
             d = (int)ceil(hypot(u - x, v - y));
             if (d <= b->P && d < best) {
                 best = d;
@@ -148,26 +178,30 @@ static int br_other(const breach *b, int32_t a, int32_t own, const int32_t *drai
 }
 
 /* A straight channel from carve cell a to grid cell (tx, ty): its cells
- * (new carve cells where the line meets none) chained downstream; stops at
- * the first cell of another network.  Returns 0, -1 out of memory. */
-static int br_channel(breach *b, int32_t a, int tx, int ty)
+ * (new carve cells where the line meets none) chained downstream; ends at
+ * the first carve cell met that br_meets takes (*reached: where the water
+ * goes on).  Returns 0, -1 out of memory. */
+static int br_channel(breach *b, int32_t a, int tx, int ty, const int32_t *drains, int32_t *reached)
 {
     size_t c = b->cell[a];
     int x0 = (int)(c % (size_t)b->W), y0 = (int)(c / (size_t)b->W);
     int n = TS_MAX(abs(tx - x0), abs(ty - y0)), s;
     int32_t prev = a, own = b->comp[a];
+    *reached = -2;
     for (s = 1; s <= n; s++) {
         int x = x0 + (int)lround((double)(tx - x0) * s / n);
         int y = y0 + (int)lround((double)(ty - y0) * s / n);
         size_t g = (size_t)y * (size_t)b->W + (size_t)x;
         int32_t o = b->id[g];
-        if (o >= 0 && b->comp[o] == own)
-            continue; /* its own network: the channel starts beyond it */
-        if (o < 0 && (o = ts__breach_add(b, g)) < 0)
+        if (o >= 0) {
+            if (!br_meets(b, o, own, drains, reached))
+                continue; /* the channel goes on beyond it */
+            b->down[prev] = o;
+            return 0;
+        }
+        if ((o = ts__breach_add(b, g)) < 0)
             return -1;
         b->down[prev] = o;
-        if (b->comp[o] >= 0)
-            return 0; /* reached another network */
         prev = o;
     }
     return 0;
@@ -235,22 +269,25 @@ static int32_t *br_flood(const ts_raster *out, const unsigned char *flags)
 }
 
 /* The channel from carve cell a along the flood's way out to the edge,
- * stopping at a cell of another network (which then takes the water). */
-static int br_spill(breach *b, int32_t a, const int32_t *parent)
+ * ending at the first carve cell met that br_meets takes (which then takes
+ * the water; *reached where it goes on, -2 the edge). */
+static int br_spill(breach *b, int32_t a, const int32_t *parent, const int32_t *drains, int32_t *reached)
 {
     int32_t prev = a, own = b->comp[a];
     long g = parent[b->cell[a]];
-    while (g >= 0) {
+    *reached = -2;
+    for (; g >= 0; g = parent[g]) {
         int32_t o = b->id[(size_t)g];
-        if (!(o >= 0 && b->comp[o] == own)) {
-            if (o < 0 && (o = ts__breach_add(b, (size_t)g)) < 0)
-                return -1;
+        if (o >= 0) {
+            if (!br_meets(b, o, own, drains, reached))
+                continue;
             b->down[prev] = o;
-            if (b->comp[o] >= 0)
-                return 0;
-            prev = o;
+            return 0;
         }
-        g = parent[g];
+        if ((o = ts__breach_add(b, (size_t)g)) < 0)
+            return -1;
+        b->down[prev] = o;
+        prev = o;
     }
     return 0;
 }
@@ -323,17 +360,16 @@ static int br_orient(breach *b, const ts_raster *out, int32_t **parent)
         if (hit >= 0 && other < border) {
             size_t g = b->cell[hit];
             a = best_end;
-            if (br_channel(b, a, (int)(g % (size_t)b->W), (int)(g / (size_t)b->W)) != 0)
+            if (br_channel(b, a, (int)(g % (size_t)b->W), (int)(g / (size_t)b->W), drains,
+                           &drains[k]) != 0)
                 goto done;
-            drains[k] = b->comp[hit];
         } else {
             /* out by the way the water leaves: to the edge over the lowest
              * pass, carved (or into a valley met on the way) */
             if (!*parent && !(*parent = br_flood(out, b->flags)))
                 goto done;
-            if (br_spill(b, a, *parent) != 0)
+            if (br_spill(b, a, *parent, drains, &drains[k]) != 0)
                 goto done;
-            drains[k] = -2;
         }
         /* breadth first from the outlet: every cell's downstream cell */
         {
@@ -499,6 +535,77 @@ static int br_lake_arms(ts_raster *out, const unsigned char *flags)
     return 0;
 }
 
+/* Beside the carved cells (m; delta their change), from the nearest one:
+ * a cut lowers the land to at most the floor's height plus a wall rising
+ * at the land's steep slope (s_ref a cell), or by the cut fading out over
+ * rr, whichever is lower (a carved floor becomes a valley bottom, a cut through a pass a
+ * gorge with the land's own walls: the walls are the floor's height
+ * plus the distance, smooth across the valley even where the cut's
+ * depth changes from one floor cell to the next); a fill fades out over
+ * rr or over as far as s_ref takes to climb it, whichever is wider, and
+ * raises the land beside it up to the floor at most; within three
+ * times that reach; then smoothed over a cell and a half so that no
+ * step of the line's staircase shows */
+static ts_status br_beside(ts_ctx *ctx, const breach *b, ts_raster *out, const unsigned char *flags,
+                           const float *delta, const unsigned char *m, double rr, double s_ref)
+{
+    size_t n = (size_t)b->W * (size_t)b->H, i;
+    float *spread = ts__malloc_array(n, sizeof *spread), *dist = ts__malloc_array(n, sizeof *dist);
+    float *distb = ts__malloc_array(n, sizeof *distb);
+    int32_t *nearest = ts__malloc_array(n, sizeof *nearest);
+    ts_status st = TS_OK;
+    if (!spread || !dist || !distb || !nearest) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+        goto done;
+    }
+    if ((st = ts__distance_transform_nearest(ctx, m, b->W, b->H, dist, nearest)) != TS_OK)
+        goto done;
+    for (i = 0; i < n; i++) {
+        size_t q = (size_t)nearest[i];
+        double dq = nearest[i] >= 0 ? delta[q] : 0.0, d = dist[i];
+        double r = fmax(rr, 1.5 * fabs(dq) / s_ref), t = d / r, tb = d / rr;
+        spread[i] = m[i] ? delta[i] : 0.0f;
+        if (m[i] || nearest[i] < 0 || t >= 3.0)
+            continue;
+        if (dq >= 0.0) {
+            spread[i] = (float)(exp(-t * t) * dq);
+        } else {
+            /* a cut: down to the floor's own height plus a wall rising at
+             * the steep slope (rounded over TS_WALL_ROUND cells at its foot),
+             * never more than the floor was cut, or the bottom's fade,
+             * whichever is lower */
+            double g = d <= TS_WALL_ROUND ? s_ref * d * d / (2.0 * TS_WALL_ROUND)
+                                          : s_ref * (d - 0.5 * TS_WALL_ROUND);
+            double zf = TS_PIX(out, (int)(q % (size_t)b->W), (int)(q / (size_t)b->W));
+            double z0 = TS_PIX(out, (int)(i % (size_t)b->W), (int)(i / (size_t)b->W));
+            double wall = fmax(dq, fmin(0.0, zf + g - z0));
+            spread[i] = (float)fmin(wall, tb < 3.0 ? exp(-tb * tb) * dq : 0.0);
+        }
+    }
+    if ((st = ts__blur_nan(ctx, spread, b->W, b->W, b->H, 1.5, distb)) != TS_OK)
+        goto done;
+    for (i = 0; i < n; i++) {
+        int x = (int)(i % (size_t)b->W), y = (int)(i / (size_t)b->W);
+        float z0 = TS_PIX(out, x, y), z;
+        if (isnan(z0) || (flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) || m[i] ||
+            isnan(distb[i]))
+            continue; /* the carved cells are set above */
+        z = (float)(z0 + fmin(0.0, distb[i]));
+        if (distb[i] > 0.0f && nearest[i] >= 0)
+            z = fminf(z0 + distb[i], fmaxf(z0, TS_PIX(out, (int)((size_t)nearest[i] % (size_t)b->W),
+                                                      (int)((size_t)nearest[i] / (size_t)b->W))));
+        if (b->wdist && b->wdist[i] == 1) /* never below the water beside it */
+            z = fmaxf(z, fminf(z0, br_bank_floor(out, flags, i)));
+        TS_PIX(out, x, y) = z;
+    }
+done:
+    free(spread);
+    free(dist);
+    free(distb);
+    free(nearest);
+    return st;
+}
+
 ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
                             const unsigned char *flags, int patch, unsigned char *floor_out)
 {
@@ -507,8 +614,7 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
     size_t n = (size_t)out->width * (size_t)out->height, i, head, tail = 0;
     int32_t *indeg = NULL;
     size_t *queue = NULL;
-    float *delta = NULL, *spread = NULL, *dist = NULL, *distb = NULL;
-    int32_t *nearest = NULL;
+    float *delta = NULL, *carved = NULL;
     unsigned char *m = NULL;
     ts_status st = TS_OK;
     double rr = patch / 8.0, s_ref;
@@ -554,11 +660,9 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
                 floor_out[b.cell[i]] = 1;
     indeg = ts__calloc_array(b.n, sizeof *indeg);
     queue = ts__malloc_array(b.n, sizeof *queue);
-    spread = ts__malloc_array(n, sizeof *spread);
-    dist = ts__malloc_array(n, sizeof *dist);
-    distb = ts__malloc_array(n, sizeof *distb);
+    carved = ts__malloc_array(n, sizeof *carved);
     m = ts__malloc_array(n, 1);
-    if (!indeg || !queue || !delta || !spread || !dist || !distb || !m) {
+    if (!indeg || !queue || !delta || !carved || !m) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
     }
@@ -579,6 +683,10 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
         if (d >= 0 && --indeg[d] == 0)
             queue[tail++] = (size_t)d;
     }
+    if (tail != b.n) { /* every way down ends: br_orient joins no ring */
+        st = ts__fail(ctx, TS_ERR_INTERNAL, "valley breach", "the drawn valleys' ways down make a ring");
+        goto done;
+    }
     if (ts__valley_fit_floor(&b, flags, queue, tail, delta) != 0) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
@@ -587,7 +695,7 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
      * them (as the layout's valley floors) */
     for (i = 0; i < n; i++) {
         float z = TS_PIX(out, (int)(i % (size_t)b.W), (int)(i / (size_t)b.W));
-        distb[i] = delta[i]; /* the carved heights themselves, set as they are */
+        carved[i] = delta[i]; /* the carved heights themselves, set as they are */
         delta[i] = isnan(delta[i]) || isnan(z) ? NAN : delta[i] - z;
         m[i] = !isnan(delta[i]);
     }
@@ -597,46 +705,11 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
             if (!(flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))))
                 TS_PIX(out, x, y) =
                     b.wdist && b.wdist[i] == 1 /* never below the water beside it */
-                        ? fmaxf(distb[i], fminf(TS_PIX(out, x, y), br_bank_floor(out, flags, i)))
-                        : distb[i];
+                        ? fmaxf(carved[i], fminf(TS_PIX(out, x, y), br_bank_floor(out, flags, i)))
+                        : carved[i];
         }
-    /* beside them: the nearest carved cell's change, fading out over rr or
-     * over as far as the land's steep slopes (s_ref a cell) take to climb
-     * its depth, whichever is wider (a carved floor becomes a valley
-     * bottom, a cut through a pass a gorge with the land's own walls, not a
-     * slot; a fill raises the land beside it up to the floor at most), then
-     * smoothed over a cell and a half so that no step of the line's
-     * staircase shows */
-    if (!(nearest = ts__malloc_array(n, sizeof *nearest))) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
-        goto done;
-    }
-    if ((st = ts__distance_transform_nearest(ctx, m, b.W, b.H, dist, nearest)) != TS_OK)
-        goto done;
-    for (i = 0; i < n; i++) {
-        double r = nearest[i] >= 0 ? fmax(rr, 1.5 * fabs(delta[nearest[i]]) / s_ref) : rr;
-        double t = dist[i] / r;
-        spread[i] = m[i]                           ? delta[i]
-                    : (nearest[i] >= 0 && t < 3.0) ? (float)(exp(-t * t) * delta[nearest[i]])
-                                                   : 0.0f;
-    }
-    if ((st = ts__blur_nan(ctx, spread, b.W, b.W, b.H, 1.5, distb)) != TS_OK)
-        goto done;
-    for (i = 0; i < n; i++) {
-        int x = (int)(i % (size_t)b.W), y = (int)(i / (size_t)b.W);
-        float z0 = TS_PIX(out, x, y), z;
-        if (isnan(z0) || (flags && (flags[i] & (TS_CELL_FIXED | TS_CELL_NODATA))) || m[i] ||
-            isnan(distb[i]))
-            continue; /* the carved cells are set above */
-        z = (float)(z0 + fmin(0.0, distb[i]));
-        if (distb[i] > 0.0f && nearest[i] >= 0)
-            z = fminf(z0 + distb[i], fmaxf(z0, TS_PIX(out, (int)((size_t)nearest[i] % (size_t)b.W),
-                                                      (int)((size_t)nearest[i] / (size_t)b.W))));
-        if (b.wdist && b.wdist[i] == 1) /* never below the water beside it */
-            z = fmaxf(z, fminf(z0, br_bank_floor(out, flags, i)));
-        TS_PIX(out, x, y) = z;
-    }
-    if (b.wdist && br_lake_arms(out, flags) != 0)
+    st = br_beside(ctx, &b, out, flags, delta, m, rr, s_ref);
+    if (st == TS_OK && b.wdist && br_lake_arms(out, flags) != 0)
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
 done:
     free(parent);
@@ -649,10 +722,7 @@ done:
     free(indeg);
     free(queue);
     free(delta);
-    free(spread);
-    free(dist);
-    free(distb);
-    free(nearest);
+    free(carved);
     free(m);
     return st;
 }

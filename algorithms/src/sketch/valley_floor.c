@@ -268,8 +268,10 @@ int ts__valley_fit_floor(const breach *b, const unsigned char *flags, const size
         !(h.right = ts__malloc_array((TS_FLOOR_FILL + 1) * b->n + 1, sizeof *h.right)) ||
         !(h.rank = ts__malloc_array((TS_FLOOR_FILL + 1) * b->n + 1, sizeof *h.rank)))
         goto done;
-    for (k = 0; k < b->n; k++)
+    for (k = 0; k < b->n; k++) {
         root[k] = -1;
+        fit[k] = -INFINITY; /* (a cell below the order's cells: none in a tree) */
+    }
     for (k = 0; k < n; k++) { /* upstream first: the cell's term joins its upstream's */
         int32_t c = (int32_t)order[k], d = b->down[c];
         float zc = z[b->cell[c]];

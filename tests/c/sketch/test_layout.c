@@ -401,21 +401,28 @@ static ts_layout_spec layout_spec(const unsigned char *mask, int kind, int W, in
 
 /* One valley path through the n cells vv[0..n) (its two ends the nodes nn[0], nn[1],
  * taken from the cells): the feature graph the valley floor's descent walks. */
+/* A feature graph over caller-owned arrays. */
+static void wrap_features(ts_features *ff, ts_feature_node *nn, size_t n_nodes, ts_feature_path *pp,
+                          size_t n_paths, ts_feature_vertex *vv, size_t n_verts, int W, int H)
+{
+    memset(ff, 0, sizeof *ff);
+    ff->width = W;
+    ff->height = H;
+    ff->nodes = nn;
+    ff->n_nodes = n_nodes;
+    ff->paths = pp;
+    ff->n_paths = n_paths;
+    ff->verts = vv;
+    ff->n_verts = n_verts;
+}
+
 static void one_valley_path(ts_features *ff, ts_feature_node nn[2], ts_feature_path *pp,
                             ts_feature_vertex *vv, size_t n, int W, int H)
 {
     nn[0] = (ts_feature_node){vv[0].x, vv[0].y, 0, 1, TS_VALLEY};
     nn[1] = (ts_feature_node){vv[n - 1].x, vv[n - 1].y, 0, 1, TS_VALLEY};
     pp[0] = (ts_feature_path){TS_VALLEY, 0, 1, 0, n, 0, 0, 0, 0};
-    memset(ff, 0, sizeof *ff);
-    ff->width = W;
-    ff->height = H;
-    ff->nodes = nn;
-    ff->n_nodes = 2;
-    ff->paths = pp;
-    ff->n_paths = 1;
-    ff->verts = vv;
-    ff->n_verts = n;
+    wrap_features(ff, nn, 2, pp, 1, vv, n, W, H);
 }
 
 /* The floor follows the valley's own lowest line: a V valley whose bottom
@@ -460,6 +467,130 @@ static void test_valley_thalweg(void)
         CHECK_MSG(dr[x], "cell %d,%d holds water", x % W, x / W);
     free(z);
     free(dr);
+    free(fo);
+    ts_ctx_free(ctx);
+}
+
+/* Two drawn valleys whose ways down would make a ring: the west one ends a
+ * few cells from the east one (and drains into it: a channel), and the east
+ * one's way out over the lowest pass runs down a trough through the west
+ * one.  The east one's water passes the west one by and leaves at the
+ * edge: every carve cell has a way down (no TS_ERR_INTERNAL), and both
+ * floors drain. */
+static void test_valley_no_ring(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int W = 64, H = 64, x, y, k;
+    float *z = malloc((size_t)W * H * sizeof(float));
+    unsigned char *dr = malloc((size_t)W * H), *fo = calloc((size_t)W * H, 1);
+    ts_feature_vertex vv[29 + 25];
+    ts_feature_node nn[4];
+    ts_feature_path pp[2];
+    ts_features ff;
+    ts_raster r = ts_raster_wrap(z, W, H, W);
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++)
+            z[y * W + x] = (float)(100.0 + 3.0 * x + 2.0 * abs(y - 32));
+    for (k = 0; k < 29; k++)
+        vv[k] = (ts_feature_vertex){12 + k, 32, 0};
+    for (k = 0; k < 25; k++)
+        vv[29 + k] = (ts_feature_vertex){46, 20 + k, 0};
+    nn[0] = (ts_feature_node){12, 32, 0, 1, TS_VALLEY};
+    nn[1] = (ts_feature_node){40, 32, 0, 1, TS_VALLEY};
+    nn[2] = (ts_feature_node){46, 20, 0, 1, TS_VALLEY};
+    nn[3] = (ts_feature_node){46, 44, 0, 1, TS_VALLEY};
+    pp[0] = (ts_feature_path){TS_VALLEY, 0, 1, 0, 29, 0, 0, 0, 0};
+    pp[1] = (ts_feature_path){TS_VALLEY, 2, 3, 29, 25, 0, 0, 0, 0};
+    wrap_features(&ff, nn, 4, pp, 2, vv, 29 + 25, W, H);
+    CHECK_MSG(ts__valley_breach(ctx, &ff, &r, NULL, 8, fo) == TS_OK, "%s", ts_ctx_message(ctx));
+    drains_naive(z, W, H, dr);
+    for (x = 0; x < W * H; x++) {
+        CHECK_MSG(isfinite(z[x]), "cell %d,%d: %g", x % W, x / W, z[x]);
+        CHECK_MSG(!fo[x] || dr[x], "floor cell %d,%d holds water", x % W, x / W);
+    }
+    free(z);
+    free(dr);
+    free(fo);
+    ts_ctx_free(ctx);
+}
+
+/* Whether a floor cell lies within r cells (Chebyshev) of (x, y). */
+static int near_floor(const unsigned char *fo, int W, int H, int x, int y, int r)
+{
+    int u, v;
+    for (v = y - r; v <= y + r; v++)
+        for (u = x - r; u <= x + r; u++)
+            if (u >= 0 && v >= 0 && u < W && v < H && fo[v * W + u])
+                return 1;
+    return 0;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* A gorge with the land's own walls: a V valley falling west, dammed by a
+ * wall 80 m high and a few cells thick that crosses it aslant, with bumps.  The floor is cut
+ * through the wall; where the cut makes the land it lowers steeper, it is
+ * nowhere steeper than the land's steep slope (the 95th percentile of the
+ * central-difference gradient, computed here) beyond a margin for the
+ * floor's own fall, more than 3 cells off the floor (where the floor's own
+ * change is smoothed): no step where the cut's depth changes from one floor
+ * cell to the next. */
+static void test_valley_gorge(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int W = 120, H = 80, x, y, dx, dy, k = 0;
+    float *z = malloc((size_t)W * H * sizeof(float)), *z0 = malloc((size_t)W * H * sizeof(float));
+    double *g = malloc((size_t)W * H * sizeof(double)), s95, worst = 0.0;
+    unsigned char *fo = calloc((size_t)W * H, 1);
+    ts_feature_vertex vv[120];
+    ts_feature_node nn[2];
+    ts_feature_path pp[1];
+    ts_features ff;
+    ts_raster r = ts_raster_wrap(z, W, H, W);
+    uint64_t s = 5;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++)
+            z[y * W + x] = (float)(100.0 + 0.5 * x + 1.5 * abs(y - 40) +
+                                   (abs(x - 60 - (y - 40)) <= 1 && abs(y - 40) <= 25 ? 80.0 : 0.0) +
+                                   th_uniform(&s));
+    for (x = 0; x < W; x++)
+        vv[x] = (ts_feature_vertex){W - 1 - x, 40, 0};
+    one_valley_path(&ff, nn, pp, vv, (size_t)W, W, H);
+    for (y = 1; y < H - 1; y++)
+        for (x = 1; x < W - 1; x++) {
+            double gx = 0.5 * (z[y * W + x + 1] - z[y * W + x - 1]);
+            double gy = 0.5 * (z[(y + 1) * W + x] - z[(y - 1) * W + x]);
+            g[k++] = sqrt(gx * gx + gy * gy);
+        }
+    qsort(g, (size_t)k, sizeof *g, cmp_double);
+    s95 = g[(size_t)(0.95 * (k - 1))];
+    memcpy(z0, z, (size_t)W * H * sizeof(float));
+    CHECK(ts__valley_breach(ctx, &ff, &r, NULL, 32, fo) == TS_OK);
+    CHECK_MSG(z[40 * W + 60] < z0[40 * W + 60] - 60.0f, "the wall is not cut: %g -> %g",
+              z0[40 * W + 60], z[40 * W + 60]);
+    for (y = 1; y < H - 1; y++)
+        for (x = 1; x < W - 1; x++) {
+            int c = y * W + x;
+            if (z[c] > z0[c] - 0.5f || near_floor(fo, W, H, x, y, 3))
+                continue; /* the land the cut lowers, off the floor's own smoothing */
+            for (dy = -1; dy <= 1; dy++)
+                for (dx = -1; dx <= 1; dx++) {
+                    int e = c + dy * W + dx;
+                    double now = fabs((double)z[c] - z[e]), was = fabs((double)z0[c] - z0[e]);
+                    if ((dx || dy) && !near_floor(fo, W, H, x + dx, y + dy, 3) && z[e] < z0[e] - 0.5f &&
+                        now > 1.1 * was + 1.0)
+                        worst = fmax(worst, now / hypot(dx, dy)); /* made steeper */
+                }
+        }
+    CHECK_MSG(worst <= 1.25 * s95 + 1.0, "a wall of the cut climbs %.1f m a cell (steep slope %.1f)",
+              worst, s95);
+    free(z);
+    free(z0);
+    free(g);
     free(fo);
     ts_ctx_free(ctx);
 }
@@ -720,6 +851,8 @@ int main(int argc, char **argv)
     static const th_case cases[] = {
         {"nearest_brute_force", test_nearest_brute_force},
         {"valley_breach", test_valley_breach},
+        {"valley_no_ring", test_valley_no_ring},
+        {"valley_gorge", test_valley_gorge},
         {"valley_thalweg", test_valley_thalweg},
         {"floor_fit", test_floor_fit},
         {"blur_direct", test_blur_direct},
