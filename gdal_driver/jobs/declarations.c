@@ -208,7 +208,8 @@ static const tsjob_option synth_opts[] = {
     OPT_FLOW,
     {"debug_dir", TSJOB_OUTPUT, 1, 0, 0, "DIR", G_OUT,
      "seams.tif, source_exemplar.tif, source_x.tif, source_y.tif, order.tif (georeferenced); "
-     "with a sketch also its features and the output's (GeoPackage)",
+     "with a sketch also its features and the output's (GeoPackage) and valley_floor.tif "
+     "(1 on the drawn valleys' floors)",
      NULL, 0, NULL},
     OPT_RECIPE,
 };

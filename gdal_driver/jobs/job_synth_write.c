@@ -82,21 +82,22 @@ int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *
         (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
         return -1;
     if (o->debug_dir) {
-        char paths[TSJOB_N_MAPS + 2][4096];
-        const char *outs[TSJOB_N_MAPS + 4];
+        char paths[TSJOB_N_MAPS + 3][4096];
+        const char *outs[TSJOB_N_MAPS + 5];
         int k = 0;
         outs[k++] = o->output;
         outs[k++] = o->preview;
         if (tsio_make_dir(o->debug_dir, err) != 0)
             return -1;
-        for (i = 0; i < TSJOB_N_MAPS + 2; i++) {
-            const char *name = i < TSJOB_N_MAPS    ? tsjob_map_names[i]
-                               : i == TSJOB_N_MAPS ? "sketch_features"
-                                                   : "output_features";
+        for (i = 0; i < TSJOB_N_MAPS + 3; i++) {
+            const char *name = i < TSJOB_N_MAPS        ? tsjob_map_names[i]
+                               : i == TSJOB_N_MAPS     ? "sketch_features"
+                               : i == TSJOB_N_MAPS + 1 ? "output_features"
+                                                       : "valley_floor";
             if (i >= TSJOB_N_MAPS && !job->sketch)
                 break;
             if (tsio_path(paths[i], sizeof paths[i], o->debug_dir, name,
-                          i < TSJOB_N_MAPS ? "tif" : "gpkg", err) != 0 ||
+                          i < TSJOB_N_MAPS || i == TSJOB_N_MAPS + 2 ? "tif" : "gpkg", err) != 0 ||
                 tsjob__not_an_input(paths[i], in, n, err) != 0)
                 return -1;
             outs[k++] = paths[i];
@@ -181,6 +182,10 @@ int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_res
         if (bad)
             return -1;
         if (job->sketch && job_debug_features(ctx, o->debug_dir, res, err) != 0)
+            return -1;
+        if (job->sketch && m->valley_floor &&
+            (tsio_path(path, sizeof path, o->debug_dir, "valley_floor", "tif", err) != 0 ||
+             tsio_write_byte(path, NULL, &res->geo, m->valley_floor, -1, err) != 0))
             return -1;
     }
     return 0;

@@ -242,7 +242,8 @@ const int32_t *tsjob_synth_int_map(const tsjob_synth_result *res, int map);
 
 /** After compute: the DEM, the preview, and in debug_dir the maps
  *  (seams, source_exemplar, source_x, source_y, order; with a sketch its
- *  feature graph and the output's PPA axes as GeoPackages). */
+ *  feature graph and the output's PPA axes as GeoPackages, and
+ *  valley_floor: Byte, 1 on the floors of the drawn valleys). */
 int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_result *res,
                       const tsjob_outputs *o, tsio_err *err);
 

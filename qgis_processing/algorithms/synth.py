@@ -129,7 +129,8 @@ to the wanted heights.</li>
 wherever the sketch is nodata).</li>
 <li><b>Preview</b> (optional PNG): hillshade of the result.</li>
 <li><b>Debug folder</b> (optional): seams.tif, source_exemplar.tif, source_x.tif, source_y.tif,
-order.tif on the target grid (where every cell came from).</li>
+order.tif on the target grid (where every cell came from); with a sketch also its features and
+the output's (GeoPackage) and valley_floor.tif (1 on the drawn valleys' floors).</li>
 </ul>
 <p>An exemplar smaller than a patch (after resampling), all nodata or unreadable gives a
 one-line error naming the file, and nothing is written.</p>

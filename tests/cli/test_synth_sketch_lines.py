@@ -239,11 +239,21 @@ def priority_flood(z):
 def test_drawn_valleys_hold_no_closed_depression(drawn):
     """Water on a drawn valley's floor runs off the grid: beside every valley cell of the graph
     (within the floor's reach) a cell lies in no closed depression (filled minus output > 0),
-    on any of three seeds."""
+    on any of three seeds; on the first, every cell of the floor --debug-dir marks drains."""
     z = gdal.Open(str(drawn / "out.tif")).ReadAsArray().astype(float)
     valley = graph_cells(drawn / "debug" / "sketch_features.gpkg", "valley")
     dep = ndimage.minimum_filter(priority_flood(z) - z, size=2 * FLOOR_REACH + 1)
     assert (dep[valley] > 0.01).mean() <= 0.01, (dep[valley] > 0.01).mean()
+    # the floor itself (--debug-dir valley_floor.tif): every cell of it drains, it lies within
+    # its reach of the drawn valleys and runs along all of them
+    floor = gdal.Open(str(drawn / "debug" / "valley_floor.tif")).ReadAsArray() == 1
+    held = priority_flood(z) - z
+    assert floor.sum() > 0.5 * valley.sum(), (floor.sum(), valley.sum())
+    assert (held[floor] > 0.01).sum() == 0, np.argwhere(floor & (held > 0.01))[:5]
+    off = ndimage.distance_transform_edt(~valley)
+    assert off[floor].max() <= FLOOR_REACH + 1, off[floor].max()
+    near = ndimage.distance_transform_edt(~floor)
+    assert (near[valley] <= FLOOR_REACH + 1).mean() >= 0.95, (near[valley] <= FLOOR_REACH + 1).mean()
     for seed in (4, 5):
         run("synth", "--sketch", drawn / "lines.gpkg", "--like", drawn / "grid.tif", "--exemplar",
             JACKSBORO, "--seed", str(seed), drawn / f"s{seed}.tif", "-q")
