@@ -20,11 +20,12 @@ import sys
 import pytest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from tsutil import FLOOR_REACH, SHARED, run  # noqa: E402
+from tsutil import FLOOR_REACH, ROOT, SHARED, run  # noqa: E402
 
 EVAL = os.path.normpath(os.path.join(SHARED, "..", "..", "eval"))
 METRICS = os.path.join(EVAL, "terrain_metrics.py")
 SKETCHER = os.path.join(EVAL, "make_sketches.py")
+OWN_SKETCHER = os.path.join(ROOT, "bench", "quality", "draw_sketches.py")
 SEEDS = [int(s) for s in os.environ.get("TS_QUALITY_SEEDS", "1,2").split(",")]
 
 try:
@@ -58,6 +59,7 @@ CASES = [  # class, sketch, exemplar, cell size of CRS-less rasters
 def sketches(tmp_path_factory):
     d = tmp_path_factory.mktemp("sketches")
     subprocess.run([sys.executable, SKETCHER, str(d)], check=True, capture_output=True)
+    subprocess.run([sys.executable, OWN_SKETCHER, str(d)], check=True, capture_output=True)
     return d
 
 
@@ -173,6 +175,9 @@ BOTH_CASES = [  # class, sketch, exemplar, cell size of CRS-less rasters
     ("ridges and valleys", "valley_between_ridges_800.tif", "mountains_bigtujunga_ca_30m.tif",
      None),
     ("rim and gullies", "volcano_rim_gullies_700.tif", "volcano_st_helens_30m.tif", None),
+    # ours (bench/quality/draw_sketches.py): a valley cut through a caldera's rim, the floor's
+    # cut hundreds of metres deep there (its gorge's walls: seam_grad)
+    ("valley through a rim", "caldera_both_geo1s_600.tif", "mountains_bigtujunga_ca_30m.tif", None),
 ]
 
 
