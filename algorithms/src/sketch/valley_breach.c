@@ -18,8 +18,9 @@
  * nearest the grid's edge or another network within a patch (ties: the
  * lowest, then the first in raster order); networks that reach the edge
  * are joined first, and a network never drains into one that drains into
- * it (its channel passes such a network by).  Breadth first from the outlet every cell gets its downstream cell;
- * then the floor moves onto the thalweg and its heights are fitted.
+ * it (its channel passes such a network by).  Breadth first from the
+ * outlet every cell gets its downstream cell; then the floor moves onto the
+ * thalweg and its heights are fitted.
  * Cost: O(valley cells + patch^2 per network end).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
@@ -144,7 +145,8 @@ static int32_t br_dest(const breach *b, int32_t o)
  * water joins o's network or channel, *reached the network it drains to),
  * 0 it passes by (o is own's, or drains (on) into own: joining it would
  * make water run in a ring). */
-static int br_meets(const breach *b, int32_t o, int32_t own, const int32_t *drains, int32_t *reached)
+static int br_meets(const breach *b, int32_t o, int32_t own, const int32_t *drains,
+                    int32_t *reached)
 {
     int32_t t = br_dest(b, o);
     if (b->comp[o] == own || br_drains_into(drains, t, own))
@@ -271,7 +273,8 @@ static int32_t *br_flood(const ts_raster *out, const unsigned char *flags)
 /* The channel from carve cell a along the flood's way out to the edge,
  * ending at the first carve cell met that br_meets takes (which then takes
  * the water; *reached where it goes on, -2 the edge). */
-static int br_spill(breach *b, int32_t a, const int32_t *parent, const int32_t *drains, int32_t *reached)
+static int br_spill(breach *b, int32_t a, const int32_t *parent, const int32_t *drains,
+                    int32_t *reached)
 {
     int32_t prev = a, own = b->comp[a];
     long g = parent[b->cell[a]];
@@ -538,10 +541,10 @@ static int br_lake_arms(ts_raster *out, const unsigned char *flags)
 /* Beside the carved cells (m; delta their change), from the nearest one:
  * a cut lowers the land to at most the floor's height plus a wall rising
  * at the land's steep slope (s_ref a cell), or by the cut fading out over
- * rr, whichever is lower (a carved floor becomes a valley bottom, a cut through a pass a
- * gorge with the land's own walls: the walls are the floor's height
- * plus the distance, smooth across the valley even where the cut's
- * depth changes from one floor cell to the next); a fill fades out over
+ * rr, whichever is lower (a carved floor becomes a valley bottom, a cut
+ * through a pass a gorge with the land's own walls: the walls are the
+ * floor's height plus the distance, smooth across the valley even where
+ * the cut's depth changes from one floor cell to the next); a fill fades out over
  * rr or over as far as s_ref takes to climb it, whichever is wider, and
  * raises the land beside it up to the floor at most; within three
  * times that reach; then smoothed over a cell and a half so that no
@@ -684,7 +687,8 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
             queue[tail++] = (size_t)d;
     }
     if (tail != b.n) { /* every way down ends: br_orient joins no ring */
-        st = ts__fail(ctx, TS_ERR_INTERNAL, "valley breach", "the drawn valleys' ways down make a ring");
+        st = ts__fail(ctx, TS_ERR_INTERNAL, "valley breach",
+                      "the drawn valleys' ways down make a ring");
         goto done;
     }
     if (ts__valley_fit_floor(&b, flags, queue, tail, delta) != 0) {

@@ -92,7 +92,8 @@ static void test_blur_direct(void)
         int w = 40 + (int)(th_uniform(&s) * 40), h = 40 + (int)(th_uniform(&s) * 30), x, y, u, v;
         double sigma = 1.0 + th_uniform(&s) * 5.0, k[1024], var = 0.0, sum = 0.0;
         int r = ts__blur_radius(sigma), half = 3 * r;
-        float *in = malloc((size_t)w * h * sizeof(float)), *out = malloc((size_t)w * h * sizeof(float));
+        float *in = malloc((size_t)w * h * sizeof(float)),
+              *out = malloc((size_t)w * h * sizeof(float));
         for (x = 0; x < w * h; x++)
             in[x] = th_uniform(&s) < (rep % 3 == 2 ? 0.0 : 0.15) /* no NaN: the weights' shortcut */
                         ? NAN
@@ -378,8 +379,9 @@ static void make_exemplar(ts_raster *ex)
     int x, y;
     for (y = 0; y < ex->height; y++)
         for (x = 0; x < ex->width; x++)
-            TS_PIX(ex, x, y) = (float)(500.0 + 200.0 * sin(2.0 * 3.14159265358979323846 * x / 60.0) +
-                                       20.0 * sin(0.7 * y + 0.3 * x));
+            TS_PIX(ex, x, y) =
+                (float)(500.0 + 200.0 * sin(2.0 * 3.14159265358979323846 * x / 60.0) +
+                        20.0 * sin(0.7 * y + 0.3 * x));
 }
 
 /* The layout of one exemplar (with its profile) over a W x H sketch mask. */
@@ -581,13 +583,13 @@ static void test_valley_gorge(void)
                 for (dx = -1; dx <= 1; dx++) {
                     int e = c + dy * W + dx;
                     double now = fabs((double)z[c] - z[e]), was = fabs((double)z0[c] - z0[e]);
-                    if ((dx || dy) && !near_floor(fo, W, H, x + dx, y + dy, 3) && z[e] < z0[e] - 0.5f &&
-                        now > 1.1 * was + 1.0)
+                    if ((dx || dy) && !near_floor(fo, W, H, x + dx, y + dy, 3) &&
+                        z[e] < z0[e] - 0.5f && now > 1.1 * was + 1.0)
                         worst = fmax(worst, now / hypot(dx, dy)); /* made steeper */
                 }
         }
-    CHECK_MSG(worst <= 1.25 * s95 + 1.0, "a wall of the cut climbs %.1f m a cell (steep slope %.1f)",
-              worst, s95);
+    CHECK_MSG(worst <= 1.25 * s95 + 1.0,
+              "a wall of the cut climbs %.1f m a cell (steep slope %.1f)", worst, s95);
     free(z);
     free(z0);
     free(g);
@@ -725,10 +727,11 @@ static void test_valley_no_stripes(void)
     /* a smooth land, a bumpy floor line */
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++)
-            TS_PIX(&out, x, y) = (float)(400.0 + 0.2 * th_uniform(&s) +
-                                         (x == 30 + y / 4 ? 30.0 * sin(0.3 * y) +
-                                                                 150.0 * exp(-pow((y - 110) / 40.0, 2))
-                                                           : 0.0));
+            TS_PIX(&out, x, y) =
+                (float)(400.0 + 0.2 * th_uniform(&s) +
+                        (x == 30 + y / 4
+                             ? 30.0 * sin(0.3 * y) + 150.0 * exp(-pow((y - 110) / 40.0, 2))
+                             : 0.0));
     CHECK(ts__layout_apply(ctx, &sp, &out, NULL, 1.0) == TS_OK);
     /* the floor still descends cell by cell (to the outlet at either end) */
     {
@@ -810,7 +813,8 @@ static void test_corrections(void)
     for (x = 50; x < W - 30; x += 10) {
         double on = TS_PIX(&out, x, 60);
         CHECK(on > TS_PIX(&out, x, 40) + 20.0 && on > TS_PIX(&out, x, 80) + 20.0);
-        CHECK(TS_PIX(&out, x, 40) > TS_PIX(&out, x, 20) && TS_PIX(&out, x, 80) > TS_PIX(&out, x, 100));
+        CHECK(TS_PIX(&out, x, 40) > TS_PIX(&out, x, 20) &&
+              TS_PIX(&out, x, 80) > TS_PIX(&out, x, 100));
     }
     /* valleys: a flat land with a bumpy floor along a valley stroke from
      * the west edge: after the corrections the floor descends to the edge */
