@@ -42,6 +42,11 @@ int tsjob_synth_check_recipe(const tsjob_synth *job, const char *recipe, tsio_er
     return tsjob__not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
 }
 
+/* With a sketch, debug_dir also holds these (name, extension). */
+enum { JOB_SKETCH_FEATURES, JOB_OUTPUT_FEATURES, JOB_VALLEY_FLOOR, JOB_N_SKETCH_DEBUG };
+static const char *const job_sketch_debug[JOB_N_SKETCH_DEBUG][2] = {
+    {"sketch_features", "gpkg"}, {"output_features", "gpkg"}, {"valley_floor", "tif"}};
+
 /* The names of the debug maps (debug_dir/<name>.tif, the driver's MAP). */
 const char *const tsjob_map_names[TSJOB_N_MAPS] = {"seams", "source_exemplar", "source_x",
                                                    "source_y", "order"};
@@ -82,22 +87,19 @@ int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *
         (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
         return -1;
     if (o->debug_dir) {
-        char paths[TSJOB_N_MAPS + 3][4096];
-        const char *outs[TSJOB_N_MAPS + 5];
+        char paths[TSJOB_N_MAPS + JOB_N_SKETCH_DEBUG][4096];
+        const char *outs[TSJOB_N_MAPS + JOB_N_SKETCH_DEBUG + 2];
         int k = 0;
         outs[k++] = o->output;
         outs[k++] = o->preview;
         if (tsio_make_dir(o->debug_dir, err) != 0)
             return -1;
-        for (i = 0; i < TSJOB_N_MAPS + 3; i++) {
-            const char *name = i < TSJOB_N_MAPS        ? tsjob_map_names[i]
-                               : i == TSJOB_N_MAPS     ? "sketch_features"
-                               : i == TSJOB_N_MAPS + 1 ? "output_features"
-                                                       : "valley_floor";
-            if (i >= TSJOB_N_MAPS && !job->sketch)
+        for (i = 0; i < TSJOB_N_MAPS + JOB_N_SKETCH_DEBUG; i++) {
+            const char *const *sk = i < TSJOB_N_MAPS ? NULL : job_sketch_debug[i - TSJOB_N_MAPS];
+            if (sk && !job->sketch)
                 break;
-            if (tsio_path(paths[i], sizeof paths[i], o->debug_dir, name,
-                          i < TSJOB_N_MAPS || i == TSJOB_N_MAPS + 2 ? "tif" : "gpkg", err) != 0 ||
+            if (tsio_path(paths[i], sizeof paths[i], o->debug_dir, sk ? sk[0] : tsjob_map_names[i],
+                          sk ? sk[1] : "tif", err) != 0 ||
                 tsjob__not_an_input(paths[i], in, n, err) != 0)
                 return -1;
             outs[k++] = paths[i];
@@ -120,6 +122,12 @@ int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *
     return tsjob__preview_name(o->preview, err);
 }
 
+/* The path of a sketch debug file (job_sketch_debug[which]) in dir. */
+static int job_sketch_path(char path[4096], const char *dir, int which, tsio_err *err)
+{
+    return tsio_path(path, 4096, dir, job_sketch_debug[which][0], job_sketch_debug[which][1], err);
+}
+
 /* With a sketch: its feature graph and the output's PPA axes as lines. */
 static int job_debug_features(ts_ctx *ctx, const char *dir, const tsjob_synth_result *res,
                               tsio_err *err)
@@ -129,8 +137,8 @@ static int job_debug_features(ts_ctx *ctx, const char *dir, const tsjob_synth_re
     pp.min_drainage = 0; /* the axes as the synthesis sees them: by profile */
     char a[4096], b[4096];
     int rc = -1;
-    if (tsio_path(a, sizeof a, dir, "sketch_features", "gpkg", err) != 0 ||
-        tsio_path(b, sizeof b, dir, "output_features", "gpkg", err) != 0)
+    if (job_sketch_path(a, dir, JOB_SKETCH_FEATURES, err) != 0 ||
+        job_sketch_path(b, dir, JOB_OUTPUT_FEATURES, err) != 0)
         return -1;
     pp.features = res->sketch_info.mode == TS_SKETCH_BOTH      ? TS_PPA_BOTH
                   : res->sketch_info.mode == TS_SKETCH_VALLEYS ? TS_PPA_VALLEYS
@@ -184,7 +192,7 @@ int tsjob_synth_write(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_res
         if (job->sketch && job_debug_features(ctx, o->debug_dir, res, err) != 0)
             return -1;
         if (job->sketch && m->valley_floor &&
-            (tsio_path(path, sizeof path, o->debug_dir, "valley_floor", "tif", err) != 0 ||
+            (job_sketch_path(path, o->debug_dir, JOB_VALLEY_FLOOR, err) != 0 ||
              tsio_write_byte(path, NULL, &res->geo, m->valley_floor, -1, err) != 0))
             return -1;
     }

@@ -242,12 +242,12 @@ def test_drawn_valleys_hold_no_closed_depression(drawn):
     on any of three seeds; on the first, every cell of the floor --debug-dir marks drains."""
     z = gdal.Open(str(drawn / "out.tif")).ReadAsArray().astype(float)
     valley = graph_cells(drawn / "debug" / "sketch_features.gpkg", "valley")
-    dep = ndimage.minimum_filter(priority_flood(z) - z, size=2 * FLOOR_REACH + 1)
+    held = priority_flood(z) - z
+    dep = ndimage.minimum_filter(held, size=2 * FLOOR_REACH + 1)
     assert (dep[valley] > 0.01).mean() <= 0.01, (dep[valley] > 0.01).mean()
     # the floor itself (--debug-dir valley_floor.tif): every cell of it drains, it lies within
     # its reach of the drawn valleys and runs along all of them
     floor = gdal.Open(str(drawn / "debug" / "valley_floor.tif")).ReadAsArray() == 1
-    held = priority_flood(z) - z
     assert floor.sum() > 0.5 * valley.sum(), (floor.sum(), valley.sum())
     assert (held[floor] > 0.01).sum() == 0, np.argwhere(floor & (held > 0.01))[:5]
     off = ndimage.distance_transform_edt(~valley)
