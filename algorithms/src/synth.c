@@ -253,8 +253,7 @@ static ts_status sketch_begin(ts_ctx *ctx, sketch_run *r, const ts_raster *sketc
         r->profs[k] = ts__calloc_array((size_t)n_exemplars, sizeof *r->profs[k]);
     r->ex_features = ts__calloc_array((size_t)n_exemplars, sizeof *r->ex_features);
     r->crest = ts__calloc_array((size_t)n_exemplars, sizeof *r->crest);
-    if (!r->flags || !r->user_flags || !r->profs[0] || !r->profs[1] || !r->ex_features ||
-        !r->crest)
+    if (!r->flags || !r->user_flags || !r->profs[0] || !r->profs[1] || !r->ex_features || !r->crest)
         return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     for (i = 0; i < n_cells; i++) {
         size_t y = i / (size_t)W, x = i % (size_t)W;
@@ -282,8 +281,7 @@ static ts_status sketch_features_placed(ts_ctx *ctx, sketch_run *r, ts__fill *fi
                                         const ts_raster *exemplars, int n_exemplars,
                                         const ts_sketch_params *sp, const ts_ppa_params *pp,
                                         const ts_synth_params *params, ts_raster *out,
-                                        ts_synth_maps *maps, int P, size_t *n_placed,
-                                        double *times)
+                                        ts_synth_maps *maps, int P, size_t *n_placed, double *times)
 {
     ts_progress_saved sv;
     ts_status st;
@@ -341,17 +339,20 @@ static ts_status sketch_features_placed(ts_ctx *ctx, sketch_run *r, ts__fill *fi
  * seconds of the layout, of the slope style and of the rest. */
 static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill *fill,
                                const ts_raster *exemplars, int n_exemplars,
-                               const ts_sketch_params *sp,
-                               const ts_synth_constraints *constraints, ts_raster *out, int P,
-                               ts_synth_maps *maps, double *times)
+                               const ts_sketch_params *sp, const ts_synth_constraints *constraints,
+                               ts_raster *out, int P, ts_synth_maps *maps, double *times)
 {
     ts_status st = TS_OK;
     double t0 = ts__now();
-    /* 6. the relief the sketch lays out */
+    /* 6. the relief the sketch lays out, the valleys with their ways out */
     if (sp->layout > 0) {
         ts_layout_spec ls;
+        ts_features *way = NULL;
+        if ((r->kind & TS_VALLEY) &&
+            (st = ts__valley_outlets(ctx, r->sf, out, r->user_flags, P, &way)) != TS_OK)
+            return st;
         memset(&ls, 0, sizeof ls);
-        ls.sketch_mask = r->sf->mask;
+        ls.sketch_mask = way ? way->mask : r->sf->mask;
         ls.kind = r->kind;
         ls.width = out->width;
         ls.height = out->height;
@@ -360,11 +361,12 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
         ls.profs = r->profs[r->kind == TS_VALLEY];
         ls.cell_exemplar = fill->cell_exemplar;
         ls.patch = P;
-        ls.features = r->sf;
+        ls.features = way ? way : r->sf;
         ls.steep_lo = sp->slope_style > 0 ? 1.0 : 0.35;
         ls.crest = sp->crest_relief > 0 ? r->crest : NULL;
         ls.crest_relief = sp->crest_relief;
         st = ts__layout_apply(ctx, &ls, out, r->user_flags, sp->layout);
+        ts_features_free(way);
         if (st == TS_OK)
             st = ts__progress(ctx, sp->slope_style > 0 ? 0.97 : 1.0, "layout");
     }
@@ -404,16 +406,15 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
         st = ts__water_banks(ctx, out, constraints->cell_flags, P);
     /* 10. drawn valleys that drain to their outlets (ours, valley_breach.c) */
     if (st == TS_OK && (r->kind & TS_VALLEY) && sp->layout > 0)
-        st = ts__valley_breach(ctx, r->sf, out, r->user_flags, P,
-                               maps ? maps->valley_floor : NULL);
+        st = ts__valley_breach(ctx, r->sf, out, r->user_flags, P, maps ? maps->valley_floor : NULL);
     times[2] = ts__now() - t0;
     return st;
 }
 
 /* Steps 2-9 on the sketch's feature graph r->sf. */
 static ts_status sketch_stages(ts_ctx *ctx, sketch_run *r, const ts_raster *exemplars,
-                               int n_exemplars, const ts_sketch_params *sp,
-                               const ts_ppa_params *pp, const ts_synth_params *params,
+                               int n_exemplars, const ts_sketch_params *sp, const ts_ppa_params *pp,
+                               const ts_synth_params *params,
                                const ts_synth_constraints *constraints, ts_raster *out,
                                ts_synth_maps *maps, int P, ts_sketch_info *info, double *times)
 {
@@ -424,8 +425,8 @@ static ts_status sketch_stages(ts_ctx *ctx, sketch_run *r, const ts_raster *exem
     ts_status st;
     if (fill.s.usage < 0) /* automatic: off with a sketch (feature recall, seams) */
         fill.s.usage = 0.0;
-    st = sketch_features_placed(ctx, r, &fill, exemplars, n_exemplars, sp, pp, params, out, maps,
-                                P, &n_placed, times);
+    st = sketch_features_placed(ctx, r, &fill, exemplars, n_exemplars, sp, pp, params, out, maps, P,
+                                &n_placed, times);
     if (info) {
         info->n_sites = r->n_sites;
         info->n_feature_patches = n_placed;
@@ -542,8 +543,7 @@ done:
 
 TS_API ts_status ts_synth_sketch_features(ts_ctx *ctx, const ts_features *features,
                                           const ts_raster *exemplars, int n_exemplars,
-                                          const ts_sketch_params *sp,
-                                          const ts_synth_params *params,
+                                          const ts_sketch_params *sp, const ts_synth_params *params,
                                           const ts_synth_constraints *constraints, ts_raster *out,
                                           ts_synth_maps *maps, ts_sketch_info *info)
 {
@@ -559,8 +559,8 @@ TS_API ts_status ts_synth_sketch_features(ts_ctx *ctx, const ts_features *featur
         memset(info, 0, sizeof *info);
     if (!features || !features->mask)
         return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing feature graph");
-    st = sketch_begin(ctx, &r, NULL, features->width, features->height, exemplars, n_exemplars,
-                      sp, params, constraints, out, &P);
+    st = sketch_begin(ctx, &r, NULL, features->width, features->height, exemplars, n_exemplars, sp,
+                      params, constraints, out, &P);
     if (st == TS_OK) {
         n = (size_t)features->width * (size_t)features->height;
         for (i = 0; i < n; i++)
@@ -578,8 +578,8 @@ TS_API ts_status ts_synth_sketch_features(ts_ctx *ctx, const ts_features *featur
             info->mode = sketch_mode_of(r.kind);
         pp = sketch_ppa_params(P);
         r.sf = features;
-        st = sketch_stages(ctx, &r, exemplars, n_exemplars, sp, &pp, params, constraints, out,
-                           maps, P, info, times);
+        st = sketch_stages(ctx, &r, exemplars, n_exemplars, sp, &pp, params, constraints, out, maps,
+                           P, info, times);
         sketch_info_times(info, times);
     }
     sketch_run_free(&r);

@@ -7,8 +7,8 @@
 #ifndef TS_LAYOUT_H
 #define TS_LAYOUT_H
 
-#include "internal.h"
 #include "crest_profile.h"
+#include "internal.h"
 #include "relief_guide.h"
 
 /* Radius of the three box passes that approximate a Gaussian of sigma. */
@@ -80,8 +80,8 @@ ts_status ts__layout_press_range(ts_ctx *ctx, const ts_raster *exemplars, int n_
  * with the distance d to them, so a region's local mean and a line's mean
  * along it come to their wanted heights and the detail below that scale
  * stays; flags as above. */
-ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heights,
-                                  double alpha_h, const unsigned char *flags, int patch);
+ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heights, double alpha_h,
+                                  const unsigned char *flags, int patch);
 
 /* Drawn valleys that drain (valley_breach.c): the floor along every valley
  * of `f`, moved onto the valley's lowest line within patch / 10 cells of the
@@ -93,4 +93,13 @@ ts_status ts__layout_keep_heights(ts_ctx *ctx, ts_raster *out, const float *heig
  * (may be NULL; width x height, 0 on entry) gets 1 on the floor cells. */
 ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
                             const unsigned char *flags, int patch, unsigned char *floor_out);
+
+/* The drawn valleys with their ways out (ours, for the layout): *with a
+ * copy of f plus, for every valley network whose water leaves the grid
+ * (the edge, nodata, a lake) by a channel of its own, that channel (as
+ * ts__valley_breach finds it on `out`) as a valley path from the outlet:
+ * the layout then lays a valley out along the way the water goes instead
+ * of closing the valley's end.  *with NULL when f has no valleys. */
+ts_status ts__valley_outlets(ts_ctx *ctx, const ts_features *f, const ts_raster *out,
+                             const unsigned char *flags, int patch, ts_features **with);
 #endif

@@ -2,14 +2,15 @@
  * valley_breach.c - drawn valleys that drain (a TerraSynth addition): after
  * every stage that moves heights, the floor along each drawn valley is
  * carved so that it never rises on the way to its outlet, and the outlet
- * drains on: into another valley within a patch, along a straight channel,
- * or else out by the way water leaves it (the path of a priority-flood from
- * the grid's edge and the user's water: over the lowest pass), carved the
- * same way.  The floor runs along the valley's own lowest line near the
- * drawn one, its heights fitted at the least cost (a wall cut, a deep pit
- * on the floor filled: valley_floor.c); the change fades out across the
- * valley.  A lake (water cells) is an outlet as the edge is: never carved
- * into, the land beside it left at or above its level, and the land below
+ * drains on: into another valley within a patch, or else out of the grid
+ * (its edge, nodata, the user's water), by a channel along the least-cost
+ * way (the land's own low ground, through the lowest, narrowest rim),
+ * carved the same way.  The layout is given the channels out of the grid
+ * beforehand (ts__valley_outlets), so that it lays out a valley along them
+ * and the carving has little left to cut.  The floor runs along the valley's own lowest line near
+ * the drawn one, its heights fitted at the least cost (a wall cut, a deep pit on the floor filled:
+ * valley_floor.c); the change fades out across the valley.  A lake (water cells) is an outlet as
+ * the edge is: never carved into, the land beside it left at or above its level, and the land below
  * its level that it reaches raised to it (its arms: a valley ending in a
  * lake never runs below it).
  *
@@ -21,7 +22,8 @@
  * it (its channel passes such a network by).  Breadth first from the
  * outlet every cell gets its downstream cell; then the floor moves onto the
  * thalweg and its heights are fitted.
- * Cost: O(valley cells + patch^2 per network end).
+ * Cost: O(valley cells + patch^2 per network end), and per network its
+ * channel's search: O(c log c), c the cells cheaper to reach than its way.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -33,6 +35,10 @@
 
 /* The rounded foot of a cut's walls, cells */
 #define TS_WALL_ROUND 2.0
+/* How far the land's relief on a cut's walls is kept: below this scale
+ * (cells, a Gaussian's sigma) the walls keep the land's own spurs and
+ * gullies, above it they follow the wall */
+#define TS_WALL_RELIEF 4.0
 
 int32_t ts__breach_add(breach *b, size_t c)
 {
@@ -179,120 +185,155 @@ static int br_other(const breach *b, int32_t a, int32_t own, const int32_t *drai
     return best;
 }
 
-/* A straight channel from carve cell a to grid cell (tx, ty): its cells
- * (new carve cells where the line meets none) chained downstream; ends at
- * the first carve cell met that br_meets takes (*reached: where the water
- * goes on).  Returns 0, -1 out of memory. */
-static int br_channel(breach *b, int32_t a, int tx, int ty, const int32_t *drains, int32_t *reached)
+/* The search a channel's way is found by (ours, after Lindsay 2016's
+ * least-cost breaching): per grid cell its cost so far, the cell it came
+ * from and whether it is done; the cells touched, to reset; the heap. */
+typedef struct br_search {
+    float *cost, *zmin;
+    int32_t *from;
+    unsigned char *done;
+    size_t *touched, n_touched;
+    fl_item *heap;
+    size_t cap;
+    int32_t *path;
+} br_search;
+
+static int br_search_init(br_search *s, size_t n)
 {
-    size_t c = b->cell[a];
-    int x0 = (int)(c % (size_t)b->W), y0 = (int)(c / (size_t)b->W);
-    int n = TS_MAX(abs(tx - x0), abs(ty - y0)), s;
-    int32_t prev = a, own = b->comp[a];
+    memset(s, 0, sizeof *s);
+    s->cost = ts__malloc_array(n, sizeof *s->cost);
+    s->from = ts__malloc_array(n, sizeof *s->from);
+    s->zmin = ts__malloc_array(n, sizeof *s->zmin);
+    s->done = ts__calloc_array(n, 1);
+    s->touched = ts__malloc_array(n, sizeof *s->touched);
+    s->path = ts__malloc_array(n, sizeof *s->path);
+    s->cap = n + 1;
+    s->heap = ts__malloc_array(s->cap, sizeof *s->heap);
+    if (!s->cost || !s->zmin || !s->from || !s->done || !s->touched || !s->path || !s->heap)
+        return -1;
+    for (size_t i = 0; i < n; i++)
+        s->cost[i] = INFINITY;
+    return 0;
+}
+
+static void br_search_free(br_search *s)
+{
+    free(s->cost);
+    free(s->from);
+    free(s->zmin);
+    free(s->done);
+    free(s->touched);
+    free(s->path);
+    free(s->heap);
+}
+
+/* Whether water leaving by grid cell g is out: the grid's edge, a cell
+ * beside nodata, or the user's water. */
+static int br_out(const breach *b, const ts_raster *out, size_t g)
+{
+    int x = (int)(g % (size_t)b->W), y = (int)(g / (size_t)b->W), d;
+    if (x == 0 || y == 0 || x == b->W - 1 || y == b->H - 1 ||
+        (b->flags && (b->flags[g] & TS_CELL_WATER)))
+        return 1;
+    for (d = 0; d < 8; d++)
+        if (isnan(TS_PIX(out, x + BX[d], y + BY[d])))
+            return 1;
+    return 0;
+}
+
+/* The channel from carve cell a (ours): the least-cost way, a step costing
+ * its length x (how far the land there stands above the lowest cell of the
+ * way so far, which the floor may not rise above, + kappa), so that the
+ * channel runs down the land's own low ground and cuts through the lowest,
+ * narrowest rim, to the first carve cell br_meets takes (its water joins
+ * that one; *reached the network it drains to) or, with `leave`, out
+ * (br_out: *reached -2).  Dijkstra with ties by arrival: one result.
+ * The way's new cells become carve cells chained downstream; a carve cell
+ * it passes by is skipped.  Returns 1 a way found, 0 none, -1 out of memory. */
+static int br_route(breach *b, br_search *s, const ts_raster *out, int32_t a, int leave,
+                    double kappa, const int32_t *drains, int32_t *reached)
+{
+    size_t src = b->cell[a], hn = 0, k, np = 0;
+    int found;
+    int32_t own = b->comp[a], prev = a, goal = -1;
+    uint32_t order = 0;
+    fl_item it = {0.0f, 0, (int32_t)src};
     *reached = -2;
-    for (s = 1; s <= n; s++) {
-        int x = x0 + (int)lround((double)(tx - x0) * s / n);
-        int y = y0 + (int)lround((double)(ty - y0) * s / n);
-        size_t g = (size_t)y * (size_t)b->W + (size_t)x;
+    s->n_touched = 0;
+    s->cost[src] = 0.0f;
+    s->from[src] = -1;
+    s->zmin[src] = TS_PIX(out, (int)(src % (size_t)b->W), (int)(src / (size_t)b->W));
+    s->touched[s->n_touched++] = src;
+    s->heap[hn++] = it;
+    while (hn && goal < 0) {
+        int cx, cy, d;
+        it = fl_pop(s->heap, &hn);
+        if (s->done[it.cell])
+            continue;
+        s->done[it.cell] = 1;
+        if ((size_t)it.cell != src) {
+            int32_t o = b->id[it.cell];
+            if ((o >= 0 && br_meets(b, o, own, drains, reached)) ||
+                (o < 0 && leave && br_out(b, out, (size_t)it.cell))) {
+                goal = it.cell;
+                break;
+            }
+        } else if (leave && br_out(b, out, src)) {
+            break; /* the outlet is out already */
+        }
+        cx = (int)((size_t)it.cell % (size_t)b->W);
+        cy = (int)((size_t)it.cell / (size_t)b->W);
+        for (d = 0; d < 8; d++) {
+            int nx = cx + BX[d], ny = cy + BY[d];
+            size_t c;
+            double z, cost;
+            if (nx < 0 || ny < 0 || nx >= b->W || ny >= b->H)
+                continue;
+            c = (size_t)ny * (size_t)b->W + (size_t)nx;
+            z = TS_PIX(out, nx, ny);
+            if (s->done[c] || isnan(z))
+                continue;
+            cost = s->cost[it.cell] +
+                   ((d & 1) ? 1.4142135623730951 : 1.0) * (fmax(0.0, z - s->zmin[it.cell]) + kappa);
+            if (cost >= s->cost[c])
+                continue;
+            if (isinf(s->cost[c]))
+                s->touched[s->n_touched++] = c;
+            s->cost[c] = (float)cost;
+            s->from[c] = it.cell;
+            s->zmin[c] = fminf(s->zmin[it.cell], (float)z);
+            if (hn == s->cap) {
+                fl_item *nh = realloc(s->heap, 2 * s->cap * sizeof *nh);
+                if (!nh)
+                    return -1;
+                s->heap = nh;
+                s->cap *= 2;
+            }
+            fl_push(s->heap, &hn, (fl_item){(float)cost, order++, (int32_t)c});
+        }
+    }
+    found = goal >= 0 || (leave && br_out(b, out, src));
+    for (; goal >= 0 && (size_t)goal != src; goal = s->from[goal])
+        s->path[np++] = goal;
+    for (k = 0; k < s->n_touched; k++) {
+        s->cost[s->touched[k]] = INFINITY;
+        s->done[s->touched[k]] = 0;
+    }
+    while (np--) {
+        size_t g = (size_t)s->path[np];
         int32_t o = b->id[g];
         if (o >= 0) {
-            if (!br_meets(b, o, own, drains, reached))
-                continue; /* the channel goes on beyond it */
-            b->down[prev] = o;
-            return 0;
+            if (np)
+                continue;      /* a carve cell passed by */
+            b->down[prev] = o; /* the one it joins */
+            return 1;
         }
         if ((o = ts__breach_add(b, g)) < 0)
             return -1;
         b->down[prev] = o;
         prev = o;
     }
-    return 0;
-}
-
-/* The way water leaves every cell (priority-flood from the grid's edge, the
- * cells beside nodata and the user's water, Barnes et al. 2014): parent[c]
- * the cell it was flooded from, -1 where it leaves.  Following parents from any cell leads to
- * the edge over the lowest pass (the path a depression spills by). */
-static int32_t *br_flood(const ts_raster *out, const unsigned char *flags)
-{
-    int W = out->width, H = out->height, x, y, d;
-    size_t n = (size_t)W * (size_t)H, hn = 0;
-    int32_t *parent = ts__malloc_array(n, sizeof *parent);
-    unsigned char *seen = ts__calloc_array(n, 1);
-    fl_item *h = ts__malloc_array(n + 1, sizeof *h);
-    uint32_t order = 0;
-    if (!parent || !seen || !h) {
-        free(parent);
-        free(seen);
-        free(h);
-        return NULL;
-    }
-    for (y = 0; y < H; y++)
-        for (x = 0; x < W; x++) {
-            size_t c = (size_t)y * (size_t)W + (size_t)x;
-            int edge = x == 0 || y == 0 || x == W - 1 || y == H - 1 ||
-                       (flags && (flags[c] & TS_CELL_WATER)); /* a lake takes water too */
-            parent[c] = -1;
-            if (isnan(TS_PIX(out, x, y))) {
-                seen[c] = 1;
-                continue;
-            }
-            for (d = 0; d < 8 && !edge; d++)
-                edge = isnan(TS_PIX(out, x + BX[d], y + BY[d]));
-            if (edge) {
-                fl_item it = {TS_PIX(out, x, y), order++, (int32_t)c};
-                seen[c] = 1;
-                fl_push(h, &hn, it);
-            }
-        }
-    while (hn) {
-        fl_item it = fl_pop(h, &hn);
-        int cx = (int)((size_t)it.cell % (size_t)W), cy = (int)((size_t)it.cell / (size_t)W);
-        for (d = 0; d < 8; d++) {
-            int nx = cx + BX[d], ny = cy + BY[d];
-            size_t c;
-            fl_item nt;
-            if (nx < 0 || ny < 0 || nx >= W || ny >= H)
-                continue;
-            c = (size_t)ny * (size_t)W + (size_t)nx;
-            if (seen[c])
-                continue;
-            seen[c] = 1;
-            parent[c] = it.cell;
-            nt.level = fmaxf(it.level, TS_PIX(out, nx, ny));
-            nt.order = order++;
-            nt.cell = (int32_t)c;
-            fl_push(h, &hn, nt);
-        }
-    }
-    free(seen);
-    free(h);
-    return parent;
-}
-
-/* The channel from carve cell a along the flood's way out to the edge,
- * ending at the first carve cell met that br_meets takes (which then takes
- * the water; *reached where it goes on, -2 the edge). */
-static int br_spill(breach *b, int32_t a, const int32_t *parent, const int32_t *drains,
-                    int32_t *reached)
-{
-    int32_t prev = a, own = b->comp[a];
-    long g = parent[b->cell[a]];
-    *reached = -2;
-    for (; g >= 0; g = parent[g]) {
-        int32_t o = b->id[(size_t)g];
-        if (o >= 0) {
-            if (!br_meets(b, o, own, drains, reached))
-                continue;
-            b->down[prev] = o;
-            return 0;
-        }
-        if ((o = ts__breach_add(b, (size_t)g)) < 0)
-            return -1;
-        b->down[prev] = o;
-        prev = o;
-    }
-    return 0;
+    return found;
 }
 
 typedef struct br_outlet {
@@ -308,7 +349,7 @@ static int br_outlet_cmp(const void *pa, const void *pb)
 }
 
 /* Each network's outlet, its channel, and every cell's downstream cell. */
-static int br_orient(breach *b, const ts_raster *out, int32_t **parent)
+static int br_orient(breach *b, const ts_raster *out, br_search *s, double kappa)
 {
     int32_t n_comp = b->n_comp, c, *drains = NULL;
     size_t i, n0 = b->n, *queue = NULL;
@@ -360,18 +401,17 @@ static int br_orient(breach *b, const ts_raster *out, int32_t **parent)
                     best_end = (int32_t)j;
                 }
             }
-        if (hit >= 0 && other < border) {
-            size_t g = b->cell[hit];
-            a = best_end;
-            if (br_channel(b, a, (int)(g % (size_t)b->W), (int)(g / (size_t)b->W), drains,
-                           &drains[k]) != 0)
+        {
+            /* into the valley within a patch (nearer than the edge), else
+             * out; the least-cost way either (or out when no way joins) */
+            int r = hit >= 0 && other < border
+                        ? br_route(b, s, out, best_end, 0, kappa, drains, &drains[k])
+                        : 0;
+            if (r > 0)
+                a = best_end;
+            else if (r == 0 && br_route(b, s, out, a, 1, kappa, drains, &drains[k]) < 0)
                 goto done;
-        } else {
-            /* out by the way the water leaves: to the edge over the lowest
-             * pass, carved (or into a valley met on the way) */
-            if (!*parent && !(*parent = br_flood(out, b->flags)))
-                goto done;
-            if (br_spill(b, a, *parent, drains, &drains[k]) != 0)
+            if (r < 0)
                 goto done;
         }
         /* breadth first from the outlet: every cell's downstream cell */
@@ -544,7 +584,9 @@ static int br_lake_arms(ts_raster *out, const unsigned char *flags)
  * rr, whichever is lower (a carved floor becomes a valley bottom, a cut
  * through a pass a gorge with the land's own walls: the walls are the
  * floor's height plus the distance, smooth across the valley even where
- * the cut's depth changes from one floor cell to the next); a fill fades out over
+ * the cut's depth changes from one floor cell to the next); the walls'
+ * lowering is blurred over TS_WALL_RELIEF, so that they keep the land's
+ * spurs and gullies finer than that instead of a plane; a fill fades out over
  * rr or over as far as s_ref takes to climb it, whichever is wider, and
  * raises the land beside it up to the floor at most; within three
  * times that reach; then smoothed over a cell and a half so that no
@@ -554,10 +596,11 @@ static ts_status br_beside(ts_ctx *ctx, const breach *b, ts_raster *out, const u
 {
     size_t n = (size_t)b->W * (size_t)b->H, i;
     float *spread = ts__malloc_array(n, sizeof *spread), *dist = ts__malloc_array(n, sizeof *dist);
-    float *distb = ts__malloc_array(n, sizeof *distb);
+    float *distb = ts__malloc_array(n, sizeof *distb), *wall = ts__malloc_array(n, sizeof *wall);
+    float *wallb = ts__malloc_array(n, sizeof *wallb);
     int32_t *nearest = ts__malloc_array(n, sizeof *nearest);
     ts_status st = TS_OK;
-    if (!spread || !dist || !distb || !nearest) {
+    if (!spread || !dist || !distb || !wall || !wallb || !nearest) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
     }
@@ -567,7 +610,7 @@ static ts_status br_beside(ts_ctx *ctx, const breach *b, ts_raster *out, const u
         size_t q = (size_t)nearest[i];
         double dq = nearest[i] >= 0 ? delta[q] : 0.0, d = dist[i];
         double r = fmax(rr, 1.5 * fabs(dq) / s_ref), t = d / r, tb = d / rr;
-        spread[i] = m[i] ? delta[i] : 0.0f;
+        spread[i] = wall[i] = m[i] ? delta[i] : 0.0f;
         if (m[i] || nearest[i] < 0 || t >= 3.0)
             continue;
         if (dq >= 0.0) {
@@ -581,12 +624,16 @@ static ts_status br_beside(ts_ctx *ctx, const breach *b, ts_raster *out, const u
                                           : s_ref * (d - 0.5 * TS_WALL_ROUND);
             double zf = TS_PIX(out, (int)(q % (size_t)b->W), (int)(q / (size_t)b->W));
             double z0 = TS_PIX(out, (int)(i % (size_t)b->W), (int)(i / (size_t)b->W));
-            double wall = fmax(dq, fmin(0.0, zf + g - z0));
-            spread[i] = (float)fmin(wall, tb < 3.0 ? exp(-tb * tb) * dq : 0.0);
+            wall[i] = (float)fmax(dq, fmin(0.0, zf + g - z0));
+            spread[i] = (float)(tb < 3.0 ? exp(-tb * tb) * dq : 0.0);
         }
     }
-    if ((st = ts__blur_nan(ctx, spread, b->W, b->W, b->H, 1.5, distb)) != TS_OK)
+    if ((st = ts__blur_nan(ctx, spread, b->W, b->W, b->H, 1.5, distb)) != TS_OK ||
+        (st = ts__blur_nan(ctx, wall, b->W, b->W, b->H, TS_WALL_RELIEF, wallb)) != TS_OK)
         goto done;
+    for (i = 0; i < n; i++)
+        if (!isnan(wallb[i]) && wallb[i] < 0.0f)
+            distb[i] = isnan(distb[i]) ? wallb[i] : fminf(distb[i], wallb[i]);
     for (i = 0; i < n; i++) {
         int x = (int)(i % (size_t)b->W), y = (int)(i / (size_t)b->W);
         float z0 = TS_PIX(out, x, y), z;
@@ -605,7 +652,180 @@ done:
     free(spread);
     free(dist);
     free(distb);
+    free(wall);
+    free(wallb);
     free(nearest);
+    return st;
+}
+
+/* b set up for the valleys of f on out: the water's distance, the carve
+ * cells and their networks (b zeroed first; freed by br_free). */
+static ts_status br_setup(ts_ctx *ctx, breach *b, const ts_features *f, const ts_raster *out,
+                          const unsigned char *flags, int patch)
+{
+    size_t n = (size_t)out->width * (size_t)out->height, i;
+    int fail;
+    b->W = out->width;
+    b->H = out->height;
+    b->P = patch;
+    b->flags = flags;
+    b->wdist = br_water_distance(flags, b->W, b->H, &fail);
+    if (fail || !(b->id = ts__malloc_array(n, sizeof *b->id)))
+        return ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+    for (i = 0; i < n; i++)
+        b->id[i] = -1;
+    if (br_build(b, f) != 0)
+        return ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+    return TS_OK;
+}
+
+static void br_free(breach *b)
+{
+    free(b->wdist);
+    free(b->id);
+    free(b->cell);
+    free(b->adj);
+    free(b->comp);
+    free(b->down);
+}
+
+/* Appends to g the channel of carve cells ch[0..len) out of the network end
+ * at carve cell a as a valley path from a's node to a new end node; 0, or
+ * -1 out of memory (a without a node of its own: nothing appended). */
+static int br_append_channel(ts_features *g, const breach *b, const ts_raster *out, int32_t a,
+                             const int32_t *ch, size_t len)
+{
+    int ax = (int)(b->cell[a] % (size_t)b->W), ay = (int)(b->cell[a] / (size_t)b->W);
+    size_t k, na = g->n_nodes;
+    ts_feature_path *p;
+    ts_feature_node *nd;
+    for (k = 0; k < g->n_nodes; k++)
+        if (g->nodes[k].kind == TS_VALLEY && g->nodes[k].x == ax && g->nodes[k].y == ay)
+            break;
+    if (k == g->n_nodes)
+        return 0;
+    nd = realloc(g->nodes, (g->n_nodes + 1) * sizeof *nd);
+    if (nd)
+        g->nodes = nd;
+    p = nd ? realloc(g->paths, (g->n_paths + 1) * sizeof *p) : NULL;
+    if (p)
+        g->paths = p;
+    if (p) {
+        ts_feature_vertex *v = realloc(g->verts, (g->n_verts + len + 1) * sizeof *v);
+        if (!v)
+            return -1;
+        g->verts = v;
+    } else {
+        return -1;
+    }
+    g->nodes[k].degree++;
+    p = &g->paths[g->n_paths++];
+    memset(p, 0, sizeof *p);
+    p->kind = TS_VALLEY;
+    p->node_a = k;
+    p->node_b = na;
+    p->first = g->n_verts;
+    p->count = len + 1;
+    p->zmin = INFINITY;
+    p->zmax = -INFINITY;
+    for (k = 0; k <= len; k++) {
+        size_t c = b->cell[k ? ch[k - 1] : a];
+        ts_feature_vertex *v = &g->verts[g->n_verts++];
+        v->x = (int)(c % (size_t)b->W);
+        v->y = (int)(c / (size_t)b->W);
+        v->z = TS_PIX(out, v->x, v->y);
+        g->mask[c] |= TS_VALLEY;
+        p->zmin = fminf(p->zmin, v->z);
+        p->zmax = fmaxf(p->zmax, v->z);
+        p->zmean += v->z / (float)(len + 1);
+        if (k)
+            p->length += hypot(v->x - v[-1].x, v->y - v[-1].y);
+    }
+    nd = &g->nodes[g->n_nodes++];
+    memset(nd, 0, sizeof *nd);
+    nd->x = g->verts[g->n_verts - 1].x;
+    nd->y = g->verts[g->n_verts - 1].y;
+    nd->z = g->verts[g->n_verts - 1].z;
+    nd->degree = 1;
+    nd->kind = TS_VALLEY;
+    return 0;
+}
+
+/* A copy of f. */
+static ts_features *br_copy_features(const ts_features *f)
+{
+    ts_features *g = calloc(1, sizeof *g);
+    size_t n = (size_t)f->width * (size_t)f->height;
+    if (!g)
+        return NULL;
+    *g = *f;
+    g->mask = ts__malloc_array(n, 1);
+    g->nodes = ts__malloc_array(f->n_nodes + 1, sizeof *g->nodes);
+    g->paths = ts__malloc_array(f->n_paths + 1, sizeof *g->paths);
+    g->verts = ts__malloc_array(f->n_verts + 1, sizeof *g->verts);
+    if (!g->mask || !g->nodes || !g->paths || !g->verts) {
+        ts_features_free(g);
+        return NULL;
+    }
+    memcpy(g->mask, f->mask, n);
+    if (f->n_nodes)
+        memcpy(g->nodes, f->nodes, f->n_nodes * sizeof *g->nodes);
+    if (f->n_paths)
+        memcpy(g->paths, f->paths, f->n_paths * sizeof *g->paths);
+    if (f->n_verts)
+        memcpy(g->verts, f->verts, f->n_verts * sizeof *g->verts);
+    return g;
+}
+
+ts_status ts__valley_outlets(ts_ctx *ctx, const ts_features *f, const ts_raster *out,
+                             const unsigned char *flags, int patch, ts_features **with)
+{
+    breach b;
+    br_search srch;
+    size_t n = (size_t)out->width * (size_t)out->height, i, n0;
+    float *work = NULL;
+    int32_t *ch = NULL;
+    unsigned char *taken = NULL;
+    ts_status st = TS_OK;
+    memset(&b, 0, sizeof b);
+    memset(&srch, 0, sizeof srch);
+    *with = NULL;
+    if (!f || (st = br_setup(ctx, &b, f, out, flags, patch)) != TS_OK || !b.n)
+        goto done;
+    n0 = b.n;
+    if (!(work = ts__malloc_array(n, sizeof *work)) || br_search_init(&srch, n) != 0 ||
+        br_orient(&b, out, &srch, 0.25 * breach_steep(out, work)) != 0 ||
+        !(ch = ts__malloc_array(b.n + 1, sizeof *ch)) || !(taken = ts__calloc_array(b.n + 1, 1)) ||
+        !(*with = br_copy_features(f))) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+        goto done;
+    }
+    /* every outlet whose channel runs out of the grid by itself (one that
+     * joins a valley or another channel is left as it is) */
+    for (i = 0; i < n0; i++) {
+        int32_t j = b.down[i];
+        size_t len = 0, k;
+        if (b.comp[i] < 0 || j < 0 || b.comp[j] >= 0)
+            continue;
+        for (; j >= 0 && b.comp[j] < 0 && !taken[j]; j = b.down[j])
+            ch[len++] = j;
+        for (k = 0; k < len; k++)
+            taken[ch[k]] = 1;
+        if (j < 0 && br_append_channel(*with, &b, out, (int32_t)i, ch, len) != 0) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+            goto done;
+        }
+    }
+done:
+    if (st != TS_OK) {
+        ts_features_free(*with);
+        *with = NULL;
+    }
+    br_search_free(&srch);
+    br_free(&b);
+    free(work);
+    free(ch);
+    free(taken);
     return st;
 }
 
@@ -613,7 +833,7 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
                             const unsigned char *flags, int patch, unsigned char *floor_out)
 {
     breach b;
-    int32_t *parent = NULL;
+    br_search srch;
     size_t n = (size_t)out->width * (size_t)out->height, i, head, tail = 0;
     int32_t *indeg = NULL;
     size_t *queue = NULL;
@@ -622,35 +842,20 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
     ts_status st = TS_OK;
     double rr = patch / 8.0, s_ref;
     memset(&b, 0, sizeof b);
+    memset(&srch, 0, sizeof srch);
     if (!f)
         return TS_OK;
-    b.W = out->width;
-    b.H = out->height;
-    b.P = patch;
-    b.flags = flags;
-    {
-        int fail;
-        b.wdist = br_water_distance(flags, b.W, b.H, &fail);
-        if (fail)
-            return ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
-    }
-    if (!(b.id = ts__malloc_array(n, sizeof *b.id))) {
-        free(b.wdist);
-        return ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
-    }
-    for (i = 0; i < n; i++)
-        b.id[i] = -1;
-    if (br_build(&b, f) != 0 || (b.n && br_orient(&b, out, &parent) != 0)) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
-        goto done;
-    }
-    if (!b.n)
+    if ((st = br_setup(ctx, &b, f, out, flags, patch)) != TS_OK || !b.n)
         goto done;
     if (!(delta = ts__malloc_array(n, sizeof *delta))) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
     }
     s_ref = breach_steep(out, delta);
+    if (br_search_init(&srch, n) != 0 || br_orient(&b, out, &srch, 0.25 * s_ref) != 0) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+        goto done;
+    }
     if (ts__valley_thalweg(ctx, &b, out, fmax(2.0, patch / 10.0), 0.25 * s_ref) != 0) {
         st = ts_ctx_status(ctx) != TS_OK
                  ? ts_ctx_status(ctx)
@@ -716,13 +921,8 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
     if (st == TS_OK && b.wdist && br_lake_arms(out, flags) != 0)
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
 done:
-    free(parent);
-    free(b.wdist);
-    free(b.id);
-    free(b.cell);
-    free(b.adj);
-    free(b.comp);
-    free(b.down);
+    br_search_free(&srch);
+    br_free(&b);
     free(indeg);
     free(queue);
     free(delta);

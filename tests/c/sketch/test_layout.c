@@ -4,7 +4,8 @@
  * of the distance transform against brute force, the three-box blur
  * against a direct NaN-aware convolution with the same kernel (and its
  * spread against the Gaussian it stands for), valley floors made to
- * descend on a branching network, and the corrections themselves: a flat
+ * descend on a branching network, a valley's way out along the lowest way
+ * (brute force), and the corrections themselves: a flat
  * land takes the sketch's ridge, fixed cells never change, strength 0
  * changes nothing, valley floors descend cell by cell, and a steep valley
  * stroke's staircase leaves no stripes across the valley.
@@ -516,6 +517,99 @@ static void test_valley_no_ring(void)
     ts_ctx_free(ctx);
 }
 
+/* The lowest level at which water at cell c0 reaches the grid's edge
+ * (brute force: for every candidate level, the cells at or below it that
+ * join c0 breadth first). */
+static float lowest_way_out(const float *z, int W, int H, int c0)
+{
+    int n = W * H, i, *q = malloc((size_t)n * sizeof *q);
+    unsigned char *seen = malloc((size_t)n);
+    float best = INFINITY;
+    for (i = 0; i < n; i++) {
+        int head = 0, tail = 0, out = 0;
+        float lv = z[i];
+        if (lv < z[c0] || lv >= best)
+            continue;
+        memset(seen, 0, (size_t)n);
+        q[tail++] = c0;
+        seen[c0] = 1;
+        while (head < tail && !out) {
+            int c = q[head++], x = c % W, y = c / W, dx, dy;
+            out = x == 0 || y == 0 || x == W - 1 || y == H - 1;
+            for (dy = -1; dy <= 1; dy++)
+                for (dx = -1; dx <= 1; dx++) {
+                    int nx = x + dx, ny = y + dy, nc = ny * W + nx;
+                    if (nx < 0 || ny < 0 || nx >= W || ny >= H || seen[nc] || z[nc] > lv)
+                        continue;
+                    seen[nc] = 1;
+                    q[tail++] = nc;
+                }
+        }
+        if (out)
+            best = lv;
+    }
+    free(q);
+    free(seen);
+    return best;
+}
+
+/* A drawn valley whose end lies in a bowl (the land rises 8 m a cell all
+ * round it), with one low winding corridor (rising 1 m a cell) out to the
+ * east edge: the way out the layout is given (ts__valley_outlets) is a new
+ * valley path from the valley's end node to the grid's edge, its highest
+ * cell no higher than the lowest way out (brute force), every cell of it
+ * in the mask; the drawn paths stay as they were. */
+static void test_valley_way_out(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    int W = 64, H = 64, x, y, k;
+    float *z = malloc((size_t)W * H * sizeof(float)), pass, top = -INFINITY;
+    unsigned char *mask = calloc((size_t)W * H, 1);
+    ts_feature_vertex vv[25];
+    ts_feature_node nn[2];
+    ts_feature_path pp[1];
+    ts_features ff, *with = NULL;
+    ts_raster r = ts_raster_wrap(z, W, H, W);
+    for (y = 0; y < H; y++)
+        for (x = 0; x < W; x++)
+            z[y * W + x] = (float)(300.0 + 8.0 * hypot(x - 32, y - 32));
+    for (k = 0; k < 25; k++) { /* the valley, its end at (32, 44) */
+        vv[k] = (ts_feature_vertex){32, 20 + k, 0};
+        mask[(20 + k) * W + 32] = TS_VALLEY;
+        z[(20 + k) * W + 32] = (float)(300.0 - k);
+    }
+    for (k = 1; k <= 40; k++) { /* the corridor: south-east, then east */
+        int cx = 32 + (k < 12 ? k / 2 : k - 6), cy = 44 + (k < 12 ? k : 11);
+        for (x = cx - 1; x <= cx + 1 && cx < W; x++)
+            if (x < W)
+                z[cy * W + x] = fminf(z[cy * W + x], (float)(276.0 + k));
+    }
+    one_valley_path(&ff, nn, pp, vv, 25, W, H);
+    ff.mask = mask;
+    pass = lowest_way_out(z, W, H, 44 * W + 32);
+    CHECK_MSG(ts__valley_outlets(ctx, &ff, &r, NULL, 8, &with) == TS_OK, "%s", ts_ctx_message(ctx));
+    CHECK(with && with->n_paths == 2 && with->n_nodes == 3);
+    if (with && with->n_paths == 2 && with->n_nodes == 3) {
+        const ts_feature_path *c = &with->paths[1];
+        const ts_feature_vertex *e = &with->verts[c->first + c->count - 1];
+        CHECK(with->paths[0].count == 25 && with->paths[0].first == 0);
+        CHECK(c->kind == TS_VALLEY && c->node_a == 1 && with->nodes[1].degree == 2);
+        CHECK(with->verts[c->first].x == 32 && with->verts[c->first].y == 44);
+        CHECK_MSG(e->x == 0 || e->y == 0 || e->x == W - 1 || e->y == H - 1,
+                  "the way out ends at %d,%d", e->x, e->y);
+        for (k = 0; k < (int)c->count; k++) {
+            const ts_feature_vertex *v = &with->verts[c->first + (size_t)k];
+            top = fmaxf(top, z[v->y * W + v->x]);
+            CHECK(with->mask[v->y * W + v->x] & TS_VALLEY);
+        }
+        CHECK_MSG(top <= pass + 0.01f, "the way out climbs to %g, the lowest way %g", top, pass);
+    }
+    ts_features_free(with);
+    free(z);
+    free(mask);
+    ts_ctx_free(ctx);
+}
+
 /* Whether a floor cell lies within r cells (Chebyshev) of (x, y). */
 static int near_floor(const unsigned char *fo, int W, int H, int x, int y, int r)
 {
@@ -856,6 +950,7 @@ int main(int argc, char **argv)
         {"nearest_brute_force", test_nearest_brute_force},
         {"valley_breach", test_valley_breach},
         {"valley_no_ring", test_valley_no_ring},
+        {"valley_way_out", test_valley_way_out},
         {"valley_gorge", test_valley_gorge},
         {"valley_thalweg", test_valley_thalweg},
         {"floor_fit", test_floor_fit},
