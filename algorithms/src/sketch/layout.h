@@ -95,11 +95,12 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
                             const unsigned char *flags, int patch, unsigned char *floor_out);
 
 /* The drawn valleys with their ways out (ours, for the layout): *with a
- * copy of f plus, for every valley network whose water leaves the grid
- * (the edge, nodata, a lake) by a channel of its own, that channel (as
- * ts__valley_breach finds it on `out`) as a valley path from the outlet:
- * the layout then lays a valley out along the way the water goes instead
- * of closing the valley's end.  *with NULL when f has no valleys. */
+ * copy of f plus, for every valley network whose water runs on by a
+ * channel (out of the grid: the edge, nodata, a lake; or into another
+ * valley), that channel (as ts__valley_breach finds it on `out`) as a
+ * valley path from the outlet: the layout then lays a valley out along the
+ * way the water goes instead of closing the valley's end.  *with NULL when
+ * f has no valleys. */
 ts_status ts__valley_outlets(ts_ctx *ctx, const ts_features *f, const ts_raster *out,
                              const unsigned char *flags, int patch, ts_features **with);
 #endif

@@ -5,7 +5,7 @@
  * drains on: into another valley within a patch, or else out of the grid
  * (its edge, nodata, the user's water), by a channel along the least-cost
  * way (the land's own low ground, through the lowest, narrowest rim),
- * carved the same way.  The layout is given the channels out of the grid
+ * carved the same way.  The layout is given the channels
  * beforehand (ts__valley_outlets), so that it lays out a valley along them
  * and the carving has little left to cut.  The floor runs along the valley's own lowest line near
  * the drawn one, its heights fitted at the least cost (a wall cut, a deep pit on the floor filled:
@@ -800,8 +800,8 @@ ts_status ts__valley_outlets(ts_ctx *ctx, const ts_features *f, const ts_raster 
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
     }
-    /* every outlet whose channel runs out of the grid by itself (one that
-     * joins a valley or another channel is left as it is) */
+    /* every outlet's channel, out of the grid or into another valley (up to
+     * the cells of a channel taken already: it ends beside them) */
     for (i = 0; i < n0; i++) {
         int32_t j = b.down[i];
         size_t len = 0, k;
@@ -811,7 +811,7 @@ ts_status ts__valley_outlets(ts_ctx *ctx, const ts_features *f, const ts_raster 
             ch[len++] = j;
         for (k = 0; k < len; k++)
             taken[ch[k]] = 1;
-        if (j < 0 && br_append_channel(*with, &b, out, (int32_t)i, ch, len) != 0) {
+        if (len && br_append_channel(*with, &b, out, (int32_t)i, ch, len) != 0) {
             st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
             goto done;
         }
