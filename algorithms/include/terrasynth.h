@@ -570,16 +570,6 @@ TS_API ts_status ts_synth_tiled(ts_ctx *ctx, const ts_raster *exemplars, int n_e
 /** The wave of tile (ti, tj) in ts_synth_tiled: (ti & 1) + 2 (tj & 1). */
 TS_API int ts_synth_tile_wave(int ti, int tj);
 
-/** The nti x ntj tiles ts_synth_tiled makes for a width x height grid: the
- * grid's own and the tiles past its right and bottom edges that those need
- * (up to three columns and one row more), so that every tile is a function
- * of the seed, the parameters and its position on the lattice anchored at
- * the grid's top-left corner, not of the grid's width and height: a grid
- * made larger keeps what the smaller one had, but within the drainage
- * stage's reach of the smaller one's right and bottom edges (water left
- * by them). */
-TS_API void ts_synth_tiles_span(int width, int height, int tile, int *nti, int *ntj);
-
 /** The odd rows of tiles in each band of ts_synth_tiled without debug maps
  * (B: a step holds threads x max(1, 2048 / tile) tiles at least), for a grid
  * `width` cells wide; 2 B + 1 rows of tiles' windows are alive at once. */
@@ -607,12 +597,10 @@ typedef struct ts_synth_tile {
 } ts_synth_tile;
 
 /**
- * Where tile (ti, tj) (within ts_synth_tiles_span) of a width x height grid
- * in tiles of `tile` cells lies: window = {x, y, w, h} of the cells its
- * synthesis makes (its core grown by the patch size, cut at the grid's left
- * and top edges only: it may reach past the right and bottom ones), core =
- * {x, y, w, h} of the cells it gives the output (the core's cells on the
- * grid: w or h 0 for a tile past its edge); either may be NULL.
+ * Where tile (ti, tj) of a width x height grid in tiles of `tile` cells
+ * lies: window = {x, y, w, h} of the cells its synthesis makes (its core
+ * grown by the patch size, clipped to the grid), core = {x, y, w, h} of
+ * the cells it gives the output (either may be NULL).
  */
 TS_API ts_status ts_synth_tile_window(ts_ctx *ctx, const ts_synth_params *params, int tile,
                                       int width, int height, int ti, int tj, int window[4],

@@ -189,15 +189,12 @@ def wave(ti, tj):
     return (ti & 1) + 2 * (tj & 1)
 
 
-def tile_tasks(client, recipe, plugins, W, H, T, span, reach=0):
+def tile_tasks(client, recipe, plugins, W, H, T, reach=0):
     """Submit a task per tile, each after the earlier-wave neighbours it takes (tiles in row
     order, a tile's needs first: Dask runs them in about that order, so the windows it holds
     are a few tile rows); with the drainage stage (reach > 0 rings of tiles) a task per tile
-    after them that drains its core.  span: the nti x ntj tiles the recipe is made of (its
-    grid's and those past its right and bottom edges that they need, which give the output
-    nothing).  Returns the futures of the grid's tiles."""
-    nti, ntj = span
-    gi, gj = (W + T - 1) // T, (H + T - 1) // T
+    after them that drains its core."""
+    nti, ntj = (W + T - 1) // T, (H + T - 1) // T
     futs = {}
 
     def submit(ti, tj):
@@ -223,15 +220,15 @@ def tile_tasks(client, recipe, plugins, W, H, T, span, reach=0):
             futs[(i, j)] = client.submit(make_tile, recipe, plugins, i, j, nb, pure=True,
                                          retries=2, priority=-j, key="tile-%d-%d-%s" % (
                                              i, j, abs(hash((recipe, plugins)))))
-    for tj in range(gj):
-        for ti in range(gi):
+    for tj in range(ntj):
+        for ti in range(nti):
             submit(ti, tj)
     if not reach:
-        return {k: v for k, v in futs.items() if k[0] < gi and k[1] < gj}
+        return futs
     # the drainage stage: each core from the tiles within reach rings of it
     drained = {}
-    for tj in range(gj):
-        for ti in range(gi):
+    for tj in range(ntj):
+        for ti in range(nti):
             near = [futs.get((ti + di, tj + dj)) for dj in range(-reach, reach + 1)
                     for di in range(-reach, reach + 1)]
             drained[(ti, tj)] = client.submit(drain_tile, recipe, plugins, ti, tj, reach, near,
@@ -281,7 +278,7 @@ def main(argv=None):
     from osgeo import gdal
     gdal.UseExceptions()
     # the recipe read by the TSYN driver (the library's parser and checks): its grid, and
-    # how it is made (metadata domain TSYN: JOB, WINDOWS any|tiles|whole, TILE_SIZE, TILES_SPAN,
+    # how it is made (metadata domain TSYN: JOB, WINDOWS any|tiles|whole, TILE_SIZE,
     # DRAINAGE_MARGIN, the files it reads as INPUT_n)
     try:
         src = gdal.OpenEx(a.recipe, gdal.OF_RASTER | gdal.OF_READONLY, allowed_drivers=["TSYN"])
@@ -290,7 +287,6 @@ def main(argv=None):
     how = src.GetMetadata("TSYN") or {}
     method, windows_alone = how.get("JOB", "?"), how.get("WINDOWS") == "any"
     tile = int(how.get("TILE_SIZE", "0"))
-    span = tuple(int(v) for v in how.get("TILES_SPAN", "0,0").split(","))
     # the cells round a window its drainage stage reads: chunks of "any" windows are by
     # default at least 4 times as large, so the margin costs at most 2.25 x their cells
     margin = int(how.get("DRAINAGE_MARGIN", "0"))
@@ -395,7 +391,7 @@ def main(argv=None):
         pending = [] if tile else list(windows)
         futures = as_completed()
         if tile:  # one task per tile, the waves as dependencies
-            futs = tile_tasks(client, recipe, plugins, W, H, tile, span,
+            futs = tile_tasks(client, recipe, plugins, W, H, tile,
                               -(-margin // tile) if margin else 0)
             windows = list(futs)
             futures = as_completed(list(futs.values()))

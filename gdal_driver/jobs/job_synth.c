@@ -36,8 +36,7 @@ static uint64_t job_synth_match_cells(const tsjob_synth_result *res, uint64_t tg
 {
     double side = sqrt((double)tgt);
     int s = side < (double)INT_MAX ? (int)side : INT_MAX;
-    int K =
-        ts_synth_match_level(res->params.coarse_factor, (int)res->params.patch_size.value, s, s);
+    int K = ts_synth_match_level(res->params.coarse_factor, (int)res->params.patch_size.value, s, s);
     return (tgt >> (2 * K)) + 1;
 }
 
@@ -63,13 +62,10 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
          * being made (tiles with debug maps keep every window: checked again by
          * tsjob_synth_compute) */
         uint64_t T = (uint64_t)res->params.tiled, P = (uint64_t)res->params.patch_size.value;
-        int span_i, span_j; /* the tiles past the grid that its own need, too */
-        uint64_t nti;
+        uint64_t nti = ((uint64_t)res->geo.width + T - 1) / T;
         long nproc = sysconf(_SC_NPROCESSORS_ONLN);
         uint64_t threads = (uint64_t)(nproc > 0 ? nproc : 1); /* (the most a run takes) */
         uint64_t B = (uint64_t)ts_synth_tiled_band((int)threads, res->geo.width, (int)T);
-        ts_synth_tiles_span(res->geo.width, res->geo.height, (int)T, &span_i, &span_j);
-        nti = (uint64_t)span_i;
         need += cells * (JOB_MEM_SYNTH_CELL + (job->sketch ? JOB_MEM_SKETCH_CELL : 0)) +
                 (2 * B + 1) * nti * (T + 2 * P) * (T + 2 * P) * sizeof(float) +
                 threads * (T + 2 * P) * (T + 2 * P) * (JOB_MEM_SYNTH_CELL + JOB_MEM_TILE_CELL);
@@ -476,94 +472,50 @@ int tsjob_synth_window_flags(const tsjob_synth *job, const tsjob_synth_result *r
     return job_rect_flags(job, res, win, flags, NULL, err);
 }
 
-/* Rows of a sw x sh block (elements of `size` bytes) into the top-left of
- * a block dw wide. */
-static void job_rows_into(void *dst, int dw, const void *src, int sw, int sh, size_t size)
-{
-    int y;
-    for (y = 0; y < sh; y++)
-        memcpy((char *)dst + (size_t)y * (size_t)dw * size,
-               (const char *)src + (size_t)y * (size_t)sw * size, (size_t)sw * size);
-}
-
 /* The constraints of tile t's window, as job_constraints and
  * tsjob_synth_compute make them for the whole grid, cut to the window; the
- * fixed cells' values into t->window.  The part of the window past the
- * grid's right and bottom edges (a tile there, or one whose margin reaches
- * past them) has none: free land, any exemplar. */
+ * fixed cells' values into t->window. */
 static int job_window_constraints(ts_ctx *ctx, const tsjob_synth *job,
                                   const tsjob_synth_result *res, ts_synth_tile *t,
                                   job_window_cons *wc, tsio_err *err)
 {
-    int win[4], on[4];
-    size_t n, ng, c;
-    unsigned char *fl = NULL;
-    float *hz = NULL;
-    int32_t *ce = NULL;
+    int win[4];
+    size_t n;
     if (ts_synth_tile_window(ctx, &res->params, res->params.tiled, res->geo.width, res->geo.height,
                              t->ti, t->tj, win, NULL) != TS_OK) {
         tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
         return -1;
     }
     n = (size_t)win[2] * (size_t)win[3];
-    /* on: the window's cells on the grid (it starts on it) */
-    on[0] = win[0];
-    on[1] = win[1];
-    on[2] = res->geo.width - win[0] < win[2] ? res->geo.width - win[0] : win[2];
-    on[3] = res->geo.height - win[1] < win[3] ? res->geo.height - win[1] : win[3];
-    if (on[2] < 0)
-        on[2] = 0;
-    if (on[3] < 0)
-        on[3] = 0;
-    ng = (size_t)on[2] * (size_t)on[3];
     wc->cons = ts_synth_constraints_default();
     wc->flags = calloc(n, 1);
-    fl = calloc(ng ? ng : 1, 1);
-    if (!wc->flags || !fl)
+    if (!wc->flags)
         goto oom;
     wc->cons.cell_flags = wc->flags;
-    if (ng) {
-        ts_raster vals = ts_raster_wrap(t->window.data, on[2], on[3], t->window.stride);
-        if (job_rect_flags(job, res, on, fl, &vals, err) != 0)
-            goto fail;
-        job_rows_into(wc->flags, win[2], fl, on[2], on[3], 1);
-    }
+    if (job_rect_flags(job, res, win, wc->flags, &t->window, err) != 0)
+        goto fail;
     if (job->heights) {
-        if (!(wc->heights = malloc(n * sizeof *wc->heights)) ||
-            !(hz = malloc((ng ? ng : 1) * sizeof *hz)))
+        if (!(wc->heights = malloc(n * sizeof *wc->heights)))
             goto oom;
-        for (c = 0; c < n; c++)
-            wc->heights[c] = NAN;
-        if (ng && job_grid_window(job->heights, "the heights raster", res, on[0], on[1], on[2],
-                                  on[3], hz, err) != 0)
+        if (job_grid_window(job->heights, "the heights raster", res, win[0], win[1], win[2], win[3],
+                            wc->heights, err) != 0)
             goto fail;
-        job_rows_into(wc->heights, win[2], hz, on[2], on[3], sizeof *hz);
         wc->cons.heights = wc->heights;
         wc->cons.alpha_h = job->alpha_h;
     }
     if (job->regions) {
-        if (!(wc->cell_ex = malloc(n * sizeof *wc->cell_ex)) ||
-            !(ce = malloc((ng ? ng : 1) * sizeof *ce)))
+        if (!(wc->cell_ex = malloc(n * sizeof *wc->cell_ex)))
             goto oom;
-        for (c = 0; c < n; c++)
-            wc->cell_ex[c] = -1;
-        if (ng && tsio_read_label_window(job->regions, &res->geo, on[0], on[1], on[2], on[3],
-                                         "region", INT32_MIN, ce, err) != 0)
+        if (tsio_read_label_window(job->regions, &res->geo, win[0], win[1], win[2], win[3],
+                                   "region", INT32_MIN, wc->cell_ex, err) != 0)
             goto fail;
-        job_region_exemplars(job, ce, ng);
-        job_rows_into(wc->cell_ex, win[2], ce, on[2], on[3], sizeof *ce);
+        job_region_exemplars(job, wc->cell_ex, n);
         wc->cons.cell_exemplar = wc->cell_ex;
     }
-    free(fl);
-    free(hz);
-    free(ce);
     return 0;
 oom:
     tsio_errf(err, "synth", "out of memory for a tile's constraints");
 fail:
-    free(fl);
-    free(hz);
-    free(ce);
     return -1;
 }
 
@@ -687,18 +639,12 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     ts_ctx_get_progress(ctx, &jp.fn, &jp.user);
     if (keep_maps) {
         if (res->params.tiled > 0) {
-            /* in tiles, the maps of every tile's window too (up to 4 x the tiles'
-             * cells: tiles of 2 patches; the tiles past the grid that its own
-             * need included), beyond what the prepare checked */
-            uint64_t cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height,
-                     T = res->params.tiled;
-            int si, sj;
-            ts_synth_tiles_span(res->geo.width, res->geo.height, res->params.tiled, &si, &sj);
-            if (tsio_check_memory(
-                    JOB_MEM_BASE +
-                        cells * (JOB_MEM_SYNTH_CELL + JOB_MEM_TILED_CELL + JOB_MEM_MAPS_CELL) +
-                        (uint64_t)si * (uint64_t)sj * T * T * 4 * JOB_MEM_MAPS_CELL,
-                    "synth", "no --debug-dir, or a smaller target grid", err) != 0)
+            /* in tiles, the maps of every tile's window too (up to 4 x the grid:
+             * tiles of 2 patches), beyond what the prepare checked */
+            uint64_t cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
+            if (tsio_check_memory(JOB_MEM_BASE + cells * (JOB_MEM_SYNTH_CELL + JOB_MEM_TILED_CELL +
+                                                          5 * JOB_MEM_MAPS_CELL),
+                                  "synth", "no --debug-dir, or a smaller target grid", err) != 0)
                 return -1;
         }
         if (job_alloc_maps(res, err) != 0)

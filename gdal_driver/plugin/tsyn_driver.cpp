@@ -201,11 +201,6 @@ GDALDataset *TSYNDataset::Open(GDALOpenInfo *info)
     ds->m_schedule.SetNameValue("JOB", tsrecipe_job_name(recipe));
     ds->m_schedule.SetNameValue("WINDOWS", tsrecipe_schedule(recipe));
     ds->m_schedule.SetNameValue("TILE_SIZE", CPLSPrintf("%d", tsrecipe_tile_size(recipe)));
-    {
-        int nti, ntj;
-        tsrecipe_tiles_span(recipe, &nti, &ntj);
-        ds->m_schedule.SetNameValue("TILES_SPAN", CPLSPrintf("%d,%d", nti, ntj));
-    }
     ds->m_schedule.SetNameValue("DRAINAGE_MARGIN",
                                 CPLSPrintf("%d", tsrecipe_drainage_margin(recipe)));
     {

@@ -684,14 +684,6 @@ int tsrecipe_tile_size(const tsrecipe *r)
     return r->method == TSRECIPE_SYNTH && r->synth.lazy ? r->synth.params.tiled : 0;
 }
 
-void tsrecipe_tiles_span(const tsrecipe *r, int *nti, int *ntj)
-{
-    *nti = *ntj = 0;
-    if (tsrecipe_tile_size(r) > 0)
-        ts_synth_tiles_span(tsrecipe_georef(r)->width, tsrecipe_georef(r)->height,
-                            tsrecipe_tile_size(r), nti, ntj);
-}
-
 int tsrecipe_drainage_margin(const tsrecipe *r)
 {
     switch (r->method) {

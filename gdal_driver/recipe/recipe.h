@@ -69,10 +69,6 @@ int tsrecipe_read_overview(tsrecipe *r, int i, int x0, int y0, int w, int h, flo
 const char *tsrecipe_job_name(const tsrecipe *r);
 const char *tsrecipe_schedule(const tsrecipe *r);
 int tsrecipe_tile_size(const tsrecipe *r);
-/* The nti x ntj tiles a tiled synth recipe is made of (ts_synth_tiles_span:
- * its grid's and those past its right and bottom edges they need); 0 x 0
- * for any other recipe. */
-void tsrecipe_tiles_span(const tsrecipe *r, int *nti, int *ntj);
 /* The cells round a window its drainage stage reads (0: none). */
 int tsrecipe_drainage_margin(const tsrecipe *r);
 const char *const *tsrecipe_inputs(const tsrecipe *r);

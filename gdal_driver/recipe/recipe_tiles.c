@@ -165,13 +165,11 @@ int tsrecipe__tiles_window(tsrecipe *r, ts_ctx *ctx, int x0, int y0, int w, int 
                            tsio_err *err)
 {
     const tsjob_synth_result *res = &r->synth_res;
-    int T = res->params.tiled, nti, ntj, wave, ti, tj, di, dj, rc = -1;
+    int T = res->params.tiled, W = res->geo.width, H = res->geo.height;
+    int nti = (W + T - 1) / T, ntj = (H + T - 1) / T, wave, ti, tj, di, dj, rc = -1;
     int *want = NULL;
     size_t n_want = 0, cap_want = 0, k, m;
     ts_synth_tile *batch = NULL;
-    /* the tiles past the grid's right and bottom edges that its own need
-     * too: a tile is a function of its position, not of the grid's extent */
-    ts_synth_tiles_span(res->geo.width, res->geo.height, T, &nti, &ntj);
     pthread_mutex_lock(&r->tile_lock);
     r->tile_clock++;
     for (tj = y0 / T; tj <= (y0 + h - 1) / T; tj++)
@@ -385,7 +383,8 @@ static int tile_drain_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, 
                     cells[(size_t)(y - y0) * (size_t)w + (size_t)(x - x0)] =
                         t[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])];
         }
-    return flags ? tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, err) : 0;
+    return flags ? tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, err)
+                 : 0;
 }
 
 TSYN_EXPORT int tsyn_tile_drain(void *handle, int ti, int tj, const float *const *nb, float *core,

@@ -27,8 +27,7 @@ int tsyn_tiles_open(const char *path, void **handle, int *width, int *height, in
                     int n);
 
 /* Where tile (ti, tj) lies: win and core = {x, y, w, h}, its window (the
- * cells it computes, possibly past the grid's right and bottom edges) and
- * its core (the cells it owns in the output: w or h 0 past the grid). */
+ * cells it computes) and its core (the cells it owns in the output). */
 int tsyn_tile_rect(void *handle, int ti, int tj, int win[4], int core[4], char *msg, int n);
 
 /* Tile (ti, tj)'s window into `window` (row by row, its own width), from the

@@ -5,10 +5,7 @@
  * The grid is cut into tiles of T x T cells, tile (i, j) covering columns
  * [iT, (i+1)T) and rows [jT, (j+1)T): its core.  Tile (i, j) belongs to
  * wave (i & 1) + 2 (j & 1) and is synthesised over its window, the core
- * grown by a margin G (the patch size) and cut at the grid's left and top
- * edges (where the lattice is anchored) but not at its right and bottom
- * ones: the tiles past those that the grid's own need are made too
- * (tile_span), so a tile does not depend on the grid's extent.  It starts
+ * grown by a margin G (the patch size) and clipped to the grid, starting
  * from its neighbours of earlier waves: wave 0 alone, wave 1 after its
  * left and right wave-0 tiles, wave 2 after its upper and lower wave-0
  * tiles and its diagonal wave-1 tiles, wave 3 after all eight.  Their
@@ -59,34 +56,9 @@ TS_API int ts_synth_tile_wave(int ti, int tj)
     return tile_wave(ti, tj);
 }
 
-/* The tiles a width x height grid's tiled synthesis makes: nti x ntj, its
- * own and those beyond its right and bottom edges that its own need (every
- * tile a function of its position alone, not of the grid's extent).  A
- * tile needs its earlier-wave neighbours: a row's tiles of waves 0 and 1
- * need nothing below them, so one row more when the last is odd (waves 2
- * and 3); across, a wave-3 tile needs the wave-2 tile beside it, which
- * needs the wave-1 tiles beside it, which need the wave-0 tiles beside
- * them: up to three columns more (two when the last column is even, none
- * with a single row, where wave 1 needs wave 0 only). */
-static void tile_span(int W, int H, int T, int *nti, int *ntj)
-{
-    int ci = (W + T - 1) / T, cj = (H + T - 1) / T;
-    *ntj = cj | 1;
-    *nti = cj == 1 ? (ci | 1) : (ci | 1) + 2;
-}
-
-TS_API void ts_synth_tiles_span(int width, int height, int tile, int *nti, int *ntj)
-{
-    tile_span(TS_MAX(1, width), TS_MAX(1, height), TS_MAX(1, tile), nti, ntj);
-}
-
-/* Tile (ti, tj)'s core and window: [x0, x1) x [y0, y1) each.  The window is
- * the core grown by G, cut at the grid's left and top edges only (where the
- * lattice is anchored): past the right and bottom edges it goes on as if
- * the grid did. */
+/* Tile (ti, tj)'s core and window: [x0, x1) x [y0, y1) each. */
 typedef struct tile_rect {
-    int cx0, cy0, cx1, cy1; /* the core's cells on the grid (cx1 <= cx0: none) */
-    int fx1, fy1;           /* the whole core's end, on or past the grid */
+    int cx0, cy0, cx1, cy1; /* core */
     int x0, y0, x1, y1;     /* window */
 } tile_rect;
 
@@ -95,14 +67,12 @@ static tile_rect rect_of(int W, int H, int T, int G, int ti, int tj)
     tile_rect r;
     r.cx0 = ti * T;
     r.cy0 = tj * T;
-    r.fx1 = (ti + 1) * T;
-    r.fy1 = (tj + 1) * T;
-    r.cx1 = TS_MAX(r.cx0, TS_MIN(r.fx1, W));
-    r.cy1 = TS_MAX(r.cy0, TS_MIN(r.fy1, H));
+    r.cx1 = TS_MIN((ti + 1) * T, W);
+    r.cy1 = TS_MIN((tj + 1) * T, H);
     r.x0 = TS_MAX(r.cx0 - G, 0);
     r.y0 = TS_MAX(r.cy0 - G, 0);
-    r.x1 = r.fx1 + G;
-    r.y1 = r.fy1 + G;
+    r.x1 = TS_MIN(r.cx1 + G, W);
+    r.y1 = TS_MIN(r.cy1 + G, H);
     return r;
 }
 
@@ -128,7 +98,7 @@ typedef struct tiled_job {
     ts_synth_tile *tiles;
     size_t n_tiles;
     atomic_size_t next; /* the next tile a worker takes */
-    tile_maps *tm;      /* per tile (tj * nti + ti) with debug maps, or NULL */
+    tile_maps *tm; /* per tile (tj * nti + ti) with debug maps, or NULL */
     atomic_int failed;
     atomic_int status; /* the first failure's status */
     char msg[512];
@@ -170,17 +140,6 @@ static int tile_cut_constraints(const tiled_job *j, const tile_rect *me, window_
         for (x = 0; x < rw; x++) {
             size_t c = (size_t)y * (size_t)rw + (size_t)x;
             size_t gc = (size_t)(y + me->y0) * (size_t)j->W + (size_t)(x + me->x0);
-            if (x + me->x0 >= j->W || y + me->y0 >= j->H) { /* past the grid: free */
-                if (w->flags) {
-                    w->flags[c] = 0;
-                    w->fixed[c] = NAN;
-                }
-                if (w->cell_ex)
-                    w->cell_ex[c] = -1;
-                if (w->heights)
-                    w->heights[c] = NAN;
-                continue;
-            }
             if (w->flags) {
                 w->flags[c] = g->cell_flags[gc];
                 w->fixed[c] = TS_PIX(j->initial, x + me->x0, y + me->y0);
@@ -341,7 +300,7 @@ static ts_status tile_run(tiled_job *j, ts_ctx *ctx, ts_synth_tile *t)
                     float v = TS_PIX(nb, x - o.x0, y - o.y0);
                     int taken = 0;
                     c = (size_t)(y - me.y0) * (size_t)rw + (size_t)(x - me.x0);
-                    if (x >= o.cx0 && x < o.fx1 && y >= o.cy0 && y < o.fy1) {
+                    if (x >= o.cx0 && x < o.cx1 && y >= o.cy0 && y < o.cy1) {
                         flags[c] = TS_CELL_FIXED;
                         TS_PIX(&r, x - me.x0, y - me.y0) = v;
                         taken = 1;
@@ -498,7 +457,8 @@ static void job_init(tiled_job *j, ts_ctx *ctx, const ts_raster *exemplars, int 
     j->H = height;
     j->T = tile;
     j->G = P;
-    tile_span(width, height, tile, &j->nti, &j->ntj);
+    j->nti = (width + tile - 1) / tile;
+    j->ntj = (height + tile - 1) / tile;
 }
 
 TS_API ts_status ts_synth_tile_window(ts_ctx *ctx, const ts_synth_params *params, int tile,
@@ -510,13 +470,8 @@ TS_API ts_status ts_synth_tile_window(ts_ctx *ctx, const ts_synth_params *params
     ts__clear(ctx);
     if (tiles_check(ctx, params, tile, width, height, &P) != TS_OK)
         return ctx->status;
-    {
-        int nti, ntj;
-        tile_span(width, height, tile, &nti, &ntj);
-        if (ti < 0 || tj < 0 || ti >= nti || tj >= ntj)
-            return ts__fail(ctx, TS_ERR_ARG, TILED_STAGE, "tile (%d, %d) is off the %d x %d tiles",
-                            ti, tj, nti, ntj);
-    }
+    if (ti < 0 || tj < 0 || ti > (width - 1) / tile || tj > (height - 1) / tile)
+        return ts__fail(ctx, TS_ERR_ARG, TILED_STAGE, "tile (%d, %d) is off the grid", ti, tj);
     r = rect_of(width, height, tile, P, ti, tj);
     if (window) {
         window[0] = r.x0;
@@ -620,7 +575,7 @@ static void tiled_maps_finish(const tiled_job *j, const ts_synth_tile *tiles, si
         maps->seconds_match += tm->sec[1];
         maps->seconds_cut += tm->sec[2];
         maps->seconds_poisson += tm->sec[3];
-        for (y = r.cy0; y < r.cy1 && r.cx1 > r.cx0; y++) {
+        for (y = r.cy0; y < r.cy1; y++) {
             size_t g = (size_t)y * (size_t)j->W + (size_t)r.cx0;
             size_t o = (size_t)(y - r.y0) * rw + (size_t)(r.cx0 - r.x0);
             size_t w = (size_t)(r.cx1 - r.cx0);
@@ -636,38 +591,6 @@ static void tiled_maps_finish(const tiled_job *j, const ts_synth_tile *tiles, si
                 memcpy(maps->seams + g, tm->seams + o, w);
         }
     }
-}
-
-static int cmp_i32(const void *a, const void *b)
-{
-    int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
-    return (x > y) - (x < y);
-}
-
-/* The grid's patch indices made n0, n0 + 1, ... in their order (the tiles
- * past the grid number patches that the grid shows only in part or not at
- * all); n_patches n0 + the grid's.  Returns 0 when out of memory. */
-static int tiled_order_ranks(const tiled_job *j, ts_synth_maps *maps, int n0)
-{
-    size_t n = (size_t)j->W * (size_t)j->H, m = 0, u = 0, c;
-    int32_t *v = ts__malloc_array(n + 1, sizeof *v);
-    if (!v)
-        return 0;
-    for (c = 0; c < n; c++)
-        if (maps->order[c] >= 0)
-            v[m++] = maps->order[c];
-    qsort(v, m, sizeof *v, cmp_i32);
-    for (c = 0; c < m; c++)
-        if (!u || v[c] != v[u - 1])
-            v[u++] = v[c];
-    for (c = 0; c < n; c++)
-        if (maps->order[c] >= 0) {
-            int32_t *at = bsearch(&maps->order[c], v, u, sizeof *v, cmp_i32);
-            maps->order[c] = n0 + (int32_t)(at - v);
-        }
-    maps->n_patches = n0 + (int)u;
-    free(v);
-    return 1;
 }
 
 /* Set up tile (ti, tj) of j as t over windows (its window allocated, its
@@ -717,7 +640,7 @@ static void tiles_to_output(const tiled_job *j, const ts_synth_tile *tiles, size
     for (k = 0; k < m; k++) {
         const ts_synth_tile *t = &tiles[k];
         tile_rect r = rect_of(j->W, j->H, j->T, j->G, t->ti, t->tj);
-        for (y = r.cy0; y < r.cy1 && r.cx1 > r.cx0; y++) /* none past the grid */
+        for (y = r.cy0; y < r.cy1; y++)
             memcpy(&TS_PIX(out, r.cx0, y), &TS_PIX(&t->window, r.cx0 - r.x0, y - r.y0),
                    (size_t)(r.cx1 - r.cx0) * sizeof(float));
     }
@@ -772,8 +695,8 @@ static ts_status rows_step(tiled_job *j, ts_ctx *ctx, ts_synth_tile *tiles, ts_r
  * needed by no later tile.  B gives a step a tile per thread at least, and
  * more for small tiles.  Every tile sees the same neighbours' windows as in wave order,
  * so the bytes are the same. */
-static ts_status tiled_by_rows(tiled_job *j, ts_ctx *ctx, ts_synth_tile *tiles, ts_raster *windows,
-                               ts_raster *out)
+static ts_status tiled_by_rows(tiled_job *j, ts_ctx *ctx, ts_synth_tile *tiles,
+                               ts_raster *windows, ts_raster *out)
 {
     int B = ts_synth_tiled_band(ts__thread_count(ctx, 64), j->W, j->T), k, tj, ti;
     size_t done = 0;
@@ -805,7 +728,7 @@ ts_status ts__synth_tiled_maps(ts_ctx *ctx, const ts_raster *exemplars, int n_ex
     tiled_job j;
     ts_synth_tile *tiles;
     ts_raster *windows; /* every tile's window, until no later tile needs it */
-    int P, wave, ti, tj, n0 = maps ? maps->n_patches : 0;
+    int P, wave, ti, tj;
     size_t n, k;
     ts_status st = TS_OK;
     ts__clear(ctx);
@@ -851,8 +774,6 @@ ts_status ts__synth_tiled_maps(ts_ctx *ctx, const ts_raster *exemplars, int n_ex
         tiled_maps_finish(&j, tiles, m, maps);
         st = ts__progress(ctx, (wave + 1) / 4.0, "synth tiles");
     }
-    if (st == TS_OK && maps && maps->order && !tiled_order_ranks(&j, maps, n0))
-        st = ts__fail(ctx, TS_ERR_NOMEM, TILED_STAGE, "out of memory for the debug maps");
     for (k = 0; k < n; k++)
         ts_raster_free(&windows[k]);
     tiled_maps_free(j.tm, n);
