@@ -5,14 +5,16 @@
  * drains on: into another valley within a patch, or else out of the grid
  * (its edge, nodata, the user's water), by a channel along the least-cost
  * way (the land's own low ground, through the lowest, narrowest rim),
- * carved the same way.  The layout is given the channels
- * beforehand (ts__valley_outlets), so that it lays out a valley along them
- * and the carving has little left to cut.  The floor runs along the valley's own lowest line near
- * the drawn one, its heights fitted at the least cost (a wall cut, a deep pit on the floor filled:
- * valley_floor.c); the change fades out across the valley.  A lake (water cells) is an outlet as
- * the edge is: never carved into, the land beside it left at or above its level, and the land below
- * its level that it reaches raised to it (its arms: a valley ending in a
- * lake never runs below it).
+ * carved the same way.  The layout is given the channels beforehand
+ * (ts__valley_outlets), so that it lays out a valley along them and the
+ * carving has little left to cut.  The floor runs along the valley's own
+ * lowest line near the drawn one, its heights fitted at
+ * the least cost (a wall cut, a deep pit on the floor filled:
+ * valley_floor.c); the change fades out across the valley.  A lake (water
+ * cells) is an outlet as the edge is: never carved into, the land beside
+ * it left at or above its level, and the land below its level that it
+ * reaches raised to it (its arms: a valley ending in a lake never runs
+ * below it).
  *
  * The valley cells of the feature graph make a graph of cells (consecutive
  * vertices joined).  In each network the outlet is the end cell that is
