@@ -188,16 +188,17 @@ static int br_other(const breach *b, int32_t a, int32_t own, const int32_t *drai
 }
 
 /* The search a channel's way is found by (ours, after Lindsay 2016's
- * least-cost breaching): per grid cell its cost so far, the cell it came
- * from and whether it is done; the cells touched, to reset; the heap. */
+ * least-cost breaching): per grid cell its cost so far, the lowest height
+ * of its way, the cell it came from and whether it is done; the cells
+ * touched, to reset (then the way found, walked back); the heap, grown as
+ * needed. */
 typedef struct br_search {
     float *cost, *zmin;
-    int32_t *from;
+    int32_t *from, *touched;
     unsigned char *done;
-    size_t *touched, n_touched;
+    size_t n_touched;
     fl_item *heap;
     size_t cap;
-    int32_t *path;
 } br_search;
 
 static int br_search_init(br_search *s, size_t n)
@@ -208,10 +209,9 @@ static int br_search_init(br_search *s, size_t n)
     s->zmin = ts__malloc_array(n, sizeof *s->zmin);
     s->done = ts__calloc_array(n, 1);
     s->touched = ts__malloc_array(n, sizeof *s->touched);
-    s->path = ts__malloc_array(n, sizeof *s->path);
-    s->cap = n + 1;
+    s->cap = TS_MIN(n + 1, (size_t)65536);
     s->heap = ts__malloc_array(s->cap, sizeof *s->heap);
-    if (!s->cost || !s->zmin || !s->from || !s->done || !s->touched || !s->path || !s->heap)
+    if (!s->cost || !s->zmin || !s->from || !s->done || !s->touched || !s->heap)
         return -1;
     for (size_t i = 0; i < n; i++)
         s->cost[i] = INFINITY;
@@ -225,7 +225,6 @@ static void br_search_free(br_search *s)
     free(s->zmin);
     free(s->done);
     free(s->touched);
-    free(s->path);
     free(s->heap);
 }
 
@@ -256,7 +255,7 @@ static int br_route(breach *b, br_search *s, const ts_raster *out, int32_t a, in
                     double kappa, const int32_t *drains, int32_t *reached)
 {
     size_t src = b->cell[a], hn = 0, k, np = 0;
-    int found;
+    int found = leave && br_out(b, out, src); /* the outlet is out already */
     int32_t own = b->comp[a], prev = a, goal = -1;
     uint32_t order = 0;
     fl_item it = {0.0f, 0, (int32_t)src};
@@ -265,9 +264,9 @@ static int br_route(breach *b, br_search *s, const ts_raster *out, int32_t a, in
     s->cost[src] = 0.0f;
     s->from[src] = -1;
     s->zmin[src] = TS_PIX(out, (int)(src % (size_t)b->W), (int)(src / (size_t)b->W));
-    s->touched[s->n_touched++] = src;
+    s->touched[s->n_touched++] = (int32_t)src;
     s->heap[hn++] = it;
-    while (hn && goal < 0) {
+    while (hn && goal < 0 && !found) {
         int cx, cy, d;
         it = fl_pop(s->heap, &hn);
         if (s->done[it.cell])
@@ -280,8 +279,6 @@ static int br_route(breach *b, br_search *s, const ts_raster *out, int32_t a, in
                 goal = it.cell;
                 break;
             }
-        } else if (leave && br_out(b, out, src)) {
-            break; /* the outlet is out already */
         }
         cx = (int)((size_t)it.cell % (size_t)b->W);
         cy = (int)((size_t)it.cell / (size_t)b->W);
@@ -300,7 +297,7 @@ static int br_route(breach *b, br_search *s, const ts_raster *out, int32_t a, in
             if (cost >= s->cost[c])
                 continue;
             if (isinf(s->cost[c]))
-                s->touched[s->n_touched++] = c;
+                s->touched[s->n_touched++] = (int32_t)c;
             s->cost[c] = (float)cost;
             s->from[c] = it.cell;
             s->zmin[c] = fminf(s->zmin[it.cell], (float)z);
@@ -314,15 +311,15 @@ static int br_route(breach *b, br_search *s, const ts_raster *out, int32_t a, in
             fl_push(s->heap, &hn, (fl_item){(float)cost, order++, (int32_t)c});
         }
     }
-    found = goal >= 0 || (leave && br_out(b, out, src));
-    for (; goal >= 0 && (size_t)goal != src; goal = s->from[goal])
-        s->path[np++] = goal;
+    found |= goal >= 0;
     for (k = 0; k < s->n_touched; k++) {
         s->cost[s->touched[k]] = INFINITY;
         s->done[s->touched[k]] = 0;
     }
+    for (; goal >= 0 && (size_t)goal != src; goal = s->from[goal]) /* the way, walked back */
+        s->touched[np++] = goal;
     while (np--) {
-        size_t g = (size_t)s->path[np];
+        size_t g = (size_t)s->touched[np];
         int32_t o = b->id[g];
         if (o >= 0) {
             if (np)
@@ -701,25 +698,21 @@ static int br_append_channel(ts_features *g, const breach *b, const ts_raster *o
     size_t k, na = g->n_nodes;
     ts_feature_path *p;
     ts_feature_node *nd;
+    ts_feature_vertex *v;
     for (k = 0; k < g->n_nodes; k++)
         if (g->nodes[k].kind == TS_VALLEY && g->nodes[k].x == ax && g->nodes[k].y == ay)
             break;
     if (k == g->n_nodes)
         return 0;
-    nd = realloc(g->nodes, (g->n_nodes + 1) * sizeof *nd);
-    if (nd)
-        g->nodes = nd;
-    p = nd ? realloc(g->paths, (g->n_paths + 1) * sizeof *p) : NULL;
-    if (p)
-        g->paths = p;
-    if (p) {
-        ts_feature_vertex *v = realloc(g->verts, (g->n_verts + len + 1) * sizeof *v);
-        if (!v)
-            return -1;
-        g->verts = v;
-    } else {
+    if (!(nd = realloc(g->nodes, (g->n_nodes + 1) * sizeof *nd)))
         return -1;
-    }
+    g->nodes = nd;
+    if (!(p = realloc(g->paths, (g->n_paths + 1) * sizeof *p)))
+        return -1;
+    g->paths = p;
+    if (!(v = realloc(g->verts, (g->n_verts + len + 1) * sizeof *v)))
+        return -1;
+    g->verts = v;
     g->nodes[k].degree++;
     p = &g->paths[g->n_paths++];
     memset(p, 0, sizeof *p);
@@ -732,16 +725,16 @@ static int br_append_channel(ts_features *g, const breach *b, const ts_raster *o
     p->zmax = -INFINITY;
     for (k = 0; k <= len; k++) {
         size_t c = b->cell[k ? ch[k - 1] : a];
-        ts_feature_vertex *v = &g->verts[g->n_verts++];
-        v->x = (int)(c % (size_t)b->W);
-        v->y = (int)(c / (size_t)b->W);
-        v->z = TS_PIX(out, v->x, v->y);
+        ts_feature_vertex *w = &g->verts[g->n_verts++];
+        w->x = (int)(c % (size_t)b->W);
+        w->y = (int)(c / (size_t)b->W);
+        w->z = TS_PIX(out, w->x, w->y);
         g->mask[c] |= TS_VALLEY;
-        p->zmin = fminf(p->zmin, v->z);
-        p->zmax = fmaxf(p->zmax, v->z);
-        p->zmean += v->z / (float)(len + 1);
+        p->zmin = fminf(p->zmin, w->z);
+        p->zmax = fmaxf(p->zmax, w->z);
+        p->zmean += w->z / (float)(len + 1);
         if (k)
-            p->length += hypot(v->x - v[-1].x, v->y - v[-1].y);
+            p->length += hypot(w->x - w[-1].x, w->y - w[-1].y);
     }
     nd = &g->nodes[g->n_nodes++];
     memset(nd, 0, sizeof *nd);
@@ -779,32 +772,52 @@ static ts_features *br_copy_features(const ts_features *f)
     return g;
 }
 
+/* b set up for f on out (br_setup) and each network's outlet and channel
+ * found (br_orient, the search freed after it); work: width * height
+ * floats for breach_steep, *s_ref the land's steep slope. */
+static ts_status br_ways(ts_ctx *ctx, breach *b, const ts_features *f, const ts_raster *out,
+                         const unsigned char *flags, int patch, float *work, double *s_ref)
+{
+    br_search srch;
+    int rc;
+    ts_status st = br_setup(ctx, b, f, out, flags, patch);
+    if (st != TS_OK || !b->n)
+        return st;
+    *s_ref = breach_steep(out, work);
+    rc = br_search_init(&srch, (size_t)out->width * (size_t)out->height) != 0 ||
+         br_orient(b, out, &srch, 0.25 * *s_ref) != 0;
+    br_search_free(&srch);
+    return rc ? ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory") : TS_OK;
+}
+
 ts_status ts__valley_outlets(ts_ctx *ctx, const ts_features *f, const ts_raster *out,
                              const unsigned char *flags, int patch, ts_features **with)
 {
     breach b;
-    br_search srch;
-    size_t n = (size_t)out->width * (size_t)out->height, i, n0;
+    size_t n = (size_t)out->width * (size_t)out->height, i;
     float *work = NULL;
     int32_t *ch = NULL;
     unsigned char *taken = NULL;
+    double s_ref;
     ts_status st = TS_OK;
     memset(&b, 0, sizeof b);
-    memset(&srch, 0, sizeof srch);
     *with = NULL;
-    if (!f || (st = br_setup(ctx, &b, f, out, flags, patch)) != TS_OK || !b.n)
+    if (!f)
+        return TS_OK;
+    if (!(work = ts__malloc_array(n, sizeof *work))) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
-    n0 = b.n;
-    if (!(work = ts__malloc_array(n, sizeof *work)) || br_search_init(&srch, n) != 0 ||
-        br_orient(&b, out, &srch, 0.25 * breach_steep(out, work)) != 0 ||
-        !(ch = ts__malloc_array(b.n + 1, sizeof *ch)) || !(taken = ts__calloc_array(b.n + 1, 1)) ||
+    }
+    if ((st = br_ways(ctx, &b, f, out, flags, patch, work, &s_ref)) != TS_OK || !b.n)
+        goto done;
+    if (!(ch = ts__malloc_array(b.n + 1, sizeof *ch)) || !(taken = ts__calloc_array(b.n + 1, 1)) ||
         !(*with = br_copy_features(f))) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
     }
     /* every outlet's channel, out of the grid or into another valley (up to
      * the cells of a channel taken already: it ends beside them) */
-    for (i = 0; i < n0; i++) {
+    for (i = 0; i < b.n; i++) { /* (a channel cell is no outlet: comp < 0) */
         int32_t j = b.down[i];
         size_t len = 0, k;
         if (b.comp[i] < 0 || j < 0 || b.comp[j] >= 0)
@@ -823,7 +836,6 @@ done:
         ts_features_free(*with);
         *with = NULL;
     }
-    br_search_free(&srch);
     br_free(&b);
     free(work);
     free(ch);
@@ -835,7 +847,6 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
                             const unsigned char *flags, int patch, unsigned char *floor_out)
 {
     breach b;
-    br_search srch;
     size_t n = (size_t)out->width * (size_t)out->height, i, head, tail = 0;
     int32_t *indeg = NULL;
     size_t *queue = NULL;
@@ -844,20 +855,14 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
     ts_status st = TS_OK;
     double rr = patch / 8.0, s_ref;
     memset(&b, 0, sizeof b);
-    memset(&srch, 0, sizeof srch);
     if (!f)
         return TS_OK;
-    if ((st = br_setup(ctx, &b, f, out, flags, patch)) != TS_OK || !b.n)
-        goto done;
     if (!(delta = ts__malloc_array(n, sizeof *delta))) {
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
         goto done;
     }
-    s_ref = breach_steep(out, delta);
-    if (br_search_init(&srch, n) != 0 || br_orient(&b, out, &srch, 0.25 * s_ref) != 0) {
-        st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
+    if ((st = br_ways(ctx, &b, f, out, flags, patch, delta, &s_ref)) != TS_OK || !b.n)
         goto done;
-    }
     if (ts__valley_thalweg(ctx, &b, out, fmax(2.0, patch / 10.0), 0.25 * s_ref) != 0) {
         st = ts_ctx_status(ctx) != TS_OK
                  ? ts_ctx_status(ctx)
@@ -923,7 +928,6 @@ ts_status ts__valley_breach(ts_ctx *ctx, const ts_features *f, ts_raster *out,
     if (st == TS_OK && b.wdist && br_lake_arms(out, flags) != 0)
         st = ts__fail(ctx, TS_ERR_NOMEM, "valley breach", "out of memory");
 done:
-    br_search_free(&srch);
     br_free(&b);
     free(indeg);
     free(queue);
