@@ -334,6 +334,32 @@ static ts_status sketch_features_placed(ts_ctx *ctx, sketch_run *r, ts__fill *fi
     return st;
 }
 
+/* The floor map keeps the drawn valleys' floors, not their ways out: the
+ * floor cells within the thalweg's reach (patch / 10 cells) of a drawn
+ * valley cell. */
+static ts_status sketch_floor_drawn(ts_ctx *ctx, const ts_features *f, unsigned char *floor, int P)
+{
+    size_t n = (size_t)f->width * (size_t)f->height, i;
+    float *d = ts__malloc_array(n, sizeof *d);
+    unsigned char *m = ts__malloc_array(n, 1);
+    double reach = TS_MAX(2.0, P / 10.0);
+    ts_status st;
+    if (!d || !m) {
+        free(d);
+        free(m);
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+    }
+    for (i = 0; i < n; i++)
+        m[i] = (f->mask[i] & TS_VALLEY) != 0;
+    st = ts__distance_transform(ctx, m, f->width, f->height, d);
+    for (i = 0; st == TS_OK && i < n; i++)
+        if (floor[i] && !(d[i] <= reach))
+            floor[i] = 0;
+    free(d);
+    free(m);
+    return st;
+}
+
 /* Steps 6-10, after the fill: the layout, the slope style, the wanted
  * heights, the water banks, the drawn valleys' floors; times[0..2]: the
  * seconds of the layout, of the slope style and of the rest. */
@@ -344,10 +370,10 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
 {
     ts_status st = TS_OK;
     double t0 = ts__now();
+    ts_features *way = NULL; /* the drawn valleys with their ways out */
     /* 6. the relief the sketch lays out, the valleys with their ways out */
     if (sp->layout > 0) {
         ts_layout_spec ls;
-        ts_features *way = NULL;
         if ((r->kind & TS_VALLEY) &&
             (st = ts__valley_outlets(ctx, r->sf, out, r->user_flags, P, &way)) != TS_OK)
             return st;
@@ -366,7 +392,6 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
         ls.crest = sp->crest_relief > 0 ? r->crest : NULL;
         ls.crest_relief = sp->crest_relief;
         st = ts__layout_apply(ctx, &ls, out, r->user_flags, sp->layout);
-        ts_features_free(way);
         if (st == TS_OK)
             st = ts__progress(ctx, sp->slope_style > 0 ? 0.97 : 1.0, "layout");
     }
@@ -404,9 +429,15 @@ static ts_status sketch_finish(ts_ctx *ctx, const sketch_run *r, const ts__fill 
     /* 9. the land beside water at or above it (ours, water_banks.c) */
     if (st == TS_OK && constraints)
         st = ts__water_banks(ctx, out, constraints->cell_flags, P);
-    /* 10. drawn valleys that drain to their outlets (ours, valley_breach.c) */
-    if (st == TS_OK && (r->kind & TS_VALLEY) && sp->layout > 0)
-        st = ts__valley_breach(ctx, r->sf, out, r->user_flags, P, maps ? maps->valley_floor : NULL);
+    /* 10. drawn valleys that drain to their outlets along their ways out
+     * (ours, valley_breach.c) */
+    if (st == TS_OK && (r->kind & TS_VALLEY) && sp->layout > 0) {
+        unsigned char *floor = maps ? maps->valley_floor : NULL;
+        st = ts__valley_breach(ctx, way ? way : r->sf, out, r->user_flags, P, floor);
+        if (st == TS_OK && floor && way)
+            st = sketch_floor_drawn(ctx, r->sf, floor, P);
+    }
+    ts_features_free(way);
     times[2] = ts__now() - t0;
     return st;
 }

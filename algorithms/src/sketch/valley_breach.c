@@ -822,8 +822,11 @@ ts_status ts__valley_outlets(ts_ctx *ctx, const ts_features *f, const ts_raster 
         size_t len = 0, k;
         if (b.comp[i] < 0 || j < 0 || b.comp[j] >= 0)
             continue;
-        for (; j >= 0 && b.comp[j] < 0 && !taken[j]; j = b.down[j])
+        for (; j >= 0 && b.comp[j] < 0 && !taken[j]; j = b.down[j]) {
+            if (flags && (flags[b.cell[j]] & (TS_CELL_FIXED | TS_CELL_NODATA)))
+                break; /* the water or nodata it runs into is no valley */
             ch[len++] = j;
+        }
         for (k = 0; k < len; k++)
             taken[ch[k]] = 1;
         if (len && br_append_channel(*with, &b, out, (int32_t)i, ch, len) != 0) {
