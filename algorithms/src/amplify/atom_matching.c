@@ -65,31 +65,38 @@ static float dot(const float *a, const float *b, int d)
 }
 
 /* The median (element n/2 in ascending order) of |q - v[j]| over the sorted
- * v[0..n): the distances to the left and to the right of q are two ascending
- * lists; merged from q outwards, the (n/2+1)-th taken is it. */
+ * v[0..n): the distances to the left of q (q - v[i], i falling) and to its
+ * right (v[j] - q, j rising) are two ascending lists, and the median is the
+ * (n/2+1)-th smallest of both together: a binary search for how many of
+ * them come from the left list, O(log n). */
 static double median_distance(const double *v, size_t n, double q)
 {
-    size_t lo = 0, hi = n, k, taken;
-    ptrdiff_t i;
-    size_t j;
-    double last = 0;
-    while (lo < hi) { /* the first v[j] > q */
+    size_t lo = 0, hi = n, m = n / 2 + 1, a_lo, a_hi, a, b;
+    double l, r;
+    while (lo < hi) { /* the first v[j] > q: lo to the left, n - lo to the right */
         size_t mid = lo + (hi - lo) / 2;
         if (v[mid] <= q)
             lo = mid + 1;
         else
             hi = mid;
     }
-    i = (ptrdiff_t)lo - 1;
-    j = lo;
-    k = n / 2;
-    for (taken = 0; taken <= k; taken++) {
-        if (i >= 0 && (j >= n || q - v[i] <= v[j] - q))
-            last = q - v[i--];
+    /* the fewest a taken from the left with the left's next no smaller than the
+     * right's last taken (b = m - a from the right) */
+    a_lo = m > n - lo ? m - (n - lo) : 0;
+    a_hi = m < lo ? m : lo;
+    while (a_lo < a_hi) {
+        a = a_lo + (a_hi - a_lo) / 2;
+        b = m - a;
+        if (a < lo && b > 0 && q - v[lo - 1 - a] < v[lo + b - 1] - q)
+            a_lo = a + 1;
         else
-            last = v[j++] - q;
+            a_hi = a;
     }
-    return last;
+    a = a_lo;
+    b = m - a;
+    l = a > 0 ? q - v[lo - a] : -1.0;
+    r = b > 0 ? v[lo + b - 1] - q : -1.0;
+    return l > r ? l : r;
 }
 
 typedef struct match_job {
@@ -145,7 +152,7 @@ static void match_range(void *arg, size_t begin, size_t end)
         }
         for (i = b0; i < b1; i++) {
             const float *rh = dh + (i - b0) * na;
-                double *rx = dx + (i - b0) * na;
+            double *rx = dx + (i - b0) * na;
             double sa, ss, best = -1.0;
             int bk = -1;
             if (isnan(pt->pa[i])) { /* an all-nodata patch */
