@@ -638,9 +638,17 @@ typedef struct ts_sketch_params {
     double layout;   /* 0..1: how far the sketch sets the relief above a third of a patch */
     double slope_style; /* 0..1: how far the output's slopes take the exemplars' distribution */
     double crest_relief; /* 0..1: how far drawn crests take the exemplars' peaks and saddles */
+    int amplify_factor;  /* in tiles (ts_synth_params.tiled > 0): the sketch laid out this many
+                            times coarser, then amplified back; 0 = automatic */
 } ts_sketch_params;
 
 TS_API ts_sketch_params ts_sketch_params_default(void);
+
+/** The factor a sketch in tiles is laid out coarser by (amplify_factor, or
+ *  its automatic value for patches of `patch` cells on a width x height
+ *  grid). */
+TS_API int ts_sketch_amplify_factor(const ts_sketch_params *sp, int patch, int width, int height);
+
 
 /** What a sketch-guided synthesis did (all filled in by the call). */
 typedef struct ts_sketch_info {
@@ -716,6 +724,35 @@ TS_API ts_status ts_synth_sketch_features(ts_ctx *ctx, const ts_features *featur
                                           const ts_synth_params *params,
                                           const ts_synth_constraints *constraints, ts_raster *out,
                                           ts_synth_maps *maps, ts_sketch_info *info);
+
+/**
+ * A sketch in tiles (sketch_amplify.c, ours): what every window of it reads.
+ * ts_sketch_tiles_new lays the sketch out whole on a grid K times coarser
+ * (K = ts_sketch_amplify_factor; patches and overlap K times smaller, the
+ * sketch, wanted heights and exemplars averaged over K x K blocks) and
+ * builds the dictionary that amplifies it K times (Argudo et al. 2017) from
+ * the exemplars at the output's resolution.  Give a painted `sketch` or a
+ * feature graph `features` (ts_features_from_lines), width x height either;
+ * cells flagged TS_CELL_FIXED or TS_CELL_WATER are refused (TS_ERR_ARG);
+ * params->tiled is not read.  *sketch_features (may be NULL; painted
+ * sketches) receives the coarse pass's graph on the output grid.
+ * ts_sketch_tiles_window then makes any window of the output alone, the
+ * same bytes as that window of the whole (ts_synth_sketch with tiled > 0:
+ * the window of the whole grid), NaN on the sketch's nodata.
+ */
+typedef struct ts_sketch_tiles ts_sketch_tiles;
+TS_API ts_status ts_sketch_tiles_new(ts_ctx *ctx, const ts_raster *sketch,
+                                     const ts_features *features, const ts_raster *exemplars,
+                                     int n_exemplars, const ts_sketch_params *sp,
+                                     const ts_synth_params *params,
+                                     const ts_synth_constraints *constraints, int width,
+                                     int height, ts_sketch_tiles **out,
+                                     ts_features **sketch_features, ts_sketch_info *info);
+TS_API ts_status ts_sketch_tiles_window(ts_ctx *ctx, const ts_sketch_tiles *t, int x0, int y0,
+                                        ts_raster *out);
+/** K, the factor the sketch was laid out coarser by. */
+TS_API int ts_sketch_tiles_factor(const ts_sketch_tiles *t);
+TS_API void ts_sketch_tiles_free(ts_sketch_tiles *t);
 
 /* ------------------------------------------------------------------ */
 /* Per-pixel operations (the kernels behind the VRT pixel functions)  */

@@ -30,6 +30,7 @@
 #include "feature_tree.h"
 #include "layout.h"
 #include "relief_guide.h"
+#include "sketch_amplify.h"
 #include "slope_style.h"
 
 TS_API ts_synth_constraints ts_synth_constraints_default(void)
@@ -229,10 +230,6 @@ static ts_status sketch_begin(ts_ctx *ctx, sketch_run *r, const ts_raster *sketc
 {
     size_t i, n_cells;
     int ov = 0, k;
-    if (params && params->tiled > 0)
-        return ts__fail(ctx, TS_ERR_ARG, "synth",
-                        "tiles (tiled %d) are for free synthesis: not with a sketch yet",
-                        params->tiled);
     if (!out || !out->data || !sp || !params || !exemplars || n_exemplars < 1)
         return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
     if (out->width != W || out->height != H)
@@ -534,6 +531,9 @@ TS_API ts_status ts_synth_sketch(ts_ctx *ctx, const ts_raster *sketch, const ts_
         memset(info, 0, sizeof *info);
     if (!sketch || !sketch->data)
         return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
+    if (params && params->tiled > 0) /* in tiles: laid out coarser, amplified */
+        return ts__synth_sketch_amplified(ctx, sketch, NULL, exemplars, n_exemplars, sp, params,
+                                          constraints, out, sketch_features, info);
     st = sketch_begin(ctx, &r, sketch, sketch->width, sketch->height, exemplars, n_exemplars, sp,
                       params, constraints, out, &P);
     if (st != TS_OK)
@@ -590,6 +590,9 @@ TS_API ts_status ts_synth_sketch_features(ts_ctx *ctx, const ts_features *featur
         memset(info, 0, sizeof *info);
     if (!features || !features->mask)
         return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing feature graph");
+    if (params && params->tiled > 0) /* in tiles: laid out coarser, amplified */
+        return ts__synth_sketch_amplified(ctx, NULL, features, exemplars, n_exemplars, sp, params,
+                                          constraints, out, NULL, info);
     st = sketch_begin(ctx, &r, NULL, features->width, features->height, exemplars, n_exemplars, sp,
                       params, constraints, out, &P);
     if (st == TS_OK) {

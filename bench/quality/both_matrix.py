@@ -95,6 +95,8 @@ def main():
     ap.add_argument("--only", default="")
     ap.add_argument("--form", default="painted,lines")
     ap.add_argument("--patch", type=int, default=64)
+    ap.add_argument("--tiled", type=int, default=0,
+                    help="a sketch in tiles of this many cells (laid out coarser, amplified)")
     ap.add_argument("--no-montage", action="store_true")
     a = ap.parse_args()
     dem_dir = os.path.join(a.shared, "data/dem")
@@ -131,6 +133,8 @@ def main():
                            str(a.patch), out]
                     if form == "lines":
                         cmd += ["--like", raster]
+                    if a.tiled:
+                        cmd += ["--tiled", str(a.tiled)]
                     if NOCRS_CELL.get(ex):
                         cmd += ["--cell-size", str(NOCRS_CELL[ex])]
                     t0 = time.time()

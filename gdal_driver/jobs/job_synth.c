@@ -36,7 +36,8 @@ static uint64_t job_synth_match_cells(const tsjob_synth_result *res, uint64_t tg
 {
     double side = sqrt((double)tgt);
     int s = side < (double)INT_MAX ? (int)side : INT_MAX;
-    int K = ts_synth_match_level(res->params.coarse_factor, (int)res->params.patch_size.value, s, s);
+    int K =
+        ts_synth_match_level(res->params.coarse_factor, (int)res->params.patch_size.value, s, s);
     return (tgt >> (2 * K)) + 1;
 }
 
@@ -47,7 +48,17 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
     uint64_t cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
     uint64_t need = JOB_MEM_BASE, biggest = 0;
     int i;
-    if (job->lazy && res->params.tiled > 0) {
+    if (job->sketch && res->params.tiled > 0) {
+        /* laid out whole K times coarser, then amplified: the coarse pass,
+         * the output and the amplified grid, the amplification's input
+         * (sketch_amplify.c) */
+        int P = (int)res->params.patch_size.value;
+        uint64_t K = (uint64_t)ts_sketch_amplify_factor(&job->sketch_params, P, res->geo.width,
+                                                        res->geo.height);
+        uint64_t coarse =
+            ((uint64_t)res->geo.width + K - 1) / K * (((uint64_t)res->geo.height + K - 1) / K);
+        need += coarse * (JOB_MEM_SYNTH_CELL + JOB_MEM_SKETCH_CELL + 48) + cells * 12;
+    } else if (job->lazy && res->params.tiled > 0) {
         /* tile by tile: the tiles a front end keeps (at least one request's
          * cone) and every thread's tile being made, with its margins */
         uint64_t T = (uint64_t)res->params.tiled, P = (uint64_t)res->params.patch_size.value;
@@ -250,9 +261,10 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
             return -1;
         }
     }
-    if (res->params.tiled > 0 && job->sketch) {
-        tsio_errf(err, "synth", "tiles (tiled %d) are for free synthesis: not with a sketch yet",
-                  res->params.tiled);
+    if (res->params.tiled > 0 && job->sketch && (job->n_pins || job->water)) {
+        tsio_errf(err, job->water ? job->water : job->pins[0].path,
+                  "%s not made in tiles with a sketch yet: make it in one piece (no tiled)",
+                  job->water ? "water is" : "pinned windows are");
         tsjob_synth_result_free(res);
         return -1;
     }
@@ -606,8 +618,12 @@ static int job_sketch_lines(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_res
         if (!job->heights)
             cons->alpha_h = job->alpha_h;
     }
-    if (ts_synth_sketch_features(ctx, f, exr, job->n_exemplars, &job->sketch_params, params, cons,
-                                 &res->out, maps, &res->sketch_info) != TS_OK) {
+    if (job->sketch && params->tiled > 0
+            ? ts_sketch_tiles_new(ctx, NULL, f, exr, job->n_exemplars, &job->sketch_params, params,
+                                  cons, res->geo.width, res->geo.height, &res->sketch_tiles, NULL,
+                                  &res->sketch_info) != TS_OK
+            : ts_synth_sketch_features(ctx, f, exr, job->n_exemplars, &job->sketch_params, params,
+                                       cons, &res->out, maps, &res->sketch_info) != TS_OK) {
         job_core_err(ctx, job, job->sketch, err);
         goto done;
     }
@@ -633,7 +649,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     ts_synth_params params = res->params; /* lengths in cells */
     ts_synth_constraints cons = ts_synth_constraints_default();
     job_progress jp;
-    int i, rc = -1;
+    int i, rc = -1, tiles = job->sketch && res->params.tiled > 0;
     memset(ex, 0, sizeof ex);
     memset(&heights, 0, sizeof heights);
     ts_ctx_get_progress(ctx, &jp.fn, &jp.user);
@@ -651,7 +667,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
             return -1;
         maps = &res->maps;
     }
-    if (job->sketch) { /* the floors the drawn valleys are carved along, for the drainage */
+    /* the floors the drawn valleys are carved along, for the drainage (in one piece) */
+    if (job->sketch && !tiles) {
         res->maps.valley_floor = calloc((size_t)res->geo.width * (size_t)res->geo.height, 1);
         if (!res->maps.valley_floor) {
             tsio_errf(err, job->sketch, "out of memory");
@@ -666,7 +683,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     if (job_read_exemplars(job, res, ex, exr, err) != 0)
         goto done;
     job_drainage_banks(job, res, exr);
-    if (ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
+    if (!(tiles && job->lazy) && /* served window by window: no whole output */
+        ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
         tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
         goto done;
     }
@@ -713,9 +731,13 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         int bad;
         if (tsio_read_drawing(job->sketch, &sk, err) != 0)
             goto done;
-        bad =
-            ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params, &params, &cons,
-                            &res->out, maps, &res->sketch_features, &res->sketch_info) != TS_OK;
+        bad = tiles ? ts_sketch_tiles_new(ctx, &sk.r, NULL, exr, job->n_exemplars,
+                                          &job->sketch_params, &params, &cons, res->geo.width,
+                                          res->geo.height, &res->sketch_tiles,
+                                          &res->sketch_features, &res->sketch_info) != TS_OK
+                    : ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params,
+                                      &params, &cons, &res->out, maps, &res->sketch_features,
+                                      &res->sketch_info) != TS_OK;
         tsio_raster_free(&sk);
         if (bad) {
             job_core_err(ctx, job, job->sketch, err);
@@ -726,10 +748,22 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         job_core_err(ctx, job, "synth", err);
         goto done;
     }
+    if (tiles && job->lazy) { /* the windows: tsjob_synth_sketch_window_raw, then drained */
+        rc = 0;
+        goto done;
+    }
+    if (tiles && ts_sketch_tiles_window(ctx, res->sketch_tiles, 0, 0, &res->out) != TS_OK) {
+        job_core_err(ctx, job, job->sketch, err);
+        goto done;
+    }
     if (tsjob__synth_drain_whole(ctx, job, res, flags, &jp, err) != 0)
         goto done;
     rc = 0;
 done:
+    if (tiles && !job->lazy) {
+        ts_sketch_tiles_free(res->sketch_tiles);
+        res->sketch_tiles = NULL;
+    }
     ts_ctx_set_progress(ctx, jp.fn, jp.user);
     free(flags);
     free(cell_ex);
@@ -737,6 +771,26 @@ done:
     for (i = 0; i < job->n_exemplars; i++)
         tsio_raster_free(&ex[i]);
     return rc;
+}
+
+int tsjob_synth_sketch_window_raw(ts_ctx *ctx, const tsjob_synth *job,
+                                  const tsjob_synth_result *res, int x0, int y0, int w, int h,
+                                  float *cells, unsigned char *flags, tsio_err *err)
+{
+    ts_raster o = ts_raster_wrap(cells, w, h, w);
+    int x, y;
+    if (ts_sketch_tiles_window(ctx, res->sketch_tiles, x0, y0, &o) != TS_OK) {
+        tsio_errf(err, job->sketch, "%s", ts_ctx_message(ctx));
+        return -1;
+    }
+    /* the drawn ridges: barriers the drainage stage crosses only where it must */
+    for (y = 0; flags && res->sketch_features && y < h; y++)
+        for (x = 0; x < w; x++)
+            if (res->sketch_features
+                    ->mask[(size_t)(y0 + y) * (size_t)res->geo.width + (size_t)(x0 + x)] &
+                TS_RIDGE)
+                flags[(size_t)y * (size_t)w + (size_t)x] |= TS_CELL_BARRIER;
+    return 0;
 }
 
 int tsjob_parse_pin(const char *spec, tsjob_pin *pin, char *path_buf, size_t path_len)
@@ -871,6 +925,7 @@ void tsjob_synth_result_free(tsjob_synth_result *res)
         return;
     tsio_georef_free(&res->geo);
     ts_features_free(res->sketch_features);
+    ts_sketch_tiles_free(res->sketch_tiles);
     free(res->maps.source_exemplar);
     free(res->maps.source_x);
     free(res->maps.source_y);

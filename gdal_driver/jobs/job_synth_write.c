@@ -86,6 +86,11 @@ int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *
     if (tsio_write_float(o->output, &wo, &g1, &pr, TSIO_NODATA, err) != 0 ||
         (o->preview && tsio_write_byte(o->preview, &png, &g1, &bp, -1, err) != 0))
         return -1;
+    if (o->debug_dir && job->sketch && res->params.tiled > 0) {
+        tsio_errf(err, o->debug_dir,
+                  "a sketch in tiles makes no debug maps yet: make it in one piece (no tiled)");
+        return -1;
+    }
     if (o->debug_dir) {
         char paths[TSJOB_N_MAPS + JOB_N_SKETCH_DEBUG][4096];
         const char *outs[TSJOB_N_MAPS + JOB_N_SKETCH_DEBUG + 2];

@@ -183,7 +183,8 @@ typedef struct tsjob_synth_result {
     ts_drainage_params drainage;    /* the job's, its automatic bank slope set (setup, compute) */
     ts_drainage_info drainage_info; /* after compute */
     double seconds_drainage;
-    ts_synth_maps maps; /* with keep_maps: where each cell came from (owned) */
+    ts_synth_maps maps;            /* with keep_maps: where each cell came from (owned) */
+    ts_sketch_tiles *sketch_tiles; /* a sketch in tiles served window by window (owned) */
     int has_maps;
     tsio_err warning; /* "" or one line a front end shows as a warning */
     /* after tsjob_synth_setup: the exemplars at the target resolution (owned) */
@@ -218,6 +219,14 @@ int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *r
  *  whole run; the seed is ctx's. */
 int tsjob_synth_tiles(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_result *res,
                       ts_synth_tile *tiles, int n_tiles, tsio_err *err);
+/** A sketch in tiles served window by window (job->lazy): after compute,
+ *  which laid it out and kept res->sketch_tiles, cells [x0, x0+w) x [y0,
+ *  y0+h) before the drainage stage, the same bytes as that window of the
+ *  whole run, and the drawn ridges as TS_CELL_BARRIER into flags (w*h,
+ *  zeroed; may be NULL). */
+int tsjob_synth_sketch_window_raw(ts_ctx *ctx, const tsjob_synth *job,
+                                  const tsjob_synth_result *res, int x0, int y0, int w, int h,
+                                  float *cells, unsigned char *flags, tsio_err *err);
 /** Before the work (after prepare): every output can be written, none is
  *  an input, the debug folder exists (created if need be). */
 int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *res,
@@ -259,10 +268,10 @@ typedef struct tsjob_amplify {
     double cell_size;
     ts_amplify_params params;
     ts_drainage_params drainage; /* the drainage stage after the amplification */
-    int lazy;               /* served window by window (the driver): no whole output */
-    const char *dictionary; /* a dictionary file instead of exemplars */
-    int shape_given;        /* factor or patch given: they must be the dictionary's */
-    double resolution;      /* `terrasynth dictionary build`: metres per output cell */
+    int lazy;                    /* served window by window (the driver): no whole output */
+    const char *dictionary;      /* a dictionary file instead of exemplars */
+    int shape_given;             /* factor or patch given: they must be the dictionary's */
+    double resolution;           /* `terrasynth dictionary build`: metres per output cell */
     /* the exemplars' extra layers: layer_files[k][l] is exemplar k's layer l */
     char layer_names[TS_MAX_LAYERS][TS_LAYER_NAME];
     int n_layers;
@@ -316,9 +325,8 @@ int tsjob_amplify_setup(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_res
 int tsjob_amplify_window(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
                          int x0, int y0, int w, int h, int serve, float *out, tsio_err *err);
 /** The DEM's window before the drainage stage (what tsjob_amplify_window drains). */
-int tsjob_amplify_window_raw(ts_ctx *ctx, const tsjob_amplify *job,
-                             const tsjob_amplify_result *res, int x0, int y0, int w, int h,
-                             float *out, tsio_err *err);
+int tsjob_amplify_window_raw(ts_ctx *ctx, const tsjob_amplify *job, const tsjob_amplify_result *res,
+                             int x0, int y0, int w, int h, float *out, tsio_err *err);
 /** Setup, then the whole output into res->out. */
 int tsjob_amplify_compute(ts_ctx *ctx, const tsjob_amplify *job, tsjob_amplify_result *res,
                           tsio_err *err);
@@ -353,8 +361,8 @@ typedef struct tsjob_pixel {
     const char *guide; /* a DEM on the output grid the terrain follows, or NULL */
     ts_pixel_params params;
     ts_drainage_params drainage; /* the drainage stage after the synthesis */
-    int lazy;         /* served window by window (the driver): no whole output */
-    int keep_sources; /* compute keeps where each cell's coordinate points (debug_dir) */
+    int lazy;                    /* served window by window (the driver): no whole output */
+    int keep_sources;            /* compute keeps where each cell's coordinate points (debug_dir) */
 } tsjob_pixel;
 
 typedef struct tsjob_pixel_result {

@@ -243,7 +243,16 @@ static int recipe_job(tsrecipe *r, CPLXMLNode *node, const char *const *oo, tsio
         tsio_errf(err, r->path, "%s", err->msg);
         return -1;
     }
-    if (r->synth.params.tiled > 0) {
+    if (r->synth.params.tiled > 0 && r->synth.sketch) {
+        /* a sketch in tiles: laid out on the first read, then block by block */
+        if (r->map >= 0) {
+            tsio_errf(err, r->path, "a sketch in tiles takes no debug maps yet (MAP)");
+            return -1;
+        }
+        r->synth.lazy = 1;
+        if (ts_drainage_margin(&r->synth.drainage) && tsrecipe__raw_init(r, err) != 0)
+            return -1;
+    } else if (r->synth.params.tiled > 0) {
         /* tile by tile: tsrecipe_read_window makes the tiles a block needs */
         if (r->map >= 0) {
             tsio_errf(err, r->path, "tiles (tiled %d) take no debug maps yet (MAP)",
@@ -612,6 +621,11 @@ static int recipe_compute_offline(tsrecipe *r, tsio_err *err)
         rc = tsjob_amplify_setup(ctx, &r->amplify, &r->amplify_res, err);
         if (rc == 0 && r->amplify_res.warning.msg[0])
             CPLError(CE_Warning, CPLE_AppDefined, "%s", r->amplify_res.warning.msg);
+    } else if (r->synth.lazy && r->synth.sketch) {
+        /* the coarse pass and the dictionary every block shares (no whole output) */
+        rc = tsjob_synth_compute(ctx, &r->synth, &r->synth_res, 0, err);
+        if (rc == 0 && r->synth_res.warning.msg[0])
+            CPLError(CE_Warning, CPLE_AppDefined, "%s", r->synth_res.warning.msg);
     } else if (r->synth.lazy) {
         /* the exemplars every tile shares; the tiles: tsrecipe_read_window */
         rc = tsjob_synth_setup(ctx, &r->synth, &r->synth_res, err);
@@ -662,7 +676,8 @@ const void *tsrecipe_data(const tsrecipe *r)
 
 int tsrecipe_block_size(const tsrecipe *r)
 {
-    if (r->method == TSRECIPE_SYNTH && r->synth.lazy && r->synth_res.params.tiled < 256)
+    if (r->method == TSRECIPE_SYNTH && r->synth.lazy && !r->synth.sketch &&
+        r->synth_res.params.tiled < 256)
         return r->synth_res.params.tiled; /* a block inside one tile */
     return r->method == TSRECIPE_PIXEL ? 512 : 256;
 }
@@ -674,14 +689,15 @@ const char *tsrecipe_job_name(const tsrecipe *r)
 
 const char *tsrecipe_schedule(const tsrecipe *r)
 {
-    if (r->method == TSRECIPE_SYNTH && r->synth.lazy)
+    if (r->method == TSRECIPE_SYNTH && r->synth.lazy && !r->synth.sketch)
         return "tiles";
     return tsrecipe_lazy(r) ? "any" : "whole";
 }
 
 int tsrecipe_tile_size(const tsrecipe *r)
 {
-    return r->method == TSRECIPE_SYNTH && r->synth.lazy ? r->synth.params.tiled : 0;
+    return r->method == TSRECIPE_SYNTH && r->synth.lazy && !r->synth.sketch ? r->synth.params.tiled
+                                                                            : 0;
 }
 
 int tsrecipe_drainage_margin(const tsrecipe *r)
@@ -739,6 +755,16 @@ static int recipe_read_window_offline(tsrecipe *r, int x0, int y0, int w, int h,
     if (!ctx) {
         tsio_errf(err, r->path, "out of memory");
         return -1;
+    }
+    if (r->method == TSRECIPE_SYNTH && r->synth.sketch) { /* a sketch in tiles */
+        rc = r->has_raw_lock ? tsrecipe__raw_drained(r, ctx, x0, y0, w, h, out, err)
+                             : tsjob_synth_sketch_window_raw(ctx, &r->synth, &r->synth_res, x0, y0,
+                                                             w, h, out, NULL, err);
+        ts_ctx_free(ctx);
+        for (i = 0; rc == 0 && i < n; i++)
+            if (isnan(out[i]))
+                out[i] = (float)TSIO_NODATA; /* nodata as the driver declares it */
+        return rc;
     }
     if (r->method == TSRECIPE_SYNTH) {
         ts_ctx_set_seed(ctx, r->seed);

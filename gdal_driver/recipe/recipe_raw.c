@@ -1,5 +1,5 @@
 /*
- * recipe_raw.c - the windows of a pixel or amplify recipe with the drainage
+ * recipe_raw.c - the windows of a pixel, amplify or sketch-in-tiles recipe with the drainage
  * stage: each window is drained from the method's cells round it (the
  * stage's margin), which come from blocks of the method's output kept in a
  * cache (the least recently used dropped past TSYN_TILE_CACHE_MB), so
@@ -39,9 +39,11 @@ static recipe_tile *raw_block(tsrecipe *r, ts_ctx *ctx, int bi, int bj, tsio_err
         tsio_errf(err, r->path, "out of memory for a block of %d x %d cells", b.w, b.h);
         return NULL;
     }
-    if ((r->method == TSRECIPE_PIXEL
-             ? tsjob_pixel_window_raw(ctx, &r->pixel, &r->pixel_res, b.x0, b.y0, b.w, b.h,
-                                      b.cells, err)
+    if ((r->method == TSRECIPE_PIXEL ? tsjob_pixel_window_raw(ctx, &r->pixel, &r->pixel_res, b.x0,
+                                                              b.y0, b.w, b.h, b.cells, err)
+         : r->method == TSRECIPE_SYNTH
+             ? tsjob_synth_sketch_window_raw(ctx, &r->synth, &r->synth_res, b.x0, b.y0, b.w, b.h,
+                                             b.cells, NULL, err)
              : tsjob_amplify_window_raw(ctx, &r->amplify, &r->amplify_res, b.x0, b.y0, b.w, b.h,
                                         b.cells, err)) != 0) {
         free(b.cells);
@@ -70,7 +72,6 @@ static int raw_window(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, floa
 {
     tsrecipe *r = arg;
     int bi, bj, y;
-    (void)flags;
     r->raw_clock++;
     /* every block first marked as needed (so none is dropped while the window is made) */
     for (bj = y0 / RAW_BLOCK; bj <= (y0 + h - 1) / RAW_BLOCK; bj++)
@@ -95,6 +96,15 @@ static int raw_window(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, floa
                        (size_t)(xb - xa) * sizeof *cells);
         }
     tsrecipe__cache_evict(r->raw, &r->n_raw, &r->raw_bytes, r->raw_limit, r->raw_clock);
+    /* a sketch's drawn ridges: barriers to the drainage stage */
+    if (flags && r->method == TSRECIPE_SYNTH && r->synth_res.sketch_features)
+        for (y = 0; y < h; y++)
+            for (bi = 0; bi < w; bi++)
+                if (r->synth_res.sketch_features
+                        ->mask[(size_t)(y0 + y) * (size_t)r->synth_res.geo.width +
+                               (size_t)(x0 + bi)] &
+                    TS_RIDGE)
+                    flags[(size_t)y * (size_t)w + (size_t)bi] |= TS_CELL_BARRIER;
     return 0;
 }
 
@@ -127,8 +137,9 @@ int tsrecipe__raw_drained(tsrecipe *r, ts_ctx *ctx, int x0, int y0, int w, int h
                           tsio_err *err)
 {
     const tsio_georef *g = tsrecipe_georef(r);
-    const ts_drainage_params *p =
-        r->method == TSRECIPE_PIXEL ? &r->pixel_res.drainage : &r->amplify_res.drainage;
+    const ts_drainage_params *p = r->method == TSRECIPE_PIXEL   ? &r->pixel_res.drainage
+                                  : r->method == TSRECIPE_SYNTH ? &r->synth_res.drainage
+                                                                : &r->amplify_res.drainage;
     int rc;
     pthread_mutex_lock(&r->raw_lock);
     rc = tsjob_drained_window(ctx, p, g->width, g->height, x0, y0, w, h, raw_window, r, out,

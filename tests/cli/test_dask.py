@@ -116,6 +116,20 @@ def test_synth_recipe_in_one_task(tmp_path):
     same_raster(tmp_path / "dask.tif", tmp_path / "gt.tif")
 
 
+def test_sketch_recipe_in_tiles_chunk_by_chunk(tmp_path):
+    """A sketch in tiles (laid out coarser and amplified): chunk by chunk on two worker
+    processes, each laying the sketch out once; the same cells as the command line's run."""
+    sketch = os.path.join(os.path.dirname(JACKSBORO), "sketches", "ridges_valleys.tif")
+    args = ["--exemplar", JACKSBORO, "--sketch", sketch, "--seed", 3, "--tiled", 256]
+    run("synth", *args, tmp_path / "cli.tif", "-q")
+    run("synth", *args, "--recipe", tmp_path / "s.tsyn")
+    p = runner(tmp_path / "s.tsyn", tmp_path / "dask.tif", "--workers", 2, "--processes",
+               "--chunk", 128)
+    assert "chunk by chunk" in p.stdout and "in 16 chunks" in p.stdout, p.stdout
+    assert gdal.Open(str(tmp_path / "dask.tif")).ReadAsArray().tobytes() == \
+        gdal.Open(str(tmp_path / "cli.tif")).ReadAsArray().tobytes()
+
+
 def test_tiled_synth_recipe_tile_by_tile(tmp_path):
     """A tiled synth recipe: one task per tile, the waves as dependencies, the neighbours'
     windows shared by two workers (threads) or moved between them (processes): the same

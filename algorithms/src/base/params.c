@@ -81,7 +81,8 @@ static const ts_param_desc synth_desc[] = {
      "Free synthesis in tiles of this many cells, made in four waves (a tile is cut and "
      "smoothed against its finished neighbours, the tiles of a wave run in parallel); "
      "a recipe in tiles is served tile by tile, any window alone (256-512 suit that); "
-     "0 = in one piece.  Not with a sketch.",
+     "0 = in one piece.  With a sketch: the sketch laid out coarser and amplified "
+     "(amplify_factor).",
      offsetof(ts_synth_params, tiled)},
     {"usage", TS_PARAM_DOUBLE, -1.0, -1.0, 1000.0, TS_UNIT_CELLS, "", NULL,
      "Weight of the usage cost: a candidate pays this times the exemplar's detail variance "
@@ -135,6 +136,15 @@ static const ts_param_desc sketch_desc[] = {
      "by the seed) on top of the patches' own: 0 one level along each ridge; at 1 the "
      "deepest saddles can break a drawn ridge.",
      offsetof(ts_sketch_params, crest_relief)},
+    {"amplify_factor", TS_PARAM_INT, 0, 0, 16, TS_UNIT_CELLS, "", NULL,
+     "In tiles (tiled > 0): the sketch is laid out whole on a grid this many times coarser, "
+     "with patches and overlap this many times smaller (the same ground size), then "
+     "amplified back onto the output grid (Argudo et al. 2017), window by window; 0 = "
+     "automatic: the largest power of two up to 16 that leaves patches of 32 cells or more "
+     "(2 for patches of 64), at least 2 (1 for patches under 16 cells), doubled while the "
+     "coarse grid has more than 2048 x 2048 cells and patches keep 8; 1 = laid out at the "
+     "output's cells, nothing amplified.",
+     offsetof(ts_sketch_params, amplify_factor)},
 };
 
 static const ts_param_desc amplify_desc[] = {
@@ -265,10 +275,10 @@ static const ts_param_desc drainage_desc[] = {
      "keep them; breach them (a channel cut from each pit along the cheapest path to lower "
      "land or the grid's edge, with banks falling to it where it cuts deep, never raising a "
      "cell); or fill them to their spill height (flat lakes). "
-     "Water and pinned windows never change; a channel crosses a drawn ridge only where the land inside has no other way out.",
+     "Water and pinned windows never change; a channel crosses a drawn ridge only where the land "
+     "inside has no other way out.",
      offsetof(ts_drainage_params, mode)},
-    {"drainage_radius", TS_PARAM_INT, 128, 1, TS_DRAINAGE_RADIUS_MAX, TS_UNIT_CELLS, "cells",
-     NULL,
+    {"drainage_radius", TS_PARAM_INT, 128, 1, TS_DRAINAGE_RADIUS_MAX, TS_UNIT_CELLS, "cells", NULL,
      "How far from its pit a channel or a fill reaches; a depression with no way out within "
      "it is kept (a crater, a lake basin). Windows and tiles are computed with a margin of "
      "two and a half times this (twice with drainage_banks 0 or with fill).",
@@ -279,8 +289,8 @@ static const ts_param_desc drainage_desc[] = {
      "-1 (auto): the bank slope times an eighth of the radius (a gorge whose banks reach at "
      "most that far each side; no limit without banks); 0: no limit.",
      offsetof(ts_drainage_params, max_depth)},
-    {"drainage_banks", TS_PARAM_DOUBLE, -1.0, -1.0, 1e6, TS_UNIT_CELLS,
-     "elevation units per cell", NULL,
+    {"drainage_banks", TS_PARAM_DOUBLE, -1.0, -1.0, 1e6, TS_UNIT_CELLS, "elevation units per cell",
+     NULL,
      "The slope of a breach channel's banks (ours): where a channel cuts deeper than this, the "
      "land beside it is lowered to slopes falling to it at this slope, as far as the cut "
      "needs (at most half the radius): a gorge through the dam instead of a slot one cell "

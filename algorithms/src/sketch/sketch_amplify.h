@@ -1,0 +1,24 @@
+/*
+ * sketch_amplify.h - a sketch in tiles (sketch_amplify.c): the sketch laid
+ * out on a coarser grid, then amplified onto the output grid.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#ifndef TS_SKETCH_AMPLIFY_H
+#define TS_SKETCH_AMPLIFY_H
+
+#include "terrasynth.h"
+
+/* ts_synth_sketch (a painted sketch) or ts_synth_sketch_features (a
+ * feature graph) with params->tiled > 0: the sketch laid out whole on a
+ * grid K times coarser, then amplified K times onto out (NaN on entry;
+ * pins and water are refused) through ts_sketch_tiles_new and the window of
+ * the whole grid. */
+ts_status ts__synth_sketch_amplified(ts_ctx *ctx, const ts_raster *sketch,
+                                     const ts_features *features, const ts_raster *exemplars,
+                                     int n_exemplars, const ts_sketch_params *sp,
+                                     const ts_synth_params *params,
+                                     const ts_synth_constraints *constraints, ts_raster *out,
+                                     ts_features **sketch_features, ts_sketch_info *info);
+
+#endif
