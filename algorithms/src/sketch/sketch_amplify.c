@@ -16,6 +16,8 @@
  * and wanted heights over their valid cells, a region's exemplar from the
  * block's centre, nodata where the whole block is.  The amplified grid is
  * cut to the output's size; the output's nodata cells are set back to NaN.
+ * Before the amplification, the coarse pass's carved valley floors are
+ * softened (sa_soften_floors).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -232,6 +234,37 @@ static ts_status sa_nodata(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j)
     return TS_OK;
 }
 
+/* The coarse pass's carved floors softened (ours): every cell within a
+ * cell of a floor cell takes the mean of the 3 x 3 cells round it (valid
+ * ones, the values before this step).  The floors are carved one cell wide,
+ * and the amplification keeps that edge K cells wide: a sharp slot along
+ * each drawn valley where the pipeline in one piece leaves a soft floor. */
+static ts_status sa_soften_floors(ts_ctx *ctx, ts_raster *c, const unsigned char *floor)
+{
+    int w = c->width, h = c->height, x, y, u, v;
+    float *z = ts__malloc_array((size_t)w * (size_t)h, sizeof *z);
+    if (!z)
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
+    memcpy(z, c->data, (size_t)w * (size_t)h * sizeof *z);
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            double s = 0.0;
+            int n = 0, near = 0;
+            for (v = TS_MAX(0, y - 1); v <= TS_MIN(h - 1, y + 1); v++)
+                for (u = TS_MAX(0, x - 1); u <= TS_MIN(w - 1, x + 1); u++) {
+                    near |= floor[(size_t)v * w + u];
+                    if (!isnan(z[(size_t)v * w + u])) {
+                        s += z[(size_t)v * w + u];
+                        n++;
+                    }
+                }
+            if (near && !isnan(z[(size_t)y * w + x]))
+                c->data[(size_t)y * w + x] = (float)(s / n);
+        }
+    free(z);
+    return TS_OK;
+}
+
 /* The coarse pass: the whole sketch pipeline K times coarser into t->coarse. */
 static ts_status sa_coarse_pass(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j, int P, int ov,
                                 ts_features **cf, ts_sketch_info *info)
@@ -240,6 +273,7 @@ static ts_status sa_coarse_pass(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j
     ts_features *cfeat = NULL;
     ts_synth_params cp = *j->params;
     ts_synth_constraints cc;
+    ts_synth_maps maps;
     sa_coarse c;
     ts_status st = TS_OK;
     int e, K = t->K;
@@ -265,17 +299,23 @@ static ts_status sa_coarse_pass(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j
     if (st == TS_OK && (st = ts_raster_alloc(ctx, c.w, c.h, &t->coarse)) == TS_OK)
         for (i = 0; i < (size_t)c.w * (size_t)c.h; i++)
             t->coarse.data[i] = NAN;
+    memset(&maps, 0, sizeof maps);
+    if (st == TS_OK && !(maps.valley_floor = ts__calloc_array((size_t)c.w * (size_t)c.h, 1)))
+        st = ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
     if (st == TS_OK && j->sketch) {
         if ((st = ts_raster_alloc(ctx, c.w, c.h, &csk)) == TS_OK) {
             sa_average(j->sketch, K, &csk);
-            st = ts_synth_sketch(ctx, &csk, cex, j->n_exemplars, j->sp, &cp, &cc, &t->coarse, NULL,
+            st = ts_synth_sketch(ctx, &csk, cex, j->n_exemplars, j->sp, &cp, &cc, &t->coarse, &maps,
                                  cf, info);
         }
     } else if (st == TS_OK &&
                (st = sa_graph_scaled(ctx, j->features, 1.0 / K, c.w, c.h, &cfeat)) == TS_OK) {
         st = ts_synth_sketch_features(ctx, cfeat, cex, j->n_exemplars, j->sp, &cp, &cc, &t->coarse,
-                                      NULL, info);
+                                      &maps, info);
     }
+    if (st == TS_OK && K > 1)
+        st = sa_soften_floors(ctx, &t->coarse, maps.valley_floor);
+    free(maps.valley_floor);
     for (e = 0; e < j->n_exemplars; e++)
         ts_raster_free(&cex[e]);
     free(cex);
