@@ -195,27 +195,38 @@ static ts_status sketch_exemplar(ts_ctx *ctx, sketch_run *r, const ts_raster *ex
     return TS_OK;
 }
 
-/* Step 5's flags: windows within a patch of the sketch's features may take
- * any exemplar window; farther away only featureless ones. */
-static ts_status sketch_feature_zone(ts_ctx *ctx, const sketch_run *r, int W, int H, int P)
+/* *d (W x H floats, the caller frees it): each cell's distance in cells to
+ * the nearest cell of f of the kinds. */
+static ts_status sketch_distance(ts_ctx *ctx, const ts_features *f, int kinds, float **d)
 {
-    size_t n = (size_t)W * (size_t)H, i;
-    float *d = ts__malloc_array(n, sizeof(float));
+    size_t n = (size_t)f->width * (size_t)f->height, i;
     unsigned char *m = ts__malloc_array(n, 1);
     ts_status st;
-    if (!d || !m) {
-        free(d);
+    *d = ts__malloc_array(n, sizeof **d);
+    if (!*d || !m) {
         free(m);
+        free(*d);
+        *d = NULL;
         return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
     }
     for (i = 0; i < n; i++)
-        m[i] = (r->sf->mask[i] & r->kind) != 0;
-    st = ts__distance_transform(ctx, m, W, H, d);
+        m[i] = (f->mask[i] & kinds) != 0;
+    st = ts__distance_transform(ctx, m, f->width, f->height, *d);
+    free(m);
+    return st;
+}
+
+/* Step 5's flags: windows within a patch of the sketch's features may take
+ * any exemplar window; farther away only featureless ones. */
+static ts_status sketch_feature_zone(ts_ctx *ctx, const sketch_run *r, int P)
+{
+    size_t n = (size_t)r->sf->width * (size_t)r->sf->height, i;
+    float *d;
+    ts_status st = sketch_distance(ctx, r->sf, r->kind, &d);
     for (i = 0; st == TS_OK && i < n; i++)
         if (d[i] <= P)
             r->flags[i] |= TS__CELL_FEATURE;
     free(d);
-    free(m);
     return st;
 }
 
@@ -337,23 +348,13 @@ static ts_status sketch_features_placed(ts_ctx *ctx, sketch_run *r, ts__fill *fi
 static ts_status sketch_floor_drawn(ts_ctx *ctx, const ts_features *f, unsigned char *floor, int P)
 {
     size_t n = (size_t)f->width * (size_t)f->height, i;
-    float *d = ts__malloc_array(n, sizeof *d);
-    unsigned char *m = ts__malloc_array(n, 1);
     double reach = TS_MAX(2.0, P / 10.0);
-    ts_status st;
-    if (!d || !m) {
-        free(d);
-        free(m);
-        return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
-    }
-    for (i = 0; i < n; i++)
-        m[i] = (f->mask[i] & TS_VALLEY) != 0;
-    st = ts__distance_transform(ctx, m, f->width, f->height, d);
+    float *d;
+    ts_status st = sketch_distance(ctx, f, TS_VALLEY, &d);
     for (i = 0; st == TS_OK && i < n; i++)
         if (floor[i] && !(d[i] <= reach))
             floor[i] = 0;
     free(d);
-    free(m);
     return st;
 }
 
@@ -466,7 +467,7 @@ static ts_status sketch_stages(ts_ctx *ctx, sketch_run *r, const ts_raster *exem
      * parameter reorders the feature sites only: the fill always grows out
      * from them) */
     t0 = ts__now();
-    if ((st = sketch_feature_zone(ctx, r, out->width, out->height, P)) != TS_OK)
+    if ((st = sketch_feature_zone(ctx, r, P)) != TS_OK)
         return st;
     fill.s.order = TS_ORDER_GROW;
     fill.cell_flags = r->flags;

@@ -775,22 +775,27 @@ done:
 
 int tsjob_synth_sketch_window_raw(ts_ctx *ctx, const tsjob_synth *job,
                                   const tsjob_synth_result *res, int x0, int y0, int w, int h,
-                                  float *cells, unsigned char *flags, tsio_err *err)
+                                  float *cells, tsio_err *err)
 {
     ts_raster o = ts_raster_wrap(cells, w, h, w);
-    int x, y;
     if (ts_sketch_tiles_window(ctx, res->sketch_tiles, x0, y0, &o) != TS_OK) {
         tsio_errf(err, job->sketch, "%s", ts_ctx_message(ctx));
         return -1;
     }
-    /* the drawn ridges: barriers the drainage stage crosses only where it must */
-    for (y = 0; flags && res->sketch_features && y < h; y++)
-        for (x = 0; x < w; x++)
-            if (res->sketch_features
-                    ->mask[(size_t)(y0 + y) * (size_t)res->geo.width + (size_t)(x0 + x)] &
-                TS_RIDGE)
-                flags[(size_t)y * (size_t)w + (size_t)x] |= TS_CELL_BARRIER;
     return 0;
+}
+
+void tsjob_synth_sketch_barriers(const tsjob_synth_result *res, int x0, int y0, int w, int h,
+                                 unsigned char *flags)
+{
+    const ts_features *f = res->sketch_features;
+    int x, y;
+    if (!f || !f->mask || f->width != res->geo.width || f->height != res->geo.height)
+        return;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++)
+            if (f->mask[(size_t)(y0 + y) * (size_t)f->width + (size_t)(x0 + x)] & TS_RIDGE)
+                flags[(size_t)y * (size_t)w + (size_t)x] |= TS_CELL_BARRIER;
 }
 
 int tsjob_parse_pin(const char *spec, tsjob_pin *pin, char *path_buf, size_t path_len)

@@ -69,12 +69,7 @@ int tsjob__synth_drain_whole(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_re
     if (job->drainage.mode == TS_DRAINAGE_KEEP)
         return 0;
     tsjob__progress_range(ctx, jp, 0.95, 1.0);
-    if (res->sketch_features && res->sketch_features->mask &&
-        res->sketch_features->width == res->geo.width &&
-        res->sketch_features->height == res->geo.height)
-        for (i = 0; i < n; i++)
-            if (res->sketch_features->mask[i] & TS_RIDGE)
-                flags[i] |= TS_CELL_BARRIER;
+    tsjob_synth_sketch_barriers(res, 0, 0, res->geo.width, res->geo.height, flags);
     /* a drawn valley's floor, made to descend to its outlet, is kept as it is */
     for (i = 0; res->maps.valley_floor && i < n; i++)
         if (res->maps.valley_floor[i])

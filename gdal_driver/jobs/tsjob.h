@@ -222,11 +222,15 @@ int tsjob_synth_tiles(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_res
 /** A sketch in tiles served window by window (job->lazy): after compute,
  *  which laid it out and kept res->sketch_tiles, cells [x0, x0+w) x [y0,
  *  y0+h) before the drainage stage, the same bytes as that window of the
- *  whole run, and the drawn ridges as TS_CELL_BARRIER into flags (w*h,
- *  zeroed; may be NULL). */
+ *  whole run. */
 int tsjob_synth_sketch_window_raw(ts_ctx *ctx, const tsjob_synth *job,
                                   const tsjob_synth_result *res, int x0, int y0, int w, int h,
-                                  float *cells, unsigned char *flags, tsio_err *err);
+                                  float *cells, tsio_err *err);
+/** The sketch's drawn ridges over [x0, x0+w) x [y0, y0+h) as TS_CELL_BARRIER
+ *  into flags (w*h): barriers the drainage stage crosses only where it must
+ *  (nothing without a feature graph on the output grid). */
+void tsjob_synth_sketch_barriers(const tsjob_synth_result *res, int x0, int y0, int w, int h,
+                                 unsigned char *flags);
 /** Before the work (after prepare): every output can be written, none is
  *  an input, the debug folder exists (created if need be). */
 int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *res,

@@ -759,7 +759,7 @@ static int recipe_read_window_offline(tsrecipe *r, int x0, int y0, int w, int h,
     if (r->method == TSRECIPE_SYNTH && r->synth.sketch) { /* a sketch in tiles */
         rc = r->has_raw_lock ? tsrecipe__raw_drained(r, ctx, x0, y0, w, h, out, err)
                              : tsjob_synth_sketch_window_raw(ctx, &r->synth, &r->synth_res, x0, y0,
-                                                             w, h, out, NULL, err);
+                                                             w, h, out, err);
         ts_ctx_free(ctx);
         for (i = 0; rc == 0 && i < n; i++)
             if (isnan(out[i]))

@@ -43,7 +43,7 @@ static recipe_tile *raw_block(tsrecipe *r, ts_ctx *ctx, int bi, int bj, tsio_err
                                                               b.y0, b.w, b.h, b.cells, err)
          : r->method == TSRECIPE_SYNTH
              ? tsjob_synth_sketch_window_raw(ctx, &r->synth, &r->synth_res, b.x0, b.y0, b.w, b.h,
-                                             b.cells, NULL, err)
+                                             b.cells, err)
              : tsjob_amplify_window_raw(ctx, &r->amplify, &r->amplify_res, b.x0, b.y0, b.w, b.h,
                                         b.cells, err)) != 0) {
         free(b.cells);
@@ -96,15 +96,8 @@ static int raw_window(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, floa
                        (size_t)(xb - xa) * sizeof *cells);
         }
     tsrecipe__cache_evict(r->raw, &r->n_raw, &r->raw_bytes, r->raw_limit, r->raw_clock);
-    /* a sketch's drawn ridges: barriers to the drainage stage */
-    if (flags && r->method == TSRECIPE_SYNTH && r->synth_res.sketch_features)
-        for (y = 0; y < h; y++)
-            for (bi = 0; bi < w; bi++)
-                if (r->synth_res.sketch_features
-                        ->mask[(size_t)(y0 + y) * (size_t)r->synth_res.geo.width +
-                               (size_t)(x0 + bi)] &
-                    TS_RIDGE)
-                    flags[(size_t)y * (size_t)w + (size_t)bi] |= TS_CELL_BARRIER;
+    if (flags && r->method == TSRECIPE_SYNTH) /* a sketch's drawn ridges */
+        tsjob_synth_sketch_barriers(&r->synth_res, x0, y0, w, h, flags);
     return 0;
 }
 

@@ -172,12 +172,15 @@ static ts_status sa_constraints(ts_ctx *ctx, sa_coarse *c, const ts_synth_constr
     return TS_OK;
 }
 
-/* What the coarse pass cannot carry: cells fixed (pins, water). */
-static ts_status sa_check_fixed(ts_ctx *ctx, const ts_synth_constraints *c, int W, int H)
+/* What the coarse pass cannot carry: cells fixed (pins, water), flagged or,
+ * with out, filled on entry. */
+static ts_status sa_check_fixed(ts_ctx *ctx, const ts_synth_constraints *c, int W, int H,
+                                const ts_raster *out)
 {
     size_t i, n = (size_t)W * (size_t)H;
-    for (i = 0; c && c->cell_flags && i < n; i++)
-        if (c->cell_flags[i] & (TS_CELL_FIXED | TS_CELL_WATER))
+    for (i = 0; i < n; i++)
+        if ((c && c->cell_flags && (c->cell_flags[i] & (TS_CELL_FIXED | TS_CELL_WATER))) ||
+            (out && !isnan(TS_PIX(out, (int)(i % (size_t)W), (int)(i / (size_t)W)))))
             return ts__fail(ctx, TS_ERR_ARG, "sketch tiles",
                             "pinned windows and water are not made in tiles with a sketch yet: "
                             "make it in one piece (tiled 0)");
@@ -222,15 +225,12 @@ static int sa_is_nodata(const sa_job *j, size_t i, int W)
 static ts_status sa_nodata(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j)
 {
     size_t n = (size_t)t->W * (size_t)t->H, i;
-    int any = 0;
-    for (i = 0; i < n && !any; i++)
-        any = sa_is_nodata(j, i, t->W);
-    if (!any)
-        return TS_OK;
-    if (!(t->nodata = ts__malloc_array(n, 1)))
-        return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
     for (i = 0; i < n; i++)
-        t->nodata[i] = (unsigned char)sa_is_nodata(j, i, t->W);
+        if (sa_is_nodata(j, i, t->W)) {
+            if (!t->nodata && !(t->nodata = ts__calloc_array(n, 1)))
+                return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
+            t->nodata[i] = 1;
+        }
     return TS_OK;
 }
 
@@ -277,7 +277,6 @@ static ts_status sa_coarse_pass(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j
     sa_coarse c;
     ts_status st = TS_OK;
     int e, K = t->K;
-    size_t i;
     memset(&c, 0, sizeof c);
     c.W = t->W;
     c.H = t->H;
@@ -296,9 +295,8 @@ static ts_status sa_coarse_pass(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j
             st = ts_area_average(ctx, &j->exemplars[e], K, &cex[e]);
     if (st == TS_OK)
         st = sa_constraints(ctx, &c, j->constraints, &cc);
-    if (st == TS_OK && (st = ts_raster_alloc(ctx, c.w, c.h, &t->coarse)) == TS_OK)
-        for (i = 0; i < (size_t)c.w * (size_t)c.h; i++)
-            t->coarse.data[i] = NAN;
+    if (st == TS_OK)
+        st = ts_raster_alloc(ctx, c.w, c.h, &t->coarse); /* NaN: nothing fixed */
     memset(&maps, 0, sizeof maps);
     if (st == TS_OK && !(maps.valley_floor = ts__calloc_array((size_t)c.w * (size_t)c.h, 1)))
         st = ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
@@ -360,7 +358,7 @@ static ts_status sa_tiles_new(ts_ctx *ctx, const sa_job *j, int W, int H, ts_ske
     if (ts_params_validate(ctx, "sketch", j->sp) != TS_OK ||
         ts_params_validate(ctx, "synth", j->params) != TS_OK ||
         ts__synth_cells(ctx, j->params, &P, &ov) != TS_OK ||
-        sa_check_fixed(ctx, j->constraints, W, H) != TS_OK)
+        sa_check_fixed(ctx, j->constraints, W, H, NULL) != TS_OK)
         return ts_ctx_status(ctx);
     if (!(t = calloc(1, sizeof *t)))
         return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
@@ -462,15 +460,10 @@ ts_status ts__synth_sketch_amplified(ts_ctx *ctx, const ts_raster *sketch,
     ts_sketch_tiles *t = NULL;
     ts_progress_saved sv;
     ts_status st;
-    int x, y;
     if (!out || !out->data)
         return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
-    for (y = 0; y < out->height; y++)
-        for (x = 0; x < out->width; x++)
-            if (!isnan(TS_PIX(out, x, y)))
-                return ts__fail(ctx, TS_ERR_ARG, "sketch tiles",
-                                "pinned windows and water are not made in tiles with a sketch "
-                                "yet: make it in one piece (tiled 0)");
+    if (sa_check_fixed(ctx, NULL, out->width, out->height, out) != TS_OK)
+        return ts_ctx_status(ctx);
     sv = ts__progress_push(ctx, 0.0, 0.6);
     st = ts_sketch_tiles_new(ctx, sketch, features, exemplars, n_exemplars, sp, params, constraints,
                              out->width, out->height, &t, sketch_features, info);

@@ -90,11 +90,7 @@ static ts_raster diagonal_sketch(ts_ctx *ctx)
 static ts_raster empty(ts_ctx *ctx, int w, int h)
 {
     ts_raster r;
-    int x, y;
-    ts_raster_alloc(ctx, w, h, &r);
-    for (y = 0; y < h; y++)
-        for (x = 0; x < w; x++)
-            TS_PIX(&r, x, y) = NAN;
+    ts_raster_alloc(ctx, w, h, &r); /* NaN everywhere */
     return r;
 }
 
