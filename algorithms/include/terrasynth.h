@@ -32,6 +32,9 @@ extern "C" {
 /** Version string "MAJOR.MINOR.PATCH" (static storage): the project's
  *  version, set once in CMakeLists.txt. */
 TS_API const char *ts_version(void);
+/** The checksum the core's file formats end with (FNV-1a, 64 bits), of n
+ *  bytes, chained: start from 0, pass the last sum for the next bytes. */
+TS_API uint64_t ts_checksum(uint64_t sum, const void *bytes, size_t n);
 
 /* ------------------------------------------------------------------ */
 /* Status and context                                                 */
@@ -752,6 +755,25 @@ TS_API ts_status ts_sketch_tiles_window(ts_ctx *ctx, const ts_sketch_tiles *t, i
                                         ts_raster *out);
 /** K, the factor the sketch was laid out coarser by. */
 TS_API int ts_sketch_tiles_factor(const ts_sketch_tiles *t);
+/** The output cells of window [x0, x0 + w) x [y0, y0 + h) on a drawn ridge
+ *  (the feature graph's ridges: the lines given, or the coarse pass's graph
+ *  of a painted sketch on the output grid): flags[y * w + x] |= bit. */
+TS_API void ts_sketch_tiles_ridges(const ts_sketch_tiles *t, int x0, int y0, int w, int h,
+                                   unsigned char *flags, unsigned char bit);
+/**
+ * A sketch in tiles as bytes, to lay it out once and serve its windows
+ * anywhere later (the caller writes and reads them: the core does no file
+ * I/O): the coarse pass, the dictionary, the output's nodata and ridge
+ * cells, and `key`, a number of the caller's (what it was made from).
+ * Little-endian whatever the machine, versioned, with a checksum;
+ * from_bytes checks every size and value (a file is untrusted) and
+ * recomputes the coarse pass's drainage area: windows of the result are the
+ * same bytes as the original's.  *bytes is freed with free().
+ */
+TS_API ts_status ts_sketch_tiles_to_bytes(ts_ctx *ctx, const ts_sketch_tiles *t, uint64_t key,
+                                          unsigned char **bytes, size_t *len);
+TS_API ts_status ts_sketch_tiles_from_bytes(ts_ctx *ctx, const unsigned char *bytes, size_t len,
+                                            uint64_t *key, ts_sketch_tiles **out);
 TS_API void ts_sketch_tiles_free(ts_sketch_tiles *t);
 
 /* ------------------------------------------------------------------ */

@@ -115,8 +115,9 @@ typedef struct cli_job {
     size_t size;         /* its state */
     /* the values into the job (the declarations' rules checked): 0, or -1 with msg */
     int (*build)(void *st, cli_run *r, char *msg, size_t len);
-    /* --recipe: the job as a recipe can hold it */
-    int (*check_recipe)(void *st, const char *path, tsio_err *err);
+    /* --recipe: the job as a recipe can hold it, and what the recipe keeps
+     * beside it made (a sketch in tiles laid out) */
+    int (*check_recipe)(void *st, cli_run *r, const char *path, tsio_err *err);
     /* inputs read, memory estimated, outputs checked (warnings printed) */
     int (*prepare)(void *st, cli_run *r, tsio_err *err);
     int (*compute)(void *st, cli_run *r, tsio_err *err);

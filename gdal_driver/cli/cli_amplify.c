@@ -33,8 +33,9 @@ static int amplify_build(void *st, cli_run *r, char *msg, size_t len)
     return tsjob_build_amplify(r->values, &s->job, msg, len);
 }
 
-static int amplify_check_recipe(void *st, const char *path, tsio_err *err)
+static int amplify_check_recipe(void *st, cli_run *r, const char *path, tsio_err *err)
 {
+    (void)r;
     return tsjob_amplify_check_recipe(&((amplify_state *)st)->job, path, err);
 }
 

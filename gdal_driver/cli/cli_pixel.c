@@ -30,8 +30,9 @@ static int pixel_build(void *st, cli_run *r, char *msg, size_t len)
     return 0;
 }
 
-static int pixel_check_recipe(void *st, const char *path, tsio_err *err)
+static int pixel_check_recipe(void *st, cli_run *r, const char *path, tsio_err *err)
 {
+    (void)r;
     return tsjob_pixel_check_recipe(&((pixel_state *)st)->job, path, err);
 }
 

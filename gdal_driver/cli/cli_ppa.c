@@ -25,8 +25,9 @@ static int ppa_build(void *st, cli_run *r, char *msg, size_t len)
     return tsjob_build_ppa(r->values, &((ppa_state *)st)->job, msg, len);
 }
 
-static int ppa_check_recipe(void *st, const char *path, tsio_err *err)
+static int ppa_check_recipe(void *st, cli_run *r, const char *path, tsio_err *err)
 {
+    (void)r;
     return tsjob_ppa_check_recipe(&((ppa_state *)st)->job, path, err);
 }
 

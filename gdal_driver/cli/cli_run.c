@@ -38,7 +38,10 @@ static int run_built(const cli_job *job, void *st, cli_run *r)
     int progress_state = -1;
     tsio_err err;
     if (recipe_path && job->check_recipe) {
-        if (job->check_recipe(st, recipe_path, &err) != 0 ||
+        ts_ctx_set_seed(r->ctx, r->seed);
+        ts_ctx_set_threads(r->ctx, r->co->threads);
+        cli_set_progress(r->ctx, r->co->progress, &progress_state);
+        if (job->check_recipe(st, r, recipe_path, &err) != 0 ||
             tsrecipe_write(recipe_path, r->values, &err) != 0) {
             fprintf(stderr, "terrasynth: %s\n", err.msg);
             return -1;

@@ -25,9 +25,21 @@ static int synth_build(void *st, cli_run *r, char *msg, size_t len)
     return tsjob_build_synth(r->values, &((synth_state *)st)->job, &r->seed, msg, len);
 }
 
-static int synth_check_recipe(void *st, const char *path, tsio_err *err)
+/* A sketch in tiles is laid out now and kept beside the recipe (coarse_pass). */
+static int synth_check_recipe(void *st, cli_run *r, const char *path, tsio_err *err)
 {
-    return tsjob_synth_check_recipe(&((synth_state *)st)->job, path, err);
+    synth_state *s = st;
+    if (tsjob_synth_check_recipe(&s->job, path, err) != 0)
+        return -1;
+    if (!s->job.coarse_pass)
+        return 0;
+    s->job.lazy = 1;
+    s->job.write_coarse = 1;
+    if (tsjob_synth_prepare(&s->job, &s->res, err) != 0 ||
+        tsjob_synth_compute(r->ctx, &s->job, &s->res, 0, err) != 0)
+        return -1;
+    ts_ctx_set_progress(r->ctx, NULL, NULL);
+    return tsjob_synth_write_coarse(r->ctx, &s->job, &s->res, err);
 }
 
 static int synth_prepare(void *st, cli_run *r, tsio_err *err)

@@ -10,8 +10,8 @@
 #
 # The workers open the recipe through the TSYN GDAL driver and each reads one chunk (a window
 # of the raster); the client writes the chunks as they come.  Methods that compute any window
-# alone (pixel, amplify, a sketch in tiles: laid out once per worker, then amplified chunk by
-# chunk) are spread over the workers chunk by chunk.  A tiled synth recipe without a sketch
+# alone (pixel, amplify, a sketch in tiles: read from the coarse pass its recipe keeps, or
+# laid out once per worker when it keeps none, then amplified chunk by chunk) are spread over the workers chunk by chunk.  A tiled synth recipe without a sketch
 # (<Param name="tiled">) is one Dask task per tile: a tile's task takes the windows of its
 # earlier-wave neighbours (four waves, see algorithms/docs/synth.md) as its inputs, so Dask
 # runs the waves in order, each tile once, and moves the neighbours' windows between workers;

@@ -17,6 +17,81 @@
 
 #include "jobspec_internal.h"
 
+/* line appended to the growing text *t (n bytes, room for cap): 0, or -1
+ * out of memory (*t freed). */
+static int text_add(char **t, size_t *n, size_t *cap, const char *line)
+{
+    size_t l = strlen(line);
+    if (*n + l + 1 > *cap) {
+        char *g = realloc(*t, *cap = 2 * (*n + l + 1));
+        if (!g) {
+            free(*t);
+            *t = NULL;
+            return -1;
+        }
+        *t = g;
+    }
+    memcpy(*t + *n, line, l + 1);
+    *n += l;
+    return 0;
+}
+
+/* What a sketch in tiles laid out before must have been made with: the
+ * values a recipe holds but its outputs, the coarse pass's file and the
+ * drainage stage's parameters (the stage comes after), as "name=value"
+ * lines in the declarations' order; an input file stands as "name=<file>"
+ * (its bytes are summed by tsjob_synth_coarse_key). */
+static int build_coarse_params(tsjob_values *v, tsjob_synth *job, char *msg, size_t len)
+{
+    size_t k, n = 0, cap = 4096;
+    char *text = calloc(cap, 1);
+    const char *val;
+    int i, st, bad = !text;
+    for (k = 0; !bad && k < v->job->n_opts; k++) {
+        const tsjob_option *o = &v->job->opts[k];
+        if (!o->xml || o->kind == TSJOB_OUTPUT || !strcmp(o->name, "coarse_pass"))
+            continue;
+        for (i = 0; !bad && (val = tsjob_get(v, o->name, i)); i++)
+            bad = text_add(&text, &n, &cap,
+                           CPLSPrintf("%s=%s\n", o->name, o->kind == TSJOB_FILE ? "<file>" : val));
+    }
+    for (st = 0; !bad && v->job->stages[st]; st++) {
+        size_t np;
+        const ts_param_desc *d = ts_params_describe(v->job->stages[st], &np);
+        if (!strcmp(v->job->stages[st], "drainage"))
+            continue;
+        for (k = 0; !bad && k < np; k++)
+            if ((val = tsjob_get(v, d[k].name, 0)))
+                bad = text_add(&text, &n, &cap, CPLSPrintf("%s=%s\n", d[k].name, val));
+    }
+    if (bad) {
+        tsjob__msgf(msg, len, "out of memory");
+        return -1;
+    }
+    job->coarse_params = tsjob__keep(v, text);
+    free(text);
+    return 0;
+}
+
+/* A sketch in tiles: the file its coarse pass is kept in (given, or beside
+ * the recipe being written), and what it must have been made with. */
+static int build_coarse_pass(tsjob_values *v, tsjob_synth *job, char *msg, size_t len)
+{
+    const char *recipe = tsjob_get(v, "recipe", 0);
+    job->coarse_pass = tsjob_get(v, "coarse_pass", 0);
+    if (job->coarse_pass && !(job->params.tiled > 0)) {
+        tsjob__msgf(msg, len, "coarse_pass is a sketch in tiles laid out before: give tiled > 0");
+        return -1;
+    }
+    if (!job->sketch || !(job->params.tiled > 0))
+        return 0;
+    if (!job->coarse_pass && recipe) {
+        tsjob_set(v, "coarse_pass", CPLSPrintf("%s.coarse", recipe));
+        job->coarse_pass = tsjob_get(v, "coarse_pass", 0);
+    }
+    return job->coarse_pass ? build_coarse_params(v, job, msg, len) : 0;
+}
+
 int tsjob_build_synth(tsjob_values *v, tsjob_synth *job, uint64_t *seed, char *msg, size_t len)
 {
     const char *s;
@@ -117,7 +192,7 @@ int tsjob_build_synth(tsjob_values *v, tsjob_synth *job, uint64_t *seed, char *m
     job->regions = tsjob_get(v, "regions", 0);
     if ((s = tsjob_get(v, "seed", 0)))
         *seed = strtoull(s, NULL, 10);
-    return 0;
+    return build_coarse_pass(v, job, msg, len);
 }
 
 int tsjob_build_ppa(tsjob_values *v, tsjob_ppa *job, char *msg, size_t len)
@@ -351,8 +426,7 @@ int tsjob_build_pixel(tsjob_values *v, tsjob_pixel *job, uint64_t *seed, char *m
         return -1;
     }
     if (!ts_pixel_rotations_valid(job->params.rotations)) {
-        tsjob__msgf(msg, len, "rotations must be -1, 0, 2, 4 or 8, not %d",
-                    job->params.rotations);
+        tsjob__msgf(msg, len, "rotations must be -1, 0, 2, 4 or 8, not %d", job->params.rotations);
         return -1;
     }
     if ((s = tsjob_get(v, "band", 0)))

@@ -180,6 +180,11 @@ static const tsjob_option synth_opts[] = {
      "lines' bounding box grown by a patch on each side)",
      "Grid@extent", 0, NULL},
     OPT_GRID(65536),
+    {"coarse_pass", TSJOB_FILE, 1, 0, 0, "FILE", G_GRID,
+     "a sketch in tiles laid out before (its coarse pass): read instead of laying the sketch out "
+     "when it was made from the same inputs, parameters and seed (else laid out again, with a "
+     "warning); recipe writes it (default RECIPE.coarse)",
+     "CoarsePass", 0, NULL},
     {"pin", TSJOB_PIN, TSJOB_MAX_PINS, 0, 0, "FILE:XOFF,YOFF,W,H@X,Y", G_CONS,
      "keep a window of a DEM (its own cells) unchanged with its top-left at output cell X,Y; "
      "repeatable",
@@ -248,6 +253,10 @@ static const tsjob_rule synth_rules[] = {
     {TSJOB_REQUIRES, "kind_field", {"sketch", NULL}, "%s applies to a sketch: give sketch"},
     {TSJOB_REQUIRES, "height_field", {"sketch", NULL}, "%s applies to a sketch: give sketch"},
     {TSJOB_REQUIRES, "snap", {"sketch", NULL}, "%s applies to a sketch: give sketch"},
+    {TSJOB_REQUIRES,
+     "coarse_pass",
+     {"sketch", "tiled", NULL},
+     "%s is a sketch in tiles laid out before: give sketch and tiled"},
     {TSJOB_TOGETHER, "water", {"water_level", NULL}, "water and water_level go together"},
     {TSJOB_TOGETHER,
      "regions",

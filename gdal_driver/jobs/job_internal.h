@@ -28,10 +28,11 @@
     128                           /* per output cell with a sketch: PPA, features, guides, the     \
                                      slope style's Poisson system (~110 B/cell at its peak) */
 #define JOB_MEM_EX_SOURCE_CELL 12 /* per exemplar cell as read */
-#define JOB_MEM_EX_CELL 16 /* per exemplar cell at the target resolution: it, its pyramid,     \
-                              nodata and feature tables */
+#define JOB_MEM_EX_CELL                                                                            \
+    16                           /* per exemplar cell at the target resolution: it, its pyramid,   \
+                                    nodata and feature tables */
 #define JOB_MEM_EX_MATCH_CELL 32 /* per exemplar cell at its matching level: FFT spectra, rows */
-#define JOB_MEM_TILE_CELL 8       /* per cell of a tile being made: its window, flags, copy */
+#define JOB_MEM_TILE_CELL 8      /* per cell of a tile being made: its window, flags, copy */
 #define JOB_MEM_TILED_CELL                                                                         \
     16 /* per output cell in tiles with debug maps: every tile's                                   \
           window (at most 4 x its core: tiles of 2 patches) */
@@ -108,5 +109,14 @@ int tsjob__synth_drain_whole(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_re
                              unsigned char *flags, job_progress *jp, tsio_err *err);
 
 void tsjob__progress_range(ts_ctx *ctx, job_progress *p, double lo, double hi);
+
+/* The bytes a sketch in tiles takes to lay out and amplify, past JOB_MEM_BASE. */
+uint64_t tsjob__sketch_tiles_need(const tsjob_synth *job, const tsjob_synth_result *res);
+
+/* A sketch in tiles read from job->coarse_pass into res->sketch_tiles when it was made
+ * from this job's inputs (job_synth_coarse.c): 1; 0 when it is missing or was made from
+ * others (a warning in res->warning); -1 when it cannot be read or is damaged. */
+int tsjob__synth_adopt_coarse(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res,
+                              tsio_err *err);
 
 #endif

@@ -16,6 +16,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <cpl_vsi.h>
+
 #include "job_internal.h"
 
 /* The row whose ground cell size the exemplars, pins and lengths in metres
@@ -48,16 +50,14 @@ static int job_synth_check_memory(const tsjob_synth *job, const tsjob_synth_resu
     uint64_t cells = (uint64_t)res->geo.width * (uint64_t)res->geo.height;
     uint64_t need = JOB_MEM_BASE, biggest = 0;
     int i;
-    if (job->sketch && res->params.tiled > 0) {
-        /* laid out whole K times coarser, then amplified: the coarse pass,
-         * the output and the amplified grid, the amplification's input
-         * (sketch_amplify.c) */
-        int P = (int)res->params.patch_size.value;
-        uint64_t K = (uint64_t)ts_sketch_amplify_factor(&job->sketch_params, P, res->geo.width,
-                                                        res->geo.height);
-        uint64_t coarse =
-            ((uint64_t)res->geo.width + K - 1) / K * (((uint64_t)res->geo.height + K - 1) / K);
-        need += coarse * (JOB_MEM_SYNTH_CELL + JOB_MEM_SKETCH_CELL + 48) + cells * 12;
+    VSIStatBufL sb;
+    if (job->sketch && res->params.tiled > 0 && job->lazy && job->coarse_pass &&
+        VSIStatL(job->coarse_pass, &sb) == 0) {
+        /* laid out before: the file, what it holds, the output's nodata (a sketch laid
+         * out again is checked by tsjob_synth_compute) */
+        need += 2 * (uint64_t)sb.st_size + cells;
+    } else if (job->sketch && res->params.tiled > 0) {
+        need += tsjob__sketch_tiles_need(job, res);
     } else if (job->lazy && res->params.tiled > 0) {
         /* tile by tile: the tiles a front end keeps (at least one request's
          * cone) and every thread's tile being made, with its margins */
@@ -649,7 +649,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     ts_synth_params params = res->params; /* lengths in cells */
     ts_synth_constraints cons = ts_synth_constraints_default();
     job_progress jp;
-    int i, rc = -1, tiles = job->sketch && res->params.tiled > 0;
+    int i, rc = -1, tiles = job->sketch && res->params.tiled > 0, adopted = 0;
     memset(ex, 0, sizeof ex);
     memset(&heights, 0, sizeof heights);
     ts_ctx_get_progress(ctx, &jp.fn, &jp.user);
@@ -683,6 +683,18 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     if (job_read_exemplars(job, res, ex, exr, err) != 0)
         goto done;
     job_drainage_banks(job, res, exr);
+    /* a sketch in tiles laid out before */
+    if (tiles && job->coarse_pass && (adopted = tsjob__synth_adopt_coarse(ctx, job, res, err)) < 0)
+        goto done;
+    if (adopted && job->lazy) {
+        rc = 0;
+        goto done;
+    }
+    if (tiles && job->lazy && job->coarse_pass && !adopted &&
+        tsio_check_memory(JOB_MEM_BASE + tsjob__sketch_tiles_need(job, res), "synth",
+                          "write the recipe again (its coarse pass), or a smaller target grid",
+                          err) != 0)
+        goto done;
     if (!(tiles && job->lazy) && /* served window by window: no whole output */
         ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
         tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
@@ -697,7 +709,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         goto done;
     cons.cell_flags = flags;
     tsjob__progress_range(ctx, &jp, 0.0, job->drainage.mode ? 0.95 : 1.0);
-    if (job->heights) {
+    if (job->heights && !adopted) {
         if (tsio_read_dem(job->heights, 1, &heights, err) != 0)
             goto done;
         tsjob__warn_sentinels(&res->warning, job->heights, &heights);
@@ -707,7 +719,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         cons.heights = heights.r.data;
         cons.alpha_h = job->alpha_h;
     }
-    if (job->regions) {
+    if (job->regions && !adopted) {
         size_t n = (size_t)res->geo.width * (size_t)res->geo.height;
         cell_ex = malloc(n * sizeof *cell_ex);
         if (!cell_ex) {
@@ -723,7 +735,9 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         }
         cons.cell_exemplar = cell_ex;
     }
-    if (job->sketch && res->sketch_lines) {
+    if (adopted) {
+        /* laid out before: what follows amplifies it */
+    } else if (job->sketch && res->sketch_lines) {
         if (job_sketch_lines(ctx, job, res, exr, &params, &cons, maps, err) != 0)
             goto done;
     } else if (job->sketch) {
@@ -771,31 +785,6 @@ done:
     for (i = 0; i < job->n_exemplars; i++)
         tsio_raster_free(&ex[i]);
     return rc;
-}
-
-int tsjob_synth_sketch_window_raw(ts_ctx *ctx, const tsjob_synth *job,
-                                  const tsjob_synth_result *res, int x0, int y0, int w, int h,
-                                  float *cells, tsio_err *err)
-{
-    ts_raster o = ts_raster_wrap(cells, w, h, w);
-    if (ts_sketch_tiles_window(ctx, res->sketch_tiles, x0, y0, &o) != TS_OK) {
-        tsio_errf(err, job->sketch, "%s", ts_ctx_message(ctx));
-        return -1;
-    }
-    return 0;
-}
-
-void tsjob_synth_sketch_barriers(const tsjob_synth_result *res, int x0, int y0, int w, int h,
-                                 unsigned char *flags)
-{
-    const ts_features *f = res->sketch_features;
-    int x, y;
-    if (!f || !f->mask || f->width != res->geo.width || f->height != res->geo.height)
-        return;
-    for (y = 0; y < h; y++)
-        for (x = 0; x < w; x++)
-            if (f->mask[(size_t)(y0 + y) * (size_t)f->width + (size_t)(x0 + x)] & TS_RIDGE)
-                flags[(size_t)y * (size_t)w + (size_t)x] |= TS_CELL_BARRIER;
 }
 
 int tsjob_parse_pin(const char *spec, tsjob_pin *pin, char *path_buf, size_t path_len)

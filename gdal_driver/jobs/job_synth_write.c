@@ -18,7 +18,7 @@
 #include "job_internal.h"
 
 /* Every file a synth job reads. */
-static int job_synth_inputs(const tsjob_synth *job, const char **in)
+int tsjob_synth_inputs(const tsjob_synth *job, const char **in)
 {
     int n = 0, i;
     for (i = 0; i < job->n_exemplars; i++)
@@ -33,13 +33,20 @@ static int job_synth_inputs(const tsjob_synth *job, const char **in)
     return n;
 }
 
-#define JOB_MAX_INPUTS (TSJOB_MAX_EXEMPLARS + TSJOB_MAX_PINS + 5)
-
 int tsjob_synth_check_recipe(const tsjob_synth *job, const char *recipe, tsio_err *err)
 {
-    const char *in[JOB_MAX_INPUTS];
-    int n = job_synth_inputs(job, in);
-    return tsjob__not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ? -1 : 0;
+    const char *in[TSJOB_MAX_INPUTS];
+    int n = tsjob_synth_inputs(job, in);
+    if (job->coarse_pass && !strcmp(job->coarse_pass, recipe)) {
+        tsio_errf(err, recipe,
+                  "is the recipe and its coarse pass (coarse_pass): give another name");
+        return -1;
+    }
+    return tsjob__not_an_input(recipe, in, n, err) || tsio_check_output_file(recipe, err) ||
+                   (job->coarse_pass && (tsjob__not_an_input(job->coarse_pass, in, n, err) ||
+                                         tsio_check_output_file(job->coarse_pass, err)))
+               ? -1
+               : 0;
 }
 
 /* With a sketch, debug_dir also holds these (name, extension). */
@@ -72,8 +79,8 @@ const int32_t *tsjob_synth_int_map(const tsjob_synth_result *res, int map)
 int tsjob_synth_check_outputs(const tsjob_synth *job, const tsjob_synth_result *res,
                               const tsjob_outputs *o, tsio_err *err)
 {
-    const char *in[JOB_MAX_INPUTS];
-    int n = job_synth_inputs(job, in), i;
+    const char *in[TSJOB_MAX_INPUTS];
+    int n = tsjob_synth_inputs(job, in), i;
     float probe = 0;
     ts_raster pr = ts_raster_wrap(&probe, 1, 1, 1);
     unsigned char bp = 0;

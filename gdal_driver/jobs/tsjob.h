@@ -164,6 +164,12 @@ typedef struct tsjob_synth {
      * output; the memory estimate is one request's tiles and the cache */
     int lazy;
     size_t tile_cache; /* with lazy: the bytes of tiles a front end keeps */
+    /* a sketch in tiles: the file its coarse pass is kept in (read when it
+     * matches, written by tsjob_synth_write_coarse), and what it must have
+     * been made with besides the inputs' bytes (the job's values as text) */
+    const char *coarse_pass;
+    const char *coarse_params;
+    int write_coarse; /* the file is to be written: no warning when it is missing */
 } tsjob_synth;
 
 /** Parse "FILE:XOFF,YOFF,W,H@X,Y" into pin (path points into spec). */
@@ -207,6 +213,18 @@ int tsjob_synth_window_flags(const tsjob_synth *job, const tsjob_synth_result *r
                              int w, int h, unsigned char *flags, tsio_err *err);
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
                         tsio_err *err);
+/** The most input files a synth job reads, and those it reads (NULL where
+ *  none is given) into in: their count. */
+#define TSJOB_MAX_INPUTS (TSJOB_MAX_EXEMPLARS + TSJOB_MAX_PINS + 5)
+int tsjob_synth_inputs(const tsjob_synth *job, const char **in);
+/** What a sketch in tiles kept in job->coarse_pass must carry to be read:
+ *  the checksum of the library's version, job->coarse_params and every
+ *  input file's bytes. */
+uint64_t tsjob_synth_coarse_key(const tsjob_synth *job);
+/** After compute of a sketch in tiles (job->lazy: res->sketch_tiles kept),
+ *  write it to job->coarse_pass (all or nothing). */
+int tsjob_synth_write_coarse(ts_ctx *ctx, const tsjob_synth *job, const tsjob_synth_result *res,
+                             tsio_err *err);
 void tsjob_synth_result_free(tsjob_synth_result *res);
 /** The most tiles one window inside one tile needs: itself and its cone of
  *  earlier waves (a wave-3 tile: 2 of wave 2, 6 of wave 1, 8 of wave 0). */

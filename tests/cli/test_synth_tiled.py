@@ -213,6 +213,70 @@ def _window(path, x0, y0, w, h, env_extra=None):
     return gdal.Open(out).ReadAsArray()
 
 
+def _translate(path, x0, y0, w, h, *oo):
+    """gdal_translate of a recipe's window (a fresh process, open options oo): its cells,
+    exit code and stderr."""
+    out = os.path.join(os.path.dirname(str(path)), f"t_{x0}_{y0}_{w}_{h}.tif")
+    cmd = ["gdal_translate", "-q", "-srcwin", str(x0), str(y0), str(w), str(h)]
+    for o in oo:
+        cmd += ["-oo", o]
+    p = subprocess.run(cmd + [str(path), out], capture_output=True, text=True,
+                       env=plugin_env(PLUGINS))
+    return (gdal.Open(out).ReadAsArray() if p.returncode == 0 else None), p.returncode, p.stderr
+
+
+def test_sketch_coarse_pass(tmp_path):
+    """--recipe of a sketch in tiles lays the sketch out once and keeps it beside the recipe
+    (RECIPE.coarse): windows read from it equal the command line's whole run (its own coarse
+    pass); a recipe without it, or with other inputs or another seed, lays the sketch out
+    again with a warning and still equals the command line's run of those; a damaged file is
+    refused in one line naming it; --coarse-pass on the command line reads it."""
+    import shutil
+    ex = tmp_path / "ex.tif"
+    shutil.copy(JACKSBORO, ex)
+    args = ["--exemplar", ex, "--sketch", SKETCH[:-4] + ".geojson", "--like", SKETCH,
+            "--tiled", 128]
+    run("synth", *args, "--seed", 2, tmp_path / "cli.tif", "-q")
+    cli = gdal.Open(str(tmp_path / "cli.tif")).ReadAsArray()
+    run("synth", *args, "--seed", 2, "--recipe", tmp_path / "r.tsyn")
+    coarse = tmp_path / "r.tsyn.coarse"
+    assert coarse.read_bytes()[:8] == b"TSCFILE1"
+    assert "<CoarsePass>r.tsyn.coarse</CoarsePass>" in (tmp_path / "r.tsyn").read_text()
+    H, W = cli.shape
+    for (x0, y0, w, h) in [(0, 0, W, H), (200, 150, 130, 97)]:
+        got, rc, err = _translate(tmp_path / "r.tsyn", x0, y0, w, h)
+        assert rc == 0 and "laid out again" not in err, err
+        assert got.tobytes() == cli[y0:y0 + h, x0:x0 + w].tobytes(), (x0, y0, w, h)
+    # the command line reading it: the same bytes
+    run("synth", *args, "--seed", 2, "--coarse-pass", coarse, tmp_path / "cli2.tif", "-q")
+    assert gdal.Open(str(tmp_path / "cli2.tif")).ReadAsArray().tobytes() == cli.tobytes()
+    # another seed: laid out again, with a warning, equal to that seed's run
+    run("synth", *args, "--seed", 5, tmp_path / "cli5.tif", "-q")
+    got, rc, err = _translate(tmp_path / "r.tsyn", 200, 150, 130, 97, "SEED=5")
+    assert rc == 0 and "r.tsyn.coarse" in err and "laid out again" in err, err
+    cli5 = gdal.Open(str(tmp_path / "cli5.tif")).ReadAsArray()
+    assert got.tobytes() == cli5[150:247, 200:330].tobytes()
+    # an exemplar changed since: laid out again
+    ds = gdal.Open(str(ex), gdal.GA_Update)
+    b = ds.GetRasterBand(1)
+    b.WriteArray(b.ReadAsArray(0, 0, 1, 1) + 1.0, 0, 0)
+    ds = None
+    got, rc, err = _translate(tmp_path / "r.tsyn", 0, 0, 64, 64)
+    assert rc == 0 and "laid out again" in err, err
+    # damaged: one byte changed, or cut
+    good = coarse.read_bytes()
+    for bad in (good[:5000] + bytes([good[5000] ^ 1]) + good[5001:], good[:100], good[:40]):
+        coarse.write_bytes(bad)
+        got, rc, err = _translate(tmp_path / "r.tsyn", 0, 0, 64, 64)
+        assert rc != 0 and "r.tsyn.coarse" in err and "damaged" in err, err
+    coarse.unlink()
+    got, rc, err = _translate(tmp_path / "r.tsyn", 0, 0, 64, 64)
+    assert rc == 0 and "missing" in err, err
+    p = run("synth", "--exemplar", ex, "--sketch", SKETCH, "--coarse-pass", coarse,
+            tmp_path / "x.tif", check=False)
+    assert p.returncode != 0 and "tiled" in p.stderr and "x.tif" not in os.listdir(tmp_path)
+
+
 def test_recipe_served_tile_by_tile(tmp_path):
     """A tiled recipe is served tile by tile (each window from the tiles under it and the
     earlier-wave tiles those need): any window, read alone in a fresh process, in any

@@ -30,54 +30,6 @@
 #define DICT_SUM 8 /* the checksum's bytes */
 #define DICT_HEADER 52
 
-static int host_little(void)
-{
-    const uint16_t one = 1;
-    unsigned char c;
-    memcpy(&c, &one, 1);
-    return c == 1;
-}
-
-/* n items of `size` bytes from src to dst, in little-endian order. */
-static void le_copy(unsigned char *dst, const void *src, size_t n, size_t size)
-{
-    size_t i, k;
-    if (host_little()) {
-        memcpy(dst, src, n * size);
-        return;
-    }
-    for (i = 0; i < n; i++)
-        for (k = 0; k < size; k++)
-            dst[i * size + k] = ((const unsigned char *)src)[i * size + size - 1 - k];
-}
-
-static void put_u32(unsigned char *p, uint32_t v)
-{
-    int k;
-    for (k = 0; k < 4; k++)
-        p[k] = (unsigned char)(v >> (8 * k));
-}
-
-static uint32_t get_u32(const unsigned char *p)
-{
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
-static uint64_t get_u64(const unsigned char *p)
-{
-    return (uint64_t)get_u32(p) | (uint64_t)get_u32(p + 4) << 32;
-}
-
-/* FNV-1a, 64 bits (Fowler, Noll and Vo): every byte folds into the sum. */
-static uint64_t fnv1a(const unsigned char *p, size_t n)
-{
-    uint64_t h = 0xcbf29ce484222325ull;
-    size_t i;
-    for (i = 0; i < n; i++)
-        h = (h ^ p[i]) * 0x100000001b3ull;
-    return h;
-}
-
 static size_t dict_bytes(uint64_t n, uint32_t d, uint32_t hd, int irr, uint32_t K, uint32_t L)
 {
     return DICT_HEADER + (size_t)L * TS_LAYER_NAME +
@@ -101,44 +53,44 @@ TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
     if (!b)
         return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory (%zu bytes)", total);
     memcpy(b, DICT_MAGIC, 8);
-    put_u32(b + 8, DICT_VERSION);
-    put_u32(b + 12, (uint32_t)dict->factor);
-    put_u32(b + 16, (uint32_t)dict->patch);
-    put_u32(b + 20, (uint32_t)dict->d);
-    put_u32(b + 24, (uint32_t)dict->hd);
-    put_u32(b + 28, (uint32_t)(n & 0xffffffffu));
-    put_u32(b + 32, (uint32_t)((uint64_t)n >> 32));
-    put_u32(b + 36, 0);
-    put_u32(b + 40, dict->dl ? 1u : 0u);
-    put_u32(b + 44, (uint32_t)dict->n_classes);
-    put_u32(b + 48, (uint32_t)dict->n_layers);
+    ts__put_u32(b + 8, DICT_VERSION);
+    ts__put_u32(b + 12, (uint32_t)dict->factor);
+    ts__put_u32(b + 16, (uint32_t)dict->patch);
+    ts__put_u32(b + 20, (uint32_t)dict->d);
+    ts__put_u32(b + 24, (uint32_t)dict->hd);
+    ts__put_u32(b + 28, (uint32_t)(n & 0xffffffffu));
+    ts__put_u32(b + 32, (uint32_t)((uint64_t)n >> 32));
+    ts__put_u32(b + 36, 0);
+    ts__put_u32(b + 40, dict->dl ? 1u : 0u);
+    ts__put_u32(b + 44, (uint32_t)dict->n_classes);
+    ts__put_u32(b + 48, (uint32_t)dict->n_layers);
     p = b + DICT_HEADER;
     for (int l = 0; l < dict->n_layers; l++) {
         memset(p, 0, TS_LAYER_NAME);
         memcpy(p, dict->layer_names[l], strlen(dict->layer_names[l]));
         p += TS_LAYER_NAME;
     }
-    le_copy(p, dict->dh, n * dict->d, 4), p += n * dict->d * 4;
-    le_copy(p, dict->du, n * dict->d, 4), p += n * dict->d * 4;
-    le_copy(p, dict->hh, n * dict->hd, 4), p += n * dict->hd * 4;
-    le_copy(p, dict->a, n, 8), p += n * 8;
-    le_copy(p, dict->s, n, 8), p += n * 8;
-    le_copy(p, dict->exemplar, n, 4), p += n * 4;
-    le_copy(p, dict->x, n, 4), p += n * 4;
-    le_copy(p, dict->y, n, 4), p += n * 4;
-    le_copy(p, dict->dx, n * dict->d, 4), p += n * dict->d * 4;
+    ts__le_copy(p, dict->dh, n * dict->d, 4), p += n * dict->d * 4;
+    ts__le_copy(p, dict->du, n * dict->d, 4), p += n * dict->d * 4;
+    ts__le_copy(p, dict->hh, n * dict->hd, 4), p += n * dict->hd * 4;
+    ts__le_copy(p, dict->a, n, 8), p += n * 8;
+    ts__le_copy(p, dict->s, n, 8), p += n * 8;
+    ts__le_copy(p, dict->exemplar, n, 4), p += n * 4;
+    ts__le_copy(p, dict->x, n, 4), p += n * 4;
+    ts__le_copy(p, dict->y, n, 4), p += n * 4;
+    ts__le_copy(p, dict->dx, n * dict->d, 4), p += n * dict->d * 4;
     if (dict->dl)
-        le_copy(p, dict->dl, n * dict->d, 4), p += n * dict->d * 4;
+        ts__le_copy(p, dict->dl, n * dict->d, 4), p += n * dict->d * 4;
     if (dict->n_classes) {
-        le_copy(p, dict->dc, n * dict->n_classes, 4), p += n * dict->n_classes * 4;
+        ts__le_copy(p, dict->dc, n * dict->n_classes, 4), p += n * dict->n_classes * 4;
         memcpy(p, dict->hc, n * dict->hd), p += n * dict->hd;
     }
     if (dict->n_layers)
-        le_copy(p, dict->ll, n * dict->n_layers * dict->hd, 4);
+        ts__le_copy(p, dict->ll, n * dict->n_layers * dict->hd, 4);
     {
-        uint64_t sum = fnv1a(b, total - DICT_SUM);
-        put_u32(b + total - 8, (uint32_t)(sum & 0xffffffffu));
-        put_u32(b + total - 4, (uint32_t)(sum >> 32));
+        uint64_t sum = ts_checksum(0, b, total - DICT_SUM);
+        ts__put_u32(b + total - 8, (uint32_t)(sum & 0xffffffffu));
+        ts__put_u32(b + total - 4, (uint32_t)(sum >> 32));
     }
     *bytes = b;
     *len = total;
@@ -191,7 +143,7 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
                         "damaged: cut to %zu bytes (its header alone has %d)", len, DICT_HEADER);
     if (!bytes || len < DICT_HEADER || memcmp(bytes, DICT_MAGIC, 8) != 0)
         return ts__fail(ctx, TS_ERR_ARG, "dictionary", "not a TerraSynth dictionary");
-    version = get_u32(bytes + 8);
+    version = ts__get_u32(bytes + 8);
     if (version != DICT_VERSION && version != 2)
         return ts__fail(ctx, TS_ERR_ARG, "dictionary",
                         "version %u; this TerraSynth reads versions 2 and %u", version,
@@ -199,21 +151,21 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
     if (version == DICT_VERSION) {
         if (len < DICT_HEADER + DICT_SUM)
             return ts__fail(ctx, TS_ERR_ARG, "dictionary", "damaged: cut to %zu bytes", len);
-        if (fnv1a(bytes, len - DICT_SUM) != get_u64(bytes + len - DICT_SUM))
+        if (ts_checksum(0, bytes, len - DICT_SUM) != ts__get_u64(bytes + len - DICT_SUM))
             return ts__fail(ctx, TS_ERR_ARG, "dictionary",
                             "damaged: its checksum does not match its %zu bytes (changed or "
                             "cut after it was built): build it again",
                             len);
         len -= DICT_SUM;
     }
-    factor = get_u32(bytes + 12);
-    patch = get_u32(bytes + 16);
-    dd = get_u32(bytes + 20);
-    hd = get_u32(bytes + 24);
-    n = get_u64(bytes + 28);
-    flags = get_u32(bytes + 40);
-    K = get_u32(bytes + 44);
-    L = get_u32(bytes + 48);
+    factor = ts__get_u32(bytes + 12);
+    patch = ts__get_u32(bytes + 16);
+    dd = ts__get_u32(bytes + 20);
+    hd = ts__get_u32(bytes + 24);
+    n = ts__get_u64(bytes + 28);
+    flags = ts__get_u32(bytes + 40);
+    K = ts__get_u32(bytes + 44);
+    L = ts__get_u32(bytes + 48);
     if (factor < 2 || factor > 16 || patch < 4 || patch > 64 || dd != patch * patch ||
         hd != dd * factor * factor || n < 1 || n > ((uint64_t)1 << 31) || flags > 1 ||
         K > TS_MAX_CLASSES || L > TS_MAX_LAYERS || dict_bytes(n, dd, hd, (int)flags, K, L) != len)
@@ -263,19 +215,19 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
         ts_dictionary_free(d);
         return ts__fail(ctx, TS_ERR_NOMEM, "dictionary", "out of memory for %zu atoms", d->n);
     }
-    le_copy((unsigned char *)d->dh, p, d->n * dd, 4), p += d->n * dd * 4;
-    le_copy((unsigned char *)d->du, p, d->n * dd, 4), p += d->n * dd * 4;
-    le_copy((unsigned char *)d->hh, p, d->n * hd, 4), p += d->n * hd * 4;
-    le_copy((unsigned char *)d->a, p, d->n, 8), p += d->n * 8;
-    le_copy((unsigned char *)d->s, p, d->n, 8), p += d->n * 8;
-    le_copy((unsigned char *)d->exemplar, p, d->n, 4), p += d->n * 4;
-    le_copy((unsigned char *)d->x, p, d->n, 4), p += d->n * 4;
-    le_copy((unsigned char *)d->y, p, d->n, 4), p += d->n * 4;
-    le_copy((unsigned char *)d->dx, p, d->n * dd, 4), p += d->n * dd * 4;
+    ts__le_copy((unsigned char *)d->dh, p, d->n * dd, 4), p += d->n * dd * 4;
+    ts__le_copy((unsigned char *)d->du, p, d->n * dd, 4), p += d->n * dd * 4;
+    ts__le_copy((unsigned char *)d->hh, p, d->n * hd, 4), p += d->n * hd * 4;
+    ts__le_copy((unsigned char *)d->a, p, d->n, 8), p += d->n * 8;
+    ts__le_copy((unsigned char *)d->s, p, d->n, 8), p += d->n * 8;
+    ts__le_copy((unsigned char *)d->exemplar, p, d->n, 4), p += d->n * 4;
+    ts__le_copy((unsigned char *)d->x, p, d->n, 4), p += d->n * 4;
+    ts__le_copy((unsigned char *)d->y, p, d->n, 4), p += d->n * 4;
+    ts__le_copy((unsigned char *)d->dx, p, d->n * dd, 4), p += d->n * dd * 4;
     if (d->dl)
-        le_copy((unsigned char *)d->dl, p, d->n * dd, 4), p += d->n * dd * 4;
+        ts__le_copy((unsigned char *)d->dl, p, d->n * dd, 4), p += d->n * dd * 4;
     if (K) {
-        le_copy((unsigned char *)d->dc, p, d->n * K, 4), p += d->n * K * 4;
+        ts__le_copy((unsigned char *)d->dc, p, d->n * K, 4), p += d->n * K * 4;
         memcpy(d->hc, p, d->n * hd), p += d->n * hd;
         for (k = 0; k < d->n * hd; k++)
             if (d->hc[k] > K) {
@@ -284,7 +236,7 @@ TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *byte
             }
     }
     if (L)
-        le_copy((unsigned char *)d->ll, p, d->n * L * hd, 4);
+        ts__le_copy((unsigned char *)d->ll, p, d->n * L * hd, 4);
     if (dict_values_bad(d)) {
         ts_dictionary_free(d);
         return ts__fail(ctx, TS_ERR_ARG, "dictionary",

@@ -229,4 +229,12 @@ static inline double ts_step_length(const ts_grid_metrics *m, int y, int ddx, in
     return sqrt(wx * wx + wy * wy);
 }
 
+/* The bytes of the core's file formats (bytes.c): little-endian whatever
+ * the machine; n items of `size` bytes copied between host and file order. */
+void ts__le_copy(unsigned char *dst, const void *src, size_t n, size_t size);
+void ts__put_u32(unsigned char *p, uint32_t v);
+void ts__put_u64(unsigned char *p, uint64_t v);
+uint32_t ts__get_u32(const unsigned char *p);
+uint64_t ts__get_u64(const unsigned char *p);
+
 #endif

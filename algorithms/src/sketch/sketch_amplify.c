@@ -187,16 +187,6 @@ static ts_status sa_check_fixed(ts_ctx *ctx, const ts_synth_constraints *c, int 
     return TS_OK;
 }
 
-/* What every window of a sketch in tiles reads. */
-struct ts_sketch_tiles {
-    int W, H, K;
-    ts_raster coarse; /* the coarse pass */
-    ts_raster drain;  /* its drainage area (the amplification's guide) */
-    ts_dictionary *dict;
-    ts_amplify_params ap;
-    unsigned char *nodata; /* per output cell, or NULL: none */
-};
-
 TS_API void ts_sketch_tiles_free(ts_sketch_tiles *t)
 {
     if (!t)
@@ -205,6 +195,7 @@ TS_API void ts_sketch_tiles_free(ts_sketch_tiles *t)
     ts_raster_free(&t->drain);
     ts_dictionary_free(t->dict);
     free(t->nodata);
+    free(t->ridges);
     free(t);
 }
 
@@ -323,8 +314,20 @@ static ts_status sa_coarse_pass(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j
     return st;
 }
 
-/* The amplification's dictionary from the exemplars at the output's cells,
- * and the coarse pass's drainage area. */
+ts_status ts__sketch_tiles_guide(ts_ctx *ctx, ts_sketch_tiles *t)
+{
+    ts_status st;
+    t->ap = ts_amplify_params_default();
+    t->ap.factor = t->K;
+    t->ap.w_l = 0.0; /* no latitudes here: the sun's term is off */
+    if (t->K == 1)
+        return TS_OK;
+    if ((st = ts_raster_alloc(ctx, t->coarse.width, t->coarse.height, &t->drain)) == TS_OK)
+        st = ts_drainage_area(ctx, &t->coarse, &t->drain);
+    return st;
+}
+
+/* The amplification's dictionary from the exemplars at the output's cells. */
 static ts_status sa_dictionary(ts_ctx *ctx, ts_sketch_tiles *t, const ts_raster *exemplars,
                                int n_exemplars)
 {
@@ -333,17 +336,48 @@ static ts_status sa_dictionary(ts_ctx *ctx, ts_sketch_tiles *t, const ts_raster 
     int e;
     if (!ex)
         return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
-    t->ap = ts_amplify_params_default();
-    t->ap.factor = t->K;
-    t->ap.w_l = 0.0; /* no latitudes here: the sun's term is off */
     for (e = 0; e < n_exemplars; e++)
         ex[e].dem = exemplars[e];
     st = ts_dictionary_build(ctx, ex, n_exemplars, NULL, 0, &t->ap, &t->dict);
     free(ex);
-    if (st == TS_OK &&
-        (st = ts_raster_alloc(ctx, t->coarse.width, t->coarse.height, &t->drain)) == TS_OK)
-        st = ts_drainage_area(ctx, &t->coarse, &t->drain);
     return st;
+}
+
+/* The cells of graph f (the output grid's) on a drawn ridge. */
+static ts_status sa_ridges(ts_ctx *ctx, ts_sketch_tiles *t, const ts_features *f)
+{
+    size_t n = (size_t)t->W * (size_t)t->H, i, k = 0;
+    for (i = 0; i < n; i++)
+        k += (f->mask[i] & TS_RIDGE) != 0;
+    if (!k)
+        return TS_OK;
+    if (!(t->ridges = ts__malloc_array(k, sizeof *t->ridges)))
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
+    for (i = 0; i < n; i++)
+        if (f->mask[i] & TS_RIDGE)
+            t->ridges[t->n_ridges++] = i;
+    return TS_OK;
+}
+
+TS_API void ts_sketch_tiles_ridges(const ts_sketch_tiles *t, int x0, int y0, int w, int h,
+                                   unsigned char *flags, unsigned char bit)
+{
+    int y;
+    if (!t || !flags || x0 < 0 || y0 < 0 || w < 1 || h < 1 || x0 > t->W - w || y0 > t->H - h)
+        return;
+    for (y = 0; y < h; y++) {
+        uint64_t a = (uint64_t)(y0 + y) * (uint64_t)t->W + (uint64_t)x0, b = a + (uint64_t)w;
+        size_t lo = 0, hi = t->n_ridges;
+        while (lo < hi) { /* the first ridge cell at or after a */
+            size_t mid = lo + (hi - lo) / 2;
+            if (t->ridges[mid] < a)
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        for (; lo < t->n_ridges && t->ridges[lo] < b; lo++)
+            flags[(size_t)y * (size_t)w + (size_t)(t->ridges[lo] - a)] |= bit;
+    }
 }
 
 static ts_status sa_tiles_new(ts_ctx *ctx, const sa_job *j, int W, int H, ts_sketch_tiles **out,
@@ -373,14 +407,24 @@ static ts_status sa_tiles_new(ts_ctx *ctx, const sa_job *j, int W, int H, ts_ske
         goto done;
     }
     sv = ts__progress_push(ctx, 0.0, 0.8);
-    st = sa_coarse_pass(ctx, t, j, P, ov, sketch_features ? &cf : NULL, info);
+    st = sa_coarse_pass(ctx, t, j, P, ov, j->sketch ? &cf : NULL, info);
     ts__progress_pop(ctx, sv);
+    if (st == TS_OK)
+        st = ts__sketch_tiles_guide(ctx, t);
     if (st == TS_OK && t->K > 1)
         st = sa_dictionary(ctx, t, j->exemplars, j->n_exemplars);
     if (st == TS_OK)
         st = sa_nodata(ctx, t, j);
-    if (st == TS_OK && cf)
-        st = sa_graph_scaled(ctx, cf, t->K, W, H, sketch_features);
+    if (st == TS_OK && cf) { /* a painted sketch's graph: the coarse pass's on this grid */
+        ts_features *f = NULL;
+        if ((st = sa_graph_scaled(ctx, cf, t->K, W, H, &f)) == TS_OK)
+            st = sa_ridges(ctx, t, f);
+        if (st == TS_OK && sketch_features)
+            *sketch_features = f;
+        else
+            ts_features_free(f);
+    } else if (st == TS_OK && j->features)
+        st = sa_ridges(ctx, t, j->features);
     if (st == TS_OK)
         st = ts__progress(ctx, 1.0, "sketch tiles");
 done:

@@ -7,7 +7,26 @@
 #ifndef TS_SKETCH_AMPLIFY_H
 #define TS_SKETCH_AMPLIFY_H
 
+#include <stdint.h>
+
 #include "terrasynth.h"
+
+/* What every window of a sketch in tiles reads (sketch_amplify.c; as bytes:
+ * sketch_tiles_io.c). */
+struct ts_sketch_tiles {
+    int W, H, K;
+    ts_raster coarse;    /* the coarse pass, ceil(W / K) x ceil(H / K) */
+    ts_raster drain;     /* its drainage area (the amplification's guide) */
+    ts_dictionary *dict; /* NULL when K = 1 */
+    ts_amplify_params ap;
+    unsigned char *nodata; /* per output cell, or NULL: none */
+    uint64_t *ridges;      /* the output cells on a drawn ridge, ascending */
+    size_t n_ridges;
+};
+
+/* The amplification's parameters and the coarse pass's drainage area, from
+ * t->K and t->coarse. */
+ts_status ts__sketch_tiles_guide(ts_ctx *ctx, ts_sketch_tiles *t);
 
 /* ts_synth_sketch (a painted sketch) or ts_synth_sketch_features (a
  * feature graph) with params->tiled > 0: the sketch laid out whole on a

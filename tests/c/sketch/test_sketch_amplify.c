@@ -319,6 +319,139 @@ static void test_windows_equal_the_whole(void)
     ts_ctx_free(ctx);
 }
 
+/* The u64 at p, little-endian. */
+static uint64_t get_u64(const unsigned char *p)
+{
+    uint64_t v = 0;
+    int k;
+    for (k = 7; k >= 0; k--)
+        v = v << 8 | p[k];
+    return v;
+}
+
+/* b (len bytes) with its closing checksum made right again. */
+static void resum(unsigned char *b, size_t len)
+{
+    uint64_t sum = ts_checksum(0, b, len - 8);
+    int k;
+    for (k = 0; k < 8; k++)
+        b[len - 8 + k] = (unsigned char)(sum >> (8 * k));
+}
+
+/* Whether window (x0, y0, w, h) of a and b are the same bytes. */
+static int same_window(ts_ctx *ctx, const ts_sketch_tiles *a, const ts_sketch_tiles *b, int x0,
+                       int y0, int w, int h)
+{
+    ts_raster ra, rb;
+    int same;
+    ts_raster_alloc(ctx, w, h, &ra);
+    ts_raster_alloc(ctx, w, h, &rb);
+    same = ts_sketch_tiles_window(ctx, a, x0, y0, &ra) == TS_OK &&
+           ts_sketch_tiles_window(ctx, b, x0, y0, &rb) == TS_OK &&
+           memcmp(ra.data, rb.data, (size_t)w * h * sizeof(float)) == 0;
+    ts_raster_free(&ra);
+    ts_raster_free(&rb);
+    return same;
+}
+
+static void test_as_bytes(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster ex = exemplar(ctx, 256, 224, 5);
+    ts_synth_params p = params(32, 8, 64);
+    ts_sketch_params sp = ts_sketch_params_default();
+    ts_synth_constraints c = ts_synth_constraints_default();
+    unsigned char *flags = calloc((size_t)W * H, 1), *got = calloc((size_t)W * H, 1), *b = NULL;
+    double lx[3] = {20.5, 170.5, 100.5}, ly[3] = {150.5, 30.5, 5.5};
+    ts_sketch_line line = {TS_RIDGE, 3, lx, ly, NULL};
+    ts_features *f = NULL;
+    ts_sketch_tiles *t = NULL, *u = NULL;
+    uint64_t key = 0, n_runs, n_ridges;
+    size_t len = 0, i, k, bad_ok = 1;
+    int x, y, same = 1;
+    for (y = 0; y < H; y++)
+        for (x = 0; x < 6; x++)
+            flags[(size_t)y * W + x] = TS_CELL_NODATA;
+    c.cell_flags = flags;
+    CHECK(ts_features_from_lines(ctx, W, H, &line, 1, 2.0, &f) == TS_OK);
+    ts_ctx_set_seed(ctx, 11);
+    CHECK_MSG(ts_sketch_tiles_new(ctx, NULL, f, &ex, 1, &sp, &p, &c, W, H, &t, NULL, NULL) == TS_OK,
+              "%s", ts_ctx_message(ctx));
+    /* the drawn ridges: the graph's ridge cells, over the grid and a window */
+    ts_sketch_tiles_ridges(t, 0, 0, W, H, got, 4);
+    for (i = 0; i < (size_t)W * H; i++)
+        same &= (got[i] == 4) == ((f->mask[i] & TS_RIDGE) != 0);
+    CHECK_MSG(same, "the ridge cells are not the graph's");
+    memset(got, 0, (size_t)W * H);
+    ts_sketch_tiles_ridges(t, 101, 7, 50, 70, got, 1);
+    for (y = 0, same = 1; y < 70; y++)
+        for (x = 0; x < 50; x++)
+            same &= got[y * 50 + x] == ((f->mask[(size_t)(y + 7) * W + x + 101] & TS_RIDGE) != 0);
+    CHECK_MSG(same, "the ridge cells of a window are not the graph's");
+    /* as bytes and back: the key, and every window the same bytes */
+    CHECK(ts_sketch_tiles_to_bytes(ctx, t, 0x0123456789abcdefull, &b, &len) == TS_OK);
+    CHECK_MSG(ts_sketch_tiles_from_bytes(ctx, b, len, &key, &u) == TS_OK, "%s",
+              ts_ctx_message(ctx));
+    CHECK(key == 0x0123456789abcdefull && ts_sketch_tiles_factor(u) == K);
+    CHECK(same_window(ctx, t, u, 0, 0, W, H) && same_window(ctx, t, u, 3, 40, 61, 33));
+    memset(got, 0, (size_t)W * H);
+    ts_sketch_tiles_ridges(u, 0, 0, W, H, got, 4);
+    for (i = 0, same = 1; i < (size_t)W * H; i++)
+        same &= (got[i] == 4) == ((f->mask[i] & TS_RIDGE) != 0);
+    CHECK(same);
+    ts_sketch_tiles_free(u);
+    u = NULL;
+    /* damaged: any byte changed, or the bytes cut, is refused */
+    for (k = 0; k < len; k += (k < 64 || k + 16 > len) ? 1 : len / 300 + 1) {
+        b[k] ^= 0x20;
+        bad_ok &= ts_sketch_tiles_from_bytes(ctx, b, len, NULL, &u) == TS_ERR_ARG && !u;
+        b[k] ^= 0x20;
+    }
+    for (k = 0; k < len; k += len / 13 + 1)
+        bad_ok &= ts_sketch_tiles_from_bytes(ctx, b, k, NULL, &u) == TS_ERR_ARG && !u;
+    CHECK_MSG(bad_ok, "a damaged sketch in tiles was read");
+    /* with the checksum made right: sizes that do not add up, ridge cells out of order, a
+     * coarse cell that is no height */
+    n_runs = get_u64(b + 32);
+    n_ridges = get_u64(b + 40);
+    CHECK(n_runs == H && n_ridges > 10); /* a run of 6 cells a row */
+    b[16] += 1;                          /* W */
+    resum(b, len);
+    CHECK(ts_sketch_tiles_from_bytes(ctx, b, len, NULL, &u) == TS_ERR_ARG);
+    CHECK(strstr(ts_ctx_message(ctx), "sizes") != NULL);
+    b[16] -= 1;
+    {
+        unsigned char tmp[8], *r = b + 56 + 16 * n_runs;
+        memcpy(tmp, r, 8);
+        memcpy(r, r + 8, 8);
+        memcpy(r + 8, tmp, 8);
+        resum(b, len);
+        CHECK(ts_sketch_tiles_from_bytes(ctx, b, len, NULL, &u) == TS_ERR_ARG);
+        CHECK(strstr(ts_ctx_message(ctx), "ridge") != NULL);
+        memcpy(r + 8, r, 8);
+        memcpy(r, tmp, 8);
+    }
+    {
+        unsigned char *z = b + 56 + 16 * n_runs + 8 * n_ridges + 4 * 40;
+        union {
+            float f;
+            uint32_t u;
+        } inf = {INFINITY};
+        for (k = 0; k < 4; k++) /* little-endian, as the format is */
+            z[k] = (unsigned char)(inf.u >> (8 * k));
+        resum(b, len);
+        CHECK(ts_sketch_tiles_from_bytes(ctx, b, len, NULL, &u) == TS_ERR_ARG);
+        CHECK(strstr(ts_ctx_message(ctx), "coarse cell") != NULL);
+    }
+    free(b);
+    ts_sketch_tiles_free(t);
+    ts_features_free(f);
+    free(flags);
+    free(got);
+    ts_raster_free(&ex);
+    ts_ctx_free(ctx);
+}
+
 static void test_refusals(void)
 {
     ts_ctx *ctx = ts_ctx_new();
@@ -347,6 +480,7 @@ int main(int argc, char **argv)
          test_valleys_average_to_the_softened_coarse_pass},
         {"lines_threads_nodata", test_lines_threads_nodata},
         {"windows_equal_the_whole", test_windows_equal_the_whole},
+        {"as_bytes", test_as_bytes},
         {"refusals", test_refusals},
     };
     return th_run(cases, sizeof cases / sizeof cases[0], argc, argv);
