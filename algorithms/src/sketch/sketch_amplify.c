@@ -277,6 +277,11 @@ static ts_status sa_coarse_pass(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j
     cp.tiled = 0;
     cp.patch_size.value = P / K;
     cp.overlap.value = TS_MIN(TS_MAX(2, ov / K), P / K / 2);
+    /* patches of 16 cells or fewer on exemplars K >= 4 times coarser: without the usage
+     * cost the fill far from the strokes takes the same few smooth windows again and
+     * again, rows of terraces at the patch step (ours) */
+    if (cp.usage < 0 && K >= 4)
+        cp.usage = TS_SYNTH_USAGE_FREE;
     if (!(cex = ts__calloc_array((size_t)j->n_exemplars, sizeof *cex)))
         return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
     /* the exemplars area-averaged by K, as the dictionary's low resolution */
