@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Build and run a libFuzzer target for a bounded time (default 60 s): the recipe
-# parser, or the dictionary format: tools/fuzz.sh [SECONDS] [recipe|dictionary]
+# parser, the dictionary format or a sketch in tiles as bytes:
+# tools/fuzz.sh [SECONDS] [recipe|dictionary|sketch_tiles]
 # SPDX-License-Identifier: GPL-2.0-or-later
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -33,6 +34,29 @@ if [ "$target" = dictionary ]; then
   ASAN_OPTIONS=detect_leaks=1 "$out/fuzz_dictionary" -max_total_time="$secs" \
     -rss_limit_mb=4096 -timeout=20 "$out/dict_corpus" 2>&1 | tail -n 5
   echo "fuzz: $secs s of dictionaries without a crash"
+  exit 0
+fi
+if [ "$target" = sketch_tiles ]; then
+  # the core alone; seeds: the coarse passes of two small recipes (K = 1 and 2; the file's
+  # 8-byte header cut)
+  cli=build/gdal_driver/terrasynth
+  [ -x "$cli" ] || { echo "fuzz: build the CLI first (it makes the seeds)"; exit 1; }
+  mkdir -p "$out/tiles_corpus"
+  for k in 1 2; do
+    "$cli" synth --exemplar data/jacksboro_fault_dem.tif --sketch \
+      data/sketches/ridges_valleys.geojson --resolution 0.0025 --tiled 128 --patch-size 32 \
+      --overlap 8 --amplify-factor $k --seed 1 --recipe "$out/seed$k.tsyn" -q 2>/dev/null || true
+    [ -f "$out/seed$k.tsyn.coarse" ] && tail -c +9 "$out/seed$k.tsyn.coarse" > "$out/tiles_corpus/seed$k"
+    rm -f "$out/seed$k.tsyn" "$out/seed$k.tsyn.coarse"
+  done
+  $cc -I algorithms/include -DTS_BUILDING_LIBRARY -o "$out/fuzz_sketch_tiles" \
+    tests/fuzz/fuzz_sketch_tiles.c algorithms/src/*.c algorithms/src/*/*.c \
+    -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch \
+    -I algorithms/src/pixel -I algorithms/src/amplify \
+    -DTS_VERSION_STRING="\"$version\"" $(pkg-config --cflags --libs fftw3f fftw3) -lm -lpthread
+  ASAN_OPTIONS=detect_leaks=1 "$out/fuzz_sketch_tiles" -max_total_time="$secs" \
+    -rss_limit_mb=4096 -timeout=20 "$out/tiles_corpus" 2>&1 | tail -n 5
+  echo "fuzz: $secs s of sketches in tiles without a crash"
   exit 0
 fi
 # the parser and everything it calls (core included) built instrumented

@@ -18,6 +18,7 @@ cmake --build build-asan -j"$jobs"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -j"$jobs"
 
-echo "== fuzz the recipe parser and the dictionary format (libFuzzer, bounded time)"
+echo "== fuzz the recipe parser, the dictionary format and a sketch in tiles as bytes (libFuzzer, bounded time)"
 tools/fuzz.sh "${TS_FUZZ_SECONDS:-60}"
 tools/fuzz.sh "${TS_FUZZ_SECONDS:-60}" dictionary
+tools/fuzz.sh "${TS_FUZZ_SECONDS:-60}" sketch_tiles

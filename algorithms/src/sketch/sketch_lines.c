@@ -9,7 +9,8 @@
  *    becomes a vertex of both (a T junction, or two ends joined).
  * 2. Each line is walked in steps of at most half a cell; the cells it
  *    visits make an 8-connected chain, consecutive cells joined by an edge
- *    (kept as 8 direction bits per cell and kind).  Lines that share a cell
+ *    (kept as 8 direction bits per cell and kind, in a hash of the cells
+ *    the lines cross: nothing of the grid's size but the mask).  Lines that share a cell
  *    meet there; lines that cross share the cell of their crossing point,
  *    which is added to both as a vertex first.  Cells off the grid are left
  *    out, so a line leaving the grid ends at its edge.
@@ -17,8 +18,9 @@
  *    the chains of 2-edge cells between them; a ring without a node is
  *    opened at its first cell in raster order.
  * Heights given at the vertices are interpolated along the lines into the
- * vertices' z (NaN elsewhere).  Cost: O(line length in cells + vertices x
- * segments near them).
+ * vertices' z (NaN elsewhere).  Cost: O(line length in cells x log of it +
+ * vertices x segments near them); memory: the mask and about 50 bytes a
+ * line cell.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -78,7 +80,7 @@ static void lpts_free(lpts *l, size_t n)
 /* The nearest point to (px, py) on segment a-b: its parameter t in 0..1
  * and squared distance. */
 static double seg_nearest(double ax, double ay, double bx, double by, double px, double py,
-                         double *t)
+                          double *t)
 {
     double vx = bx - ax, vy = by - ay, L = vx * vx + vy * vy, s, dx, dy;
     s = L > 0 ? ((px - ax) * vx + (py - ay) * vy) / L : 0.0;
@@ -326,8 +328,8 @@ static int lines_snap_ends(lpts *L, size_t nl, double snap, const buckets *bk, i
                         continue;
                 }
                 d = seg_nearest(L[l].x[k], L[l].y[k], L[l].x[k + 1], L[l].y[k + 1], px, py, &t);
-                if (d < best || (d == best && found && (l < best_l || (l == best_l &&
-                                                                       k < best_k)))) {
+                if (d < best ||
+                    (d == best && found && (l < best_l || (l == best_l && k < best_k)))) {
                     best = d;
                     best_l = l;
                     best_k = k;
@@ -370,8 +372,7 @@ static int lines_cross_vertices(const lpts *L, const buckets *bk, insbuf *ib)
                 if (L[la].kind != L[lb].kind || (la == lb && (ka + 1 >= kb && kb + 1 >= ka)))
                     continue;
                 if (!seg_cross(L[la].x[ka], L[la].y[ka], L[la].x[ka + 1], L[la].y[ka + 1],
-                               L[lb].x[kb], L[lb].y[kb], L[lb].x[kb + 1], L[lb].y[kb + 1], &s,
-                               &t))
+                               L[lb].x[kb], L[lb].y[kb], L[lb].x[kb + 1], L[lb].y[kb + 1], &s, &t))
                     continue;
                 x = L[la].x[ka] + s * (L[la].x[ka + 1] - L[la].x[ka]);
                 y = L[la].y[ka] + s * (L[la].y[ka + 1] - L[la].y[ka]);
@@ -389,12 +390,102 @@ static int lines_cross_vertices(const lpts *L, const buckets *bk, insbuf *ib)
     return 0;
 }
 
-/* The graph under construction: per cell, the edges of one kind. */
+/* The graph under construction: the edges of one kind at the cells the
+ * lines cross, kept in slots (a hash of the cell's index finds its slot):
+ * what it costs follows the lines' length, not the grid's size. */
 typedef struct cellgraph {
     int W, H;
+    size_t n, cap;      /* slots used, and room */
+    size_t *cell;       /* per slot: its cell, y * W + x */
     unsigned char *dir; /* bit d: an edge to the neighbour (DX[d], DY[d]) */
     float *z;           /* the height the lines give the cell (NaN: none) */
+    size_t *node;       /* the node at the cell + 1 (0: none) */
+    size_t *hash;       /* slot + 1 (0: empty), open addressing; hcap entries */
+    size_t hcap;
 } cellgraph;
+
+static size_t cg_home(const cellgraph *g, size_t c)
+{
+    return (size_t)(((uint64_t)c * 0x9e3779b97f4a7c15ull) >> 17) & (g->hcap - 1);
+}
+
+/* The slot of cell c, or (size_t)-1. */
+static size_t cg_find(const cellgraph *g, size_t c)
+{
+    size_t h;
+    if (!g->hcap)
+        return (size_t)-1;
+    for (h = cg_home(g, c); g->hash[h]; h = (h + 1) & (g->hcap - 1))
+        if (g->cell[g->hash[h] - 1] == c)
+            return g->hash[h] - 1;
+    return (size_t)-1;
+}
+
+/* The slot of cell c, made (no edge, no height, no node) when missing;
+ * (size_t)-1 out of memory. */
+static size_t cg_slot(cellgraph *g, size_t c)
+{
+    size_t s = cg_find(g, c), h, k;
+    if (s != (size_t)-1)
+        return s;
+    if (g->n == g->cap) {
+        size_t nc = g->cap ? 2 * g->cap : 1024;
+        size_t *cell = realloc(g->cell, nc * sizeof *cell), *node;
+        unsigned char *dir;
+        float *z;
+        if (cell)
+            g->cell = cell;
+        dir = cell ? realloc(g->dir, nc) : NULL;
+        if (dir)
+            g->dir = dir;
+        z = dir ? realloc(g->z, nc * sizeof *z) : NULL;
+        if (z)
+            g->z = z;
+        node = z ? realloc(g->node, nc * sizeof *node) : NULL;
+        if (!node)
+            return (size_t)-1;
+        g->node = node;
+        g->cap = nc;
+    }
+    if (2 * (g->n + 1) > g->hcap) { /* at most half full: rebuilt twice as large */
+        size_t nh = g->hcap ? 2 * g->hcap : 2048, *hash = ts__calloc_array(nh, sizeof *hash);
+        if (!hash)
+            return (size_t)-1;
+        free(g->hash);
+        g->hash = hash;
+        g->hcap = nh;
+        for (k = 0; k < g->n; k++) {
+            for (h = cg_home(g, g->cell[k]); g->hash[h]; h = (h + 1) & (g->hcap - 1))
+                ;
+            g->hash[h] = k + 1;
+        }
+    }
+    s = g->n++;
+    g->cell[s] = c;
+    g->dir[s] = 0;
+    g->z[s] = NAN;
+    g->node[s] = 0;
+    for (h = cg_home(g, c); g->hash[h]; h = (h + 1) & (g->hcap - 1))
+        ;
+    g->hash[h] = s + 1;
+    return s;
+}
+
+static void cg_clear(cellgraph *g)
+{
+    g->n = 0;
+    if (g->hash)
+        memset(g->hash, 0, g->hcap * sizeof *g->hash);
+}
+
+static void cg_free(cellgraph *g)
+{
+    free(g->cell);
+    free(g->dir);
+    free(g->z);
+    free(g->node);
+    free(g->hash);
+}
 
 static int dir_of(int dx, int dy)
 {
@@ -405,11 +496,11 @@ static int dir_of(int dx, int dy)
     return -1;
 }
 
-/* Step 2 for one line: its cells and edges. */
-static void lines_walk(cellgraph *g, const lpts *l)
+/* Step 2 for one line: its cells and edges; -1 out of memory. */
+static int lines_walk(cellgraph *g, const lpts *l)
 {
     long px = LONG_MIN, py = LONG_MIN;
-    size_t k;
+    size_t k, ps = (size_t)-1; /* the slot of the cell before, when on the grid */
     for (k = 0; k + 1 < l->n || (k == 0 && l->n == 1); k++) {
         double x0 = l->x[k], y0 = l->y[k];
         double x1 = l->n > 1 ? l->x[k + 1] : x0, y1 = l->n > 1 ? l->y[k + 1] : y0;
@@ -422,26 +513,30 @@ static void lines_walk(cellgraph *g, const lpts *l)
             double t = (double)s / (double)steps;
             long cx = (long)floor(x0 + t * (x1 - x0)), cy = (long)floor(y0 + t * (y1 - y0));
             int in = cx >= 0 && cy >= 0 && cx < g->W && cy < g->H;
+            size_t sc = (size_t)-1;
             if (cx == px && cy == py)
                 continue;
             if (in) {
-                size_t c = (size_t)cy * (size_t)g->W + (size_t)cx;
                 double z = z0 + t * (z1 - z0);
-                if (isnan(g->z[c]) && !isnan(z))
-                    g->z[c] = (float)z;
-                if (px != LONG_MIN && px >= 0 && py >= 0 && px < g->W && py < g->H) {
+                sc = cg_slot(g, (size_t)cy * (size_t)g->W + (size_t)cx);
+                if (sc == (size_t)-1)
+                    return -1;
+                if (isnan(g->z[sc]) && !isnan(z))
+                    g->z[sc] = (float)z;
+                if (ps != (size_t)-1) {
                     int d = dir_of((int)(cx - px), (int)(cy - py));
-                    size_t pc = (size_t)py * (size_t)g->W + (size_t)px;
                     if (d >= 0) {
-                        g->dir[pc] |= (unsigned char)(1u << d);
-                        g->dir[c] |= (unsigned char)(1u << ((d + 4) % 8));
+                        g->dir[ps] |= (unsigned char)(1u << d);
+                        g->dir[sc] |= (unsigned char)(1u << ((d + 4) % 8));
                     }
                 }
             }
             px = cx;
             py = cy;
+            ps = sc;
         }
     }
+    return 0;
 }
 
 static int popcount8(unsigned v)
@@ -456,7 +551,6 @@ static int popcount8(unsigned v)
 typedef struct fbuild {
     ts_features *f;
     size_t cap_n, cap_p, cap_v;
-    size_t *node_at; /* per cell: node index + 1 (0 none), for the current kind */
 } fbuild;
 
 static int fb_grow(void **p, size_t *cap, size_t need, size_t elem)
@@ -476,30 +570,37 @@ static int fb_grow(void **p, size_t *cap, size_t need, size_t elem)
     return 0;
 }
 
-static long fb_node(fbuild *b, const cellgraph *g, size_t c, int kind)
+/* The node at slot s (made when missing). */
+static long fb_node(fbuild *b, cellgraph *g, size_t s, int kind)
 {
     ts_feature_node *nd;
-    if (b->node_at[c])
-        return (long)b->node_at[c] - 1;
+    if (g->node[s])
+        return (long)g->node[s] - 1;
     if (fb_grow((void **)&b->f->nodes, &b->cap_n, b->f->n_nodes + 1, sizeof *nd) != 0)
         return -1;
     nd = &b->f->nodes[b->f->n_nodes];
-    nd->x = (int)(c % (size_t)g->W);
-    nd->y = (int)(c / (size_t)g->W);
-    nd->z = g->z[c];
-    nd->degree = popcount8(g->dir[c]);
+    nd->x = (int)(g->cell[s] % (size_t)g->W);
+    nd->y = (int)(g->cell[s] / (size_t)g->W);
+    nd->z = g->z[s];
+    nd->degree = popcount8(g->dir[s]);
     nd->kind = kind;
-    b->node_at[c] = ++b->f->n_nodes;
+    g->node[s] = ++b->f->n_nodes;
     return (long)b->f->n_nodes - 1;
 }
 
-/* Step 3: the path leaving node cell c in direction d (its edges cleared). */
-static int fb_path(fbuild *b, cellgraph *g, size_t c, int d, int kind)
+/* The slot of the neighbour of slot s in direction d (an edge leads there). */
+static size_t fb_step(const cellgraph *g, size_t s, int d)
+{
+    return cg_find(g, (size_t)((long)g->cell[s] + DY[d] * (long)g->W + DX[d]));
+}
+
+/* Step 3: the path leaving node slot s in direction d (its edges cleared). */
+static int fb_path(fbuild *b, cellgraph *g, size_t s, int d, int kind)
 {
     ts_features *f = b->f;
     ts_feature_path *p;
-    long na = fb_node(b, g, c, kind), nb;
-    size_t cur = c, W = (size_t)g->W;
+    long na = fb_node(b, g, s, kind), nb;
+    size_t cur = s, W = (size_t)g->W;
     double len = 0.0, zs = 0.0;
     size_t nz = 0;
     float zmin = NAN, zmax = NAN;
@@ -516,8 +617,8 @@ static int fb_path(fbuild *b, cellgraph *g, size_t c, int d, int kind)
         if (fb_grow((void **)&f->verts, &b->cap_v, f->n_verts + 1, sizeof *v) != 0)
             return -1;
         v = &f->verts[f->n_verts++];
-        v->x = (int)(cur % W);
-        v->y = (int)(cur / W);
+        v->x = (int)(g->cell[cur] % W);
+        v->y = (int)(g->cell[cur] / W);
         v->z = z;
         if (!isnan(z)) {
             zmin = isnan(zmin) || z < zmin ? z : zmin;
@@ -530,9 +631,9 @@ static int fb_path(fbuild *b, cellgraph *g, size_t c, int d, int kind)
         /* step along d, clearing the edge both ways */
         g->dir[cur] &= (unsigned char)~(1u << d);
         len += (d % 2) ? sqrt(2.0) : 1.0;
-        cur = (size_t)((long)cur + DY[d] * (long)W + DX[d]);
+        cur = fb_step(g, cur, d);
         g->dir[cur] &= (unsigned char)~(1u << ((d + 4) % 8));
-        if (b->node_at[cur] || popcount8(g->dir[cur]) != 1) {
+        if (g->node[cur] || popcount8(g->dir[cur]) != 1) {
             d = -1; /* a node: the path ends here */
             continue;
         }
@@ -551,43 +652,68 @@ static int fb_path(fbuild *b, cellgraph *g, size_t c, int d, int kind)
     return 0;
 }
 
+typedef struct cell_slot {
+    size_t cell, slot;
+} cell_slot;
+
+static int cell_slot_cmp(const void *a, const void *b)
+{
+    size_t x = ((const cell_slot *)a)->cell, y = ((const cell_slot *)b)->cell;
+    return (x > y) - (x < y);
+}
+
 /* Step 3 for one kind: nodes (raster order), paths from them, rings. */
 static int fb_kind(fbuild *b, cellgraph *g, int kind)
 {
-    size_t n = (size_t)g->W * (size_t)g->H, c;
-    int d;
-    memset(b->node_at, 0, n * sizeof *b->node_at);
-    for (c = 0; c < n; c++)
-        if (g->dir[c]) {
-            b->f->mask[c] |= (unsigned char)kind;
-            if (popcount8(g->dir[c]) != 2 && fb_node(b, g, c, kind) < 0)
-                return -1;
+    cell_slot *ord = ts__malloc_array(g->n + 1, sizeof *ord);
+    size_t i;
+    int d, rc = -1;
+    if (!ord)
+        return -1;
+    for (i = 0; i < g->n; i++) {
+        ord[i].cell = g->cell[i];
+        ord[i].slot = i;
+    }
+    qsort(ord, g->n, sizeof *ord, cell_slot_cmp);
+    for (i = 0; i < g->n; i++) {
+        size_t s = ord[i].slot;
+        if (g->dir[s]) {
+            b->f->mask[g->cell[s]] |= (unsigned char)kind;
+            if (popcount8(g->dir[s]) != 2 && fb_node(b, g, s, kind) < 0)
+                goto done;
         }
-    for (c = 0; c < n; c++)
-        if (b->node_at[c])
+    }
+    for (i = 0; i < g->n; i++) {
+        size_t s = ord[i].slot;
+        if (g->node[s])
             for (d = 0; d < 8; d++)
-                while (g->dir[c] & (1u << d))
-                    if (fb_path(b, g, c, d, kind) != 0)
-                        return -1;
+                while (g->dir[s] & (1u << d))
+                    if (fb_path(b, g, s, d, kind) != 0)
+                        goto done;
+    }
     /* rings: opened at their first cell, whose first edge is cut */
-    for (c = 0; c < n; c++)
-        if (g->dir[c]) {
-            size_t o;
-            for (d = 0; d < 8 && !(g->dir[c] & (1u << d)); d++)
-                ;
-            o = (size_t)((long)c + DY[d] * (long)g->W + DX[d]);
-            g->dir[c] &= (unsigned char)~(1u << d);
-            g->dir[o] &= (unsigned char)~(1u << ((d + 4) % 8));
-            if (fb_node(b, g, c, kind) < 0 || fb_node(b, g, o, kind) < 0)
-                return -1;
-            b->f->nodes[b->node_at[c] - 1].degree = 1;
-            b->f->nodes[b->node_at[o] - 1].degree = 1;
-            for (d = 0; d < 8 && !(g->dir[c] & (1u << d)); d++)
-                ;
-            if (d < 8 && fb_path(b, g, c, d, kind) != 0)
-                return -1;
-        }
-    return 0;
+    for (i = 0; i < g->n; i++) {
+        size_t s = ord[i].slot, o;
+        if (!g->dir[s])
+            continue;
+        for (d = 0; d < 8 && !(g->dir[s] & (1u << d)); d++)
+            ;
+        o = fb_step(g, s, d);
+        g->dir[s] &= (unsigned char)~(1u << d);
+        g->dir[o] &= (unsigned char)~(1u << ((d + 4) % 8));
+        if (fb_node(b, g, s, kind) < 0 || fb_node(b, g, o, kind) < 0)
+            goto done;
+        b->f->nodes[g->node[s] - 1].degree = 1;
+        b->f->nodes[g->node[o] - 1].degree = 1;
+        for (d = 0; d < 8 && !(g->dir[s] & (1u << d)); d++)
+            ;
+        if (d < 8 && fb_path(b, g, s, d, kind) != 0)
+            goto done;
+    }
+    rc = 0;
+done:
+    free(ord);
+    return rc;
 }
 
 TS_API ts_status ts_features_from_lines(ts_ctx *ctx, int width, int height,
@@ -596,25 +722,23 @@ TS_API ts_status ts_features_from_lines(ts_ctx *ctx, int width, int height,
 {
     size_t n = (size_t)width * (size_t)height, i, k;
     lpts *L = NULL;
-    cellgraph g = {width, height, NULL, NULL};
+    cellgraph g;
     fbuild b;
     int kinds[2] = {TS_RIDGE, TS_VALLEY}, ki, bad = 0;
     ts__clear(ctx);
     memset(&b, 0, sizeof b);
+    memset(&g, 0, sizeof g);
+    g.W = width;
+    g.H = height;
     *out = NULL;
     if (width < 1 || height < 1 || (!lines && n_lines) || !(snap >= 0))
         return ts__fail(ctx, TS_ERR_ARG, "sketch lines", "bad grid, lines or snap distance");
     for (i = 0; i < n_lines; i++)
-        if ((lines[i].kind != TS_RIDGE && lines[i].kind != TS_VALLEY) || !lines[i].x ||
-            !lines[i].y)
+        if ((lines[i].kind != TS_RIDGE && lines[i].kind != TS_VALLEY) || !lines[i].x || !lines[i].y)
             return ts__fail(ctx, TS_ERR_ARG, "sketch lines", "line %zu: bad kind or points", i);
     L = ts__calloc_array(n_lines + 1, sizeof *L);
     b.f = calloc(1, sizeof *b.f);
-    g.dir = ts__calloc_array(n, 1);
-    g.z = ts__malloc_array(n, sizeof(float));
-    b.node_at = ts__malloc_array(n, sizeof *b.node_at);
-    if (!L || !b.f || !g.dir || !g.z || !b.node_at ||
-        !(b.f->mask = ts__calloc_array(n, 1))) {
+    if (!L || !b.f || !(b.f->mask = ts__calloc_array(n, 1))) {
         bad = 1;
         goto done;
     }
@@ -650,19 +774,15 @@ TS_API ts_status ts_features_from_lines(ts_ctx *ctx, int width, int height,
         free(ib.v);
     }
     for (ki = 0; ki < 2 && !bad; ki++) {
-        memset(g.dir, 0, n);
-        for (i = 0; i < n; i++)
-            g.z[i] = NAN;
-        for (i = 0; i < n_lines; i++)
+        cg_clear(&g);
+        for (i = 0; i < n_lines && !bad; i++)
             if (L[i].kind == kinds[ki] && L[i].n)
-                lines_walk(&g, &L[i]);
-        bad = fb_kind(&b, &g, kinds[ki]) != 0;
+                bad = lines_walk(&g, &L[i]) != 0;
+        bad = bad || fb_kind(&b, &g, kinds[ki]) != 0;
     }
 done:
     lpts_free(L, n_lines);
-    free(g.dir);
-    free(g.z);
-    free(b.node_at);
+    cg_free(&g);
     if (bad) {
         ts_features_free(b.f);
         return ts__fail(ctx, TS_ERR_NOMEM, "sketch lines", "out of memory");
