@@ -183,7 +183,7 @@ static const tsjob_option synth_opts[] = {
     {"coarse_pass", TSJOB_FILE, 1, 0, 0, "FILE", G_GRID,
      "a sketch in tiles laid out before (its coarse pass): read instead of laying the sketch out "
      "when it was made from the same inputs, parameters and seed (else laid out again, with a "
-     "warning); recipe writes it (default RECIPE.coarse)",
+     "warning); recipe writes it (default: the recipe's name with .coarse added)",
      "CoarsePass", 0, NULL},
     {"pin", TSJOB_PIN, TSJOB_MAX_PINS, 0, 0, "FILE:XOFF,YOFF,W,H@X,Y", G_CONS,
      "keep a window of a DEM (its own cells) unchanged with its top-left at output cell X,Y; "
