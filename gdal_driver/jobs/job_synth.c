@@ -637,6 +637,41 @@ done:
     return rc;
 }
 
+/* The wanted heights and the region map into cons (their cells kept in
+ * *heights and *cell_ex, the caller frees them). */
+static int job_read_guides(const tsjob_synth *job, tsjob_synth_result *res,
+                           ts_synth_constraints *cons, tsio_raster *heights, int32_t **cell_ex,
+                           tsio_err *err)
+{
+    if (job->heights) {
+        if (tsio_read_dem(job->heights, 1, heights, err) != 0)
+            return -1;
+        tsjob__warn_sentinels(&res->warning, job->heights, heights);
+        if (tsio_same_grid(job->heights, "the heights raster", &heights->geo, &res->geo, "output",
+                           err) != 0)
+            return -1;
+        cons->heights = heights->r.data;
+        cons->alpha_h = job->alpha_h;
+    }
+    if (job->regions) {
+        size_t n = (size_t)res->geo.width * (size_t)res->geo.height;
+        *cell_ex = malloc(n * sizeof **cell_ex);
+        if (!*cell_ex) {
+            tsio_errf(err, job->regions, "out of memory");
+            return -1;
+        }
+        if (tsio_read_label_map(job->regions, &res->geo, "region", INT32_MIN, *cell_ex, err) != 0)
+            return -1;
+        if (job_region_exemplars(job, *cell_ex, n) == 0) {
+            tsio_errf(err, job->regions,
+                      "no cell's region has a region_exemplar rule: the map changes nothing");
+            return -1;
+        }
+        cons->cell_exemplar = *cell_ex;
+    }
+    return 0;
+}
+
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
                         tsio_err *err)
 {
@@ -709,32 +744,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         goto done;
     cons.cell_flags = flags;
     tsjob__progress_range(ctx, &jp, 0.0, job->drainage.mode ? 0.95 : 1.0);
-    if (job->heights && !adopted) {
-        if (tsio_read_dem(job->heights, 1, &heights, err) != 0)
-            goto done;
-        tsjob__warn_sentinels(&res->warning, job->heights, &heights);
-        if (tsio_same_grid(job->heights, "the heights raster", &heights.geo, &res->geo, "output",
-                           err) != 0)
-            goto done;
-        cons.heights = heights.r.data;
-        cons.alpha_h = job->alpha_h;
-    }
-    if (job->regions && !adopted) {
-        size_t n = (size_t)res->geo.width * (size_t)res->geo.height;
-        cell_ex = malloc(n * sizeof *cell_ex);
-        if (!cell_ex) {
-            tsio_errf(err, job->regions, "out of memory");
-            goto done;
-        }
-        if (tsio_read_label_map(job->regions, &res->geo, "region", INT32_MIN, cell_ex, err) != 0)
-            goto done;
-        if (job_region_exemplars(job, cell_ex, n) == 0) {
-            tsio_errf(err, job->regions,
-                      "no cell's region has a region_exemplar rule: the map changes nothing");
-            goto done;
-        }
-        cons.cell_exemplar = cell_ex;
-    }
+    if (!adopted && job_read_guides(job, res, &cons, &heights, &cell_ex, err) != 0)
+        goto done;
     if (adopted) {
         /* laid out before: what follows amplifies it */
     } else if (job->sketch && res->sketch_lines) {
