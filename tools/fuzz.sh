@@ -15,10 +15,24 @@ san="-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined"
 cc="clang -std=c11 -D_GNU_SOURCE -D_POSIX_C_SOURCE=200809L -O1 -g $san -Wall -Wextra -Werror"
 inc="-I algorithms/include -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch -I gdal_driver/io -I gdal_driver/jobs -I gdal_driver/recipe $(pkg-config --cflags gdal proj fftw3f fftw3)"
 version=$(sed -n 's/^project(TerraSynth VERSION \([0-9.]*\).*/\1/p' CMakeLists.txt)
-if [ "$target" = dictionary ]; then
-  # the core alone; seeds: the dictionaries of a small build (the file's 16-byte header cut)
+# A fuzzer of the core alone (tests/fuzz/fuzz_NAME.c) built and run on the seeds in CORPUS.
+core_fuzz() {
+  name=$1 corpus=$2 what=$3
+  $cc -I algorithms/include -DTS_BUILDING_LIBRARY -o "$out/fuzz_$name" \
+    "tests/fuzz/fuzz_$name.c" algorithms/src/*.c algorithms/src/*/*.c \
+    -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch \
+    -I algorithms/src/pixel -I algorithms/src/amplify \
+    -DTS_VERSION_STRING="\"$version\"" $(pkg-config --cflags --libs fftw3f fftw3) -lm -lpthread
+  ASAN_OPTIONS=detect_leaks=1 "$out/fuzz_$name" -max_total_time="$secs" \
+    -rss_limit_mb=4096 -timeout=20 "$corpus" 2>&1 | tail -n 5
+  echo "fuzz: $secs s of $what without a crash"
+}
+if [ "$target" = dictionary ] || [ "$target" = sketch_tiles ]; then
   cli=build/gdal_driver/terrasynth
-  [ -x "$cli" ] || { echo "fuzz: build the CLI first (it makes the seed dictionaries)"; exit 1; }
+  [ -x "$cli" ] || { echo "fuzz: build the CLI first (it makes the seeds)"; exit 1; }
+fi
+if [ "$target" = dictionary ]; then
+  # seeds: the dictionaries of a small build (the file's 16-byte header cut)
   mkdir -p "$out/dict_corpus"
   for f in 2 3; do
     "$cli" dictionary build "$out/seed$f.tsd" --exemplar data/jacksboro_fault_dem.tif \
@@ -26,21 +40,11 @@ if [ "$target" = dictionary ]; then
     [ -f "$out/seed$f.tsd" ] && tail -c +17 "$out/seed$f.tsd" > "$out/dict_corpus/seed$f" &&
       rm -f "$out/seed$f.tsd"
   done
-  $cc -I algorithms/include -DTS_BUILDING_LIBRARY -o "$out/fuzz_dictionary" \
-    tests/fuzz/fuzz_dictionary.c algorithms/src/*.c algorithms/src/*/*.c \
-    -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch \
-    -I algorithms/src/pixel -I algorithms/src/amplify \
-    -DTS_VERSION_STRING="\"$version\"" $(pkg-config --cflags --libs fftw3f fftw3) -lm -lpthread
-  ASAN_OPTIONS=detect_leaks=1 "$out/fuzz_dictionary" -max_total_time="$secs" \
-    -rss_limit_mb=4096 -timeout=20 "$out/dict_corpus" 2>&1 | tail -n 5
-  echo "fuzz: $secs s of dictionaries without a crash"
+  core_fuzz dictionary "$out/dict_corpus" dictionaries
   exit 0
 fi
 if [ "$target" = sketch_tiles ]; then
-  # the core alone; seeds: the coarse passes of two small recipes (K = 1 and 2; the file's
-  # 8-byte header cut)
-  cli=build/gdal_driver/terrasynth
-  [ -x "$cli" ] || { echo "fuzz: build the CLI first (it makes the seeds)"; exit 1; }
+  # seeds: the coarse passes of two small recipes (K = 1 and 2; the file's 8-byte header cut)
   mkdir -p "$out/tiles_corpus"
   for k in 1 2; do
     "$cli" synth --exemplar data/jacksboro_fault_dem.tif --sketch \
@@ -49,14 +53,7 @@ if [ "$target" = sketch_tiles ]; then
     [ -f "$out/seed$k.tsyn.coarse" ] && tail -c +9 "$out/seed$k.tsyn.coarse" > "$out/tiles_corpus/seed$k"
     rm -f "$out/seed$k.tsyn" "$out/seed$k.tsyn.coarse"
   done
-  $cc -I algorithms/include -DTS_BUILDING_LIBRARY -o "$out/fuzz_sketch_tiles" \
-    tests/fuzz/fuzz_sketch_tiles.c algorithms/src/*.c algorithms/src/*/*.c \
-    -I algorithms/src/base -I algorithms/src/ppa -I algorithms/src/fill -I algorithms/src/sketch \
-    -I algorithms/src/pixel -I algorithms/src/amplify \
-    -DTS_VERSION_STRING="\"$version\"" $(pkg-config --cflags --libs fftw3f fftw3) -lm -lpthread
-  ASAN_OPTIONS=detect_leaks=1 "$out/fuzz_sketch_tiles" -max_total_time="$secs" \
-    -rss_limit_mb=4096 -timeout=20 "$out/tiles_corpus" 2>&1 | tail -n 5
-  echo "fuzz: $secs s of sketches in tiles without a crash"
+  core_fuzz sketch_tiles "$out/tiles_corpus" "sketches in tiles"
   exit 0
 fi
 # the parser and everything it calls (core included) built instrumented

@@ -627,8 +627,10 @@ static int job_sketch_lines(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_res
         job_core_err(ctx, job, job->sketch, err);
         goto done;
     }
-    res->sketch_features = f;
-    f = NULL;
+    if (!(params->tiled > 0)) { /* in tiles the drawn ridges are kept by res->sketch_tiles */
+        res->sketch_features = f;
+        f = NULL;
+    }
     rc = 0;
 done:
     ts_features_free(f);
@@ -758,8 +760,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
             goto done;
         bad = tiles ? ts_sketch_tiles_new(ctx, &sk.r, NULL, exr, job->n_exemplars,
                                           &job->sketch_params, &params, &cons, res->geo.width,
-                                          res->geo.height, &res->sketch_tiles,
-                                          &res->sketch_features, &res->sketch_info) != TS_OK
+                                          res->geo.height, &res->sketch_tiles, NULL,
+                                          &res->sketch_info) != TS_OK
                     : ts_synth_sketch(ctx, &sk.r, exr, job->n_exemplars, &job->sketch_params,
                                       &params, &cons, &res->out, maps, &res->sketch_features,
                                       &res->sketch_info) != TS_OK;

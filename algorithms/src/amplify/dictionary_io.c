@@ -58,8 +58,7 @@ TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
     ts__put_u32(b + 16, (uint32_t)dict->patch);
     ts__put_u32(b + 20, (uint32_t)dict->d);
     ts__put_u32(b + 24, (uint32_t)dict->hd);
-    ts__put_u32(b + 28, (uint32_t)(n & 0xffffffffu));
-    ts__put_u32(b + 32, (uint32_t)((uint64_t)n >> 32));
+    ts__put_u64(b + 28, (uint64_t)n);
     ts__put_u32(b + 36, 0);
     ts__put_u32(b + 40, dict->dl ? 1u : 0u);
     ts__put_u32(b + 44, (uint32_t)dict->n_classes);
@@ -87,11 +86,7 @@ TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
     }
     if (dict->n_layers)
         ts__le_copy(p, dict->ll, n * dict->n_layers * dict->hd, 4);
-    {
-        uint64_t sum = ts_checksum(0, b, total - DICT_SUM);
-        ts__put_u32(b + total - 8, (uint32_t)(sum & 0xffffffffu));
-        ts__put_u32(b + total - 4, (uint32_t)(sum >> 32));
-    }
+    ts__put_u64(b + total - DICT_SUM, ts_checksum(0, b, total - DICT_SUM));
     *bytes = b;
     *len = total;
     return TS_OK;

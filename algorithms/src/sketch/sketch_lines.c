@@ -390,63 +390,68 @@ static int lines_cross_vertices(const lpts *L, const buckets *bk, insbuf *ib)
     return 0;
 }
 
-/* The graph under construction: the edges of one kind at the cells the
- * lines cross, kept in slots (a hash of the cell's index finds its slot):
- * what it costs follows the lines' length, not the grid's size. */
+/* Room for `need` items of `elem` bytes in *p (room for *cap), doubled as
+ * it grows: 0, or -1 out of memory (*p kept). */
+static int fb_grow(void **p, size_t *cap, size_t need, size_t elem)
+{
+    size_t nc;
+    void *np;
+    if (need <= *cap)
+        return 0;
+    nc = *cap ? *cap : 64;
+    while (nc < need)
+        nc *= 2;
+    np = realloc(*p, nc * elem);
+    if (!np)
+        return -1;
+    *p = np;
+    *cap = nc;
+    return 0;
+}
+
+/* A cell the lines cross: its edges of one kind, height and node. */
+typedef struct cg_cell {
+    size_t cell;       /* y * W + x */
+    size_t node;       /* the node at the cell + 1 (0: none) */
+    float z;           /* the height the lines give the cell (NaN: none) */
+    unsigned char dir; /* bit d: an edge to the neighbour (DX[d], DY[d]) */
+} cg_cell;
+
+/* The graph under construction: the cells the lines cross, kept in slots
+ * (a hash of the cell's index finds its slot): what it costs follows the
+ * lines' length, not the grid's size. */
 typedef struct cellgraph {
     int W, H;
-    size_t n, cap;      /* slots used, and room */
-    size_t *cell;       /* per slot: its cell, y * W + x */
-    unsigned char *dir; /* bit d: an edge to the neighbour (DX[d], DY[d]) */
-    float *z;           /* the height the lines give the cell (NaN: none) */
-    size_t *node;       /* the node at the cell + 1 (0: none) */
-    size_t *hash;       /* slot + 1 (0: empty), open addressing; hcap entries */
+    cg_cell *s; /* the slots */
+    size_t n, cap;
+    size_t *hash; /* slot + 1 (0: empty), open addressing; hcap entries */
     size_t hcap;
 } cellgraph;
 
-static size_t cg_home(const cellgraph *g, size_t c)
+/* The hash entry of cell c: where it is, or the empty one where it goes. */
+static size_t cg_entry(const cellgraph *g, size_t c)
 {
-    return (size_t)(((uint64_t)c * 0x9e3779b97f4a7c15ull) >> 17) & (g->hcap - 1);
+    size_t h = (size_t)(((uint64_t)c * 0x9e3779b97f4a7c15ull) >> 17) & (g->hcap - 1);
+    while (g->hash[h] && g->s[g->hash[h] - 1].cell != c)
+        h = (h + 1) & (g->hcap - 1);
+    return h;
 }
 
 /* The slot of cell c, or (size_t)-1. */
 static size_t cg_find(const cellgraph *g, size_t c)
 {
-    size_t h;
-    if (!g->hcap)
-        return (size_t)-1;
-    for (h = cg_home(g, c); g->hash[h]; h = (h + 1) & (g->hcap - 1))
-        if (g->cell[g->hash[h] - 1] == c)
-            return g->hash[h] - 1;
-    return (size_t)-1;
+    return g->hcap ? g->hash[cg_entry(g, c)] - 1 : (size_t)-1;
 }
 
 /* The slot of cell c, made (no edge, no height, no node) when missing;
  * (size_t)-1 out of memory. */
 static size_t cg_slot(cellgraph *g, size_t c)
 {
-    size_t s = cg_find(g, c), h, k;
+    size_t s = cg_find(g, c), k;
     if (s != (size_t)-1)
         return s;
-    if (g->n == g->cap) {
-        size_t nc = g->cap ? 2 * g->cap : 1024;
-        size_t *cell = realloc(g->cell, nc * sizeof *cell), *node;
-        unsigned char *dir;
-        float *z;
-        if (cell)
-            g->cell = cell;
-        dir = cell ? realloc(g->dir, nc) : NULL;
-        if (dir)
-            g->dir = dir;
-        z = dir ? realloc(g->z, nc * sizeof *z) : NULL;
-        if (z)
-            g->z = z;
-        node = z ? realloc(g->node, nc * sizeof *node) : NULL;
-        if (!node)
-            return (size_t)-1;
-        g->node = node;
-        g->cap = nc;
-    }
+    if (fb_grow((void **)&g->s, &g->cap, g->n + 1, sizeof *g->s) != 0)
+        return (size_t)-1;
     if (2 * (g->n + 1) > g->hcap) { /* at most half full: rebuilt twice as large */
         size_t nh = g->hcap ? 2 * g->hcap : 2048, *hash = ts__calloc_array(nh, sizeof *hash);
         if (!hash)
@@ -454,20 +459,15 @@ static size_t cg_slot(cellgraph *g, size_t c)
         free(g->hash);
         g->hash = hash;
         g->hcap = nh;
-        for (k = 0; k < g->n; k++) {
-            for (h = cg_home(g, g->cell[k]); g->hash[h]; h = (h + 1) & (g->hcap - 1))
-                ;
-            g->hash[h] = k + 1;
-        }
+        for (k = 0; k < g->n; k++)
+            g->hash[cg_entry(g, g->s[k].cell)] = k + 1;
     }
     s = g->n++;
-    g->cell[s] = c;
-    g->dir[s] = 0;
-    g->z[s] = NAN;
-    g->node[s] = 0;
-    for (h = cg_home(g, c); g->hash[h]; h = (h + 1) & (g->hcap - 1))
-        ;
-    g->hash[h] = s + 1;
+    g->s[s].cell = c;
+    g->s[s].node = 0;
+    g->s[s].z = NAN;
+    g->s[s].dir = 0;
+    g->hash[cg_entry(g, c)] = s + 1;
     return s;
 }
 
@@ -480,10 +480,7 @@ static void cg_clear(cellgraph *g)
 
 static void cg_free(cellgraph *g)
 {
-    free(g->cell);
-    free(g->dir);
-    free(g->z);
-    free(g->node);
+    free(g->s);
     free(g->hash);
 }
 
@@ -521,13 +518,13 @@ static int lines_walk(cellgraph *g, const lpts *l)
                 sc = cg_slot(g, (size_t)cy * (size_t)g->W + (size_t)cx);
                 if (sc == (size_t)-1)
                     return -1;
-                if (isnan(g->z[sc]) && !isnan(z))
-                    g->z[sc] = (float)z;
+                if (isnan(g->s[sc].z) && !isnan(z))
+                    g->s[sc].z = (float)z;
                 if (ps != (size_t)-1) {
                     int d = dir_of((int)(cx - px), (int)(cy - py));
                     if (d >= 0) {
-                        g->dir[ps] |= (unsigned char)(1u << d);
-                        g->dir[sc] |= (unsigned char)(1u << ((d + 4) % 8));
+                        g->s[ps].dir |= (unsigned char)(1u << d);
+                        g->s[sc].dir |= (unsigned char)(1u << ((d + 4) % 8));
                     }
                 }
             }
@@ -553,45 +550,28 @@ typedef struct fbuild {
     size_t cap_n, cap_p, cap_v;
 } fbuild;
 
-static int fb_grow(void **p, size_t *cap, size_t need, size_t elem)
-{
-    size_t nc;
-    void *np;
-    if (need <= *cap)
-        return 0;
-    nc = *cap ? *cap : 64;
-    while (nc < need)
-        nc *= 2;
-    np = realloc(*p, nc * elem);
-    if (!np)
-        return -1;
-    *p = np;
-    *cap = nc;
-    return 0;
-}
-
 /* The node at slot s (made when missing). */
 static long fb_node(fbuild *b, cellgraph *g, size_t s, int kind)
 {
     ts_feature_node *nd;
-    if (g->node[s])
-        return (long)g->node[s] - 1;
+    if (g->s[s].node)
+        return (long)g->s[s].node - 1;
     if (fb_grow((void **)&b->f->nodes, &b->cap_n, b->f->n_nodes + 1, sizeof *nd) != 0)
         return -1;
     nd = &b->f->nodes[b->f->n_nodes];
-    nd->x = (int)(g->cell[s] % (size_t)g->W);
-    nd->y = (int)(g->cell[s] / (size_t)g->W);
-    nd->z = g->z[s];
-    nd->degree = popcount8(g->dir[s]);
+    nd->x = (int)(g->s[s].cell % (size_t)g->W);
+    nd->y = (int)(g->s[s].cell / (size_t)g->W);
+    nd->z = g->s[s].z;
+    nd->degree = popcount8(g->s[s].dir);
     nd->kind = kind;
-    g->node[s] = ++b->f->n_nodes;
+    g->s[s].node = ++b->f->n_nodes;
     return (long)b->f->n_nodes - 1;
 }
 
 /* The slot of the neighbour of slot s in direction d (an edge leads there). */
 static size_t fb_step(const cellgraph *g, size_t s, int d)
 {
-    return cg_find(g, (size_t)((long)g->cell[s] + DY[d] * (long)g->W + DX[d]));
+    return cg_find(g, (size_t)((long)g->s[s].cell + DY[d] * (long)g->W + DX[d]));
 }
 
 /* Step 3: the path leaving node slot s in direction d (its edges cleared). */
@@ -613,12 +593,12 @@ static int fb_path(fbuild *b, cellgraph *g, size_t s, int d, int kind)
     p->first = f->n_verts;
     for (;;) {
         ts_feature_vertex *v;
-        float z = g->z[cur];
+        float z = g->s[cur].z;
         if (fb_grow((void **)&f->verts, &b->cap_v, f->n_verts + 1, sizeof *v) != 0)
             return -1;
         v = &f->verts[f->n_verts++];
-        v->x = (int)(g->cell[cur] % W);
-        v->y = (int)(g->cell[cur] / W);
+        v->x = (int)(g->s[cur].cell % W);
+        v->y = (int)(g->s[cur].cell / W);
         v->z = z;
         if (!isnan(z)) {
             zmin = isnan(zmin) || z < zmin ? z : zmin;
@@ -629,15 +609,15 @@ static int fb_path(fbuild *b, cellgraph *g, size_t s, int d, int kind)
         if (d < 0)
             break;
         /* step along d, clearing the edge both ways */
-        g->dir[cur] &= (unsigned char)~(1u << d);
+        g->s[cur].dir &= (unsigned char)~(1u << d);
         len += (d % 2) ? sqrt(2.0) : 1.0;
         cur = fb_step(g, cur, d);
-        g->dir[cur] &= (unsigned char)~(1u << ((d + 4) % 8));
-        if (g->node[cur] || popcount8(g->dir[cur]) != 1) {
+        g->s[cur].dir &= (unsigned char)~(1u << ((d + 4) % 8));
+        if (g->s[cur].node || popcount8(g->s[cur].dir) != 1) {
             d = -1; /* a node: the path ends here */
             continue;
         }
-        for (d = 0; d < 8 && !(g->dir[cur] & (1u << d)); d++)
+        for (d = 0; d < 8 && !(g->s[cur].dir & (1u << d)); d++)
             ;
     }
     if ((nb = fb_node(b, g, cur, kind)) < 0)
@@ -671,41 +651,41 @@ static int fb_kind(fbuild *b, cellgraph *g, int kind)
     if (!ord)
         return -1;
     for (i = 0; i < g->n; i++) {
-        ord[i].cell = g->cell[i];
+        ord[i].cell = g->s[i].cell;
         ord[i].slot = i;
     }
     qsort(ord, g->n, sizeof *ord, cell_slot_cmp);
     for (i = 0; i < g->n; i++) {
         size_t s = ord[i].slot;
-        if (g->dir[s]) {
-            b->f->mask[g->cell[s]] |= (unsigned char)kind;
-            if (popcount8(g->dir[s]) != 2 && fb_node(b, g, s, kind) < 0)
+        if (g->s[s].dir) {
+            b->f->mask[g->s[s].cell] |= (unsigned char)kind;
+            if (popcount8(g->s[s].dir) != 2 && fb_node(b, g, s, kind) < 0)
                 goto done;
         }
     }
     for (i = 0; i < g->n; i++) {
         size_t s = ord[i].slot;
-        if (g->node[s])
+        if (g->s[s].node)
             for (d = 0; d < 8; d++)
-                while (g->dir[s] & (1u << d))
+                while (g->s[s].dir & (1u << d))
                     if (fb_path(b, g, s, d, kind) != 0)
                         goto done;
     }
     /* rings: opened at their first cell, whose first edge is cut */
     for (i = 0; i < g->n; i++) {
         size_t s = ord[i].slot, o;
-        if (!g->dir[s])
+        if (!g->s[s].dir)
             continue;
-        for (d = 0; d < 8 && !(g->dir[s] & (1u << d)); d++)
+        for (d = 0; d < 8 && !(g->s[s].dir & (1u << d)); d++)
             ;
         o = fb_step(g, s, d);
-        g->dir[s] &= (unsigned char)~(1u << d);
-        g->dir[o] &= (unsigned char)~(1u << ((d + 4) % 8));
+        g->s[s].dir &= (unsigned char)~(1u << d);
+        g->s[o].dir &= (unsigned char)~(1u << ((d + 4) % 8));
         if (fb_node(b, g, s, kind) < 0 || fb_node(b, g, o, kind) < 0)
             goto done;
-        b->f->nodes[g->node[s] - 1].degree = 1;
-        b->f->nodes[g->node[o] - 1].degree = 1;
-        for (d = 0; d < 8 && !(g->dir[s] & (1u << d)); d++)
+        b->f->nodes[g->s[s].node - 1].degree = 1;
+        b->f->nodes[g->s[o].node - 1].degree = 1;
+        for (d = 0; d < 8 && !(g->s[s].dir & (1u << d)); d++)
             ;
         if (d < 8 && fb_path(b, g, s, d, kind) != 0)
             goto done;
