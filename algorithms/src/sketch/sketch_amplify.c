@@ -25,6 +25,7 @@
 #include <string.h>
 
 #include "internal.h"
+#include "ppa_internal.h"
 #include "sketch_amplify.h"
 
 /* The atoms the amplification draws from each exemplar: half amplify's
@@ -380,14 +381,7 @@ TS_API void ts_sketch_tiles_ridges(const ts_sketch_tiles *t, int x0, int y0, int
         return;
     for (y = 0; y < h; y++) {
         uint64_t a = (uint64_t)(y0 + y) * (uint64_t)t->W + (uint64_t)x0, b = a + (uint64_t)w;
-        size_t lo = 0, hi = t->n_ridges;
-        while (lo < hi) { /* the first ridge cell at or after a */
-            size_t mid = lo + (hi - lo) / 2;
-            if (t->ridges[mid] < a)
-                lo = mid + 1;
-            else
-                hi = mid;
-        }
+        size_t lo = ppa_u64_lower(t->ridges, t->n_ridges, a);
         for (; lo < t->n_ridges && t->ridges[lo] < b; lo++)
             flags[(size_t)y * (size_t)w + (size_t)(t->ridges[lo] - a)] |= bit;
     }

@@ -29,6 +29,7 @@
 #include <string.h>
 
 #include "internal.h"
+#include "ppa_internal.h"
 
 static const int DX[8] = {1, 1, 0, -1, -1, -1, 0, 1};
 static const int DY[8] = {0, 1, 1, 1, 0, -1, -1, -1};
@@ -390,25 +391,6 @@ static int lines_cross_vertices(const lpts *L, const buckets *bk, insbuf *ib)
     return 0;
 }
 
-/* Room for `need` items of `elem` bytes in *p (room for *cap), doubled as
- * it grows: 0, or -1 out of memory (*p kept). */
-static int fb_grow(void **p, size_t *cap, size_t need, size_t elem)
-{
-    size_t nc;
-    void *np;
-    if (need <= *cap)
-        return 0;
-    nc = *cap ? *cap : 64;
-    while (nc < need)
-        nc *= 2;
-    np = realloc(*p, nc * elem);
-    if (!np)
-        return -1;
-    *p = np;
-    *cap = nc;
-    return 0;
-}
-
 /* A cell the lines cross: its edges of one kind, height and node. */
 typedef struct cg_cell {
     size_t cell;       /* y * W + x */
@@ -450,7 +432,7 @@ static size_t cg_slot(cellgraph *g, size_t c)
     size_t s = cg_find(g, c), k;
     if (s != (size_t)-1)
         return s;
-    if (fb_grow((void **)&g->s, &g->cap, g->n + 1, sizeof *g->s) != 0)
+    if (ppa_grow((void **)&g->s, &g->cap, g->n + 1, sizeof *g->s) != 0)
         return (size_t)-1;
     if (2 * (g->n + 1) > g->hcap) { /* at most half full: rebuilt twice as large */
         size_t nh = g->hcap ? 2 * g->hcap : 2048, *hash = ts__calloc_array(nh, sizeof *hash);
@@ -556,7 +538,7 @@ static long fb_node(fbuild *b, cellgraph *g, size_t s, int kind)
     ts_feature_node *nd;
     if (g->s[s].node)
         return (long)g->s[s].node - 1;
-    if (fb_grow((void **)&b->f->nodes, &b->cap_n, b->f->n_nodes + 1, sizeof *nd) != 0)
+    if (ppa_grow((void **)&b->f->nodes, &b->cap_n, b->f->n_nodes + 1, sizeof *nd) != 0)
         return -1;
     nd = &b->f->nodes[b->f->n_nodes];
     nd->x = (int)(g->s[s].cell % (size_t)g->W);
@@ -584,7 +566,7 @@ static int fb_path(fbuild *b, cellgraph *g, size_t s, int d, int kind)
     double len = 0.0, zs = 0.0;
     size_t nz = 0;
     float zmin = NAN, zmax = NAN;
-    if (na < 0 || fb_grow((void **)&f->paths, &b->cap_p, f->n_paths + 1, sizeof *p) != 0)
+    if (na < 0 || ppa_grow((void **)&f->paths, &b->cap_p, f->n_paths + 1, sizeof *p) != 0)
         return -1;
     p = &f->paths[f->n_paths];
     memset(p, 0, sizeof *p);
@@ -594,7 +576,7 @@ static int fb_path(fbuild *b, cellgraph *g, size_t s, int d, int kind)
     for (;;) {
         ts_feature_vertex *v;
         float z = g->s[cur].z;
-        if (fb_grow((void **)&f->verts, &b->cap_v, f->n_verts + 1, sizeof *v) != 0)
+        if (ppa_grow((void **)&f->verts, &b->cap_v, f->n_verts + 1, sizeof *v) != 0)
             return -1;
         v = &f->verts[f->n_verts++];
         v->x = (int)(g->s[cur].cell % W);
