@@ -528,6 +528,9 @@ typedef struct ts_synth_constraints {
      * over the constrained cells of its window. */
     const float *heights;
     double alpha_h;
+    /* The TS_CELL_FIXED cells' values for a call with no output filled on
+     * entry (ts_sketch_tiles_new); NULL: none there */
+    const float *values;
 } ts_synth_constraints;
 
 /** No constraints (alpha_h 1, every array NULL). */
@@ -736,12 +739,22 @@ TS_API ts_status ts_synth_sketch_features(ts_ctx *ctx, const ts_features *featur
  * builds the dictionary that amplifies it K times (Argudo et al. 2017) from
  * the exemplars at the output's resolution.  Give a painted `sketch` or a
  * feature graph `features` (ts_features_from_lines), width x height either;
- * cells flagged TS_CELL_FIXED or TS_CELL_WATER are refused (TS_ERR_ARG);
- * params->tiled is not read.  *sketch_features (may be NULL; painted
- * sketches) receives the coarse pass's graph on the output grid.
+ * params->tiled is not read.  Pinned cells and water (TS_CELL_FIXED, their
+ * values in constraints->values) are laid out as K x K blocks: a block at
+ * least half fixed is fixed at the mean of its fixed cells (water where
+ * most of those are).  *sketch_features (may be NULL; painted sketches)
+ * receives the coarse pass's graph on the output grid.
  * ts_sketch_tiles_window then makes any window of the output alone, the
  * same bytes as that window of the whole (ts_synth_sketch with tiled > 0:
- * the window of the whole grid), NaN on the sketch's nodata.
+ * the window of the whole grid), NaN on the sketch's nodata.  With `flags`
+ * (the window's TS_CELL_FIXED and TS_CELL_WATER, or NULL: none) and the
+ * fixed cells' values in `out` on entry, those cells come out exactly as
+ * given, the land within ts_sketch_tiles_margin of a pinned cell is shifted
+ * towards it (the differences at the pinned cells, Gaussian-averaged, tapered
+ * to nothing there; ours) and the land beside water is raised to a bank at or
+ * above the highest water within that reach (water_banks.c's bank): only
+ * cells that margin or more from a side that is not the grid's edge are
+ * final, so a window is made grown by the margin and cut.
  */
 typedef struct ts_sketch_tiles ts_sketch_tiles;
 TS_API ts_status ts_sketch_tiles_new(ts_ctx *ctx, const ts_raster *sketch,
@@ -752,7 +765,9 @@ TS_API ts_status ts_sketch_tiles_new(ts_ctx *ctx, const ts_raster *sketch,
                                      int height, ts_sketch_tiles **out,
                                      ts_features **sketch_features, ts_sketch_info *info);
 TS_API ts_status ts_sketch_tiles_window(ts_ctx *ctx, const ts_sketch_tiles *t, int x0, int y0,
-                                        ts_raster *out);
+                                        ts_raster *out, const unsigned char *flags);
+/** The margin a window of t with fixed cells needs on each side (8 K + 1). */
+TS_API int ts_sketch_tiles_margin(const ts_sketch_tiles *t);
 /** K, the factor the sketch was laid out coarser by. */
 TS_API int ts_sketch_tiles_factor(const ts_sketch_tiles *t);
 /** The output cells of window [x0, x0 + w) x [y0, y0 + h) on a drawn ridge
@@ -820,302 +835,8 @@ TS_API ts_status ts_hillshade(ts_ctx *ctx, const ts_raster *dem, const ts_grid_m
 TS_API ts_status ts_render_preview(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
                                    const ts_features *features, unsigned char *rgb);
 
-/* ------------------------------------------------------------------ */
-/* Amplification with a dictionary (Argudo et al. 2017)               */
-/* ------------------------------------------------------------------ */
-
-/**
- * Parameters of `terrasynth amplify` (stage "amplify").  A coarse DEM is
- * cut into patches of `patch` x `patch` cells overlapping by half; each is
- * matched to the low-resolution atom of a dictionary that scores best on
- * g = sum_j w_j g_j / sum_j w_j (section 5): g_h = (1 + P_h . D_h) / 2 on
- * the normalised elevation (orientation kept: no atom is ever inverted),
- * g_a and g_s Gaussians of the mean altitude and of the mean deviation
- * (sigma: the Gaussian is 0.5 at the median difference over the atoms),
- * g_u = (1 + P_u . D_u) / 2 on the normalised log drainage area,
- * g_l = (1 + P_l . D_l) / 2 on the normalised mean annual solar irradiance,
- * g_c = P_c . D_c on the class vectors (scaled to unit length) and
- * g_x = (1 + P_x . D_x) / 2 on the normalised context (the 3p x 3p
- * neighbourhood block-averaged to p x p).  The
- * atom's high-resolution counterpart replaces the patch
- * (P~ = (P_h . D_h) P_s D~_h + P_a) and patches are blended with a falloff;
- * the atom's other layers come with it.
- */
-typedef struct ts_amplify_params {
-    int factor;                /* output cells per input cell along each axis, 2..16 */
-    int patch;                 /* patch side in input cells (4..64); patches step by half of it */
-    int atoms;                 /* at most this many atoms per exemplar */
-    double w_h, w_a, w_s, w_u; /* matching weights (any scale; normalised to sum 1) */
-    int refine;                /* back-projection passes: the output, area-averaged, gives back the
-                                  input (our addition, 0 = the paper's reconstruction alone) */
-    double w_l;                /* weight of the irradiance term (0: irradiance is not computed) */
-    double w_c;                /* weight of the class term (used where classes are wanted) */
-    double w_x;                /* weight of the context term (section 5.3) */
-} ts_amplify_params;
-
-TS_API ts_amplify_params ts_amplify_params_default(void);
-
-/** A multi-resolution dictionary (D, D~): low- and high-resolution atoms in
- *  one-to-one correspondence, with their descriptors. */
-typedef struct ts_dictionary ts_dictionary;
-
-#define TS_MAX_LAYERS 8   /* extra layers a dictionary carries */
-#define TS_LAYER_NAME 32  /* bytes of a layer's name, with its terminating 0 */
-#define TS_MAX_CLASSES 64 /* class codes are 1..TS_MAX_CLASSES */
-
-/** One exemplar of a dictionary, at the OUTPUT resolution (the caller
- *  resamples it).  Every raster but lat and north is on dem's grid. */
-typedef struct ts_exemplar {
-    ts_raster dem;
-    double dx, dy; /* ground size of its cells in metres (0: unknown) */
-    /* the dictionary's extra layers (n_layers of them, NaN = no value), or NULL */
-    const ts_raster *layers;
-    /* class codes 1..TS_MAX_CLASSES (0 or NaN: unlabelled), or NULL */
-    const ts_raster *classes;
-    /* latitude, and azimuth of the grid's up direction from true north
-     * (degrees), on the grid of dem area-averaged by the factor (what the
-     * irradiance is computed on); NULL: no irradiance for this exemplar */
-    const ts_raster *lat, *north;
-} ts_exemplar;
-
-/**
- * Build a dictionary from exemplars: each is area-averaged by `factor`
- * into its low-resolution version, and atoms are the windows of `patch`
- * cells of it (all valid, on a regular lattice chosen to give at most
- * `atoms` of them) with the `patch * factor` windows of the exemplar (and
- * of its layers and classes) above them.  `layer_names` names the n_layers
- * extra layers every exemplar gives.  The irradiance descriptor is
- * computed when params->w_l > 0.
- */
-TS_API ts_status ts_dictionary_build(ts_ctx *ctx, const ts_exemplar *exemplars, int n_exemplars,
-                                     const char *const *layer_names, int n_layers,
-                                     const ts_amplify_params *params, ts_dictionary **out);
-TS_API size_t ts_dictionary_size(const ts_dictionary *dict);
-TS_API void ts_dictionary_free(ts_dictionary *dict);
-
-/** A dictionary as bytes, to build once and reuse (the caller writes and
- *  reads them: the core does no file I/O).  Little-endian whatever the
- *  machine, versioned; from_bytes checks every size against `len` (a file is
- *  untrusted).  *bytes is freed with free(). */
-TS_API ts_status ts_dictionary_to_bytes(ts_ctx *ctx, const ts_dictionary *dict,
-                                        unsigned char **bytes, size_t *len);
-TS_API ts_status ts_dictionary_from_bytes(ts_ctx *ctx, const unsigned char *bytes, size_t len,
-                                          ts_dictionary **out);
-/** The factor and patch a dictionary was built for. */
-TS_API void ts_dictionary_shape(const ts_dictionary *dict, int *factor, int *patch);
-/** What a dictionary holds besides elevation: its extra layers, the highest
- *  class code of its classes (0: none), whether it has irradiance. */
-TS_API void ts_dictionary_layers(const ts_dictionary *dict, int *n_layers, int *n_classes,
-                                 int *has_irradiance);
-/** How many atoms hold cells of class `code` (0 for a code out of 1..n_classes). */
-TS_API size_t ts_dictionary_class_atoms(const ts_dictionary *dict, int code);
-/** The name of extra layer i (NULL when out of range). */
-TS_API const char *ts_dictionary_layer_name(const ts_dictionary *dict, int i);
-
-/** What ts_amplify did (may be NULL). */
-typedef struct ts_amplify_info {
-    size_t n_patches, n_atoms;
-    double seconds_match, seconds_synthesis;
-    double mean_score; /* mean g of the chosen atoms */
-    int n_inverted;    /* patches whose best atom had P_h . D_h < 0 (taken as flat) */
-} ts_amplify_info;
-
-/** What the input gives besides its elevation (every raster on its grid). */
-typedef struct ts_amplify_guide {
-    const ts_raster *drainage;   /* ts_drainage_area of the input (ts_amplify: NULL = computed) */
-    const ts_raster *irradiance; /* ts_irradiance of the input; needed when w_l > 0 */
-    const ts_raster *classes;    /* wanted class codes (0 or NaN: any), or NULL */
-} ts_amplify_guide;
-
-/** What ts_amplify writes besides the elevation (caller-allocated, on the
- *  output's grid or window; NULL = not wanted). */
-typedef struct ts_amplify_layers {
-    ts_raster *layers;  /* the dictionary's n_layers layers (NaN where no atom has a value) */
-    ts_raster *classes; /* class codes (0 = unlabelled) of the atom that weighs most there */
-} ts_amplify_layers;
-
-/**
- * Amplify `coarse` (NaN = nodata) into `out` (caller-allocated,
- * coarse->width * factor x coarse->height * factor).  Cells under a nodata
- * coarse cell stay NaN.  `guide` and `layers` may be NULL.  Deterministic;
- * threads from the context.
- */
-TS_API ts_status ts_amplify(ts_ctx *ctx, const ts_raster *coarse, const ts_amplify_guide *guide,
-                            const ts_dictionary *dict, const ts_amplify_params *params,
-                            ts_raster *out, const ts_amplify_layers *layers,
-                            ts_amplify_info *info);
-
-/**
- * One window of what ts_amplify gives: the output cells [x0, x0 + out->width)
- * x [y0, y0 + out->height), byte for byte the same as that window of the
- * whole (amplification is local: only the patches over the window and the
- * margin back-projection needs are computed).  guide->drainage is required
- * (global: computed once, on the coarse grid).
- */
-TS_API ts_status ts_amplify_window(ts_ctx *ctx, const ts_raster *coarse,
-                                   const ts_amplify_guide *guide, const ts_dictionary *dict,
-                                   const ts_amplify_params *params, int x0, int y0, ts_raster *out,
-                                   const ts_amplify_layers *layers, ts_amplify_info *info);
-
-/**
- * Several biomes (section 5.5): dictionary b weighs `weights[b]` (a raster
- * on the input's grid, >= 0; shares are the weights over their sum, equal
- * where all are 0).  Each patch is matched in every dictionary whose share
- * reaches it, and the reconstructions are blended by the shares
- * interpolated bilinearly to the output's cells, then back-projected.
- * Simplified, and named as such: a patch is matched whole in each
- * dictionary (the paper weighs the patch and the atoms by the shares cell
- * by cell, the Hadamard product: the same where a patch's shares are
- * uniform, not at a biome's edge).  A window of the output, as
- * ts_amplify_window (guide->drainage required; no layers or classes).
- */
-TS_API ts_status ts_amplify_biomes(ts_ctx *ctx, const ts_raster *coarse,
-                                   const ts_amplify_guide *guide, const ts_dictionary *const *dicts,
-                                   const ts_raster *weights, int n_biomes,
-                                   const ts_amplify_params *params, int x0, int y0, ts_raster *out,
-                                   ts_amplify_info *info);
-
-/** Area-average `fine` by `factor` into `coarse` (caller-allocated,
- *  fine->width / factor x fine->height / factor); a coarse cell with any
- *  nodata below it is nodata. */
-TS_API ts_status ts_area_average(ts_ctx *ctx, const ts_raster *fine, int factor, ts_raster *coarse);
-
-/** Upstream drainage area in cells, D8 (each cell drains to its steepest
- *  lower neighbour, diagonals at sqrt(2); ties to the first in the order
- *  E, SE, S, SW, W, NW, N, NE), deterministic.  `out` caller-allocated;
- *  NaN where the DEM is nodata. */
-TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *out);
-
-/**
- * Mean annual direct solar irradiance (W/m^2, nights count as 0) with
- * self-shadowing (section 5.6): the sun's path over the year at each cell's
- * latitude `lat` (degrees), the grid turned by `north` (azimuth of the
- * grid's up direction from true north, degrees; NULL = 0), the terrain's
- * horizon along 16 directions and a clear-sky beam (Meinel's model).
- * `metrics` in metres (NULL: cells of 1 m).  NaN where dem or lat is NaN.
- */
-TS_API ts_status ts_irradiance(ts_ctx *ctx, const ts_raster *dem, const ts_grid_metrics *metrics,
-                               const ts_raster *lat, const ts_raster *north, ts_raster *out);
-
-/* ------------------------------------------------------------------ */
-/* Drainage: closed depressions removed after any method (ours, after  */
-/* Lindsay 2016, least-cost breaching)                                  */
-/* ------------------------------------------------------------------ */
-
-/** Values of ts_drainage_params.mode. */
-enum { TS_DRAINAGE_KEEP = 0, TS_DRAINAGE_BREACH = 1, TS_DRAINAGE_FILL = 2 };
-/** The largest radius a pit's search reaches, in cells. */
-#define TS_DRAINAGE_RADIUS_MAX 256
-
-/** Parameters of the drainage stage (stage "drainage"). */
-typedef struct ts_drainage_params {
-    int mode;   /* TS_DRAINAGE_KEEP: as synthesised; _BREACH (default): a channel carved from
-                   each pit to lower land; _FILL: each depression raised to its spill */
-    int radius; /* how far from its pit a channel or a fill reaches, in cells */
-    double max_depth; /* breach: the deepest a channel may cut, in height units; a depression
-                         that needs a deeper one is kept; 0: no limit; -1 (automatic):
-                         bank_slope times radius / 8 (no limit when bank_slope is 0) */
-    double bank_slope; /* breach: the slope of a channel's banks, in height units per cell: a
-                          cell within (cut / bank_slope) cells (at most radius / 2) of a channel
-                          cell cut deeper than bank_slope is lowered to the channel's height
-                          plus bank_slope times its distance (a gorge, not a slot); 0: none (a
-                          channel one cell wide); -1 (automatic): a front end sets
-                          ts_drainage_bank_slope_auto of the exemplars (the core takes -1 as 0) */
-    double shallow_depth; /* breach: the deepest cut from a pit on a TS_CELL_SHALLOW cell,
-                             and of such a cell by any channel, where the channel runs below
-                             the nearest TS_CELL_FIXED cell (within radius / 2 + 2 cells: a
-                             drawn valley's floor; a channel at or above it is a side gully
-                             down to the floor, cut as deep as max_depth allows); a front
-                             end's, not a user's parameter; 0: max_depth */
-} ts_drainage_params;
-
-TS_API ts_drainage_params ts_drainage_params_default(void);
-
-/** The deepest cut a breach makes with these parameters: max_depth, or for -1 bank_slope times
- *  radius / 8 (0, no limit, when bank_slope is not above 0). */
-TS_API double ts_drainage_depth_of(const ts_drainage_params *p);
-
-/** The automatic bank_slope: the median of the exemplars' gradient magnitude (central
- *  differences, height units per cell; at most a million cells sampled in raster order):
- *  a channel's banks as steep as their typical land; 0 when they have no interior cell. */
-TS_API double ts_drainage_bank_slope_auto(const ts_raster *exemplars, int n);
-
-/** What the stage did: pits found, pits drained, cells changed and their mean change. */
-typedef struct ts_drainage_info {
-    size_t pits, resolved, cells_changed;
-    double mean_change;
-} ts_drainage_info;
-
-/** The margin a window needs on each side (clipped at the grid's edge) for
- *  ts_drainage_apply to give the cells inside it exactly as on the whole
- *  grid: 2 radius + 2, radius / 2 more for a breach with banks, and radius / 2 + 2 more for
- *  a breach with shallow_depth (0 for keep). */
-TS_API int ts_drainage_margin(const ts_drainage_params *p);
-
-/**
- * Remove closed depressions from `dem` (changed in place; NaN = nodata), the
- * window [gx0, gx0 + width) x [gy0, gy0 + height) of a gw x gh grid whose
- * edge, like nodata, drains out.  Each pit (a cell lower than its eight
- * neighbours, ties by grid index) is drained on the surface as given:
- * breach lowers the cells of the cheapest path (the sum of heights above the
- * pit) to lower land or out, each a little below the one before, and its
- * banks (bank_slope) to slopes falling to it, never raising a cell (with
- * max_depth, a depression needing a deeper cut is kept); fill raises the
- * cells of the depression to its spill height.  A pit with no way out within radius
- * cells is kept.  `flags` (width x height, row-major, or NULL):
- * TS_CELL_NODATA cells are nodata; TS_CELL_FIXED cells never change and are
- * crossed only as a channel's end (water at or below the pit), and the land
- * beside TS_CELL_WATER is never cut below the water; a channel
- * crosses TS_CELL_BARRIER cells (drawn ridges), or a diagonal between two,
- * only where it has no other way out.  Only cells ts_drainage_margin or more
- * from a side that is not the grid's edge are final: the same bytes as the
- * whole, on any thread count.  `info` may be NULL.
- */
-TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags,
-                                   int64_t gx0, int64_t gy0, int64_t gw, int64_t gh,
-                                   const ts_drainage_params *params, ts_drainage_info *info);
-
-/* ------------------------------------------------------------------ */
-/* Streams: the flow lines of a DEM, with their Strahler order (ours)  */
-/* ------------------------------------------------------------------ */
-
-/** A link of a stream network: from a head or a confluence down to the
- *  next confluence (its last vertex, the first of the link it flows into)
- *  or to where the water leaves the DEM. */
-typedef struct ts_stream_link {
-    size_t first, count; /* its vertices, upstream to downstream (count >= 2) */
-    int order;           /* Strahler order: 1 from a head; i + 1 below where two of order i meet */
-    int64_t down;        /* the link it flows into; -1: it leaves the DEM */
-    double area;         /* drainage area of its own lowest cell, in cells (itself included) */
-} ts_stream_link;
-
-/** The streams of a width x height DEM: links in the raster order of their first cell;
- *  vertices at cell centres (x, y) with the DEM's height z. */
-typedef struct ts_stream_network {
-    int width, height;
-    size_t n_links, n_verts;
-    ts_stream_link *links;
-    ts_feature_vertex *verts;
-} ts_stream_network;
-
-/**
- * The stream network of a DEM: every cell draining at least min_area cells
- * (>= 1; itself included), the flow as the PPA's drainage test defines it
- * (depressions filled to their spill, flats crossed to their way out, each
- * cell to its neighbour of least filled height, the DEM's edge and nodata
- * as outlets), cut into links at confluences.  The DEM is read window by
- * window (read, under a lock; in tiles held 9 bytes a cell); the network
- * (16 bytes a stream cell while it is made) is caller-freed with
- * ts_stream_network_free.  The same network on any thread count.
- */
-TS_API ts_status ts_stream_network_extract_read(ts_ctx *ctx, int width, int height,
-                                        ts_window_read_fn read, void *user, double min_area,
-                                        ts_stream_network **out);
-/** The same of a DEM in memory. */
-TS_API ts_status ts_stream_network_extract(ts_ctx *ctx, const ts_raster *dem, double min_area,
-                                   ts_stream_network **out);
-TS_API void ts_stream_network_free(ts_stream_network *net);
-
+#include "terrasynth_amplify.h"
+#include "terrasynth_drainage.h"
 #include "terrasynth_pixel.h"
 
 #ifdef __cplusplus

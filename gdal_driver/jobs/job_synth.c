@@ -261,13 +261,6 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
             return -1;
         }
     }
-    if (res->params.tiled > 0 && job->sketch && (job->n_pins || job->water)) {
-        tsio_errf(err, job->water ? job->water : job->pins[0].path,
-                  "%s not made in tiles with a sketch yet: make it in one piece (no tiled)",
-                  job->water ? "water is" : "pinned windows are");
-        tsjob_synth_result_free(res);
-        return -1;
-    }
     if (job_synth_check_memory(job, res, err) != 0) {
         tsjob_synth_result_free(res);
         return -1;
@@ -342,6 +335,20 @@ static int job_read_exemplars(const tsjob_synth *job, tsjob_synth_result *res, t
 static int job_pin_read(const tsjob_synth *job, tsjob_synth_result *res, int i, tsio_raster *ex,
                         int *x0, int *y0, int *w, int *h, tsio_err *err);
 
+/* The pins at the target resolution with their windows, kept in res for
+ * the windows read later (job_rect_flags). */
+static int job_keep_pins(const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err)
+{
+    int i;
+    for (i = 0; i < job->n_pins; i++) {
+        int *wn = res->pin_win[i];
+        if (!res->pin_ex[i].r.data &&
+            job_pin_read(job, res, i, &res->pin_ex[i], &wn[0], &wn[1], &wn[2], &wn[3], err) != 0)
+            return -1;
+    }
+    return 0;
+}
+
 /* The job's drainage stage with its automatic bank slope from the exemplars as read. */
 static void job_drainage_banks(const tsjob_synth *job, tsjob_synth_result *res,
                                const ts_raster *exr)
@@ -368,12 +375,7 @@ int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *r
     }
     res->n_ex = job->n_exemplars;
     job_drainage_banks(job, res, res->exr);
-    for (i = 0; i < job->n_pins; i++) {
-        int *wn = res->pin_win[i];
-        if (job_pin_read(job, res, i, &res->pin_ex[i], &wn[0], &wn[1], &wn[2], &wn[3], err) != 0)
-            return -1;
-    }
-    return 0;
+    return job_keep_pins(job, res, err);
 }
 
 /* Region ids (a label map's values) into the exemplar each takes, -1 for
@@ -471,6 +473,13 @@ static int job_rect_flags(const tsjob_synth *job, const tsjob_synth_result *res,
             }
     }
     return 0;
+}
+
+int tsjob__synth_window_fixed(const tsjob_synth *job, const tsjob_synth_result *res,
+                              const int win[4], unsigned char *flags, ts_raster *values,
+                              tsio_err *err)
+{
+    return job_rect_flags(job, res, win, flags, values, err);
 }
 
 int tsjob_synth_window_flags(const tsjob_synth *job, const tsjob_synth_result *res, int x0, int y0,
@@ -720,8 +729,10 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     if (job_read_exemplars(job, res, ex, exr, err) != 0)
         goto done;
     job_drainage_banks(job, res, exr);
-    /* a sketch in tiles laid out before */
+    /* a sketch in tiles laid out before; its windows read the pins */
     if (tiles && job->coarse_pass && (adopted = tsjob__synth_adopt_coarse(ctx, job, res, err)) < 0)
+        goto done;
+    if (tiles && job->lazy && job_keep_pins(job, res, err) != 0)
         goto done;
     if (adopted && job->lazy) {
         rc = 0;
@@ -732,7 +743,8 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
                           "write the recipe again (its coarse pass), or a smaller target grid",
                           err) != 0)
         goto done;
-    if (!(tiles && job->lazy) && /* served window by window: no whole output */
+    /* served window by window: no whole output, but the fixed cells' values to lay out */
+    if ((!(tiles && job->lazy) || job->n_pins || job->water) &&
         ts_raster_alloc(ctx, res->geo.width, res->geo.height, &res->out) != TS_OK) {
         tsio_errf(err, "synth", "%s", ts_ctx_message(ctx));
         goto done;
@@ -745,6 +757,7 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
     if (job_constraints(job, res, flags, err) != 0)
         goto done;
     cons.cell_flags = flags;
+    cons.values = res->out.data;
     tsjob__progress_range(ctx, &jp, 0.0, job->drainage.mode ? 0.95 : 1.0);
     if (!adopted && job_read_guides(job, res, &cons, &heights, &cell_ex, err) != 0)
         goto done;
@@ -776,10 +789,11 @@ int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result 
         goto done;
     }
     if (tiles && job->lazy) { /* the windows: tsjob_synth_sketch_window_raw, then drained */
+        ts_raster_free(&res->out);
         rc = 0;
         goto done;
     }
-    if (tiles && ts_sketch_tiles_window(ctx, res->sketch_tiles, 0, 0, &res->out) != TS_OK) {
+    if (tiles && ts_sketch_tiles_window(ctx, res->sketch_tiles, 0, 0, &res->out, flags) != TS_OK) {
         job_core_err(ctx, job, job->sketch, err);
         goto done;
     }

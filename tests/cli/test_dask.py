@@ -163,16 +163,24 @@ def test_tiled_synth_recipe_tile_by_tile(tmp_path):
     assert gdal.Open(str(tmp_path / "d2.tif")).ReadAsArray().tobytes() == cli.tobytes()
 
 
-def test_tiled_recipe_with_pins_and_water(tmp_path):
-    """A tiled recipe with a pin and a water mask: each tile task reads its window's part of
-    them, and the result is the CLI's with the whole grid's."""
-    base = ["--exemplar", JACKSBORO, "--size", "300x260", "--seed", 3, "--tiled", 128]
-    run("synth", *base, tmp_path / "grid.tif", "-q")
-    g = gdal.Open(str(tmp_path / "grid.tif"))
-    water = np.zeros((260, 300), np.uint8)
+@pytest.mark.parametrize("sketch", [False, True])
+def test_tiled_recipe_with_pins_and_water(tmp_path, sketch):
+    """A tiled recipe with a pin and a water mask, free or with a sketch: each tile or chunk
+    task reads its window's part of them, and the result is the CLI's with the whole
+    grid's."""
+    base = ["--exemplar", JACKSBORO, "--seed", 3, "--tiled", 128]
+    if sketch:  # the sketch's grid: 512 x 512
+        sk = os.path.join(ROOT, "data", "sketches", "ridges_valleys.tif")
+        base += ["--sketch", sk]
+        g = gdal.Open(sk)
+    else:
+        base += ["--size", "300x260"]
+        run("synth", *base, tmp_path / "grid.tif", "-q")
+        g = gdal.Open(str(tmp_path / "grid.tif"))
+    water = np.zeros((g.RasterYSize, g.RasterXSize), np.uint8)
     water[30:90, 100:220] = 1  # across tile borders
-    ds = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "water.tif"), 300, 260, 1,
-                                              gdal.GDT_Byte)
+    ds = gdal.GetDriverByName("GTiff").Create(str(tmp_path / "water.tif"), g.RasterXSize,
+                                              g.RasterYSize, 1, gdal.GDT_Byte)
     ds.SetGeoTransform(g.GetGeoTransform())
     ds.SetProjection(g.GetProjection())
     ds.GetRasterBand(1).WriteArray(water)

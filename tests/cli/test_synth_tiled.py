@@ -186,8 +186,6 @@ SKETCH = os.path.join(os.path.dirname(JACKSBORO), "sketches", "ridges_valleys.ti
 
 @pytest.mark.parametrize("extra,words", [
     (["--tiled", 20], "tiles of 20 cells"),
-    (["--tiled", 128, "--sketch", SKETCH, "--water", SKETCH, "--water-level", 200],
-     "water is not made in tiles"),
     (["--tiled", 128, "--sketch", SKETCH, "--debug-dir", "d"], "makes no debug maps"),
     (["--tiled", 128, "--sketch", SKETCH, "--amplify-factor", 16], "amplify_factor 16"),
 ])
@@ -275,6 +273,38 @@ def test_sketch_coarse_pass(tmp_path):
     p = run("synth", "--exemplar", ex, "--sketch", SKETCH, "--coarse-pass", coarse,
             tmp_path / "x.tif", check=False)
     assert p.returncode != 0 and "tiled" in p.stderr and "x.tif" not in os.listdir(tmp_path)
+
+
+def test_sketch_pins_and_water(tmp_path):
+    """A sketch in tiles with a pinned window and a lake: the pinned cells are the pinned
+    DEM's window and the lake's cells its level, exactly (oracles from the inputs alone), no
+    land touching the lake lies below it, and the recipe (laid out once, kept beside it) gives
+    the command line's bytes whole and in a window cut through the pin and the lake, read
+    alone."""
+    H = W = 512
+    yy, xx = np.mgrid[0:H, 0:W]
+    lake = (((yy - 380) / 40.0) ** 2 + ((xx - 120) / 70.0) ** 2 < 1).astype(np.uint8)
+    _like(SKETCH, tmp_path / "lake.tif", lake, gdal.GDT_Byte)
+    args = ["--exemplar", JACKSBORO, "--sketch", SKETCH, "--tiled", 128, "--seed", 2,
+            "--water", tmp_path / "lake.tif", "--water-level", 300,
+            "--pin", f"{JACKSBORO}:100,100,80,60@300,80"]
+    run("synth", *args, tmp_path / "cli.tif", "-q")
+    a = gdal.Open(str(tmp_path / "cli.tif")).ReadAsArray()
+    pin = gdal.Open(JACKSBORO).ReadAsArray()[100:160, 100:180].astype(np.float32)
+    assert np.array_equal(a[80:140, 300:380], pin)
+    assert (a[lake > 0] == 300).all()
+    padded = np.pad(lake, 1)
+    touch = np.zeros_like(lake, bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            touch |= padded[1 + dy:1 + dy + H, 1 + dx:1 + dx + W] > 0
+    shore = touch & (lake == 0)
+    assert shore.sum() > 100 and (a[shore] >= 300).all()
+    run("synth", *args, "--recipe", tmp_path / "r.tsyn")
+    for (x0, y0, w, h) in [(0, 0, W, H), (150, 60, 200, 340)]:
+        got, rc, err = _translate(tmp_path / "r.tsyn", x0, y0, w, h)
+        assert rc == 0 and "laid out again" not in err, err
+        assert got.tobytes() == a[y0:y0 + h, x0:x0 + w].tobytes(), (x0, y0, w, h)
 
 
 def test_recipe_served_tile_by_tile(tmp_path):

@@ -48,7 +48,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             abort();
         free(again);
         if (ts_raster_alloc(ctx, 16, 16, &w) == TS_OK) {
-            (void)ts_sketch_tiles_window(ctx, t, 0, 0, &w);
+            (void)ts_sketch_tiles_window(ctx, t, 0, 0, &w, NULL);
             ts_raster_free(&w);
         }
         memset(flags, 0, sizeof flags);

@@ -147,6 +147,13 @@ ts__fill ts__fill_make(const ts_synth_params *p, const ts_synth_constraints *c);
 /* The land within a patch of TS_CELL_WATER cells raised softly to banks at or
  * above the water's level (water_banks.c); flags may be NULL. */
 ts_status ts__water_banks(ts_ctx *ctx, ts_raster *out, const unsigned char *flags, int patch);
+/* z raised towards the bank level - k max(0, d - 1.5) of water d cells off by a soft
+ * maximum (width k), faded out over the last half of reach (water_banks.c). */
+double ts__bank_raise(double z, double level, double k, double d, double reach);
+/* The median |step| between 4-neighbours of r's cells, from at most about 2^16 cells on a
+ * fixed lattice: of the cells not flagged, or with flags NULL of those whose step is not
+ * exactly 0 (flat fixed blocks); 0 when none, -1 when out of memory (water_banks.c). */
+double ts__median_step(const ts_raster *r, const unsigned char *flags);
 /* ts_synth_tiled with debug maps of the whole grid (maps may be NULL):
  * the same bytes as without; patch indices numbered wave by wave, tiles in
  * row-major order within a wave (tiled_synthesis.c). */

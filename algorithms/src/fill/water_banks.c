@@ -29,9 +29,7 @@
 #include "internal.h"
 #include "relief_guide.h"
 
-/* The median |step| between 4-neighbours of free cells, from at most about
- * 2^16 cells on a fixed lattice. */
-static double median_step(const ts_raster *r, const unsigned char *flags)
+double ts__median_step(const ts_raster *r, const unsigned char *flags)
 {
     int w = r->width, h = r->height, x, y, step = 1;
     size_t n = 0;
@@ -46,7 +44,7 @@ static double median_step(const ts_raster *r, const unsigned char *flags)
         for (x = 0; x + 1 < w; x += step) {
             size_t c = (size_t)y * (size_t)w + (size_t)x;
             float z = TS_PIX(r, x, y), gx = TS_PIX(r, x + 1, y) - z, gy = TS_PIX(r, x, y + 1) - z;
-            if (flags[c] || isnan(gx) || isnan(gy))
+            if ((flags ? flags[c] != 0 : gx == 0.0f && gy == 0.0f) || isnan(gx) || isnan(gy))
                 continue;
             v[n++] = sqrtf(0.5f * (gx * gx + gy * gy));
         }
@@ -60,6 +58,17 @@ static double median_step(const ts_raster *r, const unsigned char *flags)
     return med;
 }
 
+double ts__bank_raise(double z, double level, double k, double d, double reach)
+{
+    double bank = level - k * (d > 1.5 ? d - 1.5 : 0.0), t = (bank - z) / k, up, fade = 1.0;
+    up = t > 30.0 ? t * k : k * log1p(exp(t)); /* soft maximum */
+    if (d > 0.5 * reach) {
+        double s = (reach - d) / (0.5 * reach);
+        fade = s * s * (3.0 - 2.0 * s);
+    }
+    return z + fade * up;
+}
+
 ts_status ts__water_banks(ts_ctx *ctx, ts_raster *out, const unsigned char *flags, int patch)
 {
     int w = out->width, h = out->height, x, y;
@@ -67,14 +76,14 @@ ts_status ts__water_banks(ts_ctx *ctx, ts_raster *out, const unsigned char *flag
     unsigned char *m;
     float *dist;
     int32_t *nearest;
-    double k, reach = patch > 4 ? patch : 4, fade0 = 0.5 * reach;
+    double k, reach = patch > 4 ? patch : 4;
     if (!flags)
         return TS_OK;
     for (c = 0; c < n; c++)
         water += (flags[c] & TS_CELL_WATER) != 0;
     if (!water)
         return TS_OK;
-    k = median_step(out, flags);
+    k = ts__median_step(out, flags);
     if (k < 0)
         return ts__fail(ctx, TS_ERR_NOMEM, "water banks", "out of memory");
     if (!(k > 1e-6))
@@ -98,7 +107,7 @@ ts_status ts__water_banks(ts_ctx *ctx, ts_raster *out, const unsigned char *flag
     }
     for (y = 0; y < h; y++)
         for (x = 0; x < w; x++) {
-            double d, level, bank, t, up, fade = 1.0;
+            double d, level;
             float *z = &TS_PIX(out, x, y);
             c = (size_t)y * (size_t)w + (size_t)x;
             d = dist[c];
@@ -107,14 +116,7 @@ ts_status ts__water_banks(ts_ctx *ctx, ts_raster *out, const unsigned char *flag
             level = TS_PIX(out, nearest[c] % w, nearest[c] / w);
             if (isnan(level))
                 continue;
-            bank = level - k * (d > 1.5 ? d - 1.5 : 0.0);
-            t = (bank - *z) / k;
-            up = t > 30.0 ? t * k : k * log1p(exp(t)); /* soft maximum */
-            if (d > fade0) {
-                double s = (reach - d) / (reach - fade0);
-                fade = s * s * (3.0 - 2.0 * s);
-            }
-            *z = (float)(*z + fade * up);
+            *z = (float)ts__bank_raise(*z, level, k, d, reach);
         }
     free(m);
     free(dist);

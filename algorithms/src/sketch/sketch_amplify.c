@@ -121,7 +121,8 @@ static ts_status sa_graph_scaled(ts_ctx *ctx, const ts_features *f, double scale
 }
 
 /* The coarse pass's constraints: wanted heights averaged, a region's
- * exemplar from each block's centre, nodata where the whole block is. */
+ * exemplar from each block's centre, nodata where the whole block is, fixed
+ * (into the coarse output) where at least half the block is. */
 typedef struct sa_coarse {
     int W, H, K, w, h;
     float *heights;
@@ -136,11 +137,39 @@ static void sa_coarse_free(sa_coarse *c)
     free(c->flags);
 }
 
+/* Coarse cell (x, y)'s flags from its block of in's flags and values: nodata
+ * where the whole block is; fixed at the mean of the block's fixed cells where
+ * they are at least half of it (into *v), water where most of those are. */
+static unsigned char sa_block_flags(const sa_coarse *c, const ts_synth_constraints *in, int x,
+                                    int y, float *v)
+{
+    int u, w, all = 1, n = 0, fixed = 0, water = 0;
+    double s = 0.0;
+    for (w = y * c->K; w < TS_MIN((y + 1) * c->K, c->H); w++)
+        for (u = x * c->K; u < TS_MIN((x + 1) * c->K, c->W); u++) {
+            size_t i = (size_t)w * c->W + (size_t)u;
+            unsigned char f = in->cell_flags[i];
+            all &= (f & TS_CELL_NODATA) != 0;
+            n++;
+            if ((f & TS_CELL_FIXED) && in->values && !isnan(in->values[i])) {
+                s += in->values[i];
+                fixed++;
+                water += (f & TS_CELL_WATER) != 0;
+            }
+        }
+    if (all)
+        return TS_CELL_NODATA;
+    if (2 * fixed < n)
+        return 0;
+    *v = (float)(s / fixed);
+    return (unsigned char)(TS_CELL_FIXED | (2 * water > fixed ? TS_CELL_WATER : 0));
+}
+
 static ts_status sa_constraints(ts_ctx *ctx, sa_coarse *c, const ts_synth_constraints *in,
-                                ts_synth_constraints *out)
+                                ts_synth_constraints *out, ts_raster *fixed)
 {
     size_t n = (size_t)c->w * (size_t)c->h;
-    int x, y, u, v;
+    int x, y;
     *out = ts_synth_constraints_default();
     if (!in)
         return TS_OK;
@@ -168,30 +197,10 @@ static ts_status sa_constraints(ts_ctx *ctx, sa_coarse *c, const ts_synth_constr
         if (!(c->flags = ts__malloc_array(n, 1)))
             return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
         for (y = 0; y < c->h; y++)
-            for (x = 0; x < c->w; x++) {
-                int all = 1;
-                for (v = y * c->K; v < TS_MIN((y + 1) * c->K, c->H); v++)
-                    for (u = x * c->K; u < TS_MIN((x + 1) * c->K, c->W); u++)
-                        all &= (in->cell_flags[(size_t)v * c->W + u] & TS_CELL_NODATA) != 0;
-                c->flags[(size_t)y * c->w + x] = all ? TS_CELL_NODATA : 0;
-            }
+            for (x = 0; x < c->w; x++)
+                c->flags[(size_t)y * c->w + x] = sa_block_flags(c, in, x, y, &TS_PIX(fixed, x, y));
         out->cell_flags = c->flags;
     }
-    return TS_OK;
-}
-
-/* What the coarse pass cannot carry: cells fixed (pins, water), flagged or,
- * with out, filled on entry. */
-static ts_status sa_check_fixed(ts_ctx *ctx, const ts_synth_constraints *c, int W, int H,
-                                const ts_raster *out)
-{
-    size_t i, n = (size_t)W * (size_t)H;
-    for (i = 0; i < n; i++)
-        if ((c && c->cell_flags && (c->cell_flags[i] & (TS_CELL_FIXED | TS_CELL_WATER))) ||
-            (out && !isnan(TS_PIX(out, (int)(i % (size_t)W), (int)(i / (size_t)W)))))
-            return ts__fail(ctx, TS_ERR_ARG, "sketch tiles",
-                            "pinned windows and water are not made in tiles with a sketch yet: "
-                            "make it in one piece (tiled 0)");
     return TS_OK;
 }
 
@@ -298,9 +307,9 @@ static ts_status sa_coarse_pass(ts_ctx *ctx, ts_sketch_tiles *t, const sa_job *j
                                   &cex[e])) == TS_OK)
             st = ts_area_average(ctx, &j->exemplars[e], K, &cex[e]);
     if (st == TS_OK)
-        st = sa_constraints(ctx, &c, j->constraints, &cc);
+        st = ts_raster_alloc(ctx, c.w, c.h, &t->coarse); /* NaN but the fixed blocks */
     if (st == TS_OK)
-        st = ts_raster_alloc(ctx, c.w, c.h, &t->coarse); /* NaN: nothing fixed */
+        st = sa_constraints(ctx, &c, j->constraints, &cc, &t->coarse);
     memset(&maps, 0, sizeof maps);
     if (st == TS_OK && !(maps.valley_floor = ts__calloc_array((size_t)c.w * (size_t)c.h, 1)))
         st = ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
@@ -334,6 +343,9 @@ ts_status ts__sketch_tiles_guide(ts_ctx *ctx, ts_sketch_tiles *t)
     t->ap.factor = t->K;
     t->ap.w_l = 0.0; /* no latitudes here: the sun's term is off */
     t->ap.atoms = SA_ATOMS;
+    if ((t->bank_step = ts__median_step(&t->coarse, NULL)) < 0)
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
+    t->bank_step /= t->K;
     if (t->K == 1)
         return TS_OK;
     if ((st = ts_raster_alloc(ctx, t->coarse.width, t->coarse.height, &t->drain)) == TS_OK)
@@ -398,8 +410,7 @@ static ts_status sa_tiles_new(ts_ctx *ctx, const sa_job *j, int W, int H, ts_ske
     *out = NULL;
     if (ts_params_validate(ctx, "sketch", j->sp) != TS_OK ||
         ts_params_validate(ctx, "synth", j->params) != TS_OK ||
-        ts__synth_cells(ctx, j->params, &P, &ov) != TS_OK ||
-        sa_check_fixed(ctx, j->constraints, W, H, NULL) != TS_OK)
+        ts__synth_cells(ctx, j->params, &P, &ov) != TS_OK)
         return ts_ctx_status(ctx);
     if (!(t = calloc(1, sizeof *t)))
         return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
@@ -443,16 +454,38 @@ done:
     return st;
 }
 
+/* The values of out's cells flagged fixed (NaN elsewhere), or NULL in
+ * *values when none is; -1 when out of memory. */
+static int sa_fixed_values(const ts_raster *out, const unsigned char *flags, float **values)
+{
+    size_t n = (size_t)out->width * (size_t)out->height, i, any = 0;
+    *values = NULL;
+    for (i = 0; flags && i < n; i++)
+        any |= flags[i] & TS_CELL_FIXED;
+    if (!any)
+        return 0;
+    if (!(*values = ts__malloc_array(n, sizeof **values)))
+        return -1;
+    for (i = 0; i < n; i++)
+        (*values)[i] = (flags[i] & TS_CELL_FIXED) ? TS_PIX(out, (int)(i % (size_t)out->width),
+                                                           (int)(i / (size_t)out->width))
+                                                  : NAN;
+    return 0;
+}
+
 TS_API ts_status ts_sketch_tiles_window(ts_ctx *ctx, const ts_sketch_tiles *t, int x0, int y0,
-                                        ts_raster *out)
+                                        ts_raster *out, const unsigned char *flags)
 {
     ts_amplify_guide g;
     ts_status st = TS_OK;
+    float *values = NULL;
     int x, y;
     ts__clear(ctx);
     if (!t || !out || !out->data || x0 < 0 || y0 < 0 || out->width < 1 || out->height < 1 ||
         x0 > t->W - out->width || y0 > t->H - out->height)
         return ts__fail(ctx, TS_ERR_ARG, "sketch tiles", "a window off the grid");
+    if (sa_fixed_values(out, flags, &values) != 0)
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
     if (t->K == 1) /* laid out at the output's cells: nothing to amplify */
         for (y = 0; y < out->height; y++)
             for (x = 0; x < out->width; x++)
@@ -462,6 +495,9 @@ TS_API ts_status ts_sketch_tiles_window(ts_ctx *ctx, const ts_sketch_tiles *t, i
         g.drainage = &t->drain;
         st = ts_amplify_window(ctx, &t->coarse, &g, t->dict, &t->ap, x0, y0, out, NULL, NULL);
     }
+    if (st == TS_OK && values)
+        st = ts__sketch_tiles_fixed(ctx, t, out, flags, values);
+    free(values);
     for (y = 0; st == TS_OK && t->nodata && y < out->height; y++)
         for (x = 0; x < out->width; x++)
             if (t->nodata[(size_t)(y0 + y) * t->W + (size_t)(x0 + x)])
@@ -485,6 +521,11 @@ TS_API ts_status ts_sketch_tiles_new(ts_ctx *ctx, const ts_raster *sketch,
         *sketch_features = NULL;
     if (info)
         memset(info, 0, sizeof *info);
+    if (constraints && constraints->cell_flags && !constraints->values)
+        for (size_t i = 0; i < (size_t)width * (size_t)height; i++)
+            if (constraints->cell_flags[i] & TS_CELL_FIXED)
+                return ts__fail(ctx, TS_ERR_ARG, "sketch tiles",
+                                "fixed cells without their values (constraints->values)");
     if (!out || !sp || !params || !exemplars || n_exemplars < 1 || !sketch == !features ||
         (sketch && (!sketch->data || sketch->width != width || sketch->height != height)) ||
         (features && (!features->mask || features->width != width || features->height != height)))
@@ -509,21 +550,43 @@ ts_status ts__synth_sketch_amplified(ts_ctx *ctx, const ts_raster *sketch,
                                      ts_features **sketch_features, ts_sketch_info *info)
 {
     ts_sketch_tiles *t = NULL;
+    ts_synth_constraints c = constraints ? *constraints : ts_synth_constraints_default();
     ts_progress_saved sv;
     ts_status st;
+    unsigned char *flags;
+    float *values = NULL;
+    size_t n, i, any = 0;
     if (!out || !out->data)
         return ts__fail(ctx, TS_ERR_ARG, "sketch", "missing sketch, exemplars or output");
-    if (sa_check_fixed(ctx, NULL, out->width, out->height, out) != TS_OK)
-        return ts_ctx_status(ctx);
+    /* the cells given on entry are fixed, as in one piece */
+    n = (size_t)out->width * (size_t)out->height;
+    if (!(flags = ts__calloc_array(n, 1)))
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+    for (i = 0; i < n; i++) {
+        if (c.cell_flags)
+            flags[i] = c.cell_flags[i];
+        if (!isnan(TS_PIX(out, (int)(i % (size_t)out->width), (int)(i / (size_t)out->width))) &&
+            !(flags[i] & TS_CELL_NODATA))
+            flags[i] |= TS_CELL_FIXED;
+        any |= flags[i];
+    }
+    if (any && sa_fixed_values(out, flags, &values) != 0) {
+        free(flags);
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch", "out of memory");
+    }
+    c.cell_flags = any ? flags : NULL;
+    c.values = values;
     sv = ts__progress_push(ctx, 0.0, 0.6);
-    st = ts_sketch_tiles_new(ctx, sketch, features, exemplars, n_exemplars, sp, params, constraints,
+    st = ts_sketch_tiles_new(ctx, sketch, features, exemplars, n_exemplars, sp, params, &c,
                              out->width, out->height, &t, sketch_features, info);
     ts__progress_pop(ctx, sv);
-    if (st != TS_OK)
-        return st;
-    sv = ts__progress_push(ctx, 0.6, 1.0);
-    st = ts_sketch_tiles_window(ctx, t, 0, 0, out);
-    ts__progress_pop(ctx, sv);
+    if (st == TS_OK) {
+        sv = ts__progress_push(ctx, 0.6, 1.0);
+        st = ts_sketch_tiles_window(ctx, t, 0, 0, out, c.cell_flags);
+        ts__progress_pop(ctx, sv);
+    }
     ts_sketch_tiles_free(t);
+    free(flags);
+    free(values);
     return st;
 }
