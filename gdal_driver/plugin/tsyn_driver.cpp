@@ -4,7 +4,8 @@
  * is C: recipe.c parses and computes, pixfun.c holds the VRT pixel
  * functions.  A recipe is computed once, on the first block read, under a
  * mutex, and served block by block from that cache; a lazy one (amplify)
- * computes only what every block shares then, and each block on its own.
+ * computes only what every block shares then, and each block on its own (a
+ * read larger than a block in windows of up to 2048^2, each on its own).
  * Pixel and amplify recipes have overviews (recipe_overviews.c), each a
  * small dataset of its own whose blocks are made as they are read.
  *
@@ -304,6 +305,41 @@ GDALRasterBand *TSYNRasterBand::GetOverview(int i)
  * full resolution: a 100 000^2 synth recipe for a 100 x 100 thumbnail). */
 constexpr double TSYN_ZOOMED_OUT_CELLS = 268435456.0; /* 16 384^2 */
 
+/* A read at full resolution of a lazy recipe over more cells than a block is made in
+ * windows of at most this side, each drained once with its margin, not block by block (each
+ * block drained with the whole margin again: 16 times the cells of a 256^2 block with a
+ * margin of 388); the same bytes, as any window of a recipe is that window of the whole. */
+constexpr int TSYN_DIRECT_SIDE = 2048;
+
+/* Cells [x, x+w) x [y, y+h) of a lazy recipe into buf (type, ps, ls) in windows of at most
+ * TSYN_DIRECT_SIDE a side. */
+CPLErr ReadDirect(tsrecipe *r, int x, int y, int w, int h, void *buf, GDALDataType type,
+                  GSpacing ps, GSpacing ls)
+{
+    for (int wy = 0; wy < h; wy += TSYN_DIRECT_SIDE)
+        for (int wx = 0; wx < w; wx += TSYN_DIRECT_SIDE) {
+            const int ww = std::min(TSYN_DIRECT_SIDE, w - wx);
+            const int wh = std::min(TSYN_DIRECT_SIDE, h - wy);
+            std::vector<float> cells;
+            tsio_err err;
+            try {
+                cells.resize(static_cast<size_t>(ww) * wh);
+            } catch (const std::bad_alloc &) {
+                CPLError(CE_Failure, CPLE_OutOfMemory, "out of memory for %d x %d cells", ww, wh);
+                return CE_Failure;
+            }
+            if (tsrecipe_read_window(r, x + wx, y + wy, ww, wh, cells.data(), &err) != 0) {
+                CPLError(CE_Failure, CPLE_AppDefined, "%s", err.msg);
+                return CE_Failure;
+            }
+            for (int row = 0; row < wh; row++)
+                GDALCopyWords64(cells.data() + static_cast<size_t>(row) * ww, GDT_Float32, 4,
+                                static_cast<GByte *>(buf) + (wy + row) * ls + wx * ps, type,
+                                static_cast<int>(ps), ww);
+        }
+    return CE_None;
+}
+
 CPLErr TSYNRasterBand::IRasterIO(GDALRWFlag rw, int x, int y, int w, int h, void *buf, int bw,
                                  int bh, GDALDataType type, GSpacing ps, GSpacing ls,
                                  GDALRasterIOExtraArg *extra)
@@ -318,6 +354,12 @@ CPLErr TSYNRasterBand::IRasterIO(GDALRWFlag rw, int x, int y, int w, int h, void
                  "read that file's overviews",
                  ds->GetDescription(), tsrecipe_job_name(ds->m_recipe), w, h, bw, bh);
         return CE_Failure;
+    }
+    if (rw == GF_Read && tsrecipe_lazy(ds->m_recipe) && bw == w && bh == h &&
+        static_cast<double>(w) * h > static_cast<double>(nBlockXSize) * nBlockYSize) {
+        if (!ds->Compute())
+            return CE_Failure;
+        return ReadDirect(ds->m_recipe, x, y, w, h, buf, type, ps, ls);
     }
     return GDALPamRasterBand::IRasterIO(rw, x, y, w, h, buf, bw, bh, type, ps, ls, extra);
 }

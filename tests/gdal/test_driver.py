@@ -645,6 +645,49 @@ def test_amplify_recipe_overview_is_its_input(tmp_path):
     assert np.median(np.abs(m - c)) < 2.0
 
 
+@pytest.mark.parametrize("job", ["amplify", "pixel", "sketch"])
+def test_large_reads_equal_blocks_and_the_cli(tmp_path, job):
+    """A read of a drained lazy recipe over many blocks is made in windows drained once each
+    (not block by block, each with the whole margin again): the same bytes as the command
+    line's whole run and as the same cells read one block at a time, in Float32 and
+    converted (Float64), into a buffer with a gap between rows."""
+    if job == "amplify":
+        coarse = tmp_path / "coarse.tif"
+        gdal.Warp(str(coarse), JACKSBORO, xRes=0.0025, yRes=0.0025, resampleAlg="average")
+        args = ["amplify", coarse, "--exemplar", JACKSBORO, "--factor", 4]
+    elif job == "pixel":
+        args = ["pixel", "--exemplar", JACKSBORO, "--size", "700x600", "--seed", 3]
+    else:
+        args = ["synth", "--exemplar", JACKSBORO, "--sketch",
+                os.path.join(DATA, "sketches", "ridges_valleys.tif"), "--tiled", 256]
+    ts(*args, tmp_path / "cli.tif")
+    ts(*args, "--recipe", tmp_path / "r.tsyn")
+    cli = arr(tmp_path / "cli.tif")
+    ds = gdal.Open(str(tmp_path / "r.tsyn"))
+    band = ds.GetRasterBand(1)
+    bx, by = band.GetBlockSize()
+    H, W = cli.shape
+    x0, y0, w, h = 37, 41, W - 60, H - 80  # many blocks, not on their corners
+    got = band.ReadAsArray(x0, y0, w, h)
+    assert got.dtype == np.float32 and got.tobytes() == cli[y0:y0 + h, x0:x0 + w].tobytes()
+    f64 = band.ReadAsArray(x0, y0, w, h, buf_type=gdal.GDT_Float64)
+    assert np.array_equal(f64, cli[y0:y0 + h, x0:x0 + w].astype(np.float64))
+    raw = band.ReadRaster(x0, y0, w, h, buf_type=gdal.GDT_Float32, buf_pixel_space=8,
+                          buf_line_space=8 * w + 16)
+    gapped = np.frombuffer(raw, np.float32, count=(2 * w + 4) * (h - 1) + 2 * (w - 1) + 1)
+    assert np.array_equal(np.lib.stride_tricks.as_strided(gapped, (h, w), (8 * w + 16, 8)),
+                          cli[y0:y0 + h, x0:x0 + w])
+    ds = None
+    ds = gdal.Open(str(tmp_path / "r.tsyn"))  # a fresh dataset: one block at a time
+    band = ds.GetRasterBand(1)
+    for yb in range(0, H, by):
+        for xb in range(0, W, bx):
+            b = band.ReadBlock(xb // bx, yb // by)
+            a = np.frombuffer(b, np.float32).reshape(by, bx)
+            hh, ww = min(by, H - yb), min(bx, W - xb)
+            assert a[:hh, :ww].tobytes() == cli[yb:yb + hh, xb:xb + ww].tobytes(), (xb, yb)
+
+
 def test_a_huge_synth_recipe_zoomed_out_is_refused_with_why(tmp_path):
     """A tiled synth recipe has no overviews: reading 65536^2 cells for a thumbnail is
     refused at once in one line that says why and what to do (it would make every cell);
