@@ -15,7 +15,9 @@
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "amplify.h"
 
@@ -24,12 +26,41 @@ typedef struct cell_z {
     size_t i;
 } cell_z;
 
-static int by_height_desc(const void *a, const void *b)
+/* The key that orders heights from the highest down as unsigned integers
+ * (-0 as 0: equal heights tie). */
+static uint32_t height_key(float z)
 {
-    const cell_z *p = a, *q = b;
-    if (p->z != q->z)
-        return p->z > q->z ? -1 : 1;
-    return p->i < q->i ? -1 : (p->i > q->i);
+    uint32_t u;
+    if (z == 0.0f)
+        z = 0.0f;
+    memcpy(&u, &z, sizeof u);
+    u = (u & 0x80000000u) ? ~u : (u | 0x80000000u); /* ascending */
+    return ~u;
+}
+
+/* order[0..m) (in ascending i) sorted from the highest z down, ties in
+ * ascending i: a stable least-significant-digit radix sort on height_key,
+ * 8 bits a pass, through tmp (m cells).  The order a comparison sort by
+ * (height descending, index ascending) gives, in O(m). */
+static void sort_by_height_desc(cell_z *order, cell_z *tmp, size_t m)
+{
+    size_t count[256], j;
+    int pass, b;
+    for (pass = 0; pass < 4; pass++) {
+        int shift = 8 * pass;
+        size_t at = 0;
+        memset(count, 0, sizeof count);
+        for (j = 0; j < m; j++)
+            count[(height_key(order[j].z) >> shift) & 255u]++;
+        for (b = 0; b < 256; b++) {
+            size_t c = count[b];
+            count[b] = at;
+            at += c;
+        }
+        for (j = 0; j < m; j++)
+            tmp[count[(height_key(order[j].z) >> shift) & 255u]++] = order[j];
+        memcpy(order, tmp, m * sizeof *order);
+    }
 }
 
 TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *out)
@@ -37,7 +68,7 @@ TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *
     static const int dx[8] = {1, 1, 0, -1, -1, -1, 0, 1}, dy[8] = {0, 1, 1, 1, 0, -1, -1, -1};
     int W, H, x, y, k;
     size_t n, m = 0, j;
-    cell_z *order;
+    cell_z *order, *tmp;
     ts__clear(ctx);
     if (!dem || !out || !dem->data || !out->data || out->width != dem->width ||
         out->height != dem->height)
@@ -46,8 +77,12 @@ TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *
     H = dem->height;
     n = (size_t)W * (size_t)H;
     order = ts__malloc_array(n, sizeof *order);
-    if (!order)
+    tmp = ts__malloc_array(n, sizeof *tmp);
+    if (!order || !tmp) {
+        free(order);
+        free(tmp);
         return ts__fail(ctx, TS_ERR_NOMEM, "drainage", "out of memory");
+    }
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
             float z = TS_PIX(dem, x, y);
@@ -58,7 +93,8 @@ TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *
                 m++;
             }
         }
-    qsort(order, m, sizeof *order, by_height_desc);
+    sort_by_height_desc(order, tmp, m);
+    free(tmp);
     for (j = 0; j < m; j++) {
         int cx = (int)(order[j].i % (size_t)W), cy = (int)(order[j].i / (size_t)W), to = -1;
         double best = 0.0;

@@ -133,7 +133,9 @@ typedef struct dr_scratch {
 typedef struct dr_job {
     const float *z0; /* the surface as given (w x h, row-major) */
     float *out;      /* z0 with the fills (atomic max) or the channels and banks cut (atomic min) */
-    const unsigned char *flags; /* or NULL */
+    const unsigned char *flags;    /* or NULL */
+    const unsigned char *out_mask; /* per cell: 1 where it drains out (drains_out_of) */
+    const float *shore;            /* per cell: shore_level_of, or NULL when there is no water */
     int w, h;
     int64_t gx0, gy0, gw, gh;
     int lo[2], hi[2]; /* pits looked for in [lo, hi) */
@@ -211,8 +213,8 @@ static int off_grid(const dr_job *j, int x, int y)
 }
 
 /* Does cell (x, y) (on the grid, with data) drain out: beside the grid's
- * edge or beside nodata? */
-static int drains_out(const dr_job *j, int x, int y)
+ * edge or beside nodata?  Once per cell into j->out_mask. */
+static int drains_out_of(const dr_job *j, int x, int y)
 {
     int d;
     for (d = 0; d < 8; d++) {
@@ -226,6 +228,11 @@ static int drains_out(const dr_job *j, int x, int y)
             return 1;
     }
     return 0;
+}
+
+static int drains_out(const dr_job *j, int x, int y)
+{
+    return j->out_mask[(size_t)y * (size_t)j->w + (size_t)x];
 }
 
 static int64_t gid_of(const dr_job *j, int x, int y)
@@ -287,11 +294,11 @@ static int step_ok(const dr_job *j, int x, int y, int u, int v)
 
 /* What one search looks for from its pit. */
 typedef struct dr_query {
-    const float *z;   /* the surface searched */
-    int minimax;      /* 1: the path whose highest cell is lowest (the spill);
-                         0: the cheapest channel */
-    double level;     /* the pit's level: a target is lower */
-    double max_depth; /* 0, or: cells higher than level + this are not crossed */
+    const float *z;       /* the surface searched */
+    int minimax;          /* 1: the path whose highest cell is lowest (the spill);
+                             0: the cheapest channel */
+    double level;         /* the pit's level: a target is lower */
+    double max_depth;     /* 0, or: cells higher than level + this are not crossed */
     double shallow_depth; /* 0, or: TS_CELL_SHALLOW cells higher than level + this neither */
 } dr_query;
 
@@ -301,8 +308,9 @@ static int box_index(const dr_job *j, const dr_scratch *s, int px, int py, int a
 }
 
 /* The highest water level beside cell (x, y) (TS_CELL_WATER neighbours), or
- * -infinity: the land beside water is never cut below it. */
-static double shore_level(const dr_job *j, int x, int y)
+ * -infinity: the land beside water is never cut below it.  Once per cell into
+ * j->shore. */
+static double shore_level_of(const dr_job *j, int x, int y)
 {
     double top = -INFINITY;
     int d;
@@ -318,6 +326,11 @@ static double shore_level(const dr_job *j, int x, int y)
             top = (double)j->z0[i];
     }
     return top;
+}
+
+static double shore_level(const dr_job *j, int x, int y)
+{
+    return j->shore ? (double)j->shore[(size_t)y * (size_t)j->w + (size_t)x] : -INFINITY;
 }
 
 /* A search from pit (px, py) in its box: the box index of the target it
@@ -597,8 +610,7 @@ static int src_before(int sx, int sy, int tx, int ty)
     return sy < ty || (sy == ty && sx < tx);
 }
 
-float *ts__nearest_fixed_levels(const float *z, const unsigned char *flags, int w, int h,
-                                int reach)
+float *ts__nearest_fixed_levels(const float *z, const unsigned char *flags, int w, int h, int reach)
 {
     static const int NX[4] = {-1, 0, 1, -1}, NY[4] = {-1, -1, -1, 0};
     size_t n = (size_t)w * (size_t)h, i;
@@ -642,8 +654,7 @@ float *ts__nearest_fixed_levels(const float *z, const unsigned char *flags, int 
                         continue;
                     sx = u + ox[nb];
                     sy = v + oy[nb];
-                    if (nd < d[c] ||
-                        (nd == d[c] && src_before(sx, sy, x + ox[c], y + oy[c]))) {
+                    if (nd < d[c] || (nd == d[c] && src_before(sx, sy, x + ox[c], y + oy[c]))) {
                         d[c] = nd;
                         ox[c] = (int16_t)(sx - x);
                         oy[c] = (int16_t)(sy - y);
@@ -654,8 +665,8 @@ float *ts__nearest_fixed_levels(const float *z, const unsigned char *flags, int 
     for (y = 0; y < h; y++)
         for (x = 0; x < w; x++) {
             i = (size_t)y * (size_t)w + (size_t)x;
-            lv[i] = d[i] == INT32_MAX ? NAN
-                                      : z[(size_t)(y + oy[i]) * (size_t)w + (size_t)(x + ox[i])];
+            lv[i] =
+                d[i] == INT32_MAX ? NAN : z[(size_t)(y + oy[i]) * (size_t)w + (size_t)(x + ox[i])];
         }
     free(d);
     free(ox);
@@ -713,6 +724,33 @@ static void drain_range(void *arg, size_t begin, size_t end)
     scratch_free(&s);
 }
 
+/* What every search asks of a cell again and again, once per cell: whether
+ * it drains out, and (with water) the water beside it. */
+static ts_status dr_cell_tables(ts_ctx *ctx, dr_job *j, unsigned char **mask, float **shore)
+{
+    size_t n = (size_t)j->w * (size_t)j->h, i, water = 0;
+    int x, y;
+    *shore = NULL;
+    if (!(*mask = malloc(n)))
+        return ts__fail(ctx, TS_ERR_NOMEM, "drainage", "out of memory for %d x %d cells", j->w,
+                        j->h);
+    for (i = 0; j->flags && i < n; i++)
+        water += (j->flags[i] & TS_CELL_WATER) != 0;
+    if (water && !(*shore = malloc(n * sizeof **shore)))
+        return ts__fail(ctx, TS_ERR_NOMEM, "drainage", "out of memory for %d x %d cells", j->w,
+                        j->h);
+    for (y = 0; y < j->h; y++)
+        for (x = 0; x < j->w; x++) {
+            i = (size_t)y * (size_t)j->w + (size_t)x;
+            (*mask)[i] = (unsigned char)(!off_grid(j, x, y) && drains_out_of(j, x, y));
+            if (*shore)
+                (*shore)[i] = (float)shore_level_of(j, x, y);
+        }
+    j->out_mask = *mask;
+    j->shore = *shore;
+    return TS_OK;
+}
+
 /* The pits in [lo, hi), in raster order. */
 static ts_status find_pits(ts_ctx *ctx, dr_job *j, int **pits, size_t *n)
 {
@@ -752,7 +790,8 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
                                    const ts_drainage_params *p, ts_drainage_info *info)
 {
     dr_job j;
-    float *z0 = NULL, *out = NULL, *floor = NULL;
+    float *z0 = NULL, *out = NULL, *floor = NULL, *shore = NULL;
+    unsigned char *out_mask = NULL;
     int *pits = NULL;
     size_t n_pits = 0, i, n;
     int x, y, a;
@@ -829,7 +868,9 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
         if (g0 + size > gsz)
             j.hi[a] = (int)(gsz - g0);
     }
-    st = find_pits(ctx, &j, &pits, &n_pits);
+    st = dr_cell_tables(ctx, &j, &out_mask, &shore);
+    if (st == TS_OK)
+        st = find_pits(ctx, &j, &pits, &n_pits);
     if (st == TS_OK)
         st = ts__progress(ctx, 0.1, "drainage");
     j.pits = pits;
@@ -863,6 +904,8 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     }
     free(pits);
     free(floor);
+    free(out_mask);
+    free(shore);
     free(z0);
     free(out);
     return st;

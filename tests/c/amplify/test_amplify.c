@@ -199,11 +199,11 @@ static void test_matching_equals_brute_force(void)
     ts_ctx_free(ctx);
 }
 
-static void test_drainage_against_path_walks(void)
+/* The drainage area of z against every cell walking down its flow path. */
+static void drainage_against_path_walks(ts_ctx *ctx, ts_raster z)
 {
     static const int dx[8] = {1, 1, 0, -1, -1, -1, 0, 1}, dy[8] = {0, 1, 1, 1, 0, -1, -1, -1};
-    ts_ctx *ctx = ts_ctx_new();
-    ts_raster z = make_terrain(ctx, 60, 50, 11), a;
+    ts_raster a;
     int x, y, k, W = 60, H = 50;
     static double want[50][60];
     TS_PIX(&z, 10, 10) = NAN;
@@ -246,6 +246,22 @@ static void test_drainage_against_path_walks(void)
         }
     ts_raster_free(&z);
     ts_raster_free(&a);
+}
+
+static void test_drainage_against_path_walks(void)
+{
+    ts_ctx *ctx = ts_ctx_new();
+    ts_raster z = make_terrain(ctx, 60, 50, 11);
+    int x, y;
+    drainage_against_path_walks(ctx, z);
+    /* heights below and above 0, -0 and 0, in steps of 10: flats and ties everywhere
+     * (the cells are sorted by their bits) */
+    z = make_terrain(ctx, 60, 50, 12);
+    for (y = 0; y < 50; y++)
+        for (x = 0; x < 60; x++)
+            TS_PIX(&z, x, y) =
+                (x + y) % 7 == 0 ? -0.0f : 10.0f * roundf(TS_PIX(&z, x, y) / 10.0f) - 500.0f;
+    drainage_against_path_walks(ctx, z);
     ts_ctx_free(ctx);
 }
 
