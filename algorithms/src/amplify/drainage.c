@@ -23,7 +23,7 @@
 
 typedef struct cell_z {
     float z;
-    size_t i;
+    uint32_t i; /* the cell's index: 8 bytes a cell, twice over while sorting */
 } cell_z;
 
 /* The key that orders heights from the highest down as unsigned integers
@@ -76,6 +76,8 @@ TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *
     W = dem->width;
     H = dem->height;
     n = (size_t)W * (size_t)H;
+    if (n > UINT32_MAX)
+        return ts__fail(ctx, TS_ERR_SIZE, "drainage", "%d x %d cells: at most 2^32 - 1", W, H);
     order = ts__malloc_array(n, sizeof *order);
     tmp = ts__malloc_array(n, sizeof *tmp);
     if (!order || !tmp) {
@@ -89,7 +91,7 @@ TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *
             TS_PIX(out, x, y) = isnan(z) ? NAN : 1.0f;
             if (!isnan(z)) {
                 order[m].z = z;
-                order[m].i = (size_t)y * (size_t)W + (size_t)x;
+                order[m].i = (uint32_t)((size_t)y * (size_t)W + (size_t)x);
                 m++;
             }
         }
