@@ -57,7 +57,8 @@ int tsjob__exemplar_cells(const char *path, double target_area, double cell_size
     free(dy);
     /* resampled to the target's cells, a side past what a raster can hold is refused here
      * (the cast below would wrap, and GDAL would be asked for a negative size) */
-    if ((double)g.width * sqrt(r) > (double)INT_MAX || (double)g.height * sqrt(r) > (double)INT_MAX) {
+    if ((double)g.width * sqrt(r) > (double)INT_MAX ||
+        (double)g.height * sqrt(r) > (double)INT_MAX) {
         tsio_errf(err, path,
                   "at the target's cells of %.3g m it would be %.3g x %.3g cells, more than a "
                   "raster holds: give cells nearer its own",
@@ -385,22 +386,29 @@ int tsjob_drain(ts_ctx *ctx, const ts_drainage_params *p, ts_raster *dem,
     return 0;
 }
 
+void tsjob__grow_window(int x0, int y0, int w, int h, int m, int W, int H, int win[4])
+{
+    win[0] = x0 - m > 0 ? x0 - m : 0;
+    win[1] = y0 - m > 0 ? y0 - m : 0;
+    win[2] = (x0 + w + m < W ? x0 + w + m : W) - win[0];
+    win[3] = (y0 + h + m < H ? y0 + h + m : H) - win[1];
+}
+
 int tsjob_drained_window(ts_ctx *ctx, const ts_drainage_params *p, int W, int H, int x0, int y0,
                          int w, int h, tsjob_raw_fn raw, void *arg, float *out, const char *what,
                          tsio_err *err)
 {
-    int M = ts_drainage_margin(p), ex0, ey0, ex1, ey1, ew, eh, y, rc = -1;
+    int M = ts_drainage_margin(p), e[4], ex0, ey0, ew, eh, y, rc = -1;
     float *cells = NULL;
     unsigned char *flags = NULL;
     ts_raster r;
     if (M == 0)
         return raw(arg, ctx, x0, y0, w, h, out, NULL, err);
-    ex0 = x0 - M > 0 ? x0 - M : 0;
-    ey0 = y0 - M > 0 ? y0 - M : 0;
-    ex1 = x0 + w + M < W ? x0 + w + M : W;
-    ey1 = y0 + h + M < H ? y0 + h + M : H;
-    ew = ex1 - ex0;
-    eh = ey1 - ey0;
+    tsjob__grow_window(x0, y0, w, h, M, W, H, e);
+    ex0 = e[0];
+    ey0 = e[1];
+    ew = e[2];
+    eh = e[3];
     cells = malloc((size_t)ew * (size_t)eh * sizeof *cells);
     flags = calloc((size_t)ew * (size_t)eh, 1);
     if (!cells || !flags) {

@@ -112,11 +112,9 @@ void tsjob__progress_range(ts_ctx *ctx, job_progress *p, double lo, double hi);
 
 /* The bytes a sketch in tiles takes to lay out and amplify, past JOB_MEM_BASE. */
 uint64_t tsjob__sketch_tiles_need(const tsjob_synth *job, const tsjob_synth_result *res);
-/* The water and pins over window win = {x, y, w, h}: their TS_CELL_* into
- * flags (zeroed), their values into values (win's size). */
-int tsjob__synth_window_fixed(const tsjob_synth *job, const tsjob_synth_result *res,
-                              const int win[4], unsigned char *flags, ts_raster *values,
-                              tsio_err *err);
+/* Window [x0, x0+w) x [y0, y0+h) grown by m on each side, cut to a W x H grid:
+ * win = {x, y, w, h}. */
+void tsjob__grow_window(int x0, int y0, int w, int h, int m, int W, int H, int win[4]);
 
 /* A sketch in tiles read from job->coarse_pass into res->sketch_tiles when it was made
  * from this job's inputs (job_synth_coarse.c): 1; 0 when it is missing or was made from

@@ -475,22 +475,15 @@ static int job_rect_flags(const tsjob_synth *job, const tsjob_synth_result *res,
     return 0;
 }
 
-int tsjob__synth_window_fixed(const tsjob_synth *job, const tsjob_synth_result *res,
-                              const int win[4], unsigned char *flags, ts_raster *values,
-                              tsio_err *err)
-{
-    return job_rect_flags(job, res, win, flags, values, err);
-}
-
 int tsjob_synth_window_flags(const tsjob_synth *job, const tsjob_synth_result *res, int x0, int y0,
-                             int w, int h, unsigned char *flags, tsio_err *err)
+                             int w, int h, unsigned char *flags, ts_raster *values, tsio_err *err)
 {
     int win[4];
     win[0] = x0;
     win[1] = y0;
     win[2] = w;
     win[3] = h;
-    return job_rect_flags(job, res, win, flags, NULL, err);
+    return job_rect_flags(job, res, win, flags, values, err);
 }
 
 /* The constraints of tile t's window, as job_constraints and

@@ -142,7 +142,7 @@ int tsjob_synth_sketch_window_raw(ts_ctx *ctx, const tsjob_synth *job,
 {
     ts_raster o = ts_raster_wrap(cells, w, h, w), g;
     unsigned char *flags = NULL;
-    int m, win[4], y, rc = -1;
+    int win[4], y, rc = -1;
     if (!job->n_pins && !job->water) {
         if (ts_sketch_tiles_window(ctx, res->sketch_tiles, x0, y0, &o, NULL) != TS_OK) {
             tsio_errf(err, job->sketch, "%s", ts_ctx_message(ctx));
@@ -151,17 +151,14 @@ int tsjob_synth_sketch_window_raw(ts_ctx *ctx, const tsjob_synth *job,
         return 0;
     }
     /* with pins or water: the window grown by the margin their blend reads, then cut */
-    m = ts_sketch_tiles_margin(res->sketch_tiles);
-    win[0] = x0 > m ? x0 - m : 0;
-    win[1] = y0 > m ? y0 - m : 0;
-    win[2] = (x0 + w + m < res->geo.width ? x0 + w + m : res->geo.width) - win[0];
-    win[3] = (y0 + h + m < res->geo.height ? y0 + h + m : res->geo.height) - win[1];
+    tsjob__grow_window(x0, y0, w, h, ts_sketch_tiles_margin(res->sketch_tiles), res->geo.width,
+                       res->geo.height, win);
     if (ts_raster_alloc(ctx, win[2], win[3], &g) != TS_OK ||
         !(flags = calloc((size_t)win[2] * (size_t)win[3], 1))) {
         tsio_errf(err, job->sketch, "out of memory for a window of %d x %d cells", win[2], win[3]);
         goto done;
     }
-    if (tsjob__synth_window_fixed(job, res, win, flags, &g, err) != 0)
+    if (tsjob_synth_window_flags(job, res, win[0], win[1], win[2], win[3], flags, &g, err) != 0)
         goto done;
     if (ts_sketch_tiles_window(ctx, res->sketch_tiles, win[0], win[1], &g, flags) != TS_OK) {
         tsio_errf(err, job->sketch, "%s", ts_ctx_message(ctx));

@@ -208,9 +208,11 @@ int tsjob_synth_prepare(const tsjob_synth *job, tsjob_synth_result *res, tsio_er
 /** Read the exemplars at the target's resolution and synthesize; with
  *  keep_maps, res->maps records where each cell came from. */
 /** TS_CELL_FIXED and TS_CELL_WATER of the water and pins over window
- *  [x0, x0+w) x [y0, y0+h) of the output grid into flags (w*h, zeroed). */
+ *  [x0, x0+w) x [y0, y0+h) of the output grid into flags (w*h, zeroed), and
+ *  their values into values (w x h; may be NULL). */
 int tsjob_synth_window_flags(const tsjob_synth *job, const tsjob_synth_result *res, int x0, int y0,
-                             int w, int h, unsigned char *flags, tsio_err *err);
+                             int w, int h, unsigned char *flags, ts_raster *values,
+                             tsio_err *err);
 int tsjob_synth_compute(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, int keep_maps,
                         tsio_err *err);
 /** The most input files a synth job reads, and those it reads (NULL where

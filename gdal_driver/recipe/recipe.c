@@ -733,7 +733,9 @@ static int recipe_tiles_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h
     tsrecipe *r = arg;
     if (tsrecipe__tiles_window(r, ctx, x0, y0, w, h, cells, err) != 0)
         return -1;
-    return flags ? tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, err) : 0;
+    return flags
+               ? tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, NULL, err)
+               : 0;
 }
 
 static int recipe_read_window_offline(tsrecipe *r, int x0, int y0, int w, int h, float *out,

@@ -97,7 +97,7 @@ static int raw_window(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, floa
         }
     tsrecipe__cache_evict(r->raw, &r->n_raw, &r->raw_bytes, r->raw_limit, r->raw_clock);
     if (flags && r->method == TSRECIPE_SYNTH) { /* a sketch's water, pins and drawn ridges */
-        if (tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, err) != 0)
+        if (tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, NULL, err) != 0)
             return -1;
         tsjob_synth_sketch_barriers(&r->synth_res, x0, y0, w, h, flags);
     }

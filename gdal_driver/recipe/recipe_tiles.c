@@ -383,8 +383,9 @@ static int tile_drain_raw(void *arg, ts_ctx *ctx, int x0, int y0, int w, int h, 
                     cells[(size_t)(y - y0) * (size_t)w + (size_t)(x - x0)] =
                         t[(size_t)(y - win[1]) * (size_t)win[2] + (size_t)(x - win[0])];
         }
-    return flags ? tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, err)
-                 : 0;
+    return flags
+               ? tsjob_synth_window_flags(&r->synth, &r->synth_res, x0, y0, w, h, flags, NULL, err)
+               : 0;
 }
 
 TSYN_EXPORT int tsyn_tile_drain(void *handle, int ti, int tj, const float *const *nb, float *core,

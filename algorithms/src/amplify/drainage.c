@@ -22,8 +22,8 @@
 #include "amplify.h"
 
 typedef struct cell_z {
-    float z;
-    uint32_t i; /* the cell's index: 8 bytes a cell, twice over while sorting */
+    uint32_t key; /* height_key of its height */
+    uint32_t i;   /* the cell's index: 8 bytes a cell, twice over while sorting */
 } cell_z;
 
 /* The key that orders heights from the highest down as unsigned integers
@@ -38,8 +38,8 @@ static uint32_t height_key(float z)
     return ~u;
 }
 
-/* order[0..m) (in ascending i) sorted from the highest z down, ties in
- * ascending i: a stable least-significant-digit radix sort on height_key,
+/* order[0..m) (in ascending i) sorted from the highest height down, ties in
+ * ascending i: a stable least-significant-digit radix sort on the keys,
  * 8 bits a pass, through tmp (m cells).  The order a comparison sort by
  * (height descending, index ascending) gives, in O(m). */
 static void sort_by_height_desc(cell_z *order, cell_z *tmp, size_t m)
@@ -51,14 +51,14 @@ static void sort_by_height_desc(cell_z *order, cell_z *tmp, size_t m)
         size_t at = 0;
         memset(count, 0, sizeof count);
         for (j = 0; j < m; j++)
-            count[(height_key(order[j].z) >> shift) & 255u]++;
+            count[(order[j].key >> shift) & 255u]++;
         for (b = 0; b < 256; b++) {
             size_t c = count[b];
             count[b] = at;
             at += c;
         }
         for (j = 0; j < m; j++)
-            tmp[count[(height_key(order[j].z) >> shift) & 255u]++] = order[j];
+            tmp[count[(order[j].key >> shift) & 255u]++] = order[j];
         memcpy(order, tmp, m * sizeof *order);
     }
 }
@@ -90,7 +90,7 @@ TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *
             float z = TS_PIX(dem, x, y);
             TS_PIX(out, x, y) = isnan(z) ? NAN : 1.0f;
             if (!isnan(z)) {
-                order[m].z = z;
+                order[m].key = height_key(z);
                 order[m].i = (uint32_t)((size_t)y * (size_t)W + (size_t)x);
                 m++;
             }
@@ -99,6 +99,7 @@ TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *
     free(tmp);
     for (j = 0; j < m; j++) {
         int cx = (int)(order[j].i % (size_t)W), cy = (int)(order[j].i / (size_t)W), to = -1;
+        const float zc = TS_PIX(dem, cx, cy);
         double best = 0.0;
         for (k = 0; k < 8; k++) {
             int nx = cx + dx[k], ny = cy + dy[k];
@@ -109,7 +110,7 @@ TS_API ts_status ts_drainage_area(ts_ctx *ctx, const ts_raster *dem, ts_raster *
             zn = TS_PIX(dem, nx, ny);
             if (isnan(zn))
                 continue;
-            drop = (order[j].z - zn) / ((k & 1) ? 1.4142135623730951 : 1.0);
+            drop = (zc - zn) / ((k & 1) ? 1.4142135623730951 : 1.0);
             if (drop > best) {
                 best = drop;
                 to = k;

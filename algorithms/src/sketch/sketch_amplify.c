@@ -473,19 +473,13 @@ static int sa_fixed_values(const ts_raster *out, const unsigned char *flags, flo
     return 0;
 }
 
-TS_API ts_status ts_sketch_tiles_window(ts_ctx *ctx, const ts_sketch_tiles *t, int x0, int y0,
-                                        ts_raster *out, const unsigned char *flags)
+/* ts_sketch_tiles_window with the fixed cells' values given (NULL: none). */
+static ts_status sa_window(ts_ctx *ctx, const ts_sketch_tiles *t, int x0, int y0, ts_raster *out,
+                           const unsigned char *flags, const float *values)
 {
     ts_amplify_guide g;
     ts_status st = TS_OK;
-    float *values = NULL;
     int x, y;
-    ts__clear(ctx);
-    if (!t || !out || !out->data || x0 < 0 || y0 < 0 || out->width < 1 || out->height < 1 ||
-        x0 > t->W - out->width || y0 > t->H - out->height)
-        return ts__fail(ctx, TS_ERR_ARG, "sketch tiles", "a window off the grid");
-    if (sa_fixed_values(out, flags, &values) != 0)
-        return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
     if (t->K == 1) /* laid out at the output's cells: nothing to amplify */
         for (y = 0; y < out->height; y++)
             for (x = 0; x < out->width; x++)
@@ -497,11 +491,26 @@ TS_API ts_status ts_sketch_tiles_window(ts_ctx *ctx, const ts_sketch_tiles *t, i
     }
     if (st == TS_OK && values)
         st = ts__sketch_tiles_fixed(ctx, t, out, flags, values);
-    free(values);
     for (y = 0; st == TS_OK && t->nodata && y < out->height; y++)
         for (x = 0; x < out->width; x++)
             if (t->nodata[(size_t)(y0 + y) * t->W + (size_t)(x0 + x)])
                 TS_PIX(out, x, y) = NAN;
+    return st;
+}
+
+TS_API ts_status ts_sketch_tiles_window(ts_ctx *ctx, const ts_sketch_tiles *t, int x0, int y0,
+                                        ts_raster *out, const unsigned char *flags)
+{
+    float *values = NULL;
+    ts_status st;
+    ts__clear(ctx);
+    if (!t || !out || !out->data || x0 < 0 || y0 < 0 || out->width < 1 || out->height < 1 ||
+        x0 > t->W - out->width || y0 > t->H - out->height)
+        return ts__fail(ctx, TS_ERR_ARG, "sketch tiles", "a window off the grid");
+    if (sa_fixed_values(out, flags, &values) != 0)
+        return ts__fail(ctx, TS_ERR_NOMEM, "sketch tiles", "out of memory");
+    st = sa_window(ctx, t, x0, y0, out, flags, values);
+    free(values);
     return st;
 }
 
@@ -582,7 +591,7 @@ ts_status ts__synth_sketch_amplified(ts_ctx *ctx, const ts_raster *sketch,
     ts__progress_pop(ctx, sv);
     if (st == TS_OK) {
         sv = ts__progress_push(ctx, 0.6, 1.0);
-        st = ts_sketch_tiles_window(ctx, t, 0, 0, out, c.cell_flags);
+        st = sa_window(ctx, t, 0, 0, out, c.cell_flags, values);
         ts__progress_pop(ctx, sv);
     }
     ts_sketch_tiles_free(t);

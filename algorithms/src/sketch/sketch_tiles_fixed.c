@@ -38,9 +38,15 @@
 
 #define PIN_FINE 3 /* cells: the reach of the differences beside a pin (sigma 1) */
 
+/* R: how far a pinned or water cell reaches into the land round it. */
+static int fixed_reach(const ts_sketch_tiles *t)
+{
+    return 8 * t->K;
+}
+
 TS_API int ts_sketch_tiles_margin(const ts_sketch_tiles *t)
 {
-    return t ? 8 * t->K + 1 : 0;
+    return t ? fixed_reach(t) + 1 : 0;
 }
 
 /* The smoothstep weight of a free cell dist cells from the nearest pinned
@@ -228,10 +234,9 @@ done:
 ts_status ts__sketch_tiles_fixed(ts_ctx *ctx, const ts_sketch_tiles *t, ts_raster *out,
                                  const unsigned char *flags, const float *values)
 {
-    int R = 8 * t->K, x, y;
+    /* at K = 1 laid out at the output's cells: the coarse pass kept them */
+    int R = t->K == 1 ? 0 : fixed_reach(t), x, y;
     ts_status st;
-    if (t->K == 1) /* laid out at the output's cells: the coarse pass kept them */
-        R = 0;
     if (R && (st = ts__pin_blend(ctx, out, flags, values, R)) != TS_OK)
         return st;
     if (R && (st = ts__water_banks_window(ctx, out, flags, values, t->bank_step, R)) != TS_OK)
