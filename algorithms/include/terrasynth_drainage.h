@@ -36,12 +36,18 @@ typedef struct ts_drainage_params {
                           plus bank_slope times its distance (a gorge, not a slot); 0: none (a
                           channel one cell wide); -1 (automatic): a front end sets
                           ts_drainage_bank_slope_auto of the exemplars (the core takes -1 as 0) */
-    double shallow_depth; /* breach: the deepest cut from a pit on a TS_CELL_SHALLOW cell,
-                             and of such a cell by any channel, where the channel runs below
-                             the nearest TS_CELL_FIXED cell (within radius / 2 + 2 cells: a
-                             drawn valley's floor; a channel at or above it is a side gully
-                             down to the floor, cut as deep as max_depth allows); a front
-                             end's, not a user's parameter; 0: max_depth */
+    double shallow_depth;     /* breach: the deepest cut from a pit on a TS_CELL_SHALLOW cell,
+                                 and of such a cell by any channel, where the channel runs below
+                                 the nearest TS_CELL_FIXED cell (within radius / 2 + 2 cells: a
+                                 drawn valley's floor; a channel at or above it is a side gully
+                                 down to the floor, cut as deep as max_depth allows); a front
+                                 end's, not a user's parameter; 0: max_depth */
+    double floodplain_relief; /* breach on the whole grid with flags (a front end's, not a
+                                 user's parameter; 0: none; ours): after the breach, each basin
+                                 it leaves beside a TS_CELL_SHALLOW cell or a fixed cell that is
+                                 not water (a drawn valley's floor and its banks) deeper than
+                                 this is raised above its spill to a plain graded to its pour
+                                 point, this deep, and the grid is breached again */
 } ts_drainage_params;
 
 TS_API ts_drainage_params ts_drainage_params_default(void);
@@ -59,6 +65,7 @@ TS_API double ts_drainage_bank_slope_auto(const ts_raster *exemplars, int n);
 typedef struct ts_drainage_info {
     size_t pits, resolved, cells_changed;
     double mean_change;
+    size_t basins_raised, cells_raised; /* with floodplain_relief: the dammed basins raised */
 } ts_drainage_info;
 
 /** The margin a window needs on each side (clipped at the grid's edge) for

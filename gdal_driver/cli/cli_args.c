@@ -282,7 +282,7 @@ void cli_drainage_report(const ts_drainage_params *p, const ts_drainage_info *d,
 {
     static const char *const modes[] = {"keep", "breach", "fill"};
     double cells = (double)width * (double)height;
-    char depth[160] = "";
+    char depth[256] = "";
     if (p->mode == TS_DRAINAGE_KEEP)
         return;
     if (p->mode == TS_DRAINAGE_BREACH && p->bank_slope > 0)
@@ -293,6 +293,10 @@ void cli_drainage_report(const ts_drainage_params *p, const ts_drainage_info *d,
     if (p->mode == TS_DRAINAGE_BREACH && p->shallow_depth > 0)
         snprintf(depth + strlen(depth), sizeof depth - strlen(depth),
                  " (%.3g beside drawn valleys)", p->shallow_depth);
+    if (d->basins_raised)
+        snprintf(depth + strlen(depth), sizeof depth - strlen(depth),
+                 "; %zu dammed basins raised to plains (%zu cells)",
+                 d->basins_raised, d->cells_raised);
     printf("drainage: %s%s, %zu pits, %zu drained within %d cells; %zu cells changed (%.2f %%), "
            "mean %.2f; %.2f s\n",
            modes[p->mode], depth, d->pits, d->resolved, p->radius, d->cells_changed,

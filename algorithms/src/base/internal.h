@@ -216,6 +216,24 @@ void ts__sort_floats(float *v, size_t n);
  * whole's values inside it.  malloc'ed; NULL out of memory.  (drainage) */
 float *ts__nearest_fixed_levels(const float *z, const unsigned char *flags, int w, int h,
                                 int reach);
+/* The spill level of every cell of z (w x h, NaN nodata: NaN there), the lowest level at
+ * which water on it flows out over the grid's edge or into nodata (a priority flood).  0, -1
+ * out of memory.  (drainage) */
+int ts__spill_levels(const float *z, int w, int h, float *level);
+/* The basins of z below their spill beside a TS_CELL_SHALLOW or a fixed cell that is not
+ * water, deeper than relief: raised to plains graded to their pour points (dammed_basins.c).
+ * Never lowers a cell nor changes a fixed one; the basins and cells raised counted.  0, -1
+ * out of memory.  (drainage) */
+int ts__raise_dammed_basins(float *z, const unsigned char *flags, int w, int h, double relief,
+                            size_t *basins, size_t *cells_raised);
+/* ts_drainage_apply's pass on dem, checked: every pit drained on the surface as given
+ * (depression_breaching.c); the same on the whole grid, then its dammed basins raised to plains
+ * and drained again, info against the surface as given (dammed_basins.c).  (drainage) */
+ts_status ts__drain_pass(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags, int64_t gx0,
+                         int64_t gy0, int64_t gw, int64_t gh, const ts_drainage_params *p,
+                         ts_drainage_info *info);
+ts_status ts__drain_with_plains(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags,
+                                const ts_drainage_params *p, ts_drainage_info *info);
 /* A 64-bit hash of seed and words[0..n) (splitmix64 steps, one a word):
  * the randomness of a stage that must not depend on order or threads. */
 uint64_t ts__hash_words(uint64_t seed, const uint64_t *words, int n);

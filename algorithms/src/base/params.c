@@ -274,7 +274,9 @@ static const ts_param_desc drainage_desc[] = {
      "What becomes of the closed depressions the synthesis leaves (ours, after Lindsay 2016): "
      "keep them; breach them (a channel cut from each pit along the cheapest path to lower "
      "land or the grid's edge, with banks falling to it where it cuts deep, never raising a "
-     "cell); or fill them to their spill height (flat lakes). "
+     "cell; by synth in one piece with the automatic depth, a basin too deep to cut beside a "
+     "drawn valley's floor or a pin is raised to a plain at its spill instead); or fill them "
+     "to their spill height (flat lakes). "
      "Water and pinned windows never change; a channel crosses a drawn ridge only where the land "
      "inside has no other way out.",
      offsetof(ts_drainage_params, mode)},

@@ -785,9 +785,10 @@ static ts_status drain_status(ts_ctx *ctx, const dr_job *j)
     return ts__check_cancel(ctx);
 }
 
-TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags,
-                                   int64_t gx0, int64_t gy0, int64_t gw, int64_t gh,
-                                   const ts_drainage_params *p, ts_drainage_info *info)
+/* One pass of the stage on dem (checked), every pit drained on the surface as given. */
+ts_status ts__drain_pass(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags, int64_t gx0,
+                         int64_t gy0, int64_t gw, int64_t gh, const ts_drainage_params *p,
+                         ts_drainage_info *info)
 {
     dr_job j;
     float *z0 = NULL, *out = NULL, *floor = NULL, *shore = NULL;
@@ -796,26 +797,6 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     size_t n_pits = 0, i, n;
     int x, y, a;
     ts_status st;
-    ts__clear(ctx);
-    if (info)
-        memset(info, 0, sizeof *info);
-    if (!dem || !dem->data || !p || dem->width < 1 || dem->height < 1 || gw < 1 || gh < 1)
-        return ts__fail(ctx, TS_ERR_ARG, "drainage", "no surface");
-    if (p->mode < TS_DRAINAGE_KEEP || p->mode > TS_DRAINAGE_FILL)
-        return ts__fail(ctx, TS_ERR_ARG, "drainage", "mode %d is not keep, breach or fill",
-                        p->mode);
-    if (!(p->max_depth >= 0 || p->max_depth == -1))
-        return ts__fail(ctx, TS_ERR_ARG, "drainage", "depth %g is not -1, 0 or more", p->max_depth);
-    if (!(p->bank_slope >= 0 || p->bank_slope == -1))
-        return ts__fail(ctx, TS_ERR_ARG, "drainage", "bank slope %g is not -1, 0 or more",
-                        p->bank_slope);
-    if (p->radius < 1 || p->radius > TS_DRAINAGE_RADIUS_MAX)
-        return ts__fail(ctx, TS_ERR_ARG, "drainage", "radius %d is not 1..%d", p->radius,
-                        TS_DRAINAGE_RADIUS_MAX);
-    if (gx0 > gw || gy0 > gh || gx0 + dem->width < 0 || gy0 + dem->height < 0)
-        return ts__fail(ctx, TS_ERR_ARG, "drainage", "the window is off the grid");
-    if (p->mode == TS_DRAINAGE_KEEP)
-        return TS_OK;
     n = (size_t)dem->width * (size_t)dem->height;
     z0 = malloc(n * sizeof *z0);
     out = malloc(n * sizeof *out);
@@ -909,4 +890,37 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
     free(z0);
     free(out);
     return st;
+}
+
+TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags,
+                                   int64_t gx0, int64_t gy0, int64_t gw, int64_t gh,
+                                   const ts_drainage_params *p, ts_drainage_info *info)
+{
+    ts__clear(ctx);
+    if (info)
+        memset(info, 0, sizeof *info);
+    if (!dem || !dem->data || !p || dem->width < 1 || dem->height < 1 || gw < 1 || gh < 1)
+        return ts__fail(ctx, TS_ERR_ARG, "drainage", "no surface");
+    if (p->mode < TS_DRAINAGE_KEEP || p->mode > TS_DRAINAGE_FILL)
+        return ts__fail(ctx, TS_ERR_ARG, "drainage", "mode %d is not keep, breach or fill",
+                        p->mode);
+    if (!(p->max_depth >= 0 || p->max_depth == -1))
+        return ts__fail(ctx, TS_ERR_ARG, "drainage", "depth %g is not -1, 0 or more", p->max_depth);
+    if (!(p->bank_slope >= 0 || p->bank_slope == -1))
+        return ts__fail(ctx, TS_ERR_ARG, "drainage", "bank slope %g is not -1, 0 or more",
+                        p->bank_slope);
+    if (p->radius < 1 || p->radius > TS_DRAINAGE_RADIUS_MAX)
+        return ts__fail(ctx, TS_ERR_ARG, "drainage", "radius %d is not 1..%d", p->radius,
+                        TS_DRAINAGE_RADIUS_MAX);
+    if (gx0 > gw || gy0 > gh || gx0 + dem->width < 0 || gy0 + dem->height < 0)
+        return ts__fail(ctx, TS_ERR_ARG, "drainage", "the window is off the grid");
+    if (p->mode == TS_DRAINAGE_KEEP)
+        return TS_OK;
+    if (p->mode == TS_DRAINAGE_BREACH && p->floodplain_relief > 0 && flags) {
+        if (gx0 != 0 || gy0 != 0 || gw != dem->width || gh != dem->height)
+            return ts__fail(ctx, TS_ERR_ARG, "drainage",
+                            "dammed basins are raised on the whole grid only, not a window");
+        return ts__drain_with_plains(ctx, dem, flags, p, info);
+    }
+    return ts__drain_pass(ctx, dem, flags, gx0, gy0, gw, gh, p, info);
 }

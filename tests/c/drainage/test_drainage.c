@@ -8,8 +8,8 @@
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include "harness.h"
-#include "terrasynth.h"
 #include "internal.h"
+#include "terrasynth.h"
 
 /* A rough surface full of pits: a tilted plane, bumps and noise. */
 static void make_surface(float *z, int w, int h, uint64_t seed)
@@ -237,8 +237,7 @@ static void test_windows_and_threads(void)
                 memcpy(wfl + (size_t)y * ew, fl + (size_t)(ey0 + y) * w + ex0, (size_t)ew);
             }
             r = ts_raster_wrap(win, ew, eh, ew);
-            CHECK(ts_drainage_apply(ctx, &r, use ? wfl : NULL, ex0, ey0, w, h, &p, NULL) ==
-                  TS_OK);
+            CHECK(ts_drainage_apply(ctx, &r, use ? wfl : NULL, ex0, ey0, w, h, &p, NULL) == TS_OK);
             for (y = y0; y < y0 + hh; y++)
                 for (x = x0; x < x0 + ww; x++)
                     if (memcmp(&win[(size_t)(y - ey0) * ew + (x - ex0)], &whole[(size_t)y * w + x],
@@ -630,6 +629,22 @@ static void test_nearest_fixed_levels(void)
  * beside it is drained by a side gully cut deeper than the shallow depth;
  * one whose bottom is below the floor is cut no deeper than it; no cell is
  * cut deeper than the shallow depth below the floor nearest it. */
+/* An 80 x 60 valley whose floor (row 30, fixed, falling to x = 79) has shallow banks 25 rows
+ * each side, and two bowls on its bank: one (x = 40) above the floor beside it, one (x = 20)
+ * below it. */
+static void floor_surface(float *z0, unsigned char *fl, int w, int h)
+{
+    int x, y;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            double floor_ = 40.0 - 0.2 * x, v = floor_ + fabs(y - 30.0);
+            double ra = hypot(x - 40.0, y - 8.0), rb = hypot(x - 20.0, y - 8.0);
+            v -= 20.0 * exp(-ra * ra / 25.0) + 30.0 * exp(-rb * rb / 25.0);
+            z0[y * w + x] = (float)v;
+            fl[y * w + x] = y == 30 ? TS_CELL_FIXED : abs(y - 30) <= 25 ? TS_CELL_SHALLOW : 0;
+        }
+}
+
 static void test_gully_to_the_floor(void)
 {
     const int w = 80, h = 60;
@@ -642,14 +657,7 @@ static void test_gully_to_the_floor(void)
     double cut_a = 0, cut_b = 0;
     size_t left;
     int x, y;
-    for (y = 0; y < h; y++)
-        for (x = 0; x < w; x++) {
-            double floor_ = 40.0 - 0.2 * x, v = floor_ + fabs(y - 30.0);
-            double ra = hypot(x - 40.0, y - 8.0), rb = hypot(x - 20.0, y - 8.0);
-            v -= 20.0 * exp(-ra * ra / 25.0) + 30.0 * exp(-rb * rb / 25.0);
-            z0[y * w + x] = (float)v;
-            fl[y * w + x] = y == 30 ? TS_CELL_FIXED : abs(y - 30) <= 25 ? TS_CELL_SHALLOW : 0;
-        }
+    floor_surface(z0, fl, w, h);
     CHECK(z0[8 * w + 40] > z0[30 * w + 40] && z0[8 * w + 20] < z0[30 * w + 20]);
     p.radius = 64;
     p.bank_slope = 0;
@@ -669,8 +677,8 @@ static void test_gully_to_the_floor(void)
         CHECK_MSG(c <= 3.0 + 1e-3 || z[i] >= lv[i] - 1.0,
                   "cell %zu cut %.1f to %.1f below its floor %.1f", i, c, z[i], lv[i]);
     }
-    CHECK_MSG(cut_a > 3.5 && cut_b <= 3.0 + 1e-3, "above the floor cut %.1f, below it %.1f",
-              cut_a, cut_b);
+    CHECK_MSG(cut_a > 3.5 && cut_b <= 3.0 + 1e-3, "above the floor cut %.1f, below it %.1f", cut_a,
+              cut_b);
     deepest(z, w, h, 0.5, &left);
     CHECK_MSG(left > 0, "the bowl below the floor drained");
     /* the lower bowl away: no pit left once the upper one drains */
@@ -689,6 +697,105 @@ static void test_gully_to_the_floor(void)
     free(fl);
 }
 
+/* The spill levels (a priority flood) against the fill by relaxation, with nodata holes and
+ * with flats (heights in whole units: cells reached out of height order beside equal ones). */
+static void test_spill_levels(void)
+{
+    const int w = 70, h = 50;
+    size_t n = (size_t)w * h, i, bad = 0;
+    float *z = malloc(n * sizeof *z), *lv = malloc(n * sizeof *lv);
+    double *wat = malloc(n * sizeof *wat);
+    uint64_t seed;
+    for (seed = 1; seed <= 6; seed++) {
+        make_surface(z, w, h, seed * 31);
+        for (i = 0; seed > 2 && i < n; i += 37) /* nodata drains out */
+            z[i] = NAN;
+        for (i = 0; seed > 4 && i < n; i++) /* whole units: ties and flats */
+            z[i] = floorf(z[i] / 4.0f);
+        CHECK(ts__spill_levels(z, w, h, lv) == 0);
+        oracle_fill(z, w, h, wat);
+        for (i = 0; i < n; i++)
+            if (isnan(z[i]) ? !isnan(lv[i]) : lv[i] != (float)wat[i])
+                bad++;
+        CHECK_MSG(bad == 0, "seed %d: %zu cells' levels differ from the relaxation's", (int)seed,
+                  bad);
+    }
+    free(z);
+    free(lv);
+    free(wat);
+}
+
+/* floodplain_relief: the bowl below the floor, which a breach keeps (test_gully_to_the_floor),
+ * is raised to a plain no higher than its spill plus the relief and drained: no pit left, fixed
+ * cells as they were, no cell raised outside the kept basins, the same bytes on 1 and 3
+ * threads; refused on a window; a basin beside no floor or bank left as the breach leaves it. */
+static void test_dammed_basins_raised(void)
+{
+    const int w = 80, h = 60;
+    size_t n = (size_t)w * h, i, left, raised = 0;
+    float *z0 = malloc(n * sizeof *z0), *zb = malloc(n * sizeof *zb), *z = malloc(n * sizeof *z),
+          *z3 = malloc(n * sizeof *z3);
+    double *spill = malloc(n * sizeof *spill);
+    unsigned char *fl = malloc(n), *none = calloc(n, 1);
+    ts_ctx *ctx = ts_ctx_new();
+    ts_drainage_params p = ts_drainage_params_default();
+    ts_raster rb = ts_raster_wrap(zb, w, h, w), r = ts_raster_wrap(z, w, h, w),
+              r3 = ts_raster_wrap(z3, w, h, w);
+    ts_drainage_info info;
+    floor_surface(z0, fl, w, h);
+    p.radius = 64;
+    p.bank_slope = 0;
+    p.max_depth = 0;
+    p.shallow_depth = 3.0;
+    memcpy(zb, z0, n * sizeof *zb);
+    CHECK(ts_drainage_apply(ctx, &rb, fl, 0, 0, w, h, &p, NULL) == TS_OK);
+    oracle_fill(zb, w, h, spill); /* the basins the breach keeps */
+    p.floodplain_relief = 4.0;
+    memcpy(z, z0, n * sizeof *z);
+    memcpy(z3, z0, n * sizeof *z3);
+    ts_ctx_set_threads(ctx, 1);
+    CHECK(ts_drainage_apply(ctx, &r, fl, 0, 0, w, h, &p, &info) == TS_OK);
+    ts_ctx_set_threads(ctx, 3);
+    CHECK(ts_drainage_apply(ctx, &r3, fl, 0, 0, w, h, &p, NULL) == TS_OK);
+    CHECK(memcmp(z, z3, n * sizeof *z) == 0);
+    CHECK_MSG(info.basins_raised == 1, "%zu basins raised", info.basins_raised);
+    deepest(z, w, h, 0.01, &left);
+    CHECK_MSG(left == 0, "%zu cells in pits after the plain", left);
+    for (i = 0; i < n; i++) {
+        if (fl[i] & TS_CELL_FIXED)
+            CHECK(z[i] == z0[i]);
+        if (z[i] > zb[i]) {
+            raised++;
+            CHECK_MSG(spill[i] > zb[i] && z[i] <= spill[i] + 4.0 + 1e-3,
+                      "cell %zu raised from %.2f to %.2f, its spill %.2f", i, zb[i], z[i],
+                      spill[i]);
+        }
+    }
+    CHECK_MSG(raised > 20 && info.cells_raised >= raised, "%zu cells raised", raised);
+    r = ts_raster_wrap(z + w, w, h - 1, w);
+    CHECK(ts_drainage_apply(ctx, &r, fl + w, 0, 1, w, h, &p, NULL) == TS_ERR_ARG);
+    /* no floor, no banks: the plain's pass changes nothing */
+    p.radius = 4;
+    make_surface(z0, w, h, 5);
+    memcpy(z, z0, n * sizeof *z);
+    memcpy(zb, z0, n * sizeof *zb);
+    r = ts_raster_wrap(z, w, h, w);
+    CHECK(ts_drainage_apply(ctx, &r, none, 0, 0, w, h, &p, &info) == TS_OK);
+    p.floodplain_relief = 0;
+    CHECK(ts_drainage_apply(ctx, &rb, none, 0, 0, w, h, &p, NULL) == TS_OK);
+    CHECK(memcmp(z, zb, n * sizeof *z) == 0 && info.basins_raised == 0);
+    deepest(z, w, h, 0.5, &left);
+    CHECK_MSG(left > 0, "a radius of 4 drained every basin: the case tests nothing");
+    ts_ctx_free(ctx);
+    free(z0);
+    free(zb);
+    free(z);
+    free(z3);
+    free(spill);
+    free(fl);
+    free(none);
+}
+
 int main(int argc, char **argv)
 {
     static const th_case cases[] = {
@@ -699,6 +806,8 @@ int main(int argc, char **argv)
         {"shallow_cells_any_channel", test_shallow_cells_any_channel},
         {"nearest_fixed_levels", test_nearest_fixed_levels},
         {"gully_to_the_floor", test_gully_to_the_floor},
+        {"spill_levels", test_spill_levels},
+        {"dammed_basins_raised", test_dammed_basins_raised},
         {"banks", test_banks},
         {"windows_and_threads", test_windows_and_threads},
         {"fixed_and_barriers", test_fixed_and_barriers},
