@@ -46,8 +46,8 @@ typedef struct ts_drainage_params {
                                  user's parameter; 0: none; ours): after the breach, each basin
                                  it leaves beside a TS_CELL_SHALLOW cell or a fixed cell that is
                                  not water (a drawn valley's floor and its banks) deeper than
-                                 this is raised above its spill to a plain graded to its pour
-                                 point, this deep, and the grid is breached again */
+                                 this is raised to a plain graded to its pour point, at most
+                                 this above its spill, and the grid is breached again */
 } ts_drainage_params;
 
 TS_API ts_drainage_params ts_drainage_params_default(void);

@@ -357,10 +357,11 @@ static void job_drainage_banks(const tsjob_synth *job, tsjob_synth_result *res,
     if (res->drainage.bank_slope == -1)
         res->drainage.bank_slope = ts_drainage_bank_slope_auto(exr, job->n_exemplars);
     /* in one piece (the whole grid at hand) with the automatic depth, the basins the breach
-     * leaves beside a drawn valley's floor are raised to plains half the banks' slope deep */
+     * leaves beside a drawn valley's floor are raised to plains up to 3/4 of the banks' slope
+     * above their spill (its pits, at most half of it, the second breach cuts) */
     if (!(res->params.tiled > 0) && res->drainage.mode == TS_DRAINAGE_BREACH &&
         res->drainage.max_depth == -1 && res->drainage.bank_slope > 0)
-        res->drainage.floodplain_relief = 0.5 * res->drainage.bank_slope;
+        res->drainage.floodplain_relief = 0.75 * res->drainage.bank_slope;
 }
 
 int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err)

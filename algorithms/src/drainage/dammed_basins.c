@@ -20,11 +20,13 @@
  *     any of whose cells or their eight neighbours is TS_CELL_SHALLOW, or
  *     TS_CELL_FIXED and not water, is dammed;
  *   - a dammed basin deeper than `relief` is raised above its spill, to a
- *     plain graded to its pour point: z' = spill + relief / 2 (steps / most
- *     steps + 1 - (spill - z) / depth), the steps taken within the basin from
- *     the cells beside the pour point: a rise of relief / 2 across it and the
- *     land's own shape scaled to relief / 2; no cell lowered, fixed cells
- *     left as they are.
+ *     plain graded to its pour point: z' = spill + relief / 3 (steps / most
+ *     steps + 1) + fine, the steps taken within the basin from the cells
+ *     beside the pour point, fine the cell's height above the mean of its
+ *     basin's cells within 2 cells clamped to +-relief / 3 (the land's own
+ *     shape at the scale of a few cells: a low plain with the land's grain,
+ *     not a lake's flat); so spill < z' <= spill + relief; no cell lowered,
+ *     fixed cells left as they are.
  * The breach that follows cuts what pits the plain's shape leaves, no deeper
  * than `relief`, down to the pour point.  The flood's levels are a function
  * of the surface alone, so the result does not depend on the order of the
@@ -274,6 +276,25 @@ static uint32_t db_steps(const float *z, const float *level, int w, int h, const
 }
 
 /* A basin found: a cell of it, its cells, those more than a height unit below their spill. */
+/* Cell c's height above the mean of the cells of its basin (below the same spill level) within
+ * DB_FINE cells, clamped to +-cap: the land's shape at the scale of a few cells. */
+#define DB_FINE 2
+static double db_fine(const float *z, const float *level, int w, int h, uint32_t c, double cap)
+{
+    int cx = (int)(c % (uint32_t)w), cy = (int)(c / (uint32_t)w), u, v, k = 0;
+    double sum = 0.0, d;
+    for (v = cy - DB_FINE; v <= cy + DB_FINE; v++)
+        for (u = cx - DB_FINE; u <= cx + DB_FINE; u++) {
+            size_t j = (size_t)v * (size_t)w + (size_t)u;
+            if (u < 0 || v < 0 || u >= w || v >= h || !(level[j] > z[j]) || level[j] != level[c])
+                continue;
+            sum += z[j];
+            k++;
+        }
+    d = (double)z[c] - sum / k;
+    return d > cap ? cap : d < -cap ? -cap : d;
+}
+
 int ts__raise_dammed_basins(float *z, const unsigned char *flags, int w, int h, double relief,
                             size_t *basins, size_t *cells_raised)
 {
@@ -282,11 +303,13 @@ int ts__raise_dammed_basins(float *z, const unsigned char *flags, int w, int h, 
     unsigned char *seen = calloc(n, 1);
     uint32_t *cells = malloc(n * sizeof *cells), *dist = malloc(n * sizeof *dist),
              *queue = malloc(n * sizeof *queue);
+    double *fine = malloc(n * sizeof *fine);
     int rc = -1;
     *basins = *cells_raised = 0;
     if (n > (size_t)UINT32_MAX)
         goto done;
-    if (!level || !seen || !cells || !dist || !queue || ts__spill_levels(z, w, h, level) != 0)
+    if (!level || !seen || !cells || !dist || !queue || !fine ||
+        ts__spill_levels(z, w, h, level) != 0)
         goto done;
     for (i = 0; i < n; i++) {
         double depth;
@@ -301,15 +324,17 @@ int ts__raise_dammed_basins(float *z, const unsigned char *flags, int w, int h, 
         if (!most)
             continue;
         (*basins)++;
-        /* half the relief a rise from the pour point, half the land's own shape */
+        /* the land's own shape at the scale of a few cells, kept up to a third of the relief */
+        for (c = 0; c < m; c++)
+            fine[c] = db_fine(z, level, w, h, cells[c], relief / 3.0);
+        /* a third of the relief a rise from the pour point, a third above it, the fine shape */
         for (c = 0; c < m; c++) {
             uint32_t j = cells[c];
-            double below = ((double)level[j] - (double)z[j]) / depth;
             float v;
             if ((flags[j] & TS_CELL_FIXED) || dist[j] == UINT32_MAX)
                 continue;
-            v = (float)((double)level[j] +
-                        0.5 * relief * ((double)dist[j] / (double)most + (1.0 - below)));
+            v = (float)((double)level[j] + relief / 3.0 * ((double)dist[j] / (double)most + 1.0) +
+                        fine[c]);
             if (v > z[j]) {
                 z[j] = v;
                 (*cells_raised)++;
@@ -323,6 +348,7 @@ done:
     free(cells);
     free(dist);
     free(queue);
+    free(fine);
     return rc;
 }
 
