@@ -44,10 +44,11 @@ typedef struct ts_drainage_params {
                                  end's, not a user's parameter; 0: max_depth */
     double floodplain_relief; /* breach on the whole grid with flags (a front end's, not a
                                  user's parameter; 0: none; ours): after the breach, each basin
-                                 it leaves beside a TS_CELL_SHALLOW cell or a fixed cell that is
-                                 not water (a drawn valley's floor and its banks) deeper than
-                                 this is raised to a plain graded to its pour point, at most
-                                 this above its spill, and the grid is breached again */
+                                 it leaves beside a TS_CELL_SHALLOW cell (the band beside a
+                                 drawn valley's floor), with no fixed cell not water below its
+                                 spill in or beside it (a pin), deeper than this is raised to
+                                 a plain graded to its pour point, at most this above its
+                                 spill, and the grid is breached again */
 } ts_drainage_params;
 
 TS_API ts_drainage_params ts_drainage_params_default(void);

@@ -220,10 +220,9 @@ float *ts__nearest_fixed_levels(const float *z, const unsigned char *flags, int 
  * which water on it flows out over the grid's edge or into nodata (a priority flood).  0, -1
  * out of memory.  (drainage) */
 int ts__spill_levels(const float *z, int w, int h, float *level);
-/* The basins of z below their spill beside a TS_CELL_SHALLOW or a fixed cell that is not
- * water, deeper than relief: raised to plains graded to their pour points (dammed_basins.c).
- * Never lowers a cell nor changes a fixed one; the basins and cells raised counted.  0, -1
- * out of memory.  (drainage) */
+/* The basins of z below their spill beside a TS_CELL_SHALLOW cell, deeper than relief: raised to
+ * plains graded to their pour points (dammed_basins.c). Never lowers a cell nor changes a fixed
+ * one; the basins and cells raised counted.  0, -1 out of memory.  (drainage) */
 int ts__raise_dammed_basins(float *z, const unsigned char *flags, int w, int h, double relief,
                             size_t *basins, size_t *cells_raised);
 /* ts_drainage_apply's pass on dem, checked: every pit drained on the surface as given

@@ -275,8 +275,8 @@ static const ts_param_desc drainage_desc[] = {
      "keep them; breach them (a channel cut from each pit along the cheapest path to lower "
      "land or the grid's edge, with banks falling to it where it cuts deep, never raising a "
      "cell; by synth in one piece with the automatic depth, a basin too deep to cut beside a "
-     "drawn valley's floor or a pin is raised to a plain at its spill instead); or fill them "
-     "to their spill height (flat lakes). "
+     "drawn valley's floor is raised to a plain at its spill instead); or fill them to their "
+     "spill height (flat lakes). "
      "Water and pinned windows never change; a channel crosses a drawn ridge only where the land "
      "inside has no other way out.",
      offsetof(ts_drainage_params, mode)},

@@ -17,8 +17,9 @@
  *     the heap) gives each cell its spill level, the lowest level at which
  *     water standing on it would flow out;
  *   - the cells below their spill form the basins (8-connected); a basin
- *     any of whose cells or their eight neighbours is TS_CELL_SHALLOW, or
- *     TS_CELL_FIXED and not water, is dammed;
+ *     any of whose cells or their eight neighbours is TS_CELL_SHALLOW (the
+ *     band beside a floor) is dammed, unless one is a fixed cell not water
+ *     below its spill (a pin's: land raised round it would stand as a step);
  *   - a dammed basin deeper than `relief` is raised above its spill, to a
  *     plain graded to its pour point: z' = spill + relief / 3 (steps / most
  *     steps + 1) + fine, the steps taken within the basin from the cells
@@ -193,11 +194,15 @@ done:
     return rc;
 }
 
-/* A cell that dams a basin beside it: a drawn valley's bank or a fixed cell not water. */
-static int damming(const unsigned char *flags, size_t i)
+/* What a cell in or beside a basin of level `lv` says of it: DB_DAMMED, a drawn valley floor's
+ * bank (TS_CELL_SHALLOW: the floor lies in that band); DB_HELD, a fixed cell not water below the
+ * basin's level (a pin's: the land raised round it would stand as a step against it). */
+enum { DB_DAMMED = 1, DB_HELD = 2 };
+
+static int damming(const float *z, const unsigned char *flags, size_t i, float lv)
 {
-    return (flags[i] & TS_CELL_SHALLOW) ||
-           ((flags[i] & TS_CELL_FIXED) && !(flags[i] & TS_CELL_WATER));
+    return ((flags[i] & TS_CELL_SHALLOW) ? DB_DAMMED : 0) |
+           ((flags[i] & TS_CELL_FIXED) && !(flags[i] & TS_CELL_WATER) && z[i] < lv ? DB_HELD : 0);
 }
 
 /* One basin from cell s (below its spill): its cells into `cells` (n), its depth, and
@@ -215,7 +220,7 @@ static size_t db_basin(const float *z, const float *level, const unsigned char *
         uint32_t c = cells[head++];
         if ((double)level[c] - (double)z[c] > *depth)
             *depth = (double)level[c] - (double)z[c];
-        *dammed |= damming(flags, c);
+        *dammed |= damming(z, flags, c, level[c]);
         for (k = 0; k < 8; k++) {
             ptrdiff_t j = nb_of(w, h, c, k);
             if (j < 0)
@@ -223,7 +228,7 @@ static size_t db_basin(const float *z, const float *level, const unsigned char *
             if (isnan(z[j]))
                 continue;
             if (!(level[j] > z[j])) {
-                *dammed |= damming(flags, j);
+                *dammed |= damming(z, flags, (size_t)j, level[c]);
                 continue;
             }
             if (!seen[j]) {
@@ -318,7 +323,7 @@ int ts__raise_dammed_basins(float *z, const unsigned char *flags, int w, int h, 
         if (seen[i] || !(level[i] > z[i]))
             continue;
         m = db_basin(z, level, flags, w, h, i, seen, cells, &depth, &dammed);
-        if (!dammed || !(depth > relief))
+        if (dammed != DB_DAMMED || !(depth > relief))
             continue;
         most = db_steps(z, level, w, h, cells, m, dist, queue);
         if (!most)
@@ -363,7 +368,7 @@ ts_status ts__drain_with_plains(ts_ctx *ctx, ts_raster *dem, const unsigned char
     ts_drainage_info first;
     double sum = 0.0;
     ts_status st;
-    for (i = 0; i < n && !damming(flags, i); i++)
+    for (i = 0; i < n && !(flags[i] & TS_CELL_SHALLOW); i++)
         ;
     if (i == n) { /* nothing dams a basin */
         free(z0);

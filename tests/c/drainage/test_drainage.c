@@ -728,7 +728,8 @@ static void test_spill_levels(void)
 /* floodplain_relief: the bowl below the floor, which a breach keeps (test_gully_to_the_floor),
  * is raised to a plain no higher than its spill plus the relief and drained: no pit left, fixed
  * cells as they were, no cell raised outside the kept basins, the same bytes on 1 and 3
- * threads; refused on a window; a basin beside no floor or bank left as the breach leaves it. */
+ * threads; kept with a pinned cell in it; refused on a window; a basin beside no floor or bank
+ * left as the breach leaves it. */
 static void test_dammed_basins_raised(void)
 {
     const int w = 80, h = 60;
@@ -772,6 +773,13 @@ static void test_dammed_basins_raised(void)
         }
     }
     CHECK_MSG(raised > 20 && info.cells_raised >= raised, "%zu cells raised", raised);
+    /* a pinned cell (fixed, not water) below the bowl's spill: the bowl is kept (land raised
+     * round the pin would stand as a step against it) */
+    memcpy(z, z0, n * sizeof *z);
+    fl[8 * w + 20] |= TS_CELL_FIXED;
+    CHECK(ts_drainage_apply(ctx, &r, fl, 0, 0, w, h, &p, &info) == TS_OK);
+    CHECK_MSG(info.basins_raised == 0, "%zu basins raised round a pin", info.basins_raised);
+    fl[8 * w + 20] &= (unsigned char)~TS_CELL_FIXED;
     r = ts_raster_wrap(z + w, w, h - 1, w);
     CHECK(ts_drainage_apply(ctx, &r, fl + w, 0, 1, w, h, &p, NULL) == TS_ERR_ARG);
     /* no floor, no banks: the plain's pass changes nothing */
