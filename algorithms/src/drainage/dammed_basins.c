@@ -109,8 +109,6 @@ static ptrdiff_t nb_of(int w, int h, uint32_t c, int k)
     return u < 0 || v < 0 || u >= w || v >= h ? -1 : (ptrdiff_t)v * w + u;
 }
 
-/* The spill level of every cell of z (w x h, NaN nodata) into `level` (NaN for nodata):
- * the grid's edge and the cells beside nodata drain out.  -1 out of memory. */
 /* Whether cell c of z has a neighbour not yet reached (closed) lower than itself. */
 static int lower_open(const float *z, const unsigned char *closed, int w, int h, uint32_t c)
 {
@@ -125,6 +123,8 @@ static int lower_open(const float *z, const unsigned char *closed, int w, int h,
     return 0;
 }
 
+/* The spill level of every cell of z (w x h, NaN nodata) into `level` (NaN for nodata): the
+ * grid's edge and the cells beside nodata drain out.  -1 out of memory. */
 int ts__spill_levels(const float *z, int w, int h, float *level)
 {
     size_t n = (size_t)w * (size_t)h, qh = 0, qt = 0, nt = 0;
@@ -280,7 +280,6 @@ static uint32_t db_steps(const float *z, const float *level, int w, int h, const
     return most;
 }
 
-/* A basin found: a cell of it, its cells, those more than a height unit below their spill. */
 /* Cell c's height above the mean of the cells of its basin (below the same spill level) within
  * DB_FINE cells, clamped to +-cap: the land's shape at the scale of a few cells. */
 #define DB_FINE 2
@@ -364,17 +363,16 @@ ts_status ts__drain_with_plains(ts_ctx *ctx, ts_raster *dem, const unsigned char
 {
     int w = dem->width, h = dem->height, y, x;
     size_t n = (size_t)w * (size_t)h, i, basins = 0, raised = 0, changed = 0;
-    float *z0 = malloc(n * sizeof *z0), *z = malloc(n * sizeof *z);
+    float *z0, *z;
     ts_drainage_info first;
     double sum = 0.0;
     ts_status st;
     for (i = 0; i < n && !(flags[i] & TS_CELL_SHALLOW); i++)
         ;
-    if (i == n) { /* nothing dams a basin */
-        free(z0);
-        free(z);
+    if (i == n) /* nothing dams a basin */
         return ts__drain_pass(ctx, dem, flags, 0, 0, w, h, p, info);
-    }
+    z0 = malloc(n * sizeof *z0);
+    z = malloc(n * sizeof *z);
     if (!z0 || !z) {
         free(z0);
         free(z);

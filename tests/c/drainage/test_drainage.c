@@ -631,9 +631,11 @@ static void test_nearest_fixed_levels(void)
  * cut deeper than the shallow depth below the floor nearest it. */
 /* An 80 x 60 valley whose floor (row 30, fixed, falling to x = 79) has shallow banks 25 rows
  * each side, and two bowls on its bank: one (x = 40) above the floor beside it, one (x = 20)
- * below it. */
-static void floor_surface(float *z0, unsigned char *fl, int w, int h)
+ * below it; the breach the case is made for (one-cell channels, no depth limit, shallow depth 3
+ * beside the floor). */
+static ts_drainage_params floor_surface(float *z0, unsigned char *fl, int w, int h)
 {
+    ts_drainage_params p = ts_drainage_params_default();
     int x, y;
     for (y = 0; y < h; y++)
         for (x = 0; x < w; x++) {
@@ -643,6 +645,11 @@ static void floor_surface(float *z0, unsigned char *fl, int w, int h)
             z0[y * w + x] = (float)v;
             fl[y * w + x] = y == 30 ? TS_CELL_FIXED : abs(y - 30) <= 25 ? TS_CELL_SHALLOW : 0;
         }
+    p.radius = 64;
+    p.bank_slope = 0;
+    p.max_depth = 0;
+    p.shallow_depth = 3.0;
+    return p;
 }
 
 static void test_gully_to_the_floor(void)
@@ -652,17 +659,13 @@ static void test_gully_to_the_floor(void)
     float *z0 = malloc(n * sizeof *z0), *z = malloc(n * sizeof *z), *lv;
     unsigned char *fl = malloc(n);
     ts_ctx *ctx = ts_ctx_new();
-    ts_drainage_params p = ts_drainage_params_default();
+    ts_drainage_params p;
     ts_raster r = ts_raster_wrap(z, w, h, w);
     double cut_a = 0, cut_b = 0;
     size_t left;
     int x, y;
-    floor_surface(z0, fl, w, h);
+    p = floor_surface(z0, fl, w, h);
     CHECK(z0[8 * w + 40] > z0[30 * w + 40] && z0[8 * w + 20] < z0[30 * w + 20]);
-    p.radius = 64;
-    p.bank_slope = 0;
-    p.max_depth = 0;
-    p.shallow_depth = 3.0;
     memcpy(z, z0, n * sizeof *z);
     CHECK(ts_drainage_apply(ctx, &r, fl, 0, 0, w, h, &p, NULL) == TS_OK);
     lv = ts__nearest_fixed_levels(z0, fl, w, h, p.radius / 2 + 2);
@@ -739,15 +742,11 @@ static void test_dammed_basins_raised(void)
     double *spill = malloc(n * sizeof *spill);
     unsigned char *fl = malloc(n), *none = calloc(n, 1);
     ts_ctx *ctx = ts_ctx_new();
-    ts_drainage_params p = ts_drainage_params_default();
+    ts_drainage_params p;
     ts_raster rb = ts_raster_wrap(zb, w, h, w), r = ts_raster_wrap(z, w, h, w),
               r3 = ts_raster_wrap(z3, w, h, w);
     ts_drainage_info info;
-    floor_surface(z0, fl, w, h);
-    p.radius = 64;
-    p.bank_slope = 0;
-    p.max_depth = 0;
-    p.shallow_depth = 3.0;
+    p = floor_surface(z0, fl, w, h);
     memcpy(zb, z0, n * sizeof *zb);
     CHECK(ts_drainage_apply(ctx, &rb, fl, 0, 0, w, h, &p, NULL) == TS_OK);
     oracle_fill(zb, w, h, spill); /* the basins the breach keeps */
