@@ -88,8 +88,8 @@ static ts_status layout_reach_gradient(ts_ctx *ctx, const layout_ws *ws, const f
     }
     for (i = 0; i < n; i++)
         t[i] = (nodata && nodata[i]) || !isfinite(dist[i]) ? NAN
-               : shape                                    ? shape[i]
-                                                          : (float)layout_reach(dist[i], c);
+               : shape                                     ? shape[i]
+                                                           : (float)layout_reach(dist[i], c);
     if ((st = lblur(ctx, ws, t, W, W, H, sigma, b)) != TS_OK)
         goto done;
     for (i = 0; i < n; i++)
@@ -245,8 +245,9 @@ typedef struct layout_run_data {
     const double *gl, *gc, *levels;
     float *crest, *crest_hp; /* the ridges' peaks and saddles (ts__crest_field) and their
                                 part finer than the layout's blur, or NULL (owned) */
-    float *crest_s;                /* crest on the ridges smoothed as the crest pass smooths */
-    float *guide, *work, *corr, *corr2;
+    float *crest_s;          /* crest on the ridges smoothed as the crest pass smooths */
+    float *vlev; /* the valley floors' level (layout_valley_levels), or NULL without valleys */
+    float *guide, *work, *corr, *corr2, *blurred; /* blurred: layout_correct's blur */
     const layout_ws *ws;
 } layout_run_data;
 
@@ -294,8 +295,8 @@ static void layout_guide_cells(void *arg, size_t b, size_t e)
     for (i = b; i < e; i++) {
         double g, level;
         layout_pick(s, d->gl, d->levels, i, &g, &level);
-        if ((d->kind & TS_VALLEY) && d->near_v[i] >= 0)
-            level = d->corr[d->near_v[i]];
+        if (d->vlev && d->near_v[i] >= 0)
+            level = d->vlev[d->near_v[i]];
         if (d->crest)
             level += d->crest[i];
         d->guide[i] = (s->nodata && s->nodata[i]) || !isfinite(d->dist[i])
@@ -329,136 +330,92 @@ static void layout_crest_cells(void *arg, size_t b, size_t e)
     }
 }
 
-/* Both corrections on r (the output's size), the guides' steepness times
- * lam: the layout everywhere, then the crest near the features. */
-static ts_status layout_run(ts_ctx *ctx, const layout_run_data *d, ts_raster *r, double lam,
-                            double lam_c)
+/* The valley floors at the output's own level, smoothed along them over a
+ * patch, made to descend to their outlets, smoothed again over half a patch
+ * (filling and carving leave steps): d->vlev, the level the layout gives
+ * the land beside them. */
+static ts_status layout_valley_levels(ts_ctx *ctx, const layout_run_data *d, const ts_raster *r)
 {
     const ts_layout_spec *s = d->s;
     int W = s->width, H = s->height;
     size_t n = (size_t)W * (size_t)H, i;
+    ts_status st;
+    layout_on_features(d, r, TS_VALLEY, d->work);
+    if ((st = lblur(ctx, d->ws, d->work, W, W, H, s->patch, d->vlev)) != TS_OK ||
+        (st = ts__valley_descend(ctx, s, d->vlev)) != TS_OK)
+        return st;
+    for (i = 0; i < n; i++)
+        d->work[i] = (s->sketch_mask[i] & TS_VALLEY) ? d->vlev[i] : NAN;
+    return lblur(ctx, d->ws, d->work, W, W, H, 0.5 * s->patch, d->vlev);
+}
+
+/* The layout correction on r, its guide's steepness times lam. */
+static ts_status layout_pass(ts_ctx *ctx, const layout_run_data *d, ts_raster *r, double lam)
+{
     layout_guide_job j;
     ts_status st;
-    if (d->kind & TS_VALLEY) {
-        /* valley floors at the output's own level, smoothed along them over
-         * a patch, made to descend to their outlets, smoothed again over
-         * half a patch (filling and carving leave steps) */
-        layout_on_features(d, r, TS_VALLEY, d->work);
-        if ((st = lblur(ctx, d->ws, d->work, W, W, H, s->patch, d->corr)) != TS_OK ||
-            (st = ts__valley_descend(ctx, s, d->corr)) != TS_OK)
-            return st;
-        for (i = 0; i < n; i++)
-            d->work[i] = (s->sketch_mask[i] & TS_VALLEY) ? d->corr[i] : NAN;
-        if ((st = lblur(ctx, d->ws, d->work, W, W, H, 0.5 * s->patch, d->corr)) != TS_OK)
-            return st;
-    }
     j.d = d;
     j.lam = lam;
-    ts__parallel_for(ctx, n, layout_guide_cells, &j);
+    ts__parallel_for(ctx, (size_t)d->s->width * (size_t)d->s->height, layout_guide_cells, &j);
     if ((st = layout_correct(ctx, d->ws, r, d->guide, d->sig_l, d->strength, d->fixd, d->dist, 0.0,
-                             NULL, d->work, d->corr)) != TS_OK)
+                             NULL, d->work, d->blurred)) != TS_OK)
         return st;
     if (d->crest_hp) /* what the layout's blur leaves out of the peaks and saddles */
         layout_add(r, d->crest_hp, d->strength, d->fixd, d->sig_l);
-    /* the crest: the output along the features of each kind, smoothed along
-     * them over a quarter patch, standing out across them */
+    return TS_OK;
+}
+
+/* The crest's levels: r along the features of each kind, smoothed along
+ * them over a quarter patch (d->corr; d->corr2 the valleys' with both). */
+static ts_status layout_crest_levels(ts_ctx *ctx, const layout_run_data *d, const ts_raster *r)
+{
+    int W = d->s->width, H = d->s->height;
+    ts_status st;
     layout_on_features(d, r, d->kind == (TS_RIDGE | TS_VALLEY) ? TS_RIDGE : d->kind, d->work);
     if ((st = lblur(ctx, d->ws, d->work, W, W, H, 2.0 * d->sig_c, d->corr)) != TS_OK)
         return st;
-    if (d->kind == (TS_RIDGE | TS_VALLEY)) {
-        layout_on_features(d, r, TS_VALLEY, d->work);
-        if ((st = lblur(ctx, d->ws, d->work, W, W, H, 2.0 * d->sig_c, d->corr2)) != TS_OK)
-            return st;
-    }
-    j.lam = lam_c;
-    ts__parallel_for(ctx, n, layout_crest_cells, &j);
+    if (d->kind != (TS_RIDGE | TS_VALLEY))
+        return TS_OK;
+    layout_on_features(d, r, TS_VALLEY, d->work);
+    return lblur(ctx, d->ws, d->work, W, W, H, 2.0 * d->sig_c, d->corr2);
+}
+
+/* The crest correction on r from the levels of layout_crest_levels, its
+ * guide's steepness times lam: the crest stands out across the features. */
+static ts_status layout_crest_pass(ts_ctx *ctx, const layout_run_data *d, ts_raster *r, double lam)
+{
+    layout_guide_job j;
+    j.d = d;
+    j.lam = lam;
+    ts__parallel_for(ctx, (size_t)d->s->width * (size_t)d->s->height, layout_crest_cells, &j);
     return layout_correct(ctx, d->ws, r, d->guide, d->sig_c, d->strength, d->fixd, d->dist,
-                          0.5 * s->patch, d->b ? d->b->gate : NULL, d->work, d->corr);
+                          0.5 * d->s->patch, d->b ? d->b->gate : NULL, d->work, d->blurred);
 }
 
-#define LAYOUT_QUANTILES 199
-#define LAYOUT_SAMPLES 65536
-
-/* The lattice step that samples a w x h grid with at most about
- * LAYOUT_SAMPLES cells, and how many cells it samples at most. */
-static int layout_step(int w, int h)
+/* Both corrections, the layout everywhere, then the crest near the
+ * features, on three copies of the output: out at both guides' steepness
+ * 1, r0 at 0, r01 at the layout's 0 and the crest's 1.  The valleys' levels
+ * come from the output as it is (the same for all three); r0 and r01 share
+ * the layout pass and the crest's levels. */
+static ts_status layout_runs(ts_ctx *ctx, const layout_run_data *d, ts_raster *out, ts_raster *r0,
+                             ts_raster *r01)
 {
-    double cells = (double)w * (double)h;
-    return cells > LAYOUT_SAMPLES ? (int)ceil(sqrt(cells / LAYOUT_SAMPLES)) : 1;
-}
-
-static size_t layout_samples(int w, int h)
-{
-    int st = layout_step(w, h);
-    return ((size_t)w / (size_t)st + 1) * ((size_t)h / (size_t)st + 1);
-}
-
-/* Quantiles 0.5 %, 1 %, ..., 99.5 % of the gradient magnitude (central
- * differences, cells with four valid neighbours) of a + lam * b (b may be
- * NULL), over at most about LAYOUT_SAMPLES cells on a regular lattice;
- * returns 0 when no cell has a gradient.  work: w * h floats. */
-static int layout_gradient_quantiles(const float *a, const float *b, ptrdiff_t stride, int w, int h,
-                                     double lam, float *work, double *q)
-{
-    size_t n = 0, k;
-    int step = layout_step(w, h), x, y;
-    for (y = 1; y + 1 < h; y += step)
-        for (x = 1; x + 1 < w; x += step) {
-            size_t i = (size_t)y * (size_t)stride + (size_t)x;
-            double gx = 0.5 * ((double)a[i + 1] - a[i - 1]);
-            double gy = 0.5 * ((double)a[i + (size_t)stride] - a[i - (size_t)stride]);
-            double g;
-            if (b) {
-                gx += lam * 0.5 * ((double)b[i + 1] - b[i - 1]);
-                gy += lam * 0.5 * ((double)b[i + (size_t)stride] - b[i - (size_t)stride]);
-            }
-            g = sqrt(gx * gx + gy * gy);
-            if (!isnan(g))
-                work[n++] = (float)g;
-        }
-    if (!n)
-        return 0;
-    ts__sort_floats(work, n);
-    for (k = 0; k < LAYOUT_QUANTILES; k++) {
-        double pos = (0.5 + 0.5 * (double)k) / 100.0 * (double)(n - 1);
-        size_t i0 = (size_t)pos;
-        double f = pos - (double)i0;
-        q[k] = i0 + 1 < n ? (1.0 - f) * work[i0] + f * work[i0 + 1] : work[n - 1];
-    }
-    return 1;
-}
-
-/* The p-th percentile (0..100) of the valid cells of r, over at most about
- * LAYOUT_SAMPLES cells on a regular lattice (NAN when none is valid). */
-static double layout_percentile(const ts_raster *r, double p, float *work)
-{
-    double pos;
-    int step = layout_step(r->width, r->height), x, y;
-    size_t n = 0, i0;
-    for (y = 0; y < r->height; y += step)
-        for (x = 0; x < r->width; x += step)
-            if (!isnan(TS_PIX(r, x, y)))
-                work[n++] = TS_PIX(r, x, y);
-    if (!n)
-        return NAN;
-    ts__sort_floats(work, n);
-    pos = p / 100.0 * (double)(n - 1);
-    i0 = (size_t)pos;
-    return i0 + 1 < n ? work[i0] + (pos - (double)i0) * (work[i0 + 1] - work[i0]) : work[n - 1];
-}
-
-/* Mean distance between the output's gradient quantiles at lam and the
- * exemplars' (the Wasserstein-1 distance of the two distributions). */
-static double layout_misfit(const float *r0, const float *diff, int W, int H, double lam,
-                            const double *target, float *work)
-{
-    double q[LAYOUT_QUANTILES], sum = 0.0;
-    int k;
-    if (!layout_gradient_quantiles(r0, diff, W, W, H, lam, work, q))
-        return 0.0;
-    for (k = 0; k < LAYOUT_QUANTILES; k++)
-        sum += fabs(q[k] - target[k]);
-    return sum / LAYOUT_QUANTILES;
+    int y;
+    ts_status st;
+    if (d->vlev && (st = layout_valley_levels(ctx, d, out)) != TS_OK)
+        return st;
+    if ((st = layout_pass(ctx, d, out, 1.0)) != TS_OK ||
+        (st = layout_crest_levels(ctx, d, out)) != TS_OK ||
+        (st = layout_crest_pass(ctx, d, out, 1.0)) != TS_OK ||
+        (st = layout_pass(ctx, d, r0, 0.0)) != TS_OK ||
+        (st = layout_crest_levels(ctx, d, r0)) != TS_OK)
+        return st;
+    for (y = 0; y < r0->height; y++)
+        memcpy(r01->data + (size_t)y * (size_t)r01->stride,
+               r0->data + (size_t)y * (size_t)r0->stride, (size_t)r0->width * sizeof(float));
+    if ((st = layout_crest_pass(ctx, d, r0, 0.0)) != TS_OK)
+        return st;
+    return layout_crest_pass(ctx, d, r01, 1.0);
 }
 
 /* The land's large-scale heights (out blurred at sigma) stay within the
@@ -470,18 +427,11 @@ static ts_status layout_press(ts_ctx *ctx, const layout_ws *ws, const ts_raster 
                               int n_exemplars, ts_raster *out, const float *fixd, double sigma,
                               float *work, float *blurred)
 {
-    int W = out->width, H = out->height, e, x, y;
-    double lo = INFINITY, hi = -INFINITY, margin;
+    int W = out->width, H = out->height, x, y;
+    double lo, hi, margin;
     ts_status st = TS_OK;
-    for (e = 0; e < n_exemplars; e++) {
-        const ts_raster *ex = &exemplars[e];
-        float *wk = ts__malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
-        if (!wk)
-            return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-        lo = fmin(lo, layout_percentile(ex, 1.0, wk));
-        hi = fmax(hi, layout_percentile(ex, 99.0, wk));
-        free(wk);
-    }
+    if ((st = ts__exemplar_height_range(ctx, exemplars, n_exemplars, &lo, &hi)) != TS_OK)
+        return st;
     margin = 0.1 * (hi - lo);
     for (y = 0; y < H; y++)
         memcpy(work + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
@@ -537,8 +487,6 @@ done:
     return st;
 }
 
-/* The distances the shape of both kinds needs (layout_run_data): none
- * with one kind (valleys: near_v is `nearest`).  m: work, width*height. */
 /* The distances of both kinds (layout_both); nothing with one kind.
  * nearest: to any feature; m: work, width*height. */
 static ts_status layout_kind_distances(ts_ctx *ctx, const ts_layout_spec *s, int kind, double P,
@@ -560,8 +508,8 @@ static ts_status layout_kind_distances(ts_ctx *ctx, const ts_layout_spec *s, int
         return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
     for (i = 0; i < n; i++)
         m[i] = (s->sketch_mask[i] & TS_RIDGE) != 0;
-    if ((st = ts__distance_transform_nearest(ctx, m, s->width, s->height, b->dist_r,
-                                             b->near_r)) != TS_OK)
+    if ((st = ts__distance_transform_nearest(ctx, m, s->width, s->height, b->dist_r, b->near_r)) !=
+        TS_OK)
         return st;
     for (i = 0; i < n; i++)
         m[i] = (s->sketch_mask[i] & TS_VALLEY) != 0;
@@ -650,17 +598,15 @@ static ts_status layout_calibrate(ts_ctx *ctx, const layout_run_data *d, const f
     return TS_OK;
 }
 
-/* r0 and r01: copies of out; returns the mean height of its cells away
- * from fixed ones. */
-static double layout_copies(const layout_run_data *d, const ts_raster *out, float *r0, float *r01)
+/* r0: a copy of out; returns the mean height of its cells away from fixed
+ * ones. */
+static double layout_copies(const layout_run_data *d, const ts_raster *out, float *r0)
 {
     int W = d->s->width, H = d->s->height, y;
     size_t n = (size_t)W * (size_t)H, i, cnt = 0;
     double mean_before = 0.0;
     for (y = 0; y < H; y++) {
         memcpy(r0 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
-               (size_t)W * sizeof(float));
-        memcpy(r01 + (size_t)y * (size_t)W, out->data + (size_t)y * (size_t)out->stride,
                (size_t)W * sizeof(float));
     }
     for (i = 0; i < n; i++)
@@ -669,70 +615,6 @@ static double layout_copies(const layout_run_data *d, const ts_raster *out, floa
             cnt++;
         }
     return cnt ? mean_before / (double)cnt : 0.0;
-}
-
-/* The steepness that gives the output the exemplars' distribution of
- * slopes (the patches' merging flattens a little; a steep exemplar's
- * guide adds to its own slopes): the least Wasserstein distance of the
- * gradient distributions, golden-section search over 0.35..2.5 times
- * the calibrated steepness.  Above 1 the layout and the crest steepen
- * together (r0 + lam corr); below 1 only the layout gentles (r01 + lam
- * d01): the sketched features keep standing out over an exemplar whose
- * land is mostly flat.  With the slope style after it (slope_style.c,
- * which matches the distribution itself and never gentles near the
- * strokes) the search starts at 1: the layout is never gentler than the
- * exemplar at its scale.  *lam is left as it is without a distribution. */
-static ts_status layout_steepness(ts_ctx *ctx, const ts_layout_spec *s, const float *r0,
-                                  const float *corr, const float *r01, const float *d01,
-                                  float *work, double *lam)
-{
-    double target[LAYOUT_QUANTILES], q[LAYOUT_QUANTILES];
-    int W = s->width, H = s->height, e, k, n_t = 0, it;
-    double lo = log(s->steep_lo > 0 ? s->steep_lo : 0.35), hi = log(2.5);
-    double g = 0.5 * (sqrt(5.0) - 1.0), x1, x2, f1, f2;
-    memset(target, 0, sizeof target);
-    for (e = 0; e < s->n_exemplars; e++) {
-        const ts_raster *ex = &s->exemplars[e];
-        float *wk = ts__malloc_array(layout_samples(ex->width, ex->height), sizeof(float));
-        if (!wk)
-            return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
-        if (layout_gradient_quantiles(ex->data, NULL, ex->stride, ex->width, ex->height, 0.0, wk,
-                                      q)) {
-            for (k = 0; k < LAYOUT_QUANTILES; k++)
-                target[k] += q[k];
-            n_t++;
-        }
-        free(wk);
-    }
-#define LAYOUT_MISFIT(lm)                                                                          \
-    ((lm) >= 1.0 ? layout_misfit(r0, corr, W, H, (lm), target, work)                               \
-                 : layout_misfit(r01, d01, W, H, (lm), target, work))
-    if (n_t) {
-        for (k = 0; k < LAYOUT_QUANTILES; k++)
-            target[k] /= n_t;
-        x1 = hi - g * (hi - lo);
-        x2 = lo + g * (hi - lo);
-        f1 = LAYOUT_MISFIT(exp(x1));
-        f2 = LAYOUT_MISFIT(exp(x2));
-        for (it = 0; it < 16; it++) {
-            if (f1 <= f2) {
-                hi = x2;
-                x2 = x1;
-                f2 = f1;
-                x1 = hi - g * (hi - lo);
-                f1 = LAYOUT_MISFIT(exp(x1));
-            } else {
-                lo = x1;
-                x1 = x2;
-                f1 = f2;
-                x2 = lo + g * (hi - lo);
-                f2 = LAYOUT_MISFIT(exp(x2));
-            }
-        }
-        *lam = exp(0.5 * (lo + hi));
-    }
-#undef LAYOUT_MISFIT
-    return TS_OK;
 }
 
 /* The layout moves heights about, not the land's mean height: the mean
@@ -932,24 +814,27 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
     }
     if ((st = layout_calibrate(ctx, &d, shape, gl, gc, &found)) != TS_OK || !found)
         goto done;
+    if ((d.kind & TS_VALLEY) && !(d.vlev = ts__malloc_array(n, sizeof(float)))) {
+        st = ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+        goto done;
+    }
     if ((d.kind & TS_RIDGE) && (st = layout_crest_setup(ctx, &d)) != TS_OK)
         goto done;
     /* the corrections are linear in the guides' steepness: the layout's
      * and the crest's together (out: both at 1, r0: both at 0), or the
      * layout's alone under the crest's at 1 (r01: layout at 0) */
-    mean_before = layout_copies(&d, out, r0, r01);
+    mean_before = layout_copies(&d, out, r0);
     r0r = ts_raster_wrap(r0, W, H, W);
     r01r = ts_raster_wrap(r01, W, H, W);
-    if ((st = layout_run(ctx, &d, out, 1.0, 1.0)) != TS_OK ||
-        (st = layout_run(ctx, &d, &r0r, 0.0, 0.0)) != TS_OK ||
-        (st = layout_run(ctx, &d, &r01r, 0.0, 1.0)) != TS_OK)
+    d.blurred = d01;
+    if ((st = layout_runs(ctx, &d, out, &r0r, &r01r)) != TS_OK)
         goto done;
     for (i = 0; i < n; i++) { /* the parts the steepness scales */
         float o = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
         corr[i] = o - r0[i];
         d01[i] = o - r01[i];
     }
-    if ((st = layout_steepness(ctx, s, r0, corr, r01, d01, work, &lam)) != TS_OK)
+    if ((st = ts__layout_steepness(ctx, s, r0, corr, r01, d01, work, &lam)) != TS_OK)
         goto done;
     for (y = 0; y < H; y++)
         for (x = 0; x < W; x++) {
@@ -974,6 +859,7 @@ done:
     free(d.crest_hp);
     free(d.crest_s);
     free(d.corr2);
+    free(d.vlev);
     free(guide);
     free(work);
     free(corr);

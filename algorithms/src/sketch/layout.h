@@ -60,6 +60,20 @@ typedef struct ts_layout_spec {
  * and carving (layout.c).  Exposed for the tests. */
 ts_status ts__valley_descend(ts_ctx *ctx, const ts_layout_spec *spec, float *level);
 
+/* The steepness factor (0.35 or spec->steep_lo .. 2.5) that gives the
+ * output the exemplars' distribution of slopes: r0 + lam corr above 1, r01
+ * + lam d01 below (all spec's size); *lam is left as it is when no
+ * distribution is found.  work: width * height floats.
+ * (layout_steepness.c) */
+ts_status ts__layout_steepness(ts_ctx *ctx, const ts_layout_spec *spec, const float *r0,
+                               const float *corr, const float *r01, const float *d01, float *work,
+                               double *lam);
+
+/* The exemplars' 1st and 99th percentiles of height, over all of them
+ * (lo > hi when none has a valid cell).  (layout_steepness.c) */
+ts_status ts__exemplar_height_range(ts_ctx *ctx, const ts_raster *exemplars, int n_exemplars,
+                                    double *lo, double *hi);
+
 /* The layout and crest corrections of layout.c, applied to out (the
  * sketch's size) with `strength` (0..1); flags (may be NULL): TS_CELL_FIXED
  * cells never change and the corrections fade out near them. */
