@@ -222,6 +222,164 @@ ts_status ts__blur_nan(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, in
     return TS_OK;
 }
 
+/* ---- the same blur through a coarser grid, for wide blurs ----------- */
+
+/* What the coarse blur's passes read: the fine input, the coarse sums. */
+typedef struct coarse_job {
+    const float *in;
+    ptrdiff_t stride;
+    float *out;
+    int w, h, f, cw, ch;
+    double *v, *m; /* cw * ch: sums of the valid values and their counts, blurred in place */
+    int *x0;       /* w: the coarse column left of each fine column's centre (clamped) */
+    double *tx;    /* w: the weight of the column right of it */
+    atomic_int failed;
+} coarse_job;
+
+/* Coarse rows [b, e): each coarse cell the sum and the count of the valid
+ * cells of its f x f block (clipped at the grid's edge). */
+static void coarse_load(void *arg, size_t b, size_t e)
+{
+    coarse_job *j = arg;
+    size_t cy, cx;
+    for (cy = b; cy < e; cy++)
+        for (cx = 0; cx < (size_t)j->cw; cx++) {
+            double sum = 0.0, cnt = 0.0;
+            int y, x, y1 = TS_MIN((int)(cy + 1) * j->f, j->h),
+                      x1 = TS_MIN((int)(cx + 1) * j->f, j->w);
+            for (y = (int)cy * j->f; y < y1; y++) {
+                const float *row = j->in + (ptrdiff_t)y * j->stride;
+                for (x = (int)cx * j->f; x < x1; x++)
+                    if (!isnan(row[x])) {
+                        sum += row[x];
+                        cnt += 1.0;
+                    }
+            }
+            j->v[cy * (size_t)j->cw + cx] = sum;
+            j->m[cy * (size_t)j->cw + cx] = cnt;
+        }
+}
+
+/* Where the centre of fine cell i lies between coarse cells of f cells
+ * (n of them): the one before it, clamped, and the weight of the next. */
+static void coarse_at(int i, int f, int n, int *i0, double *t)
+{
+    double p = ((double)i + 0.5) / f - 0.5;
+    int k = (int)floor(p);
+    *t = p - k;
+    if (k < 0) {
+        k = 0;
+        *t = 0.0;
+    } else if (k >= n - 1) {
+        k = n - 1;
+        *t = 0.0;
+    }
+    *i0 = k;
+}
+
+/* Fine rows [b, e): the blurred sums and counts taken bilinearly at the
+ * cell's centre on the coarse grid (along the column first, into a coarse
+ * row, then along the row), their ratio (NaN where no valid cell was in
+ * reach). */
+static void coarse_store(void *arg, size_t b, size_t e)
+{
+    coarse_job *j = arg;
+    size_t y, x, cw = (size_t)j->cw, k;
+    double *rv = ts__malloc_array(2 * cw, sizeof(double)), *rm = rv + cw;
+    if (!rv) {
+        atomic_store(&j->failed, 1);
+        return;
+    }
+    for (y = b; y < e; y++) {
+        int y0;
+        double ty;
+        const double *v0, *v1, *m0, *m1;
+        float *o = j->out + y * (size_t)j->w;
+        coarse_at((int)y, j->f, j->ch, &y0, &ty);
+        v0 = j->v + (size_t)y0 * cw;
+        m0 = j->m + (size_t)y0 * cw;
+        v1 = ty > 0.0 ? v0 + cw : v0;
+        m1 = ty > 0.0 ? m0 + cw : m0;
+        for (k = 0; k < cw; k++) {
+            rv[k] = (1.0 - ty) * v0[k] + ty * v1[k];
+            rm[k] = (1.0 - ty) * m0[k] + ty * m1[k];
+        }
+        for (x = 0; x < (size_t)j->w; x++) {
+            size_t c = (size_t)j->x0[x], c1 = j->tx[x] > 0.0 ? c + 1 : c;
+            double t = j->tx[x];
+            double v = (1.0 - t) * rv[c] + t * rv[c1], m = (1.0 - t) * rm[c] + t * rm[c1];
+            o[x] = m > 1e-9 ? (float)(v / m) : NAN;
+        }
+    }
+    free(rv);
+}
+
+int ts__blur_coarse_factor(double sigma, int w, int h)
+{
+    int f = 1;
+    while (2 * f <= sigma / 8.0 && w / (2 * f) >= 8 && h / (2 * f) >= 8)
+        f *= 2;
+    return f;
+}
+
+ts_status ts__blur_nan_coarse(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h,
+                              double sigma, float *out)
+{
+    int f = ts__blur_coarse_factor(sigma, w, h), x;
+    coarse_job c;
+    blur_job j;
+    size_t n;
+    double s2;
+    if (f < 2)
+        return ts__blur_nan(ctx, in, stride, w, h, sigma, out);
+    c.in = in;
+    c.stride = stride;
+    c.out = out;
+    c.w = w;
+    c.h = h;
+    c.f = f;
+    c.cw = (w + f - 1) / f;
+    c.ch = (h + f - 1) / f;
+    n = (size_t)c.cw * (size_t)c.ch;
+    c.v = ts__malloc_array(n, sizeof(double));
+    c.m = ts__malloc_array(n, sizeof(double));
+    c.x0 = ts__malloc_array((size_t)w, sizeof(int));
+    c.tx = ts__malloc_array((size_t)w, sizeof(double));
+    atomic_init(&c.failed, 0);
+    if (!c.v || !c.m || !c.x0 || !c.tx) {
+        free(c.v);
+        free(c.m);
+        free(c.x0);
+        free(c.tx);
+        return ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory");
+    }
+    for (x = 0; x < w; x++)
+        coarse_at(x, f, c.cw, &c.x0[x], &c.tx[x]);
+    ts__parallel_for(ctx, (size_t)c.ch, coarse_load, &c);
+    /* the block's mean (variance f^2 / 12) and the bilinear taking back
+     * (f^2 / 6) widen the blur: the coarse blur makes up the rest */
+    s2 = sigma * sigma - 0.25 * (double)f * (double)f;
+    memset(&j, 0, sizeof j);
+    j.w = c.cw;
+    j.h = c.ch;
+    j.r = ts__blur_radius(sqrt(s2) / f);
+    j.v = c.v;
+    j.m = c.m;
+    j.n_arr = 2;
+    atomic_init(&j.failed, 0);
+    atomic_init(&j.has_nan, 0);
+    if (j.r > 0) {
+        ts__parallel_for(ctx, (size_t)c.ch, blur_rows, &j);
+        if (!atomic_load(&j.failed))
+            ts__parallel_for(ctx, (size_t)c.cw, blur_cols, &j);
+    }
+    if (!atomic_load(&j.failed))
+        ts__parallel_for(ctx, (size_t)h, coarse_store, &c);
+    free(c.v);
+    free(c.m);
+    return atomic_load(&j.failed) ? ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory") : TS_OK;
+}
+
 /* Mean gradient (per cell) of every exemplar blurred at sigma (0 where
  * unknown), measured on the exemplar averaged over f x f cells first, f the
  * largest power of two up to sigma / 3 (a blur that wide hardly sees the

@@ -190,8 +190,8 @@ static double crest_node_value(const ts__crest_library *lib, uint64_t h1, uint64
 
 /* The profile of a path m cells of arc long into prof[0..m): pieces from
  * seeded places chained with cross-fades over B cells. */
-static void crest_chain(const ts__crest_library *lib, uint64_t seed, size_t path, size_t m,
-                        int B, double *prof)
+static void crest_chain(const ts__crest_library *lib, uint64_t seed, size_t path, size_t m, int B,
+                        double *prof)
 {
     size_t pos = 0, j = 0;
     memset(prof, 0, m * sizeof *prof);
@@ -305,8 +305,8 @@ ts_status ts__crest_field(ts_ctx *ctx, const ts_features *sf, const ts__crest_li
         st = ts__fail(ctx, TS_ERR_NOMEM, "crest profile", "out of memory");
         goto done;
     }
-    st = ts__crest_offsets(ctx, sf, libs, n_libs, cell_exemplar, patch, ts_ctx_seed(ctx), off,
-                           &any);
+    st =
+        ts__crest_offsets(ctx, sf, libs, n_libs, cell_exemplar, patch, ts_ctx_seed(ctx), off, &any);
     if (st != TS_OK || !any)
         goto done;
     for (i = 0; i < n; i++)
@@ -331,8 +331,10 @@ ts_status ts__crest_field(ts_ctx *ctx, const ts_features *sf, const ts__crest_li
         TS_OK)
         goto done;
     memcpy(dist, off, n * sizeof(float));
-    /* off is free from here: the blur of the field, then the rest */
-    if ((st = ts__blur_nan(ctx, dist, sf->width, sf->width, sf->height, sigma, off)) != TS_OK)
+    /* off is free from here: the blur of the field (as the layout blurs),
+     * then the rest */
+    if ((st = ts__blur_nan_coarse(ctx, dist, sf->width, sf->width, sf->height, sigma, off)) !=
+        TS_OK)
         goto done;
     for (i = 0; i < n; i++)
         off[i] = dist[i] - off[i];

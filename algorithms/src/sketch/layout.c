@@ -41,7 +41,8 @@
  * both corrections the floor is made to descend cell by cell.  The
  * output keeps every detail of the patches below each scale.  Both fade to
  * nothing at fixed cells (pinned windows, water), which never change.
- * Cost: O(cells) per blur, whatever sigma.
+ * Cost: O(cells) per blur, whatever sigma; blurs wider than 16 cells run on
+ * a grid 2 to 8 times coarser (ts__blur_nan_coarse).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -60,6 +61,8 @@ typedef struct layout_ws {
 static ts_status lblur(ts_ctx *ctx, const layout_ws *ws, const float *in, ptrdiff_t stride, int w,
                        int h, double sigma, float *out)
 {
+    if (ts__blur_coarse_factor(sigma, w, h) > 1)
+        return ts__blur_nan_coarse(ctx, in, stride, w, h, sigma, out);
     if (!ws || (size_t)w * (size_t)h > ws->cap)
         return ts__blur_nan(ctx, in, stride, w, h, sigma, out);
     return ts__blur_nan_buffers(ctx, in, stride, w, h, sigma, out, ws->v, ws->m);
@@ -648,10 +651,10 @@ static void layout_keep_mean(const layout_run_data *d, ts_raster *out, const flo
 
 /* valleys: the floor along the sketch's features descends to the outlet
  * cell by cell, the change fading out across the valley over an eighth of
- * a patch (as a river would cut or fill its bed).  m, dist, nearest: the
- * distances' work; d01: work, width*height. */
+ * a patch (as a river would cut or fill its bed).  dist, nearest: to the
+ * valleys (with both kinds d->b has them); d01: work, width*height. */
 static ts_status layout_valley_floors(ts_ctx *ctx, const layout_run_data *d, ts_raster *out,
-                                      unsigned char *m, float *dist, int32_t *nearest, float *d01)
+                                      const float *dist, const int32_t *nearest, float *d01)
 {
     const ts_layout_spec *s = d->s;
     int W = s->width, H = s->height, x, y;
@@ -660,13 +663,6 @@ static ts_status layout_valley_floors(ts_ctx *ctx, const layout_run_data *d, ts_
     float *work = d->work, *corr = d->corr, *guide = d->guide;
     const float *fixd = d->fixd;
     ts_status st;
-    if (d->kind != TS_VALLEY) {
-        /* from here on the distances are to the valleys (all of them) */
-        for (i = 0; i < n; i++)
-            m[i] = (s->sketch_mask[i] & TS_VALLEY) != 0;
-        if ((st = ts__distance_transform_nearest(ctx, m, W, H, dist, nearest)) != TS_OK)
-            return st;
-    }
     for (i = 0; i < n; i++) {
         float v = out->data[(i / (size_t)W) * (size_t)out->stride + i % (size_t)W];
         work[i] = (s->sketch_mask[i] & TS_VALLEY) && !(fixd && fixd[i] < 1.0f) ? v : NAN;
@@ -848,7 +844,8 @@ ts_status ts__layout_apply(ts_ctx *ctx, const ts_layout_spec *s, ts_raster *out,
                            corr)) != TS_OK)
         goto done;
     if (d.kind & TS_VALLEY)
-        st = layout_valley_floors(ctx, &d, out, m, dist, nearest, d01);
+        st = layout_valley_floors(ctx, &d, out, d.b ? both.dist_vf : dist,
+                                  d.b ? both.near_vf : nearest, d01);
 done:
     free(m);
     free(dist);

@@ -26,6 +26,16 @@ ts_status ts__blur_nan(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, in
 /* The same with the caller's work buffers v and m (w * h doubles each). */
 ts_status ts__blur_nan_buffers(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h,
                                double sigma, float *out, double *v, double *m);
+/* The same blur of a wide sigma through a grid f times coarser (f the
+ * largest power of two up to sigma / 8 leaving at least 8 x 8 coarse cells;
+ * ts__blur_coarse_factor): the valid cells' sums and counts over f x f
+ * blocks, both blurred there (the variance the blocks and the bilinear
+ * taking back add taken off), taken back bilinearly, divided.  Within a
+ * fraction of a percent of the full blur's relief, for f^2 times fewer
+ * cells blurred; ts__blur_nan itself where f is 1. */
+int ts__blur_coarse_factor(double sigma, int w, int h);
+ts_status ts__blur_nan_coarse(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, int h,
+                              double sigma, float *out);
 /* Mean gradient magnitude (central differences, per cell) over the cells
  * whose four neighbours are valid; 0 when there is none. */
 double ts__mean_gradient(const float *a, int w, int h);

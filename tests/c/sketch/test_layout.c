@@ -1,9 +1,7 @@
 /*
  * test_layout.c - the layout stage of sketch-guided synthesis
  * (algorithms/src/sketch/layout.c) and what it stands on: the nearest feature cell
- * of the distance transform against brute force, the three-box blur
- * against a direct NaN-aware convolution with the same kernel (and its
- * spread against the Gaussian it stands for), valley floors made to
+ * of the distance transform against brute force, valley floors made to
  * descend on a branching network, a valley's way out along the lowest way
  * (brute force), and the corrections themselves: a flat
  * land takes the sketch's ridge, fixed cells never change, strength 0
@@ -59,82 +57,6 @@ static void test_nearest_brute_force(void)
         free(m);
         free(d);
         free(nr);
-    }
-    ts_ctx_free(ctx);
-}
-
-/* ---- blur == direct convolution with the three-box kernel ---- */
-
-/* The 1-D kernel of three boxes of radius r (length 6r + 1). */
-static void three_box_kernel(int r, double *k)
-{
-    int n = 2 * r + 1, i, j, len = 6 * r + 1;
-    double a[1024], b[1024];
-    for (i = 0; i < len; i++)
-        a[i] = b[i] = 0.0;
-    for (i = 0; i < n; i++)
-        a[i] = 1.0;
-    for (i = 0; i < len; i++) /* box * box */
-        for (j = 0; j < n && j <= i; j++)
-            b[i] += a[i - j];
-    for (i = 0; i < len; i++) {
-        k[i] = 0.0;
-        for (j = 0; j < n && j <= i; j++)
-            k[i] += b[i - j];
-    }
-}
-
-static void test_blur_direct(void)
-{
-    ts_ctx *ctx = ts_ctx_new();
-    uint64_t s = 3;
-    int rep;
-    for (rep = 0; rep < 12; rep++) {
-        int w = 40 + (int)(th_uniform(&s) * 40), h = 40 + (int)(th_uniform(&s) * 30), x, y, u, v;
-        double sigma = 1.0 + th_uniform(&s) * 5.0, k[1024], var = 0.0, sum = 0.0;
-        int r = ts__blur_radius(sigma), half = 3 * r;
-        float *in = malloc((size_t)w * h * sizeof(float)),
-              *out = malloc((size_t)w * h * sizeof(float));
-        for (x = 0; x < w * h; x++)
-            in[x] = th_uniform(&s) < (rep % 3 == 2 ? 0.0 : 0.15) /* no NaN: the weights' shortcut */
-                        ? NAN
-                        : (float)(100.0 * th_uniform(&s));
-        ts_ctx_set_threads(ctx, 1 + rep % 2);
-        CHECK(ts__blur_nan(ctx, in, w, w, h, sigma, out) == TS_OK);
-        three_box_kernel(r, k);
-        for (x = -half; x <= half; x++) {
-            sum += k[x + half];
-            var += k[x + half] * x * x;
-        }
-        /* three boxes stand for a Gaussian of sigma (rounded to whole boxes) */
-        CHECK_NEAR(sqrt(var / sum), sigma, 0.6);
-        for (y = 0; y < h; y++)
-            for (x = 0; x < w; x++) {
-                double num = 0.0, den = 0.0, want;
-                for (v = -half; v <= half; v++)
-                    for (u = -half; u <= half; u++) {
-                        int xx = x + u, yy = y + v;
-                        double wt;
-                        if (xx < 0 || yy < 0 || xx >= w || yy >= h || isnan(in[yy * w + xx]))
-                            continue;
-                        wt = k[u + half] * k[v + half];
-                        num += wt * in[yy * w + xx];
-                        den += wt;
-                    }
-                want = den > 0 ? num / den : NAN;
-                if (x < half || y < half || x >= w - half || y >= h - half) {
-                    /* near the edges the passes are clipped one by one: a
-                     * weighted mean of the valid input all the same */
-                    CHECK(!(out[y * w + x] < -1e-3) && !(out[y * w + x] > 100.001));
-                    continue;
-                }
-                if (isnan(want))
-                    CHECK(isnan(out[y * w + x]));
-                else
-                    CHECK_NEAR(out[y * w + x], want, 1e-3);
-            }
-        free(in);
-        free(out);
     }
     ts_ctx_free(ctx);
 }
@@ -954,7 +876,6 @@ int main(int argc, char **argv)
         {"valley_gorge", test_valley_gorge},
         {"valley_thalweg", test_valley_thalweg},
         {"floor_fit", test_floor_fit},
-        {"blur_direct", test_blur_direct},
         {"descend", test_descend},
         {"valley_no_stripes", test_valley_no_stripes},
         {"corrections", test_corrections},
