@@ -377,7 +377,11 @@ ts_status ts__blur_nan_coarse(ts_ctx *ctx, const float *in, ptrdiff_t stride, in
         ts__parallel_for(ctx, (size_t)h, coarse_store, &c);
     free(c.v);
     free(c.m);
-    return atomic_load(&j.failed) ? ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory") : TS_OK;
+    free(c.x0);
+    free(c.tx);
+    return atomic_load(&j.failed) || atomic_load(&c.failed)
+               ? ts__fail(ctx, TS_ERR_NOMEM, "layout", "out of memory")
+               : TS_OK;
 }
 
 /* Mean gradient (per cell) of every exemplar blurred at sigma (0 where
