@@ -613,6 +613,40 @@ static int sk_straightest_path(const ts_feature_site *s, ts_feature_site *ps)
     return 1;
 }
 
+/* What sk_pre_range reads: the site and its window's corner. */
+typedef struct pre_job {
+    sketcher *k;
+    const ts_feature_site *s;
+    int wx, wy;
+} pre_job;
+
+/* Candidates [b, e) of the pool: their profile costs estimated on the
+ * exemplar through each warp (c->pre), INFINITY for a warp that folds
+ * anywhere over the window with its ring or squeezes or stretches areas
+ * more than 2.5 times. */
+static void sk_pre_range(void *arg, size_t b, size_t e)
+{
+    const pre_job *j = arg;
+    const sketcher *k = j->k;
+    const ts_feature_site *s = j->s;
+    size_t i;
+    for (i = b; i < e; i++) {
+        candidate *c = &j->k->pool[i];
+        sk_view v = {&k->ex[k->es[c->idx].ex], &c->inv, j->wx, j->wy};
+        double want = 0.0, cf, cs, cp;
+        if (ts__tps_folds(&c->inv, s->cx - j->wx + 0.5, s->cy - j->wy + 0.5, 0.5 * k->P + 1.0, 13,
+                          2.5)) {
+            c->pre = INFINITY;
+            continue;
+        }
+        cf = sk_profile_cost(k, s, &v, &want);
+        cs = k->sp->alpha_s > 0 ? sk_smoothness(k, s, &v) : 0.0;
+        cp = k->sp->alpha_p > 0 ? sk_prominence(k, s, &v) : 0.0;
+        c->pre = k->sp->alpha_d * c->cd + k->sp->alpha_f * cf + k->sp->alpha_s * cs +
+                 k->sp->alpha_p * cp + want;
+    }
+}
+
 static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index, int *placed);
 
 static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index, int *placed)
@@ -660,19 +694,13 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
      * the k that are warped and cut; a warp that folds anywhere over the
      * window with its ring, or squeezes or stretches areas more than 2.5
      * times, is never used */
-    for (i = 0; i < n_pool; i++) {
-        candidate *c = &k->pool[i];
-        sk_view v = {&k->ex[k->es[c->idx].ex], &c->inv, wx, wy};
-        double want = 0.0, cf, cs, cp;
-        if (ts__tps_folds(&c->inv, s->cx - wx + 0.5, s->cy - wy + 0.5, 0.5 * k->P + 1.0, 13, 2.5)) {
-            c->pre = INFINITY;
-            continue;
-        }
-        cf = sk_profile_cost(k, s, &v, &want);
-        cs = k->sp->alpha_s > 0 ? sk_smoothness(k, s, &v) : 0.0;
-        cp = k->sp->alpha_p > 0 ? sk_prominence(k, s, &v) : 0.0;
-        c->pre = k->sp->alpha_d * c->cd + k->sp->alpha_f * cf + k->sp->alpha_s * cs +
-                 k->sp->alpha_p * cp + want;
+    {
+        pre_job j;
+        j.k = k;
+        j.s = s;
+        j.wx = wx;
+        j.wy = wy;
+        ts__parallel_for(ctx, (size_t)n_pool, sk_pre_range, &j);
     }
     qsort(k->pool, (size_t)n_pool, sizeof *k->pool, sk_pre_cmp);
     while (n_pool > 0 && !isfinite(k->pool[n_pool - 1].pre))
