@@ -3,8 +3,9 @@
  * (algorithms/src/sketch/blur.c): the three-box blur against a direct
  * NaN-aware convolution with the same kernel (and its spread against the
  * Gaussian it stands for), and the wide blur through a coarser grid against
- * a direct NaN-aware Gaussian convolution, on land with edges and on values
- * known only along lines, the same bytes on any thread count.
+ * a direct NaN-aware Gaussian convolution, on land with a cliff, on values
+ * known only along lines and on land known unevenly, mirrored input giving
+ * the mirrored output, the same bytes on any thread count.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
