@@ -97,6 +97,17 @@ static void blur_cols(void *arg, size_t b, size_t e)
     blur_lines(arg, b, e, 1);
 }
 
+/* The three box passes of j along its rows, then its columns (nothing at
+ * radius 0). */
+static void blur_box_passes(ts_ctx *ctx, blur_job *j)
+{
+    if (j->r <= 0)
+        return;
+    ts__parallel_for(ctx, (size_t)j->h, blur_rows, j);
+    if (!atomic_load(&j->failed))
+        ts__parallel_for(ctx, (size_t)j->w, blur_cols, j);
+}
+
 /* The three box passes of radius r over n ones, into a (n doubles; tmp:
  * 2 n more). */
 static void blur_ones(double *a, size_t n, int r, double *tmp)
@@ -180,11 +191,7 @@ static void blur_nan_ws(ts_ctx *ctx, const float *in, ptrdiff_t stride, int w, i
                       (size_t)w * (size_t)h >= (size_t)(w + h) * 3
                   ? 1
                   : 2;
-    if (j.r > 0) {
-        ts__parallel_for(ctx, (size_t)h, blur_rows, &j);
-        if (!atomic_load(&j.failed))
-            ts__parallel_for(ctx, (size_t)w, blur_cols, &j);
-    }
+    blur_box_passes(ctx, &j);
     if (j.n_arr == 1 && j.r > 0) { /* m's first w + h cells: the row's and the column's */
         double *tmp = m + w + h;   /* 2 max(w, h) more */
         j.mx = m;
@@ -368,11 +375,7 @@ ts_status ts__blur_nan_coarse(ts_ctx *ctx, const float *in, ptrdiff_t stride, in
     j.n_arr = 2;
     atomic_init(&j.failed, 0);
     atomic_init(&j.has_nan, 0);
-    if (j.r > 0) {
-        ts__parallel_for(ctx, (size_t)c.ch, blur_rows, &j);
-        if (!atomic_load(&j.failed))
-            ts__parallel_for(ctx, (size_t)c.cw, blur_cols, &j);
-    }
+    blur_box_passes(ctx, &j);
     if (!atomic_load(&j.failed))
         ts__parallel_for(ctx, (size_t)h, coarse_store, &c);
     free(c.v);

@@ -489,15 +489,17 @@ static double sk_arms_distance(const ts_feature_site *s, double x, double y)
     return best;
 }
 
-/* Round (c) for candidates [b, e): the warp, the graph cut and the costs,
- * each in its own slot with a private context, so they run in parallel
- * (the output is only read). */
+/* What the candidates' rounds on the thread pool read (sk_pre_range,
+ * sk_eval_range): the site and its window's corner. */
 typedef struct eval_job {
     sketcher *k;
     const ts_feature_site *s;
     int wx, wy;
 } eval_job;
 
+/* Round (c) for candidates [b, e): the warp, the graph cut and the costs,
+ * each in its own slot with a private context, so they run in parallel
+ * (the output is only read). */
 static void sk_eval_range(void *arg, size_t b, size_t e)
 {
     eval_job *j = arg;
@@ -613,20 +615,13 @@ static int sk_straightest_path(const ts_feature_site *s, ts_feature_site *ps)
     return 1;
 }
 
-/* What sk_pre_range reads: the site and its window's corner. */
-typedef struct pre_job {
-    sketcher *k;
-    const ts_feature_site *s;
-    int wx, wy;
-} pre_job;
-
 /* Candidates [b, e) of the pool: their profile costs estimated on the
  * exemplar through each warp (c->pre), INFINITY for a warp that folds
  * anywhere over the window with its ring or squeezes or stretches areas
  * more than 2.5 times. */
 static void sk_pre_range(void *arg, size_t b, size_t e)
 {
-    const pre_job *j = arg;
+    const eval_job *j = arg;
     const sketcher *k = j->k;
     const ts_feature_site *s = j->s;
     size_t i;
@@ -695,7 +690,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
      * window with its ring, or squeezes or stretches areas more than 2.5
      * times, is never used */
     {
-        pre_job j;
+        eval_job j;
         j.k = k;
         j.s = s;
         j.wx = wx;
