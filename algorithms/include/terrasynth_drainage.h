@@ -49,6 +49,14 @@ typedef struct ts_drainage_params {
                                  spill in or beside it (a pin), deeper than this is raised to
                                  a plain graded to its pour point, at most this above its
                                  spill, and the grid is breached again */
+    int basin_block;    /* breach on the whole grid (a front end's, not a user's parameter; 0: none;
+                           ours): after the breach, the basins it leaves (wider than its reach) are
+                           lifted and the grid breached again, twice: the grid's lowest cells over
+                           blocks of basin_block cells a side are filled by a priority flood graded
+                           basin_grade a block towards the way out, and every cell not fixed is
+                           raised by that fill's depth taken bilinearly from the blocks' centres and
+                           smoothed over a block (the land's shape below a block's scale kept) */
+    double basin_grade; /* with basin_block: the fill's rise a block, in height units */
 } ts_drainage_params;
 
 TS_API ts_drainage_params ts_drainage_params_default(void);
@@ -67,6 +75,7 @@ typedef struct ts_drainage_info {
     size_t pits, resolved, cells_changed;
     double mean_change;
     size_t basins_raised, cells_raised; /* with floodplain_relief: the dammed basins raised */
+    size_t cells_lifted;                /* with basin_block: the cells basins lifted raised */
 } ts_drainage_info;
 
 /** The margin a window needs on each side (clipped at the grid's edge) for

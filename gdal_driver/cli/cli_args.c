@@ -293,10 +293,13 @@ void cli_drainage_report(const ts_drainage_params *p, const ts_drainage_info *d,
     if (p->mode == TS_DRAINAGE_BREACH && p->shallow_depth > 0)
         snprintf(depth + strlen(depth), sizeof depth - strlen(depth),
                  " (%.3g beside drawn valleys)", p->shallow_depth);
+    if (d->cells_lifted)
+        snprintf(depth + strlen(depth), sizeof depth - strlen(depth),
+                 "; basins wider than the radius lifted (%zu cells)", d->cells_lifted);
     if (d->basins_raised)
         snprintf(depth + strlen(depth), sizeof depth - strlen(depth),
-                 "; %zu dammed basins raised to plains (%zu cells)",
-                 d->basins_raised, d->cells_raised);
+                 "; %zu dammed basins raised to plains (%zu cells)", d->basins_raised,
+                 d->cells_raised);
     printf("drainage: %s%s, %zu pits, %zu drained within %d cells; %zu cells changed (%.2f %%), "
            "mean %.2f; %.2f s\n",
            modes[p->mode], depth, d->pits, d->resolved, p->radius, d->cells_changed,

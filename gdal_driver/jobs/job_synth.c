@@ -362,6 +362,14 @@ static void job_drainage_banks(const tsjob_synth *job, tsjob_synth_result *res,
     if (!(res->params.tiled > 0) && res->drainage.mode == TS_DRAINAGE_BREACH &&
         res->drainage.max_depth == -1 && res->drainage.bank_slope > 0)
         res->drainage.floodplain_relief = 0.75 * res->drainage.bank_slope;
+    /* free synthesis in one piece: the basins wider than the breach reaches (the patches'
+     * own large-scale lows) lifted after it, over blocks of a sixteenth of the radius, graded
+     * a twentieth of the banks' slope a block, and breached again */
+    if (!(res->params.tiled > 0) && !job->sketch && res->drainage.mode == TS_DRAINAGE_BREACH &&
+        res->drainage.max_depth == -1 && res->drainage.bank_slope > 0) {
+        res->drainage.basin_block = res->drainage.radius >= 32 ? res->drainage.radius / 16 : 2;
+        res->drainage.basin_grade = 0.05 * res->drainage.bank_slope;
+    }
 }
 
 int tsjob_synth_setup(ts_ctx *ctx, const tsjob_synth *job, tsjob_synth_result *res, tsio_err *err)

@@ -95,7 +95,8 @@ def test_breach_drains_every_method(case, tmp_path):
     cell is raised and no cell is left in a pit (within 1 cm), save in a basin whose way out
     is farther than the radius; no flat is made; the banks soften the slots' creases.  Synth
     in one piece may raise the basins the breach keeps beside a drawn valley to plains: none
-    above the kept output's water surface by more than 3/4 of the banks' slope."""
+    above the kept output's water surface by more than 3/4 of the banks' slope; free synth in
+    one piece lifts its basins wider than the radius first."""
     args = CASES[case]
     run(*args, tmp_path / "keep.tif", "-q", "--drainage", "keep")
     run(*args, tmp_path / "slot.tif", "-q", "--drainage-banks", 0)
@@ -109,12 +110,21 @@ def test_breach_drains_every_method(case, tmp_path):
     assert (slot[ok] <= keep[ok]).all()  # never raised without banks (no automatic depth)
     up = breach[ok] > keep[ok]
     m = re.search(r"(\d+) dammed basins raised to plains \((\d+) cells", p.stdout)
-    if case in ("synth", "sketch", "sketch_valleys") and m:
+    lifted = re.search(r"basins wider than the radius lifted \((\d+) cells", p.stdout)
+    if case in ("sketch", "sketch_valleys") and m:
         water = filled(keep)[ok]
         assert up.sum() <= int(m.group(2))
         assert (breach[ok][up] <= water[up] + 0.75 * banks + 1e-3).all()
+    elif case == "synth" and lifted:
+        # free synthesis in one piece lifts the basins the breach leaves: no cell raised by
+        # more than the kept output's deepest depression and the grade (a twentieth of the
+        # banks' slope a block of 8 cells) along a way across the grid
+        assert up.sum() <= int(lifted.group(1)), p.stdout
+        h, w = keep.shape
+        deepest = float(np.nanmax(filled(keep) - keep))
+        assert (breach[ok] - keep[ok]).max() <= deepest + 0.05 * banks * (w + h) / 8 + 1e-3
     else:
-        assert not up.any()
+        assert not up.any() and not lifted
     before, after_slot, after = in_pits(keep), in_pits(slot), in_pits(breach)
     print(case, "in pits: %.4f -> %.4f (slots), %.4f (banks %g); flats %.4f -> %.4f; "
           "creases %.2f -> %.2f (slots), %.2f (banks); changed %.3f" % (
@@ -132,6 +142,32 @@ def test_breach_drains_every_method(case, tmp_path):
     assert flat_share(breach) <= flat_share(keep) + 0.002
     assert crease(breach) <= crease(slot) + 1e-6
     assert float((breach[ok] != keep[ok]).mean()) < 0.2
+
+
+def test_wide_basins_lifted(tmp_path):
+    """Free synthesis in one piece with the automatic depth lifts the basins wider than the
+    radius that the breach leaves, and breaches again: with a radius of 16 cells the breach
+    alone (--drainage-depth 0: any depth, no lift) leaves some; lifted and breached, none."""
+    args = ["synth", "--exemplar", JACKSBORO, "--size", "200x160", "--seed", 3,
+            "--drainage-radius", 16]
+    run(*args, tmp_path / "keep.tif", "-q", "--drainage", "keep")
+    run(*args, tmp_path / "alone.tif", "-q", "--drainage-depth", 0)
+    p = run(*args, tmp_path / "lifted.tif")
+    m = re.search(r"banks ([\d.e+]+) per cell.*basins wider than the radius lifted \((\d+) cells",
+                  p.stdout)
+    assert m, p.stdout
+    keep, alone, lifted = (read(tmp_path / n) for n in ("keep.tif", "alone.tif", "lifted.tif"))
+    print("in pits: kept %.4f, breached alone %.4f, lifted and breached %.4f" % (
+        in_pits(keep), in_pits(alone), in_pits(lifted)))
+    assert in_pits(alone) > 0.02 and in_pits(lifted) <= 0.001
+    # no more cells raised than the summary says, none by more than the kept output's deepest
+    # depression and the grade (a twentieth of the banks' slope a block of 2 cells) along a
+    # way across the grid
+    up = lifted > keep
+    assert 0 < up.sum() <= int(m.group(2))
+    h, w = keep.shape
+    bound = float(np.max(filled(keep) - keep)) + 0.05 * float(m.group(1)) * (w + h) / 2
+    assert float(np.max(lifted - keep)) <= bound + 1e-3
 
 
 def test_amplify_drains(tmp_path):

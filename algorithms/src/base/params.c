@@ -273,10 +273,11 @@ static const ts_param_desc drainage_desc[] = {
     {"drainage", TS_PARAM_ENUM, TS_DRAINAGE_BREACH, 0, 2, TS_UNIT_CELLS, "", "keep|breach|fill",
      "What becomes of the closed depressions the synthesis leaves (ours, after Lindsay 2016): "
      "keep them; breach them (a channel cut from each pit along the cheapest path to lower "
-     "land or the grid's edge, with banks falling to it where it cuts deep, never raising a "
-     "cell; by synth in one piece with the automatic depth, a basin too deep to cut beside a "
-     "drawn valley's floor is raised to a plain at its spill instead); or fill them to their "
-     "spill height (flat lakes). "
+     "land or the grid's edge, with banks falling to it where it cuts deep; by synth in one "
+     "piece with the automatic depth, free synthesis then lifts the basins wider than the "
+     "radius smoothly and breaches again, and a basin too deep to cut beside a drawn valley's "
+     "floor is raised to a plain at its spill instead); or fill them to their spill height "
+     "(flat lakes). "
      "Water and pinned windows never change; a channel crosses a drawn ridge only where the land "
      "inside has no other way out.",
      offsetof(ts_drainage_params, mode)},

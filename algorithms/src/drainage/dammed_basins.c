@@ -1,5 +1,7 @@
 /*
- * dammed_basins.c - the basins a breach leaves beside a drawn valley's floor
+ * dammed_basins.c - the basins a breach leaves wider than it reaches, lifted
+ * and breached again (ts_drainage_params.basin_block; see ts__lift_basins), and the basins a
+ * breach leaves beside a drawn valley's floor
  * raised to plains graded to their pour points (ours:
  * ts_drainage_params.floodplain_relief), on the whole grid.
  *
@@ -356,21 +358,41 @@ done:
     return rc;
 }
 
+/* The cells of dem that differ from z0 (its surface as given, row-major) and their mean
+ * absolute change, into info. */
+static void change_of(const ts_raster *dem, const float *z0, ts_drainage_info *info)
+{
+    size_t changed = 0, i;
+    double sum = 0.0;
+    int x, y;
+    for (y = 0; y < dem->height; y++)
+        for (x = 0; x < dem->width; x++) {
+            i = (size_t)y * (size_t)dem->width + (size_t)x;
+            if (TS_PIX(dem, x, y) != z0[i]) {
+                changed++;
+                sum += fabs((double)TS_PIX(dem, x, y) - (double)z0[i]);
+            }
+        }
+    info->cells_changed = changed;
+    info->mean_change = changed ? sum / (double)changed : 0.0;
+}
+
 /* The whole grid drained, then its dammed basins raised to plains (dammed_basins.c) and
  * drained again; info against the surface as given. */
 ts_status ts__drain_with_plains(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags,
                                 const ts_drainage_params *p, ts_drainage_info *info)
 {
-    int w = dem->width, h = dem->height, y, x;
-    size_t n = (size_t)w * (size_t)h, i, basins = 0, raised = 0, changed = 0;
+    int w = dem->width, h = dem->height, y;
+    size_t n = (size_t)w * (size_t)h, i, basins = 0, raised = 0;
     float *z0, *z;
     ts_drainage_info first;
-    double sum = 0.0;
+    ts_progress_saved sv;
     ts_status st;
     for (i = 0; i < n && !(flags[i] & TS_CELL_SHALLOW); i++)
         ;
     if (i == n) /* nothing dams a basin */
         return ts__drain_pass(ctx, dem, flags, 0, 0, w, h, p, info);
+    memset(&first, 0, sizeof first);
     z0 = malloc(n * sizeof *z0);
     z = malloc(n * sizeof *z);
     if (!z0 || !z) {
@@ -380,7 +402,9 @@ ts_status ts__drain_with_plains(ts_ctx *ctx, ts_raster *dem, const unsigned char
     }
     for (y = 0; y < h; y++)
         memcpy(z0 + (size_t)y * (size_t)w, &TS_PIX(dem, 0, y), (size_t)w * sizeof *z0);
+    sv = ts__progress_push(ctx, 0.0, 0.8); /* the second pass: the last 20 % */
     st = ts__drain_pass(ctx, dem, flags, 0, 0, w, h, p, &first);
+    ts__progress_pop(ctx, sv);
     for (y = 0; st == TS_OK && y < h; y++)
         memcpy(z + (size_t)y * (size_t)w, &TS_PIX(dem, 0, y), (size_t)w * sizeof *z);
     if (st == TS_OK &&
@@ -390,24 +414,262 @@ ts_status ts__drain_with_plains(ts_ctx *ctx, ts_raster *dem, const unsigned char
     if (st == TS_OK && basins) {
         for (y = 0; y < h; y++)
             memcpy(&TS_PIX(dem, 0, y), z + (size_t)y * (size_t)w, (size_t)w * sizeof *z);
+        sv = ts__progress_push(ctx, 0.8, 1.0);
         st = ts__drain_pass(ctx, dem, flags, 0, 0, w, h, p, NULL);
-    }
+        ts__progress_pop(ctx, sv);
+    } else if (st == TS_OK)
+        st = ts__progress(ctx, 1.0, "drainage");
     if (st == TS_OK && info) {
-        for (y = 0; y < h; y++)
-            for (x = 0; x < w; x++) {
-                i = (size_t)y * (size_t)w + (size_t)x;
-                if (TS_PIX(dem, x, y) != z0[i]) {
-                    changed++;
-                    sum += fabs((double)TS_PIX(dem, x, y) - (double)z0[i]);
-                }
-            }
         *info = first;
-        info->cells_changed = changed;
-        info->mean_change = changed ? sum / (double)changed : 0.0;
+        change_of(dem, z0, info);
         info->basins_raised = basins;
         info->cells_raised = raised;
     }
     free(z0);
     free(z);
+    return st;
+}
+
+/* ---- basins wider than a breach reaches, lifted (basin_block) ------ */
+
+/* The lowest cell of each f x f block of z into m (cw x ch; INFINITY for a block of nodata
+ * alone), and whether the block drains out (seed): on the grid's edge, or holding nodata or a
+ * fixed cell. */
+static void block_minima(const float *z, const unsigned char *flags, int w, int h, int f, int cw,
+                         int ch, float *m, unsigned char *seed)
+{
+    int x, y;
+    size_t c;
+    for (c = 0; c < (size_t)cw * (size_t)ch; c++) {
+        m[c] = INFINITY;
+        seed[c] = (int)(c % (size_t)cw) == 0 || (int)(c % (size_t)cw) == cw - 1 ||
+                  (int)(c / (size_t)cw) == 0 || (int)(c / (size_t)cw) == ch - 1;
+    }
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            size_t i = (size_t)y * (size_t)w + (size_t)x;
+            c = (size_t)(y / f) * (size_t)cw + (size_t)(x / f);
+            if (isnan(z[i]) || (flags && (flags[i] & (TS_CELL_NODATA | TS_CELL_FIXED))))
+                seed[c] = 1;
+            else if (z[i] < m[c])
+                m[c] = z[i];
+        }
+}
+
+/* The blocks' fill (lev, cw x ch) of their minima m: a priority flood from the seeds (a block
+ * of nodata alone at -INFINITY, so the blocks beside it keep their minima; every block holding
+ * nodata is a seed), each block reached from the lowest block beside it raised to grade above
+ * that one where it is not higher (Barnes et al. 2014's flood with an epsilon: a block in a
+ * basin then has a way out falling grade a block; land outside the basins keeps its minima).
+ * -1 out of memory. */
+static int blocks_fill(const float *m, const unsigned char *seed, int cw, int ch, double grade,
+                       float *lev)
+{
+    size_t nc = (size_t)cw * (size_t)ch, c;
+    unsigned char *done = calloc(nc, 1);
+    db_heap hp = {NULL, 0, 0};
+    int k, rc = -1;
+    if (!done)
+        return -1;
+    for (c = 0; c < nc; c++)
+        if (seed[c]) {
+            lev[c] = isinf(m[c]) ? -INFINITY : m[c];
+            done[c] = 1;
+            if (db_push(&hp, lev[c], (uint32_t)c) != 0)
+                goto out;
+        }
+    while (hp.n) {
+        db_item top = db_pop(&hp);
+        for (k = 0; k < 8; k++) {
+            ptrdiff_t j = nb_of(cw, ch, top.at, k);
+            if (j < 0 || done[j])
+                continue;
+            done[j] = 1;
+            lev[j] = m[j];
+            if (m[j] <= top.z) {
+                lev[j] = (float)((double)top.z + grade);
+                if (!(lev[j] > top.z) && grade > 0) /* grade below a float's step there */
+                    lev[j] = nextafterf(top.z, INFINITY);
+            }
+            if (db_push(&hp, lev[j], (uint32_t)j) != 0)
+                goto out;
+        }
+    }
+    rc = 0;
+out:
+    free(hp.v);
+    free(done);
+    return rc;
+}
+
+/* The blocks' depths d (cw x ch) at every cell of a w x h grid into r: bilinear between the
+ * blocks' centres ((i + 1/2) f - 1/2), clamped at the outer centres. */
+static void depth_bilinear(const float *d, int cw, int ch, int f, int w, int h, double *r)
+{
+    int x, y;
+    for (y = 0; y < h; y++) {
+        double v = ((double)y + 0.5) / (double)f - 0.5, b;
+        int j0, j1;
+        v = v < 0 ? 0 : v > ch - 1 ? ch - 1 : v;
+        j0 = (int)v;
+        j1 = j0 + 1 < ch ? j0 + 1 : j0;
+        b = v - j0;
+        for (x = 0; x < w; x++) {
+            double u = ((double)x + 0.5) / (double)f - 0.5, a;
+            int i0, i1;
+            u = u < 0 ? 0 : u > cw - 1 ? cw - 1 : u;
+            i0 = (int)u;
+            i1 = i0 + 1 < cw ? i0 + 1 : i0;
+            a = u - i0;
+            r[(size_t)y * (size_t)w + (size_t)x] =
+                (1 - b) * ((1 - a) * d[(size_t)j0 * (size_t)cw + (size_t)i0] +
+                           a * d[(size_t)j0 * (size_t)cw + (size_t)i1]) +
+                b * ((1 - a) * d[(size_t)j1 * (size_t)cw + (size_t)i0] +
+                     a * d[(size_t)j1 * (size_t)cw + (size_t)i1]);
+        }
+    }
+}
+
+/* The mean of v[k - rad..k + rad] (those within v[0..n)) for every k, into out (a running
+ * sum). */
+static void box_mean_line(const double *v, int n, int rad, double *out)
+{
+    double sum = 0.0;
+    int k;
+    for (k = 0; k < rad && k < n; k++)
+        sum += v[k];
+    for (k = 0; k < n; k++) {
+        int lo = k - rad, hi = k + rad;
+        if (hi < n)
+            sum += v[hi];
+        out[k] = sum / (double)((hi < n ? hi : n - 1) - (lo > 0 ? lo : 0) + 1);
+        if (lo >= 0)
+            sum -= v[lo];
+    }
+}
+
+/* r (w x h) smoothed by a box of 2 rad + 1 cells along the rows, then the columns (the
+ * bilinear field's creases at the blocks' centres rounded off).  -1 out of memory. */
+static int box_smooth(double *r, int w, int h, int rad)
+{
+    int n = w > h ? w : h, x, y;
+    double *line = malloc((size_t)n * sizeof *line), *col = malloc((size_t)n * sizeof *col);
+    if (!line || !col) {
+        free(line);
+        free(col);
+        return -1;
+    }
+    for (y = 0; y < h; y++) {
+        box_mean_line(r + (size_t)y * (size_t)w, w, rad, line);
+        memcpy(r + (size_t)y * (size_t)w, line, (size_t)w * sizeof *line);
+    }
+    for (x = 0; x < w; x++) {
+        for (y = 0; y < h; y++)
+            col[y] = r[(size_t)y * (size_t)w + (size_t)x];
+        box_mean_line(col, h, rad, line);
+        for (y = 0; y < h; y++)
+            r[(size_t)y * (size_t)w + (size_t)x] = line[y];
+    }
+    free(line);
+    free(col);
+    return 0;
+}
+
+int ts__lift_basins(float *z, const unsigned char *flags, int w, int h, int f, double grade,
+                    unsigned char *lifted)
+{
+    int cw = (w + f - 1) / f, ch = (h + f - 1) / f;
+    size_t nc = (size_t)cw * (size_t)ch, n = (size_t)w * (size_t)h, c, i;
+    float *m = malloc(nc * sizeof *m), *lev = malloc(nc * sizeof *lev);
+    unsigned char *seed = malloc(nc);
+    double *r = malloc(n * sizeof *r);
+    int rc = -1;
+    if (!m || !lev || !seed || !r)
+        goto out;
+    block_minima(z, flags, w, h, f, cw, ch, m, seed);
+    if (blocks_fill(m, seed, cw, ch, grade, lev) != 0)
+        goto out;
+    for (c = 0; c < nc; c++) /* the fill's depth at each block's centre */
+        lev[c] = isinf(m[c]) ? 0.0f : lev[c] - m[c];
+    depth_bilinear(lev, cw, ch, f, w, h, r);
+    if (box_smooth(r, w, h, f / 2) != 0)
+        goto out;
+    for (i = 0; i < n; i++) {
+        if (isnan(z[i]) || (flags && (flags[i] & (TS_CELL_NODATA | TS_CELL_FIXED))))
+            continue;
+        if (r[i] > 0 && (float)((double)z[i] + r[i]) > z[i]) {
+            z[i] = (float)((double)z[i] + r[i]);
+            if (lifted)
+                lifted[i] = 1;
+        }
+    }
+    rc = 0;
+out:
+    free(m);
+    free(lev);
+    free(seed);
+    free(r);
+    return rc;
+}
+
+ts_status ts__drain_lifted(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags,
+                           const ts_drainage_params *p, ts_drainage_info *info)
+{
+    int w = dem->width, h = dem->height, y, round;
+    size_t n = (size_t)w * (size_t)h, i, left = 0;
+    float *z0 = malloc(n * sizeof *z0), *z = malloc(n * sizeof *z);
+    unsigned char *up = calloc(n, 1);
+    ts_drainage_params q = *p;
+    ts_drainage_info first, d;
+    ts_progress_saved sv;
+    ts_status st = TS_OK;
+    if (!z0 || !z || !up) {
+        free(z0);
+        free(z);
+        free(up);
+        return ts__fail(ctx, TS_ERR_NOMEM, "drainage", "out of memory for %d x %d cells", w, h);
+    }
+    for (y = 0; y < h; y++)
+        memcpy(z0 + (size_t)y * (size_t)w, &TS_PIX(dem, 0, y), (size_t)w * sizeof *z0);
+    q.basin_block = 0;
+    memset(&first, 0, sizeof first);
+    /* drained, then the basins the breach leaves lifted and drained again, twice: the first
+     * breach takes every basin within its reach, the lifts only what it leaves (and the
+     * second what the first lift's smoothing leaves); on land that drains a lift changes
+     * only flats */
+    for (round = 0; st == TS_OK && round < 3; round++) {
+        if (round > 0) {
+            for (y = 0; y < h; y++)
+                memcpy(z + (size_t)y * (size_t)w, &TS_PIX(dem, 0, y), (size_t)w * sizeof *z);
+            if (ts__lift_basins(z, flags, w, h, p->basin_block, p->basin_grade, up) != 0) {
+                st = ts__fail(ctx, TS_ERR_NOMEM, "drainage",
+                              "out of memory for the basins of %d x %d cells", w, h);
+                break;
+            }
+            for (y = 0; y < h; y++)
+                memcpy(&TS_PIX(dem, 0, y), z + (size_t)y * (size_t)w, (size_t)w * sizeof *z);
+        }
+        memset(&d, 0, sizeof d);
+        /* the first pass, most of the work, the first 80 % of the stage's progress */
+        sv = ts__progress_push(ctx, round == 0 ? 0.0 : 0.7 + 0.1 * round,
+                               round == 0 ? 0.8 : 0.8 + 0.1 * round);
+        st = round == 0 && q.floodplain_relief > 0 && flags
+                 ? ts__drain_with_plains(ctx, dem, flags, &q, &d)
+                 : ts__drain_pass(ctx, dem, flags, 0, 0, w, h, &q, &d);
+        ts__progress_pop(ctx, sv);
+        if (round == 0)
+            first = d;
+        left = d.pits - d.resolved;
+    }
+    if (st == TS_OK && info) {
+        *info = first;
+        info->resolved = first.pits > left ? first.pits - left : 0;
+        change_of(dem, z0, info);
+        for (i = 0; i < n; i++)
+            info->cells_lifted += up[i];
+    }
+    free(z0);
+    free(z);
+    free(up);
     return st;
 }

@@ -916,6 +916,15 @@ TS_API ts_status ts_drainage_apply(ts_ctx *ctx, ts_raster *dem, const unsigned c
         return ts__fail(ctx, TS_ERR_ARG, "drainage", "the window is off the grid");
     if (p->mode == TS_DRAINAGE_KEEP)
         return TS_OK;
+    if (p->mode == TS_DRAINAGE_BREACH && p->basin_block > 0) {
+        if (gx0 != 0 || gy0 != 0 || gw != dem->width || gh != dem->height)
+            return ts__fail(ctx, TS_ERR_ARG, "drainage",
+                            "basins are lifted on the whole grid only, not a window");
+        if (!(p->basin_grade >= 0))
+            return ts__fail(ctx, TS_ERR_ARG, "drainage", "basin grade %g is below 0",
+                            p->basin_grade);
+        return ts__drain_lifted(ctx, dem, flags, p, info);
+    }
     if (p->mode == TS_DRAINAGE_BREACH && p->floodplain_relief > 0 && flags) {
         if (gx0 != 0 || gy0 != 0 || gw != dem->width || gh != dem->height)
             return ts__fail(ctx, TS_ERR_ARG, "drainage",
