@@ -54,8 +54,10 @@ typedef struct ts_drainage_params {
                            lifted and the grid breached again, twice: the grid's lowest cells over
                            blocks of basin_block cells a side are filled by a priority flood graded
                            basin_grade a block towards the way out, and every cell not fixed is
-                           raised by that fill's depth taken bilinearly from the blocks' centres and
-                           smoothed over a block (the land's shape below a block's scale kept) */
+                           raised by that fill's depth (the first time less half the deepest cut,
+                           which the breach then cuts through the rim) taken bilinearly from the
+                           blocks' centres and smoothed over a block (the land's shape below a
+                           block's scale kept) */
     double basin_grade; /* with basin_block: the fill's rise a block, in height units */
 } ts_drainage_params;
 

@@ -576,7 +576,7 @@ static int box_smooth(double *r, int w, int h, int rad)
 }
 
 int ts__lift_basins(float *z, const unsigned char *flags, int w, int h, int f, double grade,
-                    unsigned char *lifted)
+                    double keep, unsigned char *lifted)
 {
     int cw = (w + f - 1) / f, ch = (h + f - 1) / f;
     size_t nc = (size_t)cw * (size_t)ch, n = (size_t)w * (size_t)h, c, i;
@@ -589,8 +589,10 @@ int ts__lift_basins(float *z, const unsigned char *flags, int w, int h, int f, d
     block_minima(z, flags, w, h, f, cw, ch, m, seed);
     if (blocks_fill(m, seed, cw, ch, grade, lev) != 0)
         goto out;
-    for (c = 0; c < nc; c++) /* the fill's depth at each block's centre */
-        lev[c] = isinf(m[c]) ? 0.0f : lev[c] - m[c];
+    for (c = 0; c < nc; c++) /* the fill's depth at each block's centre, less keep */
+        lev[c] = isinf(m[c]) || !((double)lev[c] - (double)m[c] > keep)
+                     ? 0.0f
+                     : (float)((double)lev[c] - (double)m[c] - keep);
     depth_bilinear(lev, cw, ch, f, w, h, r);
     if (box_smooth(r, w, h, f / 2) != 0)
         goto out;
@@ -634,14 +636,16 @@ ts_status ts__drain_lifted(ts_ctx *ctx, ts_raster *dem, const unsigned char *fla
     q.basin_block = 0;
     memset(&first, 0, sizeof first);
     /* drained, then the basins the breach leaves lifted and drained again, twice: the first
-     * breach takes every basin within its reach, the lifts only what it leaves (and the
-     * second what the first lift's smoothing leaves); on land that drains a lift changes
-     * only flats */
+     * breach takes every basin within its reach, the lifts only what it leaves; the first lift
+     * stops half the deepest cut below the fill (the breach cuts that through the rim near
+     * the way out: the basin keeps that much of its relief), the second lifts whatever the
+     * breach still leaves to the fill; on land that drains a lift changes only flats */
     for (round = 0; st == TS_OK && round < 3; round++) {
         if (round > 0) {
             for (y = 0; y < h; y++)
                 memcpy(z + (size_t)y * (size_t)w, &TS_PIX(dem, 0, y), (size_t)w * sizeof *z);
-            if (ts__lift_basins(z, flags, w, h, p->basin_block, p->basin_grade, up) != 0) {
+            if (ts__lift_basins(z, flags, w, h, p->basin_block, p->basin_grade,
+                                round == 1 ? 0.5 * ts_drainage_depth_of(&q) : 0.0, up) != 0) {
                 st = ts__fail(ctx, TS_ERR_NOMEM, "drainage",
                               "out of memory for the basins of %d x %d cells", w, h);
                 break;

@@ -34,9 +34,10 @@ static void bowl_surface(float *z, int w, int h, double radius, double depth, ui
 }
 
 /* The oracle's lift of z (no nodata; the cells flagged fixed kept, their blocks draining
- * out, a block of fixed cells alone at no height) with blocks of f and the grade: into out. */
+ * out, a block of fixed cells alone at no height) with blocks of f and the grade, keep of
+ * each block's depth left: into out. */
 static void oracle_lift(const float *z, const unsigned char *fl, int w, int h, int f, double grade,
-                        double *out)
+                        double keep, double *out)
 {
     int cw = (w + f - 1) / f, ch = (h + f - 1) / f, x, y, i, j, d, changed;
     double *m = malloc((size_t)cw * ch * sizeof *m), *lev = malloc((size_t)cw * ch * sizeof *lev);
@@ -88,8 +89,9 @@ static void oracle_lift(const float *z, const unsigned char *fl, int w, int h, i
                 for (i = 0; i < cw; i++) {
                     double wt = (fabs(u - i) < 1 ? 1 - fabs(u - i) : 0) *
                                 (fabs(v - j) < 1 ? 1 - fabs(v - j) : 0);
-                    if (wt > 0 && m[(size_t)j * cw + i] < INFINITY)
-                        r += wt * (lev[(size_t)j * cw + i] - m[(size_t)j * cw + i]);
+                    if (wt > 0 && m[(size_t)j * cw + i] < INFINITY &&
+                        lev[(size_t)j * cw + i] - m[(size_t)j * cw + i] > keep)
+                        r += wt * (lev[(size_t)j * cw + i] - m[(size_t)j * cw + i] - keep);
                 }
             bil[(size_t)y * w + x] = r;
         }
@@ -122,7 +124,8 @@ static void oracle_lift(const float *z, const unsigned char *fl, int w, int h, i
     free(out_blk);
 }
 
-/* The lift against the oracle, with a fixed patch (a lake) inside the bowl and without. */
+/* The lift against the oracle: the bowl alone, with a fixed patch (a lake) inside it, and with
+ * the lake and part of each block's depth kept. */
 static void test_lift_against_oracle(void)
 {
     const int w = 150, h = 131, f = 6;
@@ -133,17 +136,18 @@ static void test_lift_against_oracle(void)
     unsigned char *fl = calloc(n, 1);
     int pass;
     bowl_surface(z0, w, h, 50, 40, 3);
-    for (pass = 0; pass < 2; pass++) {
-        if (pass) /* a lake at the bowl's bottom: its blocks drain, the land round it kept */
+    for (pass = 0; pass < 3; pass++) {
+        double keep = pass == 2 ? 7.5 : 0.0; /* the third: 7.5 of each block's depth kept */
+        if (pass == 1) /* a lake at the bowl's bottom: its blocks drain, the land round it kept */
             for (i = 0; i < n; i++)
                 if (hypot((double)(i % w) - 0.45 * w, (double)(i / w) - 0.55 * h) < 8)
                     fl[i] = TS_CELL_FIXED | TS_CELL_WATER;
         memcpy(z, z0, n * sizeof *z);
         memset(up, 0, n);
-        CHECK(ts__lift_basins(z, fl, w, h, f, 0.5, up) == 0);
+        CHECK(ts__lift_basins(z, fl, w, h, f, 0.5, keep, up) == 0);
         for (lifted = 0, i = 0; i < n; i++)
             lifted += up[i] && z[i] > z0[i];
-        oracle_lift(z0, fl, w, h, f, 0.5, want);
+        oracle_lift(z0, fl, w, h, f, 0.5, keep, want);
         worst = 0;
         for (i = 0; i < n; i++) {
             CHECK(z[i] >= z0[i]);
@@ -163,7 +167,7 @@ static void test_lift_against_oracle(void)
     for (i = 0; i < n; i++)
         z[i] = z0[i] = (float)(3.0 * (double)(i % w) + 2.0 * (double)(i / w));
     memset(up, 0, n);
-    CHECK(ts__lift_basins(z, NULL, w, h, f, 0.5, up) == 0);
+    CHECK(ts__lift_basins(z, NULL, w, h, f, 0.5, 0.0, up) == 0);
     for (lifted = 0, i = 0; i < n; i++)
         lifted += up[i];
     CHECK_MSG(lifted == 0 && memcmp(z, z0, n * sizeof *z) == 0, "%zu cells lifted on a slope",
