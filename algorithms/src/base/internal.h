@@ -233,14 +233,15 @@ ts_status ts__drain_pass(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags
                          ts_drainage_info *info);
 ts_status ts__drain_with_plains(ts_ctx *ctx, ts_raster *dem, const unsigned char *flags,
                                 const ts_drainage_params *p, ts_drainage_info *info);
-/* z (w x h, NaN nodata) with its basins lifted (ts_drainage_params.basin_block, dammed_basins.c):
- * the minima over f x f blocks filled by a priority flood graded `grade` a block (the blocks on
- * the grid's edge or holding nodata or a fixed cell drain out), the fill's depth less `keep` at
- * the blocks' centres taken bilinearly, smoothed by a box of f / 2 cells each side along rows
- * then columns, and added to every cell neither nodata nor fixed.  Never lowers a cell.  The
- * cells raised set to 1 in `lifted` (w x h, or NULL).  0, -1 out of memory.  (drainage) */
-int ts__lift_basins(float *z, const unsigned char *flags, int w, int h, int f, double grade,
-                    double keep, unsigned char *lifted);
+/* z (NaN nodata; flags row-major, width x height) with its basins lifted
+ * (ts_drainage_params.basin_block, dammed_basins.c): the minima over f x f blocks filled by a
+ * priority flood graded `grade` a block (the blocks on the grid's edge or holding nodata or a fixed
+ * cell drain out), the fill's depth less `keep` at the blocks' centres taken bilinearly, smoothed
+ * by a box of f / 2 cells each side along rows then columns, and added to every cell neither nodata
+ * nor fixed.  Never lowers a cell.  The cells raised set to 1 in `lifted` (width x height, or
+ * NULL).  0, -1 out of memory. (drainage) */
+int ts__lift_basins(ts_raster *z, const unsigned char *flags, int f, double grade, double keep,
+                    unsigned char *lifted);
 /* ts_drainage_apply on the whole grid with basin_block: drained as without (with plains as
  * ts__drain_with_plains), then twice the basins left lifted and the grid drained again; info
  * against the surface as given.  (drainage) */

@@ -435,9 +435,10 @@ ts_status ts__drain_with_plains(ts_ctx *ctx, ts_raster *dem, const unsigned char
 /* The lowest cell of each f x f block of z into m (cw x ch; INFINITY for a block of nodata
  * alone), and whether the block drains out (seed): on the grid's edge, or holding nodata or a
  * fixed cell. */
-static void block_minima(const float *z, const unsigned char *flags, int w, int h, int f, int cw,
-                         int ch, float *m, unsigned char *seed)
+static void block_minima(const ts_raster *z, const unsigned char *flags, int f, int cw, int ch,
+                         float *m, unsigned char *seed)
 {
+    int w = z->width, h = z->height;
     int x, y;
     size_t c;
     for (c = 0; c < (size_t)cw * (size_t)ch; c++) {
@@ -448,11 +449,12 @@ static void block_minima(const float *z, const unsigned char *flags, int w, int 
     for (y = 0; y < h; y++)
         for (x = 0; x < w; x++) {
             size_t i = (size_t)y * (size_t)w + (size_t)x;
+            float v = TS_PIX(z, x, y);
             c = (size_t)(y / f) * (size_t)cw + (size_t)(x / f);
-            if (isnan(z[i]) || (flags && (flags[i] & (TS_CELL_NODATA | TS_CELL_FIXED))))
+            if (isnan(v) || (flags && (flags[i] & (TS_CELL_NODATA | TS_CELL_FIXED))))
                 seed[c] = 1;
-            else if (z[i] < m[c])
-                m[c] = z[i];
+            else if (v < m[c])
+                m[c] = v;
         }
 }
 
@@ -502,30 +504,29 @@ out:
     return rc;
 }
 
-/* The blocks' depths d (cw x ch) at every cell of a w x h grid into r: bilinear between the
- * blocks' centres ((i + 1/2) f - 1/2), clamped at the outer centres. */
+/* Cell t's centre among n blocks' centres ((i + 1/2) f - 1/2), clamped at the outer ones: the
+ * two blocks it lies between and its weight on the second. */
+static double centre_between(int t, int f, int n, int *i0, int *i1)
+{
+    double u = ((double)t + 0.5) / (double)f - 0.5;
+    u = u < 0 ? 0 : u > n - 1 ? n - 1 : u;
+    *i0 = (int)u;
+    *i1 = *i0 + 1 < n ? *i0 + 1 : *i0;
+    return u - *i0;
+}
+
+/* The blocks' depths d (cw x ch) at every cell of a w x h grid into r, bilinear between the
+ * blocks' centres. */
 static void depth_bilinear(const float *d, int cw, int ch, int f, int w, int h, double *r)
 {
-    int x, y;
+    int x, y, i0, i1, j0, j1;
     for (y = 0; y < h; y++) {
-        double v = ((double)y + 0.5) / (double)f - 0.5, b;
-        int j0, j1;
-        v = v < 0 ? 0 : v > ch - 1 ? ch - 1 : v;
-        j0 = (int)v;
-        j1 = j0 + 1 < ch ? j0 + 1 : j0;
-        b = v - j0;
+        double b = centre_between(y, f, ch, &j0, &j1);
+        const float *d0 = d + (size_t)j0 * (size_t)cw, *d1 = d + (size_t)j1 * (size_t)cw;
         for (x = 0; x < w; x++) {
-            double u = ((double)x + 0.5) / (double)f - 0.5, a;
-            int i0, i1;
-            u = u < 0 ? 0 : u > cw - 1 ? cw - 1 : u;
-            i0 = (int)u;
-            i1 = i0 + 1 < cw ? i0 + 1 : i0;
-            a = u - i0;
+            double a = centre_between(x, f, cw, &i0, &i1);
             r[(size_t)y * (size_t)w + (size_t)x] =
-                (1 - b) * ((1 - a) * d[(size_t)j0 * (size_t)cw + (size_t)i0] +
-                           a * d[(size_t)j0 * (size_t)cw + (size_t)i1]) +
-                b * ((1 - a) * d[(size_t)j1 * (size_t)cw + (size_t)i0] +
-                     a * d[(size_t)j1 * (size_t)cw + (size_t)i1]);
+                (1 - b) * ((1 - a) * d0[i0] + a * d0[i1]) + b * ((1 - a) * d1[i0] + a * d1[i1]);
         }
     }
 }
@@ -575,18 +576,18 @@ static int box_smooth(double *r, int w, int h, int rad)
     return 0;
 }
 
-int ts__lift_basins(float *z, const unsigned char *flags, int w, int h, int f, double grade,
-                    double keep, unsigned char *lifted)
+int ts__lift_basins(ts_raster *z, const unsigned char *flags, int f, double grade, double keep,
+                    unsigned char *lifted)
 {
-    int cw = (w + f - 1) / f, ch = (h + f - 1) / f;
-    size_t nc = (size_t)cw * (size_t)ch, n = (size_t)w * (size_t)h, c, i;
+    int w = z->width, h = z->height, cw = (w + f - 1) / f, ch = (h + f - 1) / f, x, y;
+    size_t nc = (size_t)cw * (size_t)ch, n = (size_t)w * (size_t)h, c;
     float *m = malloc(nc * sizeof *m), *lev = malloc(nc * sizeof *lev);
     unsigned char *seed = malloc(nc);
     double *r = malloc(n * sizeof *r);
     int rc = -1;
     if (!m || !lev || !seed || !r)
         goto out;
-    block_minima(z, flags, w, h, f, cw, ch, m, seed);
+    block_minima(z, flags, f, cw, ch, m, seed);
     if (blocks_fill(m, seed, cw, ch, grade, lev) != 0)
         goto out;
     for (c = 0; c < nc; c++) /* the fill's depth at each block's centre, less keep */
@@ -596,15 +597,18 @@ int ts__lift_basins(float *z, const unsigned char *flags, int w, int h, int f, d
     depth_bilinear(lev, cw, ch, f, w, h, r);
     if (box_smooth(r, w, h, f / 2) != 0)
         goto out;
-    for (i = 0; i < n; i++) {
-        if (isnan(z[i]) || (flags && (flags[i] & (TS_CELL_NODATA | TS_CELL_FIXED))))
-            continue;
-        if (r[i] > 0 && (float)((double)z[i] + r[i]) > z[i]) {
-            z[i] = (float)((double)z[i] + r[i]);
-            if (lifted)
-                lifted[i] = 1;
+    for (y = 0; y < h; y++)
+        for (x = 0; x < w; x++) {
+            size_t i = (size_t)y * (size_t)w + (size_t)x;
+            float *v = &TS_PIX(z, x, y);
+            if (isnan(*v) || (flags && (flags[i] & (TS_CELL_NODATA | TS_CELL_FIXED))))
+                continue;
+            if (r[i] > 0 && (float)((double)*v + r[i]) > *v) {
+                *v = (float)((double)*v + r[i]);
+                if (lifted)
+                    lifted[i] = 1;
+            }
         }
-    }
     rc = 0;
 out:
     free(m);
@@ -619,15 +623,14 @@ ts_status ts__drain_lifted(ts_ctx *ctx, ts_raster *dem, const unsigned char *fla
 {
     int w = dem->width, h = dem->height, y, round;
     size_t n = (size_t)w * (size_t)h, i, left = 0;
-    float *z0 = malloc(n * sizeof *z0), *z = malloc(n * sizeof *z);
+    float *z0 = malloc(n * sizeof *z0);
     unsigned char *up = calloc(n, 1);
     ts_drainage_params q = *p;
     ts_drainage_info first, d;
     ts_progress_saved sv;
     ts_status st = TS_OK;
-    if (!z0 || !z || !up) {
+    if (!z0 || !up) {
         free(z0);
-        free(z);
         free(up);
         return ts__fail(ctx, TS_ERR_NOMEM, "drainage", "out of memory for %d x %d cells", w, h);
     }
@@ -641,17 +644,12 @@ ts_status ts__drain_lifted(ts_ctx *ctx, ts_raster *dem, const unsigned char *fla
      * the way out: the basin keeps that much of its relief), the second lifts whatever the
      * breach still leaves to the fill; on land that drains a lift changes only flats */
     for (round = 0; st == TS_OK && round < 3; round++) {
-        if (round > 0) {
-            for (y = 0; y < h; y++)
-                memcpy(z + (size_t)y * (size_t)w, &TS_PIX(dem, 0, y), (size_t)w * sizeof *z);
-            if (ts__lift_basins(z, flags, w, h, p->basin_block, p->basin_grade,
-                                round == 1 ? 0.5 * ts_drainage_depth_of(&q) : 0.0, up) != 0) {
-                st = ts__fail(ctx, TS_ERR_NOMEM, "drainage",
-                              "out of memory for the basins of %d x %d cells", w, h);
-                break;
-            }
-            for (y = 0; y < h; y++)
-                memcpy(&TS_PIX(dem, 0, y), z + (size_t)y * (size_t)w, (size_t)w * sizeof *z);
+        if (round > 0 &&
+            ts__lift_basins(dem, flags, p->basin_block, p->basin_grade,
+                            round == 1 ? 0.5 * ts_drainage_depth_of(&q) : 0.0, up) != 0) {
+            st = ts__fail(ctx, TS_ERR_NOMEM, "drainage",
+                          "out of memory for the basins of %d x %d cells", w, h);
+            break;
         }
         memset(&d, 0, sizeof d);
         /* the first pass, most of the work, the first 80 % of the stage's progress */
@@ -673,7 +671,6 @@ ts_status ts__drain_lifted(ts_ctx *ctx, ts_raster *dem, const unsigned char *fla
             info->cells_lifted += up[i];
     }
     free(z0);
-    free(z);
     free(up);
     return st;
 }

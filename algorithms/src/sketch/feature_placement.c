@@ -626,7 +626,7 @@ static void sk_pre_range(void *arg, size_t b, size_t e)
     const ts_feature_site *s = j->s;
     size_t i;
     for (i = b; i < e; i++) {
-        candidate *c = &j->k->pool[i];
+        candidate *c = &k->pool[i];
         sk_view v = {&k->ex[k->es[c->idx].ex], &c->inv, j->wx, j->wy};
         double want = 0.0, cf, cs, cp;
         if (ts__tps_folds(&c->inv, s->cx - j->wx + 0.5, s->cy - j->wy + 0.5, 0.5 * k->P + 1.0, 13,
@@ -652,6 +652,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
     int wx = (int)lround(s->cx) - P / 2, wy = (int)lround(s->cy) - P / 2, x, y;
     int n_c = 0, n_pool = 0, kmax = k->p->s.candidates, i, best = -1;
     double best_cost = INFINITY;
+    eval_job ej; /* the candidates' rounds on the pool: the site and its window's corner */
     ts_status st;
     *placed = 0;
     k->kind = s->kind; /* the feature the site stands on: its crest or thalweg */
@@ -689,14 +690,11 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
      * the k that are warped and cut; a warp that folds anywhere over the
      * window with its ring, or squeezes or stretches areas more than 2.5
      * times, is never used */
-    {
-        eval_job j;
-        j.k = k;
-        j.s = s;
-        j.wx = wx;
-        j.wy = wy;
-        ts__parallel_for(ctx, (size_t)n_pool, sk_pre_range, &j);
-    }
+    ej.k = k;
+    ej.s = s;
+    ej.wx = wx;
+    ej.wy = wy;
+    ts__parallel_for(ctx, (size_t)n_pool, sk_pre_range, &ej);
     qsort(k->pool, (size_t)n_pool, sizeof *k->pool, sk_pre_cmp);
     while (n_pool > 0 && !isfinite(k->pool[n_pool - 1].pre))
         n_pool--;
@@ -733,12 +731,7 @@ static ts_status sk_place_site(sketcher *k, const ts_feature_site *s, int index,
     ts__chamfer_chebyshev(k->fixnear, P);
     /* round (c): warps and graph cuts, in parallel */
     {
-        eval_job j;
-        j.k = k;
-        j.s = s;
-        j.wx = wx;
-        j.wy = wy;
-        ts__parallel_for(ctx, (size_t)n_c, sk_eval_range, &j);
+        ts__parallel_for(ctx, (size_t)n_c, sk_eval_range, &ej);
         if (ts__check_cancel(ctx) != TS_OK)
             return ctx->status;
         for (i = 0; i < n_c; i++) {

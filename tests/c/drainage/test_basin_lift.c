@@ -134,6 +134,7 @@ static void test_lift_against_oracle(void)
     float *z = malloc(n * sizeof *z), *z0 = malloc(n * sizeof *z0);
     double *want = malloc(n * sizeof *want), worst;
     unsigned char *fl = calloc(n, 1);
+    ts_raster r = ts_raster_wrap(z, w, h, w);
     int pass;
     bowl_surface(z0, w, h, 50, 40, 3);
     for (pass = 0; pass < 3; pass++) {
@@ -144,7 +145,7 @@ static void test_lift_against_oracle(void)
                     fl[i] = TS_CELL_FIXED | TS_CELL_WATER;
         memcpy(z, z0, n * sizeof *z);
         memset(up, 0, n);
-        CHECK(ts__lift_basins(z, fl, w, h, f, 0.5, keep, up) == 0);
+        CHECK(ts__lift_basins(&r, fl, f, 0.5, keep, up) == 0);
         for (lifted = 0, i = 0; i < n; i++)
             lifted += up[i] && z[i] > z0[i];
         oracle_lift(z0, fl, w, h, f, 0.5, keep, want);
@@ -167,7 +168,7 @@ static void test_lift_against_oracle(void)
     for (i = 0; i < n; i++)
         z[i] = z0[i] = (float)(3.0 * (double)(i % w) + 2.0 * (double)(i / w));
     memset(up, 0, n);
-    CHECK(ts__lift_basins(z, NULL, w, h, f, 0.5, 0.0, up) == 0);
+    CHECK(ts__lift_basins(&r, NULL, f, 0.5, 0.0, up) == 0);
     for (lifted = 0, i = 0; i < n; i++)
         lifted += up[i];
     CHECK_MSG(lifted == 0 && memcmp(z, z0, n * sizeof *z) == 0, "%zu cells lifted on a slope",
